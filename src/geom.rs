@@ -1,0 +1,118 @@
+//! Geometry shared by the hand, the object, trajectories and recordings.
+//!
+//! Conventions (DESIGN §2): metres, radians; z up; quaternions stored x, y, z, w (glam's order).
+
+use glam::{Quat, Vec3};
+use serde::{Deserialize, Serialize};
+
+/// A rigid pose: position (m) and orientation (unit quaternion, x y z w).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Pose {
+    pub pos: Vec3,
+    pub rot: Quat,
+}
+
+impl Default for Pose {
+    fn default() -> Self {
+        Self::IDENTITY
+    }
+}
+
+impl Pose {
+    pub const IDENTITY: Pose = Pose { pos: Vec3::ZERO, rot: Quat::IDENTITY };
+
+    pub fn new(pos: Vec3, rot: Quat) -> Self {
+        Self { pos, rot }
+    }
+
+    /// `self ∘ other`: `other` expressed in `self`'s frame, mapped to the parent frame.
+    pub fn mul(&self, other: &Pose) -> Pose {
+        Pose { pos: self.pos + self.rot * other.pos, rot: (self.rot * other.rot).normalize() }
+    }
+
+    /// Maps a point from this frame to the parent frame.
+    pub fn transform_point(&self, p: Vec3) -> Vec3 {
+        self.pos + self.rot * p
+    }
+
+    pub fn inverse(&self) -> Pose {
+        let r = self.rot.inverse();
+        Pose { pos: -(r * self.pos), rot: r }
+    }
+}
+
+/// Shape of the manipulated object. Sizes are the unscaled ones; the per-env object scale multiplies
+/// every length. Capsule and cylinder axes are the object's local z.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ObjectShape {
+    /// A sphere of `radius` (m).
+    Sphere { radius: f32 },
+    /// A box with half extents `half_extents` (m) along its local x, y, z.
+    Box { half_extents: [f32; 3] },
+    /// A capsule: a segment of half length `half_length` along local z swept by `radius`.
+    Capsule { radius: f32, half_length: f32 },
+    /// A solid cylinder of `radius`, `half_length` along local z.
+    Cylinder { radius: f32, half_length: f32 },
+}
+
+impl ObjectShape {
+    /// Integer code used in the GPU/CPU layouts (keep in sync with shaders/common.wgsl `SHAPE_*`).
+    pub fn code(&self) -> u32 {
+        match self {
+            ObjectShape::Sphere { .. } => 0,
+            ObjectShape::Box { .. } => 1,
+            ObjectShape::Capsule { .. } => 2,
+            ObjectShape::Cylinder { .. } => 3,
+        }
+    }
+
+    /// The size parameters packed as (a, b, c): sphere (r, 0, 0); box (hx, hy, hz);
+    /// capsule/cylinder (r, half_length, 0).
+    pub fn size_params(&self) -> [f32; 3] {
+        match *self {
+            ObjectShape::Sphere { radius } => [radius, 0.0, 0.0],
+            ObjectShape::Box { half_extents } => half_extents,
+            ObjectShape::Capsule { radius, half_length } | ObjectShape::Cylinder { radius, half_length } => {
+                [radius, half_length, 0.0]
+            }
+        }
+    }
+
+    /// Height of the shape's centre above the table when it rests upright (local z up).
+    pub fn rest_height(&self) -> f32 {
+        match *self {
+            ObjectShape::Sphere { radius } => radius,
+            ObjectShape::Box { half_extents } => half_extents[2],
+            ObjectShape::Capsule { radius, half_length } => radius + half_length,
+            ObjectShape::Cylinder { half_length, .. } => half_length,
+        }
+    }
+
+    /// Principal moments of inertia (kg·m²) of the solid of mass `mass`, about its centre.
+    pub fn inertia_diag(&self, mass: f32) -> Vec3 {
+        match *self {
+            ObjectShape::Sphere { radius } => Vec3::splat(0.4 * mass * radius * radius),
+            ObjectShape::Box { half_extents: [x, y, z] } => {
+                // I_xx = m (b² + c²)/3 with half extents
+                Vec3::new(mass * (y * y + z * z) / 3.0, mass * (x * x + z * z) / 3.0, mass * (x * x + y * y) / 3.0)
+            }
+            ObjectShape::Cylinder { radius: r, half_length: h } => {
+                let l = 2.0 * h;
+                let ixx = mass * (3.0 * r * r + l * l) / 12.0;
+                Vec3::new(ixx, ixx, 0.5 * mass * r * r)
+            }
+            ObjectShape::Capsule { radius: r, half_length: h } => {
+                // cylinder + two hemispheres sharing the mass by volume
+                let vc = std::f32::consts::PI * r * r * 2.0 * h;
+                let vs = 4.0 / 3.0 * std::f32::consts::PI * r * r * r;
+                let mc = mass * vc / (vc + vs);
+                let ms = mass - mc;
+                let l = 2.0 * h;
+                let izz = 0.5 * mc * r * r + 0.4 * ms * r * r;
+                let ixx = mc * (3.0 * r * r + l * l) / 12.0 + ms * (0.4 * r * r + h * h + 0.75 * h * r);
+                Vec3::new(ixx, ixx, izz)
+            }
+        }
+    }
+}

@@ -1,0 +1,1 @@
+//! `dextrain traj synth`: scripted approach–grasp–lift references.
