@@ -1,1 +1,527 @@
-//! Run configuration.
+//! Run configuration: serde structs that mirror the TOML file (unknown keys are errors), defaults,
+//! and validation with one-line errors that name the file, the key, the value and what is allowed.
+//!
+//! Paths inside a config (the hand's URDF) are relative to the directory of the config file.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+use serde::{Deserialize, Serialize};
+
+use crate::geom::ObjectShape;
+use crate::hand::MeshApprox;
+
+/// A whole config file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct Config {
+    /// The one seed that decides everything random (per-env draws hash (seed, env, episode, purpose)).
+    pub seed: u32,
+    /// Simulation backend, batch size and time stepping.
+    pub sim: SimConfig,
+    /// The hand: URDF, joint servo gains, contact friction, initial joint positions.
+    pub hand: HandConfig,
+    /// The floating wrist's force/torque-limited PD controller and initial pose.
+    pub wrist: WristConfig,
+    /// The manipulated object.
+    pub object: ObjectConfig,
+    /// The table (the plane z = 0).
+    pub table: TableConfig,
+    /// Penalty contact model.
+    pub contact: ContactConfig,
+    /// Per-env physical parameters drawn at every reset.
+    pub randomization: RandomizationConfig,
+    /// Directory of the config file (paths in the config are relative to it); not part of the TOML.
+    #[serde(skip)]
+    pub base_dir: PathBuf,
+    /// The file the config came from (for error messages); not part of the TOML.
+    #[serde(skip)]
+    pub source: PathBuf,
+}
+
+/// `[sim]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimConfig {
+    /// `"auto"` (a hardware GPU adapter if there is one, else the CPU), `"cpu"`, `"gpu"` (a hardware
+    /// GPU adapter; an error if there is none) or `"gpu:NAME"` (the wgpu adapter whose name contains
+    /// NAME, e.g. `"gpu:llvmpipe"` for Mesa's software Vulkan driver).
+    pub backend: String,
+    /// Number of parallel environments.
+    pub num_envs: usize,
+    /// Physics step (s).
+    pub dt: f32,
+    /// Substeps inside each physics step (contact stiffness needs them).
+    pub substeps: u32,
+    /// Physics steps per env (control) step.
+    pub decimation: u32,
+    /// Object or wrist speed (m/s) above which an env counts as exploded and is reset.
+    pub max_speed: f32,
+    /// Distance (m) from the origin beyond which an object or wrist counts as exploded.
+    pub max_distance: f32,
+}
+
+/// `[hand]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct HandConfig {
+    /// URDF of the hand, relative to the config file's directory.
+    pub urdf: String,
+    /// Fingertip frame names; empty = every link whose name ends in "tip".
+    pub fingertips: Vec<String>,
+    /// What to do with mesh collision geometry: "error", "box" or "capsule" (bounding-box approximations).
+    pub mesh_approx: MeshApprox,
+    /// Position gain of every finger joint servo (N·m/rad).
+    pub kp: f32,
+    /// Velocity gain of every finger joint servo (N·m·s/rad).
+    pub kd: f32,
+    /// Rotor inertia added to every finger joint (kg·m²).
+    pub armature: f32,
+    /// Per-joint overrides of `kp` (joint name -> N·m/rad).
+    pub joint_kp: BTreeMap<String, f32>,
+    /// Per-joint overrides of `kd` (joint name -> N·m·s/rad).
+    pub joint_kd: BTreeMap<String, f32>,
+    /// Coulomb friction coefficient of the hand's links.
+    pub friction: f32,
+    /// Initial joint positions (joint name -> rad); joints not named start at 0 clamped into their limits.
+    pub init_joints: BTreeMap<String, f32>,
+}
+
+/// `[wrist]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct WristConfig {
+    /// Initial wrist position (m, world).
+    pub init_pos: [f32; 3],
+    /// Initial wrist orientation as roll, pitch, yaw (rad; R = Rz(yaw)·Ry(pitch)·Rx(roll)).
+    pub init_rpy: [f32; 3],
+    /// Translational stiffness of the wrist PD (N/m).
+    pub kp_lin: f32,
+    /// Translational damping of the wrist PD (N·s/m).
+    pub kd_lin: f32,
+    /// Force limit of the wrist PD (N).
+    pub force_limit: f32,
+    /// Rotational stiffness of the wrist PD (N·m/rad).
+    pub kp_rot: f32,
+    /// Rotational damping of the wrist PD (N·m·s/rad).
+    pub kd_rot: f32,
+    /// Torque limit of the wrist PD (N·m).
+    pub torque_limit: f32,
+    /// Mass added to the hand's own for the wrist's translation (kg): the arm's reflected mass.
+    pub added_mass: f32,
+    /// Inertia added to the hand's own for the wrist's rotation (kg·m²): the arm's reflected inertia.
+    pub added_inertia: f32,
+}
+
+/// `[object]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ObjectConfig {
+    /// Shape and size: `{ type = "box", half_extents = [..] }`, `{ type = "sphere", radius = .. }`,
+    /// `{ type = "capsule", radius = .., half_length = .. }` or `{ type = "cylinder", radius = .., half_length = .. }`.
+    pub shape: ObjectShape,
+    /// Mass (kg).
+    pub mass: f32,
+    /// Coulomb friction coefficient (combined with the other body's by averaging).
+    pub friction: f32,
+    /// Coefficient of restitution of the object's contacts, in [0, 1).
+    pub restitution: f32,
+    /// Initial x, y (m) of the object's centre; it starts resting on the table.
+    pub init_xy: [f32; 2],
+    /// Initial rotation about z (rad).
+    pub init_yaw: f32,
+    /// Half widths (m) of the uniform noise added to the initial x and y at each reset.
+    pub xy_noise: [f32; 2],
+    /// Half width (rad) of the uniform noise added to the initial yaw at each reset.
+    pub yaw_noise: f32,
+}
+
+/// `[table]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TableConfig {
+    /// Coulomb friction coefficient of the table.
+    pub friction: f32,
+    /// Whether the hand collides with the table.
+    pub hand_collision: bool,
+}
+
+/// `[contact]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ContactConfig {
+    /// Normal penalty stiffness (N/m per contact).
+    pub stiffness: f32,
+    /// Stiffness of the tangential spring that holds a sticking contact (N/m).
+    pub friction_stiffness: f32,
+    /// Effective mass of a hand link at a contact (kg), used with the object's mass to turn the
+    /// restitution into a damping coefficient (reduced mass of the pair).
+    pub hand_effective_mass: f32,
+}
+
+/// `[randomization]`: ranges `[lo, hi]` drawn uniformly per env at every reset. Scales multiply the
+/// nominal value; `[1, 1]` turns a scale off.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RandomizationConfig {
+    /// Scale of every hand link mass (and the inertias that follow from it).
+    pub hand_mass: [f32; 2],
+    /// Scale of the hand's friction coefficient.
+    pub hand_friction: [f32; 2],
+    /// Scale of the finger joints' position limits (both limits are multiplied).
+    pub joint_limits: [f32; 2],
+    /// Scale of the finger joints' servo stiffness `kp`.
+    pub joint_stiffness: [f32; 2],
+    /// Scale of the finger joints' servo damping `kd` and joint damping.
+    pub joint_damping: [f32; 2],
+    /// Scale of the object's mass.
+    pub object_mass: [f32; 2],
+    /// Scale of the object's friction coefficient.
+    pub object_friction: [f32; 2],
+    /// Scale of every length of the object.
+    pub object_scale: [f32; 2],
+    /// Absolute restitution of the object's contacts; unset = `object.restitution`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub object_restitution: Option<[f32; 2]>,
+    /// Scale of the table's friction coefficient.
+    pub table_friction: [f32; 2],
+    /// Extra downward acceleration on the object (m/s², added to g).
+    pub added_gravity: [f32; 2],
+}
+
+impl Default for Config {
+    fn default() -> Self {
+        Config {
+            seed: 0,
+            sim: SimConfig::default(),
+            hand: HandConfig::default(),
+            wrist: WristConfig::default(),
+            object: ObjectConfig::default(),
+            table: TableConfig::default(),
+            contact: ContactConfig::default(),
+            randomization: RandomizationConfig::default(),
+            base_dir: PathBuf::from("."),
+            source: PathBuf::from("<default>"),
+        }
+    }
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        SimConfig {
+            backend: "auto".into(),
+            num_envs: 64,
+            dt: 1.0 / 120.0,
+            substeps: 4,
+            decimation: 4,
+            max_speed: 50.0,
+            max_distance: 10.0,
+        }
+    }
+}
+
+impl Default for HandConfig {
+    fn default() -> Self {
+        HandConfig {
+            urdf: "hands/dexhand16.urdf".into(),
+            fingertips: Vec::new(),
+            mesh_approx: MeshApprox::Error,
+            kp: 3.0,
+            kd: 0.1,
+            armature: 0.002,
+            joint_kp: BTreeMap::new(),
+            joint_kd: BTreeMap::new(),
+            friction: 1.0,
+            init_joints: BTreeMap::new(),
+        }
+    }
+}
+
+impl Default for WristConfig {
+    fn default() -> Self {
+        WristConfig {
+            init_pos: [0.0, 0.0, 0.15],
+            init_rpy: [0.0, 0.0, 0.0],
+            kp_lin: 2000.0,
+            kd_lin: 100.0,
+            force_limit: 100.0,
+            kp_rot: 50.0,
+            kd_rot: 2.0,
+            torque_limit: 20.0,
+            added_mass: 0.5,
+            added_inertia: 0.01,
+        }
+    }
+}
+
+impl Default for ObjectConfig {
+    fn default() -> Self {
+        ObjectConfig {
+            shape: ObjectShape::Box { half_extents: [0.025, 0.025, 0.025] },
+            mass: 0.1,
+            friction: 1.0,
+            restitution: 0.0,
+            init_xy: [0.0, 0.0],
+            init_yaw: 0.0,
+            xy_noise: [0.0, 0.0],
+            yaw_noise: 0.0,
+        }
+    }
+}
+
+impl Default for TableConfig {
+    fn default() -> Self {
+        TableConfig { friction: 1.0, hand_collision: true }
+    }
+}
+
+impl Default for ContactConfig {
+    fn default() -> Self {
+        ContactConfig { stiffness: 1.0e4, friction_stiffness: 1.0e4, hand_effective_mass: 0.1 }
+    }
+}
+
+impl Default for RandomizationConfig {
+    fn default() -> Self {
+        RandomizationConfig {
+            hand_mass: [1.0, 1.0],
+            hand_friction: [1.0, 1.0],
+            joint_limits: [1.0, 1.0],
+            joint_stiffness: [1.0, 1.0],
+            joint_damping: [1.0, 1.0],
+            object_mass: [1.0, 1.0],
+            object_friction: [1.0, 1.0],
+            object_scale: [1.0, 1.0],
+            object_restitution: None,
+            table_friction: [1.0, 1.0],
+            added_gravity: [0.0, 0.0],
+        }
+    }
+}
+
+/// Which simulation backend a config asks for.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum BackendChoice {
+    Auto,
+    Cpu,
+    /// A GPU adapter; `None` = any hardware adapter, `Some(name)` = the adapter whose name contains it.
+    Gpu(Option<String>),
+}
+
+impl BackendChoice {
+    pub fn parse(s: &str) -> Option<BackendChoice> {
+        match s {
+            "auto" => Some(BackendChoice::Auto),
+            "cpu" => Some(BackendChoice::Cpu),
+            "gpu" => Some(BackendChoice::Gpu(None)),
+            _ => s.strip_prefix("gpu:").filter(|n| !n.is_empty()).map(|n| BackendChoice::Gpu(Some(n.to_string()))),
+        }
+    }
+}
+
+impl Config {
+    /// Reads, parses and validates a config file.
+    pub fn load(path: &Path) -> Result<Config> {
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read config file {}", path.display()))?;
+        Config::from_toml_str(&text, path)
+    }
+
+    /// Parses and validates config text; `path` is used for error messages and relative paths.
+    pub fn from_toml_str(text: &str, path: &Path) -> Result<Config> {
+        let file = path.display();
+        let value: toml::Value = match text.parse::<toml::Table>() {
+            Ok(t) => toml::Value::Table(t),
+            Err(e) => {
+                let at = e.span().map(|s| line_col(text, s.start)).unwrap_or_default();
+                bail!("{file}{at}: invalid TOML: {}", one_line(e.message()));
+            }
+        };
+        let mut cfg: Config = serde_path_to_error::deserialize(value).map_err(|e| {
+            let key = e.path().to_string();
+            anyhow::anyhow!("{file}: key `{key}`: {}", one_line(&e.into_inner().to_string()))
+        })?;
+        cfg.source = path.to_path_buf();
+        cfg.base_dir = path.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
+        if cfg.base_dir.as_os_str().is_empty() {
+            cfg.base_dir = PathBuf::from(".");
+        }
+        cfg.validate()?;
+        Ok(cfg)
+    }
+
+    /// A path from the config, resolved against the config file's directory.
+    pub fn resolve(&self, p: &str) -> PathBuf {
+        let p = Path::new(p);
+        if p.is_absolute() { p.to_path_buf() } else { self.base_dir.join(p) }
+    }
+
+    /// The resolved config as TOML, every default filled in.
+    pub fn to_toml(&self) -> Result<String> {
+        toml::to_string_pretty(self).context("cannot serialise the config")
+    }
+
+    /// The backend the config asks for.
+    pub fn backend(&self) -> BackendChoice {
+        // validate() has checked that the string parses.
+        BackendChoice::parse(&self.sim.backend).unwrap_or(BackendChoice::Auto)
+    }
+
+    /// Checks every value; the first problem is returned as a one-line error.
+    pub fn validate(&self) -> Result<()> {
+        let file = self.source.display().to_string();
+        let err = |key: &str, value: String, allowed: &str| -> anyhow::Error {
+            anyhow::anyhow!("{file}: key `{key}` = {value}: expected {allowed}")
+        };
+        let s = &self.sim;
+        if BackendChoice::parse(&s.backend).is_none() {
+            return Err(err("sim.backend", format!("{:?}", s.backend), "one of \"auto\", \"cpu\", \"gpu\", \"gpu:ADAPTER_NAME\""));
+        }
+        if s.num_envs == 0 || s.num_envs > 16_777_216 {
+            return Err(err("sim.num_envs", s.num_envs.to_string(), "an integer in [1, 16777216]"));
+        }
+        pos_in(&err, "sim.dt", s.dt, 1e-5, 0.1, "a time step in seconds in [1e-5, 0.1]")?;
+        if !(1..=64).contains(&s.substeps) {
+            return Err(err("sim.substeps", s.substeps.to_string(), "an integer in [1, 64]"));
+        }
+        if !(1..=1000).contains(&s.decimation) {
+            return Err(err("sim.decimation", s.decimation.to_string(), "an integer in [1, 1000]"));
+        }
+        pos_in(&err, "sim.max_speed", s.max_speed, 1e-3, 1e6, "a speed in m/s in (0, 1e6]")?;
+        pos_in(&err, "sim.max_distance", s.max_distance, 1e-3, 1e6, "a distance in m in (0, 1e6]")?;
+
+        let h = &self.hand;
+        if h.urdf.trim().is_empty() {
+            return Err(err("hand.urdf", "\"\"".into(), "the path of a URDF file"));
+        }
+        non_neg(&err, "hand.kp", h.kp)?;
+        non_neg(&err, "hand.kd", h.kd)?;
+        pos_in(&err, "hand.armature", h.armature, 1e-7, 10.0, "a rotor inertia in kg·m² in [1e-7, 10] (it keeps the finger joints stable)")?;
+        for (k, v) in &h.joint_kp {
+            non_neg(&err, &format!("hand.joint_kp.{k}"), *v)?;
+        }
+        for (k, v) in &h.joint_kd {
+            non_neg(&err, &format!("hand.joint_kd.{k}"), *v)?;
+        }
+        non_neg(&err, "hand.friction", h.friction)?;
+        for (k, v) in &h.init_joints {
+            finite(&err, &format!("hand.init_joints.{k}"), *v)?;
+        }
+
+        let w = &self.wrist;
+        for (i, v) in w.init_pos.iter().chain(w.init_rpy.iter()).enumerate() {
+            let key = if i < 3 { format!("wrist.init_pos[{i}]") } else { format!("wrist.init_rpy[{}]", i - 3) };
+            finite(&err, &key, *v)?;
+        }
+        for (key, v) in [
+            ("wrist.kp_lin", w.kp_lin),
+            ("wrist.kd_lin", w.kd_lin),
+            ("wrist.force_limit", w.force_limit),
+            ("wrist.kp_rot", w.kp_rot),
+            ("wrist.kd_rot", w.kd_rot),
+            ("wrist.torque_limit", w.torque_limit),
+            ("wrist.added_mass", w.added_mass),
+            ("wrist.added_inertia", w.added_inertia),
+        ] {
+            non_neg(&err, key, v)?;
+        }
+
+        let o = &self.object;
+        match o.shape {
+            ObjectShape::Sphere { radius } => pos_in(&err, "object.shape.radius", radius, 1e-4, 10.0, "a radius in m in [1e-4, 10]")?,
+            ObjectShape::Box { half_extents } => {
+                for (i, v) in half_extents.iter().enumerate() {
+                    pos_in(&err, &format!("object.shape.half_extents[{i}]"), *v, 1e-4, 10.0, "a half extent in m in [1e-4, 10]")?;
+                }
+            }
+            ObjectShape::Capsule { radius, half_length } | ObjectShape::Cylinder { radius, half_length } => {
+                pos_in(&err, "object.shape.radius", radius, 1e-4, 10.0, "a radius in m in [1e-4, 10]")?;
+                if !(half_length.is_finite() && (0.0..=10.0).contains(&half_length)) {
+                    return Err(err("object.shape.half_length", half_length.to_string(), "a half length in m in [0, 10]"));
+                }
+            }
+        }
+        pos_in(&err, "object.mass", o.mass, 1e-4, 1e3, "a mass in kg in [1e-4, 1000]")?;
+        non_neg(&err, "object.friction", o.friction)?;
+        unit_interval(&err, "object.restitution", o.restitution)?;
+        for (i, v) in o.init_xy.iter().enumerate() {
+            finite(&err, &format!("object.init_xy[{i}]"), *v)?;
+        }
+        finite(&err, "object.init_yaw", o.init_yaw)?;
+        for (i, v) in o.xy_noise.iter().enumerate() {
+            non_neg(&err, &format!("object.xy_noise[{i}]"), *v)?;
+        }
+        non_neg(&err, "object.yaw_noise", o.yaw_noise)?;
+        non_neg(&err, "table.friction", self.table.friction)?;
+
+        let c = &self.contact;
+        pos_in(&err, "contact.stiffness", c.stiffness, 1.0, 1e8, "a stiffness in N/m in [1, 1e8]")?;
+        pos_in(&err, "contact.friction_stiffness", c.friction_stiffness, 1.0, 1e8, "a stiffness in N/m in [1, 1e8]")?;
+        pos_in(&err, "contact.hand_effective_mass", c.hand_effective_mass, 1e-4, 1e3, "a mass in kg in [1e-4, 1000]")?;
+
+        let r = &self.randomization;
+        for (key, range) in [
+            ("randomization.hand_mass", r.hand_mass),
+            ("randomization.hand_friction", r.hand_friction),
+            ("randomization.joint_limits", r.joint_limits),
+            ("randomization.joint_stiffness", r.joint_stiffness),
+            ("randomization.joint_damping", r.joint_damping),
+            ("randomization.object_mass", r.object_mass),
+            ("randomization.object_friction", r.object_friction),
+            ("randomization.object_scale", r.object_scale),
+            ("randomization.table_friction", r.table_friction),
+        ] {
+            let ok = range.iter().all(|v| v.is_finite() && *v > 0.0 && *v <= 100.0) && range[0] <= range[1];
+            if !ok {
+                return Err(err(key, format!("{range:?}"), "a scale range [lo, hi] with 0 < lo <= hi <= 100"));
+            }
+        }
+        if let Some(range) = r.object_restitution {
+            let ok = range.iter().all(|v| v.is_finite() && (0.0..1.0).contains(v)) && range[0] <= range[1];
+            if !ok {
+                return Err(err("randomization.object_restitution", format!("{range:?}"), "a range [lo, hi] with 0 <= lo <= hi < 1"));
+            }
+        }
+        let g = r.added_gravity;
+        if !(g.iter().all(|v| v.is_finite() && (0.0..=100.0).contains(v)) && g[0] <= g[1]) {
+            return Err(err("randomization.added_gravity", format!("{g:?}"), "a range [lo, hi] in m/s² with 0 <= lo <= hi <= 100"));
+        }
+        Ok(())
+    }
+}
+
+fn pos_in(
+    err: &dyn Fn(&str, String, &str) -> anyhow::Error,
+    key: &str,
+    v: f32,
+    lo: f32,
+    hi: f32,
+    allowed: &str,
+) -> Result<()> {
+    if v.is_finite() && v >= lo && v <= hi { Ok(()) } else { Err(err(key, v.to_string(), allowed)) }
+}
+
+fn non_neg(err: &dyn Fn(&str, String, &str) -> anyhow::Error, key: &str, v: f32) -> Result<()> {
+    if v.is_finite() && v >= 0.0 { Ok(()) } else { Err(err(key, v.to_string(), "a finite number >= 0")) }
+}
+
+fn finite(err: &dyn Fn(&str, String, &str) -> anyhow::Error, key: &str, v: f32) -> Result<()> {
+    if v.is_finite() { Ok(()) } else { Err(err(key, v.to_string(), "a finite number")) }
+}
+
+fn unit_interval(err: &dyn Fn(&str, String, &str) -> anyhow::Error, key: &str, v: f32) -> Result<()> {
+    if v.is_finite() && (0.0..1.0).contains(&v) { Ok(()) } else { Err(err(key, v.to_string(), "a number in [0, 1)")) }
+}
+
+/// Collapses a multi-line message to one line.
+pub fn one_line(s: &str) -> String {
+    s.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+fn line_col(text: &str, offset: usize) -> String {
+    let before = &text[..offset.min(text.len())];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rsplit('\n').next().map(|l| l.chars().count() + 1).unwrap_or(1);
+    format!(":{line}:{col}")
+}

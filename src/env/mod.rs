@@ -1,1 +1,327 @@
-//! The batched environment.
+//! The batched hand–object environment: one model, two backends behind one trait.
+//!
+//! # The env contract
+//!
+//! An [`EnvBatch`] holds `num_envs` independent environments, each one floating-wrist hand, one rigid
+//! object and the table (DESIGN §4). Every env has its own [`EnvState`] (wrist, object, joints,
+//! friction springs, counters) and [`EnvParams`] (physical parameters drawn at its last reset).
+//!
+//! - [`EnvBatch::reset_all`] starts episode 0 of every env; [`EnvBatch::reset`] starts the next episode
+//!   of the envs whose mask entry is true. A reset draws the env's parameters and initial state from a
+//!   counter-based hash of (seed, env, episode, purpose), so both backends draw the same numbers.
+//! - [`EnvBatch::step`] takes one [`Targets`] per env (wrist pose, joint positions; mimic followers'
+//!   entries are ignored) and advances every env by one control step: `decimation` physics steps of
+//!   `dt`, each split into `substeps`. Targets are held over the control step.
+//! - After a step, [`EnvBatch::stats`] says, per env, what happened during it (contact counts, deepest
+//!   penetration, fingertip forces, whether it was reset). An env whose state became non-finite or left
+//!   the configured speed/distance bounds is reset in place during the step: `bad_reset` is 1 in its
+//!   stats, `EnvState::bad_resets` counts it, and no other env is touched.
+//! - [`EnvBatch::states`] and [`EnvBatch::params`] read the current values back;
+//!   [`EnvBatch::set_states`] overwrites the states (kinematic replay, tests).
+//!
+//! Steps never allocate on the GPU backend: buffers and pipelines are made once in `new`.
+//! The task layer (observations, rewards, dones) sits on top of this contract.
+
+pub mod common;
+pub mod cpu;
+pub mod gpu;
+pub mod layout;
+pub mod physics;
+pub mod reset;
+
+use anyhow::{Result, bail};
+use glam::{Mat3, Quat, Vec3};
+
+use crate::config::{BackendChoice, Config};
+use crate::hand::{ColliderShape, HandModel, MAX_TIPS};
+pub use layout::{EnvParams, EnvState, StepStats, Targets};
+use layout::*;
+
+/// Names and sizes of the env batch.
+#[derive(Clone, Debug)]
+pub struct EnvSpec {
+    pub num_envs: usize,
+    pub joint_names: Vec<String>,
+    /// Indices (into `joint_names`) of the actuated joints (not mimic followers).
+    pub actuated: Vec<usize>,
+    pub tip_names: Vec<String>,
+    pub dt: f32,
+    pub substeps: u32,
+    pub decimation: u32,
+}
+
+/// The backend-independent env contract (see the module documentation).
+pub trait EnvBatch: Send {
+    fn spec(&self) -> &EnvSpec;
+    /// Human-readable backend: "cpu (rayon, N threads)" or "gpu (ADAPTER, API)".
+    fn backend_name(&self) -> String;
+    /// Starts episode 0 of every env.
+    fn reset_all(&mut self) -> Result<()>;
+    /// Starts the next episode of every env whose mask entry is true.
+    fn reset(&mut self, mask: &[bool]) -> Result<()>;
+    /// Advances every env by one control step toward `targets` (one per env).
+    fn step(&mut self, targets: &[Targets]) -> Result<()>;
+    fn states(&mut self) -> Result<Vec<EnvState>>;
+    fn set_states(&mut self, states: &[EnvState]) -> Result<()>;
+    fn params(&mut self) -> Result<Vec<EnvParams>>;
+    /// What happened in each env during the last step.
+    fn stats(&mut self) -> Result<Vec<StepStats>>;
+}
+
+/// Everything both backends need, built once from a config and a hand.
+#[derive(Clone, Debug)]
+pub struct SimModel {
+    pub globals: Globals,
+    pub joints: Vec<JointDesc>,
+    pub colliders: Vec<ColliderDesc>,
+    pub tips: Vec<TipDesc>,
+    pub hand: HandModel,
+    pub spec: EnvSpec,
+}
+
+impl SimModel {
+    /// Loads the config's hand and builds the model.
+    pub fn from_config(cfg: &Config) -> Result<SimModel> {
+        let path = cfg.resolve(&cfg.hand.urdf);
+        let opts = crate::hand::HandLoadOptions { fingertips: cfg.hand.fingertips.clone(), mesh_approx: cfg.hand.mesh_approx };
+        let hand = HandModel::from_urdf_file(&path, &opts)?;
+        SimModel::new(cfg, hand)
+    }
+
+    pub fn new(cfg: &Config, hand: HandModel) -> Result<SimModel> {
+        let file = cfg.source.display();
+        for (map, key) in [(&cfg.hand.joint_kp, "hand.joint_kp"), (&cfg.hand.joint_kd, "hand.joint_kd"), (&cfg.hand.init_joints, "hand.init_joints")] {
+            for name in map.keys() {
+                if hand.joint_index(name).is_none() {
+                    let names: Vec<&str> = hand.joints.iter().map(|j| j.name.as_str()).collect();
+                    bail!("{file}: key `{key}.{name}`: the hand {} has no joint '{name}' (joints: {})", hand.source.display(), names.join(", "));
+                }
+            }
+        }
+        if hand.fingertips.len() > MAX_TIPS {
+            bail!("{}: {} fingertips, at most {MAX_TIPS} are supported", hand.source.display(), hand.fingertips.len());
+        }
+        let poses = hand.forward_kinematics(&vec![0.0; hand.joints.len()]);
+        // subtree membership: is link `l` moved by joint `j`?
+        let moved_by = |l: usize, j: usize| -> bool {
+            let mut link = l;
+            while link > 0 {
+                if link == j + 1 {
+                    return true;
+                }
+                link = hand.joints[link - 1].parent_link;
+            }
+            false
+        };
+        let link_inertia_world = |l: usize| -> Mat3 {
+            let r = Mat3::from_quat(poses[l].rot);
+            let i = Mat3::from_cols_array_2d(&hand.links[l].inertia).transpose();
+            r * i * r.transpose()
+        };
+        let mut joints: Vec<JointDesc> = Vec::with_capacity(hand.joints.len());
+        for (j, jt) in hand.joints.iter().enumerate() {
+            let frame = poses[jt.parent_link].mul(&jt.origin);
+            let axis = frame.rot * jt.axis;
+            let o = frame.pos;
+            // I_axis = Σ_subtree m d⊥² + aᵀ I_l a
+            let mut link_inertia = 0.0;
+            for l in 0..hand.links.len() {
+                if !moved_by(l, j) {
+                    continue;
+                }
+                let com = poses[l].transform_point(hand.links[l].com);
+                let d = com - o;
+                let perp2 = d.length_squared() - d.dot(axis).powi(2);
+                link_inertia += hand.links[l].mass * perp2.max(0.0) + axis.dot(link_inertia_world(l) * axis);
+            }
+            let kp = cfg.hand.joint_kp.get(&jt.name).copied().unwrap_or(cfg.hand.kp);
+            let kd = cfg.hand.joint_kd.get(&jt.name).copied().unwrap_or(cfg.hand.kd);
+            let default_q = cfg.hand.init_joints.get(&jt.name).copied().unwrap_or(0.0);
+            joints.push(JointDesc {
+                origin_pos: [jt.origin.pos.x, jt.origin.pos.y, jt.origin.pos.z, 0.0],
+                origin_rot: jt.origin.rot.to_array(),
+                axis: [jt.axis.x, jt.axis.y, jt.axis.z, 0.0],
+                parent_link: jt.parent_link as u32,
+                mimic_leader: jt.mimic.map(|m| m.leader as u32).unwrap_or(NO_JOINT),
+                mimic_mult: jt.mimic.map(|m| m.multiplier).unwrap_or(0.0),
+                mimic_offset: jt.mimic.map(|m| m.offset).unwrap_or(0.0),
+                lower: jt.lower.max(-1e30),
+                upper: jt.upper.min(1e30),
+                effort: jt.effort,
+                velocity: jt.velocity,
+                damping: jt.damping,
+                friction: jt.friction,
+                armature: cfg.hand.armature,
+                link_inertia,
+                kp,
+                kd,
+                default_q,
+                _pad: 0.0,
+            });
+        }
+        // a follower's inertia is carried by its leader: I_leader += mult² I_follower
+        for j in 0..joints.len() {
+            if joints[j].mimic_leader != NO_JOINT {
+                let l = joints[j].mimic_leader as usize;
+                let m2 = joints[j].mimic_mult * joints[j].mimic_mult;
+                joints[l].armature += m2 * joints[j].armature;
+                joints[l].link_inertia += m2 * joints[j].link_inertia;
+            }
+        }
+        let mut colliders = Vec::with_capacity(hand.colliders.len());
+        for c in &hand.colliders {
+            let (shape, size) = match c.shape {
+                ColliderShape::Sphere { radius } => (SHAPE_SPHERE, [radius, 0.0, 0.0, 0.0]),
+                ColliderShape::Capsule { radius, half_length } => (SHAPE_CAPSULE, [radius, half_length, 0.0, 0.0]),
+                ColliderShape::Box { half_extents: h } => (SHAPE_BOX, [h.x, h.y, h.z, 0.0]),
+            };
+            let tip = hand.fingertips.iter().position(|t| t.link == c.link).map(|i| i as u32).unwrap_or(NO_JOINT);
+            colliders.push(ColliderDesc {
+                pos: [c.pose.pos.x, c.pose.pos.y, c.pose.pos.z, 0.0],
+                rot: c.pose.rot.to_array(),
+                size,
+                link: c.link as u32,
+                shape,
+                tip,
+                _pad: 0,
+            });
+        }
+        let tips: Vec<TipDesc> =
+            hand.fingertips.iter().map(|t| TipDesc { pos: [t.pos.x, t.pos.y, t.pos.z, 0.0], link: t.link as u32, _pad: [0; 3] }).collect();
+        // wrist: total mass and an isotropic rotational inertia trace(I)/3 about the wrist at q = 0
+        let mut hand_mass = 0.0;
+        let mut i_total = Mat3::ZERO;
+        for l in 0..hand.links.len() {
+            let m = hand.links[l].mass;
+            let d = poses[l].transform_point(hand.links[l].com);
+            hand_mass += m;
+            // parallel axis: I + m (|d|² 1 − d dᵀ)
+            i_total += link_inertia_world(l) + (Mat3::IDENTITY * d.length_squared() - outer(d, d)) * m;
+        }
+        let hand_inertia = (i_total.x_axis.x + i_total.y_axis.y + i_total.z_axis.z) / 3.0;
+
+        let r = &cfg.randomization;
+        let restitution = r.object_restitution.unwrap_or([cfg.object.restitution; 2]);
+        let [roll, pitch, yaw] = cfg.wrist.init_rpy;
+        let wrist_rot = Quat::from_rotation_z(yaw) * Quat::from_rotation_y(pitch) * Quat::from_rotation_x(roll);
+        let shape = cfg.object.shape;
+        let size = shape.size_params();
+        let globals = Globals {
+            init_wrist_pos: [cfg.wrist.init_pos[0], cfg.wrist.init_pos[1], cfg.wrist.init_pos[2], 0.0],
+            init_wrist_rot: wrist_rot.normalize().to_array(),
+            obj_size: [size[0], size[1], size[2], 0.0],
+            obj_init: [cfg.object.init_xy[0], cfg.object.init_xy[1], cfg.object.init_yaw, shape.rest_height()],
+            rnd: [
+                [r.hand_mass[0], r.hand_mass[1], r.hand_friction[0], r.hand_friction[1]],
+                [r.joint_limits[0], r.joint_limits[1], r.joint_stiffness[0], r.joint_stiffness[1]],
+                [r.joint_damping[0], r.joint_damping[1], r.object_mass[0], r.object_mass[1]],
+                [r.object_friction[0], r.object_friction[1], r.object_scale[0], r.object_scale[1]],
+                [restitution[0], restitution[1], r.table_friction[0], r.table_friction[1]],
+                [r.added_gravity[0], r.added_gravity[1], cfg.object.xy_noise[0], cfg.object.xy_noise[1]],
+            ],
+            n_envs: cfg.sim.num_envs as u32,
+            n_joints: joints.len() as u32,
+            n_colliders: colliders.len() as u32,
+            n_tips: tips.len() as u32,
+            n_links: hand.links.len() as u32,
+            obj_shape: shape.code(),
+            n_obj_pts: physics::object_num_support(shape.code()),
+            substeps: cfg.sim.substeps,
+            decimation: cfg.sim.decimation,
+            seed: cfg.seed,
+            hand_table: cfg.table.hand_collision as u32,
+            _pad0: 0,
+            dt: cfg.sim.dt,
+            gravity: 9.81,
+            contact_k: cfg.contact.stiffness,
+            contact_kt: cfg.contact.friction_stiffness,
+            hand_eff_mass: cfg.contact.hand_effective_mass,
+            hand_friction: cfg.hand.friction,
+            obj_mass: cfg.object.mass,
+            obj_friction: cfg.object.friction,
+            table_friction: cfg.table.friction,
+            yaw_noise: cfg.object.yaw_noise,
+            hand_mass,
+            hand_inertia,
+            wrist_added_mass: cfg.wrist.added_mass,
+            wrist_added_inertia: cfg.wrist.added_inertia,
+            wrist_kp_lin: cfg.wrist.kp_lin,
+            wrist_kd_lin: cfg.wrist.kd_lin,
+            wrist_force_limit: cfg.wrist.force_limit,
+            wrist_kp_rot: cfg.wrist.kp_rot,
+            wrist_kd_rot: cfg.wrist.kd_rot,
+            wrist_torque_limit: cfg.wrist.torque_limit,
+            max_speed: cfg.sim.max_speed,
+            max_distance: cfg.sim.max_distance,
+            _pad1: 0.0,
+            _pad2: 0.0,
+        };
+        let spec = EnvSpec {
+            num_envs: cfg.sim.num_envs,
+            joint_names: hand.joints.iter().map(|j| j.name.clone()).collect(),
+            actuated: (0..hand.joints.len()).filter(|&j| hand.joints[j].mimic.is_none()).collect(),
+            tip_names: hand.fingertips.iter().map(|t| t.name.clone()).collect(),
+            dt: cfg.sim.dt,
+            substeps: cfg.sim.substeps,
+            decimation: cfg.sim.decimation,
+        };
+        Ok(SimModel { globals, joints, colliders, tips, hand, spec })
+    }
+
+    /// The read-only model view used by the CPU physics.
+    pub fn view(&self) -> physics::Model<'_> {
+        physics::Model { g: &self.globals, joints: &self.joints, colliders: &self.colliders, tips: &self.tips }
+    }
+
+    /// Targets that hold the initial wrist pose and default joint positions.
+    pub fn default_targets(&self) -> Targets {
+        let mut t = Targets { wrist_pos: self.globals.init_wrist_pos, wrist_rot: self.globals.init_wrist_rot, ..Default::default() };
+        for (j, jd) in self.joints.iter().enumerate() {
+            t.q[j] = jd.default_q;
+        }
+        t
+    }
+
+    /// The object shape with an env's scale applied.
+    pub fn scaled_object(&self, cfg_shape: crate::geom::ObjectShape, scale: f32) -> crate::geom::ObjectShape {
+        use crate::geom::ObjectShape as S;
+        match cfg_shape {
+            S::Sphere { radius } => S::Sphere { radius: radius * scale },
+            S::Box { half_extents: h } => S::Box { half_extents: [h[0] * scale, h[1] * scale, h[2] * scale] },
+            S::Capsule { radius, half_length } => S::Capsule { radius: radius * scale, half_length: half_length * scale },
+            S::Cylinder { radius, half_length } => S::Cylinder { radius: radius * scale, half_length: half_length * scale },
+        }
+    }
+}
+
+fn outer(a: Vec3, b: Vec3) -> Mat3 {
+    Mat3::from_cols(a * b.x, a * b.y, a * b.z)
+}
+
+/// Makes the env batch the config asks for (`sim.backend`): `cpu`, `gpu`, `gpu:NAME` or `auto` (a
+/// hardware GPU adapter if there is one, else the CPU; never a software adapter unless named).
+pub fn make_env_batch(cfg: &Config, model: SimModel) -> Result<Box<dyn EnvBatch>> {
+    match cfg.backend() {
+        BackendChoice::Cpu => Ok(Box::new(cpu::CpuEnvBatch::new(model))),
+        BackendChoice::Gpu(name) => {
+            let ctx = gpu::GpuContext::new(name.as_deref())?;
+            Ok(Box::new(gpu::GpuEnvBatch::new(ctx, model)?))
+        }
+        BackendChoice::Auto => match gpu::GpuContext::new(None) {
+            Ok(ctx) => Ok(Box::new(gpu::GpuEnvBatch::new(ctx, model)?)),
+            Err(e) => {
+                eprintln!("dextrain: no hardware GPU adapter ({e:#}); using the CPU backend");
+                Ok(Box::new(cpu::CpuEnvBatch::new(model)))
+            }
+        },
+    }
+}
+
+/// Applies one control step's state to a recording frame (world link poses, contacts).
+pub fn hand_link_poses(model: &SimModel, st: &EnvState) -> Vec<crate::geom::Pose> {
+    let mut s = physics::Scratch::default();
+    physics::hand_kinematics(st, &model.view(), &mut s);
+    (0..model.hand.links.len())
+        .map(|l| crate::geom::Pose::new(s.link_pos[l], Quat::from_array(s.link_rot[l].to_array())))
+        .collect()
+}

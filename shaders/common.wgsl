@@ -1,0 +1,243 @@
+// common.wgsl — structs, constants, quaternion maths and the counter-based hash RNG.
+// CPU twins: src/env/layout.rs (structs, keep in sync field by field) and src/env/common.rs
+// (functions, same names, same order, same arithmetic).
+// Quaternions are vec4<f32> (x, y, z, w).
+
+const MAX_JOINTS: u32 = 24u;
+const MAX_LINKS: u32 = 25u;
+const MAX_COLLIDERS: u32 = 32u;
+const MAX_TIPS: u32 = 6u;
+const MAX_OBJ_PTS: u32 = 16u;
+const PROJ_ITERS: u32 = 4u;
+
+const SHAPE_SPHERE: u32 = 0u;
+const SHAPE_BOX: u32 = 1u;
+const SHAPE_CAPSULE: u32 = 2u;
+const SHAPE_CYLINDER: u32 = 3u;
+const NO_JOINT: u32 = 0xffffffffu;
+
+struct Globals {
+    init_wrist_pos: vec4<f32>,
+    init_wrist_rot: vec4<f32>,
+    obj_size: vec4<f32>,
+    obj_init: vec4<f32>,
+    rnd: array<vec4<f32>, 6>,
+    n_envs: u32,
+    n_joints: u32,
+    n_colliders: u32,
+    n_tips: u32,
+    n_links: u32,
+    obj_shape: u32,
+    n_obj_pts: u32,
+    substeps: u32,
+    decimation: u32,
+    seed: u32,
+    hand_table: u32,
+    _pad0: u32,
+    dt: f32,
+    gravity: f32,
+    contact_k: f32,
+    contact_kt: f32,
+    hand_eff_mass: f32,
+    hand_friction: f32,
+    obj_mass: f32,
+    obj_friction: f32,
+    table_friction: f32,
+    yaw_noise: f32,
+    hand_mass: f32,
+    hand_inertia: f32,
+    wrist_added_mass: f32,
+    wrist_added_inertia: f32,
+    wrist_kp_lin: f32,
+    wrist_kd_lin: f32,
+    wrist_force_limit: f32,
+    wrist_kp_rot: f32,
+    wrist_kd_rot: f32,
+    wrist_torque_limit: f32,
+    max_speed: f32,
+    max_distance: f32,
+    _pad1: f32,
+    _pad2: f32,
+}
+
+struct JointDesc {
+    origin_pos: vec4<f32>,
+    origin_rot: vec4<f32>,
+    axis: vec4<f32>,
+    parent_link: u32,
+    mimic_leader: u32,
+    mimic_mult: f32,
+    mimic_offset: f32,
+    lower: f32,
+    upper: f32,
+    effort: f32,
+    velocity: f32,
+    damping: f32,
+    friction: f32,
+    armature: f32,
+    link_inertia: f32,
+    kp: f32,
+    kd: f32,
+    default_q: f32,
+    _pad: f32,
+}
+
+struct ColliderDesc {
+    pos: vec4<f32>,
+    rot: vec4<f32>,
+    size: vec4<f32>,
+    link: u32,
+    shape: u32,
+    tip: u32,
+    _pad: u32,
+}
+
+struct TipDesc {
+    pos: vec4<f32>,
+    link: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
+}
+
+struct EnvState {
+    wrist_pos: vec4<f32>,
+    wrist_rot: vec4<f32>,
+    wrist_vel: vec4<f32>,
+    wrist_angvel: vec4<f32>,
+    obj_pos: vec4<f32>,
+    obj_rot: vec4<f32>,
+    obj_vel: vec4<f32>,
+    obj_angvel: vec4<f32>,
+    anchor_ho: array<vec4<f32>, 32>,
+    anchor_ht: array<vec4<f32>, 32>,
+    anchor_ot: array<vec4<f32>, 16>,
+    q: array<f32, 24>,
+    qd: array<f32, 24>,
+    time: f32,
+    episode: u32,
+    step: u32,
+    bad_resets: u32,
+}
+
+struct EnvParams {
+    obj_size: vec4<f32>,
+    obj_inertia: vec4<f32>,
+    obj_friction: f32,
+    restitution: f32,
+    obj_scale: f32,
+    table_friction: f32,
+    hand_friction: f32,
+    hand_mass_scale: f32,
+    limit_scale: f32,
+    kp_scale: f32,
+    kd_scale: f32,
+    added_gravity: f32,
+    obj_contact_c: f32,
+    hand_table_c: f32,
+    _pad0: f32,
+    _pad1: f32,
+}
+
+struct Targets {
+    wrist_pos: vec4<f32>,
+    wrist_rot: vec4<f32>,
+    q: array<f32, 24>,
+}
+
+struct StepStats {
+    tip_force: array<f32, 6>,
+    max_pen_ho: f32,
+    max_pen: f32,
+    contacts: u32,
+    contacts_ho: u32,
+    bad_reset: u32,
+    _pad: u32,
+}
+
+// Hamilton product a ⊗ b.
+fn quat_mul(a: vec4<f32>, b: vec4<f32>) -> vec4<f32> {
+    return vec4<f32>(
+        a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y,
+        a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x,
+        a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w,
+        a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z,
+    );
+}
+
+fn quat_conj(q: vec4<f32>) -> vec4<f32> {
+    return vec4<f32>(-q.x, -q.y, -q.z, q.w);
+}
+
+// v + 2w(u×v) + 2u×(u×v)
+fn quat_rotate(q: vec4<f32>, v: vec3<f32>) -> vec3<f32> {
+    let u = q.xyz;
+    let t = 2.0 * cross(u, v);
+    return v + q.w * t + cross(u, t);
+}
+
+fn quat_normalize(q: vec4<f32>) -> vec4<f32> {
+    return q / sqrt(dot(q, q));
+}
+
+fn quat_from_axis_angle(axis: vec3<f32>, angle: f32) -> vec4<f32> {
+    let s = sin(0.5 * angle);
+    return vec4<f32>(axis.x * s, axis.y * s, axis.z * s, cos(0.5 * angle));
+}
+
+// q' = exp(w h / 2) ⊗ q
+fn quat_integrate(q: vec4<f32>, w: vec3<f32>, h: f32) -> vec4<f32> {
+    let angle = length(w) * h;
+    if (angle < 1e-9) {
+        return q;
+    }
+    let dq = quat_from_axis_angle(w / length(w), angle);
+    return quat_normalize(quat_mul(dq, q));
+}
+
+// log(target ⊗ q⁻¹) as a rotation vector, shortest arc
+fn quat_error(target: vec4<f32>, q: vec4<f32>) -> vec3<f32> {
+    var e = quat_mul(target, quat_conj(q));
+    if (e.w < 0.0) {
+        e = -e;
+    }
+    let v = e.xyz;
+    let s = length(v);
+    if (s < 1e-9) {
+        return 2.0 * v;
+    }
+    return v * (2.0 * atan2(s, e.w) / s);
+}
+
+fn pcg_hash(v: u32) -> u32 {
+    let state = v * 747796405u + 2891336453u;
+    let word = ((state >> ((state >> 28u) + 4u)) ^ state) * 277803737u;
+    return (word >> 22u) ^ word;
+}
+
+fn rand_u32(seed: u32, env: u32, episode: u32, purpose: u32, k: u32) -> u32 {
+    return pcg_hash(pcg_hash(pcg_hash(pcg_hash(pcg_hash(seed) ^ env) ^ episode) ^ purpose) ^ k);
+}
+
+fn rand_uniform(seed: u32, env: u32, episode: u32, purpose: u32, k: u32) -> f32 {
+    return f32(rand_u32(seed, env, episode, purpose, k) >> 8u) * (1.0 / 16777216.0);
+}
+
+// ---- resources (bound by src/env/gpu.rs; each pipeline uses the subset it needs) ----
+@group(0) @binding(0) var<uniform> g: Globals;
+@group(0) @binding(1) var<storage, read> joints: array<JointDesc>;
+@group(0) @binding(2) var<storage, read> colliders: array<ColliderDesc>;
+@group(0) @binding(3) var<storage, read> tips: array<TipDesc>;
+@group(0) @binding(4) var<storage, read_write> states: array<EnvState>;
+@group(0) @binding(5) var<storage, read_write> params: array<EnvParams>;
+@group(0) @binding(6) var<storage, read> targets: array<Targets>;
+@group(0) @binding(7) var<storage, read_write> stats: array<StepStats>;
+// reset request per env: 0 none, 1 next episode, 2 episode 0
+@group(0) @binding(8) var<storage, read> reset_mask: array<u32>;
+
+const WORKGROUP_SIZE: u32 = 64u;
+
+// Env index of an invocation of a (possibly 2-D) dispatch.
+fn env_index(gid: vec3<u32>, nwg: vec3<u32>) -> u32 {
+    return gid.x + gid.y * nwg.x * WORKGROUP_SIZE;
+}

@@ -1,0 +1,658 @@
+// physics.wgsl — one env step of one env per invocation (decimation × substeps).
+// CPU twin: src/env/physics.rs (same function names, same order, same arithmetic; its `Scratch` is
+// the var<private> memory below). The model is described at the top of the twin.
+
+// ---- per-invocation working memory (the twin's Scratch, EnvState, EnvParams, Targets) ----
+var<private> st: EnvState;
+var<private> prm: EnvParams;
+var<private> tg: Targets;
+var<private> link_pos: array<vec3<f32>, 25>;
+var<private> link_rot: array<vec4<f32>, 25>;
+var<private> link_v: array<vec3<f32>, 25>;
+var<private> link_w: array<vec3<f32>, 25>;
+var<private> joint_axis: array<vec3<f32>, 24>;
+var<private> tau: array<f32, 24>;
+var<private> wrist_f: vec3<f32>;
+var<private> wrist_t: vec3<f32>;
+var<private> obj_f: vec3<f32>;
+var<private> obj_t: vec3<f32>;
+var<private> obj_d: array<f32, 36>;
+var<private> tip_force: array<f32, 6>;
+var<private> max_pen_ho: f32;
+var<private> max_pen: f32;
+var<private> n_contacts: u32;
+var<private> n_contacts_ho: u32;
+
+struct Contact {
+    depth: f32,
+    normal: vec3<f32>,
+    point: vec3<f32>,
+}
+
+struct ContactForce {
+    force: vec3<f32>,
+    spring: vec3<f32>,
+    stick: bool,
+}
+
+struct SupportPoint {
+    pos: vec3<f32>,
+    radius: f32,
+}
+
+struct Projection {
+    point: vec3<f32>,
+    inside: bool,
+}
+
+struct InsideNormal {
+    normal: vec3<f32>,
+    dist: f32,
+}
+
+struct ColliderPose {
+    pos: vec3<f32>,
+    rot: vec4<f32>,
+}
+
+fn sgn(x: f32) -> f32 {
+    if (x < 0.0) {
+        return -1.0;
+    }
+    return 1.0;
+}
+
+fn clamp_norm(v: vec3<f32>, max_len: f32) -> vec3<f32> {
+    let l = length(v);
+    if (l > max_len) {
+        return v * (max_len / l);
+    }
+    return v;
+}
+
+fn hand_kinematics() {
+    link_pos[0] = st.wrist_pos.xyz;
+    link_rot[0] = st.wrist_rot;
+    link_v[0] = st.wrist_vel.xyz;
+    link_w[0] = st.wrist_angvel.xyz;
+    for (var j = 0u; j < g.n_joints; j++) {
+        let jd = joints[j];
+        let p = jd.parent_link;
+        let frame_rot = quat_mul(link_rot[p], jd.origin_rot);
+        let o = link_pos[p] + quat_rotate(link_rot[p], jd.origin_pos.xyz);
+        let axis = quat_rotate(frame_rot, jd.axis.xyz);
+        joint_axis[j] = axis;
+        link_pos[j + 1u] = o;
+        link_rot[j + 1u] = quat_mul(frame_rot, quat_from_axis_angle(jd.axis.xyz, st.q[j]));
+        // ω_child = ω_parent + a q̇;  v_child = v_parent + ω_parent × (o − p_parent)
+        link_w[j + 1u] = link_w[p] + axis * st.qd[j];
+        link_v[j + 1u] = link_v[p] + cross(link_w[p], o - link_pos[p]);
+    }
+}
+
+fn link_point_velocity(l: u32, x: vec3<f32>) -> vec3<f32> {
+    return link_v[l] + cross(link_w[l], x - link_pos[l]);
+}
+
+fn object_support_point(code: u32, size: vec3<f32>, k: u32) -> SupportPoint {
+    if (code == SHAPE_SPHERE) {
+        return SupportPoint(vec3<f32>(0.0), size.x);
+    }
+    if (code == SHAPE_BOX) {
+        let sx = select(-size.x, size.x, (k & 1u) != 0u);
+        let sy = select(-size.y, size.y, (k & 2u) != 0u);
+        let sz = select(-size.z, size.z, (k & 4u) != 0u);
+        return SupportPoint(vec3<f32>(sx, sy, sz), 0.0);
+    }
+    if (code == SHAPE_CAPSULE) {
+        let z = select(size.y, -size.y, k == 0u);
+        return SupportPoint(vec3<f32>(0.0, 0.0, z), size.x);
+    }
+    // cylinder: 8 points on the rim of each cap
+    let a = 0.7853982 * f32(k % 8u);
+    let z = select(size.y, -size.y, k < 8u);
+    return SupportPoint(vec3<f32>(size.x * cos(a), size.x * sin(a), z), 0.0);
+}
+
+fn object_num_support(code: u32) -> u32 {
+    if (code == SHAPE_SPHERE) {
+        return 1u;
+    }
+    if (code == SHAPE_BOX) {
+        return 8u;
+    }
+    if (code == SHAPE_CAPSULE) {
+        return 2u;
+    }
+    return 16u;
+}
+
+fn object_project(code: u32, size: vec3<f32>, p: vec3<f32>) -> Projection {
+    if (code == SHAPE_BOX) {
+        let c = clamp(p, -size, size);
+        let inside = abs(p.x) <= size.x && abs(p.y) <= size.y && abs(p.z) <= size.z;
+        return Projection(c, inside);
+    }
+    if (code == SHAPE_CYLINDER) {
+        let z = clamp(p.z, -size.y, size.y);
+        let rho = sqrt(p.x * p.x + p.y * p.y);
+        let inside = rho <= size.x && abs(p.z) <= size.y;
+        let k = select(1.0, size.x / rho, rho > size.x);
+        return Projection(vec3<f32>(p.x * k, p.y * k, z), inside);
+    }
+    // sphere (axis half length 0) and capsule: distance to the axis segment
+    let hl = select(0.0, size.y, code == SHAPE_CAPSULE);
+    let c = vec3<f32>(0.0, 0.0, clamp(p.z, -hl, hl));
+    let d = p - c;
+    let l = length(d);
+    if (l <= size.x) {
+        return Projection(p, true);
+    }
+    return Projection(c + d * (size.x / l), false);
+}
+
+fn object_inside_normal(code: u32, size: vec3<f32>, p: vec3<f32>) -> InsideNormal {
+    if (code == SHAPE_BOX) {
+        let dx = size.x - abs(p.x);
+        let dy = size.y - abs(p.y);
+        let dz = size.z - abs(p.z);
+        if (dx <= dy && dx <= dz) {
+            return InsideNormal(vec3<f32>(sgn(p.x), 0.0, 0.0), dx);
+        }
+        if (dy <= dz) {
+            return InsideNormal(vec3<f32>(0.0, sgn(p.y), 0.0), dy);
+        }
+        return InsideNormal(vec3<f32>(0.0, 0.0, sgn(p.z)), dz);
+    }
+    if (code == SHAPE_CYLINDER) {
+        let rho = sqrt(p.x * p.x + p.y * p.y);
+        let dr = size.x - rho;
+        let dz = size.y - abs(p.z);
+        if (dz < dr || rho < 1e-9) {
+            return InsideNormal(vec3<f32>(0.0, 0.0, sgn(p.z)), dz);
+        }
+        return InsideNormal(vec3<f32>(p.x / rho, p.y / rho, 0.0), dr);
+    }
+    let hl = select(0.0, size.y, code == SHAPE_CAPSULE);
+    let d = p - vec3<f32>(0.0, 0.0, clamp(p.z, -hl, hl));
+    let l = length(d);
+    if (l < 1e-9) {
+        return InsideNormal(vec3<f32>(1.0, 0.0, 0.0), size.x);
+    }
+    return InsideNormal(d / l, size.x - l);
+}
+
+fn segment_closest(a: vec3<f32>, b: vec3<f32>, p: vec3<f32>) -> vec3<f32> {
+    let ab = b - a;
+    let l2 = dot(ab, ab);
+    if (l2 < 1e-18) {
+        return a;
+    }
+    return a + ab * clamp(dot(p - a, ab) / l2, 0.0, 1.0);
+}
+
+fn box_project(c: vec3<f32>, r: vec4<f32>, h: vec3<f32>, p: vec3<f32>) -> vec3<f32> {
+    let local = quat_rotate(quat_conj(r), p - c);
+    return c + quat_rotate(r, clamp(local, -h, h));
+}
+
+fn collider_pose(ci: u32) -> ColliderPose {
+    let cd = colliders[ci];
+    let l = cd.link;
+    let pos = link_pos[l] + quat_rotate(link_rot[l], cd.pos.xyz);
+    return ColliderPose(pos, quat_mul(link_rot[l], cd.rot));
+}
+
+fn collide_hand_object(ci: u32) -> Contact {
+    let cd = colliders[ci];
+    let cp = collider_pose(ci);
+    let opos = st.obj_pos.xyz;
+    let orot = st.obj_rot;
+    let oinv = quat_conj(orot);
+    let code = g.obj_shape;
+    let size = prm.obj_size.xyz;
+    // collider in the object's frame
+    let c_o = quat_rotate(oinv, cp.pos - opos);
+    let r_o = quat_mul(oinv, cp.rot);
+    var out = Contact(0.0, vec3<f32>(0.0), vec3<f32>(0.0));
+    if (cd.shape == SHAPE_BOX) {
+        let h = cd.size.xyz;
+        var x = c_o;
+        for (var it = 0u; it < PROJ_ITERS; it++) {
+            let y = object_project(code, size, x).point;
+            x = box_project(c_o, r_o, h, y);
+        }
+        let y = object_project(code, size, x).point;
+        // y lies in the hand box when the two overlap: push the hand out through its nearest face
+        let local = quat_rotate(quat_conj(r_o), y - c_o);
+        let d = h - abs(local);
+        if (d.x < 0.0 || d.y < 0.0 || d.z < 0.0) {
+            out.depth = -1.0;
+            return out;
+        }
+        var n_local = vec3<f32>(0.0, 0.0, -sgn(local.z));
+        var depth = d.z;
+        if (d.x <= d.y && d.x <= d.z) {
+            n_local = vec3<f32>(-sgn(local.x), 0.0, 0.0);
+            depth = d.x;
+        } else if (d.y <= d.z) {
+            n_local = vec3<f32>(0.0, -sgn(local.y), 0.0);
+            depth = d.y;
+        }
+        out.depth = depth;
+        out.normal = quat_rotate(orot, quat_rotate(r_o, n_local));
+        out.point = opos + quat_rotate(orot, y);
+        return out;
+    }
+    // sphere or capsule collider: a segment swept by a radius
+    let hl = select(0.0, cd.size.y, cd.shape == SHAPE_CAPSULE);
+    let axis = quat_rotate(r_o, vec3<f32>(0.0, 0.0, hl));
+    let a = c_o - axis;
+    let b = c_o + axis;
+    var x = segment_closest(a, b, vec3<f32>(0.0));
+    for (var it = 0u; it < PROJ_ITERS; it++) {
+        let y = object_project(code, size, x).point;
+        x = segment_closest(a, b, y);
+    }
+    let pr = object_project(code, size, x);
+    let y = pr.point;
+    let rc = cd.size.x;
+    var n = vec3<f32>(0.0, 0.0, 1.0);
+    var surf = y;
+    if (pr.inside) {
+        let ins = object_inside_normal(code, size, x);
+        n = ins.normal;
+        out.depth = rc + ins.dist;
+        surf = x + ins.normal * ins.dist;
+    } else {
+        let d = x - y;
+        let l = length(d);
+        out.depth = rc - l;
+        if (l > 1e-12) {
+            n = d / l;
+        }
+    }
+    out.normal = quat_rotate(orot, n);
+    out.point = opos + quat_rotate(orot, surf);
+    return out;
+}
+
+fn collide_hand_table(ci: u32) -> Contact {
+    let cd = colliders[ci];
+    let cp = collider_pose(ci);
+    var low = cp.pos;
+    var r = cd.size.x;
+    if (cd.shape == SHAPE_CAPSULE) {
+        let axis = quat_rotate(cp.rot, vec3<f32>(0.0, 0.0, cd.size.y));
+        low = select(cp.pos + axis, cp.pos - axis, axis.z > 0.0);
+    } else if (cd.shape == SHAPE_BOX) {
+        r = 0.0;
+        for (var k = 0u; k < 8u; k++) {
+            let corner = object_support_point(SHAPE_BOX, cd.size.xyz, k).pos;
+            let w = cp.pos + quat_rotate(cp.rot, corner);
+            if (w.z < low.z || k == 0u) {
+                low = w;
+            }
+        }
+    }
+    return Contact(r - low.z, vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(low.x, low.y, 0.0));
+}
+
+fn collide_object_table(k: u32) -> Contact {
+    let sp = object_support_point(g.obj_shape, prm.obj_size.xyz, k);
+    let w = st.obj_pos.xyz + quat_rotate(st.obj_rot, sp.pos);
+    return Contact(sp.radius - w.z, vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(w.x, w.y, 0.0));
+}
+
+fn contact_force(c: Contact, vrel: vec3<f32>, anchor: vec3<f32>, k: f32, kt: f32, damp: f32, mu: f32, h: f32) -> ContactForce {
+    let n = c.normal;
+    let vn = dot(vrel, n);
+    let vt = vrel - n * vn;
+    // Fn = max(k·depth − c·vn, 0)
+    let fn_ = max(k * c.depth - damp * vn, 0.0);
+    if (fn_ <= 0.0) {
+        return ContactForce(vec3<f32>(0.0), vec3<f32>(0.0), false);
+    }
+    // spring kept in the tangent plane, stretched by the tangential slip: s ← s − (s·n)n + vt h
+    let spring = anchor - n * dot(anchor, n) + vt * h;
+    // Ft = −kt s − ct vt, with ct = c
+    let ft = -kt * spring - damp * vt;
+    let ft_len = length(ft);
+    let limit = mu * fn_;
+    if (ft_len > limit) {
+        // sliding: the friction force sits on the cone and the spring carries it
+        let f_slide = ft * (limit / ft_len);
+        return ContactForce(n * fn_ + f_slide, -f_slide / kt, false);
+    }
+    return ContactForce(n * fn_ + ft, spring, true);
+}
+
+fn apply_hand_force(l: u32, x: vec3<f32>, f: vec3<f32>) {
+    wrist_f += f;
+    wrist_t += cross(x - link_pos[0], f);
+    var link = l;
+    while (link > 0u) {
+        let j = link - 1u;
+        tau[j] += dot(joint_axis[j], cross(x - link_pos[link], f));
+        link = joints[j].parent_link;
+    }
+}
+
+// f at x on the object, and Σ JᵀDJ with D = a nnᵀ + b (I − nnᵀ), J = [I, −[r]×]
+fn apply_object_force(x: vec3<f32>, f: vec3<f32>, n: vec3<f32>, a: f32, b: f32) {
+    let r = x - st.obj_pos.xyz;
+    obj_f += f;
+    obj_t += cross(r, f);
+    var dm: array<vec3<f32>, 3>;
+    for (var i = 0u; i < 3u; i++) {
+        var e = vec3<f32>(0.0);
+        e[i] = 1.0;
+        dm[i] = e * b + n * ((a - b) * n[i]);
+    }
+    // A_vv = D, A_vw = −D[r]×, A_wv = [r]× D, A_ww = −[r]× D [r]×
+    for (var i = 0u; i < 3u; i++) {
+        var e = vec3<f32>(0.0);
+        e[i] = 1.0;
+        let d_col = dm[i];
+        let rd_col = cross(r, d_col);
+        let rxe = cross(r, e);
+        let drx_col = dm[0] * rxe.x + dm[1] * rxe.y + dm[2] * rxe.z;
+        let rdrx_col = cross(r, drx_col);
+        for (var row = 0u; row < 3u; row++) {
+            obj_d[row * 6u + i] += d_col[row];
+            obj_d[row * 6u + 3u + i] -= drx_col[row];
+            obj_d[(3u + row) * 6u + i] += rd_col[row];
+            obj_d[(3u + row) * 6u + 3u + i] -= rdrx_col[row];
+        }
+    }
+}
+
+fn contacts_and_forces(h: f32) {
+    let k = g.contact_k;
+    let kt = g.contact_kt;
+    let opos = st.obj_pos.xyz;
+    let ovel = st.obj_vel.xyz;
+    let ow = st.obj_angvel.xyz;
+    let mu_ho = 0.5 * (prm.hand_friction + prm.obj_friction);
+    let mu_ht = 0.5 * (prm.hand_friction + prm.table_friction);
+    let mu_ot = 0.5 * (prm.obj_friction + prm.table_friction);
+    for (var ci = 0u; ci < g.n_colliders; ci++) {
+        let l = colliders[ci].link;
+        // hand–object
+        let c = collide_hand_object(ci);
+        if (c.depth > 0.0) {
+            let vh = link_point_velocity(l, c.point);
+            let vo = ovel + cross(ow, c.point - opos);
+            let cf = contact_force(c, vh - vo, st.anchor_ho[ci].xyz, k, kt, prm.obj_contact_c, mu_ho, h);
+            st.anchor_ho[ci] = vec4<f32>(cf.spring, 1.0);
+            apply_hand_force(l, c.point, cf.force);
+            let a = k * h + prm.obj_contact_c;
+            let b = select(0.0, kt * h + prm.obj_contact_c, cf.stick);
+            apply_object_force(c.point, -cf.force, c.normal, a, b);
+            n_contacts += 1u;
+            n_contacts_ho += 1u;
+            max_pen_ho = max(max_pen_ho, c.depth);
+            max_pen = max(max_pen, c.depth);
+            let tip = colliders[ci].tip;
+            if (tip != NO_JOINT) {
+                tip_force[tip] += dot(cf.force, c.normal);
+            }
+        } else {
+            st.anchor_ho[ci] = vec4<f32>(0.0);
+        }
+        // hand–table
+        if (g.hand_table != 0u) {
+            let c2 = collide_hand_table(ci);
+            if (c2.depth > 0.0) {
+                let vh = link_point_velocity(l, c2.point);
+                let cf = contact_force(c2, vh, st.anchor_ht[ci].xyz, k, kt, prm.hand_table_c, mu_ht, h);
+                st.anchor_ht[ci] = vec4<f32>(cf.spring, 1.0);
+                apply_hand_force(l, c2.point, cf.force);
+                n_contacts += 1u;
+                max_pen = max(max_pen, c2.depth);
+            } else {
+                st.anchor_ht[ci] = vec4<f32>(0.0);
+            }
+        }
+    }
+    // object–table
+    for (var kp = 0u; kp < g.n_obj_pts; kp++) {
+        let c = collide_object_table(kp);
+        if (c.depth > 0.0) {
+            let vo = ovel + cross(ow, c.point - opos);
+            let cf = contact_force(c, vo, st.anchor_ot[kp].xyz, k, kt, prm.obj_contact_c, mu_ot, h);
+            st.anchor_ot[kp] = vec4<f32>(cf.spring, 1.0);
+            let a = k * h + prm.obj_contact_c;
+            let b = select(0.0, kt * h + prm.obj_contact_c, cf.stick);
+            apply_object_force(c.point, cf.force, c.normal, a, b);
+            n_contacts += 1u;
+            max_pen = max(max_pen, c.depth);
+        } else {
+            st.anchor_ot[kp] = vec4<f32>(0.0);
+        }
+    }
+}
+
+fn integrate_hand(h: f32) {
+    let n = g.n_joints;
+    // contact torque on a follower acts on its leader through the multiplier
+    var tq = tau;
+    for (var j = 0u; j < n; j++) {
+        let jd = joints[j];
+        if (jd.mimic_leader != NO_JOINT) {
+            tq[jd.mimic_leader] += jd.mimic_mult * tq[j];
+        }
+    }
+    for (var j = 0u; j < n; j++) {
+        let jd = joints[j];
+        if (jd.mimic_leader != NO_JOINT) {
+            continue;
+        }
+        let lo = jd.lower * prm.limit_scale;
+        let hi = jd.upper * prm.limit_scale;
+        let inertia = jd.armature + jd.link_inertia * prm.hand_mass_scale;
+        let q = st.q[j];
+        var qd = st.qd[j];
+        let target = clamp(tg.q[j], lo, hi);
+        // τ_pd = clamp(kp (q* − q) − kd q̇, ±effort)
+        let tau_pd = clamp(jd.kp * prm.kp_scale * (target - q) - jd.kd * prm.kd_scale * qd, -jd.effort, jd.effort);
+        // Coulomb friction, regularised over 0.01 rad/s
+        let tau_f = -jd.friction * clamp(qd / 0.01, -1.0, 1.0);
+        // joint damping implicit: q̇' = (q̇ + h τ / I) / (1 + h d / I)
+        qd = (qd + h * (tau_pd + tau_f + tq[j]) / inertia) / (1.0 + h * jd.damping * prm.kd_scale / inertia);
+        qd = clamp(qd, -jd.velocity, jd.velocity);
+        var qn = q + h * qd;
+        if (qn < lo) {
+            qn = lo;
+            qd = max(qd, 0.0);
+        }
+        if (qn > hi) {
+            qn = hi;
+            qd = min(qd, 0.0);
+        }
+        st.q[j] = qn;
+        st.qd[j] = qd;
+    }
+    for (var j = 0u; j < n; j++) {
+        let jd = joints[j];
+        if (jd.mimic_leader != NO_JOINT) {
+            let l = jd.mimic_leader;
+            st.q[j] = jd.mimic_mult * st.q[l] + jd.mimic_offset;
+            st.qd[j] = jd.mimic_mult * st.qd[l];
+        }
+    }
+    // wrist: F = clamp(kp (p* − p) − kd v, Fmax) + contacts; the hand's weight is compensated
+    let mass = g.hand_mass * prm.hand_mass_scale + g.wrist_added_mass;
+    let inertia = g.hand_inertia * prm.hand_mass_scale + g.wrist_added_inertia;
+    let pos = st.wrist_pos.xyz;
+    let vel = st.wrist_vel.xyz;
+    let w = st.wrist_angvel.xyz;
+    let rot = st.wrist_rot;
+    let f_pd = clamp_norm(g.wrist_kp_lin * (tg.wrist_pos.xyz - pos) - g.wrist_kd_lin * vel, g.wrist_force_limit);
+    let t_pd = clamp_norm(g.wrist_kp_rot * quat_error(tg.wrist_rot, rot) - g.wrist_kd_rot * w, g.wrist_torque_limit);
+    let vel_n = vel + (f_pd + wrist_f) * (h / mass);
+    let w_n = w + (t_pd + wrist_t) * (h / inertia);
+    st.wrist_vel = vec4<f32>(vel_n, 0.0);
+    st.wrist_angvel = vec4<f32>(w_n, 0.0);
+    st.wrist_pos = vec4<f32>(pos + vel_n * h, 0.0);
+    st.wrist_rot = quat_integrate(rot, w_n, h);
+}
+
+fn solve6(a: array<f32, 36>, b: array<f32, 6>) -> array<f32, 6> {
+    var l: array<f32, 36>;
+    for (var i = 0u; i < 6u; i++) {
+        for (var j = 0u; j <= i; j++) {
+            var sum = a[i * 6u + j];
+            for (var k = 0u; k < j; k++) {
+                sum -= l[i * 6u + k] * l[j * 6u + k];
+            }
+            if (i == j) {
+                l[i * 6u + i] = sqrt(max(sum, 1e-20));
+            } else {
+                l[i * 6u + j] = sum / l[j * 6u + j];
+            }
+        }
+    }
+    var y: array<f32, 6>;
+    for (var i = 0u; i < 6u; i++) {
+        var sum = b[i];
+        for (var k = 0u; k < i; k++) {
+            sum -= l[i * 6u + k] * y[k];
+        }
+        y[i] = sum / l[i * 6u + i];
+    }
+    var x: array<f32, 6>;
+    for (var ii = 0u; ii < 6u; ii++) {
+        let i = 5u - ii;
+        var sum = y[i];
+        for (var k = i + 1u; k < 6u; k++) {
+            sum -= l[k * 6u + i] * x[k];
+        }
+        x[i] = sum / l[i * 6u + i];
+    }
+    return x;
+}
+
+fn inertia_mul(rot: vec4<f32>, ib: vec3<f32>, x: vec3<f32>) -> vec3<f32> {
+    return quat_rotate(rot, ib * quat_rotate(quat_conj(rot), x));
+}
+
+fn inertia_inv_mul(rot: vec4<f32>, ib: vec3<f32>, x: vec3<f32>) -> vec3<f32> {
+    return quat_rotate(rot, quat_rotate(quat_conj(rot), x) / ib);
+}
+
+fn integrate_object(h: f32) {
+    let mass = prm.obj_inertia.w;
+    let ib = prm.obj_inertia.xyz;
+    let rot = st.obj_rot;
+    let w = st.obj_angvel.xyz;
+    // gyroscopic: ω ← ω − h I⁻¹ (ω × Iω), rescaled so that ωᵀIω is unchanged
+    let iw = inertia_mul(rot, ib, w);
+    let e0 = dot(w, iw);
+    var wg = w - h * inertia_inv_mul(rot, ib, cross(w, iw));
+    let e1 = dot(wg, inertia_mul(rot, ib, wg));
+    if (e1 > 1e-20) {
+        wg *= sqrt(e0 / e1);
+    }
+    // A = M + h Σ JᵀDJ
+    var a: array<f32, 36>;
+    for (var i = 0u; i < 36u; i++) {
+        a[i] = h * obj_d[i];
+    }
+    for (var i = 0u; i < 3u; i++) {
+        a[i * 6u + i] += mass;
+        var e = vec3<f32>(0.0);
+        e[i] = 1.0;
+        let col = inertia_mul(rot, ib, e);
+        for (var row = 0u; row < 3u; row++) {
+            a[(3u + row) * 6u + 3u + i] += col[row];
+        }
+    }
+    let gz = -(g.gravity + prm.added_gravity) * mass;
+    let f = obj_f + vec3<f32>(0.0, 0.0, gz);
+    let tq = obj_t;
+    let du = solve6(a, array<f32, 6>(h * f.x, h * f.y, h * f.z, h * tq.x, h * tq.y, h * tq.z));
+    let vel_n = st.obj_vel.xyz + vec3<f32>(du[0], du[1], du[2]);
+    let w_n = wg + vec3<f32>(du[3], du[4], du[5]);
+    st.obj_vel = vec4<f32>(vel_n, 0.0);
+    st.obj_angvel = vec4<f32>(w_n, 0.0);
+    st.obj_pos = vec4<f32>(st.obj_pos.xyz + vel_n * h, 0.0);
+    st.obj_rot = quat_integrate(rot, w_n, h);
+}
+
+fn substep(h: f32) {
+    hand_kinematics();
+    for (var j = 0u; j < MAX_JOINTS; j++) {
+        tau[j] = 0.0;
+    }
+    wrist_f = vec3<f32>(0.0);
+    wrist_t = vec3<f32>(0.0);
+    obj_f = vec3<f32>(0.0);
+    obj_t = vec3<f32>(0.0);
+    for (var i = 0u; i < 36u; i++) {
+        obj_d[i] = 0.0;
+    }
+    contacts_and_forces(h);
+    integrate_hand(h);
+    integrate_object(h);
+}
+
+fn is_finite3(v: vec3<f32>) -> bool {
+    // NaN fails every comparison; ±inf fails the bound
+    return all(abs(v) < vec3<f32>(3.0e38));
+}
+
+fn state_is_sane() -> bool {
+    var ok = is_finite3(st.wrist_pos.xyz) && is_finite3(st.wrist_vel.xyz) && is_finite3(st.wrist_angvel.xyz);
+    ok = ok && is_finite3(st.obj_pos.xyz) && is_finite3(st.obj_vel.xyz) && is_finite3(st.obj_angvel.xyz);
+    for (var j = 0u; j < g.n_joints; j++) {
+        ok = ok && abs(st.q[j]) < 3.0e38 && abs(st.qd[j]) < 3.0e38;
+    }
+    ok = ok && all(abs(st.wrist_rot) < vec4<f32>(3.0e38)) && all(abs(st.obj_rot) < vec4<f32>(3.0e38));
+    ok = ok && length(st.obj_pos.xyz) < g.max_distance && length(st.wrist_pos.xyz) < g.max_distance;
+    ok = ok && length(st.obj_vel.xyz) < g.max_speed && length(st.wrist_vel.xyz) < g.max_speed;
+    ok = ok && length(st.obj_angvel.xyz) < 100.0 * g.max_speed && length(st.wrist_angvel.xyz) < 100.0 * g.max_speed;
+    return ok;
+}
+
+fn env_step(env: u32) -> StepStats {
+    var out: StepStats;
+    let h = g.dt / f32(g.substeps);
+    let n_sub = g.decimation * g.substeps;
+    for (var i = 0u; i < n_sub; i++) {
+        substep(h);
+    }
+    st.time += g.dt * f32(g.decimation);
+    st.step += 1u;
+    for (var i = 0u; i < MAX_TIPS; i++) {
+        out.tip_force[i] = tip_force[i] / f32(n_sub);
+    }
+    out.max_pen_ho = max_pen_ho;
+    out.max_pen = max_pen;
+    out.contacts = n_contacts;
+    out.contacts_ho = n_contacts_ho;
+    out.bad_reset = 0u;
+    if (!state_is_sane()) {
+        let episode = st.episode + 1u;
+        let bad = st.bad_resets + 1u;
+        prm = reset_params(env, episode);
+        st = reset_state(prm, env, episode, bad);
+        out.bad_reset = 1u;
+    }
+    return out;
+}
+
+@compute @workgroup_size(64)
+fn step_main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let env = env_index(gid, nwg);
+    if (env >= g.n_envs) {
+        return;
+    }
+    st = states[env];
+    prm = params[env];
+    tg = targets[env];
+    let out = env_step(env);
+    states[env] = st;
+    params[env] = prm;
+    stats[env] = out;
+}

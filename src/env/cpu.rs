@@ -1,0 +1,101 @@
+//! `CpuEnvBatch`: the env batch on the CPU, rayon over envs, running the CPU twins of the shaders.
+
+use anyhow::{Result, ensure};
+use rayon::prelude::*;
+
+use super::layout::*;
+use super::physics::env_step;
+use super::reset::{reset_params, reset_state};
+use super::{EnvBatch, EnvSpec, SimModel};
+
+pub struct CpuEnvBatch {
+    model: SimModel,
+    states: Vec<EnvState>,
+    params: Vec<EnvParams>,
+    stats: Vec<StepStats>,
+}
+
+impl CpuEnvBatch {
+    /// Makes the batch with every env at the start of episode 0.
+    pub fn new(model: SimModel) -> CpuEnvBatch {
+        let n = model.spec.num_envs;
+        let mut b = CpuEnvBatch {
+            model,
+            states: vec![EnvState::default(); n],
+            params: vec![bytemuck::Zeroable::zeroed(); n],
+            stats: vec![bytemuck::Zeroable::zeroed(); n],
+        };
+        b.reset_where(|_| Some(0));
+        b
+    }
+
+    pub fn model(&self) -> &SimModel {
+        &self.model
+    }
+
+    /// Resets env i to the episode `episode_of(i)` returns (None = leave it).
+    fn reset_where(&mut self, episode_of: impl Fn(usize) -> Option<u32> + Sync) {
+        let g = &self.model.globals;
+        let joints = &self.model.joints;
+        self.states.par_iter_mut().zip(self.params.par_iter_mut()).enumerate().for_each(|(i, (st, p))| {
+            let next = st.episode + 1;
+            if let Some(ep) = episode_of(i) {
+                let ep = if ep == u32::MAX { next } else { ep };
+                *p = reset_params(g, i as u32, ep);
+                *st = reset_state(g, joints, p, i as u32, ep, st.bad_resets);
+            }
+        });
+    }
+}
+
+impl EnvBatch for CpuEnvBatch {
+    fn spec(&self) -> &EnvSpec {
+        &self.model.spec
+    }
+
+    fn backend_name(&self) -> String {
+        format!("cpu (rayon, {} threads)", rayon::current_num_threads())
+    }
+
+    fn reset_all(&mut self) -> Result<()> {
+        self.reset_where(|_| Some(0));
+        Ok(())
+    }
+
+    fn reset(&mut self, mask: &[bool]) -> Result<()> {
+        ensure!(mask.len() == self.states.len(), "reset mask has {} entries for {} envs", mask.len(), self.states.len());
+        self.reset_where(|i| if mask[i] { Some(u32::MAX) } else { None });
+        Ok(())
+    }
+
+    fn step(&mut self, targets: &[Targets]) -> Result<()> {
+        ensure!(targets.len() == self.states.len(), "{} targets for {} envs", targets.len(), self.states.len());
+        let m = self.model.view();
+        self.states
+            .par_iter_mut()
+            .zip(self.params.par_iter_mut())
+            .zip(self.stats.par_iter_mut())
+            .zip(targets.par_iter())
+            .enumerate()
+            .for_each(|(i, (((st, p), stats), t))| env_step(i as u32, st, p, t, &m, stats));
+        Ok(())
+    }
+
+    fn states(&mut self) -> Result<Vec<EnvState>> {
+        Ok(self.states.clone())
+    }
+
+    fn set_states(&mut self, states: &[EnvState]) -> Result<()> {
+        ensure!(states.len() == self.states.len(), "{} states for {} envs", states.len(), self.states.len());
+        self.states.copy_from_slice(states);
+        Ok(())
+    }
+
+    fn params(&mut self) -> Result<Vec<EnvParams>> {
+        Ok(self.params.clone())
+    }
+
+    fn stats(&mut self) -> Result<Vec<StepStats>> {
+        Ok(self.stats.clone())
+    }
+}

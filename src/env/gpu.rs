@@ -1,0 +1,296 @@
+//! `GpuEnvBatch`: the env batch on a wgpu device. The WGSL of `shaders/` (common + reset + physics,
+//! concatenated) runs one invocation per env; buffers, pipelines and bind groups are made once in
+//! `new`, so a step only uploads targets, dispatches and (on request) copies results back.
+
+use std::sync::mpsc;
+
+use anyhow::{Context, Result, anyhow, bail, ensure};
+use bytemuck::Pod;
+use wgpu::util::DeviceExt;
+
+use super::layout::*;
+use super::{EnvBatch, EnvSpec, SimModel};
+
+pub const SHADER_COMMON: &str = include_str!("../../shaders/common.wgsl");
+pub const SHADER_RESET: &str = include_str!("../../shaders/reset.wgsl");
+pub const SHADER_PHYSICS: &str = include_str!("../../shaders/physics.wgsl");
+/// Invocations per workgroup (keep in sync with `WORKGROUP_SIZE` in common.wgsl).
+pub const WORKGROUP_SIZE: u32 = 64;
+
+/// The WGSL module the simulator runs: common, reset and physics concatenated.
+pub fn shader_source() -> String {
+    [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS].join("\n")
+}
+
+/// A wgpu instance, adapter, device and queue.
+pub struct GpuContext {
+    pub instance: wgpu::Instance,
+    pub adapter: wgpu::Adapter,
+    pub device: wgpu::Device,
+    pub queue: wgpu::Queue,
+    pub info: wgpu::AdapterInfo,
+}
+
+fn is_software(info: &wgpu::AdapterInfo) -> bool {
+    info.device_type == wgpu::DeviceType::Cpu || info.name.to_lowercase().contains("llvmpipe")
+}
+
+impl GpuContext {
+    /// Picks an adapter: `name` = the first adapter whose name contains it (case-insensitive; Vulkan,
+    /// Metal and DX12 before OpenGL); `None` = the first hardware adapter — a software adapter such as
+    /// lavapipe is only used when asked for by name.
+    pub fn new(name: Option<&str>) -> Result<GpuContext> {
+        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let mut adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
+        // prefer the native APIs over OpenGL
+        adapters.sort_by_key(|a| (a.get_info().backend == wgpu::Backend::Gl) as u8);
+        let listed: Vec<String> = adapters.iter().map(|a| format!("{} ({:?})", a.get_info().name, a.get_info().backend)).collect();
+        let chosen = match name {
+            Some(n) => {
+                let n = n.to_lowercase();
+                adapters.into_iter().find(|a| a.get_info().name.to_lowercase().contains(&n)).ok_or_else(|| {
+                    anyhow!("no wgpu adapter named like '{n}' (adapters: {})", if listed.is_empty() { "none".into() } else { listed.join(", ") })
+                })?
+            }
+            None => adapters.into_iter().find(|a| !is_software(&a.get_info())).ok_or_else(|| {
+                anyhow!(
+                    "no hardware GPU adapter (adapters: {}); name a software one with backend = \"gpu:llvmpipe\"",
+                    if listed.is_empty() { "none".into() } else { listed.join(", ") }
+                )
+            })?,
+        };
+        let info = chosen.get_info();
+        // as burn/cubecl expect, so the learner can later share this device
+        let desc = wgpu::DeviceDescriptor {
+            label: Some("dextrain"),
+            required_features: chosen.features().difference(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS),
+            required_limits: chosen.limits(),
+            ..Default::default()
+        };
+        let (device, queue) = pollster::block_on(chosen.request_device(&desc))
+            .with_context(|| format!("cannot open a device on adapter {}", info.name))?;
+        Ok(GpuContext { instance, adapter: chosen, device, queue, info })
+    }
+
+    pub fn describe(&self) -> String {
+        format!("{} ({:?}, {:?})", self.info.name, self.info.backend, self.info.device_type)
+    }
+}
+
+/// The env batch on a GPU.
+pub struct GpuEnvBatch {
+    ctx: GpuContext,
+    model: SimModel,
+    states: wgpu::Buffer,
+    params: wgpu::Buffer,
+    targets: wgpu::Buffer,
+    stats: wgpu::Buffer,
+    reset_mask: wgpu::Buffer,
+    readback: wgpu::Buffer,
+    step_pipeline: wgpu::ComputePipeline,
+    reset_pipeline: wgpu::ComputePipeline,
+    step_group: wgpu::BindGroup,
+    reset_group: wgpu::BindGroup,
+    mask_host: Vec<u32>,
+}
+
+fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+    wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
+}
+
+fn storage<T: Pod>(device: &wgpu::Device, label: &str, data: &[T], extra: wgpu::BufferUsages) -> wgpu::Buffer {
+    // zero-length bindings are invalid: pad with one zeroed element
+    let bytes: Vec<u8> = if data.is_empty() { vec![0u8; std::mem::size_of::<T>().max(16)] } else { bytemuck::cast_slice(data).to_vec() };
+    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+        label: Some(label),
+        contents: &bytes,
+        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC | extra,
+    })
+}
+
+impl GpuEnvBatch {
+    /// Uploads the model, builds the pipelines and starts episode 0 of every env.
+    pub fn new(ctx: GpuContext, model: SimModel) -> Result<GpuEnvBatch> {
+        let n = model.spec.num_envs;
+        let device = &ctx.device;
+        let limits = device.limits();
+        let state_bytes = (n * std::mem::size_of::<EnvState>()) as u64;
+        if state_bytes > limits.max_storage_buffer_binding_size as u64 || state_bytes > limits.max_buffer_size {
+            bail!(
+                "sim.num_envs = {n} needs {} MiB of env state, but adapter {} allows {} MiB per storage binding",
+                state_bytes >> 20,
+                ctx.info.name,
+                (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size) >> 20
+            );
+        }
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("dextrain physics"),
+            source: wgpu::ShaderSource::Wgsl(shader_source().into()),
+        });
+        let globals = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("globals"),
+            contents: bytemuck::bytes_of(&model.globals),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        });
+        let none = wgpu::BufferUsages::empty();
+        let joints = storage(device, "joints", &model.joints, none);
+        let colliders = storage(device, "colliders", &model.colliders, none);
+        let tips = storage(device, "tips", &model.tips, none);
+        let states = storage(device, "states", &vec![EnvState::default(); n], none);
+        let params = storage(device, "params", &vec![<EnvParams as bytemuck::Zeroable>::zeroed(); n], none);
+        let targets = storage(device, "targets", &vec![Targets::default(); n], none);
+        let stats = storage(device, "stats", &vec![<StepStats as bytemuck::Zeroable>::zeroed(); n], none);
+        let reset_mask = storage(device, "reset_mask", &vec![0u32; n], none);
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: state_bytes.max(16),
+            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let make = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: &module,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let step_pipeline = make("step_main");
+        let reset_pipeline = make("reset_main");
+        let step_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("step"),
+            layout: &step_pipeline.get_bind_group_layout(0),
+            entries: &[
+                entry(0, &globals),
+                entry(1, &joints),
+                entry(2, &colliders),
+                entry(4, &states),
+                entry(5, &params),
+                entry(6, &targets),
+                entry(7, &stats),
+            ],
+        });
+        let reset_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("reset"),
+            layout: &reset_pipeline.get_bind_group_layout(0),
+            entries: &[entry(0, &globals), entry(1, &joints), entry(4, &states), entry(5, &params), entry(8, &reset_mask)],
+        });
+        drop(tips);
+        let mut b = GpuEnvBatch {
+            ctx,
+            model,
+            states,
+            params,
+            targets,
+            stats,
+            reset_mask,
+            readback,
+            step_pipeline,
+            reset_pipeline,
+            step_group,
+            reset_group,
+            mask_host: vec![0; n],
+        };
+        b.reset_all()?;
+        Ok(b)
+    }
+
+    pub fn context(&self) -> &GpuContext {
+        &self.ctx
+    }
+
+    fn workgroups(&self) -> (u32, u32) {
+        let wg = (self.model.spec.num_envs as u32).div_ceil(WORKGROUP_SIZE);
+        let x = wg.min(65535);
+        (x, wg.div_ceil(x))
+    }
+
+    fn dispatch(&self, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup) {
+        let (x, y) = self.workgroups();
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            pass.set_pipeline(pipeline);
+            pass.set_bind_group(0, group, &[]);
+            pass.dispatch_workgroups(x, y, 1);
+        }
+        self.ctx.queue.submit([enc.finish()]);
+    }
+
+    fn run_reset(&mut self) -> Result<()> {
+        self.ctx.queue.write_buffer(&self.reset_mask, 0, bytemuck::cast_slice(&self.mask_host));
+        self.dispatch(&self.reset_pipeline, &self.reset_group);
+        Ok(())
+    }
+
+    /// Copies `count` elements of `T` from `src` back to the host.
+    fn read<T: Pod>(&self, src: &wgpu::Buffer, count: usize) -> Result<Vec<T>> {
+        let size = (count * std::mem::size_of::<T>()) as u64;
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        enc.copy_buffer_to_buffer(src, 0, &self.readback, 0, size);
+        self.ctx.queue.submit([enc.finish()]);
+        let slice = self.readback.slice(0..size);
+        let (tx, rx) = mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        self.ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU poll failed: {e}"))?;
+        rx.recv().context("GPU readback was dropped")?.map_err(|e| anyhow!("GPU readback failed: {e}"))?;
+        let out = {
+            let view = slice.get_mapped_range().map_err(|e| anyhow!("GPU readback failed: {e:?}"))?;
+            bytemuck::pod_collect_to_vec(&view)
+        };
+        self.readback.unmap();
+        Ok(out)
+    }
+}
+
+impl EnvBatch for GpuEnvBatch {
+    fn spec(&self) -> &EnvSpec {
+        &self.model.spec
+    }
+
+    fn backend_name(&self) -> String {
+        format!("gpu ({})", self.ctx.describe())
+    }
+
+    fn reset_all(&mut self) -> Result<()> {
+        self.mask_host.fill(2);
+        self.run_reset()
+    }
+
+    fn reset(&mut self, mask: &[bool]) -> Result<()> {
+        ensure!(mask.len() == self.mask_host.len(), "reset mask has {} entries for {} envs", mask.len(), self.mask_host.len());
+        for (m, &b) in self.mask_host.iter_mut().zip(mask) {
+            *m = b as u32;
+        }
+        self.run_reset()
+    }
+
+    fn step(&mut self, targets: &[Targets]) -> Result<()> {
+        ensure!(targets.len() == self.model.spec.num_envs, "{} targets for {} envs", targets.len(), self.model.spec.num_envs);
+        self.ctx.queue.write_buffer(&self.targets, 0, bytemuck::cast_slice(targets));
+        self.dispatch(&self.step_pipeline, &self.step_group);
+        Ok(())
+    }
+
+    fn states(&mut self) -> Result<Vec<EnvState>> {
+        self.read(&self.states, self.model.spec.num_envs)
+    }
+
+    fn set_states(&mut self, states: &[EnvState]) -> Result<()> {
+        ensure!(states.len() == self.model.spec.num_envs, "{} states for {} envs", states.len(), self.model.spec.num_envs);
+        self.ctx.queue.write_buffer(&self.states, 0, bytemuck::cast_slice(states));
+        Ok(())
+    }
+
+    fn params(&mut self) -> Result<Vec<EnvParams>> {
+        self.read(&self.params, self.model.spec.num_envs)
+    }
+
+    fn stats(&mut self) -> Result<Vec<StepStats>> {
+        self.read(&self.stats, self.model.spec.num_envs)
+    }
+}

@@ -1,0 +1,233 @@
+//! `#[repr(C)]` bytemuck Pod structs shared by the CPU backend and the GPU storage buffers.
+//!
+//! Every struct here is the twin of a WGSL struct in `shaders/common.wgsl` with the same name and
+//! the same fields in the same order: keep them in sync (tests/shaders.rs compares sizes and offsets
+//! with naga's layouter). Only `f32`, `u32` and `[f32; 4]` (WGSL `vec4<f32>`) are used, vec4 fields
+//! come first so that they sit on 16-byte boundaries, and every struct's size is a multiple of 16.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::hand::{MAX_COLLIDERS, MAX_JOINTS, MAX_TIPS};
+
+/// Most support points of an object against the table (keep in sync with `MAX_OBJ_PTS`).
+pub const MAX_OBJ_PTS: usize = 16;
+
+/// Object shape codes (keep in sync with shaders/common.wgsl `SHAPE_*`).
+pub const SHAPE_SPHERE: u32 = 0;
+pub const SHAPE_BOX: u32 = 1;
+pub const SHAPE_CAPSULE: u32 = 2;
+pub const SHAPE_CYLINDER: u32 = 3;
+
+/// Marks "no joint" in `JointDesc::mimic_leader`.
+pub const NO_JOINT: u32 = u32::MAX;
+
+/// Run-wide constants (WGSL `Globals`, one per run, read-only).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct Globals {
+    /// Initial wrist position (xyz) and orientation (quaternion xyzw).
+    pub init_wrist_pos: [f32; 4],
+    pub init_wrist_rot: [f32; 4],
+    /// Unscaled object size parameters (see `ObjectShape::size_params`), w unused.
+    pub obj_size: [f32; 4],
+    /// Nominal object placement: x, y, yaw, and the unscaled rest height (z of the centre).
+    pub obj_init: [f32; 4],
+    /// Randomisation ranges [lo, hi] as pairs: (hand_mass, hand_friction), (joint_limits, joint_stiffness),
+    /// (joint_damping, object_mass), (object_friction, object_scale), (restitution, table_friction),
+    /// (added_gravity, xy noise x / y packed as (nx, ny)).
+    pub rnd: [[f32; 4]; 6],
+    pub n_envs: u32,
+    pub n_joints: u32,
+    pub n_colliders: u32,
+    pub n_tips: u32,
+    pub n_links: u32,
+    pub obj_shape: u32,
+    pub n_obj_pts: u32,
+    pub substeps: u32,
+    pub decimation: u32,
+    pub seed: u32,
+    pub hand_table: u32,
+    pub _pad0: u32,
+    /// Physics step (s).
+    pub dt: f32,
+    /// Gravity magnitude (m/s², acting along −z).
+    pub gravity: f32,
+    pub contact_k: f32,
+    pub contact_kt: f32,
+    pub hand_eff_mass: f32,
+    pub hand_friction: f32,
+    pub obj_mass: f32,
+    pub obj_friction: f32,
+    pub table_friction: f32,
+    pub yaw_noise: f32,
+    /// Hand mass (kg, links only, unscaled) and the wrist's rotational inertia from the links (kg·m²).
+    pub hand_mass: f32,
+    pub hand_inertia: f32,
+    pub wrist_added_mass: f32,
+    pub wrist_added_inertia: f32,
+    pub wrist_kp_lin: f32,
+    pub wrist_kd_lin: f32,
+    pub wrist_force_limit: f32,
+    pub wrist_kp_rot: f32,
+    pub wrist_kd_rot: f32,
+    pub wrist_torque_limit: f32,
+    pub max_speed: f32,
+    pub max_distance: f32,
+    pub _pad1: f32,
+    pub _pad2: f32,
+}
+
+/// One movable joint of the hand (WGSL `JointDesc`), in topological order.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct JointDesc {
+    /// Joint frame in the parent link's frame: position (xyz) and rotation (quaternion xyzw).
+    pub origin_pos: [f32; 4],
+    pub origin_rot: [f32; 4],
+    /// Unit axis in the joint frame.
+    pub axis: [f32; 4],
+    pub parent_link: u32,
+    /// Leader joint of a mimic follower, `NO_JOINT` otherwise.
+    pub mimic_leader: u32,
+    pub mimic_mult: f32,
+    pub mimic_offset: f32,
+    pub lower: f32,
+    pub upper: f32,
+    pub effort: f32,
+    pub velocity: f32,
+    pub damping: f32,
+    pub friction: f32,
+    /// Armature (kg·m²) and the links' inertia about the axis at q = 0 (kg·m², scaled by hand mass),
+    /// both including mimic followers' shares (multiplier²).
+    pub armature: f32,
+    pub link_inertia: f32,
+    pub kp: f32,
+    pub kd: f32,
+    pub default_q: f32,
+    pub _pad: f32,
+}
+
+/// One hand collision shape (WGSL `ColliderDesc`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ColliderDesc {
+    /// Pose in its link's frame.
+    pub pos: [f32; 4],
+    pub rot: [f32; 4],
+    /// Sphere (r, 0, 0), capsule (r, half_length, 0), box (hx, hy, hz).
+    pub size: [f32; 4],
+    pub link: u32,
+    /// 0 sphere, 1 box, 2 capsule (the object shape codes).
+    pub shape: u32,
+    /// Fingertip index this collider belongs to (its link carries that tip), or `NO_JOINT`.
+    pub tip: u32,
+    pub _pad: u32,
+}
+
+/// One fingertip frame (WGSL `TipDesc`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct TipDesc {
+    /// Position in the link frame.
+    pub pos: [f32; 4],
+    pub link: u32,
+    pub _pad: [u32; 3],
+}
+
+/// The dynamic state of one env (WGSL `EnvState`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct EnvState {
+    /// Wrist (root link) position, orientation (xyzw), linear and angular velocity (world).
+    pub wrist_pos: [f32; 4],
+    pub wrist_rot: [f32; 4],
+    pub wrist_vel: [f32; 4],
+    pub wrist_angvel: [f32; 4],
+    /// Object centre position, orientation, linear and angular velocity (world).
+    pub obj_pos: [f32; 4],
+    pub obj_rot: [f32; 4],
+    pub obj_vel: [f32; 4],
+    pub obj_angvel: [f32; 4],
+    /// Tangential spring of each hand–object contact (xyz, world); w = 1 while in contact.
+    pub anchor_ho: [[f32; 4]; MAX_COLLIDERS],
+    /// Same for hand–table contacts.
+    pub anchor_ht: [[f32; 4]; MAX_COLLIDERS],
+    /// Same for object–table contacts, one per object support point.
+    pub anchor_ot: [[f32; 4]; MAX_OBJ_PTS],
+    /// Joint positions (rad) and velocities (rad/s), followers included.
+    pub q: [f32; MAX_JOINTS],
+    pub qd: [f32; MAX_JOINTS],
+    /// Simulated time since the reset (s).
+    pub time: f32,
+    /// Episodes started by this env (0 for the first).
+    pub episode: u32,
+    /// Env steps since the reset.
+    pub step: u32,
+    /// Resets caused by non-finite or exploding state since the batch was made.
+    pub bad_resets: u32,
+}
+
+/// Per-env physical parameters drawn at reset (WGSL `EnvParams`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct EnvParams {
+    /// Scaled object size parameters.
+    pub obj_size: [f32; 4],
+    /// Object principal inertia (xyz) and mass (w).
+    pub obj_inertia: [f32; 4],
+    pub obj_friction: f32,
+    pub restitution: f32,
+    pub obj_scale: f32,
+    pub table_friction: f32,
+    pub hand_friction: f32,
+    pub hand_mass_scale: f32,
+    pub limit_scale: f32,
+    pub kp_scale: f32,
+    pub kd_scale: f32,
+    pub added_gravity: f32,
+    /// Normal damping of hand–object and object–table contacts (N·s/m), from the restitution.
+    pub obj_contact_c: f32,
+    /// Normal damping of hand–table contacts (N·s/m).
+    pub hand_table_c: f32,
+    pub _pad: [f32; 2],
+}
+
+/// Per-env joint and wrist targets for one env step (WGSL `Targets`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct Targets {
+    pub wrist_pos: [f32; 4],
+    pub wrist_rot: [f32; 4],
+    /// Joint position targets (rad); followers' entries are ignored.
+    pub q: [f32; MAX_JOINTS],
+}
+
+/// What happened in one env during the last env step (WGSL `StepStats`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct StepStats {
+    /// Normal force (N) of each fingertip's hand–object contacts, averaged over the env step's substeps.
+    pub tip_force: [f32; MAX_TIPS],
+    /// Deepest hand–object penetration (m) over the env step.
+    pub max_pen_ho: f32,
+    /// Deepest penetration of any contact (m) over the env step.
+    pub max_pen: f32,
+    /// Contacts summed over the env step's substeps (all pairs / hand–object only).
+    pub contacts: u32,
+    pub contacts_ho: u32,
+    /// 1 if the env was reset during this step because its state was non-finite or exploded.
+    pub bad_reset: u32,
+    pub _pad: u32,
+}
+
+impl Default for EnvState {
+    fn default() -> Self {
+        Zeroable::zeroed()
+    }
+}
+
+impl Default for Targets {
+    fn default() -> Self {
+        Zeroable::zeroed()
+    }
+}

@@ -1,0 +1,725 @@
+//! CPU twin of `shaders/physics.wgsl`: one env step of one env (decimation × substeps).
+//! Same function names, same order, same arithmetic as the shader; `Scratch` is the shader's
+//! `var<private>` memory.
+//!
+//! The model (DESIGN §4), per substep of length h:
+//! 1. `hand_kinematics`: link poses and velocities from the wrist state and joint positions.
+//! 2. Contacts (penalty): hand–object (one per hand collider, closest points by alternating
+//!    projection), hand–table (lowest point of each collider), object–table (object support points).
+//!    Normal force `Fn = max(k·depth − c·vn, 0)`; friction from a tangential spring anchored per contact
+//!    pair, `Ft = −kt·s − ct·vt`, sliding (s rescaled) when `|Ft| > μ·Fn`, so a held object does not creep.
+//! 3. Contact forces on hand links push the joints of their chain (τ = Jᵀ F) and the wrist.
+//! 4. Hand: finger joints are independent 1-DoF servos (PD with effort limit, damping, Coulomb friction,
+//!    armature + link inertia about the axis at q = 0), integrated semi-implicitly; mimic followers
+//!    follow their leader; the wrist is a free body pulled by a force/torque-limited PD toward its
+//!    target (the hand's weight is compensated, as by an arm controller).
+//! 5. Object: a free rigid body under gravity and contact forces, integrated linearly implicitly in
+//!    its 6 velocities (M + h·Σ Jᵀ D J) Δu = h·f, so that stiff contacts stay stable for light objects.
+
+use glam::{Vec3, Vec4};
+
+use super::common::*;
+use super::layout::*;
+use super::reset::{reset_params, reset_state};
+use crate::hand::{MAX_JOINTS, MAX_TIPS};
+
+/// Most links: the root plus one per movable joint.
+pub const MAX_LINKS: usize = MAX_JOINTS + 1;
+/// Alternating-projection iterations of the hand–object closest-point search.
+pub const PROJ_ITERS: usize = 4;
+
+/// Read-only description of the run shared by all envs (the shader's bindings 0–3).
+#[derive(Clone, Copy)]
+pub struct Model<'a> {
+    pub g: &'a Globals,
+    pub joints: &'a [JointDesc],
+    pub colliders: &'a [ColliderDesc],
+    pub tips: &'a [TipDesc],
+}
+
+/// Per-invocation working memory (the shader's `var<private>` variables).
+#[derive(Clone)]
+pub struct Scratch {
+    pub link_pos: [Vec3; MAX_LINKS],
+    pub link_rot: [Vec4; MAX_LINKS],
+    pub link_v: [Vec3; MAX_LINKS],
+    pub link_w: [Vec3; MAX_LINKS],
+    /// World axis of each joint (its origin is `link_pos[j + 1]`).
+    pub joint_axis: [Vec3; MAX_JOINTS],
+    /// Contact torque on each joint (τ = Jᵀ F).
+    pub tau: [f32; MAX_JOINTS],
+    /// Contact force and torque (about the wrist position) on the hand.
+    pub wrist_f: Vec3,
+    pub wrist_t: Vec3,
+    /// Contact force and torque (about the centre) on the object, and the 6×6 implicit damping
+    /// Σ Jᵀ D J (row-major).
+    pub obj_f: Vec3,
+    pub obj_t: Vec3,
+    pub obj_d: [f32; 36],
+    /// Statistics accumulated over the env step.
+    pub tip_force: [f32; MAX_TIPS],
+    pub max_pen_ho: f32,
+    pub max_pen: f32,
+    pub contacts: u32,
+    pub contacts_ho: u32,
+}
+
+impl Default for Scratch {
+    fn default() -> Self {
+        Scratch {
+            link_pos: [Vec3::ZERO; MAX_LINKS],
+            link_rot: [Vec4::W; MAX_LINKS],
+            link_v: [Vec3::ZERO; MAX_LINKS],
+            link_w: [Vec3::ZERO; MAX_LINKS],
+            joint_axis: [Vec3::ZERO; MAX_JOINTS],
+            tau: [0.0; MAX_JOINTS],
+            wrist_f: Vec3::ZERO,
+            wrist_t: Vec3::ZERO,
+            obj_f: Vec3::ZERO,
+            obj_t: Vec3::ZERO,
+            obj_d: [0.0; 36],
+            tip_force: [0.0; MAX_TIPS],
+            max_pen_ho: 0.0,
+            max_pen: 0.0,
+            contacts: 0,
+            contacts_ho: 0,
+        }
+    }
+}
+
+/// A contact found by a narrow-phase function.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Contact {
+    /// Penetration depth (m); the pair touches when > 0.
+    pub depth: f32,
+    /// Unit normal from the second body to the first (world).
+    pub normal: Vec3,
+    /// Contact point on the second body's surface (world).
+    pub point: Vec3,
+}
+
+fn v3(a: [f32; 4]) -> Vec3 {
+    Vec3::new(a[0], a[1], a[2])
+}
+
+fn v4(a: [f32; 4]) -> Vec4 {
+    Vec4::from_array(a)
+}
+
+fn put3(v: Vec3) -> [f32; 4] {
+    [v.x, v.y, v.z, 0.0]
+}
+
+/// Sign with sgn(0) = 1 (WGSL's `sign` returns 0 there, so both use this).
+pub fn sgn(x: f32) -> f32 {
+    if x < 0.0 { -1.0 } else { 1.0 }
+}
+
+/// Clamps the length of `v` to `max`.
+pub fn clamp_norm(v: Vec3, max: f32) -> Vec3 {
+    let l = v.length();
+    if l > max { v * (max / l) } else { v }
+}
+
+/// Link poses, link velocities and world joint axes from the wrist state and joint positions.
+pub fn hand_kinematics(st: &EnvState, m: &Model, s: &mut Scratch) {
+    s.link_pos[0] = v3(st.wrist_pos);
+    s.link_rot[0] = v4(st.wrist_rot);
+    s.link_v[0] = v3(st.wrist_vel);
+    s.link_w[0] = v3(st.wrist_angvel);
+    for j in 0..m.g.n_joints as usize {
+        let jd = &m.joints[j];
+        let p = jd.parent_link as usize;
+        let frame_rot = quat_mul(s.link_rot[p], v4(jd.origin_rot));
+        let o = s.link_pos[p] + quat_rotate(s.link_rot[p], v3(jd.origin_pos));
+        let axis = quat_rotate(frame_rot, v3(jd.axis));
+        s.joint_axis[j] = axis;
+        s.link_pos[j + 1] = o;
+        s.link_rot[j + 1] = quat_mul(frame_rot, quat_from_axis_angle(v3(jd.axis), st.q[j]));
+        // ω_child = ω_parent + a q̇;  v_child = v_parent + ω_parent × (o − p_parent)
+        s.link_w[j + 1] = s.link_w[p] + axis * st.qd[j];
+        s.link_v[j + 1] = s.link_v[p] + s.link_w[p].cross(o - s.link_pos[p]);
+    }
+}
+
+/// Velocity of the point `x` (world) fixed to hand link `l`.
+pub fn link_point_velocity(s: &Scratch, l: usize, x: Vec3) -> Vec3 {
+    s.link_v[l] + s.link_w[l].cross(x - s.link_pos[l])
+}
+
+/// Support point `k` of the object against the table: local position and radius.
+pub fn object_support_point(code: u32, size: Vec3, k: u32) -> (Vec3, f32) {
+    if code == SHAPE_SPHERE {
+        return (Vec3::ZERO, size.x);
+    }
+    if code == SHAPE_BOX {
+        let sx = if (k & 1) != 0 { size.x } else { -size.x };
+        let sy = if (k & 2) != 0 { size.y } else { -size.y };
+        let sz = if (k & 4) != 0 { size.z } else { -size.z };
+        return (Vec3::new(sx, sy, sz), 0.0);
+    }
+    if code == SHAPE_CAPSULE {
+        let z = if k == 0 { -size.y } else { size.y };
+        return (Vec3::new(0.0, 0.0, z), size.x);
+    }
+    // cylinder: 8 points on the rim of each cap
+    let a = 0.7853982 * (k % 8) as f32;
+    let z = if k < 8 { -size.y } else { size.y };
+    (Vec3::new(size.x * a.cos(), size.x * a.sin(), z), 0.0)
+}
+
+/// Number of support points of an object shape.
+pub fn object_num_support(code: u32) -> u32 {
+    if code == SHAPE_SPHERE {
+        return 1;
+    }
+    if code == SHAPE_BOX {
+        return 8;
+    }
+    if code == SHAPE_CAPSULE {
+        return 2;
+    }
+    16
+}
+
+/// Closest point of the solid object (local frame) to `p`; the flag is true when `p` is inside.
+pub fn object_project(code: u32, size: Vec3, p: Vec3) -> (Vec3, bool) {
+    if code == SHAPE_BOX {
+        let c = p.clamp(-size, size);
+        let inside = p.x.abs() <= size.x && p.y.abs() <= size.y && p.z.abs() <= size.z;
+        return (c, inside);
+    }
+    if code == SHAPE_CYLINDER {
+        let z = p.z.clamp(-size.y, size.y);
+        let rho = (p.x * p.x + p.y * p.y).sqrt();
+        let inside = rho <= size.x && p.z.abs() <= size.y;
+        let k = if rho > size.x { size.x / rho } else { 1.0 };
+        return (Vec3::new(p.x * k, p.y * k, z), inside);
+    }
+    // sphere (axis half length 0) and capsule: distance to the axis segment
+    let hl = if code == SHAPE_CAPSULE { size.y } else { 0.0 };
+    let c = Vec3::new(0.0, 0.0, p.z.clamp(-hl, hl));
+    let d = p - c;
+    let l = d.length();
+    if l <= size.x {
+        return (p, true);
+    }
+    (c + d * (size.x / l), false)
+}
+
+/// For a point inside the solid object (local frame): outward normal of the nearest surface and the
+/// distance to it.
+pub fn object_inside_normal(code: u32, size: Vec3, p: Vec3) -> (Vec3, f32) {
+    if code == SHAPE_BOX {
+        let dx = size.x - p.x.abs();
+        let dy = size.y - p.y.abs();
+        let dz = size.z - p.z.abs();
+        if dx <= dy && dx <= dz {
+            return (Vec3::new(sgn(p.x), 0.0, 0.0), dx);
+        }
+        if dy <= dz {
+            return (Vec3::new(0.0, sgn(p.y), 0.0), dy);
+        }
+        return (Vec3::new(0.0, 0.0, sgn(p.z)), dz);
+    }
+    if code == SHAPE_CYLINDER {
+        let rho = (p.x * p.x + p.y * p.y).sqrt();
+        let dr = size.x - rho;
+        let dz = size.y - p.z.abs();
+        if dz < dr || rho < 1e-9 {
+            return (Vec3::new(0.0, 0.0, sgn(p.z)), dz);
+        }
+        return (Vec3::new(p.x / rho, p.y / rho, 0.0), dr);
+    }
+    let hl = if code == SHAPE_CAPSULE { size.y } else { 0.0 };
+    let d = p - Vec3::new(0.0, 0.0, p.z.clamp(-hl, hl));
+    let l = d.length();
+    if l < 1e-9 {
+        return (Vec3::X, size.x);
+    }
+    (d / l, size.x - l)
+}
+
+/// Closest point on the segment [a, b] to `p`.
+pub fn segment_closest(a: Vec3, b: Vec3, p: Vec3) -> Vec3 {
+    let ab = b - a;
+    let l2 = ab.dot(ab);
+    if l2 < 1e-18 {
+        return a;
+    }
+    a + ab * ((p - a).dot(ab) / l2).clamp(0.0, 1.0)
+}
+
+/// Closest point of a box (centre `c`, rotation `r`, half extents `h`) to `p`, all in one frame.
+pub fn box_project(c: Vec3, r: Vec4, h: Vec3, p: Vec3) -> Vec3 {
+    let local = quat_rotate(quat_conj(r), p - c);
+    c + quat_rotate(r, local.clamp(-h, h))
+}
+
+/// World pose of hand collider `ci`.
+pub fn collider_pose(m: &Model, s: &Scratch, ci: usize) -> (Vec3, Vec4) {
+    let cd = &m.colliders[ci];
+    let l = cd.link as usize;
+    let pos = s.link_pos[l] + quat_rotate(s.link_rot[l], v3(cd.pos));
+    (pos, quat_mul(s.link_rot[l], v4(cd.rot)))
+}
+
+/// Narrow phase between hand collider `ci` and the object (normal from object to hand).
+pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize) -> Contact {
+    let cd = &m.colliders[ci];
+    let (cpos, crot) = collider_pose(m, s, ci);
+    let opos = v3(st.obj_pos);
+    let orot = v4(st.obj_rot);
+    let oinv = quat_conj(orot);
+    let code = m.g.obj_shape;
+    let size = v3(p.obj_size);
+    // collider in the object's frame
+    let c_o = quat_rotate(oinv, cpos - opos);
+    let r_o = quat_mul(oinv, crot);
+    let mut out = Contact::default();
+    if cd.shape == SHAPE_BOX {
+        let h = v3(cd.size);
+        let mut x = c_o;
+        for _ in 0..PROJ_ITERS {
+            let (y, _) = object_project(code, size, x);
+            x = box_project(c_o, r_o, h, y);
+        }
+        let (y, _) = object_project(code, size, x);
+        // y lies in the hand box when the two overlap: push the hand out through its nearest face
+        let local = quat_rotate(quat_conj(r_o), y - c_o);
+        let d = h - local.abs();
+        if d.x < 0.0 || d.y < 0.0 || d.z < 0.0 {
+            out.depth = -1.0;
+            return out;
+        }
+        let mut n_local = Vec3::new(0.0, 0.0, -sgn(local.z));
+        let mut depth = d.z;
+        if d.x <= d.y && d.x <= d.z {
+            n_local = Vec3::new(-sgn(local.x), 0.0, 0.0);
+            depth = d.x;
+        } else if d.y <= d.z {
+            n_local = Vec3::new(0.0, -sgn(local.y), 0.0);
+            depth = d.y;
+        }
+        out.depth = depth;
+        out.normal = quat_rotate(orot, quat_rotate(r_o, n_local));
+        out.point = opos + quat_rotate(orot, y);
+        return out;
+    }
+    // sphere or capsule collider: a segment swept by a radius
+    let hl = if cd.shape == SHAPE_CAPSULE { cd.size[1] } else { 0.0 };
+    let axis = quat_rotate(r_o, Vec3::new(0.0, 0.0, hl));
+    let a = c_o - axis;
+    let b = c_o + axis;
+    let mut x = segment_closest(a, b, Vec3::ZERO);
+    for _ in 0..PROJ_ITERS {
+        let (y, _) = object_project(code, size, x);
+        x = segment_closest(a, b, y);
+    }
+    let (y, inside) = object_project(code, size, x);
+    let rc = cd.size[0];
+    let mut n = Vec3::Z;
+    let mut surf = y;
+    if inside {
+        let (ni, dist) = object_inside_normal(code, size, x);
+        n = ni;
+        out.depth = rc + dist;
+        surf = x + ni * dist;
+    } else {
+        let d = x - y;
+        let l = d.length();
+        out.depth = rc - l;
+        if l > 1e-12 {
+            n = d / l;
+        }
+    }
+    out.normal = quat_rotate(orot, n);
+    out.point = opos + quat_rotate(orot, surf);
+    out
+}
+
+/// Narrow phase between hand collider `ci` and the table (its lowest point).
+pub fn collide_hand_table(m: &Model, s: &Scratch, ci: usize) -> Contact {
+    let cd = &m.colliders[ci];
+    let (cpos, crot) = collider_pose(m, s, ci);
+    let mut low = cpos;
+    let mut r = cd.size[0];
+    if cd.shape == SHAPE_CAPSULE {
+        let axis = quat_rotate(crot, Vec3::new(0.0, 0.0, cd.size[1]));
+        low = if axis.z > 0.0 { cpos - axis } else { cpos + axis };
+    } else if cd.shape == SHAPE_BOX {
+        r = 0.0;
+        for k in 0..8u32 {
+            let (corner, _) = object_support_point(SHAPE_BOX, v3(cd.size), k);
+            let w = cpos + quat_rotate(crot, corner);
+            if w.z < low.z || k == 0 {
+                low = w;
+            }
+        }
+    }
+    Contact { depth: r - low.z, normal: Vec3::Z, point: Vec3::new(low.x, low.y, 0.0) }
+}
+
+/// Narrow phase between object support point `k` and the table.
+pub fn collide_object_table(st: &EnvState, p: &EnvParams, m: &Model, k: u32) -> Contact {
+    let (local, r) = object_support_point(m.g.obj_shape, v3(p.obj_size), k);
+    let w = v3(st.obj_pos) + quat_rotate(v4(st.obj_rot), local);
+    Contact { depth: r - w.z, normal: Vec3::Z, point: Vec3::new(w.x, w.y, 0.0) }
+}
+
+/// Penalty contact force on the first body and the new tangential spring.
+/// `vrel`: velocity of the first body relative to the second at the contact point. Returns
+/// (force, spring, sticking).
+#[allow(clippy::too_many_arguments)]
+pub fn contact_force(c: &Contact, vrel: Vec3, anchor: Vec3, k: f32, kt: f32, damp: f32, mu: f32, h: f32) -> (Vec3, Vec3, bool) {
+    let n = c.normal;
+    let vn = vrel.dot(n);
+    let vt = vrel - n * vn;
+    // Fn = max(k·depth − c·vn, 0)
+    let fn_ = (k * c.depth - damp * vn).max(0.0);
+    if fn_ <= 0.0 {
+        return (Vec3::ZERO, Vec3::ZERO, false);
+    }
+    // spring kept in the tangent plane, stretched by the tangential slip: s ← s − (s·n)n + vt h
+    let spring = anchor - n * anchor.dot(n) + vt * h;
+    // Ft = −kt s − ct vt, with ct = c
+    let ft = -kt * spring - damp * vt;
+    let ft_len = ft.length();
+    let limit = mu * fn_;
+    if ft_len > limit {
+        // sliding: the friction force sits on the cone and the spring carries it
+        let f_slide = ft * (limit / ft_len);
+        return (n * fn_ + f_slide, -f_slide / kt, false);
+    }
+    (n * fn_ + ft, spring, true)
+}
+
+/// Applies a force on hand link `l` at world point `x`: τ_j += aⱼ·((x − oⱼ) × F) up the chain, and
+/// the wrench on the wrist.
+pub fn apply_hand_force(m: &Model, s: &mut Scratch, l: usize, x: Vec3, f: Vec3) {
+    s.wrist_f += f;
+    s.wrist_t += (x - s.link_pos[0]).cross(f);
+    let mut link = l;
+    while link > 0 {
+        let j = link - 1;
+        s.tau[j] += s.joint_axis[j].dot((x - s.link_pos[link]).cross(f));
+        link = m.joints[j].parent_link as usize;
+    }
+}
+
+/// Adds a contact force `f` at world point `x` on the object, and its implicit damping
+/// D = a nnᵀ + b (I − nnᵀ) mapped through J = [I, −[r]×]: Σ Jᵀ D J.
+pub fn apply_object_force(st: &EnvState, s: &mut Scratch, x: Vec3, f: Vec3, n: Vec3, a: f32, b: f32) {
+    let r = x - v3(st.obj_pos);
+    s.obj_f += f;
+    s.obj_t += r.cross(f);
+    // D columns: D e_i = b e_i + (a − b) n n_i
+    let mut dm = [Vec3::ZERO; 3];
+    for i in 0..3 {
+        let mut e = Vec3::ZERO;
+        e[i] = 1.0;
+        dm[i] = e * b + n * ((a - b) * n[i]);
+    }
+    // [r]× D columns: r × (D e_i);  −D[r]× columns: −D (e_i × r)... assembled entry by entry:
+    // A_vv = D, A_vw = −D[r]×, A_wv = [r]× D, A_ww = −[r]× D [r]×
+    for i in 0..3 {
+        let mut e = Vec3::ZERO;
+        e[i] = 1.0;
+        let d_col = dm[i]; // D e_i
+        let rd_col = r.cross(d_col); // [r]× D e_i
+        // [r]× e_i = r × e_i; column i of D[r]× is D (r × e_i)
+        let rxe = r.cross(e);
+        let drx_col = dm[0] * rxe.x + dm[1] * rxe.y + dm[2] * rxe.z; // D (r × e_i)
+        let rdrx_col = r.cross(drx_col); // [r]× D [r]× e_i
+        for row in 0..3 {
+            s.obj_d[row * 6 + i] += d_col[row];
+            s.obj_d[row * 6 + 3 + i] -= drx_col[row];
+            s.obj_d[(3 + row) * 6 + i] += rd_col[row];
+            s.obj_d[(3 + row) * 6 + 3 + i] -= rdrx_col[row];
+        }
+    }
+}
+
+/// Evaluates every contact of the substep: forces on hand and object, springs, statistics.
+pub fn contacts_and_forces(st: &mut EnvState, p: &EnvParams, m: &Model, s: &mut Scratch, h: f32) {
+    let g = m.g;
+    let k = g.contact_k;
+    let kt = g.contact_kt;
+    let opos = v3(st.obj_pos);
+    let ovel = v3(st.obj_vel);
+    let ow = v3(st.obj_angvel);
+    let mu_ho = 0.5 * (p.hand_friction + p.obj_friction);
+    let mu_ht = 0.5 * (p.hand_friction + p.table_friction);
+    let mu_ot = 0.5 * (p.obj_friction + p.table_friction);
+    for ci in 0..g.n_colliders as usize {
+        let l = m.colliders[ci].link as usize;
+        // hand–object
+        let c = collide_hand_object(st, p, m, s, ci);
+        if c.depth > 0.0 {
+            let vh = link_point_velocity(s, l, c.point);
+            let vo = ovel + ow.cross(c.point - opos);
+            let (f, spring, stick) = contact_force(&c, vh - vo, v3(st.anchor_ho[ci]), k, kt, p.obj_contact_c, mu_ho, h);
+            st.anchor_ho[ci] = [spring.x, spring.y, spring.z, 1.0];
+            apply_hand_force(m, s, l, c.point, f);
+            let a = k * h + p.obj_contact_c;
+            let b = if stick { kt * h + p.obj_contact_c } else { 0.0 };
+            apply_object_force(st, s, c.point, -f, c.normal, a, b);
+            s.contacts += 1;
+            s.contacts_ho += 1;
+            s.max_pen_ho = s.max_pen_ho.max(c.depth);
+            s.max_pen = s.max_pen.max(c.depth);
+            let tip = m.colliders[ci].tip;
+            if tip != NO_JOINT {
+                s.tip_force[tip as usize] += f.dot(c.normal);
+            }
+        } else {
+            st.anchor_ho[ci] = [0.0; 4];
+        }
+        // hand–table
+        if g.hand_table != 0 {
+            let c = collide_hand_table(m, s, ci);
+            if c.depth > 0.0 {
+                let vh = link_point_velocity(s, l, c.point);
+                let (f, spring, _) = contact_force(&c, vh, v3(st.anchor_ht[ci]), k, kt, p.hand_table_c, mu_ht, h);
+                st.anchor_ht[ci] = [spring.x, spring.y, spring.z, 1.0];
+                apply_hand_force(m, s, l, c.point, f);
+                s.contacts += 1;
+                s.max_pen = s.max_pen.max(c.depth);
+            } else {
+                st.anchor_ht[ci] = [0.0; 4];
+            }
+        }
+    }
+    // object–table
+    for kp in 0..g.n_obj_pts {
+        let ki = kp as usize;
+        let c = collide_object_table(st, p, m, kp);
+        if c.depth > 0.0 {
+            let vo = ovel + ow.cross(c.point - opos);
+            let (f, spring, stick) = contact_force(&c, vo, v3(st.anchor_ot[ki]), k, kt, p.obj_contact_c, mu_ot, h);
+            st.anchor_ot[ki] = [spring.x, spring.y, spring.z, 1.0];
+            let a = k * h + p.obj_contact_c;
+            let b = if stick { kt * h + p.obj_contact_c } else { 0.0 };
+            apply_object_force(st, s, c.point, f, c.normal, a, b);
+            s.contacts += 1;
+            s.max_pen = s.max_pen.max(c.depth);
+        } else {
+            st.anchor_ot[ki] = [0.0; 4];
+        }
+    }
+}
+
+/// Finger joints (servo + contact torques, semi-implicit) and the wrist (limited PD + contact wrench).
+pub fn integrate_hand(st: &mut EnvState, p: &EnvParams, t: &Targets, m: &Model, s: &Scratch, h: f32) {
+    let g = m.g;
+    let n = g.n_joints as usize;
+    // contact torque on a follower acts on its leader through the multiplier
+    let mut tau = s.tau;
+    for j in 0..n {
+        let jd = &m.joints[j];
+        if jd.mimic_leader != NO_JOINT {
+            tau[jd.mimic_leader as usize] += jd.mimic_mult * tau[j];
+        }
+    }
+    for j in 0..n {
+        let jd = &m.joints[j];
+        if jd.mimic_leader != NO_JOINT {
+            continue;
+        }
+        let lo = jd.lower * p.limit_scale;
+        let hi = jd.upper * p.limit_scale;
+        let inertia = jd.armature + jd.link_inertia * p.hand_mass_scale;
+        let q = st.q[j];
+        let mut qd = st.qd[j];
+        let target = t.q[j].clamp(lo, hi);
+        // τ_pd = clamp(kp (q* − q) − kd q̇, ±effort)
+        let tau_pd = (jd.kp * p.kp_scale * (target - q) - jd.kd * p.kd_scale * qd).clamp(-jd.effort, jd.effort);
+        // Coulomb friction, regularised over 0.01 rad/s
+        let tau_f = -jd.friction * (qd / 0.01).clamp(-1.0, 1.0);
+        // joint damping implicit: q̇' = (q̇ + h τ / I) / (1 + h d / I)
+        qd = (qd + h * (tau_pd + tau_f + tau[j]) / inertia) / (1.0 + h * jd.damping * p.kd_scale / inertia);
+        qd = qd.clamp(-jd.velocity, jd.velocity);
+        let mut qn = q + h * qd;
+        if qn < lo {
+            qn = lo;
+            qd = qd.max(0.0);
+        }
+        if qn > hi {
+            qn = hi;
+            qd = qd.min(0.0);
+        }
+        st.q[j] = qn;
+        st.qd[j] = qd;
+    }
+    for j in 0..n {
+        let jd = &m.joints[j];
+        if jd.mimic_leader != NO_JOINT {
+            let l = jd.mimic_leader as usize;
+            st.q[j] = jd.mimic_mult * st.q[l] + jd.mimic_offset;
+            st.qd[j] = jd.mimic_mult * st.qd[l];
+        }
+    }
+    // wrist: F = clamp(kp (p* − p) − kd v, Fmax) + contacts; the hand's weight is compensated
+    let mass = g.hand_mass * p.hand_mass_scale + g.wrist_added_mass;
+    let inertia = g.hand_inertia * p.hand_mass_scale + g.wrist_added_inertia;
+    let pos = v3(st.wrist_pos);
+    let vel = v3(st.wrist_vel);
+    let w = v3(st.wrist_angvel);
+    let rot = v4(st.wrist_rot);
+    let f_pd = clamp_norm(g.wrist_kp_lin * (v3(t.wrist_pos) - pos) - g.wrist_kd_lin * vel, g.wrist_force_limit);
+    let t_pd = clamp_norm(g.wrist_kp_rot * quat_error(v4(t.wrist_rot), rot) - g.wrist_kd_rot * w, g.wrist_torque_limit);
+    let vel_n = vel + (f_pd + s.wrist_f) * (h / mass);
+    let w_n = w + (t_pd + s.wrist_t) * (h / inertia);
+    st.wrist_vel = put3(vel_n);
+    st.wrist_angvel = put3(w_n);
+    st.wrist_pos = put3(pos + vel_n * h);
+    st.wrist_rot = quat_integrate(rot, w_n, h).to_array();
+}
+
+/// Solves A x = b for a symmetric positive definite 6×6 A (row-major) by Cholesky.
+pub fn solve6(a: &[f32; 36], b: [f32; 6]) -> [f32; 6] {
+    let mut l = [0.0f32; 36];
+    for i in 0..6 {
+        for j in 0..=i {
+            let mut sum = a[i * 6 + j];
+            for k in 0..j {
+                sum -= l[i * 6 + k] * l[j * 6 + k];
+            }
+            if i == j {
+                l[i * 6 + i] = sum.max(1e-20).sqrt();
+            } else {
+                l[i * 6 + j] = sum / l[j * 6 + j];
+            }
+        }
+    }
+    let mut y = [0.0f32; 6];
+    for i in 0..6 {
+        let mut sum = b[i];
+        for k in 0..i {
+            sum -= l[i * 6 + k] * y[k];
+        }
+        y[i] = sum / l[i * 6 + i];
+    }
+    let mut x = [0.0f32; 6];
+    for ii in 0..6 {
+        let i = 5 - ii;
+        let mut sum = y[i];
+        for k in (i + 1)..6 {
+            sum -= l[k * 6 + i] * x[k];
+        }
+        x[i] = sum / l[i * 6 + i];
+    }
+    x
+}
+
+/// World inertia times x: R (ib ⊙ (Rᵀ x)).
+pub fn inertia_mul(rot: Vec4, ib: Vec3, x: Vec3) -> Vec3 {
+    quat_rotate(rot, ib * quat_rotate(quat_conj(rot), x))
+}
+
+/// World inverse inertia times x: R ((Rᵀ x) / ib).
+pub fn inertia_inv_mul(rot: Vec4, ib: Vec3, x: Vec3) -> Vec3 {
+    quat_rotate(rot, quat_rotate(quat_conj(rot), x) / ib)
+}
+
+/// The object: gravity, contact forces, linearly implicit in its 6 velocities:
+/// (M + h Σ JᵀDJ) Δu = h f, with the gyroscopic term applied first and kept energy-neutral.
+pub fn integrate_object(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch, h: f32) {
+    let mass = p.obj_inertia[3];
+    let ib = v3(p.obj_inertia);
+    let rot = v4(st.obj_rot);
+    let w = v3(st.obj_angvel);
+    // gyroscopic: ω ← ω − h I⁻¹ (ω × Iω), rescaled so that ωᵀIω (the rotational energy) is unchanged
+    let iw = inertia_mul(rot, ib, w);
+    let e0 = w.dot(iw);
+    let mut wg = w - h * inertia_inv_mul(rot, ib, w.cross(iw));
+    let e1 = wg.dot(inertia_mul(rot, ib, wg));
+    if e1 > 1e-20 {
+        wg *= (e0 / e1).sqrt();
+    }
+    // A = M + h Σ JᵀDJ
+    let mut a = [0.0f32; 36];
+    for i in 0..36 {
+        a[i] = h * s.obj_d[i];
+    }
+    for i in 0..3 {
+        a[i * 6 + i] += mass;
+        let mut e = Vec3::ZERO;
+        e[i] = 1.0;
+        let col = inertia_mul(rot, ib, e);
+        for row in 0..3 {
+            a[(3 + row) * 6 + 3 + i] += col[row];
+        }
+    }
+    let gz = -(m.g.gravity + p.added_gravity) * mass;
+    let f = s.obj_f + Vec3::new(0.0, 0.0, gz);
+    let tq = s.obj_t;
+    let du = solve6(&a, [h * f.x, h * f.y, h * f.z, h * tq.x, h * tq.y, h * tq.z]);
+    let vel_n = v3(st.obj_vel) + Vec3::new(du[0], du[1], du[2]);
+    let w_n = wg + Vec3::new(du[3], du[4], du[5]);
+    st.obj_vel = put3(vel_n);
+    st.obj_angvel = put3(w_n);
+    st.obj_pos = put3(v3(st.obj_pos) + vel_n * h);
+    st.obj_rot = quat_integrate(rot, w_n, h).to_array();
+}
+
+/// One substep of length h.
+pub fn substep(st: &mut EnvState, p: &EnvParams, t: &Targets, m: &Model, s: &mut Scratch, h: f32) {
+    hand_kinematics(st, m, s);
+    s.tau = [0.0; MAX_JOINTS];
+    s.wrist_f = Vec3::ZERO;
+    s.wrist_t = Vec3::ZERO;
+    s.obj_f = Vec3::ZERO;
+    s.obj_t = Vec3::ZERO;
+    s.obj_d = [0.0; 36];
+    contacts_and_forces(st, p, m, s, h);
+    integrate_hand(st, p, t, m, s, h);
+    integrate_object(st, p, m, s, h);
+}
+
+/// True when every component is finite (NaN fails every comparison; ±inf fails the bound).
+pub fn is_finite3(v: Vec3) -> bool {
+    v.x.abs() < 3.0e38 && v.y.abs() < 3.0e38 && v.z.abs() < 3.0e38
+}
+
+/// True when the state is finite and inside the configured speed and distance bounds.
+pub fn state_is_sane(st: &EnvState, g: &Globals) -> bool {
+    let mut ok = is_finite3(v3(st.wrist_pos)) && is_finite3(v3(st.wrist_vel)) && is_finite3(v3(st.wrist_angvel));
+    ok = ok && is_finite3(v3(st.obj_pos)) && is_finite3(v3(st.obj_vel)) && is_finite3(v3(st.obj_angvel));
+    for j in 0..g.n_joints as usize {
+        ok = ok && st.q[j].abs() < 3.0e38 && st.qd[j].abs() < 3.0e38;
+    }
+    ok = ok && st.wrist_rot.iter().chain(st.obj_rot.iter()).all(|x| x.abs() < 3.0e38);
+    ok = ok && v3(st.obj_pos).length() < g.max_distance && v3(st.wrist_pos).length() < g.max_distance;
+    ok = ok && v3(st.obj_vel).length() < g.max_speed && v3(st.wrist_vel).length() < g.max_speed;
+    ok = ok && v3(st.obj_angvel).length() < 100.0 * g.max_speed && v3(st.wrist_angvel).length() < 100.0 * g.max_speed;
+    ok
+}
+
+/// One env step of env `env`: decimation × substeps, statistics, and a reset if the state went bad.
+pub fn env_step(env: u32, st: &mut EnvState, p: &mut EnvParams, t: &Targets, m: &Model, stats: &mut StepStats) {
+    let g = m.g;
+    let mut s = Scratch::default();
+    let h = g.dt / g.substeps as f32;
+    let n_sub = g.decimation * g.substeps;
+    for _ in 0..n_sub {
+        substep(st, p, t, m, &mut s, h);
+    }
+    st.time += g.dt * g.decimation as f32;
+    st.step += 1;
+    for i in 0..MAX_TIPS {
+        stats.tip_force[i] = s.tip_force[i] / n_sub as f32;
+    }
+    stats.max_pen_ho = s.max_pen_ho;
+    stats.max_pen = s.max_pen;
+    stats.contacts = s.contacts;
+    stats.contacts_ho = s.contacts_ho;
+    stats.bad_reset = 0;
+    if !state_is_sane(st, g) {
+        let episode = st.episode + 1;
+        let bad = st.bad_resets + 1;
+        *p = reset_params(g, env, episode);
+        *st = reset_state(g, m.joints, p, env, episode, bad);
+        stats.bad_reset = 1;
+    }
+}

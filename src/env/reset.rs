@@ -1,0 +1,116 @@
+//! CPU twin of `shaders/reset.wgsl`: randomised physical parameters and initial states.
+//! Same function names, same order, same arithmetic as the shader.
+
+use glam::{Vec3, Vec4};
+
+use super::common::{quat_from_axis_angle, rand_uniform};
+use super::layout::*;
+
+/// Purposes of the counter-based RNG (keep in sync with reset.wgsl `PURPOSE_*`).
+pub const PURPOSE_PARAMS: u32 = 1;
+pub const PURPOSE_INIT: u32 = 2;
+
+/// Uniform draw in [lo, hi] for (env, episode, purpose, k).
+pub fn rand_range(g: &Globals, env: u32, episode: u32, purpose: u32, k: u32, lo: f32, hi: f32) -> f32 {
+    lo + (hi - lo) * rand_uniform(g.seed, env, episode, purpose, k)
+}
+
+/// Principal moments of inertia of a solid object shape (`code`, scaled `size`) of mass `m`.
+pub fn object_inertia(code: u32, size: Vec3, m: f32) -> Vec3 {
+    let r = size.x;
+    if code == SHAPE_SPHERE {
+        return Vec3::splat(0.4 * m * r * r);
+    }
+    if code == SHAPE_BOX {
+        let (x, y, z) = (size.x, size.y, size.z);
+        // I_xx = m (b² + c²)/3 with half extents b, c
+        return Vec3::new(m * (y * y + z * z) / 3.0, m * (x * x + z * z) / 3.0, m * (x * x + y * y) / 3.0);
+    }
+    let h = size.y;
+    let l = 2.0 * h;
+    if code == SHAPE_CYLINDER {
+        let ixx = m * (3.0 * r * r + l * l) / 12.0;
+        return Vec3::new(ixx, ixx, 0.5 * m * r * r);
+    }
+    // capsule: a cylinder and two hemispheres sharing the mass by volume
+    let vc = 3.14159265 * r * r * l;
+    let vs = 4.0 / 3.0 * 3.14159265 * r * r * r;
+    let mc = m * vc / (vc + vs);
+    let ms = m - mc;
+    let izz = 0.5 * mc * r * r + 0.4 * ms * r * r;
+    let ixx = mc * (3.0 * r * r + l * l) / 12.0 + ms * (0.4 * r * r + h * h + 0.75 * h * r);
+    Vec3::new(ixx, ixx, izz)
+}
+
+/// Damping ratio of a spring-damper contact whose coefficient of restitution is `e`:
+/// ζ = −ln e / √(π² + ln² e); ζ = 1 (critical) for e → 0.
+pub fn damping_ratio(e: f32) -> f32 {
+    if e < 1e-3 {
+        return 1.0;
+    }
+    let l = e.ln();
+    -l / (9.8696044 + l * l).sqrt()
+}
+
+/// Draws the physical parameters of `env` for `episode`.
+pub fn reset_params(g: &Globals, env: u32, episode: u32) -> EnvParams {
+    let pp = PURPOSE_PARAMS;
+    let mut p = EnvParams::default_zeroed();
+    p.hand_mass_scale = rand_range(g, env, episode, pp, 0, g.rnd[0][0], g.rnd[0][1]);
+    p.hand_friction = g.hand_friction * rand_range(g, env, episode, pp, 1, g.rnd[0][2], g.rnd[0][3]);
+    p.limit_scale = rand_range(g, env, episode, pp, 2, g.rnd[1][0], g.rnd[1][1]);
+    p.kp_scale = rand_range(g, env, episode, pp, 3, g.rnd[1][2], g.rnd[1][3]);
+    p.kd_scale = rand_range(g, env, episode, pp, 4, g.rnd[2][0], g.rnd[2][1]);
+    let mass = g.obj_mass * rand_range(g, env, episode, pp, 5, g.rnd[2][2], g.rnd[2][3]);
+    p.obj_friction = g.obj_friction * rand_range(g, env, episode, pp, 6, g.rnd[3][0], g.rnd[3][1]);
+    p.obj_scale = rand_range(g, env, episode, pp, 7, g.rnd[3][2], g.rnd[3][3]);
+    p.restitution = rand_range(g, env, episode, pp, 8, g.rnd[4][0], g.rnd[4][1]);
+    p.table_friction = g.table_friction * rand_range(g, env, episode, pp, 9, g.rnd[4][2], g.rnd[4][3]);
+    p.added_gravity = rand_range(g, env, episode, pp, 10, g.rnd[5][0], g.rnd[5][1]);
+    let size = Vec3::new(g.obj_size[0], g.obj_size[1], g.obj_size[2]) * p.obj_scale;
+    p.obj_size = [size.x, size.y, size.z, 0.0];
+    let inertia = object_inertia(g.obj_shape, size, mass);
+    p.obj_inertia = [inertia.x, inertia.y, inertia.z, mass];
+    // reduced mass of a hand link and the object: m_h m_o / (m_h + m_o)
+    let m_red = g.hand_eff_mass * mass / (g.hand_eff_mass + mass);
+    // c = 2 ζ √(k m)
+    p.obj_contact_c = 2.0 * damping_ratio(p.restitution) * (g.contact_k * m_red).sqrt();
+    p.hand_table_c = 2.0 * (g.contact_k * g.hand_eff_mass).sqrt();
+    p
+}
+
+/// The initial state of `env` for `episode`: wrist at its initial pose, joints at their defaults
+/// (clamped into the env's scaled limits), the object resting on the table at its (noisy) place.
+pub fn reset_state(g: &Globals, joints: &[JointDesc], p: &EnvParams, env: u32, episode: u32, bad_resets: u32) -> EnvState {
+    let mut s = EnvState::default();
+    s.wrist_pos = g.init_wrist_pos;
+    s.wrist_rot = g.init_wrist_rot;
+    for j in 0..g.n_joints as usize {
+        let jd = &joints[j];
+        let lo = jd.lower * p.limit_scale;
+        let hi = jd.upper * p.limit_scale;
+        s.q[j] = jd.default_q.clamp(lo, hi);
+    }
+    for j in 0..g.n_joints as usize {
+        let jd = &joints[j];
+        if jd.mimic_leader != NO_JOINT {
+            s.q[j] = jd.mimic_mult * s.q[jd.mimic_leader as usize] + jd.mimic_offset;
+        }
+    }
+    let pi = PURPOSE_INIT;
+    let x = g.obj_init[0] + rand_range(g, env, episode, pi, 0, -g.rnd[5][2], g.rnd[5][2]);
+    let y = g.obj_init[1] + rand_range(g, env, episode, pi, 1, -g.rnd[5][3], g.rnd[5][3]);
+    let yaw = g.obj_init[2] + rand_range(g, env, episode, pi, 2, -g.yaw_noise, g.yaw_noise);
+    s.obj_pos = [x, y, g.obj_init[3] * p.obj_scale, 0.0];
+    let rot: Vec4 = quat_from_axis_angle(Vec3::Z, yaw);
+    s.obj_rot = rot.to_array();
+    s.episode = episode;
+    s.bad_resets = bad_resets;
+    s
+}
+
+impl EnvParams {
+    fn default_zeroed() -> Self {
+        bytemuck::Zeroable::zeroed()
+    }
+}
