@@ -137,6 +137,8 @@ struct EnvParams {
     hand_table_c: f32,
     _pad0: f32,
     _pad1: f32,
+    _pad2: f32,
+    _pad3: f32,
 }
 
 struct Targets {
@@ -195,9 +197,9 @@ fn quat_integrate(q: vec4<f32>, w: vec3<f32>, h: f32) -> vec4<f32> {
     return quat_normalize(quat_mul(dq, q));
 }
 
-// log(target ⊗ q⁻¹) as a rotation vector, shortest arc
-fn quat_error(target: vec4<f32>, q: vec4<f32>) -> vec3<f32> {
-    var e = quat_mul(target, quat_conj(q));
+// log(goal ⊗ q⁻¹) as a rotation vector, shortest arc
+fn quat_error(goal: vec4<f32>, q: vec4<f32>) -> vec3<f32> {
+    var e = quat_mul(goal, quat_conj(q));
     if (e.w < 0.0) {
         e = -e;
     }

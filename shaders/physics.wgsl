@@ -453,9 +453,9 @@ fn integrate_hand(h: f32) {
         let inertia = jd.armature + jd.link_inertia * prm.hand_mass_scale;
         let q = st.q[j];
         var qd = st.qd[j];
-        let target = clamp(tg.q[j], lo, hi);
+        let goal = clamp(tg.q[j], lo, hi);
         // τ_pd = clamp(kp (q* − q) − kd q̇, ±effort)
-        let tau_pd = clamp(jd.kp * prm.kp_scale * (target - q) - jd.kd * prm.kd_scale * qd, -jd.effort, jd.effort);
+        let tau_pd = clamp(jd.kp * prm.kp_scale * (goal - q) - jd.kd * prm.kd_scale * qd, -jd.effort, jd.effort);
         // Coulomb friction, regularised over 0.01 rad/s
         let tau_f = -jd.friction * clamp(qd / 0.01, -1.0, 1.0);
         // joint damping implicit: q̇' = (q̇ + h τ / I) / (1 + h d / I)

@@ -47,9 +47,9 @@ pub fn quat_integrate(q: Vec4, w: Vec3, h: f32) -> Vec4 {
     quat_normalize(quat_mul(dq, q))
 }
 
-/// Rotation vector (axis · angle, world) that takes `q` to `target`: log(target ⊗ q⁻¹), shortest arc.
-pub fn quat_error(target: Vec4, q: Vec4) -> Vec3 {
-    let mut e = quat_mul(target, quat_conj(q));
+/// Rotation vector (axis · angle, world) that takes `q` to `goal`: log(goal ⊗ q⁻¹), shortest arc.
+pub fn quat_error(goal: Vec4, q: Vec4) -> Vec3 {
+    let mut e = quat_mul(goal, quat_conj(q));
     if e.w < 0.0 {
         e = -e;
     }

@@ -189,7 +189,7 @@ pub struct EnvParams {
     pub obj_contact_c: f32,
     /// Normal damping of hand–table contacts (N·s/m).
     pub hand_table_c: f32,
-    pub _pad: [f32; 2],
+    pub _pad: [f32; 4],
 }
 
 /// Per-env joint and wrist targets for one env step (WGSL `Targets`).

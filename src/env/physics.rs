@@ -531,9 +531,9 @@ pub fn integrate_hand(st: &mut EnvState, p: &EnvParams, t: &Targets, m: &Model, 
         let inertia = jd.armature + jd.link_inertia * p.hand_mass_scale;
         let q = st.q[j];
         let mut qd = st.qd[j];
-        let target = t.q[j].clamp(lo, hi);
+        let goal = t.q[j].clamp(lo, hi);
         // τ_pd = clamp(kp (q* − q) − kd q̇, ±effort)
-        let tau_pd = (jd.kp * p.kp_scale * (target - q) - jd.kd * p.kd_scale * qd).clamp(-jd.effort, jd.effort);
+        let tau_pd = (jd.kp * p.kp_scale * (goal - q) - jd.kd * p.kd_scale * qd).clamp(-jd.effort, jd.effort);
         // Coulomb friction, regularised over 0.01 rad/s
         let tau_f = -jd.friction * (qd / 0.01).clamp(-1.0, 1.0);
         // joint damping implicit: q̇' = (q̇ + h τ / I) / (1 + h d / I)

@@ -1,0 +1,56 @@
+//! Shared helpers of the integration tests.
+#![allow(dead_code)]
+
+use dextrain::config::Config;
+use dextrain::env::cpu::CpuEnvBatch;
+use dextrain::env::gpu::{GpuContext, GpuEnvBatch};
+use dextrain::env::{EnvBatch, SimModel};
+
+/// The default config with the shipped hand, CPU backend, `n` envs, the wrist parked high above
+/// the table.
+pub fn base_config(n: usize) -> Config {
+    let mut c = Config::default();
+    c.base_dir = concat!(env!("CARGO_MANIFEST_DIR"), "/configs").into();
+    c.source = "test.toml".into();
+    c.sim.backend = "cpu".into();
+    c.sim.num_envs = n;
+    c.wrist.init_pos = [0.0, 0.0, 0.5];
+    c
+}
+
+pub fn cpu_batch(c: &Config) -> CpuEnvBatch {
+    CpuEnvBatch::new(SimModel::from_config(c).expect("model"))
+}
+
+/// A GPU context on any adapter (lavapipe included). Without one, prints why and returns None —
+/// or fails when REQUIRE_GPU=1 (CI).
+pub fn gpu_context(test: &str) -> Option<GpuContext> {
+    let name = std::env::var("DEXTRAIN_TEST_ADAPTER").ok();
+    let mut attempt = GpuContext::new(name.as_deref());
+    if attempt.is_err() && name.is_none() {
+        // no hardware adapter: take the software one
+        attempt = GpuContext::new(Some("llvmpipe"));
+    }
+    match attempt {
+        Ok(ctx) => Some(ctx),
+        Err(e) => {
+            if std::env::var("REQUIRE_GPU").map(|v| v == "1").unwrap_or(false) {
+                panic!("{test}: REQUIRE_GPU=1 but no wgpu adapter: {e:#}");
+            }
+            eprintln!("{test}: SKIPPED, no wgpu adapter ({e:#}); install mesa-vulkan-drivers for lavapipe");
+            None
+        }
+    }
+}
+
+pub fn gpu_batch(c: &Config, ctx: GpuContext) -> GpuEnvBatch {
+    GpuEnvBatch::new(ctx, SimModel::from_config(c).expect("model")).expect("gpu batch")
+}
+
+/// Steps `b` `n` times with the same targets for every env.
+pub fn run(b: &mut dyn EnvBatch, t: dextrain::env::Targets, n: usize) {
+    let targets = vec![t; b.spec().num_envs];
+    for _ in 0..n {
+        b.step(&targets).expect("step");
+    }
+}

@@ -1,0 +1,170 @@
+//! Physics behaviour on the CPU backend (the GPU backend is held to the same numbers by tests/parity.rs).
+
+mod common;
+
+use common::*;
+use dextrain::env::EnvBatch;
+use dextrain::geom::ObjectShape;
+
+fn obj_pos(b: &mut dyn EnvBatch, i: usize) -> [f32; 3] {
+    let s = b.states().unwrap();
+    [s[i].obj_pos[0], s[i].obj_pos[1], s[i].obj_pos[2]]
+}
+
+fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+#[test]
+fn object_at_rest_drifts_less_than_1mm_in_10s() {
+    for shape in [
+        ObjectShape::Box { half_extents: [0.025, 0.025, 0.025] },
+        ObjectShape::Sphere { radius: 0.03 },
+        ObjectShape::Cylinder { radius: 0.03, half_length: 0.05 },
+        ObjectShape::Capsule { radius: 0.02, half_length: 0.04 },
+    ] {
+        let mut c = base_config(1);
+        c.object.shape = shape;
+        let mut b = cpu_batch(&c);
+        let p0 = obj_pos(&mut b, 0);
+        let t = b.model().default_targets();
+        run(&mut b, t, 300); // 10 s at 30 Hz
+        let p1 = obj_pos(&mut b, 0);
+        assert!(dist(p0, p1) < 1e-3, "{shape:?}: drifted {:.3} mm", dist(p0, p1) * 1e3);
+    }
+}
+
+#[test]
+fn free_fall_matches_the_analytic_time_within_1_percent() {
+    let mut c = base_config(1);
+    c.object.shape = ObjectShape::Sphere { radius: 0.03 };
+    c.sim.decimation = 1;
+    let mut b = cpu_batch(&c);
+    let mut s = b.states().unwrap();
+    let drop = 1.0f32;
+    s[0].obj_pos[0] = 0.5; // clear of the hand
+    s[0].obj_pos[2] = 0.03 + drop;
+    b.set_states(&s).unwrap();
+    let t = b.model().default_targets();
+    let dt = c.sim.dt;
+    let mut prev = (0.0f32, drop);
+    let mut t_hit = None;
+    for k in 1..200 {
+        run(&mut b, t, 1);
+        let z = obj_pos(&mut b, 0)[2] - 0.03;
+        if z <= 0.0 {
+            // linear interpolation of the crossing between the last two steps
+            let tk = k as f32 * dt;
+            t_hit = Some(prev.0 + (tk - prev.0) * prev.1 / (prev.1 - z));
+            break;
+        }
+        prev = (k as f32 * dt, z);
+    }
+    let t_hit = t_hit.expect("the sphere never reached the table");
+    let analytic = (2.0 * drop / 9.81f32).sqrt();
+    let rel = (t_hit - analytic).abs() / analytic;
+    assert!(rel < 0.01, "fall time {t_hit:.4} s vs analytic {analytic:.4} s ({:.2} %)", rel * 100.0);
+}
+
+#[test]
+fn sliding_box_decelerates_at_mu_g() {
+    let mut c = base_config(1);
+    c.object.friction = 0.5;
+    c.table.friction = 0.5; // μ = mean = 0.5
+    c.sim.decimation = 1;
+    let mut b = cpu_batch(&c);
+    let t = b.model().default_targets();
+    run(&mut b, t, 30); // settle
+    let mut s = b.states().unwrap();
+    s[0].obj_vel = [1.5, 0.0, 0.0, 0.0];
+    b.set_states(&s).unwrap();
+    let mut samples = Vec::new();
+    for k in 0..120 {
+        run(&mut b, t, 1);
+        let v = b.states().unwrap()[0].obj_vel[0];
+        samples.push((k as f32 * c.sim.dt, v));
+    }
+    // least-squares slope over the sliding phase, away from the start and the stop
+    let pts: Vec<(f32, f32)> = samples.into_iter().filter(|&(t, v)| t > 0.03 && v > 0.3).collect();
+    assert!(pts.len() > 10, "too few sliding samples: {}", pts.len());
+    let n = pts.len() as f32;
+    let (st, sv) = pts.iter().fold((0.0, 0.0), |a, p| (a.0 + p.0, a.1 + p.1));
+    let (mt, mv) = (st / n, sv / n);
+    let slope = pts.iter().map(|p| (p.0 - mt) * (p.1 - mv)).sum::<f32>() / pts.iter().map(|p| (p.0 - mt).powi(2)).sum::<f32>();
+    let expected = -0.5 * 9.81;
+    assert!((slope - expected).abs() / expected.abs() < 0.05, "deceleration {slope:.3} m/s² vs μg {expected:.3}");
+}
+
+/// E = ½ m v² + ½ ωᵀ I ω + m g z of the object.
+fn object_energy(s: &dextrain::env::EnvState, p: &dextrain::env::EnvParams) -> f64 {
+    let m = p.obj_inertia[3] as f64;
+    let v: f64 = s.obj_vel[..3].iter().map(|x| (*x as f64).powi(2)).sum();
+    let q = glam::Quat::from_array(s.obj_rot);
+    let w = q.inverse() * glam::Vec3::new(s.obj_angvel[0], s.obj_angvel[1], s.obj_angvel[2]);
+    let rot: f64 = (0..3).map(|i| p.obj_inertia[i] as f64 * (w[i] as f64).powi(2)).sum();
+    0.5 * m * v + 0.5 * rot + m * 9.81 * s.obj_pos[2] as f64
+}
+
+#[test]
+fn passive_object_never_gains_energy() {
+    for (shape, e) in [
+        (ObjectShape::Capsule { radius: 0.02, half_length: 0.05 }, 0.6f32),
+        (ObjectShape::Box { half_extents: [0.03, 0.02, 0.05] }, 0.3),
+        (ObjectShape::Cylinder { radius: 0.03, half_length: 0.02 }, 0.0),
+    ] {
+        let mut c = base_config(1);
+        c.object.shape = shape;
+        c.object.restitution = e;
+        c.sim.decimation = 1;
+        let mut b = cpu_batch(&c);
+        let mut s = b.states().unwrap();
+        s[0].obj_pos[2] = 0.3;
+        s[0].obj_vel = [0.4, -0.2, 0.0, 0.0];
+        s[0].obj_angvel = [3.0, 7.0, -2.0, 0.0];
+        b.set_states(&s).unwrap();
+        let p = b.params().unwrap()[0];
+        let t = b.model().default_targets();
+        let mut last = object_energy(&s[0], &p);
+        let e0 = last;
+        for k in 0..600 {
+            run(&mut b, t, 1);
+            let st = b.stats().unwrap()[0];
+            if st.contacts == 0 {
+                // out of contact (no spring energy stored): mechanical energy can only have gone down
+                let e_now = object_energy(&b.states().unwrap()[0], &p);
+                assert!(e_now <= last + 1e-6 * e0.abs(), "{shape:?}: energy rose {last:.6} -> {e_now:.6} J at step {k}");
+                last = e_now;
+            }
+        }
+        assert!(last < e0, "{shape:?}: energy should have been dissipated");
+    }
+}
+
+#[test]
+fn exploding_env_is_reset_alone_and_counted() {
+    let c = base_config(4);
+    let mut a = cpu_batch(&c);
+    let mut b = cpu_batch(&c);
+    let t = a.model().default_targets();
+    run(&mut a, t, 3);
+    run(&mut b, t, 3);
+    let mut s = b.states().unwrap();
+    s[2].obj_vel = [f32::NAN, 0.0, 0.0, 0.0];
+    s[1].obj_pos[2] = 1e6; // far outside max_distance
+    b.set_states(&s).unwrap();
+    run(&mut a, t, 1);
+    run(&mut b, t, 1);
+    let (sa, sb) = (a.states().unwrap(), b.states().unwrap());
+    let stats = b.stats().unwrap();
+    for i in [0usize, 3] {
+        assert_eq!(sa[i], sb[i], "env {i} must not be touched");
+        assert_eq!(stats[i].bad_reset, 0);
+    }
+    for i in [1usize, 2] {
+        assert_eq!(stats[i].bad_reset, 1, "env {i} should have been reset");
+        assert_eq!(sb[i].bad_resets, 1);
+        assert_eq!(sb[i].episode, 1);
+        assert_eq!(sb[i].step, 0);
+        assert!(sb[i].obj_pos.iter().all(|x| x.is_finite()) && sb[i].obj_pos[2] < 0.1);
+    }
+}

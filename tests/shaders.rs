@@ -1,0 +1,118 @@
+//! Shader validation with naga (no GPU needed): every shader parses and validates as the module the
+//! GPU backend builds, each shader parses on its own with common.wgsl, and every Pod struct in
+//! src/env/layout.rs has exactly the size and field offsets of its WGSL twin.
+
+use dextrain::env::gpu::{SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET, shader_source};
+use dextrain::env::layout::*;
+use std::mem::{offset_of, size_of};
+
+fn validate(src: &str) -> naga::Module {
+    let module = naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("WGSL parse error:\n{}", e.emit_to_string(src)));
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("WGSL validation error: {e:?}"));
+    module
+}
+
+#[test]
+fn full_module_validates_with_both_entry_points() {
+    let m = validate(&shader_source());
+    let names: Vec<&str> = m.entry_points.iter().map(|e| e.name.as_str()).collect();
+    assert!(names.contains(&"step_main"), "entry points: {names:?}");
+    assert!(names.contains(&"reset_main"), "entry points: {names:?}");
+    for ep in &m.entry_points {
+        assert_eq!(ep.workgroup_size, [dextrain::env::gpu::WORKGROUP_SIZE, 1, 1], "{}", ep.name);
+    }
+}
+
+#[test]
+fn common_and_reset_validate_without_physics() {
+    validate(&[SHADER_COMMON, SHADER_RESET].join("\n"));
+    assert!(SHADER_PHYSICS.contains("fn env_step"));
+}
+
+macro_rules! rust_fields {
+    ($t:ty; $($f:ident),* $(,)?) => {
+        vec![$((stringify!($f), offset_of!($t, $f))),*]
+    };
+}
+
+fn wgsl_struct(m: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
+    for (_, ty) in m.types.iter() {
+        if ty.name.as_deref() == Some(name) {
+            if let naga::TypeInner::Struct { members, span } = &ty.inner {
+                return (*span, members.iter().map(|mb| (mb.name.clone().unwrap_or_default(), mb.offset)).collect());
+            }
+        }
+    }
+    panic!("no WGSL struct {name}");
+}
+
+fn check(m: &naga::Module, name: &str, size: usize, fields: Vec<(&str, usize)>) {
+    let (span, members) = wgsl_struct(m, name);
+    assert_eq!(span as usize, size, "{name}: WGSL size {span} vs Rust size {size}");
+    // Rust pads with arrays where WGSL lists separate pad fields: compare the named, non-pad fields
+    let wgsl: Vec<(String, u32)> = members.into_iter().filter(|(n, _)| !n.starts_with('_')).collect();
+    let rust: Vec<(String, u32)> = fields.into_iter().filter(|(n, _)| !n.starts_with('_')).map(|(n, o)| (n.to_string(), o as u32)).collect();
+    assert_eq!(wgsl, rust, "{name}: field names/offsets differ between WGSL and Rust");
+}
+
+#[test]
+fn pod_structs_match_their_wgsl_twins() {
+    let m = validate(&shader_source());
+    check(&m, "Globals", size_of::<Globals>(), rust_fields!(Globals; init_wrist_pos, init_wrist_rot, obj_size, obj_init, rnd,
+        n_envs, n_joints, n_colliders, n_tips, n_links, obj_shape, n_obj_pts, substeps, decimation, seed, hand_table, _pad0,
+        dt, gravity, contact_k, contact_kt, hand_eff_mass, hand_friction, obj_mass, obj_friction, table_friction, yaw_noise,
+        hand_mass, hand_inertia, wrist_added_mass, wrist_added_inertia, wrist_kp_lin, wrist_kd_lin, wrist_force_limit,
+        wrist_kp_rot, wrist_kd_rot, wrist_torque_limit, max_speed, max_distance, _pad1, _pad2));
+    check(&m, "JointDesc", size_of::<JointDesc>(), rust_fields!(JointDesc; origin_pos, origin_rot, axis, parent_link, mimic_leader,
+        mimic_mult, mimic_offset, lower, upper, effort, velocity, damping, friction, armature, link_inertia, kp, kd, default_q, _pad));
+    check(&m, "ColliderDesc", size_of::<ColliderDesc>(), rust_fields!(ColliderDesc; pos, rot, size, link, shape, tip, _pad));
+    check(&m, "TipDesc", size_of::<TipDesc>(), rust_fields!(TipDesc; pos, link, _pad));
+    check(&m, "EnvState", size_of::<EnvState>(), rust_fields!(EnvState; wrist_pos, wrist_rot, wrist_vel, wrist_angvel,
+        obj_pos, obj_rot, obj_vel, obj_angvel, anchor_ho, anchor_ht, anchor_ot, q, qd, time, episode, step, bad_resets));
+    check(&m, "EnvParams", size_of::<EnvParams>(), rust_fields!(EnvParams; obj_size, obj_inertia, obj_friction, restitution,
+        obj_scale, table_friction, hand_friction, hand_mass_scale, limit_scale, kp_scale, kd_scale, added_gravity,
+        obj_contact_c, hand_table_c, _pad));
+    check(&m, "Targets", size_of::<Targets>(), rust_fields!(Targets; wrist_pos, wrist_rot, q));
+    check(&m, "StepStats", size_of::<StepStats>(), rust_fields!(StepStats; tip_force, max_pen_ho, max_pen, contacts,
+        contacts_ho, bad_reset, _pad));
+}
+
+#[test]
+fn shader_constants_match_rust() {
+    let src = shader_source();
+    for (name, v) in [
+        ("MAX_JOINTS", dextrain::hand::MAX_JOINTS),
+        ("MAX_COLLIDERS", dextrain::hand::MAX_COLLIDERS),
+        ("MAX_TIPS", dextrain::hand::MAX_TIPS),
+        ("MAX_OBJ_PTS", MAX_OBJ_PTS),
+        ("MAX_LINKS", dextrain::env::physics::MAX_LINKS),
+        ("PROJ_ITERS", dextrain::env::physics::PROJ_ITERS),
+    ] {
+        assert!(src.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in the WGSL");
+    }
+    for (name, v) in [("SHAPE_SPHERE", SHAPE_SPHERE), ("SHAPE_BOX", SHAPE_BOX), ("SHAPE_CAPSULE", SHAPE_CAPSULE), ("SHAPE_CYLINDER", SHAPE_CYLINDER)] {
+        assert!(src.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in the WGSL");
+    }
+}
+
+#[test]
+fn every_shader_function_has_its_cpu_twin_in_the_same_order() {
+    // DESIGN §4: same function names in the same order in shaders/x.wgsl and src/env/x.rs
+    let fns = |src: &str, prefix: &str| -> Vec<String> {
+        src.lines()
+            .filter_map(|l| l.trim_start().strip_prefix(prefix))
+            .map(|rest| rest.split(|c| c == '(' || c == '<').next().unwrap_or("").trim().to_string())
+            .collect()
+    };
+    for (wgsl, rs) in [
+        (SHADER_COMMON, include_str!("../src/env/common.rs")),
+        (SHADER_RESET, include_str!("../src/env/reset.rs")),
+        (SHADER_PHYSICS, include_str!("../src/env/physics.rs")),
+    ] {
+        let w: Vec<String> = fns(wgsl, "fn ").into_iter().filter(|n| !n.ends_with("_main") && n != "env_index").collect();
+        let r: Vec<String> = fns(rs, "pub fn ").into_iter().filter(|n| w.contains(n)).collect();
+        assert_eq!(w, r, "shader functions and their CPU twins differ in names or order");
+    }
+}
