@@ -10,11 +10,19 @@
 //!   with the fixed joint's origin composed in. A merged link's name still resolves through
 //!   [`HandModel::frame`].
 //! - Poses are in the parent link's frame, metres and unit quaternions (x, y, z, w).
+//!
+//! Loader notes: movable joints are ordered depth-first from the root, children in URDF document
+//! order (so a finger's joints are contiguous). Mimic chains are resolved to the root leader with the
+//! composed multiplier and offset. URDF `rpy` is fixed-axis roll (x), pitch (y), yaw (z):
+//! R = Rz(yaw)·Ry(pitch)·Rx(roll). Cylinders and capsules become [`ColliderShape::Capsule`]s
+//! (`half_length` = length / 2, axis local z). Colliders are sorted by link (stable). Every error is
+//! one line naming the file and, where there is one, the link or joint, and says what is expected.
 
+use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
 use anyhow::Result;
-use glam::{Quat, Vec3};
+use glam::{DMat3, DQuat, DVec3, Quat, Vec3};
 
 use crate::geom::Pose;
 
@@ -126,28 +134,55 @@ pub struct Fingertip {
     pub pos: Vec3,
 }
 
+/// A named frame of a URDF link that was merged into another link by a fixed joint.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Frame {
+    /// The URDF link name.
+    pub name: String,
+    /// Index into `HandModel::links` of the link it was merged into.
+    pub link: usize,
+    /// Pose of the frame in that link's frame (the composed fixed-joint origins).
+    pub pose: Pose,
+}
+
 /// A hand, ready for the simulator.
 #[derive(Clone, Debug, PartialEq)]
 pub struct HandModel {
+    /// The URDF `<robot name>`.
     pub name: String,
+    /// The URDF file (or the `source` given to [`HandModel::from_urdf_str`]).
     pub source: PathBuf,
     pub links: Vec<Link>,
     pub joints: Vec<Joint>,
     pub colliders: Vec<Collider>,
     pub fingertips: Vec<Fingertip>,
+    /// URDF links merged away by fixed joints, in URDF document order (the links of `links` are
+    /// not repeated here). Use [`HandModel::frame`] to resolve any URDF link name.
+    pub frames: Vec<Frame>,
 }
 
 impl HandModel {
     /// Loads a hand from a URDF file. Errors are one line and name the file and the link or joint.
     pub fn from_urdf_file(path: &Path, opts: &HandLoadOptions) -> Result<HandModel> {
-        let _ = (path, opts);
-        anyhow::bail!("URDF loading not implemented yet")
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            one_line_error(format!(
+                "cannot read hand URDF {}: {e}; expected a readable UTF-8 URDF file",
+                path.display()
+            ))
+        })?;
+        Self::from_urdf_str(&text, path, opts)
     }
 
     /// Parses a URDF document; `source` is used in error messages and to resolve mesh paths.
     pub fn from_urdf_str(text: &str, source: &Path, opts: &HandLoadOptions) -> Result<HandModel> {
-        let _ = (text, source, opts);
-        anyhow::bail!("URDF loading not implemented yet")
+        let file = source.display().to_string();
+        let robot = urdf_rs::read_from_string(text).map_err(|e| {
+            one_line_error(format!(
+                "cannot parse hand URDF {file}: {e}; expected a well-formed URDF <robot> document"
+            ))
+        })?;
+        let loader = Loader { file, source, opts };
+        loader.build(&robot).map_err(one_line_error)
     }
 
     /// Index of a joint by name.
@@ -155,9 +190,34 @@ impl HandModel {
         self.joints.iter().position(|j| j.name == name)
     }
 
+    /// Index of a link by name (links merged by fixed joints resolve through [`HandModel::frame`]).
+    pub fn link_index(&self, name: &str) -> Option<usize> {
+        self.links.iter().position(|l| l.name == name)
+    }
+
+    /// Resolves a URDF link name to `(index into links, pose of that frame in the link's frame)`.
+    /// A link of `links` resolves to itself with the identity pose; a link merged by fixed joints
+    /// resolves to the link it was merged into with the composed fixed-joint origins.
+    pub fn frame(&self, name: &str) -> Option<(usize, Pose)> {
+        if let Some(i) = self.link_index(name) {
+            return Some((i, Pose::IDENTITY));
+        }
+        self.frames.iter().find(|f| f.name == name).map(|f| (f.link, f.pose))
+    }
+
     /// Number of actuated joints (movable joints that are not mimic followers).
     pub fn num_actuated(&self) -> usize {
         self.joints.iter().filter(|j| j.mimic.is_none()).count()
+    }
+
+    /// Indices (into `joints`) of the actuated joints, in joint order.
+    pub fn actuated_joints(&self) -> Vec<usize> {
+        (0..self.joints.len()).filter(|&i| self.joints[i].mimic.is_none()).collect()
+    }
+
+    /// Total mass of the hand (kg).
+    pub fn total_mass(&self) -> f32 {
+        self.links.iter().map(|l| l.mass).sum()
     }
 
     /// Link poses in the wrist (root link) frame for joint positions `q` (one per joint; mimic
@@ -174,5 +234,700 @@ impl HandModel {
             poses[i + 1] = joint_frame.mul(&Pose::new(Vec3::ZERO, Quat::from_axis_angle(j.axis, qi)));
         }
         poses
+    }
+
+    /// Fingertip positions in the wrist frame, in `fingertips` order, for link poses from
+    /// [`HandModel::forward_kinematics`].
+    pub fn fingertip_positions(&self, link_poses: &[Pose]) -> Vec<Vec3> {
+        self.fingertips.iter().map(|t| link_poses[t.link].transform_point(t.pos)).collect()
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Loader internals. Everything is computed in f64 and converted to f32 at the end.
+
+/// Turns a message into a one-line `anyhow::Error`.
+fn one_line_error(msg: String) -> anyhow::Error {
+    let msg = msg.replace('\r', "\n");
+    let line: Vec<&str> = msg.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
+    anyhow::anyhow!("{}", line.join(" "))
+}
+
+type R<T> = std::result::Result<T, String>;
+
+/// A rigid pose in f64.
+#[derive(Clone, Copy, Debug)]
+struct DPose {
+    pos: DVec3,
+    rot: DQuat,
+}
+
+impl DPose {
+    const IDENTITY: DPose = DPose { pos: DVec3::ZERO, rot: DQuat::IDENTITY };
+
+    fn mul(&self, o: &DPose) -> DPose {
+        DPose { pos: self.pos + self.rot * o.pos, rot: (self.rot * o.rot).normalize() }
+    }
+
+    fn to_pose(self) -> Pose {
+        Pose::new(self.pos.as_vec3(), self.rot.as_quat().normalize())
+    }
+}
+
+/// URDF rpy (fixed axes: roll about x, then pitch about y, then yaw about z):
+/// R = Rz(yaw) · Ry(pitch) · Rx(roll).
+fn rpy_to_quat(rpy: [f64; 3]) -> DQuat {
+    (DQuat::from_rotation_z(rpy[2]) * DQuat::from_rotation_y(rpy[1]) * DQuat::from_rotation_x(rpy[0])).normalize()
+}
+
+fn urdf_pose(p: &urdf_rs::Pose) -> DPose {
+    DPose { pos: DVec3::from_array(p.xyz.0), rot: rpy_to_quat(p.rpy.0) }
+}
+
+fn finite3(v: &[f64; 3]) -> bool {
+    v.iter().all(|x| x.is_finite())
+}
+
+fn fmt3(v: &[f64; 3]) -> String {
+    format!("{} {} {}", v[0], v[1], v[2])
+}
+
+fn pose_is_finite(p: &urdf_rs::Pose) -> bool {
+    finite3(&p.xyz.0) && finite3(&p.rpy.0)
+}
+
+fn is_movable(j: &urdf_rs::Joint) -> bool {
+    matches!(j.joint_type, urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous)
+}
+
+fn joint_type_name(t: &urdf_rs::JointType) -> &'static str {
+    use urdf_rs::JointType::*;
+    match t {
+        Revolute => "revolute",
+        Continuous => "continuous",
+        Prismatic => "prismatic",
+        Fixed => "fixed",
+        Floating => "floating",
+        Planar => "planar",
+        Spherical => "spherical",
+    }
+}
+
+/// Mass, centre of mass and inertia about the COM of one URDF link's `<inertial>`, expressed in a
+/// merged link's frame.
+struct MassPart {
+    mass: f64,
+    com: DVec3,
+    inertia: DMat3,
+}
+
+fn combine_mass(parts: &[MassPart]) -> (f64, DVec3, DMat3) {
+    let mass: f64 = parts.iter().map(|p| p.mass).sum();
+    let com = if mass > 0.0 {
+        parts.iter().map(|p| p.com * p.mass).sum::<DVec3>() / mass
+    } else {
+        DVec3::ZERO
+    };
+    let mut inertia = DMat3::ZERO;
+    for p in parts {
+        // parallel-axis theorem: I_com + m (|d|² E − d dᵀ)
+        let d = p.com - com;
+        let outer = DMat3::from_cols(d * d.x, d * d.y, d * d.z);
+        inertia += p.inertia + (DMat3::from_diagonal(DVec3::splat(d.length_squared())) - outer) * p.mass;
+    }
+    let inertia = (inertia + inertia.transpose()) * 0.5;
+    (mass, com, inertia)
+}
+
+struct Loader<'a> {
+    file: String,
+    source: &'a Path,
+    opts: &'a HandLoadOptions,
+}
+
+impl Loader<'_> {
+    fn build(&self, robot: &urdf_rs::Robot) -> R<HandModel> {
+        let f = &self.file;
+        let n = robot.links.len();
+        if n == 0 {
+            return Err(format!("{f} has no <link>; expected a hand whose root link is the palm"));
+        }
+
+        // ---- links
+        let mut link_index: HashMap<&str, usize> = HashMap::new();
+        for (i, l) in robot.links.iter().enumerate() {
+            if link_index.insert(l.name.as_str(), i).is_some() {
+                return Err(format!("link '{}' in {f} is defined twice; expected unique link names", l.name));
+            }
+            self.check_link(l)?;
+        }
+
+        // ---- joints and the tree structure
+        let mut joint_index: HashMap<&str, usize> = HashMap::new();
+        let mut parent_joint: Vec<Option<usize>> = vec![None; n];
+        let mut children: Vec<Vec<usize>> = vec![Vec::new(); n];
+        let mut ends: Vec<(usize, usize)> = Vec::with_capacity(robot.joints.len());
+        for (ji, j) in robot.joints.iter().enumerate() {
+            let name = &j.name;
+            if joint_index.insert(name.as_str(), ji).is_some() {
+                return Err(format!("joint '{name}' in {f} is defined twice; expected unique joint names"));
+            }
+            if !matches!(
+                j.joint_type,
+                urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous | urdf_rs::JointType::Fixed
+            ) {
+                return Err(format!(
+                    "joint '{name}' in {f} is {}; dextrain hands support revolute, continuous and fixed joints",
+                    joint_type_name(&j.joint_type)
+                ));
+            }
+            let lookup = |role: &str, link: &str| {
+                link_index.get(link).copied().ok_or_else(|| {
+                    format!(
+                        "joint '{name}' in {f} references unknown {role} link '{link}'; expected the name of a <link> in the file"
+                    )
+                })
+            };
+            let p = lookup("parent", &j.parent.link)?;
+            let c = lookup("child", &j.child.link)?;
+            if p == c {
+                return Err(format!(
+                    "joint '{name}' in {f} connects link '{}' to itself; expected a tree of links (no loops)",
+                    j.parent.link
+                ));
+            }
+            if let Some(other) = parent_joint[c] {
+                return Err(format!(
+                    "link '{}' in {f} has two parent joints ('{}' and '{name}'); expected a tree (every link has at most one parent joint, no loops)",
+                    j.child.link, robot.joints[other].name
+                ));
+            }
+            if !pose_is_finite(&j.origin) {
+                return Err(format!(
+                    "joint '{name}' in {f} has a non-finite <origin> (xyz {}, rpy {}); expected finite numbers",
+                    fmt3(&j.origin.xyz.0),
+                    fmt3(&j.origin.rpy.0)
+                ));
+            }
+            parent_joint[c] = Some(ji);
+            children[p].push(ji);
+            ends.push((p, c));
+        }
+
+        let roots: Vec<usize> = (0..n).filter(|&i| parent_joint[i].is_none()).collect();
+        if roots.is_empty() {
+            return Err(format!(
+                "{f} has no root link: every link has a parent joint, so the joints form a loop (e.g. through link '{}'); expected a tree rooted at the palm",
+                robot.links[0].name
+            ));
+        }
+        if roots.len() > 1 {
+            let names: Vec<String> = roots.iter().map(|&i| format!("'{}'", robot.links[i].name)).collect();
+            return Err(format!(
+                "{f} has several root links ({}); expected exactly one link without a parent joint (the palm), every other link connected to it by joints",
+                names.join(", ")
+            ));
+        }
+        let root = roots[0];
+
+        let movable: Vec<&urdf_rs::Joint> = robot.joints.iter().filter(|j| is_movable(j)).collect();
+        if movable.len() > MAX_JOINTS {
+            return Err(format!(
+                "{f} has {} movable (revolute or continuous) joints, joint '{}' is number {}; expected at most {MAX_JOINTS} (MAX_JOINTS)",
+                movable.len(),
+                movable[MAX_JOINTS].name,
+                MAX_JOINTS + 1
+            ));
+        }
+
+        // ---- depth-first walk from the root: merged links, movable joints in topological order
+        let mut place: Vec<Option<(usize, DPose)>> = vec![None; n];
+        place[root] = Some((0, DPose::IDENTITY));
+        let mut body_of: Vec<usize> = vec![root]; // merged link -> URDF link
+        let mut joint_of: Vec<usize> = Vec::new(); // movable joint -> URDF joint
+        let mut joints: Vec<Joint> = Vec::new();
+        let mut stack: Vec<usize> = children[root].iter().rev().copied().collect();
+        while let Some(ji) = stack.pop() {
+            let j = &robot.joints[ji];
+            let (p, c) = ends[ji];
+            let (plink, ppose) = place[p].expect("a parent link is placed before its child joints");
+            let origin = ppose.mul(&urdf_pose(&j.origin));
+            if is_movable(j) {
+                joints.push(self.movable_joint(j, plink, origin)?);
+                joint_of.push(ji);
+                body_of.push(c);
+                place[c] = Some((joints.len(), DPose::IDENTITY));
+            } else {
+                place[c] = Some((plink, origin));
+            }
+            stack.extend(children[c].iter().rev().copied());
+        }
+        if let Some(i) = (0..n).find(|&i| place[i].is_none()) {
+            return Err(format!(
+                "link '{}' in {f} is not connected to the root link '{}' (its parent joints form a loop); expected a tree of links",
+                robot.links[i].name, robot.links[root].name
+            ));
+        }
+
+        // ---- mimic joints: resolve to the root leader
+        let mut movable_of: HashMap<usize, usize> = HashMap::new(); // URDF joint -> movable joint
+        for (mi, &ji) in joint_of.iter().enumerate() {
+            movable_of.insert(ji, mi);
+        }
+        for (mi, &ji) in joint_of.iter().enumerate() {
+            let j = &robot.joints[ji];
+            let Some(m) = &j.mimic else { continue };
+            let name = &j.name;
+            let (mut mult, mut off) = self.mimic_coeffs(name, m)?;
+            let mut leader_name = m.joint.as_str();
+            let mut steps = 0;
+            let leader = loop {
+                let Some(&lj) = joint_index.get(leader_name) else {
+                    return Err(format!(
+                        "joint '{name}' in {f} mimics unknown joint '{leader_name}'; expected the name of a revolute or continuous joint"
+                    ));
+                };
+                if lj == ji {
+                    return Err(if steps == 0 {
+                        format!("joint '{name}' in {f} mimics itself; expected <mimic joint> to name another revolute or continuous joint")
+                    } else {
+                        format!("joint '{name}' in {f} is part of a mimic cycle; expected mimic chains to end at a joint without <mimic>")
+                    });
+                }
+                let lead = &robot.joints[lj];
+                if !is_movable(lead) {
+                    return Err(format!(
+                        "joint '{name}' in {f} mimics joint '{leader_name}', which is {}; expected a revolute or continuous leader",
+                        joint_type_name(&lead.joint_type)
+                    ));
+                }
+                match &lead.mimic {
+                    None => break movable_of[&lj],
+                    Some(m2) => {
+                        let (mult2, off2) = self.mimic_coeffs(&lead.name, m2)?;
+                        // q = mult (mult2 q_leader2 + off2) + off
+                        off += mult * off2;
+                        mult *= mult2;
+                        leader_name = m2.joint.as_str();
+                        steps += 1;
+                        if steps > robot.joints.len() {
+                            return Err(format!(
+                                "joint '{name}' in {f} has a mimic chain through joint '{}' that forms a cycle; expected mimic chains to end at a joint without <mimic>",
+                                lead.name
+                            ));
+                        }
+                    }
+                }
+            };
+            joints[mi].mimic = Some(Mimic { leader, multiplier: mult as f32, offset: off as f32 });
+        }
+
+        // ---- masses (merged), colliders, frames
+        let nl = body_of.len();
+        let mut parts: Vec<Vec<MassPart>> = (0..nl).map(|_| Vec::new()).collect();
+        let mut colliders: Vec<Collider> = Vec::new();
+        let mut frames: Vec<Frame> = Vec::new();
+        for (i, l) in robot.links.iter().enumerate() {
+            let (li, lpose) = place[i].expect("every link is placed");
+            if body_of[li] != i {
+                frames.push(Frame { name: l.name.clone(), link: li, pose: lpose.to_pose() });
+            }
+            let inr = &l.inertial;
+            let ipose = lpose.mul(&urdf_pose(&inr.origin));
+            let rot = DMat3::from_quat(ipose.rot);
+            let t = &inr.inertia;
+            let local = DMat3::from_cols(
+                DVec3::new(t.ixx, t.ixy, t.ixz),
+                DVec3::new(t.ixy, t.iyy, t.iyz),
+                DVec3::new(t.ixz, t.iyz, t.izz),
+            );
+            parts[li].push(MassPart { mass: inr.mass.value, com: ipose.pos, inertia: rot * local * rot.transpose() });
+            for (ci, c) in l.collision.iter().enumerate() {
+                colliders.push(self.collider(l, ci, c, li, lpose)?);
+            }
+        }
+        colliders.sort_by_key(|c| c.link);
+
+        let links: Vec<Link> = body_of
+            .iter()
+            .zip(&parts)
+            .map(|(&ui, parts)| {
+                let (mass, com, inertia) = combine_mass(parts);
+                let r = |k: usize| {
+                    let row = inertia.row(k);
+                    [row.x as f32, row.y as f32, row.z as f32]
+                };
+                Link { name: robot.links[ui].name.clone(), mass: mass as f32, com: com.as_vec3(), inertia: [r(0), r(1), r(2)] }
+            })
+            .collect();
+
+        let root_name = &robot.links[root].name;
+        if colliders.is_empty() {
+            return Err(format!(
+                "{f} has no collision shapes (root link '{root_name}'); expected at least one <collision> with a sphere, box, cylinder or capsule"
+            ));
+        }
+        if colliders.len() > MAX_COLLIDERS {
+            return Err(format!(
+                "{f} has {} collision shapes, link '{}' holds number {}; expected at most {MAX_COLLIDERS} (MAX_COLLIDERS)",
+                colliders.len(),
+                links[colliders[MAX_COLLIDERS].link].name,
+                MAX_COLLIDERS + 1
+            ));
+        }
+
+        let mut model = HandModel {
+            name: robot.name.clone(),
+            source: self.source.to_path_buf(),
+            links,
+            joints,
+            colliders,
+            fingertips: Vec::new(),
+            frames,
+        };
+        model.fingertips = self.fingertips(robot, &model)?;
+        Ok(model)
+    }
+
+    fn check_link(&self, l: &urdf_rs::Link) -> R<()> {
+        let f = &self.file;
+        let name = &l.name;
+        let inr = &l.inertial;
+        if !pose_is_finite(&inr.origin) {
+            return Err(format!("link '{name}' in {f} has a non-finite <inertial><origin>; expected finite numbers"));
+        }
+        let m = inr.mass.value;
+        if !m.is_finite() {
+            return Err(format!("link '{name}' in {f} has a non-finite mass ({m}); expected a finite mass >= 0 kg"));
+        }
+        if m < 0.0 {
+            return Err(format!("link '{name}' in {f} has a negative mass ({m}); expected a mass >= 0 kg"));
+        }
+        let t = &inr.inertia;
+        let all = [t.ixx, t.ixy, t.ixz, t.iyy, t.iyz, t.izz];
+        if !all.iter().all(|x| x.is_finite()) {
+            return Err(format!("link '{name}' in {f} has a non-finite <inertia>; expected finite numbers (kg·m²)"));
+        }
+        if t.ixx < 0.0 || t.iyy < 0.0 || t.izz < 0.0 {
+            return Err(format!(
+                "link '{name}' in {f} has a negative principal inertia (ixx {} iyy {} izz {}); expected ixx, iyy, izz >= 0",
+                t.ixx, t.iyy, t.izz
+            ));
+        }
+        for (ci, c) in l.collision.iter().enumerate() {
+            if !pose_is_finite(&c.origin) {
+                return Err(format!(
+                    "link '{name}' in {f} has a non-finite <collision><origin> (collision {ci}); expected finite numbers"
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn mimic_coeffs(&self, joint: &str, m: &urdf_rs::Mimic) -> R<(f64, f64)> {
+        let mult = m.multiplier.unwrap_or(1.0);
+        let off = m.offset.unwrap_or(0.0);
+        if !mult.is_finite() || !off.is_finite() {
+            return Err(format!(
+                "joint '{joint}' in {} has a non-finite <mimic> (multiplier {mult}, offset {off}); expected finite numbers",
+                self.file
+            ));
+        }
+        Ok((mult, off))
+    }
+
+    fn movable_joint(&self, j: &urdf_rs::Joint, parent_link: usize, origin: DPose) -> R<Joint> {
+        let f = &self.file;
+        let name = &j.name;
+        let axis = DVec3::from_array(j.axis.xyz.0);
+        if !axis.is_finite() || axis.length() < 1e-9 {
+            return Err(format!(
+                "joint '{name}' in {f} has axis ({}); expected a finite non-zero <axis xyz>",
+                fmt3(&j.axis.xyz.0)
+            ));
+        }
+        let lim = &j.limit;
+        let continuous = j.joint_type == urdf_rs::JointType::Continuous;
+        let (lower, upper) = if continuous {
+            (f32::NEG_INFINITY, f32::INFINITY)
+        } else {
+            if !lim.lower.is_finite() || !lim.upper.is_finite() {
+                return Err(format!(
+                    "joint '{name}' in {f} has non-finite limits (lower {}, upper {}); expected finite <limit lower upper> (rad) on a revolute joint",
+                    lim.lower, lim.upper
+                ));
+            }
+            if lim.lower > lim.upper {
+                return Err(format!(
+                    "joint '{name}' in {f} has lower limit {} > upper limit {}; expected lower <= upper",
+                    lim.lower, lim.upper
+                ));
+            }
+            (lim.lower as f32, lim.upper as f32)
+        };
+        for (what, v, unit) in [("effort", lim.effort, "N·m"), ("velocity", lim.velocity, "rad/s")] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(format!(
+                    "joint '{name}' in {f} has {what} limit {v}{}; expected a positive finite <limit {what}> ({unit}) on a movable joint",
+                    if v == 0.0 { " (a missing <limit> or attribute reads as 0)" } else { "" }
+                ));
+            }
+        }
+        let (damping, friction) = j.dynamics.as_ref().map_or((0.0, 0.0), |d| (d.damping, d.friction));
+        for (what, v) in [("damping", damping), ("friction", friction)] {
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(format!(
+                    "joint '{name}' in {f} has <dynamics {what}> {v}; expected a finite number >= 0"
+                ));
+            }
+        }
+        Ok(Joint {
+            name: name.clone(),
+            parent_link,
+            origin: origin.to_pose(),
+            axis: axis.normalize().as_vec3(),
+            lower,
+            upper,
+            effort: lim.effort as f32,
+            velocity: lim.velocity as f32,
+            damping: damping as f32,
+            friction: friction as f32,
+            mimic: None,
+            continuous,
+        })
+    }
+
+    fn collider(&self, l: &urdf_rs::Link, ci: usize, c: &urdf_rs::Collision, link: usize, lpose: DPose) -> R<Collider> {
+        let f = &self.file;
+        let name = &l.name;
+        let pose = lpose.mul(&urdf_pose(&c.origin));
+        let what = match &c.name {
+            Some(n) => format!("collision '{n}'"),
+            None => format!("collision {ci}"),
+        };
+        let radius_ok = |r: f64| r.is_finite() && r > 0.0;
+        let size_ok = |s: f64| s.is_finite() && s >= 0.0;
+        let (pose, shape) = match &c.geometry {
+            urdf_rs::Geometry::Sphere { radius } => {
+                if !radius_ok(*radius) {
+                    return Err(format!(
+                        "link '{name}' in {f}: {what} sphere radius {radius}; expected a positive finite radius (m)"
+                    ));
+                }
+                (pose, ColliderShape::Sphere { radius: *radius as f32 })
+            }
+            urdf_rs::Geometry::Box { size } => {
+                if !size.0.iter().all(|&s| size_ok(s)) {
+                    return Err(format!(
+                        "link '{name}' in {f}: {what} box size {}; expected finite sizes >= 0 (m)",
+                        fmt3(&size.0)
+                    ));
+                }
+                let half = DVec3::from_array(size.0) * 0.5;
+                (pose, ColliderShape::Box { half_extents: half.as_vec3() })
+            }
+            urdf_rs::Geometry::Cylinder { radius, length } | urdf_rs::Geometry::Capsule { radius, length } => {
+                let kind = if matches!(c.geometry, urdf_rs::Geometry::Cylinder { .. }) { "cylinder" } else { "capsule" };
+                if !radius_ok(*radius) || !size_ok(*length) {
+                    return Err(format!(
+                        "link '{name}' in {f}: {what} {kind} radius {radius} length {length}; expected a positive finite radius and a finite length >= 0 (m)"
+                    ));
+                }
+                (pose, ColliderShape::Capsule { radius: *radius as f32, half_length: (*length * 0.5) as f32 })
+            }
+            urdf_rs::Geometry::Mesh { filename, scale } => match self.opts.mesh_approx {
+                MeshApprox::Error => {
+                    return Err(format!(
+                        "link '{name}' in {f} has a <mesh> {what} ('{filename}'); expected sphere, box, cylinder or capsule collision geometry (or opt in to a bounding-box approximation with mesh_approx = box or capsule)"
+                    ));
+                }
+                approx => self.mesh_collider(name, filename, scale.as_ref(), approx, pose)?,
+            },
+        };
+        Ok(Collider { link, pose: pose.to_pose(), shape })
+    }
+
+    /// Candidate paths of a mesh file name, in lookup order.
+    fn mesh_candidates(&self, filename: &str) -> Vec<PathBuf> {
+        let parent = self.source.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+        let dir = std::fs::canonicalize(parent).unwrap_or_else(|_| parent.to_path_buf());
+        if let Some(rest) = filename.strip_prefix("package://") {
+            let (pkg, rel) = rest.split_once('/').unwrap_or(("", rest));
+            let mut v = Vec::new();
+            for a in dir.ancestors() {
+                v.push(a.join(rel));
+                if !pkg.is_empty() {
+                    v.push(a.join(pkg).join(rel));
+                }
+            }
+            v
+        } else {
+            let p = Path::new(filename.strip_prefix("file://").unwrap_or(filename));
+            vec![if p.is_absolute() { p.to_path_buf() } else { dir.join(p) }]
+        }
+    }
+
+    fn mesh_collider(
+        &self,
+        link: &str,
+        filename: &str,
+        scale: Option<&urdf_rs::Vec3>,
+        approx: MeshApprox,
+        pose: DPose,
+    ) -> R<(DPose, ColliderShape)> {
+        let f = &self.file;
+        let ext = Path::new(filename).extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+        if ext != "stl" && ext != "obj" {
+            return Err(format!(
+                "link '{link}' in {f}: mesh '{filename}' has unsupported format '.{ext}'; expected a .stl (binary or ASCII) or .obj mesh for mesh_approx"
+            ));
+        }
+        let scale = scale.map_or(DVec3::ONE, |s| DVec3::from_array(s.0));
+        if !scale.is_finite() {
+            return Err(format!("link '{link}' in {f}: mesh '{filename}' has a non-finite scale; expected finite numbers"));
+        }
+        let candidates = self.mesh_candidates(filename);
+        let Some(path) = candidates.iter().find(|p| p.is_file()) else {
+            return Err(format!(
+                "link '{link}' in {f}: mesh file '{filename}' not found (looked for {}{}); expected a path relative to the URDF directory, package://pkg/path or file:///absolute/path",
+                candidates[0].display(),
+                if candidates.len() > 1 { " and in parent directories" } else { "" }
+            ));
+        };
+        let bytes = std::fs::read(path)
+            .map_err(|e| format!("link '{link}' in {f}: cannot read mesh {}: {e}", path.display()))?;
+        let verts = if ext == "stl" { parse_stl(&bytes) } else { parse_obj(&bytes) }
+            .map_err(|e| format!("link '{link}' in {f}: cannot read mesh {}: {e}", path.display()))?;
+        if verts.is_empty() {
+            return Err(format!("link '{link}' in {f}: mesh {} has no vertices; expected a non-empty mesh", path.display()));
+        }
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for v in &verts {
+            let v = *v * scale;
+            lo = lo.min(v);
+            hi = hi.max(v);
+        }
+        let centre = (lo + hi) * 0.5;
+        let half = (hi - lo) * 0.5;
+        match approx {
+            MeshApprox::Capsule => {
+                // longest axis (ties prefer z, then x)
+                let (rot, long, r) = if half.z >= half.x && half.z >= half.y {
+                    (DQuat::IDENTITY, half.z, half.x.max(half.y))
+                } else if half.x >= half.y {
+                    (DQuat::from_rotation_y(std::f64::consts::FRAC_PI_2), half.x, half.y.max(half.z))
+                } else {
+                    (DQuat::from_rotation_x(-std::f64::consts::FRAC_PI_2), half.y, half.x.max(half.z))
+                };
+                if r <= 0.0 {
+                    return Err(format!(
+                        "link '{link}' in {f}: mesh {} is flat or a line (bounding box half extents {} {} {}); expected a solid for a capsule",
+                        path.display(),
+                        half.x,
+                        half.y,
+                        half.z
+                    ));
+                }
+                let shape = ColliderShape::Capsule { radius: r as f32, half_length: (long - r).max(0.0) as f32 };
+                Ok((pose.mul(&DPose { pos: centre, rot }), shape))
+            }
+            _ => Ok((pose.mul(&DPose { pos: centre, rot: DQuat::IDENTITY }), ColliderShape::Box { half_extents: half.as_vec3() })),
+        }
+    }
+
+    fn fingertips(&self, robot: &urdf_rs::Robot, model: &HandModel) -> R<Vec<Fingertip>> {
+        let f = &self.file;
+        let names: Vec<String> = if self.opts.fingertips.is_empty() {
+            robot.links.iter().filter(|l| l.name.to_ascii_lowercase().ends_with("tip")).map(|l| l.name.clone()).collect()
+        } else {
+            self.opts.fingertips.clone()
+        };
+        if names.len() > MAX_TIPS {
+            return Err(format!(
+                "{f} has {} fingertip frames ({}); expected at most {MAX_TIPS} (MAX_TIPS); name fewer in the fingertips option",
+                names.len(),
+                names.join(", ")
+            ));
+        }
+        let mut tips = Vec::with_capacity(names.len());
+        for (i, name) in names.iter().enumerate() {
+            if names[..i].contains(name) {
+                return Err(format!("fingertip '{name}' in {f} is named twice; expected distinct fingertip frames"));
+            }
+            let Some((link, pose)) = model.frame(name) else {
+                return Err(format!(
+                    "fingertip '{name}' does not exist in {f}; expected the name of a link (frame) of the hand"
+                ));
+            };
+            tips.push(Fingertip { name: name.clone(), link, pos: pose.pos });
+        }
+        Ok(tips)
+    }
+}
+
+/// Vertices of a binary or ASCII STL file.
+fn parse_stl(b: &[u8]) -> R<Vec<DVec3>> {
+    if b.len() >= 84 {
+        let n = u32::from_le_bytes([b[80], b[81], b[82], b[83]]) as u64;
+        if 84 + 50 * n == b.len() as u64 {
+            let f = |o: usize| f32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]) as f64;
+            let mut v = Vec::with_capacity(3 * n as usize);
+            for t in 0..n as usize {
+                let base = 84 + 50 * t + 12; // skip the normal
+                for k in 0..3 {
+                    let o = base + 12 * k;
+                    v.push(DVec3::new(f(o), f(o + 4), f(o + 8)));
+                }
+            }
+            return check_vertices(v);
+        }
+    }
+    let text = std::str::from_utf8(b).ok().filter(|t| t.trim_start().starts_with("solid")).ok_or_else(|| {
+        "neither a binary STL (84-byte header, 50 bytes per triangle) nor an ASCII STL (starting with 'solid')".to_string()
+    })?;
+    let mut v = Vec::new();
+    let mut it = text.split_whitespace();
+    while let Some(tok) = it.next() {
+        if tok.eq_ignore_ascii_case("vertex") {
+            let mut c = [0.0; 3];
+            for x in &mut c {
+                *x = it
+                    .next()
+                    .and_then(|s| s.parse::<f64>().ok())
+                    .ok_or_else(|| "an ASCII STL 'vertex' line needs three numbers".to_string())?;
+            }
+            v.push(DVec3::from_array(c));
+        }
+    }
+    check_vertices(v)
+}
+
+/// Vertices (`v x y z` lines) of an OBJ file.
+fn parse_obj(b: &[u8]) -> R<Vec<DVec3>> {
+    let text = String::from_utf8_lossy(b);
+    let mut v = Vec::new();
+    for (ln, line) in text.lines().enumerate() {
+        let mut it = line.split_whitespace();
+        if it.next() != Some("v") {
+            continue;
+        }
+        let mut c = [0.0; 3];
+        for x in &mut c {
+            *x = it
+                .next()
+                .and_then(|s| s.parse::<f64>().ok())
+                .ok_or_else(|| format!("OBJ line {}: a 'v' line needs three numbers", ln + 1))?;
+        }
+        v.push(DVec3::from_array(c));
+    }
+    check_vertices(v)
+}
+
+fn check_vertices(v: Vec<DVec3>) -> R<Vec<DVec3>> {
+    if v.iter().all(|p| p.is_finite()) {
+        Ok(v)
+    } else {
+        Err("a vertex has a non-finite coordinate".to_string())
     }
 }

@@ -3,9 +3,11 @@
 //! See README.md for the architecture; `env` holds the simulator (CPU and GPU backends behind
 //! [`env::EnvBatch`]), `hand` the URDF loader, `traj` reference trajectories, `record` MCAP rollouts.
 
+pub mod bench;
 pub mod config;
 pub mod env;
 pub mod geom;
 pub mod hand;
 pub mod record;
+pub mod replay;
 pub mod traj;

@@ -1,1 +1,112 @@
-fn main() {}
+//! The `dextrain` command line.
+
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+
+use dextrain::bench::{BenchOptions, bench_config, run_bench};
+use dextrain::config::Config;
+use dextrain::env::{SimModel, make_env_batch};
+
+#[derive(Parser)]
+#[command(name = "dextrain", version, about = "Batched GPU/CPU simulator and trainer for dexterous robot hands")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Validate a config and print it resolved, with every default filled in.
+    Check {
+        /// The TOML config file.
+        config: PathBuf,
+    },
+    /// Measure env-step throughput on the contact-rich benchmark scene; prints one JSON line.
+    Bench {
+        /// A config file (default: the built-in scene of configs/bench_cube.toml).
+        config: Option<PathBuf>,
+        /// Backend: cpu, gpu, gpu:NAME or auto (overrides the config).
+        #[arg(long)]
+        backend: Option<String>,
+        /// Number of envs (overrides the config).
+        #[arg(long)]
+        envs: Option<usize>,
+        /// Least number of timed 24-step chunks.
+        #[arg(long, default_value_t = 5)]
+        chunks: usize,
+        /// Least timed wall time (s).
+        #[arg(long, default_value_t = 3.0)]
+        seconds: f64,
+    },
+    /// Replay a reference trajectory open-loop under the physics (or kinematically) and report tracking.
+    Replay(dextrain::replay::ReplayArgs),
+    /// Reference trajectories.
+    Traj {
+        #[command(subcommand)]
+        command: TrajCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum TrajCommand {
+    /// Write a scripted approach–grasp–lift reference for a config's hand and object.
+    Synth(dextrain::traj::synth::SynthArgs),
+}
+
+fn load_config(path: &Path) -> Result<Config> {
+    Config::load(path)
+}
+
+fn run(cli: Cli) -> Result<()> {
+    match cli.command {
+        Command::Check { config } => {
+            let cfg = load_config(&config)?;
+            // the hand must load too
+            let model = SimModel::from_config(&cfg)?;
+            print!("{}", cfg.to_toml()?);
+            eprintln!(
+                "{}: ok ({} joints, {} actuated, {} colliders, {} fingertips)",
+                config.display(),
+                model.joints.len(),
+                model.spec.actuated.len(),
+                model.colliders.len(),
+                model.tips.len()
+            );
+            Ok(())
+        }
+        Command::Bench { config, backend, envs, chunks, seconds } => {
+            let mut cfg = match &config {
+                Some(p) => load_config(p)?,
+                None => bench_config(1024),
+            };
+            if let Some(b) = backend {
+                cfg.sim.backend = b;
+            }
+            if let Some(n) = envs {
+                cfg.sim.num_envs = n;
+            }
+            cfg.validate()?;
+            let model = SimModel::from_config(&cfg)?;
+            let mut env = make_env_batch(&cfg, model.clone())?;
+            let mut report = run_bench(env.as_mut(), &model, &BenchOptions { min_chunks: chunks, min_seconds: seconds })?;
+            report["config"] = serde_json::Value::String(config.map(|p| p.display().to_string()).unwrap_or_else(|| "<bench scene>".into()));
+            println!("{}", serde_json::to_string(&report).context("cannot serialise the report")?);
+            Ok(())
+        }
+        Command::Replay(args) => dextrain::replay::run(&args),
+        Command::Traj { command: TrajCommand::Synth(args) } => dextrain::traj::synth::run(&args),
+    }
+}
+
+fn main() -> ExitCode {
+    match run(Cli::parse()) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {}", dextrain::config::one_line(&format!("{e:#}")));
+            ExitCode::FAILURE
+        }
+    }
+}

@@ -317,11 +317,57 @@ pub fn make_env_batch(cfg: &Config, model: SimModel) -> Result<Box<dyn EnvBatch>
     }
 }
 
-/// Applies one control step's state to a recording frame (world link poses, contacts).
+/// World pose of every hand link of a state (HandModel link order).
 pub fn hand_link_poses(model: &SimModel, st: &EnvState) -> Vec<crate::geom::Pose> {
     let mut s = physics::Scratch::default();
     physics::hand_kinematics(st, &model.view(), &mut s);
     (0..model.hand.links.len())
         .map(|l| crate::geom::Pose::new(s.link_pos[l], Quat::from_array(s.link_rot[l].to_array())))
         .collect()
+}
+
+/// Every contact of a state, with the force the next substep would apply (for recordings and
+/// kinematic replay; evaluated on the host with the CPU twin's narrow phase and force law).
+pub fn contact_records(model: &SimModel, st: &EnvState, p: &EnvParams) -> Vec<crate::record::ContactRecord> {
+    use crate::record::{ContactKind, ContactRecord};
+    let m = model.view();
+    let g = &model.globals;
+    let mut s = physics::Scratch::default();
+    physics::hand_kinematics(st, &m, &mut s);
+    let h = g.dt / g.substeps as f32;
+    let v3 = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
+    let (opos, ovel, ow) = (v3(st.obj_pos), v3(st.obj_vel), v3(st.obj_angvel));
+    let mut out = Vec::new();
+    let mut push = |kind, index: usize, c: &physics::Contact, f: Vec3| {
+        out.push(ContactRecord { kind, index: index as u32, pos: c.point, normal: c.normal, depth: c.depth, force: f });
+    };
+    for ci in 0..model.colliders.len() {
+        let l = model.colliders[ci].link as usize;
+        let c = physics::collide_hand_object(st, p, &m, &s, ci);
+        if c.depth > 0.0 {
+            let vrel = physics::link_point_velocity(&s, l, c.point) - (ovel + ow.cross(c.point - opos));
+            let mu = 0.5 * (p.hand_friction + p.obj_friction);
+            let (f, _, _) = physics::contact_force(&c, vrel, v3(st.anchor_ho[ci]), g.contact_k, g.contact_kt, p.obj_contact_c, mu, h);
+            push(ContactKind::HandObject, ci, &c, f);
+        }
+        if g.hand_table != 0 {
+            let c = physics::collide_hand_table(&m, &s, ci);
+            if c.depth > 0.0 {
+                let mu = 0.5 * (p.hand_friction + p.table_friction);
+                let vrel = physics::link_point_velocity(&s, l, c.point);
+                let (f, _, _) = physics::contact_force(&c, vrel, v3(st.anchor_ht[ci]), g.contact_k, g.contact_kt, p.hand_table_c, mu, h);
+                push(ContactKind::HandTable, ci, &c, f);
+            }
+        }
+    }
+    for k in 0..g.n_obj_pts {
+        let c = physics::collide_object_table(st, p, &m, k);
+        if c.depth > 0.0 {
+            let mu = 0.5 * (p.obj_friction + p.table_friction);
+            let vrel = ovel + ow.cross(c.point - opos);
+            let (f, _, _) = physics::contact_force(&c, vrel, v3(st.anchor_ot[k as usize]), g.contact_k, g.contact_kt, p.obj_contact_c, mu, h);
+            push(ContactKind::ObjectTable, k as usize, &c, f);
+        }
+    }
+    out
 }

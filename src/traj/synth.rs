@@ -1,1 +1,165 @@
-//! `dextrain traj synth`: scripted approach–grasp–lift references.
+//! `dextrain traj synth`: scripted approach–grasp–lift references for a config's hand and object.
+//!
+//! The script (times in seconds, keyframes at the phase boundaries, interpolated by
+//! [`Trajectory::sample`]):
+//! 1. `0 → approach`: the wrist moves from its initial pose to the grasp pose above the object with
+//!    the hand open (joints at their defaults);
+//! 2. `→ + close`: the hand closes to the grasp posture (the wrist holds);
+//! 3. `→ + settle`: hold;
+//! 4. `→ + lift`: the wrist rises by `lift` metres; the object reference rises with it;
+//! 5. `→ + hold`: hold at the top.
+//!
+//! The grasp posture: for our dexhand16 a tuned pinch (thumb against three fingers, targets past the
+//! object so the servos squeeze at their effort limit); for any other hand every actuated joint goes
+//! `close` of the way from its lower to its upper limit (URDF flexion positive toward the palm).
+//! The wrist is placed so that the centre of the fingertips' bounding box, in the grasp posture, sits
+//! at the object's centre: the closing fingers stall on the object's sides and squeeze it.
+
+use std::path::PathBuf;
+
+use anyhow::{Result, bail};
+use glam::{Quat, Vec3};
+
+use super::{Frame, Trajectory};
+use crate::config::Config;
+use crate::env::SimModel;
+use crate::geom::Pose;
+
+/// Arguments of `dextrain traj synth`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct SynthArgs {
+    /// Config whose hand, object and initial wrist pose the reference is for.
+    pub config: PathBuf,
+    /// Output file (.mcap or .csv).
+    #[arg(long)]
+    pub out: PathBuf,
+    /// How far the wrist (and the object) rise (m).
+    #[arg(long, default_value_t = 0.15)]
+    pub lift: f32,
+    /// Seconds of the approach phase.
+    #[arg(long, default_value_t = 1.0)]
+    pub approach: f32,
+    /// Seconds of the closing phase.
+    #[arg(long, default_value_t = 0.8)]
+    pub close: f32,
+    /// Seconds of the lift phase.
+    #[arg(long, default_value_t = 1.5)]
+    pub lift_time: f32,
+    /// Seconds of the final hold.
+    #[arg(long, default_value_t = 1.0)]
+    pub hold: f32,
+    /// For hands other than dexhand16: fraction of each actuated joint's range the grasp closes to.
+    #[arg(long, default_value_t = 0.6)]
+    pub close_fraction: f32,
+}
+
+impl SynthArgs {
+    /// The defaults for a config file.
+    pub fn defaults(config: PathBuf, out: PathBuf) -> SynthArgs {
+        SynthArgs { config, out, lift: 0.15, approach: 1.0, close: 0.8, lift_time: 1.5, hold: 1.0, close_fraction: 0.6 }
+    }
+}
+
+/// The tuned pinch of dexhand16: thumb against index, middle and ring. Closed in free space, the
+/// distal links would lie horizontal 9 cm below the palm with the tips 8 mm past the centre line,
+/// i.e. 1.7 cm inside a 5 cm cube: they stall on its sides at mid height and squeeze.
+const DEXHAND_GRASP: &[(&str, f32)] = &[
+    ("if_j0", 0.1), ("if_j1", 1.6), ("if_j2", 0.62), ("if_j3", 0.8),
+    ("mf_j0", 0.0), ("mf_j1", 1.6), ("mf_j2", 0.62), ("mf_j3", 0.8),
+    ("rf_j0", -0.1), ("rf_j1", 1.6), ("rf_j2", 0.62), ("rf_j3", 0.8),
+    ("th_j0", 0.0), ("th_j1", 1.32), ("th_j2", 0.96), ("th_j3", 0.88),
+];
+
+/// Joint targets of the grasp posture (HandModel joint order; followers follow their leaders).
+pub fn grasp_posture(model: &SimModel, close_fraction: f32) -> Vec<f32> {
+    let hand = &model.hand;
+    let is_dexhand = DEXHAND_GRASP.iter().all(|(n, _)| hand.joint_index(n).is_some());
+    let mut q: Vec<f32> = model.joints.iter().map(|j| j.default_q).collect();
+    for (j, jd) in model.joints.iter().enumerate() {
+        if is_dexhand {
+            if let Some((_, v)) = DEXHAND_GRASP.iter().find(|(n, _)| *n == hand.joints[j].name) {
+                q[j] = *v;
+            }
+        } else if jd.lower > -1e29 && jd.upper < 1e29 {
+            q[j] = jd.lower + close_fraction * (jd.upper - jd.lower);
+        }
+    }
+    for (j, jt) in hand.joints.iter().enumerate() {
+        if let Some(m) = jt.mimic {
+            q[j] = m.multiplier * q[m.leader] + m.offset;
+        }
+    }
+    q
+}
+
+/// Builds the scripted reference for a config.
+pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
+    for (name, v) in [("--approach", args.approach), ("--close", args.close), ("--lift-time", args.lift_time), ("--hold", args.hold)] {
+        if !(v.is_finite() && v > 0.0) {
+            bail!("{name} = {v}: expected a duration in seconds > 0");
+        }
+    }
+    if !args.lift.is_finite() || args.lift < 0.0 || args.lift > 2.0 {
+        bail!("--lift = {}: expected a height in m in [0, 2]", args.lift);
+    }
+    let model = SimModel::from_config(cfg)?;
+    let hand = &model.hand;
+    if hand.fingertips.is_empty() {
+        bail!("{}: the hand has no fingertip frames; synth places the wrist from them", hand.source.display());
+    }
+    let g = &model.globals;
+    let wrist0 = Pose::new(Vec3::from_slice(&g.init_wrist_pos[..3]), Quat::from_array(g.init_wrist_rot));
+    let open: Vec<f32> = model.joints.iter().map(|j| j.default_q).collect();
+    let closed = grasp_posture(&model, args.close_fraction);
+    // fingertips of the closed hand in the wrist frame (orientation of the initial wrist)
+    let links = hand.forward_kinematics(&closed);
+    let tips: Vec<Vec3> = hand.fingertips.iter().map(|t| wrist0.rot * links[t.link].transform_point(t.pos)).collect();
+    // centre of the fingertips' bounding box
+    let lo = tips.iter().copied().fold(Vec3::splat(f32::INFINITY), Vec3::min);
+    let hi = tips.iter().copied().fold(Vec3::splat(f32::NEG_INFINITY), Vec3::max);
+    let tip_centre = 0.5 * (lo + hi);
+    let obj = Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]);
+    let obj_rot = Quat::from_rotation_z(g.obj_init[2]);
+    // the closed fingertips meet at the object's centre: they stall on its surface and squeeze
+    let grasp = Pose::new(obj - tip_centre, wrist0.rot);
+    let lifted = Pose::new(grasp.pos + Vec3::Z * args.lift, grasp.rot);
+    let t1 = args.approach as f64;
+    let t2 = t1 + args.close as f64;
+    let t3 = t2 + 0.3;
+    let t4 = t3 + args.lift_time as f64;
+    let t5 = t4 + args.hold as f64;
+    let obj_up = Pose::new(obj + Vec3::Z * args.lift, obj_rot);
+    let obj_rest = Pose::new(obj, obj_rot);
+    let keys = [
+        (0.0, wrist0, &open, obj_rest),
+        (t1, grasp, &open, obj_rest),
+        (t2, grasp, &closed, obj_rest),
+        (t3, grasp, &closed, obj_rest),
+        (t4, lifted, &closed, obj_up),
+        (t5, lifted, &closed, obj_up),
+    ];
+    let frames = keys
+        .iter()
+        .map(|(t, wrist, q, object)| {
+            let links = hand.forward_kinematics(q);
+            let tips = hand.fingertips.iter().map(|tp| wrist.transform_point(links[tp.link].transform_point(tp.pos))).collect();
+            Frame { t: *t, wrist: *wrist, joints: (*q).clone(), fingertips: Some(tips), object: Some(*object) }
+        })
+        .collect();
+    let traj = Trajectory {
+        joint_names: hand.joints.iter().map(|j| j.name.clone()).collect(),
+        fingertip_names: hand.fingertips.iter().map(|t| t.name.clone()).collect(),
+        frames,
+    };
+    traj.validate()?;
+    Ok(traj)
+}
+
+/// `dextrain traj synth`.
+pub fn run(args: &SynthArgs) -> Result<()> {
+    let cfg = Config::load(&args.config)?;
+    let traj = synth(&cfg, args)?;
+    traj.save(&args.out)?;
+    eprintln!("wrote {} ({} keyframes, {:.2} s)", args.out.display(), traj.frames.len(), traj.duration());
+    Ok(())
+}

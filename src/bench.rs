@@ -1,0 +1,192 @@
+//! `dextrain bench`: env-step throughput of either backend on a contact-rich scene, as one JSON line.
+//!
+//! The default scene mirrors the peer MuJoCo benchmark (`shared/peers/`): the 16-joint hand on a
+//! 6-DoF wrist (22 actuators) closing on a 5 cm, 0.1 kg cube, dt = 1/120 s, decimation 4. Every
+//! timed chunk of 24 env steps (one PPO rollout's worth) starts from the same grasp state (palm on the
+//! cube, fingers closed) and follows the grasp targets plus Gaussian noise (wrist 1 cm / 0.05 rad,
+//! fingers 0.25 rad), so the fingers keep squeezing and releasing the cube and contacts persist.
+
+use std::time::Instant;
+
+use anyhow::Result;
+use glam::Quat;
+use serde_json::json;
+
+use crate::config::Config;
+use crate::env::common::rand_uniform;
+use crate::env::{EnvBatch, SimModel, Targets};
+use crate::geom::ObjectShape;
+
+/// Env steps per timed chunk (rsl_rl's steps per env per iteration in the peer benchmark).
+pub const CHUNK_STEPS: usize = 24;
+
+/// The benchmark scene for `n` envs (the hand and cube of the peer benchmark).
+pub fn bench_config(n: usize) -> Config {
+    let mut c = Config::default();
+    c.base_dir = "configs".into();
+    c.source = "<bench scene>".into();
+    c.sim.num_envs = n;
+    c.object.shape = ObjectShape::Box { half_extents: [0.025, 0.025, 0.025] };
+    c.object.mass = 0.1;
+    c.wrist.init_pos = [0.0, 0.0, 0.115];
+    // the peer's table is hand-transparent: no hand–table contacts
+    c.table.hand_collision = false;
+    c
+}
+
+/// Targets that lower the palm onto the cube and close the hand (the peer's `grasp_target`). For a
+/// hand other than dexhand16, every actuated joint goes 60 % of the way from its lower to its upper limit.
+pub fn grasp_targets(model: &SimModel) -> Targets {
+    let g = &model.globals;
+    let mut t = model.default_targets();
+    t.wrist_pos = [g.init_wrist_pos[0], g.init_wrist_pos[1], g.init_wrist_pos[2] - 0.035, 0.0];
+    let named: &[(&str, f32)] = &[
+        ("if_j0", -0.45), ("if_j1", 1.5), ("if_j2", 1.0), ("if_j3", 0.6),
+        ("mf_j0", 0.0), ("mf_j1", 1.5), ("mf_j2", 1.0), ("mf_j3", 0.6),
+        ("rf_j0", 0.45), ("rf_j1", 1.5), ("rf_j2", 1.0), ("rf_j3", 0.6),
+        ("th_j0", 0.0), ("th_j1", 1.5), ("th_j2", 1.1), ("th_j3", 0.6),
+    ];
+    let is_dexhand = named.iter().all(|(n, _)| model.hand.joint_index(n).is_some());
+    for (j, jd) in model.joints.iter().enumerate() {
+        t.q[j] = if is_dexhand {
+            named.iter().find(|(n, _)| *n == model.hand.joints[j].name).map(|x| x.1).unwrap_or(0.0)
+        } else if jd.lower > -1e29 && jd.upper < 1e29 {
+            jd.lower + 0.6 * (jd.upper - jd.lower)
+        } else {
+            0.0
+        };
+    }
+    t
+}
+
+/// The approach of the peer's `make_grasp_state` at time `t` (s): the wrist ramps down over 0.5 s,
+/// the fingers close between 0.3 s and 0.8 s.
+pub fn approach_targets(model: &SimModel, grasp: &Targets, t: f32) -> Targets {
+    let start = model.default_targets();
+    let a = (t / 0.5).min(1.0);
+    let b = ((t - 0.3) / 0.5).clamp(0.0, 1.0);
+    let mut out = *grasp;
+    for k in 0..3 {
+        out.wrist_pos[k] = start.wrist_pos[k] + a * (grasp.wrist_pos[k] - start.wrist_pos[k]);
+    }
+    for j in 0..model.joints.len() {
+        out.q[j] = start.q[j] + b * (grasp.q[j] - start.q[j]);
+    }
+    out
+}
+
+/// Standard normal from two counter-based uniforms (Box–Muller).
+fn normal(seed: u32, env: u32, step: u32, k: u32) -> f32 {
+    let u1 = rand_uniform(seed, env, step, 7, 2 * k).max(1e-7);
+    let u2 = rand_uniform(seed, env, step, 7, 2 * k + 1);
+    (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
+}
+
+/// The noisy grasp targets of every env for step `k` of a chunk.
+pub fn noisy_targets(model: &SimModel, grasp: &Targets, n: usize, k: u32) -> Vec<Targets> {
+    (0..n as u32)
+        .map(|e| {
+            let mut t = *grasp;
+            for i in 0..3 {
+                t.wrist_pos[i] += 0.01 * normal(1, e, k, i as u32);
+            }
+            let rv = glam::Vec3::new(normal(1, e, k, 3), normal(1, e, k, 4), normal(1, e, k, 5)) * 0.05;
+            t.wrist_rot = (Quat::from_scaled_axis(rv) * Quat::from_array(grasp.wrist_rot)).normalize().to_array();
+            for (j, jd) in model.joints.iter().enumerate() {
+                t.q[j] = (grasp.q[j] + 0.25 * normal(1, e, k, 6 + j as u32)).clamp(jd.lower, jd.upper);
+            }
+            t
+        })
+        .collect()
+}
+
+/// CPU time of this process (all threads), seconds.
+pub fn process_cpu_time() -> f64 {
+    let mut ts = libc::timespec { tv_sec: 0, tv_nsec: 0 };
+    // SAFETY: clock_gettime writes into the timespec we pass.
+    unsafe { libc::clock_gettime(libc::CLOCK_PROCESS_CPUTIME_ID, &mut ts) };
+    ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9
+}
+
+fn summary(mut v: Vec<f64>) -> serde_json::Value {
+    v.sort_by(|a, b| a.total_cmp(b));
+    let median = if v.is_empty() { 0.0 } else { v[v.len() / 2] };
+    json!({ "median": median, "min": v.first().copied().unwrap_or(0.0), "max": v.last().copied().unwrap_or(0.0), "n_runs": v.len() })
+}
+
+/// Options of a benchmark run.
+pub struct BenchOptions {
+    /// Least number of timed chunks.
+    pub min_chunks: usize,
+    /// Least wall time of the timed part (s).
+    pub min_seconds: f64,
+}
+
+/// Runs the benchmark on `env` (already built from `model`) and returns the JSON report.
+pub fn run_bench(env: &mut dyn EnvBatch, model: &SimModel, opts: &BenchOptions) -> Result<serde_json::Value> {
+    let n = env.spec().num_envs;
+    let g = &model.globals;
+    let grasp = grasp_targets(model);
+    // grasp state: 0.9 s of the peer's approach (untimed)
+    let approach_steps = (0.9 / (g.dt * g.decimation as f32)).round() as usize;
+    for k in 0..approach_steps {
+        let t = approach_targets(model, &grasp, k as f32 * g.dt * g.decimation as f32);
+        env.step(&vec![t; n])?;
+    }
+    let grasp_state = env.states()?;
+    let chunks: Vec<Vec<Vec<Targets>>> =
+        (0..4).map(|c| (0..CHUNK_STEPS as u32).map(|k| noisy_targets(model, &grasp, n, c * 100 + k)).collect()).collect();
+    let phys_per_env_step = (g.decimation * g.substeps) as f64;
+    let (mut rates, mut cpu_us) = (Vec::new(), Vec::new());
+    let (mut contacts, mut contacts_ho, mut samples, mut bad) = (0u64, 0u64, 0u64, 0u64);
+    let mut run_chunk = |env: &mut dyn EnvBatch, c: usize, record: bool| -> Result<(f64, f64)> {
+        env.set_states(&grasp_state)?;
+        let (c0, t0) = (process_cpu_time(), Instant::now());
+        for targets in &chunks[c % chunks.len()] {
+            env.step(targets)?;
+            // what an RL loop would read back every step
+            let stats = env.stats()?;
+            if record {
+                for s in &stats {
+                    contacts += s.contacts as u64;
+                    contacts_ho += s.contacts_ho as u64;
+                    bad += s.bad_reset as u64;
+                }
+                samples += stats.len() as u64;
+            }
+        }
+        Ok((t0.elapsed().as_secs_f64(), process_cpu_time() - c0))
+    };
+    run_chunk(env, 0, false)?; // warm-up
+    let start = Instant::now();
+    let mut c = 0;
+    while c < opts.min_chunks || start.elapsed().as_secs_f64() < opts.min_seconds {
+        let (wall, cpu) = run_chunk(env, c, true)?;
+        let steps = (n * CHUNK_STEPS) as f64;
+        rates.push(steps / wall);
+        cpu_us.push(cpu * 1e6 / steps);
+        c += 1;
+        if c >= 10_000 {
+            break;
+        }
+    }
+    let env_rate = summary(rates.clone());
+    let phys_rate = summary(rates.iter().map(|r| r * g.decimation as f64).collect());
+    Ok(json!({
+        "bench": "dextrain_env_step",
+        "backend": env.backend_name(),
+        "num_envs": n,
+        "threads": rayon::current_num_threads(),
+        "dt": g.dt, "decimation": g.decimation, "substeps": g.substeps,
+        "actuators": 6 + model.spec.actuated.len(),
+        "env_steps_per_chunk": CHUNK_STEPS,
+        "env_steps_per_s": env_rate,
+        "physics_steps_per_s": phys_rate,
+        "cpu_us_per_env_step": summary(cpu_us.clone()),
+        "cpu_us_per_physics_step": summary(cpu_us.iter().map(|u| u / g.decimation as f64).collect()),
+        "contacts_per_physics_step": contacts as f64 / (samples as f64 * phys_per_env_step).max(1.0),
+        "hand_object_contacts_per_physics_step": contacts_ho as f64 / (samples as f64 * phys_per_env_step).max(1.0),
+        "bad_resets": bad,
+        "wall_s": start.elapsed().as_secs_f64(),
+    }))
+}

@@ -1,0 +1,293 @@
+//! `dextrain replay`: the papers' "dynamic replay" baseline — drive the hand open-loop along a
+//! reference under the physics — and, with `--kinematic`, the kinematic replay (states set directly
+//! from the reference, penetration measured) for comparison.
+//!
+//! Both start every env at the reference's first frame: wrist pose and joint positions from it, and
+//! the object at the reference's first object pose when it has one (else where the config puts it).
+//! Dynamic replay then holds, for each control step k, the reference sampled at the end of the step,
+//! `t = (k + 1)·dt·decimation`, as the targets; joints the reference does not name hold their default.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Result, bail};
+use glam::{Quat, Vec3};
+use serde::Serialize;
+
+use crate::config::Config;
+use crate::env::reset::{reset_params, reset_state};
+use crate::env::{EnvBatch, EnvState, SimModel, Targets, contact_records, hand_link_poses, make_env_batch};
+use crate::geom::Pose;
+use crate::record::{ContactKind, RolloutFrame, RolloutMeta, RolloutWriter};
+use crate::traj::Trajectory;
+
+/// Arguments of `dextrain replay`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct ReplayArgs {
+    /// Config of the hand, object and physics.
+    pub config: PathBuf,
+    /// Reference trajectory (.mcap or .csv).
+    #[arg(long)]
+    pub traj: PathBuf,
+    /// Kinematic replay: set the states from the reference instead of simulating.
+    #[arg(long)]
+    pub kinematic: bool,
+    /// Record env 0's rollout to this MCAP file (watchable in Foxglove).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Number of envs to replay on (each with its own randomised parameters); default 1.
+    #[arg(long, default_value_t = 1)]
+    pub envs: usize,
+    /// Backend: cpu, gpu, gpu:NAME or auto (overrides the config).
+    #[arg(long)]
+    pub backend: Option<String>,
+}
+
+/// The one-line JSON report of a replay (means over envs; peaks are maxima).
+#[derive(Clone, Debug, Serialize)]
+pub struct ReplayReport {
+    pub mode: String,
+    pub backend: String,
+    pub envs: usize,
+    pub frames: usize,
+    /// Whether the reference has an object pose (the object errors are null without one).
+    pub has_object_reference: bool,
+    pub terminal_object_pos_err_m: Option<f64>,
+    pub terminal_object_rot_err_deg: Option<f64>,
+    pub mean_object_pos_err_m: Option<f64>,
+    pub mean_object_rot_err_deg: Option<f64>,
+    /// Deepest hand–object penetration over all frames (mm).
+    pub peak_penetration_mm: f64,
+    /// Fraction of frames whose deepest hand–object penetration exceeds 1 mm.
+    pub frac_frames_penetration_over_1mm: f64,
+    /// Mean normal force of a fingertip while it touches the object (N).
+    pub mean_fingertip_force_n: f64,
+    /// Height the object ended above where it started (m).
+    pub object_lift_m: f64,
+    /// Resets caused by non-finite or exploding states.
+    pub bad_resets: u64,
+    /// Object and wrist poses of env 0 at every frame (for tests and plots; not in the JSON).
+    #[serde(skip)]
+    pub trace: Vec<(f64, Pose, Pose)>,
+}
+
+/// Angle (deg) between two orientations.
+pub fn rot_err_deg(a: Quat, b: Quat) -> f64 {
+    let d = (a.inverse() * b).normalize();
+    (2.0 * (d.w.abs().min(1.0) as f64).acos()).to_degrees()
+}
+
+fn targets_at(model: &SimModel, traj: &Trajectory, map: &[Option<usize>], t: f64) -> Targets {
+    let f = traj.sample(t);
+    let mut out = model.default_targets();
+    out.wrist_pos = [f.wrist.pos.x, f.wrist.pos.y, f.wrist.pos.z, 0.0];
+    out.wrist_rot = f.wrist.rot.normalize().to_array();
+    for (j, m) in map.iter().enumerate() {
+        if let Some(k) = m {
+            out.q[j] = f.joints[*k];
+        }
+    }
+    out
+}
+
+/// The state of env `env` placed on the reference at time t (velocities zero).
+fn state_on_reference(model: &SimModel, base: &EnvState, tg: &Targets, object: Option<Pose>) -> EnvState {
+    let mut s = *base;
+    s.wrist_pos = tg.wrist_pos;
+    s.wrist_rot = tg.wrist_rot;
+    s.wrist_vel = [0.0; 4];
+    s.wrist_angvel = [0.0; 4];
+    for (j, jd) in model.joints.iter().enumerate() {
+        s.q[j] = tg.q[j];
+        s.qd[j] = 0.0;
+        if jd.mimic_leader != crate::env::layout::NO_JOINT {
+            s.q[j] = jd.mimic_mult * tg.q[jd.mimic_leader as usize] + jd.mimic_offset;
+        }
+    }
+    if let Some(o) = object {
+        s.obj_pos = [o.pos.x, o.pos.y, o.pos.z, 0.0];
+        s.obj_rot = o.rot.normalize().to_array();
+        s.obj_vel = [0.0; 4];
+        s.obj_angvel = [0.0; 4];
+    }
+    s
+}
+
+fn pose_of(p: [f32; 4], r: [f32; 4]) -> Pose {
+    Pose::new(Vec3::new(p[0], p[1], p[2]), Quat::from_array(r))
+}
+
+/// Per-env accumulators of the metrics.
+#[derive(Default, Clone)]
+struct Acc {
+    pos_err_sum: f64,
+    rot_err_sum: f64,
+    last_pos_err: f64,
+    last_rot_err: f64,
+    peak_pen: f64,
+    frames_over: usize,
+    force_sum: f64,
+    force_n: usize,
+    z0: f64,
+    z_last: f64,
+}
+
+/// Replays `traj` for `cfg` (with `cfg.sim.num_envs` envs) and returns the report.
+pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Path>) -> Result<ReplayReport> {
+    let model = SimModel::from_config(cfg)?;
+    let map = traj.joint_map(&model.spec.joint_names)?;
+    let g = model.globals;
+    let n = cfg.sim.num_envs;
+    let ctrl_dt = (g.dt * g.decimation as f32) as f64;
+    let frames = (traj.duration() / ctrl_dt).ceil() as usize + 1;
+    let has_obj = traj.frames.first().is_some_and(|f| f.object.is_some());
+    let mut writer = match out {
+        Some(p) => {
+            let meta = RolloutMeta {
+                hand: model.hand.clone(),
+                object: model.scaled_object(cfg.object.shape, reset_params(&g, 0, 0).obj_scale),
+                dt: ctrl_dt as f32,
+                info: serde_json::json!({ "command": "replay", "mode": if kinematic { "kinematic" } else { "dynamic" }, "config": cfg.source.display().to_string() }),
+            };
+            Some(RolloutWriter::create(p, &meta)?)
+        }
+        None => None,
+    };
+    let t0 = targets_at(&model, traj, &map, 0.0);
+    let obj0 = traj.frames.first().and_then(|f| f.object);
+    let mut acc = vec![Acc::default(); n];
+    let mut trace = Vec::with_capacity(frames);
+    let mut bad = 0u64;
+    let backend;
+    // the per-frame observation shared by both modes: states, params, each env's deepest penetration
+    // and fingertip forces at this frame
+    let mut observe = |k: usize, states: &[EnvState], params: &[crate::env::EnvParams], pen: &[f32], tips: &[Vec<f32>], tg: &Targets, writer: &mut Option<RolloutWriter>| -> Result<()> {
+        let t = (k as f64) * ctrl_dt;
+        let r = traj.sample(t);
+        for i in 0..n {
+            let s = &states[i];
+            let a = &mut acc[i];
+            let obj = pose_of(s.obj_pos, s.obj_rot);
+            if k == 0 {
+                a.z0 = obj.pos.z as f64;
+            }
+            a.z_last = obj.pos.z as f64;
+            if let Some(o) = r.object {
+                a.last_pos_err = (obj.pos - o.pos).length() as f64;
+                a.last_rot_err = rot_err_deg(obj.rot, o.rot);
+                a.pos_err_sum += a.last_pos_err;
+                a.rot_err_sum += a.last_rot_err;
+            }
+            a.peak_pen = a.peak_pen.max(pen[i] as f64);
+            if pen[i] > 1e-3 {
+                a.frames_over += 1;
+            }
+            for f in &tips[i] {
+                if *f > 1e-6 {
+                    a.force_sum += *f as f64;
+                    a.force_n += 1;
+                }
+            }
+        }
+        trace.push((t, pose_of(states[0].obj_pos, states[0].obj_rot), pose_of(states[0].wrist_pos, states[0].wrist_rot)));
+        if let Some(w) = writer.as_mut() {
+            let s = &states[0];
+            w.write_frame(&RolloutFrame {
+                t,
+                joint_pos: s.q[..model.joints.len()].to_vec(),
+                joint_vel: s.qd[..model.joints.len()].to_vec(),
+                joint_target: tg.q[..model.joints.len()].to_vec(),
+                wrist: pose_of(s.wrist_pos, s.wrist_rot),
+                object: pose_of(s.obj_pos, s.obj_rot),
+                links: hand_link_poses(&model, s),
+                contacts: contact_records(&model, s, &params[0]),
+                object_ref: r.object,
+            })?;
+        }
+        Ok(())
+    };
+    if kinematic {
+        backend = "kinematic (cpu)".to_string();
+        let params: Vec<_> = (0..n as u32).map(|i| reset_params(&g, i, 0)).collect();
+        let bases: Vec<EnvState> = (0..n).map(|i| reset_state(&g, &model.joints, &params[i], i as u32, 0, 0)).collect();
+        for k in 0..frames {
+            let t = k as f64 * ctrl_dt;
+            let tg = targets_at(&model, traj, &map, t);
+            let obj = traj.sample(t).object.or(obj0);
+            let states: Vec<EnvState> = bases.iter().map(|b| state_on_reference(&model, b, &tg, obj)).collect();
+            let mut pen = vec![0.0f32; n];
+            let mut tips = vec![vec![0.0f32; model.tips.len()]; n];
+            for i in 0..n {
+                for c in contact_records(&model, &states[i], &params[i]) {
+                    if c.kind == ContactKind::HandObject {
+                        pen[i] = pen[i].max(c.depth);
+                        let tip = model.colliders[c.index as usize].tip;
+                        if tip != crate::env::layout::NO_JOINT {
+                            tips[i][tip as usize] += c.force.dot(c.normal);
+                        }
+                    }
+                }
+            }
+            observe(k, &states, &params, &pen, &tips, &tg, &mut writer)?;
+        }
+    } else {
+        let mut env: Box<dyn EnvBatch> = make_env_batch(cfg, model.clone())?;
+        backend = env.backend_name();
+        let start: Vec<EnvState> = env.states()?.iter().map(|b| state_on_reference(&model, b, &t0, obj0)).collect();
+        env.set_states(&start)?;
+        let params = env.params()?;
+        let zero = vec![0.0f32; n];
+        let no_tips = vec![vec![0.0f32; model.tips.len()]; n];
+        observe(0, &start, &params, &zero, &no_tips, &t0, &mut writer)?;
+        for k in 1..frames {
+            let tg = targets_at(&model, traj, &map, k as f64 * ctrl_dt);
+            env.step(&vec![tg; n])?;
+            let states = env.states()?;
+            let stats = env.stats()?;
+            bad += stats.iter().map(|s| s.bad_reset as u64).sum::<u64>();
+            let pen: Vec<f32> = stats.iter().map(|s| s.max_pen_ho).collect();
+            let tips: Vec<Vec<f32>> = stats.iter().map(|s| s.tip_force[..model.tips.len()].to_vec()).collect();
+            let params = env.params()?;
+            observe(k, &states, &params, &pen, &tips, &tg, &mut writer)?;
+        }
+    }
+    if let Some(w) = writer {
+        w.finish()?;
+    }
+    if frames == 0 {
+        bail!("the reference has no frames");
+    }
+    let mean = |f: &dyn Fn(&Acc) -> f64| acc.iter().map(f).sum::<f64>() / n as f64;
+    let obj_metric = |v: f64| if has_obj { Some(v) } else { None };
+    let force_n: usize = acc.iter().map(|a| a.force_n).sum();
+    Ok(ReplayReport {
+        mode: if kinematic { "kinematic".into() } else { "dynamic".into() },
+        backend,
+        envs: n,
+        frames,
+        has_object_reference: has_obj,
+        terminal_object_pos_err_m: obj_metric(mean(&|a| a.last_pos_err)),
+        terminal_object_rot_err_deg: obj_metric(mean(&|a| a.last_rot_err)),
+        mean_object_pos_err_m: obj_metric(mean(&|a| a.pos_err_sum / frames as f64)),
+        mean_object_rot_err_deg: obj_metric(mean(&|a| a.rot_err_sum / frames as f64)),
+        peak_penetration_mm: acc.iter().map(|a| a.peak_pen).fold(0.0, f64::max) * 1e3,
+        frac_frames_penetration_over_1mm: mean(&|a| a.frames_over as f64 / frames as f64),
+        mean_fingertip_force_n: if force_n == 0 { 0.0 } else { acc.iter().map(|a| a.force_sum).sum::<f64>() / force_n as f64 },
+        object_lift_m: mean(&|a| a.z_last - a.z0),
+        bad_resets: bad,
+        trace,
+    })
+}
+
+/// `dextrain replay`.
+pub fn run(args: &ReplayArgs) -> Result<()> {
+    let mut cfg = Config::load(&args.config)?;
+    cfg.sim.num_envs = args.envs;
+    if let Some(b) = &args.backend {
+        cfg.sim.backend = b.clone();
+    }
+    cfg.validate()?;
+    let traj = Trajectory::load(&args.traj)?;
+    let report = replay(&cfg, &traj, args.kinematic, args.out.as_deref())?;
+    println!("{}", serde_json::to_string(&report)?);
+    Ok(())
+}

@@ -1,0 +1,1251 @@
+//! Reference trajectory files: MCAP (one JSON message per keyframe) and CSV (one row per
+//! keyframe). The format is documented for users in `docs/trajectory_format.md`; keep the two in
+//! step (tests/traj.rs checks that the JSON Schema and the examples there match this code).
+//!
+//! Reading is strict and never panics: every problem is a one-line error naming the file, the
+//! frame (MCAP: the index of the message on the reference topic, in file order, from 0) or CSV
+//! line (from 1), the field or column, and what was expected.
+//!
+//! Numbers are parsed from their text with the standard library (correctly rounded, f32 values
+//! straight to f32), and written in the shortest form that reads back to the same value, so a
+//! save/load round trip reproduces every f32 and f64 exactly.
+
+use std::collections::{BTreeMap, BTreeSet, HashMap};
+use std::fmt;
+use std::io::Cursor;
+use std::path::Path;
+
+use anyhow::{Result, anyhow};
+use glam::{DVec4, Quat, Vec3};
+use serde::ser::{Serialize, SerializeMap, Serializer};
+
+use super::{QUAT_NORM_TOLERANCE, Trajectory, is_valid_name};
+use crate::geom::Pose;
+use crate::traj::Frame;
+
+/// MCAP topic of the reference messages.
+pub const REFERENCE_TOPIC: &str = "/dextrain/reference";
+/// MCAP schema name of the reference messages (schema encoding `jsonschema`, message encoding
+/// `json`).
+pub const REFERENCE_SCHEMA_NAME: &str = "dextrain.ReferenceFrame";
+/// Name of the MCAP metadata record describing the file (`format_version`, `generator`).
+pub const REFERENCE_METADATA_NAME: &str = "dextrain.reference";
+/// Value of `format_version` in the metadata record. Readers reject other versions.
+pub const FORMAT_VERSION: &str = "1";
+
+/// The JSON Schema (draft 2020-12) of one reference message, stored as the MCAP schema.
+pub const REFERENCE_JSON_SCHEMA: &str = r##"{
+  "$schema": "https://json-schema.org/draft/2020-12/schema",
+  "title": "dextrain.ReferenceFrame",
+  "description": "One keyframe of a dextrain reference trajectory. Units: metres, radians, seconds. Poses and positions are in the world frame, z up.",
+  "type": "object",
+  "properties": {
+    "t": {
+      "description": "Time of the keyframe (s) from the start of the reference.",
+      "type": "number",
+      "minimum": 0
+    },
+    "wrist": {
+      "description": "Pose of the wrist (the hand's root link).",
+      "$ref": "#/$defs/Pose"
+    },
+    "joints": {
+      "description": "Joint position targets (rad; m for prismatic joints) by joint name. Every frame names the same joints.",
+      "type": "object",
+      "propertyNames": { "$ref": "#/$defs/Name" },
+      "additionalProperties": { "type": "number" }
+    },
+    "fingertips": {
+      "description": "Optional fingertip positions by fingertip name. In every frame or in none; every frame names the same fingertips.",
+      "type": "object",
+      "propertyNames": { "$ref": "#/$defs/Name" },
+      "additionalProperties": { "$ref": "#/$defs/Point" }
+    },
+    "object": {
+      "description": "Optional pose of the manipulated object. In every frame or in none.",
+      "$ref": "#/$defs/Pose"
+    }
+  },
+  "required": ["t", "wrist", "joints"],
+  "additionalProperties": false,
+  "$defs": {
+    "Name": {
+      "type": "string",
+      "pattern": "^[^\\s,\"\\u0000-\\u001f]+$"
+    },
+    "Point": {
+      "description": "A position (m).",
+      "type": "object",
+      "properties": {
+        "x": { "type": "number" },
+        "y": { "type": "number" },
+        "z": { "type": "number" }
+      },
+      "required": ["x", "y", "z"],
+      "additionalProperties": false
+    },
+    "Pose": {
+      "description": "A position (m) and an orientation as a unit quaternion (qx, qy, qz, qw).",
+      "type": "object",
+      "properties": {
+        "x": { "type": "number" },
+        "y": { "type": "number" },
+        "z": { "type": "number" },
+        "qx": { "type": "number" },
+        "qy": { "type": "number" },
+        "qz": { "type": "number" },
+        "qw": { "type": "number" }
+      },
+      "required": ["x", "y", "z", "qx", "qy", "qz", "qw"],
+      "additionalProperties": false
+    }
+  }
+}
+"##;
+
+/// Quaternions this close to unit length are taken exactly as written; further off (but within
+/// [`QUAT_NORM_TOLERANCE`]) they are normalised.
+const QUAT_KEEP_TOLERANCE: f64 = 1e-6;
+
+const POSE_KEYS: [&str; 7] = ["x", "y", "z", "qx", "qy", "qz", "qw"];
+const POINT_KEYS: [&str; 3] = ["x", "y", "z"];
+const TOP_KEYS: [&str; 5] = ["t", "wrist", "joints", "fingertips", "object"];
+
+fn generator() -> String {
+    format!("dextrain {}", env!("CARGO_PKG_VERSION"))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Public API
+// ---------------------------------------------------------------------------------------------
+
+impl Trajectory {
+    /// Reads a reference file, by extension: `.mcap` or `.csv` (any case).
+    pub fn load(path: impl AsRef<Path>) -> Result<Trajectory> {
+        let path = path.as_ref();
+        let name = path.display().to_string();
+        match extension(path).as_deref() {
+            Some("mcap") => {
+                let bytes = std::fs::read(path).map_err(|e| fail(&name, Loc::File, format!("cannot read: {e}")))?;
+                Trajectory::from_mcap_bytes(&bytes, &name)
+            }
+            Some("csv") => {
+                let bytes = std::fs::read(path).map_err(|e| fail(&name, Loc::File, format!("cannot read: {e}")))?;
+                let text = std::str::from_utf8(&bytes).map_err(|e| {
+                    fail(
+                        &name,
+                        Loc::File,
+                        format!("expected UTF-8 text, got invalid UTF-8 at byte {}", e.valid_up_to()),
+                    )
+                })?;
+                Trajectory::from_csv_str(text, &name)
+            }
+            other => Err(bad_extension(&name, other)),
+        }
+    }
+
+    /// Writes the reference, by extension: `.mcap` or `.csv` (any case).
+    pub fn save(&self, path: impl AsRef<Path>) -> Result<()> {
+        let path = path.as_ref();
+        match extension(path).as_deref() {
+            Some("mcap") => self.save_mcap(path),
+            Some("csv") => self.save_csv(path),
+            other => Err(bad_extension(&path.display().to_string(), other)),
+        }
+    }
+
+    /// Writes the reference as MCAP (zstd-compressed chunks), whatever the extension.
+    pub fn save_mcap(&self, path: impl AsRef<Path>) -> Result<()> {
+        let path = path.as_ref();
+        let name = path.display().to_string();
+        let bytes = self.to_mcap_bytes().map_err(|e| fail(&name, Loc::File, format!("cannot save: {e}")))?;
+        std::fs::write(path, bytes).map_err(|e| fail(&name, Loc::File, format!("cannot write: {e}")))
+    }
+
+    /// Writes the reference as CSV, whatever the extension.
+    pub fn save_csv(&self, path: impl AsRef<Path>) -> Result<()> {
+        let path = path.as_ref();
+        let name = path.display().to_string();
+        let text = self.to_csv_string().map_err(|e| fail(&name, Loc::File, format!("cannot save: {e}")))?;
+        std::fs::write(path, text).map_err(|e| fail(&name, Loc::File, format!("cannot write: {e}")))
+    }
+
+    /// Reads an MCAP reference held in memory; `source` names it in errors (e.g. the file name).
+    /// Accepts any chunk compression (none, zstd, lz4) and any number of channels on
+    /// [`REFERENCE_TOPIC`] (messages of other topics are ignored); frames may come in any order
+    /// and are sorted by `t`. The messages' log times are not used. Reading stops at the data end
+    /// record (the summary is not needed); a file that ends before it is an error.
+    pub fn from_mcap_bytes(bytes: &[u8], source: &str) -> Result<Trajectory> {
+        if bytes.is_empty() {
+            return Err(fail(source, Loc::File, "empty file: expected an MCAP file"));
+        }
+        let mcap_err = |e: mcap::McapError| {
+            fail(source, Loc::File, format!("expected a readable MCAP file, got a read error: {e}"))
+        };
+
+        let mut raws = Vec::new();
+        let mut other_topics = BTreeSet::new();
+        // channel id -> (topic, message encoding)
+        let mut channels: HashMap<u16, (String, String)> = HashMap::new();
+        let mut records = McapRecords::new(bytes);
+        let mut complete = false;
+        while let Some(record) = records.next_record() {
+            use mcap::records::Record;
+            match record.map_err(mcap_err)? {
+                Record::Metadata(m) if m.name == REFERENCE_METADATA_NAME => {
+                    let got = match m.metadata.get("format_version") {
+                        Some(v) if v == FORMAT_VERSION => continue,
+                        Some(v) => format!("{v:?}"),
+                        None => "nothing".to_string(),
+                    };
+                    return Err(fail(
+                        source,
+                        Loc::File,
+                        format!(
+                            "metadata `{REFERENCE_METADATA_NAME}`: field `format_version`: expected {FORMAT_VERSION:?}, got {got}"
+                        ),
+                    ));
+                }
+                Record::Channel(ch) => {
+                    channels.insert(ch.id, (ch.topic, ch.message_encoding));
+                }
+                Record::Message { header, data } => {
+                    let Some((topic, encoding)) = channels.get(&header.channel_id) else {
+                        return Err(fail(
+                            source,
+                            Loc::File,
+                            format!(
+                                "expected a readable MCAP file, got a message on channel {} before any channel record with that id",
+                                header.channel_id
+                            ),
+                        ));
+                    };
+                    if topic != REFERENCE_TOPIC {
+                        other_topics.insert(format!("{topic:?}"));
+                        continue;
+                    }
+                    let loc = Loc::Frame(raws.len());
+                    if encoding != "json" {
+                        return Err(fail(
+                            source,
+                            loc,
+                            format!(
+                                "channel {} on `{REFERENCE_TOPIC}`: message encoding: expected \"json\", got {encoding:?}",
+                                header.channel_id
+                            ),
+                        ));
+                    }
+                    let text = std::str::from_utf8(&data).map_err(|e| {
+                        fail(
+                            source,
+                            loc,
+                            format!("expected a UTF-8 JSON message, got invalid UTF-8 at byte {}", e.valid_up_to()),
+                        )
+                    })?;
+                    let value = json::parse(text).map_err(|e| fail(source, loc, e))?;
+                    raws.push(raw_frame_from_json(&value, loc).map_err(|e| fail(source, loc, e))?);
+                }
+                // The summary after the data section only repeats what came before.
+                Record::DataEnd(_) => {
+                    complete = true;
+                    break;
+                }
+                _ => {}
+            }
+        }
+        if !complete {
+            return Err(fail(
+                source,
+                Loc::File,
+                "expected a complete MCAP file, got one that ends before its data end record (truncated?)",
+            ));
+        }
+        if raws.is_empty() {
+            let others = if other_topics.is_empty() {
+                String::new()
+            } else {
+                format!(" (topics in the file: {})", other_topics.into_iter().collect::<Vec<_>>().join(", "))
+            };
+            return Err(fail(
+                source,
+                Loc::File,
+                format!("no messages on topic `{REFERENCE_TOPIC}`: expected at least 1 frame{others}"),
+            ));
+        }
+        assemble(source, raws)
+    }
+
+    /// The MCAP file [`save_mcap`](Self::save_mcap) writes: a `dextrain.reference` metadata
+    /// record, one schema and one channel on [`REFERENCE_TOPIC`], one message per frame with log
+    /// and publish time `t` in ns, in zstd-compressed chunks.
+    pub fn to_mcap_bytes(&self) -> Result<Vec<u8>> {
+        self.validate()?;
+        let e = |e: mcap::McapError| anyhow!("cannot write MCAP: {e}");
+        let mut w = mcap::WriteOptions::new()
+            .compression(Some(mcap::Compression::Zstd))
+            .profile("")
+            .library(generator())
+            .create(Cursor::new(Vec::new()))
+            .map_err(e)?;
+        let metadata = BTreeMap::from([
+            ("format_version".to_string(), FORMAT_VERSION.to_string()),
+            ("generator".to_string(), generator()),
+        ]);
+        w.write_metadata(&mcap::records::Metadata { name: REFERENCE_METADATA_NAME.into(), metadata }).map_err(e)?;
+        let schema = w.add_schema(REFERENCE_SCHEMA_NAME, "jsonschema", REFERENCE_JSON_SCHEMA.as_bytes()).map_err(e)?;
+        let channel = w.add_channel(schema, REFERENCE_TOPIC, "json", &BTreeMap::new()).map_err(e)?;
+        for (i, frame) in self.frames.iter().enumerate() {
+            let data = serde_json::to_vec(&MessageSer { traj: self, frame })?;
+            let ns = (frame.t * 1e9).round() as u64;
+            let header = mcap::records::MessageHeader {
+                channel_id: channel,
+                sequence: i as u32,
+                log_time: ns,
+                publish_time: ns,
+            };
+            w.write_to_known_channel(&header, &data).map_err(e)?;
+        }
+        w.finish().map_err(e)?;
+        Ok(w.into_inner().into_inner())
+    }
+
+    /// Reads a CSV reference held in memory; `source` names it in errors (e.g. the file name).
+    /// See `docs/trajectory_format.md` for the columns. Blank lines and lines starting with `#`
+    /// are skipped, cells are trimmed, rows may come in any order (they are sorted by `t`).
+    pub fn from_csv_str(text: &str, source: &str) -> Result<Trajectory> {
+        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let mut lines =
+            text.split('\n').enumerate().map(|(i, l)| (i + 1, l.strip_suffix('\r').unwrap_or(l))).filter(|(_, l)| {
+                let l = l.trim();
+                !l.is_empty() && !l.starts_with('#')
+            });
+        let Some((header_line, header)) = lines.next() else {
+            return Err(fail(source, Loc::File, "empty file: expected a header row starting `t,wrist_x,...`"));
+        };
+        let layout = CsvLayout::parse(header).map_err(|e| fail(source, Loc::Line(header_line), e))?;
+        let mut raws = Vec::new();
+        for (n, line) in lines {
+            let loc = Loc::Line(n);
+            raws.push(layout.row(line, loc).map_err(|e| fail(source, loc, e))?);
+        }
+        if raws.is_empty() {
+            return Err(fail(source, Loc::File, "no data rows after the header: expected at least 1 frame"));
+        }
+        assemble(source, raws)
+    }
+
+    /// The CSV text [`save_csv`](Self::save_csv) writes: the header, then one row per frame.
+    pub fn to_csv_string(&self) -> Result<String> {
+        use std::fmt::Write;
+        self.validate()?;
+        let mut cols: Vec<String> = vec!["t".into()];
+        cols.extend(POSE_KEYS.iter().map(|k| format!("wrist_{k}")));
+        cols.extend(self.joint_names.iter().map(|j| format!("joint:{j}")));
+        let tips = self.has_fingertips();
+        if tips {
+            for name in &self.fingertip_names {
+                cols.extend(POINT_KEYS.iter().map(|a| format!("tip:{name}:{a}")));
+            }
+        }
+        let object = self.has_object();
+        if object {
+            cols.extend(POSE_KEYS.iter().map(|k| format!("object_{k}")));
+        }
+        let mut out = cols.join(",");
+        out.push('\n');
+        for f in &self.frames {
+            let _ = write!(out, "{}", f.t);
+            let mut put = |x: f32| {
+                let _ = write!(out, ",{x}");
+            };
+            pose_values(&f.wrist).into_iter().for_each(&mut put);
+            f.joints.iter().for_each(|&x| put(x));
+            if let (true, Some(p)) = (tips, &f.fingertips) {
+                p.iter().flat_map(|v| v.to_array()).for_each(&mut put);
+            }
+            if let (true, Some(p)) = (object, &f.object) {
+                pose_values(p).into_iter().for_each(&mut put);
+            }
+            out.push('\n');
+        }
+        Ok(out)
+    }
+}
+
+fn extension(path: &Path) -> Option<String> {
+    path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase())
+}
+
+fn bad_extension(name: &str, ext: Option<&str>) -> anyhow::Error {
+    let got = match ext {
+        Some(e) => format!("`.{e}`"),
+        None => "none".into(),
+    };
+    fail(name, Loc::File, format!("unknown trajectory file extension: expected `.mcap` or `.csv`, got {got}"))
+}
+
+/// The records of an MCAP file held in memory, chunks unpacked, with every record length and chunk
+/// size bounded: `mcap::MessageStream` trusts the lengths inside chunks, so a corrupt file could
+/// make it try to allocate petabytes (an abort, not an error).
+struct McapRecords<'a> {
+    reader: mcap::sans_io::LinearReader,
+    rest: &'a [u8],
+    done: bool,
+}
+
+impl<'a> McapRecords<'a> {
+    fn new(bytes: &'a [u8]) -> Self {
+        // A record is never longer than the file, except inside compressed chunks: allow those
+        // 64 MiB more. (A reference frame is a few kB.)
+        let limit = bytes.len().saturating_add(64 << 20);
+        let options = mcap::sans_io::LinearReaderOptions::default()
+            .with_record_length_limit(limit)
+            .with_validate_chunk_crcs(true)
+            .with_skip_end_magic(true);
+        McapRecords { reader: mcap::sans_io::LinearReader::new_with_options(options), rest: bytes, done: false }
+    }
+
+    fn next_record(&mut self) -> Option<mcap::McapResult<mcap::records::Record<'static>>> {
+        if self.done {
+            return None;
+        }
+        while let Some(event) = self.reader.next_event() {
+            match event {
+                Ok(mcap::sans_io::LinearReadEvent::ReadRequest(need)) => {
+                    let n = need.min(self.rest.len());
+                    self.reader.insert(n).copy_from_slice(&self.rest[..n]);
+                    self.reader.notify_read(n);
+                    self.rest = &self.rest[n..];
+                }
+                Ok(mcap::sans_io::LinearReadEvent::Record { data, opcode }) => {
+                    let record = mcap::parse_record(opcode, data).map(|r| r.into_owned());
+                    self.done = record.is_err();
+                    return Some(record);
+                }
+                Err(e) => {
+                    self.done = true;
+                    return Some(Err(e));
+                }
+            }
+        }
+        self.done = true;
+        None
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Errors
+// ---------------------------------------------------------------------------------------------
+
+/// Where in a file a problem is.
+#[derive(Clone, Copy, Debug)]
+enum Loc {
+    File,
+    /// MCAP: index of the message on the reference topic, in file order.
+    Frame(usize),
+    /// CSV: line number from 1.
+    Line(usize),
+}
+
+impl Loc {
+    /// How a value is named at this place: a JSON field or a CSV column.
+    fn field_word(self) -> &'static str {
+        match self {
+            Loc::Line(_) => "column",
+            _ => "field",
+        }
+    }
+}
+
+impl fmt::Display for Loc {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Loc::File => write!(f, "the file"),
+            Loc::Frame(i) => write!(f, "frame {i}"),
+            Loc::Line(n) => write!(f, "line {n}"),
+        }
+    }
+}
+
+/// One-line error: `<source>: <frame i | line n>: <what>`.
+fn fail(source: &str, loc: Loc, what: impl fmt::Display) -> anyhow::Error {
+    let msg = match loc {
+        Loc::File => format!("{source}: {what}"),
+        loc => format!("{source}: {loc}: {what}"),
+    };
+    anyhow!(msg.replace(['\n', '\r'], " "))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Numbers and poses (shared by both readers); errors are "<label>: expected ..., got ..."
+// ---------------------------------------------------------------------------------------------
+
+fn describe_text(text: &str) -> String {
+    if text.is_empty() { "an empty cell".into() } else { format!("{:?}", truncate(text)) }
+}
+
+fn truncate(s: &str) -> String {
+    if s.chars().count() > 40 { format!("{}…", s.chars().take(40).collect::<String>()) } else { s.to_string() }
+}
+
+/// Parses a number's text as f64 (finite).
+fn number_f64(text: &str, label: &str) -> Result<f64, String> {
+    let x: f64 = text.parse().map_err(|_| format!("{label}: expected a number, got {}", describe_text(text)))?;
+    if !x.is_finite() {
+        return Err(format!("{label}: expected a finite number, got {text}"));
+    }
+    Ok(x)
+}
+
+/// Parses a number's text as f32 (finite, in range), straight from the text so that the shortest
+/// representation of an f32 reads back exactly. Also returns the f64 reading.
+fn number_f32(text: &str, label: &str) -> Result<(f32, f64), String> {
+    let x64 = number_f64(text, label)?;
+    match text.parse::<f32>() {
+        Ok(x) if x.is_finite() => Ok((x, x64)),
+        _ => Err(format!("{label}: expected a finite number within f32 range (|x| < 3.4e38), got {text}")),
+    }
+}
+
+fn time(text: &str, label: &str) -> Result<f64, String> {
+    let t = number_f64(text, label)?;
+    if t < 0.0 {
+        return Err(format!("{label}: expected a time ≥ 0 (s), got {text}"));
+    }
+    Ok(t)
+}
+
+/// A pose from the texts of x, y, z, qx, qy, qz, qw. `labels` name them in errors,
+/// `quat_label` names the quaternion.
+fn pose_from_texts(texts: [&str; 7], labels: &[String; 7], quat_label: &str) -> Result<Pose, String> {
+    let mut v32 = [0f32; 7];
+    let mut v64 = [0f64; 7];
+    for k in 0..7 {
+        (v32[k], v64[k]) = number_f32(texts[k], &labels[k])?;
+    }
+    let q64 = DVec4::new(v64[3], v64[4], v64[5], v64[6]);
+    let norm = q64.length();
+    let dev = (norm - 1.0).abs();
+    if dev.is_nan() || dev >= QUAT_NORM_TOLERANCE {
+        return Err(format!(
+            "{quat_label}: expected a unit quaternion (norm 1 ± {QUAT_NORM_TOLERANCE}), got norm {norm}"
+        ));
+    }
+    let rot = if dev <= QUAT_KEEP_TOLERANCE {
+        Quat::from_xyzw(v32[3], v32[4], v32[5], v32[6])
+    } else {
+        let q = q64 / norm;
+        Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32)
+    };
+    Ok(Pose { pos: Vec3::new(v32[0], v32[1], v32[2]), rot })
+}
+
+fn pose_values(p: &Pose) -> [f32; 7] {
+    [p.pos.x, p.pos.y, p.pos.z, p.rot.x, p.rot.y, p.rot.z, p.rot.w]
+}
+
+// ---------------------------------------------------------------------------------------------
+// Frames as read, before the names are checked across frames
+// ---------------------------------------------------------------------------------------------
+
+struct RawFrame {
+    loc: Loc,
+    t: f64,
+    wrist: Pose,
+    joints: Vec<(String, f32)>,
+    fingertips: Option<Vec<(String, Vec3)>>,
+    object: Option<Pose>,
+}
+
+/// Sorts by `t`, checks that times are distinct and that every frame has the joints, fingertips
+/// and object of the earliest one, and builds the trajectory (names in the earliest frame's order).
+fn assemble(source: &str, mut raws: Vec<RawFrame>) -> Result<Trajectory> {
+    raws.sort_by(|a, b| a.t.total_cmp(&b.t));
+    for w in raws.windows(2) {
+        if w[1].t == w[0].t {
+            return Err(fail(
+                source,
+                w[1].loc,
+                format!(
+                    "{} `t`: expected times strictly increasing after sorting (no two frames at the same time), got {} which {} also has",
+                    w[1].loc.field_word(),
+                    w[1].t,
+                    w[0].loc
+                ),
+            ));
+        }
+    }
+    let first = &raws[0];
+    let joint_names: Vec<String> = first.joints.iter().map(|(n, _)| n.clone()).collect();
+    let tip_names: Option<Vec<String>> = first.fingertips.as_ref().map(|p| p.iter().map(|(n, _)| n.clone()).collect());
+    let joint_index: HashMap<&str, usize> = joint_names.iter().enumerate().map(|(i, n)| (n.as_str(), i)).collect();
+    let tip_index: HashMap<&str, usize> =
+        tip_names.iter().flatten().enumerate().map(|(i, n)| (n.as_str(), i)).collect();
+
+    let mut frames = Vec::with_capacity(raws.len());
+    for raw in &raws {
+        let joints = reorder("joints", &raw.joints, &joint_index, first.loc).map_err(|e| fail(source, raw.loc, e))?;
+        let fingertips = match (&raw.fingertips, &tip_names) {
+            (Some(p), Some(_)) => {
+                Some(reorder("fingertips", p, &tip_index, first.loc).map_err(|e| fail(source, raw.loc, e))?)
+            }
+            (None, None) => None,
+            (Some(_), None) => {
+                return Err(fail(
+                    source,
+                    raw.loc,
+                    format!(
+                        "field `fingertips`: expected fingertips in every frame or in none, got some here but none in {}",
+                        first.loc
+                    ),
+                ));
+            }
+            (None, Some(_)) => {
+                return Err(fail(
+                    source,
+                    raw.loc,
+                    format!(
+                        "field `fingertips`: expected fingertips in every frame or in none, got none here but some in {}",
+                        first.loc
+                    ),
+                ));
+            }
+        };
+        if raw.object.is_some() != first.object.is_some() {
+            let (here, there) = if raw.object.is_some() { ("a pose", "none") } else { ("none", "a pose") };
+            return Err(fail(
+                source,
+                raw.loc,
+                format!(
+                    "field `object`: expected an object pose in every frame or in none, got {here} here but {there} in {}",
+                    first.loc
+                ),
+            ));
+        }
+        frames.push(Frame { t: raw.t, wrist: raw.wrist, joints, fingertips, object: raw.object });
+    }
+    Ok(Trajectory { joint_names, fingertip_names: tip_names.unwrap_or_default(), frames })
+}
+
+/// Puts `(name, value)` pairs into the order of `index`, which must hold exactly the same names.
+fn reorder<T: Copy + Default>(
+    field: &str,
+    items: &[(String, T)],
+    index: &HashMap<&str, usize>,
+    reference: Loc,
+) -> Result<Vec<T>, String> {
+    let mut out = vec![T::default(); index.len()];
+    let mut seen = vec![false; index.len()];
+    let mut unexpected = Vec::new();
+    for (name, v) in items {
+        match index.get(name.as_str()) {
+            Some(&i) => {
+                out[i] = *v;
+                seen[i] = true;
+            }
+            None => unexpected.push(format!("{name:?}")),
+        }
+    }
+    if unexpected.is_empty() && seen.iter().all(|&s| s) {
+        return Ok(out);
+    }
+    let mut missing: Vec<(usize, &str)> = index.iter().filter(|&(_, &i)| !seen[i]).map(|(&n, &i)| (i, n)).collect();
+    missing.sort();
+    let missing: Vec<String> = missing.into_iter().map(|(_, n)| format!("{n:?}")).collect();
+    let mut got = Vec::new();
+    if !missing.is_empty() {
+        got.push(format!("missing {}", missing.join(", ")));
+    }
+    if !unexpected.is_empty() {
+        got.push(format!("unexpected {}", unexpected.join(", ")));
+    }
+    Err(format!("field `{field}`: expected the same names as in {reference}, got {}", got.join("; ")))
+}
+
+// ---------------------------------------------------------------------------------------------
+// MCAP messages
+// ---------------------------------------------------------------------------------------------
+
+fn describe(v: &json::Value) -> String {
+    use json::Value::*;
+    match v {
+        Null => "null".into(),
+        Bool(b) => format!("the boolean {b}"),
+        Num(t) => format!("the number {t}"),
+        Str(s) => format!("the string {:?}", truncate(s)),
+        Arr(items) => format!("an array with {} elements", items.len()),
+        Obj(_) => "an object".into(),
+    }
+}
+
+fn expect_obj<'v>(v: &'v json::Value, field: &str, expected: &str) -> Result<&'v [(String, json::Value)], String> {
+    match v {
+        json::Value::Obj(entries) => Ok(entries),
+        json::Value::Null => {
+            Err(format!("field `{field}`: expected {expected} (leave the key out instead of null), got null"))
+        }
+        other => Err(format!("field `{field}`: expected {expected}, got {}", describe(other))),
+    }
+}
+
+fn expect_num<'v>(v: &'v json::Value, field: &str) -> Result<&'v str, String> {
+    match v {
+        json::Value::Num(t) => Ok(t),
+        other => Err(format!("field `{field}`: expected a number, got {}", describe(other))),
+    }
+}
+
+/// The number texts of an object with exactly the keys `keys`.
+fn keyed_numbers<'v, const N: usize>(
+    v: &'v json::Value,
+    field: &str,
+    keys: &[&str; N],
+) -> Result<[&'v str; N], String> {
+    let expected = format!("an object with the numbers {}", keys.join(", "));
+    let entries = expect_obj(v, field, &expected)?;
+    let mut out: [Option<&str>; N] = [None; N];
+    for (k, val) in entries {
+        let Some(i) = keys.iter().position(|key| key == k) else {
+            return Err(format!("field `{field}.{k}`: unknown key: expected only {}", keys.join(", ")));
+        };
+        out[i] = Some(expect_num(val, &format!("{field}.{k}"))?);
+    }
+    let mut texts = [""; N];
+    for i in 0..N {
+        texts[i] = out[i].ok_or_else(|| format!("field `{field}.{}`: missing: expected a number", keys[i]))?;
+    }
+    Ok(texts)
+}
+
+fn pose_from_json(v: &json::Value, field: &str) -> Result<Pose, String> {
+    let texts = keyed_numbers(v, field, &POSE_KEYS)?;
+    let labels = POSE_KEYS.map(|k| format!("field `{field}.{k}`"));
+    pose_from_texts(texts, &labels, &format!("field `{field}` (qx, qy, qz, qw)"))
+}
+
+fn check_name(field: &str, name: &str) -> Result<(), String> {
+    if is_valid_name(name) {
+        Ok(())
+    } else {
+        Err(format!(
+            "field `{field}`: name {name:?}: expected a non-empty name without whitespace, control characters, commas or double quotes"
+        ))
+    }
+}
+
+fn raw_frame_from_json(v: &json::Value, loc: Loc) -> Result<RawFrame, String> {
+    let entries = expect_obj(v, "message", "a JSON object with t, wrist, joints (and optionally fingertips, object)")
+        .map_err(|e| e.replacen("field `message`", "message", 1))?;
+    let get = |key: &str| entries.iter().find(|(k, _)| k == key).map(|(_, v)| v);
+    if let Some((k, _)) = entries.iter().find(|(k, _)| !TOP_KEYS.contains(&k.as_str())) {
+        return Err(format!("field `{k}`: unknown key: expected only {}", TOP_KEYS.join(", ")));
+    }
+    let required = |key: &str, what: &str| get(key).ok_or_else(|| format!("field `{key}`: missing: expected {what}"));
+
+    let t = time(expect_num(required("t", "the time in s")?, "t")?, "field `t`")?;
+    let wrist = pose_from_json(required("wrist", "the wrist pose")?, "wrist")?;
+    let mut joints = Vec::new();
+    for (name, val) in expect_obj(
+        required("joints", "an object of joint positions by name")?,
+        "joints",
+        "an object of joint positions by name",
+    )? {
+        check_name("joints", name)?;
+        let label = format!("field `joints.{name}`");
+        joints.push((name.clone(), number_f32(expect_num(val, &format!("joints.{name}"))?, &label)?.0));
+    }
+    let fingertips = match get("fingertips") {
+        None => None,
+        Some(v) => {
+            let mut tips = Vec::new();
+            for (name, val) in expect_obj(v, "fingertips", "an object of fingertip positions by name")? {
+                check_name("fingertips", name)?;
+                let field = format!("fingertips.{name}");
+                let texts = keyed_numbers(val, &field, &POINT_KEYS)?;
+                let mut p = [0f32; 3];
+                for k in 0..3 {
+                    p[k] = number_f32(texts[k], &format!("field `{field}.{}`", POINT_KEYS[k]))?.0;
+                }
+                tips.push((name.clone(), Vec3::from_array(p)));
+            }
+            // An empty object means no fingertips (CSV cannot tell them apart).
+            (!tips.is_empty()).then_some(tips)
+        }
+    };
+    let object = get("object").map(|v| pose_from_json(v, "object")).transpose()?;
+    Ok(RawFrame { loc, t, wrist, joints, fingertips, object })
+}
+
+/// Serialises one frame as the JSON message (f32 values in their shortest exact form).
+struct MessageSer<'a> {
+    traj: &'a Trajectory,
+    frame: &'a Frame,
+}
+
+struct PoseSer<'a>(&'a Pose);
+struct PointSer<'a>(&'a Vec3);
+struct NamedSer<'a, T>(&'a [String], &'a [T]);
+
+impl Serialize for MessageSer<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let f = self.frame;
+        let mut m = s.serialize_map(None)?;
+        m.serialize_entry("t", &f.t)?;
+        m.serialize_entry("wrist", &PoseSer(&f.wrist))?;
+        m.serialize_entry("joints", &NamedSer(&self.traj.joint_names, &f.joints))?;
+        if let Some(p) = f.fingertips.as_deref().filter(|p| !p.is_empty()) {
+            let points: Vec<PointSer> = p.iter().map(PointSer).collect();
+            m.serialize_entry("fingertips", &NamedSer(&self.traj.fingertip_names, &points))?;
+        }
+        if let Some(p) = &f.object {
+            m.serialize_entry("object", &PoseSer(p))?;
+        }
+        m.end()
+    }
+}
+
+impl Serialize for PoseSer<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut m = s.serialize_map(Some(7))?;
+        for (k, v) in POSE_KEYS.iter().zip(pose_values(self.0)) {
+            m.serialize_entry(k, &v)?;
+        }
+        m.end()
+    }
+}
+
+impl Serialize for PointSer<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut m = s.serialize_map(Some(3))?;
+        for (k, v) in POINT_KEYS.iter().zip(self.0.to_array()) {
+            m.serialize_entry(k, &v)?;
+        }
+        m.end()
+    }
+}
+
+impl<T: Serialize> Serialize for NamedSer<'_, T> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut m = s.serialize_map(Some(self.0.len()))?;
+        for (k, v) in self.0.iter().zip(self.1) {
+            m.serialize_entry(k, v)?;
+        }
+        m.end()
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// CSV
+// ---------------------------------------------------------------------------------------------
+
+#[derive(Clone, Copy)]
+enum Col {
+    T,
+    Wrist(usize),
+    Joint(usize),
+    Tip(usize, usize),
+    Object(usize),
+}
+
+struct CsvLayout {
+    names: Vec<String>,
+    cols: Vec<Col>,
+    joint_names: Vec<String>,
+    tip_names: Vec<String>,
+    has_object: bool,
+}
+
+const CSV_COLUMNS_HINT: &str = "t, wrist_x … wrist_qw, joint:<name>, tip:<name>:x|y|z or object_x … object_qw";
+
+impl CsvLayout {
+    fn parse(header: &str) -> Result<CsvLayout, String> {
+        let names: Vec<String> = header.split(',').map(|c| c.trim().to_string()).collect();
+        let mut cols = Vec::with_capacity(names.len());
+        let mut joint_names: Vec<String> = Vec::new();
+        let mut tip_names: Vec<String> = Vec::new();
+        let mut seen = BTreeSet::new();
+        let bad_name = |c: &str, n: &str| {
+            format!(
+                "column {c:?}: name {n:?}: expected a non-empty name without whitespace, control characters, commas or double quotes"
+            )
+        };
+        for (i, c) in names.iter().enumerate() {
+            if c.is_empty() {
+                return Err(format!("column {}: empty column name: expected one of {CSV_COLUMNS_HINT}", i + 1));
+            }
+            if !seen.insert(c.as_str()) {
+                return Err(format!("column {c:?}: duplicate column: expected each column once"));
+            }
+            let pose_key = |prefix: &str| c.strip_prefix(prefix).and_then(|k| POSE_KEYS.iter().position(|&p| p == k));
+            let col = if c == "t" {
+                Col::T
+            } else if let Some(k) = pose_key("wrist_") {
+                Col::Wrist(k)
+            } else if let Some(k) = pose_key("object_") {
+                Col::Object(k)
+            } else if let Some(name) = c.strip_prefix("joint:") {
+                if !is_valid_name(name) {
+                    return Err(bad_name(c, name));
+                }
+                joint_names.push(name.to_string());
+                Col::Joint(joint_names.len() - 1)
+            } else if let Some((name, axis)) = c.strip_prefix("tip:").and_then(|r| r.rsplit_once(':')) {
+                let Some(a) = POINT_KEYS.iter().position(|&p| p == axis) else {
+                    return Err(format!("column {c:?}: unknown fingertip axis {axis:?}: expected x, y or z"));
+                };
+                if !is_valid_name(name) {
+                    return Err(bad_name(c, name));
+                }
+                let k = match tip_names.iter().position(|n| n == name) {
+                    Some(k) => k,
+                    None => {
+                        tip_names.push(name.to_string());
+                        tip_names.len() - 1
+                    }
+                };
+                Col::Tip(k, a)
+            } else {
+                return Err(format!("unknown column {c:?}: expected one of {CSV_COLUMNS_HINT}"));
+            };
+            cols.push(col);
+        }
+        let has = |name: &str| names.iter().any(|n| n == name);
+        if !has("t") {
+            return Err("missing column `t`: expected the time (s) in a column named t".into());
+        }
+        for k in POSE_KEYS {
+            if !has(&format!("wrist_{k}")) {
+                return Err(format!(
+                    "missing column `wrist_{k}`: expected all of wrist_x, wrist_y, wrist_z, wrist_qx, wrist_qy, wrist_qz, wrist_qw"
+                ));
+            }
+        }
+        let has_object = POSE_KEYS.iter().any(|k| has(&format!("object_{k}")));
+        if has_object {
+            for k in POSE_KEYS {
+                if !has(&format!("object_{k}")) {
+                    return Err(format!(
+                        "missing column `object_{k}`: expected all 7 object columns (object_x … object_qw) or none"
+                    ));
+                }
+            }
+        }
+        for name in &tip_names {
+            for a in POINT_KEYS {
+                if !has(&format!("tip:{name}:{a}")) {
+                    return Err(format!("missing column `tip:{name}:{a}`: expected tip:{name}:x, :y and :z"));
+                }
+            }
+        }
+        Ok(CsvLayout { names, cols, joint_names, tip_names, has_object })
+    }
+
+    fn row(&self, line: &str, loc: Loc) -> Result<RawFrame, String> {
+        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        if cells.len() != self.cols.len() {
+            return Err(format!("expected {} columns as in the header, got {}", self.cols.len(), cells.len()));
+        }
+        let mut t = 0.0;
+        let mut wrist = [""; 7];
+        let mut object = [""; 7];
+        let mut joints: Vec<(String, f32)> = self.joint_names.iter().map(|n| (n.clone(), 0.0)).collect();
+        let mut tips: Vec<(String, Vec3)> = self.tip_names.iter().map(|n| (n.clone(), Vec3::ZERO)).collect();
+        for ((col, name), &cell) in self.cols.iter().zip(&self.names).zip(&cells) {
+            let label = || format!("column `{name}`");
+            match *col {
+                Col::T => t = time(cell, &label())?,
+                Col::Wrist(k) => wrist[k] = cell,
+                Col::Object(k) => object[k] = cell,
+                Col::Joint(j) => joints[j].1 = number_f32(cell, &label())?.0,
+                Col::Tip(j, a) => tips[j].1[a] = number_f32(cell, &label())?.0,
+            }
+        }
+        let labels = |prefix: &str| POSE_KEYS.map(|k| format!("column `{prefix}_{k}`"));
+        let quat = |prefix: &str| format!("columns `{prefix}_qx`, `{prefix}_qy`, `{prefix}_qz`, `{prefix}_qw`");
+        let wrist = pose_from_texts(wrist, &labels("wrist"), &quat("wrist"))?;
+        let object =
+            if self.has_object { Some(pose_from_texts(object, &labels("object"), &quat("object"))?) } else { None };
+        let fingertips = (!tips.is_empty()).then_some(tips);
+        Ok(RawFrame { loc, t, wrist, joints, fingertips, object })
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// A small strict JSON reader
+// ---------------------------------------------------------------------------------------------
+
+/// JSON (RFC 8259) reader that keeps object keys in order, rejects duplicate keys and keeps
+/// numbers as text (so they can be parsed exactly, as f32 or f64). Python's `NaN`, `Infinity`
+/// and `-Infinity` are read as numbers so that the error names the field they are in.
+mod json {
+    use std::fmt;
+
+    pub enum Value {
+        Null,
+        Bool(bool),
+        /// The number's text (`NaN`, `inf`, `-inf` for Python's non-standard tokens).
+        Num(String),
+        Str(String),
+        Arr(Vec<Value>),
+        Obj(Vec<(String, Value)>),
+    }
+
+    pub struct Error {
+        pos: usize,
+        path: String,
+        msg: String,
+    }
+
+    impl fmt::Display for Error {
+        fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+            write!(f, "invalid JSON at byte {}", self.pos)?;
+            if !self.path.is_empty() {
+                write!(f, " (in field `{}`)", self.path)?;
+            }
+            write!(f, ": {}", self.msg)
+        }
+    }
+
+    const MAX_DEPTH: usize = 64;
+
+    pub fn parse(text: &str) -> Result<Value, Error> {
+        let mut p = Parser { text, s: text.as_bytes(), pos: 0, path: Vec::new() };
+        let v = p.value()?;
+        p.ws();
+        if p.pos != p.s.len() {
+            return Err(p.err(format!("expected the end of the message, got {}", p.got())));
+        }
+        Ok(v)
+    }
+
+    struct Parser<'a> {
+        text: &'a str,
+        s: &'a [u8],
+        pos: usize,
+        path: Vec<String>,
+    }
+
+    impl Parser<'_> {
+        fn err(&self, msg: String) -> Error {
+            Error { pos: self.pos, path: self.path.join("."), msg }
+        }
+
+        fn got(&self) -> String {
+            match self.text.get(self.pos..).and_then(|r| r.chars().next()) {
+                Some(c) => format!("{c:?}"),
+                None => "the end of the message".into(),
+            }
+        }
+
+        fn ws(&mut self) {
+            while self.pos < self.s.len() && matches!(self.s[self.pos], b' ' | b'\t' | b'\n' | b'\r') {
+                self.pos += 1;
+            }
+        }
+
+        fn eat(&mut self, lit: &str) -> bool {
+            if self.s[self.pos..].starts_with(lit.as_bytes()) {
+                self.pos += lit.len();
+                true
+            } else {
+                false
+            }
+        }
+
+        fn value(&mut self) -> Result<Value, Error> {
+            self.ws();
+            let Some(&c) = self.s.get(self.pos) else {
+                return Err(self.err("expected a value, got the end of the message".into()));
+            };
+            match c {
+                b'{' => self.object(),
+                b'[' => self.array(),
+                b'"' => Ok(Value::Str(self.string()?)),
+                b'-' | b'0'..=b'9' => {
+                    if self.eat("-Infinity") {
+                        Ok(Value::Num("-inf".into()))
+                    } else {
+                        self.number()
+                    }
+                }
+                _ if self.eat("true") => Ok(Value::Bool(true)),
+                _ if self.eat("false") => Ok(Value::Bool(false)),
+                _ if self.eat("null") => Ok(Value::Null),
+                _ if self.eat("NaN") => Ok(Value::Num("NaN".into())),
+                _ if self.eat("Infinity") => Ok(Value::Num("inf".into())),
+                _ => Err(self.err(format!("expected a value, got {}", self.got()))),
+            }
+        }
+
+        fn enter(&mut self) -> Result<(), Error> {
+            if self.path.len() >= MAX_DEPTH {
+                return Err(self.err(format!("expected at most {MAX_DEPTH} levels of nesting")));
+            }
+            self.pos += 1;
+            Ok(())
+        }
+
+        fn object(&mut self) -> Result<Value, Error> {
+            self.enter()?;
+            let mut entries: Vec<(String, Value)> = Vec::new();
+            self.ws();
+            if self.eat("}") {
+                return Ok(Value::Obj(entries));
+            }
+            loop {
+                self.ws();
+                if self.s.get(self.pos) != Some(&b'"') {
+                    return Err(self.err(format!("expected a key in double quotes, got {}", self.got())));
+                }
+                let key_pos = self.pos;
+                let key = self.string()?;
+                if entries.iter().any(|(k, _)| *k == key) {
+                    self.pos = key_pos;
+                    return Err(self.err(format!("duplicate key {key:?}: expected each key once")));
+                }
+                self.ws();
+                if !self.eat(":") {
+                    return Err(self.err(format!("expected `:` after the key {key:?}, got {}", self.got())));
+                }
+                self.path.push(key.clone());
+                let v = self.value()?;
+                self.path.pop();
+                entries.push((key, v));
+                self.ws();
+                if self.eat(",") {
+                    continue;
+                }
+                if self.eat("}") {
+                    return Ok(Value::Obj(entries));
+                }
+                return Err(self.err(format!("expected `,` or `}}`, got {}", self.got())));
+            }
+        }
+
+        fn array(&mut self) -> Result<Value, Error> {
+            self.enter()?;
+            let mut items = Vec::new();
+            self.ws();
+            if self.eat("]") {
+                return Ok(Value::Arr(items));
+            }
+            loop {
+                self.path.push(items.len().to_string());
+                let v = self.value()?;
+                self.path.pop();
+                items.push(v);
+                self.ws();
+                if self.eat(",") {
+                    continue;
+                }
+                if self.eat("]") {
+                    return Ok(Value::Arr(items));
+                }
+                return Err(self.err(format!("expected `,` or `]`, got {}", self.got())));
+            }
+        }
+
+        fn hex4(&mut self) -> Result<u32, Error> {
+            let digits = self.text.get(self.pos..self.pos + 4).filter(|d| d.bytes().all(|b| b.is_ascii_hexdigit()));
+            let Some(d) = digits else {
+                return Err(self.err("expected 4 hex digits after `\\u`".into()));
+            };
+            let v = u32::from_str_radix(d, 16).map_err(|_| self.err("expected 4 hex digits after `\\u`".into()))?;
+            self.pos += 4;
+            Ok(v)
+        }
+
+        /// At a `"`: reads the string and its escapes.
+        fn string(&mut self) -> Result<String, Error> {
+            self.pos += 1;
+            let mut out = String::new();
+            loop {
+                let start = self.pos;
+                while self.pos < self.s.len() && !matches!(self.s[self.pos], b'"' | b'\\' | 0..=0x1f) {
+                    self.pos += 1;
+                }
+                // Stopped at an ASCII byte (or the end), so this is a char boundary.
+                out.push_str(&self.text[start..self.pos]);
+                let Some(&c) = self.s.get(self.pos) else {
+                    return Err(self.err("expected a closing `\"`, got the end of the message".into()));
+                };
+                match c {
+                    b'"' => {
+                        self.pos += 1;
+                        return Ok(out);
+                    }
+                    b'\\' => {
+                        self.pos += 1;
+                        let Some(&e) = self.s.get(self.pos) else {
+                            return Err(self.err("expected an escape after `\\`, got the end of the message".into()));
+                        };
+                        self.pos += 1;
+                        match e {
+                            b'"' => out.push('"'),
+                            b'\\' => out.push('\\'),
+                            b'/' => out.push('/'),
+                            b'b' => out.push('\u{8}'),
+                            b'f' => out.push('\u{c}'),
+                            b'n' => out.push('\n'),
+                            b'r' => out.push('\r'),
+                            b't' => out.push('\t'),
+                            b'u' => {
+                                let hi = self.hex4()?;
+                                let code = if (0xD800..0xDC00).contains(&hi) {
+                                    if !self.eat("\\u") {
+                                        return Err(self.err("expected a low surrogate `\\uDC00`…`\\uDFFF`".into()));
+                                    }
+                                    let lo = self.hex4()?;
+                                    if !(0xDC00..0xE000).contains(&lo) {
+                                        return Err(self.err("expected a low surrogate `\\uDC00`…`\\uDFFF`".into()));
+                                    }
+                                    0x10000 + ((hi - 0xD800) << 10) + (lo - 0xDC00)
+                                } else {
+                                    hi
+                                };
+                                let Some(ch) = char::from_u32(code) else {
+                                    return Err(self.err(format!("expected a Unicode scalar value, got \\u{hi:04x}")));
+                                };
+                                out.push(ch);
+                            }
+                            _ => {
+                                self.pos -= 1;
+                                return Err(self.err(format!(
+                                    "expected a JSON escape, got `\\{}`",
+                                    self.got().trim_matches('\'')
+                                )));
+                            }
+                        }
+                    }
+                    _ => return Err(self.err("expected no raw control characters in a string (escape them)".into())),
+                }
+            }
+        }
+
+        fn digits(&mut self) -> usize {
+            let start = self.pos;
+            while self.pos < self.s.len() && self.s[self.pos].is_ascii_digit() {
+                self.pos += 1;
+            }
+            self.pos - start
+        }
+
+        fn number(&mut self) -> Result<Value, Error> {
+            let start = self.pos;
+            self.eat("-");
+            if !self.eat("0") && self.digits() == 0 {
+                return Err(self.err(format!("expected a digit, got {}", self.got())));
+            }
+            if self.eat(".") && self.digits() == 0 {
+                return Err(self.err(format!("expected a digit after `.`, got {}", self.got())));
+            }
+            if self.eat("e") || self.eat("E") {
+                let _ = self.eat("+") || self.eat("-");
+                if self.digits() == 0 {
+                    return Err(self.err(format!("expected a digit in the exponent, got {}", self.got())));
+                }
+            }
+            Ok(Value::Num(self.text[start..self.pos].to_string()))
+        }
+    }
+}

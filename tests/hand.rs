@@ -1,0 +1,749 @@
+//! URDF loader tests: the two shipped hands (counts, kinematics, merges, mimics) and the loader's
+//! one-line errors. Expected numbers are computed by hand from the URDF files.
+
+use std::f32::consts::{FRAC_PI_2, FRAC_PI_4};
+use std::path::{Path, PathBuf};
+
+use dextrain::geom::Pose;
+use dextrain::hand::*;
+use glam::{Quat, Vec3};
+
+// ------------------------------------------------------------------------------------------------
+// helpers
+
+fn hand_path(file: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/hands").join(file)
+}
+
+fn load_hand(file: &str) -> HandModel {
+    HandModel::from_urdf_file(&hand_path(file), &HandLoadOptions::default())
+        .unwrap_or_else(|e| panic!("loading {file}: {e}"))
+}
+
+#[track_caller]
+fn assert_close(a: f32, b: f32, tol: f32, what: &str) {
+    assert!((a - b).abs() <= tol, "{what}: got {a}, expected {b} (tol {tol})");
+}
+
+#[track_caller]
+fn assert_vec(a: Vec3, b: Vec3, tol: f32, what: &str) {
+    assert!((a - b).abs().max_element() <= tol, "{what}: got {a}, expected {b} (tol {tol})");
+}
+
+/// Rotations are equal up to the quaternion sign.
+#[track_caller]
+fn assert_rot(a: Quat, b: Quat, tol: f32, what: &str) {
+    assert!(a.dot(b).abs() >= 1.0 - tol, "{what}: got {a}, expected {b}");
+}
+
+#[track_caller]
+fn assert_shape(a: ColliderShape, b: ColliderShape) {
+    let ok = match (a, b) {
+        (ColliderShape::Sphere { radius: r1 }, ColliderShape::Sphere { radius: r2 }) => (r1 - r2).abs() < 1e-7,
+        (ColliderShape::Capsule { radius: r1, half_length: h1 }, ColliderShape::Capsule { radius: r2, half_length: h2 }) => {
+            (r1 - r2).abs() < 1e-7 && (h1 - h2).abs() < 1e-7
+        }
+        (ColliderShape::Box { half_extents: e1 }, ColliderShape::Box { half_extents: e2 }) => (e1 - e2).abs().max_element() < 1e-7,
+        _ => false,
+    };
+    assert!(ok, "shape {a:?}, expected {b:?}");
+}
+
+fn tip_in_wrist(h: &HandModel, name: &str, q: &[f32]) -> Vec3 {
+    let poses = h.forward_kinematics(q);
+    let t = h.fingertips.iter().find(|t| t.name == name).unwrap_or_else(|| panic!("no fingertip {name}"));
+    poses[t.link].transform_point(t.pos)
+}
+
+fn q_with(h: &HandModel, set: &[(&str, f32)]) -> Vec<f32> {
+    let mut q = vec![0.0; h.joints.len()];
+    for (name, v) in set {
+        q[h.joint_index(name).unwrap_or_else(|| panic!("no joint {name}"))] = *v;
+    }
+    q
+}
+
+const PALM: &str = r#"<link name="palm"><inertial><mass value="0.2"/><inertia ixx="1e-4" ixy="0" ixz="0" iyy="1e-4" iyz="0" izz="1e-4"/></inertial><collision><geometry><box size="0.08 0.1 0.02"/></geometry></collision></link>"#;
+
+fn link(name: &str) -> String {
+    format!(
+        r#"<link name="{name}"><inertial><mass value="0.01"/><inertia ixx="1e-6" ixy="0" ixz="0" iyy="1e-6" iyz="0" izz="1e-6"/></inertial><collision><geometry><sphere radius="0.01"/></geometry></collision></link>"#
+    )
+}
+
+fn joint(name: &str, ty: &str, parent: &str, child: &str, extra: &str) -> String {
+    format!(
+        r#"<joint name="{name}" type="{ty}"><parent link="{parent}"/><child link="{child}"/><origin xyz="0.05 0 0" rpy="0 0 0"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="2"/>{extra}</joint>"#
+    )
+}
+
+fn rev(name: &str, parent: &str, child: &str) -> String {
+    joint(name, "revolute", parent, child, "")
+}
+
+fn robot(parts: &[String]) -> String {
+    format!("<robot name=\"test_hand\">{}</robot>", parts.concat())
+}
+
+fn load_str(text: &str, source: &str, opts: &HandLoadOptions) -> anyhow::Result<HandModel> {
+    HandModel::from_urdf_str(text, Path::new(source), opts)
+}
+
+/// Loads `text` expecting an error; checks it is one line, names `source`'s file name, contains every
+/// needle and says what is expected.
+#[track_caller]
+fn expect_err(text: &str, source: &str, opts: &HandLoadOptions, needles: &[&str]) -> String {
+    let msg = match load_str(text, source, opts) {
+        Ok(_) => panic!("{source} loaded, expected an error containing {needles:?}"),
+        Err(e) => format!("{e:#}"),
+    };
+    check_msg(&msg, Path::new(source).file_name().unwrap().to_str().unwrap(), needles);
+    msg
+}
+
+#[track_caller]
+fn check_msg(msg: &str, file: &str, needles: &[&str]) {
+    assert!(!msg.contains('\n') && !msg.contains('\r'), "error is not one line: {msg:?}");
+    assert!(msg.contains(file), "error does not name the file {file}: {msg}");
+    assert!(msg.contains("expected") || msg.contains("support"), "error does not say what is expected: {msg}");
+    for n in needles {
+        assert!(msg.contains(n), "error does not contain {n:?}: {msg}");
+    }
+}
+
+// ------------------------------------------------------------------------------------------------
+// dexhand16
+
+const FINGERS: [&str; 4] = ["if", "mf", "rf", "th"];
+
+#[test]
+#[allow(clippy::approx_constant)] // 6.28 rad/s is the URDF's velocity limit, not an approximation of TAU
+fn dexhand16_counts_and_names() {
+    let h = load_hand("dexhand16.urdf");
+    assert_eq!(h.name, "dexhand16");
+    assert_eq!(h.joints.len(), 16);
+    assert_eq!(h.num_actuated(), 16);
+    assert_eq!(h.links.len(), 17);
+    assert_eq!(h.colliders.len(), 17);
+    assert_eq!(h.links[0].name, "palm");
+    let names: Vec<&str> = h.joints.iter().map(|j| j.name.as_str()).collect();
+    let expected: Vec<String> = FINGERS.iter().flat_map(|f| (0..4).map(move |k| format!("{f}_j{k}"))).collect();
+    assert_eq!(names, expected, "depth-first order, fingers in document order");
+    let tips: Vec<&str> = h.fingertips.iter().map(|t| t.name.as_str()).collect();
+    assert_eq!(tips, ["if_tip", "mf_tip", "rf_tip", "th_tip"]);
+    // tip links are merged away into the distal links
+    assert!(h.links.iter().all(|l| !l.name.ends_with("_tip")));
+    for f in FINGERS {
+        let (link, pose) = h.frame(&format!("{f}_tip")).unwrap();
+        assert_eq!(h.links[link].name, format!("{f}_dist"));
+        let len = if f == "th" { 0.0423 } else { 0.0387 };
+        assert_vec(pose.pos, Vec3::new(len, 0.0, 0.0), 1e-7, "tip frame");
+    }
+    assert_eq!(h.frame("palm"), Some((0, Pose::IDENTITY)));
+    assert_eq!(h.frame("no_such_link"), None);
+    // all joints: limits, effort, velocity, damping
+    for j in &h.joints {
+        assert!(j.mimic.is_none() && !j.continuous);
+        assert_close(j.effort, 0.7, 1e-7, "effort");
+        assert_close(j.velocity, 6.28, 1e-6, "velocity");
+        assert_close(j.damping, 0.01, 1e-8, "damping");
+        assert_eq!(j.friction, 0.0);
+        if j.name.ends_with("_j0") {
+            assert_eq!((j.lower, j.upper), (-0.47, 0.47));
+            assert_vec(j.axis, Vec3::Z, 0.0, "abduction axis");
+        } else {
+            assert_eq!((j.lower, j.upper), (-0.2, 1.6));
+            assert_vec(j.axis, Vec3::Y, 0.0, "flexion axis");
+        }
+    }
+    // mass: palm 0.4 + 4 fingers of 0.012 + 0.065 + 0.036 + 0.026
+    assert_close(h.links[0].mass, 0.4, 1e-7, "palm mass");
+    assert_close(h.total_mass(), 0.4 + 4.0 * 0.139, 1e-6, "total mass");
+}
+
+#[test]
+fn topological_order_invariant() {
+    for file in ["dexhand16.urdf", "tri3_mimic.urdf"] {
+        let h = load_hand(file);
+        assert_eq!(h.links.len(), h.joints.len() + 1, "{file}");
+        for (i, j) in h.joints.iter().enumerate() {
+            assert!(j.parent_link < i + 1, "{file}: joint {} has parent link {} >= {}", j.name, j.parent_link, i + 1);
+            if let Some(m) = j.mimic {
+                assert!(h.joints[m.leader].mimic.is_none(), "{file}: {} leads through a follower", j.name);
+                assert_ne!(m.leader, i);
+            }
+        }
+        for c in &h.colliders {
+            assert!(c.link < h.links.len());
+        }
+        for t in &h.fingertips {
+            assert!(t.link < h.links.len());
+        }
+    }
+}
+
+#[test]
+fn dexhand16_colliders_match_mjcf_capsules() {
+    let h = load_hand("dexhand16.urdf");
+    let palm = &h.colliders[0];
+    assert_eq!(palm.link, 0);
+    assert_eq!(palm.shape, ColliderShape::Box { half_extents: Vec3::new(0.045, 0.065, 0.015) });
+    assert_eq!(palm.pose, Pose::IDENTITY);
+    let lens = [("base", 0.0164, 0.0177), ("prox", 0.054, 0.0514), ("mid", 0.0384, 0.054), ("dist", 0.0387, 0.0423)];
+    for f in FINGERS {
+        for (seg, len_f, len_th) in lens {
+            let len: f32 = if f == "th" { len_th } else { len_f };
+            let li = h.link_index(&format!("{f}_{seg}")).unwrap();
+            let cs: Vec<&Collider> = h.colliders.iter().filter(|c| c.link == li).collect();
+            assert_eq!(cs.len(), 1, "{f}_{seg}");
+            // cylinder length L -> capsule half length L/2 (MJCF fromto 0..L capsule)
+            match cs[0].shape {
+                ColliderShape::Capsule { radius, half_length } => {
+                    assert_close(radius, 0.0098, 1e-8, "radius");
+                    assert_close(half_length, len / 2.0, 1e-8, "half length");
+                }
+                s => panic!("{f}_{seg}: expected a capsule, got {s:?}"),
+            }
+            assert_vec(cs[0].pose.pos, Vec3::new(len / 2.0, 0.0, 0.0), 1e-8, "capsule centre");
+            // capsule axis (local z) lies along the link's +x
+            assert_vec(cs[0].pose.rot * Vec3::Z, Vec3::X, 1e-6, "capsule axis");
+        }
+    }
+    // link inertia: solid cylinder along x about its centre
+    let l = &h.links[h.link_index("if_prox").unwrap()];
+    let (m, r, len) = (0.065f32, 0.0098f32, 0.054f32);
+    assert_close(l.mass, m, 1e-8, "if_prox mass");
+    assert_vec(l.com, Vec3::new(0.027, 0.0, 0.0), 1e-8, "if_prox com");
+    assert_close(l.inertia[0][0], 0.5 * m * r * r, 1e-10, "Ixx");
+    assert_close(l.inertia[1][1], m * (3.0 * r * r + len * len) / 12.0, 1e-10, "Iyy");
+    assert_close(l.inertia[2][2], m * (3.0 * r * r + len * len) / 12.0, 1e-10, "Izz");
+    assert_eq!(l.inertia[0][1], 0.0);
+    // the massless tip frame leaves the distal link alone
+    let d = &h.links[h.link_index("if_dist").unwrap()];
+    assert_close(d.mass, 0.026, 1e-8, "if_dist mass");
+    assert_vec(d.com, Vec3::new(0.01935, 0.0, 0.0), 1e-8, "if_dist com");
+}
+
+#[test]
+fn dexhand16_fingertip_kinematics() {
+    let h = load_hand("dexhand16.urdf");
+    let zero = vec![0.0; 16];
+    // index straight along +x
+    let x_if = 0.055 + 0.0164 + 0.054 + 0.0384 + 0.0387;
+    assert_vec(tip_in_wrist(&h, "if_tip", &zero), Vec3::new(x_if, 0.045, 0.0), 1e-6, "index tip at q=0");
+    assert_vec(tip_in_wrist(&h, "rf_tip", &zero), Vec3::new(x_if, -0.045, 0.0), 1e-6, "ring tip at q=0");
+    // flexing if_j1 by pi/2 about +y turns the rest of the finger toward -z (the palm side)
+    let q = q_with(&h, &[("if_j1", FRAC_PI_2)]);
+    let curled = Vec3::new(0.055 + 0.0164, 0.045, -(0.054 + 0.0384 + 0.0387));
+    assert_vec(tip_in_wrist(&h, "if_tip", &q), curled, 1e-6, "index tip with if_j1 = pi/2");
+    // the middle finger did not move
+    assert_vec(tip_in_wrist(&h, "mf_tip", &q), Vec3::new(x_if, 0.0, 0.0), 1e-6, "middle tip");
+    // abduction about +z swings the index toward +y
+    let q = q_with(&h, &[("if_j0", 0.3)]);
+    let l = 0.0164 + 0.054 + 0.0384 + 0.0387;
+    let abd = Vec3::new(0.055 + l * 0.3f32.cos(), 0.045 + l * 0.3f32.sin(), 0.0);
+    assert_vec(tip_in_wrist(&h, "if_tip", &q), abd, 1e-6, "index tip with if_j0 = 0.3");
+    // thumb points -x and curls to -z as well
+    let x_th = -(0.055 + 0.0177 + 0.0514 + 0.054 + 0.0423);
+    let th = tip_in_wrist(&h, "th_tip", &zero);
+    assert!(th.x < 0.0);
+    assert_vec(th, Vec3::new(x_th, 0.0, 0.0), 1e-6, "thumb tip at q=0");
+    let q = q_with(&h, &[("th_j1", FRAC_PI_2)]);
+    let th_curled = Vec3::new(-(0.055 + 0.0177), 0.0, -(0.0514 + 0.054 + 0.0423));
+    assert_vec(tip_in_wrist(&h, "th_tip", &q), th_curled, 1e-6, "thumb tip with th_j1 = pi/2");
+    // fingertip_positions agrees with the per-tip computation
+    let all = h.fingertip_positions(&h.forward_kinematics(&zero));
+    assert_vec(all[0], Vec3::new(x_if, 0.045, 0.0), 1e-6, "fingertip_positions[0]");
+}
+
+#[test]
+fn fingertip_option_and_default_suffix() {
+    let opts = HandLoadOptions { fingertips: vec!["th_tip".into(), "if_dist".into()], ..Default::default() };
+    let h = HandModel::from_urdf_file(&hand_path("dexhand16.urdf"), &opts).unwrap();
+    assert_eq!(h.fingertips.len(), 2);
+    assert_eq!(h.fingertips[0].name, "th_tip");
+    assert_eq!(h.fingertips[0].link, h.link_index("th_dist").unwrap());
+    assert_vec(h.fingertips[0].pos, Vec3::new(0.0423, 0.0, 0.0), 1e-7, "th_tip pos");
+    assert_eq!(h.fingertips[1].link, h.link_index("if_dist").unwrap());
+    assert_eq!(h.fingertips[1].pos, Vec3::ZERO);
+    // default: every link ending in "tip", case-insensitive, in document order
+    let text = robot(&[PALM.into(), link("b_ThumbTIP"), link("a"), link("a_tip"), rev("j_b", "palm", "b_ThumbTIP"), rev("j_a", "palm", "a"), joint("a_fix", "fixed", "a", "a_tip", "")]);
+    let h = load_str(&text, "suffix.urdf", &HandLoadOptions::default()).unwrap();
+    let names: Vec<&str> = h.fingertips.iter().map(|t| t.name.as_str()).collect();
+    assert_eq!(names, ["b_ThumbTIP", "a_tip"]);
+    assert_eq!(h.fingertips[1].link, h.link_index("a").unwrap());
+    assert_vec(h.fingertips[1].pos, Vec3::new(0.05, 0.0, 0.0), 1e-7, "a_tip pos");
+}
+
+// ------------------------------------------------------------------------------------------------
+// tri3_mimic
+
+#[test]
+fn tri3_counts_and_shapes() {
+    let h = load_hand("tri3_mimic.urdf");
+    assert_eq!(h.name, "tri3_mimic");
+    assert_eq!(h.links[0].name, "wrist");
+    assert_eq!(h.joints.len(), 10);
+    assert_eq!(h.num_actuated(), 6);
+    assert_eq!(h.links.len(), 11);
+    assert_eq!(h.colliders.len(), 15);
+    let tips: Vec<&str> = h.fingertips.iter().map(|t| t.name.as_str()).collect();
+    assert_eq!(tips, ["fa_tip", "fb_tip", "fc_tip"]);
+    let count = |f: &dyn Fn(&ColliderShape) -> bool| h.colliders.iter().filter(|c| f(&c.shape)).count();
+    assert_eq!(count(&|s| matches!(s, ColliderShape::Box { .. })), 1);
+    assert_eq!(count(&|s| matches!(s, ColliderShape::Sphere { .. })), 3);
+    assert_eq!(count(&|s| matches!(s, ColliderShape::Capsule { .. })), 11);
+    // colliders are grouped by link
+    assert!(h.colliders.windows(2).all(|w| w[0].link <= w[1].link));
+    let actuated: Vec<&str> = h.actuated_joints().iter().map(|&i| h.joints[i].name.as_str()).collect();
+    assert_eq!(actuated, ["wrist_roll", "fa_spread", "fa_j1", "fb_j1", "fc_spread", "fc_j1"]);
+    // continuous wrist roll
+    let roll = &h.joints[h.joint_index("wrist_roll").unwrap()];
+    assert!(roll.continuous);
+    assert_eq!((roll.lower, roll.upper), (f32::NEG_INFINITY, f32::INFINITY));
+    assert_close(roll.effort, 2.0, 0.0, "roll effort");
+    assert_close(roll.damping, 0.05, 1e-9, "roll damping");
+    assert_close(roll.friction, 0.01, 1e-9, "roll friction");
+    // round palm: cylinder r 0.05, length 0.03 -> capsule half length 0.015, axis z
+    let palm = h.link_index("palm").unwrap();
+    let pc: Vec<&Collider> = h.colliders.iter().filter(|c| c.link == palm).collect();
+    assert_eq!(pc.len(), 2, "palm disc + merged pad");
+    assert_eq!(pc[0].shape, ColliderShape::Capsule { radius: 0.05, half_length: 0.015 });
+    assert_vec(pc[0].pose.pos, Vec3::new(0.0, 0.0, -0.015), 1e-8, "palm disc centre");
+    assert_rot(pc[0].pose.rot, Quat::IDENTITY, 1e-7, "palm disc axis");
+}
+
+#[test]
+fn tri3_fixed_joints_merge_mass_and_colliders() {
+    let h = load_hand("tri3_mimic.urdf");
+    let palm = h.link_index("palm").unwrap();
+    assert_eq!(palm, 1);
+    assert_eq!(h.link_index("pad"), None, "pad is merged");
+    let l = &h.links[palm];
+    // palm 0.3 kg at z = -0.015 + pad 0.02 kg at z = -0.032
+    assert_close(l.mass, 0.32, 1e-7, "palm + pad mass");
+    assert_vec(l.com, Vec3::new(0.0, 0.0, (0.3 * -0.015 + 0.02 * -0.032) / 0.32), 1e-8, "merged com");
+    // pad box, yawed 45 degrees, its collision origin 5 mm along the pad's x
+    let pad = h.colliders.iter().find(|c| c.link == palm && matches!(c.shape, ColliderShape::Box { .. })).unwrap();
+    assert_eq!(pad.shape, ColliderShape::Box { half_extents: Vec3::new(0.015, 0.01, 0.002) });
+    let d = 0.005 * FRAC_PI_4.cos();
+    assert_vec(pad.pose.pos, Vec3::new(d, d, -0.032), 1e-8, "pad collider in palm frame");
+    assert_rot(pad.pose.rot, Quat::from_rotation_z(FRAC_PI_4), 1e-7, "pad collider rotation");
+    let (pl, pp) = h.frame("pad").unwrap();
+    assert_eq!(pl, palm);
+    assert_vec(pp.pos, Vec3::new(0.0, 0.0, -0.032), 1e-8, "pad frame");
+    // sphere fingertips merged into the distal links
+    for f in ["fa", "fb", "fc"] {
+        let dist = h.link_index(&format!("{f}_dist")).unwrap();
+        assert_close(h.links[dist].mass, 0.035, 1e-8, "dist + tip mass");
+        // com: 0.03 kg at z = -0.0225 and 0.005 kg at z = -0.045
+        assert_close(h.links[dist].com.z, (0.03 * -0.0225 + 0.005 * -0.045) / 0.035, 1e-8, "dist com");
+        let s = h.colliders.iter().find(|c| c.link == dist && matches!(c.shape, ColliderShape::Sphere { .. })).unwrap();
+        assert_eq!(s.shape, ColliderShape::Sphere { radius: 0.011 });
+        assert_vec(s.pose.pos, Vec3::new(0.0, 0.0, -0.045), 1e-8, "tip sphere");
+        let t = h.fingertips.iter().find(|t| t.name == format!("{f}_tip")).unwrap();
+        assert_eq!(t.link, dist);
+        assert_vec(t.pos, Vec3::new(0.0, 0.0, -0.045), 1e-8, "tip pos");
+    }
+}
+
+#[test]
+fn tri3_mimic_followers_in_fk() {
+    let h = load_hand("tri3_mimic.urdf");
+    let idx = |n: &str| h.joint_index(n).unwrap();
+    let fb_spread = h.joints[idx("fb_spread")].mimic.expect("fb_spread is a follower");
+    assert_eq!(fb_spread, Mimic { leader: idx("fa_spread"), multiplier: -1.0, offset: 0.0 });
+    for f in ["fa", "fb", "fc"] {
+        let m = h.joints[idx(&format!("{f}_j2"))].mimic.expect("distal joints are followers");
+        assert_eq!(m.leader, idx(&format!("{f}_j1")));
+        assert_close(m.multiplier, 0.8, 1e-7, "multiplier");
+        assert_close(m.offset, 0.15, 1e-7, "offset");
+    }
+    let (roll, spread, q1) = (0.3f32, 0.2f32, 0.5f32);
+    let mut q = q_with(&h, &[("wrist_roll", roll), ("fa_spread", spread), ("fa_j1", q1)]);
+    // followers' own entries are ignored
+    q[idx("fb_spread")] = 9.0;
+    q[idx("fa_j2")] = -7.0;
+    // finger in its base frame: j1 2 cm below the spread joint, prox 6 cm, dist 4.5 cm, flexion about +y
+    let finger = |q1: f32| {
+        let q2 = q1 + 0.8 * q1 + 0.15; // absolute angle of the distal segment
+        Vec3::new(0.0, 0.0, -0.02) + 0.06 * Vec3::new(-q1.sin(), 0.0, -q1.cos()) + 0.045 * Vec3::new(-q2.sin(), 0.0, -q2.cos())
+    };
+    let expect = |phi_deg: f32, yaw: f32, local: Vec3| {
+        let phi = phi_deg.to_radians();
+        let base = Vec3::new(0.035 * phi.cos(), 0.035 * phi.sin(), -0.03);
+        let in_palm = base + Quat::from_rotation_z(phi + yaw) * local;
+        Quat::from_rotation_z(roll) * (Vec3::new(0.0, 0.0, -0.02) + in_palm)
+    };
+    assert_vec(tip_in_wrist(&h, "fa_tip", &q), expect(60.0, spread, finger(q1)), 1e-6, "fa tip");
+    assert_vec(tip_in_wrist(&h, "fb_tip", &q), expect(-60.0, -spread, finger(0.0)), 1e-6, "fb tip");
+    assert_vec(tip_in_wrist(&h, "fc_tip", &q), expect(180.0, 0.0, finger(0.0)), 1e-6, "fc tip");
+    // relative rotation of fa_dist w.r.t. fa_prox is 0.8 q1 + 0.15 about y
+    let poses = h.forward_kinematics(&q);
+    let rel = poses[h.link_index("fa_prox").unwrap()].rot.inverse() * poses[h.link_index("fa_dist").unwrap()].rot;
+    assert_rot(rel, Quat::from_rotation_y(0.8 * q1 + 0.15), 1e-6, "distal mimic angle");
+    // at q = 0 the fa tip hangs straight-ish: offset 0.15 on the distal joint
+    let zero = vec![0.0; h.joints.len()];
+    let expected_fa = Vec3::new(0.0175, 0.035 * 60f32.to_radians().sin(), -0.02 - 0.03) + {
+        let local = finger(0.0);
+        Quat::from_rotation_z(60f32.to_radians()) * local
+    };
+    assert_vec(tip_in_wrist(&h, "fa_tip", &zero), expected_fa, 1e-6, "fa tip at q = 0");
+}
+
+// ------------------------------------------------------------------------------------------------
+// loader details on small documents
+
+#[test]
+fn mimic_of_mimic_resolves_to_root_leader() {
+    // j_c mimics j_b (x3 + 0.2) which mimics j_a (x2 + 0.1): j_c = 6 j_a + 0.5. j_c comes first.
+    let text = robot(&[
+        PALM.into(),
+        link("a"),
+        link("b"),
+        link("c"),
+        joint("j_c", "revolute", "b", "c", r#"<mimic joint="j_b" multiplier="3" offset="0.2"/>"#),
+        rev("j_a", "palm", "a"),
+        joint("j_b", "continuous", "a", "b", r#"<mimic joint="j_a" multiplier="2" offset="0.1"/>"#),
+    ]);
+    let h = load_str(&text, "chain.urdf", &HandLoadOptions::default()).unwrap();
+    let names: Vec<&str> = h.joints.iter().map(|j| j.name.as_str()).collect();
+    assert_eq!(names, ["j_a", "j_b", "j_c"], "topological order, not document order");
+    assert_eq!(h.num_actuated(), 1);
+    assert_eq!(h.joints[1].mimic, Some(Mimic { leader: 0, multiplier: 2.0, offset: 0.1 }));
+    let m = h.joints[2].mimic.unwrap();
+    assert_eq!(m.leader, 0);
+    assert_close(m.multiplier, 6.0, 1e-6, "composed multiplier");
+    assert_close(m.offset, 0.5, 1e-6, "composed offset");
+    assert!(h.joints[1].continuous && h.joints[1].lower == f32::NEG_INFINITY);
+    let poses = h.forward_kinematics(&[0.1, 0.0, 0.0]);
+    let rel = poses[2].rot.inverse() * poses[3].rot;
+    assert_rot(rel, Quat::from_rotation_y(6.0 * 0.1 + 0.5), 1e-6, "j_c angle");
+}
+
+#[test]
+fn fixed_merge_combines_inertia_with_parallel_axis() {
+    // palm: 1 kg at the origin, inertia diag(1,1,1)e-3. Fixed child 'weight': its frame at (0.1,0,0)
+    // yawed by pi/4, its 1 kg COM 0.1 m along its own x, its inertia diag(1,2,3)e-3 about axes yawed
+    // by another pi/4 (90 degrees in all, so diag(2,1,3)e-3 in the palm frame).
+    // Merged: COM halfway; both bodies are |d| from it: parallel-axis term 2 (|d|² E − d dᵀ).
+    let text = r#"<robot name="inertia">
+      <link name="palm"><inertial><mass value="1"/><inertia ixx="1e-3" ixy="0" ixz="0" iyy="1e-3" iyz="0" izz="1e-3"/></inertial>
+        <collision><geometry><sphere radius="0.05"/></geometry></collision></link>
+      <link name="weight"><inertial><origin xyz="0.1 0 0" rpy="0 0 0.7853981633974483"/><mass value="1"/>
+        <inertia ixx="1e-3" ixy="0" ixz="0" iyy="2e-3" iyz="0" izz="3e-3"/></inertial>
+        <collision><origin xyz="0 0 0.01" rpy="0 0 0"/><geometry><box size="0.02 0.04 0.06"/></geometry></collision></link>
+      <joint name="weld" type="fixed"><parent link="palm"/><child link="weight"/>
+        <origin xyz="0.1 0 0" rpy="0 0 0.7853981633974483"/></joint>
+    </robot>"#;
+    let h = load_str(text, "inertia.urdf", &HandLoadOptions::default()).unwrap();
+    assert_eq!(h.links.len(), 1);
+    let l = &h.links[0];
+    assert_close(l.mass, 2.0, 1e-6, "mass");
+    let c = 0.1 * FRAC_PI_4.cos();
+    let child_com = Vec3::new(0.1 + c, c, 0.0);
+    assert_vec(l.com, child_com / 2.0, 1e-6, "com");
+    let d = child_com / 2.0; // both bodies are d away from the com, in opposite directions
+    let pa = |i: usize, j: usize| {
+        let dd = [d.x, d.y, d.z];
+        2.0 * ((if i == j { d.length_squared() } else { 0.0 }) - dd[i] * dd[j])
+    };
+    // child inertia rotated by yaw pi/2 in total: diag(2,1,3)e-3
+    let expect = [[1e-3 + 2e-3 + pa(0, 0), pa(0, 1), 0.0], [pa(1, 0), 1e-3 + 1e-3 + pa(1, 1), 0.0], [0.0, 0.0, 1e-3 + 3e-3 + pa(2, 2)]];
+    for (i, (got, want)) in l.inertia.iter().zip(&expect).enumerate() {
+        for (j, (g, w)) in got.iter().zip(want).enumerate() {
+            assert_close(*g, *w, 1e-7, &format!("inertia[{i}][{j}]"));
+        }
+    }
+    // the box moved with the fixed joint: its origin (0,0,0.01) in the weight frame
+    let b = h.colliders.iter().find(|c| matches!(c.shape, ColliderShape::Box { .. })).unwrap();
+    assert_eq!(b.link, 0);
+    assert_vec(b.pose.pos, Vec3::new(0.1, 0.0, 0.01), 1e-7, "box pos");
+    assert_rot(b.pose.rot, Quat::from_rotation_z(FRAC_PI_4), 1e-7, "box rot");
+    assert_eq!(b.shape, ColliderShape::Box { half_extents: Vec3::new(0.01, 0.02, 0.03) });
+    assert_eq!(h.frame("weight").unwrap().0, 0);
+}
+
+#[test]
+fn rpy_is_fixed_axis_roll_pitch_yaw() {
+    // R = Rz(yaw) Ry(pitch) Rx(roll); with roll = yaw = pi/2: x -> y, y -> z, z -> x.
+    let text = robot(&[
+        r#"<link name="palm"><collision><origin xyz="0 0 0" rpy="1.5707963267948966 0 1.5707963267948966"/><geometry><capsule radius="0.01" length="0.04"/></geometry></collision>
+           <collision><origin xyz="0.1 0.2 0.3" rpy="0.3 0.2 0.1"/><geometry><cylinder radius="0.02" length="0.1"/></geometry></collision></link>"#
+            .into(),
+    ]);
+    let h = load_str(&text, "rpy.urdf", &HandLoadOptions::default()).unwrap();
+    assert!(h.joints.is_empty() && h.fingertips.is_empty());
+    let r = h.colliders[0].pose.rot;
+    assert_vec(r * Vec3::X, Vec3::Y, 1e-6, "x axis");
+    assert_vec(r * Vec3::Y, Vec3::Z, 1e-6, "y axis");
+    assert_vec(r * Vec3::Z, Vec3::X, 1e-6, "capsule axis");
+    assert_eq!(h.colliders[0].shape, ColliderShape::Capsule { radius: 0.01, half_length: 0.02 });
+    let expect = Quat::from_rotation_z(0.1) * Quat::from_rotation_y(0.2) * Quat::from_rotation_x(0.3);
+    assert_rot(h.colliders[1].pose.rot, expect, 1e-6, "general rpy");
+    assert_vec(h.colliders[1].pose.pos, Vec3::new(0.1, 0.2, 0.3), 0.0, "pos");
+    assert_eq!(h.colliders[1].shape, ColliderShape::Capsule { radius: 0.02, half_length: 0.05 });
+}
+
+// ------------------------------------------------------------------------------------------------
+// meshes
+
+fn mesh_hand(filename: &str, extra: &str) -> String {
+    format!(
+        r#"<robot name="mesh_hand"><link name="palm"><collision><geometry><box size="0.1 0.1 0.02"/></geometry></collision></link>
+        <link name="finger"><collision><origin xyz="0 0 0.1" rpy="0 0 0"/><geometry><mesh filename="{filename}" {extra}/></geometry></collision></link>
+        <joint name="j" type="revolute"><parent link="palm"/><child link="finger"/><axis xyz="0 1 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>"#
+    )
+}
+
+fn binary_stl(tris: &[[[f32; 3]; 3]]) -> Vec<u8> {
+    let mut b = vec![0u8; 80];
+    b.extend_from_slice(&(tris.len() as u32).to_le_bytes());
+    for t in tris {
+        for _ in 0..3 {
+            b.extend_from_slice(&0f32.to_le_bytes());
+        }
+        for v in t {
+            for c in v {
+                b.extend_from_slice(&c.to_le_bytes());
+            }
+        }
+        b.extend_from_slice(&[0, 0]);
+    }
+    b
+}
+
+fn opts(m: MeshApprox) -> HandLoadOptions {
+    HandLoadOptions { mesh_approx: m, ..Default::default() }
+}
+
+#[test]
+fn mesh_collision_is_an_error_without_opt_in() {
+    let text = mesh_hand("meshes/finger.stl", "");
+    let msg = expect_err(&text, "/robots/mesh_hand.urdf", &HandLoadOptions::default(), &["link 'finger'", "mesh", "finger.stl", "mesh_approx"]);
+    assert!(msg.starts_with("link 'finger' in /robots/mesh_hand.urdf"), "{msg}");
+}
+
+#[test]
+fn mesh_opt_in_binary_stl_box_and_capsule() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::create_dir(dir.path().join("meshes")).unwrap();
+    // vertices span x [-0.01, 0.03], y [0, 0.02], z [-0.005, 0.005]; scale x by 2
+    let stl = binary_stl(&[
+        [[-0.01, 0.0, -0.005], [0.03, 0.0, 0.0], [0.0, 0.02, 0.005]],
+        [[0.0, 0.01, 0.0], [0.01, 0.005, 0.001], [0.02, 0.015, -0.002]],
+    ]);
+    std::fs::write(dir.path().join("meshes/finger.STL"), stl).unwrap();
+    let urdf = dir.path().join("hand.urdf");
+    std::fs::write(&urdf, mesh_hand("meshes/finger.STL", r#"scale="2 1 1""#)).unwrap();
+
+    let h = HandModel::from_urdf_file(&urdf, &opts(MeshApprox::Box)).unwrap();
+    let c = h.colliders.iter().find(|c| c.link == 1).unwrap();
+    // bbox x [-0.02, 0.06], y [0, 0.02], z [-0.005, 0.005]
+    match c.shape {
+        ColliderShape::Box { half_extents } => assert_vec(half_extents, Vec3::new(0.04, 0.01, 0.005), 1e-7, "half extents"),
+        s => panic!("expected a box, got {s:?}"),
+    }
+    assert_vec(c.pose.pos, Vec3::new(0.02, 0.01, 0.1), 1e-7, "box centre (mesh origin at z = 0.1)");
+    assert_rot(c.pose.rot, Quat::IDENTITY, 1e-7, "box rotation");
+
+    let h = HandModel::from_urdf_file(&urdf, &opts(MeshApprox::Capsule)).unwrap();
+    let c = h.colliders.iter().find(|c| c.link == 1).unwrap();
+    // longest axis x: radius = max(0.01, 0.005), half length = 0.04 - 0.01
+    match c.shape {
+        ColliderShape::Capsule { radius, half_length } => {
+            assert_close(radius, 0.01, 1e-7, "radius");
+            assert_close(half_length, 0.03, 1e-7, "half length");
+        }
+        s => panic!("expected a capsule, got {s:?}"),
+    }
+    assert_vec(c.pose.pos, Vec3::new(0.02, 0.01, 0.1), 1e-7, "capsule centre");
+    assert_vec(c.pose.rot * Vec3::Z, Vec3::X, 1e-6, "capsule axis along x");
+}
+
+#[test]
+fn mesh_opt_in_obj_via_package_and_ascii_stl_via_file_url() {
+    let dir = tempfile::tempdir().unwrap();
+    let pkg = dir.path().join("my_hand");
+    std::fs::create_dir_all(pkg.join("urdf")).unwrap();
+    std::fs::create_dir_all(pkg.join("meshes")).unwrap();
+    // OBJ: y [-0.05, 0.05], x [-0.01, 0.01], z [0, 0.02]; faces, normals and comments are ignored
+    let obj = "# a finger\nv -0.01 -0.05 0.0\nv 0.01 0.05 0.02\nv 0.0 0.0 0.01 1.0\nvn 0 0 1\nvt 0.5 0.5\nf 1 2 3\n";
+    std::fs::write(pkg.join("meshes/finger.obj"), obj).unwrap();
+    let urdf = pkg.join("urdf/hand.urdf");
+    std::fs::write(&urdf, mesh_hand("package://my_hand/meshes/finger.obj", "")).unwrap();
+    let h = HandModel::from_urdf_file(&urdf, &opts(MeshApprox::Capsule)).unwrap();
+    let c = h.colliders.iter().find(|c| c.link == 1).unwrap();
+    assert_shape(c.shape, ColliderShape::Capsule { radius: 0.01, half_length: 0.04 });
+    assert_vec(c.pose.pos, Vec3::new(0.0, 0.0, 0.11), 1e-7, "capsule centre");
+    assert_vec(c.pose.rot * Vec3::Z, Vec3::Y, 1e-6, "capsule axis along y");
+    let h = HandModel::from_urdf_file(&urdf, &opts(MeshApprox::Box)).unwrap();
+    let c = h.colliders.iter().find(|c| c.link == 1).unwrap();
+    assert_shape(c.shape, ColliderShape::Box { half_extents: Vec3::new(0.01, 0.05, 0.01) });
+
+    // ASCII STL by absolute file:// URL, half size via scale
+    let stl = "solid cube\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 0.04 0.02 0\n   vertex 0 0 0.1\n  endloop\n endfacet\nendsolid cube\n";
+    let abs = dir.path().join("abs.stl");
+    std::fs::write(&abs, stl).unwrap();
+    let text = mesh_hand(&format!("file://{}", abs.display()), r#"scale="0.5 0.5 0.5""#);
+    let h = load_str(&text, "/elsewhere/hand.urdf", &opts(MeshApprox::Capsule)).unwrap();
+    let c = h.colliders.iter().find(|c| c.link == 1).unwrap();
+    // bbox x [0, 0.02], y [0, 0.01], z [0, 0.05]: along z, radius 0.01, half length 0.015
+    assert_shape(c.shape, ColliderShape::Capsule { radius: 0.01, half_length: 0.015 });
+    assert_vec(c.pose.pos, Vec3::new(0.01, 0.005, 0.125), 1e-7, "capsule centre");
+    assert_rot(c.pose.rot, Quat::IDENTITY, 1e-7, "capsule along z");
+}
+
+#[test]
+fn mesh_errors_name_link_and_file() {
+    let text = mesh_hand("package://my_hand/meshes/finger.dae", "");
+    expect_err(&text, "/robots/dae_hand.urdf", &opts(MeshApprox::Box), &["link 'finger'", "finger.dae", "'.dae'"]);
+    let text = mesh_hand("meshes/missing_mesh.obj", "");
+    expect_err(&text, "/nonexistent/robots/nomesh_hand.urdf", &opts(MeshApprox::Box), &["link 'finger'", "missing_mesh.obj", "not found"]);
+}
+
+// ------------------------------------------------------------------------------------------------
+// errors
+
+#[test]
+fn error_missing_file() {
+    let path = Path::new("/nonexistent/dir/missing_hand.urdf");
+    let msg = format!("{:#}", HandModel::from_urdf_file(path, &HandLoadOptions::default()).unwrap_err());
+    check_msg(&msg, "missing_hand.urdf", &["cannot read"]);
+}
+
+#[test]
+fn error_malformed_xml() {
+    let text = r#"<robot name="x"><link name="palm"><collision></link></robot>"#;
+    expect_err(text, "broken_hand.urdf", &HandLoadOptions::default(), &["cannot parse"]);
+    expect_err("", "empty_hand.urdf", &HandLoadOptions::default(), &["cannot parse"]);
+    // a joint without parent
+    let text = r#"<robot name="x"><link name="palm"/><link name="a"/><joint name="j" type="fixed"><child link="a"/></joint></robot>"#;
+    expect_err(text, "noparent_hand.urdf", &HandLoadOptions::default(), &["cannot parse"]);
+}
+
+#[test]
+fn error_unsupported_joint_types() {
+    for ty in ["floating", "planar", "prismatic"] {
+        let text = robot(&[PALM.into(), link("a"), joint("slider", ty, "palm", "a", "")]);
+        let msg = expect_err(&text, "hand.urdf", &HandLoadOptions::default(), &["joint 'slider'"]);
+        assert_eq!(msg, format!("joint 'slider' in hand.urdf is {ty}; dextrain hands support revolute, continuous and fixed joints"));
+    }
+}
+
+#[test]
+fn error_loops_and_roots() {
+    // link 'b' has two parent joints
+    let text = robot(&[PALM.into(), link("a"), link("b"), rev("ja", "palm", "a"), rev("jb1", "palm", "b"), rev("jb2", "a", "b")]);
+    expect_err(&text, "loop_hand.urdf", &HandLoadOptions::default(), &["link 'b'", "'jb1'", "'jb2'", "two parent joints"]);
+    // a cycle detached from the root
+    let text = robot(&[PALM.into(), link("a"), link("b"), rev("ab", "a", "b"), rev("ba", "b", "a")]);
+    expect_err(&text, "cycle_hand.urdf", &HandLoadOptions::default(), &["link 'a'", "loop"]);
+    // every link has a parent
+    let text = robot(&[PALM.into(), link("a"), rev("pa", "palm", "a"), rev("ap", "a", "palm")]);
+    expect_err(&text, "noroot_hand.urdf", &HandLoadOptions::default(), &["loop", "link 'palm'"]);
+    // two roots
+    let text = robot(&[PALM.into(), link("a"), link("stray")]);
+    let _ = expect_err(&text, "roots_hand.urdf", &HandLoadOptions::default(), &["several root links", "'palm'", "'a'", "'stray'"]);
+    // unknown link
+    let text = robot(&[PALM.into(), link("a"), rev("ja", "palm", "a"), rev("jx", "a", "ghost")]);
+    expect_err(&text, "unknown_link_hand.urdf", &HandLoadOptions::default(), &["joint 'jx'", "unknown child link 'ghost'"]);
+}
+
+#[test]
+fn error_mimic() {
+    let text = robot(&[PALM.into(), link("a"), link("b"), rev("ja", "palm", "a"), joint("jb", "revolute", "a", "b", r#"<mimic joint="nobody"/>"#)]);
+    expect_err(&text, "mimic_hand.urdf", &HandLoadOptions::default(), &["joint 'jb'", "unknown joint 'nobody'"]);
+    let text = robot(&[PALM.into(), link("a"), link("b"), rev("ja", "palm", "a"), joint("jb", "revolute", "a", "b", r#"<mimic joint="jb"/>"#)]);
+    expect_err(&text, "self_mimic_hand.urdf", &HandLoadOptions::default(), &["joint 'jb'", "itself"]);
+    let text = robot(&[
+        PALM.into(),
+        link("a"),
+        link("b"),
+        joint("ja", "revolute", "palm", "a", r#"<mimic joint="jb"/>"#),
+        joint("jb", "revolute", "a", "b", r#"<mimic joint="ja"/>"#),
+    ]);
+    expect_err(&text, "cycle_mimic_hand.urdf", &HandLoadOptions::default(), &["joint 'ja'", "cycle"]);
+    let text = robot(&[PALM.into(), link("a"), link("b"), joint("ja", "fixed", "palm", "a", ""), joint("jb", "revolute", "a", "b", r#"<mimic joint="ja"/>"#)]);
+    expect_err(&text, "fixed_mimic_hand.urdf", &HandLoadOptions::default(), &["joint 'jb'", "joint 'ja'", "fixed"]);
+}
+
+#[test]
+fn error_limits() {
+    let lim = |l: &str| {
+        robot(&[
+            PALM.into(),
+            link("a"),
+            format!(r#"<joint name="flex" type="revolute"><parent link="palm"/><child link="a"/><axis xyz="0 1 0"/>{l}</joint>"#),
+        ])
+    };
+    expect_err(&lim(r#"<limit lower="1" upper="-1" effort="1" velocity="1"/>"#), "limits_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "lower limit 1 > upper limit -1"]);
+    expect_err(&lim(r#"<limit lower="-1" upper="1" effort="0" velocity="1"/>"#), "effort_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "effort"]);
+    expect_err(&lim(r#"<limit lower="-1" upper="1" effort="1" velocity="-2"/>"#), "velocity_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "velocity"]);
+    expect_err(&lim(""), "nolimit_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "effort"]);
+    expect_err(&lim(r#"<limit lower="-1" upper="nan" effort="1" velocity="1"/>"#), "nan_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "non-finite"]);
+    // URDF 1.2: omitted limits are infinite, which a revolute joint cannot have
+    let text = lim(r#"<limit effort="1" velocity="1"/>"#).replace("<robot ", "<robot version=\"1.2\" ");
+    expect_err(&text, "v12_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "non-finite limits"]);
+}
+
+#[test]
+fn error_too_many() {
+    // 25 movable joints in a chain
+    let mut parts = vec![PALM.to_string()];
+    let mut parent = "palm".to_string();
+    for i in 0..=MAX_JOINTS {
+        let name = format!("l{i}");
+        parts.push(format!(r#"<link name="{name}"/>"#));
+        parts.push(rev(&format!("j{i}"), &parent, &name));
+        parent = name;
+    }
+    expect_err(&robot(&parts), "long_hand.urdf", &HandLoadOptions::default(), &["25 movable", "joint 'j24'", "at most 24"]);
+    // 33 colliders
+    let col = r#"<collision><geometry><sphere radius="0.01"/></geometry></collision>"#.repeat(MAX_COLLIDERS + 1);
+    let text = robot(&[format!(r#"<link name="palm">{col}</link>"#)]);
+    expect_err(&text, "spiky_hand.urdf", &HandLoadOptions::default(), &["33 collision shapes", "link 'palm'", "at most 32"]);
+    // 7 fingertips
+    let mut parts = vec![PALM.to_string()];
+    for i in 0..=MAX_TIPS {
+        parts.push(format!(r#"<link name="f{i}_tip"/>"#));
+        parts.push(joint(&format!("t{i}"), "fixed", "palm", &format!("f{i}_tip"), ""));
+    }
+    expect_err(&robot(&parts), "octopus_hand.urdf", &HandLoadOptions::default(), &["7 fingertip frames", "f6_tip", "at most 6"]);
+}
+
+#[test]
+fn error_fingertips_and_colliders() {
+    let opts = HandLoadOptions { fingertips: vec!["if_tip".into(), "pinky_tip".into()], ..Default::default() };
+    let path = hand_path("dexhand16.urdf");
+    let msg = format!("{:#}", HandModel::from_urdf_file(&path, &opts).unwrap_err());
+    check_msg(&msg, "dexhand16.urdf", &["fingertip 'pinky_tip'", "does not exist"]);
+    // no collision at all
+    let text = robot(&[r#"<link name="palm"/>"#.into(), r#"<link name="a"/>"#.into(), rev("ja", "palm", "a")]);
+    expect_err(&text, "ghost_hand.urdf", &HandLoadOptions::default(), &["no collision", "'palm'"]);
+}
+
+#[test]
+fn error_bad_numbers() {
+    let with_palm = |palm: &str| robot(&[palm.to_string(), link("a"), rev("ja", "palm", "a")]);
+    let bad_mass = with_palm(r#"<link name="palm"><inertial><mass value="-1"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>"#);
+    expect_err(&bad_mass, "mass_hand.urdf", &HandLoadOptions::default(), &["link 'palm'", "negative mass"]);
+    let nan_mass = with_palm(r#"<link name="palm"><inertial><mass value="NaN"/><inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/></inertial></link>"#);
+    expect_err(&nan_mass, "nanmass_hand.urdf", &HandLoadOptions::default(), &["link 'palm'", "non-finite mass"]);
+    let bad_box = with_palm(r#"<link name="palm"><collision><geometry><box size="0.1 -0.1 0.02"/></geometry></collision></link>"#);
+    expect_err(&bad_box, "box_hand.urdf", &HandLoadOptions::default(), &["link 'palm'", "box size 0.1 -0.1 0.02"]);
+    let bad_radius = with_palm(r#"<link name="palm"><collision><geometry><cylinder radius="-0.01" length="0.1"/></geometry></collision></link>"#);
+    expect_err(&bad_radius, "radius_hand.urdf", &HandLoadOptions::default(), &["link 'palm'", "cylinder radius -0.01"]);
+    let inf_origin = robot(&[
+        PALM.into(),
+        link("a"),
+        r#"<joint name="ja" type="revolute"><parent link="palm"/><child link="a"/><origin xyz="0 inf 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>"#.into(),
+    ]);
+    expect_err(&inf_origin, "inf_hand.urdf", &HandLoadOptions::default(), &["joint 'ja'", "non-finite <origin>"]);
+    let zero_axis = robot(&[
+        PALM.into(),
+        link("a"),
+        r#"<joint name="ja" type="revolute"><parent link="palm"/><child link="a"/><axis xyz="0 0 0"/><limit lower="-1" upper="1" effort="1" velocity="1"/></joint>"#.into(),
+    ]);
+    expect_err(&zero_axis, "axis_hand.urdf", &HandLoadOptions::default(), &["joint 'ja'", "axis"]);
+}
