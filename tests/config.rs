@@ -1,0 +1,116 @@
+//! Config parsing, validation and `dextrain check`: every error is one line naming the file, the key,
+//! the value and what is allowed; unknown keys are errors; the resolved config has every default.
+
+use std::path::Path;
+use std::process::Command;
+
+use dextrain::config::Config;
+
+fn err_of(text: &str) -> String {
+    let e = Config::from_toml_str(text, Path::new("configs/bad.toml")).expect_err("should fail");
+    let msg = format!("{e:#}");
+    assert!(!msg.contains('\n'), "error must be one line: {msg:?}");
+    assert!(msg.contains("configs/bad.toml"), "error must name the file: {msg}");
+    msg
+}
+
+#[test]
+fn every_shipped_config_loads_and_builds_its_model() {
+    for entry in std::fs::read_dir(concat!(env!("CARGO_MANIFEST_DIR"), "/configs")).unwrap() {
+        let p = entry.unwrap().path();
+        if p.extension().is_some_and(|e| e == "toml") {
+            let cfg = Config::load(&p).unwrap_or_else(|e| panic!("{}: {e:#}", p.display()));
+            dextrain::env::SimModel::from_config(&cfg).unwrap_or_else(|e| panic!("{}: {e:#}", p.display()));
+        }
+    }
+}
+
+#[test]
+fn malformed_toml_names_the_line() {
+    let m = err_of("[sim]\nnum_envs = = 3\n");
+    assert!(m.contains("bad.toml:2:"), "{m}");
+    assert!(m.contains("invalid TOML"), "{m}");
+}
+
+#[test]
+fn unknown_keys_are_errors() {
+    let m = err_of("[sim]\nnum_env = 3\n");
+    assert!(m.contains("num_env") && m.contains("sim"), "{m}");
+    let m = err_of("[simulation]\n");
+    assert!(m.contains("simulation"), "{m}");
+    let m = err_of("[object]\nshape = { type = \"box\", half_extent = [0.1, 0.1, 0.1] }\n");
+    assert!(m.contains("half_extent"), "{m}");
+}
+
+#[test]
+fn wrong_types_name_the_key() {
+    let m = err_of("[sim]\ndt = \"fast\"\n");
+    assert!(m.contains("sim.dt"), "{m}");
+    let m = err_of("[object]\nshape = { type = \"cone\", radius = 0.1 }\n");
+    assert!(m.contains("object.shape") && m.contains("cone"), "{m}");
+}
+
+#[test]
+fn out_of_range_values_say_what_is_allowed() {
+    for (toml, key, allowed) in [
+        ("[sim]\ndt = -0.01\n", "sim.dt", "[1e-5, 0.1]"),
+        ("[sim]\nnum_envs = 0\n", "sim.num_envs", "[1, 16777216]"),
+        ("[sim]\nsubsteps = 0\n", "sim.substeps", "[1, 64]"),
+        ("[sim]\nbackend = \"tpu\"\n", "sim.backend", "\"cpu\""),
+        ("[object]\nmass = 0.0\n", "object.mass", "kg"),
+        ("[object]\nrestitution = 1.5\n", "object.restitution", "[0, 1)"),
+        ("[randomization]\nobject_mass = [1.0, 0.5]\n", "randomization.object_mass", "lo <= hi"),
+        ("[randomization]\nadded_gravity = [0.0, -1.0]\n", "randomization.added_gravity", "0 <= lo"),
+        ("[contact]\nstiffness = 0.0\n", "contact.stiffness", "N/m"),
+        ("[hand]\nkp = -3.0\n", "hand.kp", ">= 0"),
+    ] {
+        let m = err_of(toml);
+        assert!(m.contains(key), "{toml}: {m}");
+        assert!(m.contains(allowed), "{toml}: {m}");
+        assert!(m.contains(" = "), "{toml}: the value should be shown: {m}");
+    }
+}
+
+#[test]
+fn unknown_joint_names_and_missing_urdf_are_clear() {
+    let mut c = Config::from_toml_str("[hand]\nurdf = \"hands/dexhand16.urdf\"\ninit_joints = { if_j9 = 0.1 }\n", Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/x.toml"))).unwrap();
+    let e = format!("{:#}", dextrain::env::SimModel::from_config(&c).unwrap_err());
+    assert!(e.contains("hand.init_joints.if_j9") && e.contains("if_j0"), "{e}");
+    c.hand.urdf = "hands/missing.urdf".into();
+    let e = format!("{:#}", dextrain::env::SimModel::from_config(&c).unwrap_err());
+    assert!(e.contains("missing.urdf") && !e.contains('\n'), "{e}");
+}
+
+#[test]
+fn check_prints_the_resolved_config_with_every_default() {
+    let out = Command::new(env!("CARGO_BIN_EXE_dextrain"))
+        .args(["check", concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml")])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let text = String::from_utf8(out.stdout).unwrap();
+    // defaults the file does not set are printed
+    for key in ["substeps = 4", "decimation = 4", "friction_stiffness", "[randomization]", "kp_lin", "hand_collision = true"] {
+        assert!(text.contains(key), "missing {key} in:\n{text}");
+    }
+    // and the printed config is itself a valid config equal to the original
+    let again = Config::from_toml_str(&text, Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/printed.toml"))).unwrap();
+    let orig = Config::load(Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml"))).unwrap();
+    assert_eq!(again.sim, orig.sim);
+    assert_eq!(again.randomization, orig.randomization);
+    assert_eq!(again.object, orig.object);
+}
+
+#[test]
+fn cli_errors_are_one_line_and_exit_nonzero() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "[sim]\nnum_envs = -4\n").unwrap();
+    for args in [vec!["check", bad.to_str().unwrap()], vec!["check", "no/such/config.toml"]] {
+        let out = Command::new(env!("CARGO_BIN_EXE_dextrain")).args(&args).output().unwrap();
+        assert!(!out.status.success());
+        let err = String::from_utf8(out.stderr).unwrap();
+        assert_eq!(err.trim_end().lines().count(), 1, "one line: {err}");
+        assert!(err.contains(".toml"), "{err}");
+    }
+}
