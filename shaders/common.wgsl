@@ -56,7 +56,7 @@ struct Globals {
     wrist_torque_limit: f32,
     max_speed: f32,
     max_distance: f32,
-    _pad1: f32,
+    torsion_radius: f32,
     _pad2: f32,
 }
 

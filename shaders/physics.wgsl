@@ -32,7 +32,7 @@ struct Contact {
 struct ContactForce {
     force: vec3<f32>,
     spring: vec3<f32>,
-    stick: bool,
+    tdamp: f32,
 }
 
 struct SupportPoint {
@@ -182,6 +182,36 @@ fn object_inside_normal(code: u32, size: vec3<f32>, p: vec3<f32>) -> InsideNorma
     return InsideNormal(d / l, size.x - l);
 }
 
+struct BoxPush {
+    normal: vec3<f32>,
+    dist: f32,
+    point: vec3<f32>,
+}
+
+fn segment_box_push(a: vec3<f32>, b: vec3<f32>, h: vec3<f32>) -> BoxPush {
+    var best_d = 1e30;
+    var best_n = vec3<f32>(0.0, 0.0, 1.0);
+    var best_p = a;
+    for (var i = 0u; i < 3u; i++) {
+        for (var side = 0u; side < 2u; side++) {
+            let s = select(-1.0, 1.0, side == 0u);
+            // the endpoint deepest along −s·eᵢ and how far it must move along s·eᵢ to reach the face
+            let deep = select(b, a, s * a[i] <= s * b[i]);
+            let d = h[i] - s * deep[i];
+            if (d < best_d) {
+                best_d = d;
+                var n = vec3<f32>(0.0);
+                n[i] = s;
+                best_n = n;
+                var p = clamp(deep, -h, h);
+                p[i] = s * h[i];
+                best_p = p;
+            }
+        }
+    }
+    return BoxPush(best_n, best_d, best_p);
+}
+
 fn segment_closest(a: vec3<f32>, b: vec3<f32>, p: vec3<f32>) -> vec3<f32> {
     let ab = b - a;
     let l2 = dot(ab, ab);
@@ -259,7 +289,12 @@ fn collide_hand_object(ci: u32) -> Contact {
     let rc = cd.size.x;
     var n = vec3<f32>(0.0, 0.0, 1.0);
     var surf = y;
-    if (pr.inside) {
+    if (pr.inside && code == SHAPE_BOX) {
+        let bp = segment_box_push(a, b, size);
+        n = bp.normal;
+        out.depth = rc + bp.dist;
+        surf = bp.point;
+    } else if (pr.inside) {
         let ins = object_inside_normal(code, size, x);
         n = ins.normal;
         out.depth = rc + ins.dist;
@@ -311,7 +346,7 @@ fn contact_force(c: Contact, vrel: vec3<f32>, anchor: vec3<f32>, k: f32, kt: f32
     // Fn = max(k·depth − c·vn, 0)
     let fn_ = max(k * c.depth - damp * vn, 0.0);
     if (fn_ <= 0.0) {
-        return ContactForce(vec3<f32>(0.0), vec3<f32>(0.0), false);
+        return ContactForce(vec3<f32>(0.0), vec3<f32>(0.0), 0.0);
     }
     // spring kept in the tangent plane, stretched by the tangential slip: s ← s − (s·n)n + vt h
     let spring = anchor - n * dot(anchor, n) + vt * h;
@@ -322,9 +357,25 @@ fn contact_force(c: Contact, vrel: vec3<f32>, anchor: vec3<f32>, k: f32, kt: f32
     if (ft_len > limit) {
         // sliding: the friction force sits on the cone and the spring carries it
         let f_slide = ft * (limit / ft_len);
-        return ContactForce(n * fn_ + f_slide, -f_slide / kt, false);
+        let vt_len = length(vt);
+        let b = select(kt * h + damp, min(limit / vt_len, kt * h + damp), vt_len > 1e-6);
+        return ContactForce(n * fn_ + f_slide, -f_slide / kt, b);
     }
-    return ContactForce(n * fn_ + ft, spring, true);
+    return ContactForce(n * fn_ + ft, spring, kt * h + damp);
+}
+
+struct Torsion {
+    torque: vec3<f32>,
+    damping: f32,
+}
+
+const TORSION_EPS: f32 = 0.05;
+
+fn torsion_torque(n: vec3<f32>, w_rel: vec3<f32>, fn_: f32, mu: f32, radius: f32) -> Torsion {
+    let wn = dot(w_rel, n);
+    // b = μ Fn r / max(|ω·n|, ε);  τ = −b (ω·n) n
+    let b = mu * fn_ * radius / max(abs(wn), TORSION_EPS);
+    return Torsion(n * (-b * wn), b);
 }
 
 fn apply_hand_force(l: u32, x: vec3<f32>, f: vec3<f32>) {
@@ -335,6 +386,25 @@ fn apply_hand_force(l: u32, x: vec3<f32>, f: vec3<f32>) {
         let j = link - 1u;
         tau[j] += dot(joint_axis[j], cross(x - link_pos[link], f));
         link = joints[j].parent_link;
+    }
+}
+
+fn apply_hand_torque(l: u32, tq: vec3<f32>) {
+    wrist_t += tq;
+    var link = l;
+    while (link > 0u) {
+        let j = link - 1u;
+        tau[j] += dot(joint_axis[j], tq);
+        link = joints[j].parent_link;
+    }
+}
+
+fn apply_object_torque(tq: vec3<f32>, n: vec3<f32>, b: f32) {
+    obj_t += tq;
+    for (var row = 0u; row < 3u; row++) {
+        for (var col = 0u; col < 3u; col++) {
+            obj_d[(3u + row) * 6u + 3u + col] += b * n[row] * n[col];
+        }
     }
 }
 
@@ -386,9 +456,10 @@ fn contacts_and_forces(h: f32) {
             let cf = contact_force(c, vh - vo, st.anchor_ho[ci].xyz, k, kt, prm.obj_contact_c, mu_ho, h);
             st.anchor_ho[ci] = vec4<f32>(cf.spring, 1.0);
             apply_hand_force(l, c.point, cf.force);
-            let a = k * h + prm.obj_contact_c;
-            let b = select(0.0, kt * h + prm.obj_contact_c, cf.stick);
-            apply_object_force(c.point, -cf.force, c.normal, a, b);
+            apply_object_force(c.point, -cf.force, c.normal, k * h + prm.obj_contact_c, cf.tdamp);
+            let tor = torsion_torque(c.normal, link_w[l] - ow, dot(cf.force, c.normal), mu_ho, g.torsion_radius);
+            apply_hand_torque(l, tor.torque);
+            apply_object_torque(-tor.torque, c.normal, tor.damping);
             n_contacts += 1u;
             n_contacts_ho += 1u;
             max_pen_ho = max(max_pen_ho, c.depth);
@@ -422,9 +493,9 @@ fn contacts_and_forces(h: f32) {
             let vo = ovel + cross(ow, c.point - opos);
             let cf = contact_force(c, vo, st.anchor_ot[kp].xyz, k, kt, prm.obj_contact_c, mu_ot, h);
             st.anchor_ot[kp] = vec4<f32>(cf.spring, 1.0);
-            let a = k * h + prm.obj_contact_c;
-            let b = select(0.0, kt * h + prm.obj_contact_c, cf.stick);
-            apply_object_force(c.point, cf.force, c.normal, a, b);
+            apply_object_force(c.point, cf.force, c.normal, k * h + prm.obj_contact_c, cf.tdamp);
+            let tor = torsion_torque(c.normal, ow, dot(cf.force, c.normal), mu_ot, g.torsion_radius);
+            apply_object_torque(tor.torque, c.normal, tor.damping);
             n_contacts += 1u;
             max_pen = max(max_pen, c.depth);
         } else {

@@ -34,28 +34,17 @@ pub fn bench_config(n: usize) -> Config {
     c
 }
 
-/// Targets that lower the palm onto the cube and close the hand (the peer's `grasp_target`). For a
-/// hand other than dexhand16, every actuated joint goes 60 % of the way from its lower to its upper limit.
+/// Grasp targets of the bench scene: the tuned pinch of `dextrain traj synth` (thumb against the
+/// middle finger on the cube's sides at mid height, index and ring closed beside it), with the wrist
+/// where synth puts it. (The peer's own finger targets curl under the cube in this contact model and
+/// hold it with the palm alone; the pinch keeps the hand in contact with the cube.)
 pub fn grasp_targets(model: &SimModel) -> Targets {
-    let g = &model.globals;
+    let q = crate::traj::synth::grasp_posture(model, 0.6);
+    let wrist = crate::traj::synth::grasp_wrist_pose(model, &q);
     let mut t = model.default_targets();
-    t.wrist_pos = [g.init_wrist_pos[0], g.init_wrist_pos[1], g.init_wrist_pos[2] - 0.035, 0.0];
-    let named: &[(&str, f32)] = &[
-        ("if_j0", -0.45), ("if_j1", 1.5), ("if_j2", 1.0), ("if_j3", 0.6),
-        ("mf_j0", 0.0), ("mf_j1", 1.5), ("mf_j2", 1.0), ("mf_j3", 0.6),
-        ("rf_j0", 0.45), ("rf_j1", 1.5), ("rf_j2", 1.0), ("rf_j3", 0.6),
-        ("th_j0", 0.0), ("th_j1", 1.5), ("th_j2", 1.1), ("th_j3", 0.6),
-    ];
-    let is_dexhand = named.iter().all(|(n, _)| model.hand.joint_index(n).is_some());
-    for (j, jd) in model.joints.iter().enumerate() {
-        t.q[j] = if is_dexhand {
-            named.iter().find(|(n, _)| *n == model.hand.joints[j].name).map(|x| x.1).unwrap_or(0.0)
-        } else if jd.lower > -1e29 && jd.upper < 1e29 {
-            jd.lower + 0.6 * (jd.upper - jd.lower)
-        } else {
-            0.0
-        };
-    }
+    t.wrist_pos = [wrist.pos.x, wrist.pos.y, wrist.pos.z, 0.0];
+    t.wrist_rot = wrist.rot.to_array();
+    t.q[..q.len()].copy_from_slice(&q);
     t
 }
 

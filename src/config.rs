@@ -158,6 +158,9 @@ pub struct ContactConfig {
     /// Effective mass of a hand link at a contact (kg), used with the object's mass to turn the
     /// restitution into a damping coefficient (reduced mass of the pair).
     pub hand_effective_mass: f32,
+    /// Radius (m) of the contact patch of hand–object and object–table contacts: it resists spinning
+    /// about the contact normal with up to μ·Fn·radius (torsional friction); 0 turns it off.
+    pub torsion_radius: f32,
 }
 
 /// `[randomization]`: ranges `[lo, hi]` drawn uniformly per env at every reset. Scales multiply the
@@ -278,7 +281,7 @@ impl Default for TableConfig {
 
 impl Default for ContactConfig {
     fn default() -> Self {
-        ContactConfig { stiffness: 1.0e4, friction_stiffness: 1.0e4, hand_effective_mass: 0.1 }
+        ContactConfig { stiffness: 1.0e4, friction_stiffness: 1.0e4, hand_effective_mass: 0.1, torsion_radius: 0.005 }
     }
 }
 
@@ -459,6 +462,9 @@ impl Config {
         pos_in(&err, "contact.stiffness", c.stiffness, 1.0, 1e8, "a stiffness in N/m in [1, 1e8]")?;
         pos_in(&err, "contact.friction_stiffness", c.friction_stiffness, 1.0, 1e8, "a stiffness in N/m in [1, 1e8]")?;
         pos_in(&err, "contact.hand_effective_mass", c.hand_effective_mass, 1e-4, 1e3, "a mass in kg in [1e-4, 1000]")?;
+        if !(c.torsion_radius.is_finite() && (0.0..=0.1).contains(&c.torsion_radius)) {
+            return Err(err("contact.torsion_radius", c.torsion_radius.to_string(), "a patch radius in m in [0, 0.1]"));
+        }
 
         let r = &self.randomization;
         for (key, range) in [

@@ -73,7 +73,8 @@ pub struct Globals {
     pub wrist_torque_limit: f32,
     pub max_speed: f32,
     pub max_distance: f32,
-    pub _pad1: f32,
+    /// Radius (m) of the contact patch that gives torsional friction (μ·Fn·r).
+    pub torsion_radius: f32,
     pub _pad2: f32,
 }
 

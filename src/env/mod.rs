@@ -253,7 +253,7 @@ impl SimModel {
             wrist_torque_limit: cfg.wrist.torque_limit,
             max_speed: cfg.sim.max_speed,
             max_distance: cfg.sim.max_distance,
-            _pad1: 0.0,
+            torsion_radius: cfg.contact.torsion_radius,
             _pad2: 0.0,
         };
         let spec = EnvSpec {

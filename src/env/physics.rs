@@ -27,6 +27,8 @@ use crate::hand::{MAX_JOINTS, MAX_TIPS};
 pub const MAX_LINKS: usize = MAX_JOINTS + 1;
 /// Alternating-projection iterations of the hand–object closest-point search.
 pub const PROJ_ITERS: usize = 4;
+/// Spin rate (rad/s) below which torsional friction acts as a damper instead of a constant torque.
+pub const TORSION_EPS: f32 = 0.05;
 
 /// Read-only description of the run shared by all envs (the shader's bindings 0–3).
 #[derive(Clone, Copy)]
@@ -240,6 +242,35 @@ pub fn object_inside_normal(code: u32, size: Vec3, p: Vec3) -> (Vec3, f32) {
     (d / l, size.x - l)
 }
 
+/// Minimum translation that pushes the segment [a, b] (box frame) out of the box of half extents `h`
+/// along a face normal (separating-axis test on the three face axes): the outward normal, the distance
+/// and the deepest endpoint moved onto that face. Continuous with the closest-point contact at the
+/// moment the segment first touches the box, so a capsule that sinks in keeps being pushed out the
+/// way it came.
+pub fn segment_box_push(a: Vec3, b: Vec3, h: Vec3) -> (Vec3, f32, Vec3) {
+    let mut best_d = 1e30f32;
+    let mut best_n = Vec3::Z;
+    let mut best_p = a;
+    for i in 0..3 {
+        for side in 0..2 {
+            let s = if side == 0 { 1.0 } else { -1.0 };
+            // the endpoint deepest along −s·eᵢ and how far it must move along s·eᵢ to reach the face
+            let deep = if s * a[i] <= s * b[i] { a } else { b };
+            let d = h[i] - s * deep[i];
+            if d < best_d {
+                best_d = d;
+                let mut n = Vec3::ZERO;
+                n[i] = s;
+                best_n = n;
+                let mut p = deep.clamp(-h, h);
+                p[i] = s * h[i];
+                best_p = p;
+            }
+        }
+    }
+    (best_n, best_d, best_p)
+}
+
 /// Closest point on the segment [a, b] to `p`.
 pub fn segment_closest(a: Vec3, b: Vec3, p: Vec3) -> Vec3 {
     let ab = b - a;
@@ -320,7 +351,12 @@ pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch,
     let rc = cd.size[0];
     let mut n = Vec3::Z;
     let mut surf = y;
-    if inside {
+    if inside && code == SHAPE_BOX {
+        let (nb, dist, pb) = segment_box_push(a, b, size);
+        n = nb;
+        out.depth = rc + dist;
+        surf = pb;
+    } else if inside {
         let (ni, dist) = object_inside_normal(code, size, x);
         n = ni;
         out.depth = rc + dist;
@@ -367,18 +403,22 @@ pub fn collide_object_table(st: &EnvState, p: &EnvParams, m: &Model, k: u32) -> 
     Contact { depth: r - w.z, normal: Vec3::Z, point: Vec3::new(w.x, w.y, 0.0) }
 }
 
-/// Penalty contact force on the first body and the new tangential spring.
-/// `vrel`: velocity of the first body relative to the second at the contact point. Returns
-/// (force, spring, sticking).
+/// Penalty contact force on the first body, the new tangential spring, and the tangential damping
+/// the object's implicit solve uses for this contact. `vrel`: velocity of the first body relative to
+/// the second at the contact point. Returns (force, spring, tangential damping).
+///
+/// Sticking, the tangential force −kt·(s + vt·h) − c·vt has the damping kt·h + c. Sliding, the force
+/// μ·Fn opposing the slip is treated as the damper μ·Fn/|vt|, so that the implicit solve can bring the
+/// slip to rest but never reverse it within a substep (explicit sliding friction chatters on light objects).
 #[allow(clippy::too_many_arguments)]
-pub fn contact_force(c: &Contact, vrel: Vec3, anchor: Vec3, k: f32, kt: f32, damp: f32, mu: f32, h: f32) -> (Vec3, Vec3, bool) {
+pub fn contact_force(c: &Contact, vrel: Vec3, anchor: Vec3, k: f32, kt: f32, damp: f32, mu: f32, h: f32) -> (Vec3, Vec3, f32) {
     let n = c.normal;
     let vn = vrel.dot(n);
     let vt = vrel - n * vn;
     // Fn = max(k·depth − c·vn, 0)
     let fn_ = (k * c.depth - damp * vn).max(0.0);
     if fn_ <= 0.0 {
-        return (Vec3::ZERO, Vec3::ZERO, false);
+        return (Vec3::ZERO, Vec3::ZERO, 0.0);
     }
     // spring kept in the tangent plane, stretched by the tangential slip: s ← s − (s·n)n + vt h
     let spring = anchor - n * anchor.dot(n) + vt * h;
@@ -389,9 +429,21 @@ pub fn contact_force(c: &Contact, vrel: Vec3, anchor: Vec3, k: f32, kt: f32, dam
     if ft_len > limit {
         // sliding: the friction force sits on the cone and the spring carries it
         let f_slide = ft * (limit / ft_len);
-        return (n * fn_ + f_slide, -f_slide / kt, false);
+        let vt_len = vt.length();
+        let b = if vt_len > 1e-6 { (limit / vt_len).min(kt * h + damp) } else { kt * h + damp };
+        return (n * fn_ + f_slide, -f_slide / kt, b);
     }
-    (n * fn_ + ft, spring, true)
+    (n * fn_ + ft, spring, kt * h + damp)
+}
+
+/// Torsional friction of a contact patch of radius `radius`: a torque on the first body opposing the
+/// relative spin about the normal, up to μ·Fn·radius, regularised as a damper below `TORSION_EPS`.
+/// Returns (torque, its damping coefficient for the object's implicit solve).
+pub fn torsion_torque(n: Vec3, w_rel: Vec3, fn_: f32, mu: f32, radius: f32) -> (Vec3, f32) {
+    let wn = w_rel.dot(n);
+    // b = μ Fn r / max(|ω·n|, ε);  τ = −b (ω·n) n
+    let b = mu * fn_ * radius / wn.abs().max(TORSION_EPS);
+    (n * (-b * wn), b)
 }
 
 /// Applies a force on hand link `l` at world point `x`: τ_j += aⱼ·((x − oⱼ) × F) up the chain, and
@@ -404,6 +456,27 @@ pub fn apply_hand_force(m: &Model, s: &mut Scratch, l: usize, x: Vec3, f: Vec3) 
         let j = link - 1;
         s.tau[j] += s.joint_axis[j].dot((x - s.link_pos[link]).cross(f));
         link = m.joints[j].parent_link as usize;
+    }
+}
+
+/// Applies a torque on hand link `l`: τ_j += aⱼ·T up the chain, and on the wrist.
+pub fn apply_hand_torque(m: &Model, s: &mut Scratch, l: usize, tq: Vec3) {
+    s.wrist_t += tq;
+    let mut link = l;
+    while link > 0 {
+        let j = link - 1;
+        s.tau[j] += s.joint_axis[j].dot(tq);
+        link = m.joints[j].parent_link as usize;
+    }
+}
+
+/// Adds a torque on the object and its implicit rotational damping b·nnᵀ.
+pub fn apply_object_torque(s: &mut Scratch, tq: Vec3, n: Vec3, b: f32) {
+    s.obj_t += tq;
+    for row in 0..3 {
+        for col in 0..3 {
+            s.obj_d[(3 + row) * 6 + 3 + col] += b * n[row] * n[col];
+        }
     }
 }
 
@@ -458,12 +531,13 @@ pub fn contacts_and_forces(st: &mut EnvState, p: &EnvParams, m: &Model, s: &mut 
         if c.depth > 0.0 {
             let vh = link_point_velocity(s, l, c.point);
             let vo = ovel + ow.cross(c.point - opos);
-            let (f, spring, stick) = contact_force(&c, vh - vo, v3(st.anchor_ho[ci]), k, kt, p.obj_contact_c, mu_ho, h);
+            let (f, spring, b) = contact_force(&c, vh - vo, v3(st.anchor_ho[ci]), k, kt, p.obj_contact_c, mu_ho, h);
             st.anchor_ho[ci] = [spring.x, spring.y, spring.z, 1.0];
             apply_hand_force(m, s, l, c.point, f);
-            let a = k * h + p.obj_contact_c;
-            let b = if stick { kt * h + p.obj_contact_c } else { 0.0 };
-            apply_object_force(st, s, c.point, -f, c.normal, a, b);
+            apply_object_force(st, s, c.point, -f, c.normal, k * h + p.obj_contact_c, b);
+            let (tq, br) = torsion_torque(c.normal, s.link_w[l] - ow, f.dot(c.normal), mu_ho, g.torsion_radius);
+            apply_hand_torque(m, s, l, tq);
+            apply_object_torque(s, -tq, c.normal, br);
             s.contacts += 1;
             s.contacts_ho += 1;
             s.max_pen_ho = s.max_pen_ho.max(c.depth);
@@ -496,11 +570,11 @@ pub fn contacts_and_forces(st: &mut EnvState, p: &EnvParams, m: &Model, s: &mut 
         let c = collide_object_table(st, p, m, kp);
         if c.depth > 0.0 {
             let vo = ovel + ow.cross(c.point - opos);
-            let (f, spring, stick) = contact_force(&c, vo, v3(st.anchor_ot[ki]), k, kt, p.obj_contact_c, mu_ot, h);
+            let (f, spring, b) = contact_force(&c, vo, v3(st.anchor_ot[ki]), k, kt, p.obj_contact_c, mu_ot, h);
             st.anchor_ot[ki] = [spring.x, spring.y, spring.z, 1.0];
-            let a = k * h + p.obj_contact_c;
-            let b = if stick { kt * h + p.obj_contact_c } else { 0.0 };
-            apply_object_force(st, s, c.point, f, c.normal, a, b);
+            apply_object_force(st, s, c.point, f, c.normal, k * h + p.obj_contact_c, b);
+            let (tq, br) = torsion_torque(c.normal, ow, f.dot(c.normal), mu_ot, g.torsion_radius);
+            apply_object_torque(s, tq, c.normal, br);
             s.contacts += 1;
             s.max_pen = s.max_pen.max(c.depth);
         } else {

@@ -92,6 +92,19 @@ pub fn grasp_posture(model: &SimModel, close_fraction: f32) -> Vec<f32> {
     q
 }
 
+/// The wrist pose (initial orientation) that puts the centre of the fingertips' bounding box, in the
+/// posture `q`, at the object's nominal centre: closing to `q`, the fingers stall on its sides.
+pub fn grasp_wrist_pose(model: &SimModel, q: &[f32]) -> Pose {
+    let g = &model.globals;
+    let rot = Quat::from_array(g.init_wrist_rot);
+    let links = model.hand.forward_kinematics(q);
+    let tips: Vec<Vec3> = model.hand.fingertips.iter().map(|t| rot * links[t.link].transform_point(t.pos)).collect();
+    let lo = tips.iter().copied().fold(Vec3::splat(f32::INFINITY), Vec3::min);
+    let hi = tips.iter().copied().fold(Vec3::splat(f32::NEG_INFINITY), Vec3::max);
+    let obj = Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]);
+    Pose::new(obj - 0.5 * (lo + hi), rot)
+}
+
 /// Builds the scripted reference for a config.
 pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
     for (name, v) in [("--approach", args.approach), ("--close", args.close), ("--lift-time", args.lift_time), ("--hold", args.hold)] {
@@ -111,17 +124,9 @@ pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
     let wrist0 = Pose::new(Vec3::from_slice(&g.init_wrist_pos[..3]), Quat::from_array(g.init_wrist_rot));
     let open: Vec<f32> = model.joints.iter().map(|j| j.default_q).collect();
     let closed = grasp_posture(&model, args.close_fraction);
-    // fingertips of the closed hand in the wrist frame (orientation of the initial wrist)
-    let links = hand.forward_kinematics(&closed);
-    let tips: Vec<Vec3> = hand.fingertips.iter().map(|t| wrist0.rot * links[t.link].transform_point(t.pos)).collect();
-    // centre of the fingertips' bounding box
-    let lo = tips.iter().copied().fold(Vec3::splat(f32::INFINITY), Vec3::min);
-    let hi = tips.iter().copied().fold(Vec3::splat(f32::NEG_INFINITY), Vec3::max);
-    let tip_centre = 0.5 * (lo + hi);
     let obj = Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]);
     let obj_rot = Quat::from_rotation_z(g.obj_init[2]);
-    // the closed fingertips meet at the object's centre: they stall on its surface and squeeze
-    let grasp = Pose::new(obj - tip_centre, wrist0.rot);
+    let grasp = grasp_wrist_pose(&model, &closed);
     let lifted = Pose::new(grasp.pos + Vec3::Z * args.lift, grasp.rot);
     let t1 = args.approach as f64;
     let t2 = t1 + args.close as f64;
