@@ -233,10 +233,28 @@ fn collider_pose(ci: u32) -> ColliderPose {
     return ColliderPose(pos, quat_mul(link_rot[l], cd.rot));
 }
 
+fn bounding_radius(code: u32, size: vec3<f32>) -> f32 {
+    if (code == SHAPE_SPHERE) {
+        return size.x;
+    }
+    if (code == SHAPE_BOX) {
+        return length(size);
+    }
+    if (code == SHAPE_CAPSULE) {
+        return size.x + size.y;
+    }
+    return sqrt(size.x * size.x + size.y * size.y);
+}
+
 fn collide_hand_object(ci: u32) -> Contact {
     let cd = colliders[ci];
     let cp = collider_pose(ci);
     let opos = st.obj_pos.xyz;
+    let reach = bounding_radius(cd.shape, cd.size.xyz) + bounding_radius(g.obj_shape, prm.obj_size.xyz);
+    let dc = cp.pos - opos;
+    if (dot(dc, dc) > reach * reach) {
+        return Contact(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
+    }
     let orot = st.obj_rot;
     let oinv = quat_conj(orot);
     let code = g.obj_shape;

@@ -9,7 +9,7 @@
 
 use std::path::{Path, PathBuf};
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use glam::{Quat, Vec3};
 use serde::Serialize;
 
@@ -287,7 +287,8 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     }
     cfg.validate()?;
     let traj = Trajectory::load(&args.traj)?;
-    let report = replay(&cfg, &traj, args.kinematic, args.out.as_deref())?;
+    let report = replay(&cfg, &traj, args.kinematic, args.out.as_deref())
+        .with_context(|| format!("replaying {} with {}", args.traj.display(), args.config.display()))?;
     println!("{}", serde_json::to_string(&report)?);
     Ok(())
 }

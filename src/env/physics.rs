@@ -295,11 +295,30 @@ pub fn collider_pose(m: &Model, s: &Scratch, ci: usize) -> (Vec3, Vec4) {
     (pos, quat_mul(s.link_rot[l], v4(cd.rot)))
 }
 
-/// Narrow phase between hand collider `ci` and the object (normal from object to hand).
+/// Radius of a sphere about the centre that bounds a shape (sphere/box/capsule/cylinder `code`, size).
+pub fn bounding_radius(code: u32, size: Vec3) -> f32 {
+    if code == SHAPE_SPHERE {
+        return size.x;
+    }
+    if code == SHAPE_BOX {
+        return size.length();
+    }
+    if code == SHAPE_CAPSULE {
+        return size.x + size.y;
+    }
+    (size.x * size.x + size.y * size.y).sqrt()
+}
+
+/// Narrow phase between hand collider `ci` and the object (normal from object to hand). Pairs whose
+/// bounding spheres do not touch are rejected first (depth −1).
 pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize) -> Contact {
     let cd = &m.colliders[ci];
     let (cpos, crot) = collider_pose(m, s, ci);
     let opos = v3(st.obj_pos);
+    let reach = bounding_radius(cd.shape, v3(cd.size)) + bounding_radius(m.g.obj_shape, v3(p.obj_size));
+    if (cpos - opos).length_squared() > reach * reach {
+        return Contact { depth: -1.0, normal: Vec3::Z, point: opos };
+    }
     let orot = v4(st.obj_rot);
     let oinv = quat_conj(orot);
     let code = m.g.obj_shape;

@@ -1,0 +1,106 @@
+//! End to end through the binary: synth → replay (dynamic and kinematic) → a recorded rollout that
+//! the independent Python `mcap` reader opens; the shipped reference is what synth writes.
+
+use std::path::Path;
+use std::process::Command;
+
+const ROOT: &str = env!("CARGO_MANIFEST_DIR");
+
+fn dextrain(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_dextrain")).args(args).current_dir(ROOT).output().unwrap();
+    (out.status.success(), String::from_utf8_lossy(&out.stdout).into_owned(), String::from_utf8_lossy(&out.stderr).into_owned())
+}
+
+fn json_line(stdout: &str) -> serde_json::Value {
+    let lines: Vec<&str> = stdout.lines().collect();
+    assert_eq!(lines.len(), 1, "expected one JSON line, got {stdout:?}");
+    serde_json::from_str(lines[0]).unwrap()
+}
+
+#[test]
+fn shipped_reference_is_what_synth_writes() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("ref.csv");
+    let (ok, _, err) = dextrain(&["traj", "synth", "configs/grasp_lift.toml", "--out", out.to_str().unwrap()]);
+    assert!(ok, "{err}");
+    let fresh = dextrain::traj::Trajectory::load(&out).unwrap();
+    for shipped in ["configs/refs/grasp_lift.csv", "configs/refs/grasp_lift.mcap"] {
+        let t = dextrain::traj::Trajectory::load(Path::new(ROOT).join(shipped)).unwrap();
+        assert_eq!(t, fresh, "{shipped} is stale: regenerate it with `dextrain traj synth configs/grasp_lift.toml --out {shipped}`");
+    }
+}
+
+#[test]
+fn replay_reports_one_json_line_and_records_a_rollout_other_tools_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let roll = dir.path().join("rollout.mcap");
+    let (ok, stdout, err) = dextrain(&[
+        "replay", "configs/grasp_lift.toml", "--traj", "configs/refs/grasp_lift.mcap", "--backend", "cpu", "--out", roll.to_str().unwrap(),
+    ]);
+    assert!(ok, "{err}");
+    let r = json_line(&stdout);
+    assert_eq!(r["mode"], "dynamic");
+    let frames = r["frames"].as_u64().unwrap();
+    assert_eq!(frames, 139, "4.6 s at 30 Hz, both ends included");
+    assert!(r["object_lift_m"].as_f64().unwrap() > 0.1);
+    assert!(r["terminal_object_pos_err_m"].as_f64().unwrap() < 0.05);
+    assert!(r["peak_penetration_mm"].as_f64().unwrap() < 2.0);
+    assert!(r["mean_fingertip_force_n"].as_f64().unwrap() > 0.5);
+
+    let (ok, stdout, err) = dextrain(&["replay", "configs/grasp_lift.toml", "--traj", "configs/refs/grasp_lift.csv", "--kinematic"]);
+    assert!(ok, "{err}");
+    let k = json_line(&stdout);
+    assert_eq!(k["mode"], "kinematic");
+    assert!(k["peak_penetration_mm"].as_f64().unwrap() > r["peak_penetration_mm"].as_f64().unwrap());
+
+    // the independent reader: the Python mcap package
+    let required = std::env::var("REQUIRE_PYTHON_MCAP").is_ok_and(|v| v == "1");
+    let probe = Command::new("python3").args(["-c", "import mcap.reader"]).output();
+    if !probe.as_ref().is_ok_and(|o| o.status.success()) {
+        assert!(!required, "REQUIRE_PYTHON_MCAP=1 but the Python mcap package is not importable (pip install mcap jsonschema)");
+        eprintln!("replay rollout: Python reader SKIPPED: the mcap package is not importable (pip install mcap jsonschema)");
+        return;
+    }
+    let out = Command::new("python3").arg(Path::new(ROOT).join("tests/read_rollout.py")).arg(&roll).output().unwrap();
+    assert!(out.status.success(), "python reader failed: {}", String::from_utf8_lossy(&out.stderr));
+    let s: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for topic in ["/dextrain/hand_state", "/dextrain/poses", "/dextrain/contacts", "/tf", "/scene"] {
+        assert_eq!(s["counts"][topic].as_u64(), Some(frames), "{topic}");
+    }
+    assert_eq!(s["first_hand_state_joint_names"].as_array().unwrap().len(), 16);
+    assert_eq!(s["first_tf_children"].as_array().unwrap().len(), 17 + 2, "17 links, the object and its reference");
+    if required {
+        assert_eq!(s["validated"], true, "REQUIRE_PYTHON_MCAP=1 validates every message against its schema");
+    }
+}
+
+#[test]
+fn bench_prints_one_json_line_with_the_figures() {
+    let (ok, stdout, err) = dextrain(&["bench", "--backend", "cpu", "--envs", "8", "--chunks", "2", "--seconds", "0"]);
+    assert!(ok, "{err}");
+    let b = json_line(&stdout);
+    assert_eq!(b["num_envs"], 8);
+    assert_eq!(b["actuators"], 22);
+    assert!(b["backend"].as_str().unwrap().starts_with("cpu"));
+    for key in ["env_steps_per_s", "physics_steps_per_s", "cpu_us_per_env_step"] {
+        assert!(b[key]["median"].as_f64().unwrap() > 0.0, "{key}");
+    }
+    assert!(b["contacts_per_physics_step"].as_f64().unwrap() > 0.5, "the scene must be contact rich");
+    assert_eq!(b["bad_resets"], 0);
+}
+
+#[test]
+fn bad_reference_files_are_one_line_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "t,wrist_x,wrist_y,wrist_z,wrist_qx,wrist_qy,wrist_qz,wrist_qw,joint:if_j0\n0,0,0,0.2,0,0,0,1,abc\n").unwrap();
+    let (ok, _, err) = dextrain(&["replay", "configs/grasp_lift.toml", "--traj", bad.to_str().unwrap()]);
+    assert!(!ok);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    assert!(err.contains("bad.csv") && err.contains("joint:if_j0"), "{err}");
+    let unknown = dir.path().join("unknown.csv");
+    std::fs::write(&unknown, "t,wrist_x,wrist_y,wrist_z,wrist_qx,wrist_qy,wrist_qz,wrist_qw,joint:pinky\n0,0,0,0.2,0,0,0,1,0.1\n").unwrap();
+    let (ok, _, err) = dextrain(&["replay", "configs/grasp_lift.toml", "--traj", unknown.to_str().unwrap()]);
+    assert!(!ok);
+    assert!(err.contains("pinky") && err.contains("unknown.csv") && err.trim_end().lines().count() == 1, "{err}");
+}
