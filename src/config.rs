@@ -362,7 +362,7 @@ impl Config {
 
     /// The resolved config as TOML, every default filled in.
     pub fn to_toml(&self) -> Result<String> {
-        toml::to_string_pretty(self).context("cannot serialise the config")
+        toml::to_string(self).context("cannot serialise the config")
     }
 
     /// The backend the config asks for.

@@ -1,5 +1,5 @@
 //! Reference trajectory files: MCAP (one JSON message per keyframe) and CSV (one row per
-//! keyframe). The format is documented for users in `docs/trajectory_format.md`; keep the two in
+//! keyframe). The format is documented for users in `README.md (section "Reference trajectory format")`; keep the two in
 //! step (tests/traj.rs checks that the JSON Schema and the examples there match this code).
 //!
 //! Reading is strict and never panics: every problem is a one-line error naming the file, the
@@ -50,7 +50,7 @@ pub const REFERENCE_JSON_SCHEMA: &str = r##"{
       "$ref": "#/$defs/Pose"
     },
     "joints": {
-      "description": "Joint position targets (rad; m for prismatic joints) by joint name. Every frame names the same joints.",
+      "description": "Joint position targets (rad) by joint name. Every frame names the same joints.",
       "type": "object",
       "propertyNames": { "$ref": "#/$defs/Name" },
       "additionalProperties": { "type": "number" }
@@ -310,7 +310,7 @@ impl Trajectory {
     }
 
     /// Reads a CSV reference held in memory; `source` names it in errors (e.g. the file name).
-    /// See `docs/trajectory_format.md` for the columns. Blank lines and lines starting with `#`
+    /// See `README.md (section "Reference trajectory format")` for the columns. Blank lines and lines starting with `#`
     /// are skipped, cells are trimmed, rows may come in any order (they are sorted by `t`).
     pub fn from_csv_str(text: &str, source: &str) -> Result<Trajectory> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);

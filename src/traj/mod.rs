@@ -8,7 +8,7 @@
 //!
 //! Files are read with [`Trajectory::load`] (`.mcap` or `.csv`) and written with
 //! [`Trajectory::save`], [`Trajectory::save_mcap`] or [`Trajectory::save_csv`]; the formats are
-//! described in `docs/trajectory_format.md` and implemented in [`io`]. Between keyframes
+//! described in `README.md (section "Reference trajectory format")` and implemented in [`io`]. Between keyframes
 //! [`Trajectory::sample`] interpolates linearly (positions, joints, fingertips) and by shortest-arc
 //! slerp (wrist and object rotations); outside the keyframes it holds the first or last frame.
 
