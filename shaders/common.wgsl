@@ -229,6 +229,7 @@ fn rand_uniform(seed: u32, env: u32, episode: u32, purpose: u32, k: u32) -> f32 
 @group(0) @binding(0) var<uniform> g: Globals;
 @group(0) @binding(1) var<storage, read> joints: array<JointDesc>;
 @group(0) @binding(2) var<storage, read> colliders: array<ColliderDesc>;
+// binding 3 (fingertip frames, `TipDesc`) is reserved for the task layer
 @group(0) @binding(3) var<storage, read> tips: array<TipDesc>;
 @group(0) @binding(4) var<storage, read_write> states: array<EnvState>;
 @group(0) @binding(5) var<storage, read_write> params: array<EnvParams>;

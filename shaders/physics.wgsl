@@ -474,7 +474,9 @@ fn contacts_and_forces(h: f32) {
             let cf = contact_force(c, vh - vo, st.anchor_ho[ci].xyz, k, kt, prm.obj_contact_c, mu_ho, h);
             st.anchor_ho[ci] = vec4<f32>(cf.spring, 1.0);
             apply_hand_force(l, c.point, cf.force);
-            apply_object_force(c.point, -cf.force, c.normal, k * h + prm.obj_contact_c, cf.tdamp);
+            // the normal damper acts only while the contact pushes (Fn > 0)
+            let a = select(0.0, k * h + prm.obj_contact_c, dot(cf.force, c.normal) > 0.0);
+            apply_object_force(c.point, -cf.force, c.normal, a, cf.tdamp);
             let tor = torsion_torque(c.normal, link_w[l] - ow, dot(cf.force, c.normal), mu_ho, g.torsion_radius);
             apply_hand_torque(l, tor.torque);
             apply_object_torque(-tor.torque, c.normal, tor.damping);
@@ -511,7 +513,8 @@ fn contacts_and_forces(h: f32) {
             let vo = ovel + cross(ow, c.point - opos);
             let cf = contact_force(c, vo, st.anchor_ot[kp].xyz, k, kt, prm.obj_contact_c, mu_ot, h);
             st.anchor_ot[kp] = vec4<f32>(cf.spring, 1.0);
-            apply_object_force(c.point, cf.force, c.normal, k * h + prm.obj_contact_c, cf.tdamp);
+            let a = select(0.0, k * h + prm.obj_contact_c, dot(cf.force, c.normal) > 0.0);
+            apply_object_force(c.point, cf.force, c.normal, a, cf.tdamp);
             let tor = torsion_torque(c.normal, ow, dot(cf.force, c.normal), mu_ot, g.torsion_radius);
             apply_object_torque(tor.torque, c.normal, tor.damping);
             n_contacts += 1u;

@@ -89,30 +89,9 @@ impl ObjectShape {
         }
     }
 
-    /// Principal moments of inertia (kg·m²) of the solid of mass `mass`, about its centre.
+    /// Principal moments of inertia (kg·m²) of the solid of mass `mass`, about its centre (the same
+    /// formulas the simulator uses at reset).
     pub fn inertia_diag(&self, mass: f32) -> Vec3 {
-        match *self {
-            ObjectShape::Sphere { radius } => Vec3::splat(0.4 * mass * radius * radius),
-            ObjectShape::Box { half_extents: [x, y, z] } => {
-                // I_xx = m (b² + c²)/3 with half extents
-                Vec3::new(mass * (y * y + z * z) / 3.0, mass * (x * x + z * z) / 3.0, mass * (x * x + y * y) / 3.0)
-            }
-            ObjectShape::Cylinder { radius: r, half_length: h } => {
-                let l = 2.0 * h;
-                let ixx = mass * (3.0 * r * r + l * l) / 12.0;
-                Vec3::new(ixx, ixx, 0.5 * mass * r * r)
-            }
-            ObjectShape::Capsule { radius: r, half_length: h } => {
-                // cylinder + two hemispheres sharing the mass by volume
-                let vc = std::f32::consts::PI * r * r * 2.0 * h;
-                let vs = 4.0 / 3.0 * std::f32::consts::PI * r * r * r;
-                let mc = mass * vc / (vc + vs);
-                let ms = mass - mc;
-                let l = 2.0 * h;
-                let izz = 0.5 * mc * r * r + 0.4 * ms * r * r;
-                let ixx = mc * (3.0 * r * r + l * l) / 12.0 + ms * (0.4 * r * r + h * h + 0.75 * h * r);
-                Vec3::new(ixx, ixx, izz)
-            }
-        }
+        crate::env::reset::object_inertia(self.code(), Vec3::from(self.size_params()), mass)
     }
 }

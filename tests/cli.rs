@@ -104,3 +104,27 @@ fn bad_reference_files_are_one_line_errors() {
     assert!(!ok);
     assert!(err.contains("pinky") && err.contains("unknown.csv") && err.trim_end().lines().count() == 1, "{err}");
 }
+
+#[test]
+fn synth_and_replay_work_for_the_three_finger_mimic_hand() {
+    use dextrain::config::Config;
+    let text = "[sim]\nbackend = \"cpu\"\nnum_envs = 2\n[hand]\nurdf = \"hands/tri3_mimic.urdf\"\n[wrist]\ninit_pos = [0.0, 0.0, 0.3]\n\
+                [object]\nshape = { type = \"cylinder\", radius = 0.03, half_length = 0.04 }\n";
+    let cfg = Config::from_toml_str(text, &Path::new(ROOT).join("configs/tri3.toml")).unwrap();
+    let args = dextrain::traj::synth::SynthArgs::defaults("configs/tri3.toml".into(), "unused.csv".into());
+    let traj = dextrain::traj::synth::synth(&cfg, &args).unwrap();
+    let model = dextrain::env::SimModel::from_config(&cfg).unwrap();
+    assert_eq!(traj.joint_names, model.spec.joint_names);
+    assert_eq!(traj.fingertip_names.len(), 3);
+    // mimic followers in the reference follow their leaders: q = 0.8 q_leader + 0.15
+    let last = traj.frames.last().unwrap();
+    for (j, jt) in model.hand.joints.iter().enumerate() {
+        if let Some(m) = jt.mimic {
+            assert!((last.joints[j] - (m.multiplier * last.joints[m.leader] + m.offset)).abs() < 1e-6, "{}", jt.name);
+        }
+    }
+    let r = dextrain::replay::replay(&cfg, &traj, false, None).unwrap();
+    assert_eq!(r.bad_resets, 0);
+    assert_eq!(r.envs, 2);
+    assert!(r.peak_penetration_mm < 5.0, "{}", r.peak_penetration_mm);
+}

@@ -135,7 +135,6 @@ impl GpuEnvBatch {
         let none = wgpu::BufferUsages::empty();
         let joints = storage(device, "joints", &model.joints, none);
         let colliders = storage(device, "colliders", &model.colliders, none);
-        let tips = storage(device, "tips", &model.tips, none);
         let states = storage(device, "states", &vec![EnvState::default(); n], none);
         let params = storage(device, "params", &vec![<EnvParams as bytemuck::Zeroable>::zeroed(); n], none);
         let targets = storage(device, "targets", &vec![Targets::default(); n], none);
@@ -177,7 +176,6 @@ impl GpuEnvBatch {
             layout: &reset_pipeline.get_bind_group_layout(0),
             entries: &[entry(0, &globals), entry(1, &joints), entry(4, &states), entry(5, &params), entry(8, &reset_mask)],
         });
-        drop(tips);
         let mut b = GpuEnvBatch {
             ctx,
             model,

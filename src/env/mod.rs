@@ -199,6 +199,12 @@ impl SimModel {
             i_total += link_inertia_world(l) + (Mat3::IDENTITY * d.length_squared() - outer(d, d)) * m;
         }
         let hand_inertia = (i_total.x_axis.x + i_total.y_axis.y + i_total.z_axis.z) / 3.0;
+        if hand_mass + cfg.wrist.added_mass <= 0.0 || hand_inertia + cfg.wrist.added_inertia <= 0.0 {
+            bail!(
+                "{}: the hand has no mass or inertia and `wrist.added_mass` / `wrist.added_inertia` in {file} are 0: expected a positive wrist mass and inertia",
+                hand.source.display()
+            );
+        }
 
         let r = &cfg.randomization;
         let restitution = r.object_restitution.unwrap_or([cfg.object.restitution; 2]);

@@ -553,7 +553,9 @@ pub fn contacts_and_forces(st: &mut EnvState, p: &EnvParams, m: &Model, s: &mut 
             let (f, spring, b) = contact_force(&c, vh - vo, v3(st.anchor_ho[ci]), k, kt, p.obj_contact_c, mu_ho, h);
             st.anchor_ho[ci] = [spring.x, spring.y, spring.z, 1.0];
             apply_hand_force(m, s, l, c.point, f);
-            apply_object_force(st, s, c.point, -f, c.normal, k * h + p.obj_contact_c, b);
+            // the normal damper acts only while the contact pushes (Fn > 0)
+            let a = if f.dot(c.normal) > 0.0 { k * h + p.obj_contact_c } else { 0.0 };
+            apply_object_force(st, s, c.point, -f, c.normal, a, b);
             let (tq, br) = torsion_torque(c.normal, s.link_w[l] - ow, f.dot(c.normal), mu_ho, g.torsion_radius);
             apply_hand_torque(m, s, l, tq);
             apply_object_torque(s, -tq, c.normal, br);
@@ -591,7 +593,8 @@ pub fn contacts_and_forces(st: &mut EnvState, p: &EnvParams, m: &Model, s: &mut 
             let vo = ovel + ow.cross(c.point - opos);
             let (f, spring, b) = contact_force(&c, vo, v3(st.anchor_ot[ki]), k, kt, p.obj_contact_c, mu_ot, h);
             st.anchor_ot[ki] = [spring.x, spring.y, spring.z, 1.0];
-            apply_object_force(st, s, c.point, f, c.normal, k * h + p.obj_contact_c, b);
+            let a = if f.dot(c.normal) > 0.0 { k * h + p.obj_contact_c } else { 0.0 };
+            apply_object_force(st, s, c.point, f, c.normal, a, b);
             let (tq, br) = torsion_torque(c.normal, ow, f.dot(c.normal), mu_ot, g.torsion_radius);
             apply_object_torque(s, tq, c.normal, br);
             s.contacts += 1;
