@@ -512,14 +512,14 @@ pub fn apply_object_force(st: &EnvState, s: &mut Scratch, x: Vec3, f: Vec3, n: V
         e[i] = 1.0;
         dm[i] = e * b + n * ((a - b) * n[i]);
     }
-    // [r]× D columns: r × (D e_i);  −D[r]× columns: −D (e_i × r)... assembled entry by entry:
+    // JᵀDJ with Jᵀ = [I; [r]×], column by column:
     // A_vv = D, A_vw = −D[r]×, A_wv = [r]× D, A_ww = −[r]× D [r]×
     for i in 0..3 {
         let mut e = Vec3::ZERO;
         e[i] = 1.0;
         let d_col = dm[i]; // D e_i
         let rd_col = r.cross(d_col); // [r]× D e_i
-        // [r]× e_i = r × e_i; column i of D[r]× is D (r × e_i)
+        // column i of D[r]× is D (r × e_i)
         let rxe = r.cross(e);
         let drx_col = dm[0] * rxe.x + dm[1] * rxe.y + dm[2] * rxe.z; // D (r × e_i)
         let rdrx_col = r.cross(drx_col); // [r]× D [r]× e_i
