@@ -94,4 +94,14 @@ impl ObjectShape {
     pub fn inertia_diag(&self, mass: f32) -> Vec3 {
         crate::env::reset::object_inertia(self.code(), Vec3::from(self.size_params()), mass)
     }
+
+    /// The shape with every length multiplied by `scale` (an env's object scale).
+    pub fn scaled(&self, scale: f32) -> ObjectShape {
+        match *self {
+            ObjectShape::Sphere { radius } => ObjectShape::Sphere { radius: radius * scale },
+            ObjectShape::Box { half_extents: h } => ObjectShape::Box { half_extents: [h[0] * scale, h[1] * scale, h[2] * scale] },
+            ObjectShape::Capsule { radius, half_length } => ObjectShape::Capsule { radius: radius * scale, half_length: half_length * scale },
+            ObjectShape::Cylinder { radius, half_length } => ObjectShape::Cylinder { radius: radius * scale, half_length: half_length * scale },
+        }
+    }
 }

@@ -144,7 +144,7 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
         Some(p) => {
             let meta = RolloutMeta {
                 hand: model.hand.clone(),
-                object: model.scaled_object(cfg.object.shape, reset_params(&g, 0, 0).obj_scale),
+                object: cfg.object.shape.scaled(reset_params(&g, 0, 0).obj_scale),
                 dt: ctrl_dt as f32,
                 info: serde_json::json!({ "command": "replay", "mode": if kinematic { "kinematic" } else { "dynamic" }, "config": cfg.source.display().to_string() }),
             };
@@ -234,7 +234,8 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
         backend = env.backend_name();
         let start: Vec<EnvState> = env.states()?.iter().map(|b| state_on_reference(&model, b, &t0, obj0)).collect();
         env.set_states(&start)?;
-        let params = env.params()?;
+        // parameters change only at a reset: read them again only after a step that reset an env
+        let mut params = env.params()?;
         let zero = vec![0.0f32; n];
         let no_tips = vec![vec![0.0f32; model.tips.len()]; n];
         observe(0, &start, &params, &zero, &no_tips, &t0, &mut writer)?;
@@ -243,10 +244,13 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
             env.step(&vec![tg; n])?;
             let states = env.states()?;
             let stats = env.stats()?;
-            bad += stats.iter().map(|s| s.bad_reset as u64).sum::<u64>();
+            let resets = stats.iter().map(|s| s.bad_reset as u64).sum::<u64>();
+            if resets > 0 {
+                params = env.params()?;
+            }
+            bad += resets;
             let pen: Vec<f32> = stats.iter().map(|s| s.max_pen_ho).collect();
             let tips: Vec<Vec<f32>> = stats.iter().map(|s| s.tip_force[..model.tips.len()].to_vec()).collect();
-            let params = env.params()?;
             observe(k, &states, &params, &pen, &tips, &tg, &mut writer)?;
         }
     }

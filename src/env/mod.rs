@@ -287,17 +287,6 @@ impl SimModel {
         }
         t
     }
-
-    /// The object shape with an env's scale applied.
-    pub fn scaled_object(&self, cfg_shape: crate::geom::ObjectShape, scale: f32) -> crate::geom::ObjectShape {
-        use crate::geom::ObjectShape as S;
-        match cfg_shape {
-            S::Sphere { radius } => S::Sphere { radius: radius * scale },
-            S::Box { half_extents: h } => S::Box { half_extents: [h[0] * scale, h[1] * scale, h[2] * scale] },
-            S::Capsule { radius, half_length } => S::Capsule { radius: radius * scale, half_length: half_length * scale },
-            S::Cylinder { radius, half_length } => S::Cylinder { radius: radius * scale, half_length: half_length * scale },
-        }
-    }
 }
 
 fn outer(a: Vec3, b: Vec3) -> Mat3 {
