@@ -32,6 +32,14 @@ pub struct Config {
     pub contact: ContactConfig,
     /// Per-env physical parameters drawn at every reset.
     pub randomization: RandomizationConfig,
+    /// The task on top of the simulator: actions, observations, rewards, terminations.
+    pub task: TaskConfig,
+    /// The training run: learner device, iterations, checkpoints.
+    pub train: TrainConfig,
+    /// PPO hyper-parameters (DESIGN §6 defaults, rsl_rl conventions).
+    pub ppo: PpoConfig,
+    /// Actor and critic networks.
+    pub policy: PolicyConfig,
     /// Directory of the config file (paths in the config are relative to it); not part of the TOML.
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -193,6 +201,243 @@ pub struct RandomizationConfig {
     pub added_gravity: [f32; 2],
 }
 
+/// The reward terms of the lift task, in the order of `StepBatch::terms` (DESIGN §5).
+pub const LIFT_TERMS: [&str; 6] = ["reaching", "lifting", "contact", "success", "action_rate", "action_magnitude"];
+
+/// `[task]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TaskConfig {
+    /// The task: `"lift"` (grasp the object and lift it at least `lift.success_height`).
+    pub kind: String,
+    /// Episode length in env steps; reaching it is a time-out (returns bootstrap through it).
+    pub episode_length: u32,
+    /// How the policy's actions become joint and wrist targets.
+    pub action: ActionConfig,
+    /// Standard deviations of the Gaussian noise added to the actor's observations (the critic's are clean).
+    pub obs_noise: ObsNoiseConfig,
+    /// Weight of each reward term (term name -> weight; 0 turns a term off, an unknown name is an
+    /// error). Lift terms: reaching `1 − tanh(α‖p_palm − p_obj‖)`, lifting `h` in cm (capped at the
+    /// success height), contact (1 when the thumb and another fingertip touch the object), success (1
+    /// while lifted ≥ success height), action_rate `‖a_t − a_{t−1}‖²`, action_magnitude `‖a_t‖²`.
+    /// Penalties have negative weights (Isaac Lab's convention).
+    pub rewards: BTreeMap<String, f32>,
+    /// Parameters of the lift task.
+    pub lift: LiftConfig,
+}
+
+/// `[task.action]`: the action is `6 + actuated joints` numbers in [−1, 1] (clipped): wrist
+/// translation (3, world frame), wrist rotation (3, a rotation vector in the world frame), then one
+/// per actuated finger joint in URDF order.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ActionConfig {
+    /// Finger joints: `"absolute"` maps a ∈ [−1, 1] linearly onto [lower, upper] of each joint;
+    /// `"delta"` moves the previous target by `a · finger_delta_scale`, clipped to the limits.
+    pub finger_mode: String,
+    /// Finger target change per env step at |a| = 1 (rad), for `finger_mode = "delta"`.
+    pub finger_delta_scale: f32,
+    /// Wrist target translation per env step at |a| = 1 (m).
+    pub wrist_pos_scale: f32,
+    /// Wrist target rotation per env step at |a| = 1 (rad).
+    pub wrist_rot_scale: f32,
+    /// Lower corner of the box (m, world) the wrist position target is clipped to.
+    pub wrist_pos_min: [f32; 3],
+    /// Upper corner of that box (m, world).
+    pub wrist_pos_max: [f32; 3],
+    /// Largest angle (rad) between the wrist orientation target and the initial wrist orientation.
+    pub wrist_rot_limit: f32,
+}
+
+/// `[task.obs_noise]`: noise standard deviations (0 = none).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ObsNoiseConfig {
+    /// Joint positions (rad).
+    pub joint_pos: f32,
+    /// Joint velocities (rad/s).
+    pub joint_vel: f32,
+    /// Wrist and fingertip positions (m).
+    pub hand_pos: f32,
+    /// Object position (m).
+    pub object_pos: f32,
+    /// Object orientation (each quaternion component, renormalised).
+    pub object_rot: f32,
+}
+
+/// `[task.lift]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct LiftConfig {
+    /// α of the reaching term `1 − tanh(α‖p_palm − p_obj‖)` (1/m).
+    pub reach_alpha: f32,
+    /// Lift height (m) of the object's centre above its rest height that counts as success.
+    pub success_height: f32,
+    /// Fingertip normal force (N) above which a fingertip touches the object.
+    pub contact_force: f32,
+    /// The thumb's fingertip frame (one of `hand.fingertips`); "" = the first whose name starts with "th".
+    pub thumb: String,
+    /// The palm point (m) in the wrist frame that the reaching term brings to the object.
+    pub palm_offset: [f32; 3],
+    /// The episode terminates when the object's centre falls below this height (m; off the table).
+    pub drop_height: f32,
+    /// ... or leaves the square |x|, |y| ≤ this (m) on the table.
+    pub table_half_extent: f32,
+    /// ... or the palm point gets farther than this from the object (m).
+    pub max_hand_distance: f32,
+}
+
+/// `[train]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrainConfig {
+    /// Learner device, chosen like `sim.backend`: `"auto"`, `"cpu"` (burn's flex backend), `"gpu"` or
+    /// `"gpu:NAME"` (burn's wgpu backend; on the simulator's own device when the simulator is on the GPU).
+    pub device: String,
+    /// PPO iterations (each: `steps_per_env` env steps of every env, then one update).
+    pub iterations: u32,
+    /// Env steps per env per iteration (rollout length).
+    pub steps_per_env: u32,
+    /// Write a checkpoint every this many iterations (and always after the last one).
+    pub save_interval: u32,
+    /// Keep only the newest this many checkpoints (0 = keep all).
+    pub keep_checkpoints: u32,
+    /// Redraw the learning-curve PNGs every this many iterations (0 = only at the end).
+    pub plot_interval: u32,
+}
+
+/// `[ppo]` (DESIGN §6; rsl_rl's names and defaults)
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PpoConfig {
+    /// Initial learning rate of Adam.
+    pub learning_rate: f32,
+    /// `"adaptive"` (from the KL: ÷1.5 above 2× `desired_kl`, ×1.5 below ½×) or `"fixed"`.
+    pub schedule: String,
+    /// Target KL divergence between the old and the new policy per update.
+    pub desired_kl: f32,
+    /// Lower bound of the adaptive learning rate.
+    pub min_learning_rate: f32,
+    /// Upper bound of the adaptive learning rate.
+    pub max_learning_rate: f32,
+    /// Discount γ.
+    pub gamma: f32,
+    /// GAE λ.
+    pub lam: f32,
+    /// Clip range ε of the surrogate (and of the value loss).
+    pub clip_param: f32,
+    /// Weight of the value loss.
+    pub value_loss_coef: f32,
+    /// Clip the value loss around the old values (rsl_rl's `use_clipped_value_loss`).
+    pub clipped_value_loss: bool,
+    /// Weight of the entropy bonus.
+    pub entropy_coef: f32,
+    /// Passes over the rollout per update.
+    pub epochs: u32,
+    /// Minibatches per pass.
+    pub minibatches: u32,
+    /// Clip of the global gradient norm (actor and critic together).
+    pub max_grad_norm: f32,
+}
+
+/// `[policy]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct PolicyConfig {
+    /// Hidden layer widths of the actor MLP.
+    pub actor_hidden: Vec<usize>,
+    /// Hidden layer widths of the critic MLP.
+    pub critic_hidden: Vec<usize>,
+    /// Hidden activation: `"elu"`, `"relu"` or `"tanh"`.
+    pub activation: String,
+    /// Initial standard deviation of the Gaussian policy (its log is learned, one per action).
+    pub init_std: f32,
+    /// Normalise observations with running mean and variance (saved with the model).
+    pub obs_normalization: bool,
+}
+
+impl Default for TaskConfig {
+    fn default() -> Self {
+        let rewards = [("reaching", 1.0), ("lifting", 0.5), ("contact", 0.5), ("success", 5.0), ("action_rate", -0.01), ("action_magnitude", -0.001)];
+        TaskConfig {
+            kind: "lift".into(),
+            episode_length: 90,
+            action: ActionConfig::default(),
+            obs_noise: ObsNoiseConfig::default(),
+            rewards: rewards.iter().map(|(k, v)| (k.to_string(), *v)).collect(),
+            lift: LiftConfig::default(),
+        }
+    }
+}
+
+impl Default for ActionConfig {
+    fn default() -> Self {
+        ActionConfig {
+            finger_mode: "absolute".into(),
+            finger_delta_scale: 0.1,
+            wrist_pos_scale: 0.01,
+            wrist_rot_scale: 0.05,
+            wrist_pos_min: [-0.2, -0.2, 0.03],
+            wrist_pos_max: [0.2, 0.2, 0.4],
+            wrist_rot_limit: 0.8,
+        }
+    }
+}
+
+impl Default for ObsNoiseConfig {
+    fn default() -> Self {
+        ObsNoiseConfig { joint_pos: 0.0, joint_vel: 0.0, hand_pos: 0.0, object_pos: 0.0, object_rot: 0.0 }
+    }
+}
+
+impl Default for LiftConfig {
+    fn default() -> Self {
+        LiftConfig {
+            reach_alpha: 10.0,
+            success_height: 0.10,
+            contact_force: 0.05,
+            thumb: String::new(),
+            palm_offset: [0.0, 0.0, -0.04],
+            drop_height: -0.05,
+            table_half_extent: 0.5,
+            max_hand_distance: 0.5,
+        }
+    }
+}
+
+impl Default for TrainConfig {
+    fn default() -> Self {
+        TrainConfig { device: "cpu".into(), iterations: 100, steps_per_env: 32, save_interval: 50, keep_checkpoints: 0, plot_interval: 50 }
+    }
+}
+
+impl Default for PpoConfig {
+    fn default() -> Self {
+        PpoConfig {
+            learning_rate: 5e-4,
+            schedule: "adaptive".into(),
+            desired_kl: 0.01,
+            min_learning_rate: 1e-5,
+            max_learning_rate: 1e-2,
+            gamma: 0.99,
+            lam: 0.95,
+            clip_param: 0.2,
+            value_loss_coef: 1.0,
+            clipped_value_loss: true,
+            entropy_coef: 0.005,
+            epochs: 5,
+            minibatches: 4,
+            max_grad_norm: 1.0,
+        }
+    }
+}
+
+impl Default for PolicyConfig {
+    fn default() -> Self {
+        PolicyConfig { actor_hidden: vec![256, 128, 64], critic_hidden: vec![256, 128, 64], activation: "elu".into(), init_std: 1.0, obs_normalization: true }
+    }
+}
+
 impl Default for Config {
     fn default() -> Self {
         Config {
@@ -204,6 +449,10 @@ impl Default for Config {
             table: TableConfig::default(),
             contact: ContactConfig::default(),
             randomization: RandomizationConfig::default(),
+            task: TaskConfig::default(),
+            train: TrainConfig::default(),
+            ppo: PpoConfig::default(),
+            policy: PolicyConfig::default(),
             base_dir: PathBuf::from("."),
             source: PathBuf::from("<default>"),
         }
@@ -329,6 +578,29 @@ impl Config {
         let text = std::fs::read_to_string(path)
             .with_context(|| format!("cannot read config file {}", path.display()))?;
         Config::from_toml_str(&text, path)
+    }
+
+    /// Reads a config file and applies `--set key=value` overrides before validation. `key` is a
+    /// dotted path (`ppo.learning_rate`, `task.rewards.lifting`); `value` is a TOML value
+    /// (`3`, `1e-3`, `true`, `[1, 2]`, `"cpu"`); a bare word that is not TOML is taken as a string.
+    pub fn load_with_overrides(path: &Path, sets: &[String]) -> Result<Config> {
+        if sets.is_empty() {
+            return Config::load(path);
+        }
+        let text = std::fs::read_to_string(path)
+            .with_context(|| format!("cannot read config file {}", path.display()))?;
+        let mut table: toml::Table = match text.parse::<toml::Table>() {
+            Ok(t) => t,
+            Err(e) => {
+                let at = e.span().map(|s| line_col(&text, s.start)).unwrap_or_default();
+                bail!("{}{at}: invalid TOML: {}", path.display(), one_line(e.message()));
+            }
+        };
+        for set in sets {
+            apply_override(&mut table, set)?;
+        }
+        let merged = toml::to_string(&table).context("cannot serialise the overridden config")?;
+        Config::from_toml_str(&merged, path)
     }
 
     /// Parses and validates config text; `path` is used for error messages and relative paths.
@@ -493,6 +765,106 @@ impl Config {
         if !(g.iter().all(|v| v.is_finite() && (0.0..=100.0).contains(v)) && g[0] <= g[1]) {
             return Err(err("randomization.added_gravity", format!("{g:?}"), "a range [lo, hi] in m/s² with 0 <= lo <= hi <= 100"));
         }
+        self.validate_learning(&err)
+    }
+
+    /// Validation of `[task]`, `[train]`, `[ppo]` and `[policy]`.
+    fn validate_learning(&self, err: &dyn Fn(&str, String, &str) -> anyhow::Error) -> Result<()> {
+        let t = &self.task;
+        if t.kind != "lift" {
+            return Err(err("task.kind", format!("{:?}", t.kind), "\"lift\""));
+        }
+        if !(1..=1_000_000).contains(&t.episode_length) {
+            return Err(err("task.episode_length", t.episode_length.to_string(), "an integer number of env steps in [1, 1000000]"));
+        }
+        let a = &t.action;
+        if a.finger_mode != "absolute" && a.finger_mode != "delta" {
+            return Err(err("task.action.finger_mode", format!("{:?}", a.finger_mode), "\"absolute\" or \"delta\""));
+        }
+        non_neg(err, "task.action.finger_delta_scale", a.finger_delta_scale)?;
+        non_neg(err, "task.action.wrist_pos_scale", a.wrist_pos_scale)?;
+        non_neg(err, "task.action.wrist_rot_scale", a.wrist_rot_scale)?;
+        for i in 0..3 {
+            finite(err, &format!("task.action.wrist_pos_min[{i}]"), a.wrist_pos_min[i])?;
+            finite(err, &format!("task.action.wrist_pos_max[{i}]"), a.wrist_pos_max[i])?;
+            if a.wrist_pos_min[i] > a.wrist_pos_max[i] {
+                return Err(err(&format!("task.action.wrist_pos_max[{i}]"), a.wrist_pos_max[i].to_string(), "a value >= task.action.wrist_pos_min of the same axis"));
+            }
+        }
+        pos_in(err, "task.action.wrist_rot_limit", a.wrist_rot_limit, 0.0, std::f32::consts::PI, "an angle in rad in [0, π]")?;
+        let n = &t.obs_noise;
+        for (key, v) in [
+            ("task.obs_noise.joint_pos", n.joint_pos),
+            ("task.obs_noise.joint_vel", n.joint_vel),
+            ("task.obs_noise.hand_pos", n.hand_pos),
+            ("task.obs_noise.object_pos", n.object_pos),
+            ("task.obs_noise.object_rot", n.object_rot),
+        ] {
+            non_neg(err, key, v)?;
+        }
+        for (name, w) in &t.rewards {
+            if !LIFT_TERMS.contains(&name.as_str()) {
+                return Err(err(&format!("task.rewards.{name}"), w.to_string(), &format!("a term of the lift task: {}", LIFT_TERMS.join(", "))));
+            }
+            finite(err, &format!("task.rewards.{name}"), *w)?;
+        }
+        let l = &t.lift;
+        non_neg(err, "task.lift.reach_alpha", l.reach_alpha)?;
+        pos_in(err, "task.lift.success_height", l.success_height, 1e-3, 10.0, "a height in m in [0.001, 10]")?;
+        non_neg(err, "task.lift.contact_force", l.contact_force)?;
+        for i in 0..3 {
+            finite(err, &format!("task.lift.palm_offset[{i}]"), l.palm_offset[i])?;
+        }
+        finite(err, "task.lift.drop_height", l.drop_height)?;
+        pos_in(err, "task.lift.table_half_extent", l.table_half_extent, 1e-3, 1e3, "a distance in m in [0.001, 1000]")?;
+        pos_in(err, "task.lift.max_hand_distance", l.max_hand_distance, 1e-3, 1e3, "a distance in m in [0.001, 1000]")?;
+
+        let tr = &self.train;
+        if BackendChoice::parse(&tr.device).is_none() {
+            return Err(err("train.device", format!("{:?}", tr.device), "one of \"auto\", \"cpu\", \"gpu\", \"gpu:ADAPTER_NAME\""));
+        }
+        if tr.iterations == 0 {
+            return Err(err("train.iterations", "0".into(), "an integer >= 1"));
+        }
+        if !(1..=100_000).contains(&tr.steps_per_env) {
+            return Err(err("train.steps_per_env", tr.steps_per_env.to_string(), "an integer in [1, 100000]"));
+        }
+        if tr.save_interval == 0 {
+            return Err(err("train.save_interval", "0".into(), "an integer >= 1 (iterations between checkpoints)"));
+        }
+
+        let p = &self.ppo;
+        if p.schedule != "adaptive" && p.schedule != "fixed" {
+            return Err(err("ppo.schedule", format!("{:?}", p.schedule), "\"adaptive\" or \"fixed\""));
+        }
+        pos_in(err, "ppo.learning_rate", p.learning_rate, 1e-9, 1.0, "a learning rate in (0, 1]")?;
+        pos_in(err, "ppo.min_learning_rate", p.min_learning_rate, 0.0, 1.0, "a learning rate in [0, 1]")?;
+        pos_in(err, "ppo.max_learning_rate", p.max_learning_rate, p.min_learning_rate, 1.0, "a learning rate in [ppo.min_learning_rate, 1]")?;
+        pos_in(err, "ppo.desired_kl", p.desired_kl, 1e-9, 10.0, "a KL divergence in (0, 10]")?;
+        pos_in(err, "ppo.gamma", p.gamma, 0.0, 1.0, "a discount in [0, 1]")?;
+        pos_in(err, "ppo.lam", p.lam, 0.0, 1.0, "a GAE λ in [0, 1]")?;
+        pos_in(err, "ppo.clip_param", p.clip_param, 1e-6, 10.0, "a clip range in (0, 10]")?;
+        non_neg(err, "ppo.value_loss_coef", p.value_loss_coef)?;
+        non_neg(err, "ppo.entropy_coef", p.entropy_coef)?;
+        pos_in(err, "ppo.max_grad_norm", p.max_grad_norm, 1e-9, 1e9, "a gradient norm > 0")?;
+        if !(1..=1000).contains(&p.epochs) {
+            return Err(err("ppo.epochs", p.epochs.to_string(), "an integer in [1, 1000]"));
+        }
+        let batch = self.sim.num_envs as u64 * tr.steps_per_env as u64;
+        if p.minibatches == 0 || p.minibatches as u64 > batch {
+            return Err(err("ppo.minibatches", p.minibatches.to_string(), &format!("an integer in [1, sim.num_envs × train.steps_per_env = {batch}]")));
+        }
+
+        let pol = &self.policy;
+        for (key, layers) in [("policy.actor_hidden", &pol.actor_hidden), ("policy.critic_hidden", &pol.critic_hidden)] {
+            if layers.is_empty() || layers.iter().any(|&w| w == 0 || w > 65536) {
+                return Err(err(key, format!("{layers:?}"), "a non-empty list of layer widths in [1, 65536]"));
+            }
+        }
+        if !["elu", "relu", "tanh"].contains(&pol.activation.as_str()) {
+            return Err(err("policy.activation", format!("{:?}", pol.activation), "\"elu\", \"relu\" or \"tanh\""));
+        }
+        pos_in(err, "policy.init_std", pol.init_std, 1e-6, 100.0, "a standard deviation in (0, 100]")?;
         Ok(())
     }
 }
@@ -518,6 +890,33 @@ fn finite(err: &dyn Fn(&str, String, &str) -> anyhow::Error, key: &str, v: f32) 
 
 fn unit_interval(err: &dyn Fn(&str, String, &str) -> anyhow::Error, key: &str, v: f32) -> Result<()> {
     if v.is_finite() && (0.0..1.0).contains(&v) { Ok(()) } else { Err(err(key, v.to_string(), "a number in [0, 1)")) }
+}
+
+/// Applies one `key=value` override to a parsed TOML table.
+pub fn apply_override(table: &mut toml::Table, set: &str) -> Result<()> {
+    let Some((key, value)) = set.split_once('=') else {
+        bail!("--set {set:?}: expected key=value (e.g. ppo.learning_rate=1e-3)");
+    };
+    let key = key.trim();
+    let parts: Vec<&str> = key.split('.').collect();
+    if parts.iter().any(|p| p.is_empty()) {
+        bail!("--set {set:?}: `{key}` is not a dotted key path");
+    }
+    let value = value.trim();
+    let parsed: toml::Value = match format!("v = {value}").parse::<toml::Table>() {
+        Ok(mut t) => t.remove("v").unwrap_or_else(|| toml::Value::String(value.to_string())),
+        Err(_) => toml::Value::String(value.to_string()),
+    };
+    let mut cur = table;
+    for p in &parts[..parts.len() - 1] {
+        let entry = cur.entry(p.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        cur = match entry {
+            toml::Value::Table(t) => t,
+            _ => bail!("--set {set:?}: `{p}` is a value, not a table"),
+        };
+    }
+    cur.insert(parts[parts.len() - 1].to_string(), parsed);
+    Ok(())
 }
 
 /// Collapses a multi-line message to one line.

@@ -4,10 +4,18 @@
 //! [`env::EnvBatch`]), `hand` the URDF loader, `traj` reference trajectories, `record` MCAP rollouts.
 
 pub mod bench;
+pub mod checkpoint;
 pub mod config;
 pub mod env;
+pub mod eval;
 pub mod geom;
 pub mod hand;
+pub mod learn;
+pub mod metrics;
+pub mod plot;
 pub mod record;
 pub mod replay;
+pub mod run_dir;
+pub mod train;
+pub mod tensorboard;
 pub mod traj;

@@ -41,6 +41,15 @@ enum Command {
         #[arg(long, default_value_t = 3.0)]
         seconds: f64,
     },
+    /// Train a policy with PPO from a TOML config (or resume a run).
+    Train(dextrain::train::TrainArgs),
+    /// Evaluate a run's checkpoint: deterministic episodes on fresh seeds, a JSON report in RUN/eval/.
+    Eval(dextrain::eval::EvalArgs),
+    /// Draw a run's learning curves (PNG) from its metrics.csv into RUN/plots/.
+    Plot {
+        /// The run directory (runs/NAME).
+        run: PathBuf,
+    },
     /// Replay a reference trajectory open-loop under the physics (or kinematically) and report tracking.
     Replay(dextrain::replay::ReplayArgs),
     /// Reference trajectories.
@@ -94,6 +103,20 @@ fn run(cli: Cli) -> Result<()> {
             let mut report = run_bench(env.as_mut(), &model, &BenchOptions { min_chunks: chunks, min_seconds: seconds })?;
             report["config"] = serde_json::Value::String(config.map(|p| p.display().to_string()).unwrap_or_else(|| "<bench scene>".into()));
             println!("{}", serde_json::to_string(&report).context("cannot serialise the report")?);
+            Ok(())
+        }
+        Command::Train(args) => dextrain::train::run(&args).map(|_| ()),
+        Command::Eval(args) => {
+            let report = dextrain::eval::run(&args)?;
+            println!("{}", serde_json::to_string(&report).context("cannot serialise the report")?);
+            eprintln!("dextrain eval: report written to {}", report.path.display());
+            Ok(())
+        }
+        Command::Plot { run } => {
+            dextrain::run_dir::check_run(&run)?;
+            for p in dextrain::plot::plot_run(&run.join("metrics.csv"), &run.join("plots"))? {
+                println!("{}", p.display());
+            }
             Ok(())
         }
         Command::Replay(args) => dextrain::replay::run(&args),

@@ -2,7 +2,7 @@
 //! GPU backend builds, each shader parses on its own with common.wgsl, and every Pod struct in
 //! src/env/layout.rs has exactly the size and field offsets of its WGSL twin.
 
-use dextrain::env::gpu::{SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET, shader_source};
+use dextrain::env::gpu::{SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET, SHADER_TASK, shader_source, task_shader_source};
 use dextrain::env::layout::*;
 use std::mem::{offset_of, size_of};
 
@@ -20,6 +20,18 @@ fn full_module_validates_with_both_entry_points() {
     let names: Vec<&str> = m.entry_points.iter().map(|e| e.name.as_str()).collect();
     assert!(names.contains(&"step_main"), "entry points: {names:?}");
     assert!(names.contains(&"reset_main"), "entry points: {names:?}");
+    for ep in &m.entry_points {
+        assert_eq!(ep.workgroup_size, [dextrain::env::gpu::WORKGROUP_SIZE, 1, 1], "{}", ep.name);
+    }
+}
+
+#[test]
+fn task_module_validates_with_its_entry_points() {
+    let m = validate(&task_shader_source());
+    let names: Vec<&str> = m.entry_points.iter().map(|e| e.name.as_str()).collect();
+    for name in ["task_act", "task_reward", "task_observe", "step_main", "reset_main"] {
+        assert!(names.contains(&name), "{name} missing; entry points: {names:?}");
+    }
     for ep in &m.entry_points {
         assert_eq!(ep.workgroup_size, [dextrain::env::gpu::WORKGROUP_SIZE, 1, 1], "{}", ep.name);
     }
@@ -77,6 +89,16 @@ fn pod_structs_match_their_wgsl_twins() {
     check(&m, "Targets", size_of::<Targets>(), rust_fields!(Targets; wrist_pos, wrist_rot, q));
     check(&m, "StepStats", size_of::<StepStats>(), rust_fields!(StepStats; tip_force, max_pen_ho, max_pen, contacts,
         contacts_ho, bad_reset, _pad));
+    let m = validate(&task_shader_source());
+    check(&m, "TaskGlobals", size_of::<TaskGlobals>(), rust_fields!(TaskGlobals; wrist_pos_min, wrist_pos_max, palm_offset,
+        weights, actuated, n_actuated, n_act, obs_dim, priv_dim, episode_length, finger_mode, thumb, _pad0, wrist_pos_scale,
+        wrist_rot_scale, wrist_rot_limit, finger_delta_scale, reach_alpha, success_height, contact_force, drop_height,
+        table_half_extent, max_hand_distance, noise_joint_pos, noise_joint_vel, noise_hand_pos, noise_object_pos,
+        noise_object_rot, _pad1));
+    check(&m, "TaskState", size_of::<TaskState>(), rust_fields!(TaskState; targets, rest_pos, prev_action, tip_force,
+        act_rate, act_mag, done, _pad));
+    // a uniform struct's size must be a multiple of 16
+    assert_eq!(size_of::<TaskGlobals>() % 16, 0);
 }
 
 #[test]
@@ -91,6 +113,28 @@ fn shader_constants_match_rust() {
         ("PROJ_ITERS", dextrain::env::physics::PROJ_ITERS),
     ] {
         assert!(src.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in the WGSL");
+    }
+    use dextrain::env::task;
+    for (name, v) in [
+        ("PURPOSE_OBS_NOISE", task::PURPOSE_OBS_NOISE as usize),
+        ("OBS_KEY_STRIDE", task::OBS_KEY_STRIDE as usize),
+        ("MAX_ACTIONS", MAX_ACTIONS),
+        ("N_TERMS", task::N_TERMS),
+        ("OUT_REWARD", task::OUT_REWARD),
+        ("OUT_TERMS", task::OUT_TERMS),
+        ("OUT_TERMINATED", task::OUT_TERMINATED),
+        ("OUT_TIME_OUT", task::OUT_TIME_OUT),
+        ("OUT_SUCCESS", task::OUT_SUCCESS),
+        ("OUT_LIFT", task::OUT_LIFT),
+        ("OUT_MAX_PEN", task::OUT_MAX_PEN),
+        ("OUT_MISC", task::OUT_MISC),
+    ] {
+        assert!(SHADER_TASK.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in task.wgsl");
+    }
+    assert_eq!(task::N_TERMS, dextrain::config::LIFT_TERMS.len());
+    // the reset purposes and the task's are distinct
+    for p in [dextrain::env::reset::PURPOSE_PARAMS, dextrain::env::reset::PURPOSE_INIT] {
+        assert_ne!(p, task::PURPOSE_OBS_NOISE);
     }
     for (name, v) in [("SHAPE_SPHERE", SHAPE_SPHERE), ("SHAPE_BOX", SHAPE_BOX), ("SHAPE_CAPSULE", SHAPE_CAPSULE), ("SHAPE_CYLINDER", SHAPE_CYLINDER)] {
         assert!(src.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in the WGSL");
@@ -110,9 +154,11 @@ fn every_shader_function_has_its_cpu_twin_in_the_same_order() {
         (SHADER_COMMON, include_str!("../src/env/common.rs")),
         (SHADER_RESET, include_str!("../src/env/reset.rs")),
         (SHADER_PHYSICS, include_str!("../src/env/physics.rs")),
+        (SHADER_TASK, include_str!("../src/env/task.rs")),
     ] {
         let w: Vec<String> = fns(wgsl, "fn ").into_iter().filter(|n| !n.ends_with("_main") && n != "env_index").collect();
         let r: Vec<String> = fns(rs, "pub fn ").into_iter().filter(|n| w.contains(n)).collect();
+        assert!(!w.is_empty());
         assert_eq!(w, r, "shader functions and their CPU twins differ in names or order");
     }
 }

@@ -33,6 +33,28 @@ impl CpuEnvBatch {
         &self.model
     }
 
+    /// The current states, borrowed (the task layer reads them without a copy).
+    pub fn states_ref(&self) -> &[EnvState] {
+        &self.states
+    }
+
+    /// The current parameters, borrowed.
+    pub fn params_ref(&self) -> &[EnvParams] {
+        &self.params
+    }
+
+    /// Overwrites the parameters (checkpoint restore).
+    pub fn set_params(&mut self, params: &[EnvParams]) -> Result<()> {
+        ensure!(params.len() == self.params.len(), "{} parameter sets for {} envs", params.len(), self.params.len());
+        self.params.copy_from_slice(params);
+        Ok(())
+    }
+
+    /// What happened in each env during the last step, borrowed.
+    pub fn stats_ref(&self) -> &[StepStats] {
+        &self.stats
+    }
+
     /// Resets env i to the episode `episode_of(i)` returns (None = leave it).
     fn reset_where(&mut self, episode_of: impl Fn(usize) -> Option<u32> + Sync) {
         let g = &self.model.globals;

@@ -14,12 +14,19 @@ use super::{EnvBatch, EnvSpec, SimModel};
 pub const SHADER_COMMON: &str = include_str!("../../shaders/common.wgsl");
 pub const SHADER_RESET: &str = include_str!("../../shaders/reset.wgsl");
 pub const SHADER_PHYSICS: &str = include_str!("../../shaders/physics.wgsl");
+pub const SHADER_TASK: &str = include_str!("../../shaders/task.wgsl");
 /// Invocations per workgroup (keep in sync with `WORKGROUP_SIZE` in common.wgsl).
 pub const WORKGROUP_SIZE: u32 = 64;
 
 /// The WGSL module the simulator runs: common, reset and physics concatenated.
 pub fn shader_source() -> String {
     [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS].join("\n")
+}
+
+/// The WGSL module of the task layer: the simulator's module with task.wgsl appended (task.wgsl
+/// reuses the physics' hand kinematics).
+pub fn task_shader_source() -> String {
+    [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_TASK].join("\n")
 }
 
 /// A wgpu instance, adapter, device and queue.
@@ -77,28 +84,32 @@ impl GpuContext {
     }
 }
 
-/// The env batch on a GPU.
+/// The env batch on a GPU. The task layer (`task_gpu`) binds its buffers and dispatches its
+/// pipelines inside its own command encoders.
 pub struct GpuEnvBatch {
-    ctx: GpuContext,
-    model: SimModel,
-    states: wgpu::Buffer,
-    params: wgpu::Buffer,
-    targets: wgpu::Buffer,
-    stats: wgpu::Buffer,
-    reset_mask: wgpu::Buffer,
+    pub(crate) ctx: GpuContext,
+    pub(crate) model: SimModel,
+    /// Binding 0 (`Globals`) and 1 (`JointDesc`s).
+    pub(crate) globals: wgpu::Buffer,
+    pub(crate) joints: wgpu::Buffer,
+    pub(crate) states: wgpu::Buffer,
+    pub(crate) params: wgpu::Buffer,
+    pub(crate) targets: wgpu::Buffer,
+    pub(crate) stats: wgpu::Buffer,
+    pub(crate) reset_mask: wgpu::Buffer,
     readback: wgpu::Buffer,
-    step_pipeline: wgpu::ComputePipeline,
-    reset_pipeline: wgpu::ComputePipeline,
-    step_group: wgpu::BindGroup,
-    reset_group: wgpu::BindGroup,
+    pub(crate) step_pipeline: wgpu::ComputePipeline,
+    pub(crate) reset_pipeline: wgpu::ComputePipeline,
+    pub(crate) step_group: wgpu::BindGroup,
+    pub(crate) reset_group: wgpu::BindGroup,
     mask_host: Vec<u32>,
 }
 
-fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+pub(crate) fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
     wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
 }
 
-fn storage<T: Pod>(device: &wgpu::Device, label: &str, data: &[T], extra: wgpu::BufferUsages) -> wgpu::Buffer {
+pub(crate) fn storage<T: Pod>(device: &wgpu::Device, label: &str, data: &[T], extra: wgpu::BufferUsages) -> wgpu::Buffer {
     // zero-length bindings are invalid: pad with one zeroed element
     let bytes: Vec<u8> = if data.is_empty() { vec![0u8; std::mem::size_of::<T>().max(16)] } else { bytemuck::cast_slice(data).to_vec() };
     device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
@@ -179,6 +190,8 @@ impl GpuEnvBatch {
         let mut b = GpuEnvBatch {
             ctx,
             model,
+            globals,
+            joints,
             states,
             params,
             targets,
@@ -199,7 +212,8 @@ impl GpuEnvBatch {
         &self.ctx
     }
 
-    fn workgroups(&self) -> (u32, u32) {
+    /// Workgroups of a dispatch over all envs (x, y: 2-D past 65535 workgroups).
+    pub(crate) fn workgroups(&self) -> (u32, u32) {
         let wg = (self.model.spec.num_envs as u32).div_ceil(WORKGROUP_SIZE);
         let x = wg.min(65535);
         (x, wg.div_ceil(x))
@@ -223,8 +237,15 @@ impl GpuEnvBatch {
         Ok(())
     }
 
-    /// Copies `count` elements of `T` from `src` back to the host.
-    fn read<T: Pod>(&self, src: &wgpu::Buffer, count: usize) -> Result<Vec<T>> {
+    /// Overwrites the parameters (checkpoint restore).
+    pub fn set_params(&mut self, params: &[EnvParams]) -> Result<()> {
+        ensure!(params.len() == self.model.spec.num_envs, "{} parameter sets for {} envs", params.len(), self.model.spec.num_envs);
+        self.ctx.queue.write_buffer(&self.params, 0, bytemuck::cast_slice(params));
+        Ok(())
+    }
+
+    /// Copies `count` elements of `T` (at most the size of the env states) from `src` back to the host.
+    pub(crate) fn read<T: Pod>(&self, src: &wgpu::Buffer, count: usize) -> Result<Vec<T>> {
         let size = (count * std::mem::size_of::<T>()) as u64;
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         enc.copy_buffer_to_buffer(src, 0, &self.readback, 0, size);

@@ -232,3 +232,80 @@ impl Default for Targets {
         Zeroable::zeroed()
     }
 }
+
+/// Most actions (6 wrist + actuated joints) a `TaskState` holds (keep in sync with task.wgsl
+/// `MAX_ACTIONS`).
+pub const MAX_ACTIONS: usize = 32;
+
+/// Run-wide constants of the task layer (WGSL `TaskGlobals`, a uniform; built by `env::task` from
+/// `[task]` of the config and the hand).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct TaskGlobals {
+    /// Box (m, world) that the wrist position target is clipped to, xyz.
+    pub wrist_pos_min: [f32; 4],
+    pub wrist_pos_max: [f32; 4],
+    /// Palm point in the wrist frame (m), xyz.
+    pub palm_offset: [f32; 4],
+    /// Weight of each reward term in `config::LIFT_TERMS` order, packed 4 per vec4.
+    pub weights: [[f32; 4]; 2],
+    /// Joint index of each actuated joint (`EnvSpec::actuated`), packed 4 per vec4 (uniform arrays
+    /// need a 16-byte stride).
+    pub actuated: [[u32; 4]; MAX_JOINTS / 4],
+    /// Number of actuated joints and of actions (6 + actuated).
+    pub n_actuated: u32,
+    pub n_act: u32,
+    /// Actor and critic observation lengths.
+    pub obs_dim: u32,
+    pub priv_dim: u32,
+    /// Env steps per episode.
+    pub episode_length: u32,
+    /// 0 = absolute finger targets, 1 = delta.
+    pub finger_mode: u32,
+    /// Fingertip index of the thumb.
+    pub thumb: u32,
+    pub _pad0: u32,
+    pub wrist_pos_scale: f32,
+    pub wrist_rot_scale: f32,
+    pub wrist_rot_limit: f32,
+    pub finger_delta_scale: f32,
+    pub reach_alpha: f32,
+    pub success_height: f32,
+    pub contact_force: f32,
+    pub drop_height: f32,
+    pub table_half_extent: f32,
+    pub max_hand_distance: f32,
+    /// Standard deviations of the actor observation noise.
+    pub noise_joint_pos: f32,
+    pub noise_joint_vel: f32,
+    pub noise_hand_pos: f32,
+    pub noise_object_pos: f32,
+    pub noise_object_rot: f32,
+    pub _pad1: f32,
+}
+
+/// The task layer's per-env state (WGSL `TaskState`), kept between steps.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct TaskState {
+    /// The current wrist and joint targets (actions in delta modes move them).
+    pub targets: Targets,
+    /// Object centre position right after the env's last reset (xyz).
+    pub rest_pos: [f32; 4],
+    /// The last clipped action (0 after a reset).
+    pub prev_action: [f32; MAX_ACTIONS],
+    /// Fingertip forces (N) of the last step (`StepStats::tip_force`; 0 after a reset).
+    pub tip_force: [f32; MAX_TIPS],
+    /// Σ (a_t − a_{t−1})² and Σ a_t² of the last action.
+    pub act_rate: f32,
+    pub act_mag: f32,
+    /// 1 if the last step ended the episode (terminated or timed out).
+    pub done: u32,
+    pub _pad: [u32; 3],
+}
+
+impl Default for TaskState {
+    fn default() -> Self {
+        Zeroable::zeroed()
+    }
+}

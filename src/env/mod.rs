@@ -20,7 +20,7 @@
 //!   [`EnvBatch::set_states`] overwrites the states (kinematic replay, tests).
 //!
 //! Steps never allocate on the GPU backend: buffers and pipelines are made once in `new`.
-//! The task layer (observations, rewards, dones) sits on top of this contract.
+//! The task layer (observations, rewards, dones; [`task::TaskBatch`]) sits on top of this contract.
 
 pub mod common;
 pub mod cpu;
@@ -28,6 +28,8 @@ pub mod gpu;
 pub mod layout;
 pub mod physics;
 pub mod reset;
+pub mod task;
+pub mod task_gpu;
 
 use anyhow::{Result, bail};
 use glam::{Mat3, Quat, Vec3};

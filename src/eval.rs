@@ -1,0 +1,268 @@
+//! `dextrain eval runs/NAME`: deterministic episodes (the policy mean) of a checkpoint on fresh
+//! seeds, a JSON report in `runs/NAME/eval/`, and optionally an MCAP recording of env 0's first
+//! episode that Foxglove shows in 3-D.
+//!
+//! Every env runs exactly one episode (envs = the number of episodes, in rounds of at most
+//! `--max-envs`), so short and long episodes are counted alike. The eval seed defaults to the run's
+//! seed + 1,000,003 (`--seed` overrides it): the initial states and physical parameters are draws
+//! the policy never trained on. Observation noise stays as the config sets it.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+
+use crate::checkpoint;
+use crate::config::{BackendChoice, Config};
+use crate::env::reset::reset_params;
+use crate::env::task::make_task_batch;
+use crate::env::{SimModel, contact_records, hand_link_poses};
+use crate::geom::Pose;
+use crate::learn::device::learner_device;
+use crate::learn::ppo::{Dims, Ppo};
+use crate::record::{RolloutFrame, RolloutMeta, RolloutWriter};
+use crate::run_dir;
+
+/// Arguments of `dextrain eval`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct EvalArgs {
+    /// The run directory (runs/NAME).
+    pub run: PathBuf,
+    /// Which checkpoint: an iteration number or "latest".
+    #[arg(long, default_value = "latest")]
+    pub checkpoint: String,
+    /// Number of episodes (one per env).
+    #[arg(long, default_value_t = 100)]
+    pub episodes: usize,
+    /// Most envs stepped at once.
+    #[arg(long, default_value_t = 1024)]
+    pub max_envs: usize,
+    /// Seed of the eval episodes (default: the run's seed + 1000003).
+    #[arg(long)]
+    pub seed: Option<u32>,
+    /// Record env 0's episode to this MCAP file.
+    #[arg(long)]
+    pub record: Option<PathBuf>,
+    /// Env backend (overrides the run's config): cpu, gpu, gpu:NAME or auto.
+    #[arg(long)]
+    pub backend: Option<String>,
+}
+
+/// Mean and standard deviation.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct MeanStd {
+    pub mean: f64,
+    pub std: f64,
+}
+
+fn mean_std(x: &[f64]) -> MeanStd {
+    let n = x.len().max(1) as f64;
+    let mean = x.iter().sum::<f64>() / n;
+    let var = x.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n;
+    MeanStd { mean, std: var.sqrt() }
+}
+
+/// The eval report (written as JSON).
+#[derive(Clone, Debug, Serialize)]
+pub struct EvalReport {
+    pub run: String,
+    pub checkpoint: String,
+    pub iteration: u64,
+    pub seed: u32,
+    pub episodes: usize,
+    pub env_backend: String,
+    pub learner_device: String,
+    /// Fraction of episodes whose last step had the object ≥ success height above its rest height.
+    pub success_rate: f64,
+    /// Fraction of episodes that ended by termination (drop, hand too far, bad state) rather than time-out.
+    pub terminated_rate: f64,
+    /// Undiscounted episode return.
+    pub episode_return: MeanStd,
+    /// Episode length (env steps).
+    pub episode_length: MeanStd,
+    /// Object lift height at the episode's last step (m).
+    pub final_lift_height_m: MeanStd,
+    /// Largest lift height during the episode (m).
+    pub max_lift_height_m: MeanStd,
+    /// Mean weighted value per env step of each reward term.
+    pub reward_terms: serde_json::Map<String, serde_json::Value>,
+    /// Deepest hand–object penetration of an episode (mm), over episodes.
+    pub peak_penetration_mm: MeanStd,
+    /// Largest penetration of any frame (mm).
+    pub max_penetration_mm: f64,
+    /// Fraction of all env steps with a hand–object penetration > 1 mm.
+    pub frac_frames_penetration_over_1mm: f64,
+    /// The report's path (not in the JSON).
+    #[serde(skip)]
+    pub path: PathBuf,
+}
+
+/// Runs the evaluation and writes the report.
+pub fn run(args: &EvalArgs) -> Result<EvalReport> {
+    run_dir::check_run(&args.run)?;
+    let ckpt = checkpoint::find(&args.run, &args.checkpoint)?;
+    let state = checkpoint::read_state(&ckpt)?;
+    let mut cfg = Config::load(&args.run.join("config.toml"))?;
+    let seed = args.seed.unwrap_or(cfg.seed.wrapping_add(1_000_003));
+    cfg.seed = seed;
+    if let Some(b) = &args.backend {
+        cfg.sim.backend = b.clone();
+    }
+    let episodes = args.episodes.max(1);
+    let max_envs = args.max_envs.max(1);
+    let rounds = episodes.div_ceil(max_envs);
+    let mut ep_return = Vec::new();
+    let mut ep_len = Vec::new();
+    let mut final_lift = Vec::new();
+    let mut max_lift_ep = Vec::new();
+    let mut peak_pen = Vec::new();
+    let mut successes = 0usize;
+    let mut terminated = 0usize;
+    let mut frames = 0u64;
+    let mut frames_over = 0u64;
+    let mut max_pen = 0.0f64;
+    let mut term_sums: Vec<f64> = Vec::new();
+    let mut term_names: Vec<String> = Vec::new();
+    let mut env_backend = String::new();
+    let mut device_name = String::new();
+    for round in 0..rounds {
+        let n = (episodes - round * max_envs).min(max_envs);
+        let mut c = cfg.clone();
+        c.sim.num_envs = n;
+        // each round draws other episodes: the seed moves by the round
+        c.seed = seed.wrapping_add(round as u32 * 7919);
+        c.validate()?;
+        let model = SimModel::from_config(&c)?;
+        let mut task = make_task_batch(&c, model.clone())?;
+        let spec = task.spec().clone();
+        env_backend = task.backend_name();
+        let choice = BackendChoice::parse(&c.train.device).unwrap_or(BackendChoice::Cpu);
+        let (device, dn) = learner_device(&choice, task.gpu_context())?;
+        device_name = dn;
+        let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
+        let mut ppo = Ppo::new(dims, n, 1, &c.ppo, &c.policy, device, c.seed as u64)?;
+        checkpoint::load_model(&ckpt.join("model.safetensors"), &mut ppo).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
+        term_names = spec.term_names.clone();
+        term_sums.resize(term_names.len(), 0.0);
+        let mut writer = match (&args.record, round) {
+            (Some(path), 0) => {
+                let g = &model.globals;
+                let meta = RolloutMeta {
+                    hand: model.hand.clone(),
+                    object: c.object.shape.scaled(reset_params(g, 0, 0).obj_scale),
+                    dt: spec.control_dt,
+                    info: serde_json::json!({"run": args.run.display().to_string(), "checkpoint": ckpt.display().to_string(), "seed": c.seed}),
+                };
+                Some(RolloutWriter::create(path, &meta)?)
+            }
+            _ => None,
+        };
+        let first = task.reset_all()?;
+        let mut obs = first.obs.clone();
+        let mut done = vec![false; n];
+        let mut ret = vec![0.0f64; n];
+        let mut len = vec![0.0f64; n];
+        let mut lift_max = vec![0.0f64; n];
+        let mut pen_max = vec![0.0f64; n];
+        let mut t = 0.0f64;
+        if let Some(w) = writer.as_mut() {
+            record_frame(w, &model, task.as_mut(), t)?;
+        }
+        while done.iter().any(|d| !d) {
+            let actions = ppo.act_mean(&obs)?;
+            let b = task.step(&actions)?;
+            t += spec.control_dt as f64;
+            let nt = term_names.len();
+            for i in 0..n {
+                if done[i] {
+                    continue;
+                }
+                ret[i] += b.reward[i] as f64;
+                len[i] += 1.0;
+                for k in 0..nt {
+                    term_sums[k] += b.terms[i * nt + k] as f64;
+                }
+                let pen_mm = b.max_pen[i] as f64 * 1000.0;
+                pen_max[i] = pen_max[i].max(pen_mm);
+                max_pen = max_pen.max(pen_mm);
+                frames += 1;
+                frames_over += (pen_mm > 1.0) as u64;
+                lift_max[i] = lift_max[i].max(b.lift_height[i] as f64);
+                if b.done(i) {
+                    done[i] = true;
+                    ep_return.push(ret[i]);
+                    ep_len.push(len[i]);
+                    final_lift.push(b.lift_height[i] as f64);
+                    max_lift_ep.push(lift_max[i]);
+                    peak_pen.push(pen_max[i]);
+                    successes += b.success[i] as usize;
+                    terminated += b.terminated[i] as usize;
+                }
+            }
+            let env0_running = !done[0];
+            obs = b.obs.clone();
+            if env0_running && let Some(w) = writer.as_mut() {
+                record_frame(w, &model, task.as_mut(), t)?;
+            }
+        }
+        if let Some(w) = writer.take() {
+            w.finish()?;
+        }
+    }
+    let total_frames = frames.max(1) as f64;
+    let reward_terms = term_names.iter().zip(&term_sums).map(|(k, v)| (k.clone(), serde_json::json!(v / total_frames))).collect();
+    let n_ep = ep_return.len().max(1) as f64;
+    let mut report = EvalReport {
+        run: args.run.display().to_string(),
+        checkpoint: ckpt.display().to_string(),
+        iteration: state.iteration,
+        seed,
+        episodes: ep_return.len(),
+        env_backend,
+        learner_device: device_name,
+        success_rate: successes as f64 / n_ep,
+        terminated_rate: terminated as f64 / n_ep,
+        episode_return: mean_std(&ep_return),
+        episode_length: mean_std(&ep_len),
+        final_lift_height_m: mean_std(&final_lift),
+        max_lift_height_m: mean_std(&max_lift_ep),
+        reward_terms,
+        peak_penetration_mm: mean_std(&peak_pen),
+        max_penetration_mm: max_pen,
+        frac_frames_penetration_over_1mm: frames_over as f64 / total_frames,
+        path: PathBuf::new(),
+    };
+    let dir = args.run.join("eval");
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let path = dir.join(format!("eval_it{}_seed{}_n{}.json", state.iteration, seed, report.episodes));
+    let json = serde_json::to_string_pretty(&report).context("cannot serialise the eval report")?;
+    std::fs::write(&path, json).with_context(|| format!("cannot write {}", path.display()))?;
+    report.path = path;
+    Ok(report)
+}
+
+fn pose_of(p: [f32; 4], q: [f32; 4]) -> Pose {
+    Pose::new(glam::Vec3::new(p[0], p[1], p[2]), glam::Quat::from_array(q))
+}
+
+/// Writes env 0's current state as one recording frame.
+fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::env::task::TaskBatch, t: f64) -> Result<()> {
+    let targets = task.targets()?;
+    let env = task.env();
+    let states = env.states()?;
+    let params = env.params()?;
+    let s = &states[0];
+    let nj = model.joints.len();
+    w.write_frame(&RolloutFrame {
+        t,
+        joint_pos: s.q[..nj].to_vec(),
+        joint_vel: s.qd[..nj].to_vec(),
+        joint_target: targets[0].q[..nj].to_vec(),
+        wrist: pose_of(s.wrist_pos, s.wrist_rot),
+        object: pose_of(s.obj_pos, s.obj_rot),
+        links: hand_link_poses(model, s),
+        contacts: contact_records(model, s, &params[0]),
+        object_ref: None,
+    })
+}
+

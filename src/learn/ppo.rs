@@ -1,0 +1,409 @@
+//! PPO (Schulman et al. 2017) with rsl_rl's conventions, top to bottom in one file.
+//!
+//! - Gaussian actor `π(a|s) = N(μ_θ(ŝ), diag(exp(2 log σ)))` with a learned, state-independent
+//!   log-std; a separate critic `V_φ(ĉ)` on the privileged critic observation (asymmetric
+//!   actor–critic); `ŝ`, `ĉ` are empirically normalised (`normalizer.rs`).
+//! - Rollouts: [`Ppo::act`] samples actions for N envs, [`Ppo::process_step`] records rewards and
+//!   dones; on a time-out the reward gets `γ V(s_t)` (returns bootstrap through time-outs, not
+//!   through terminations). After `T` steps, [`Ppo::update`] computes GAE and runs `epochs` passes of
+//!   `minibatches` minibatches over the shuffled rollout.
+//! - Loss per minibatch: clipped surrogate + `value_loss_coef` × clipped value loss − `entropy_coef`
+//!   × entropy; gradients clipped to a global norm; Adam; the learning rate adapts to the KL between
+//!   the acting policy and the current one (÷1.5 above 2× the target, ×1.5 below ½×, clamped).
+//!
+//! Host RNG (action noise, minibatch shuffles) is one `Rng` whose state the checkpoint saves.
+
+use anyhow::{Result, ensure};
+use burn::prelude::*;
+use burn::tensor::{Int, TensorData};
+
+use super::nets::{Activation, Adam, clipped_grads, init_mlp, mlp_forward, mlp_shapes, to_host, to_tensor};
+use super::normalizer::Normalizer;
+use super::rng::Rng;
+use super::storage::RolloutStorage;
+use crate::config::{PolicyConfig, PpoConfig};
+
+const LN_2PI: f64 = 1.837_877_066_409_345_3; // ln(2π)
+
+/// Sizes of the learner's inputs and outputs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Dims {
+    pub obs: usize,
+    pub priv_obs: usize,
+    pub act: usize,
+}
+
+/// Actor and critic parameters: `[actor layers…, log_std, critic layers…]` (see `nets.rs`).
+pub struct ActorCritic {
+    pub dims: Dims,
+    pub activation: Activation,
+    pub actor_shapes: Vec<[usize; 2]>,
+    pub critic_shapes: Vec<[usize; 2]>,
+    /// Autodiff leaves on the learner device.
+    pub params: Vec<Tensor<2>>,
+}
+
+impl ActorCritic {
+    /// Fresh networks (torch's Linear initialisation from `rng`, log σ = ln init_std).
+    pub fn new(dims: Dims, cfg: &PolicyConfig, device: &Device, rng: &mut Rng) -> Result<ActorCritic> {
+        let activation = Activation::parse(&cfg.activation)?;
+        let actor_shapes = mlp_shapes(dims.obs, &cfg.actor_hidden, dims.act);
+        let critic_shapes = mlp_shapes(dims.priv_obs, &cfg.critic_hidden, 1);
+        let mut values = init_mlp(&actor_shapes, rng);
+        values.push(vec![cfg.init_std.ln(); dims.act]);
+        values.extend(init_mlp(&critic_shapes, rng));
+        let mut ac = ActorCritic { dims, activation, actor_shapes, critic_shapes, params: Vec::new() };
+        ac.set_values(values, device)?;
+        Ok(ac)
+    }
+
+    /// Shapes of every parameter, in order.
+    pub fn shapes(&self) -> Vec<[usize; 2]> {
+        let mut s = self.actor_shapes.clone();
+        s.push([1, self.dims.act]);
+        s.extend(self.critic_shapes.iter().copied());
+        s
+    }
+
+    /// Names of every parameter, in order (for checkpoints): actor.0.weight, …, log_std, critic.…
+    pub fn names(&self) -> Vec<String> {
+        let layer = |prefix: &str, i: usize| format!("{prefix}.{}.{}", i / 2, if i % 2 == 0 { "weight" } else { "bias" });
+        let mut n: Vec<String> = (0..self.actor_shapes.len()).map(|i| layer("actor", i)).collect();
+        n.push("log_std".into());
+        n.extend((0..self.critic_shapes.len()).map(|i| layer("critic", i)));
+        n
+    }
+
+    /// Replaces every parameter with host values (same order and shapes as `shapes()`).
+    pub fn set_values(&mut self, values: Vec<Vec<f32>>, device: &Device) -> Result<()> {
+        let shapes = self.shapes();
+        ensure!(values.len() == shapes.len(), "expected {} parameter tensors, got {}", shapes.len(), values.len());
+        let mut params = Vec::with_capacity(values.len());
+        for (v, s) in values.into_iter().zip(&shapes) {
+            ensure!(v.len() == s[0] * s[1], "a parameter of shape {s:?} got {} values", v.len());
+            params.push(to_tensor(v, *s, device).autodiff().require_grad());
+        }
+        self.params = params;
+        Ok(())
+    }
+
+    /// Every parameter's values on the host.
+    pub fn values(&self) -> Result<Vec<Vec<f32>>> {
+        self.params.iter().map(|p| to_host(p.clone().inner())).collect()
+    }
+
+    fn n_actor(&self) -> usize {
+        self.actor_shapes.len()
+    }
+
+    /// Policy mean: ŝ [B, O] → μ [B, A].
+    pub fn actor(&self, params: &[Tensor<2>], obs: Tensor<2>) -> Tensor<2> {
+        mlp_forward(&params[..self.n_actor()], obs, self.activation)
+    }
+
+    /// log σ [1, A].
+    pub fn log_std(&self, params: &[Tensor<2>]) -> Tensor<2> {
+        params[self.n_actor()].clone()
+    }
+
+    /// Value: ĉ [B, P] → V [B, 1].
+    pub fn critic(&self, params: &[Tensor<2>], priv_obs: Tensor<2>) -> Tensor<2> {
+        mlp_forward(&params[self.n_actor() + 1..], priv_obs, self.activation)
+    }
+
+    /// The parameters without autodiff (for acting).
+    pub fn inference_params(&self) -> Vec<Tensor<2>> {
+        self.params.iter().map(|p| p.clone().inner()).collect()
+    }
+}
+
+/// One minibatch on the learner device (rows = transitions).
+pub struct Batch {
+    pub obs: Tensor<2>,       // [B, O]
+    pub priv_obs: Tensor<2>,  // [B, P]
+    pub actions: Tensor<2>,   // [B, A]
+    pub old_log_prob: Tensor<2>, // [B, 1]
+    pub old_mu: Tensor<2>,    // [B, A]
+    pub old_sigma: Tensor<2>, // [B, A]
+    pub advantages: Tensor<2>, // [B, 1]
+    pub returns: Tensor<2>,   // [B, 1]
+    pub old_values: Tensor<2>, // [B, 1]
+}
+
+/// The PPO loss terms of one minibatch (each a [1]-tensor; `total` carries the gradient).
+pub struct Losses {
+    pub total: Tensor<1>,
+    pub surrogate: Tensor<1>,
+    pub value: Tensor<1>,
+    pub entropy: Tensor<1>,
+    /// Mean KL(π_old ‖ π_new) over the minibatch (no gradient needed).
+    pub kl: Tensor<1>,
+}
+
+/// The PPO losses for policy output `mu` [B, A], `log_std` [1, A] and values `v` [B, 1]:
+/// - ratio `ρ = exp(log π(a|s) − log π_old(a|s))`,
+///   surrogate `mean(max(−Â ρ, −Â clip(ρ, 1 − ε, 1 + ε)))`;
+/// - value `mean(max((V − R)², (V_old + clip(V − V_old, −ε, ε) − R)²))` (or `mean((V − R)²)` unclipped);
+/// - entropy `Σ_a (½ + ½ ln 2π + log σ_a)`;
+/// - `total = surrogate + c_v · value − c_e · entropy`;
+/// - `kl = mean Σ_a [ln(σ/σ_old) + (σ_old² + (μ_old − μ)²) / (2σ²) − ½]`.
+pub fn ppo_losses(mu: Tensor<2>, log_std: Tensor<2>, v: Tensor<2>, b: &Batch, cfg: &PpoConfig) -> Losses {
+    let [_, a] = mu.dims();
+    let sigma = log_std.clone().exp(); // [1, A]
+    // log π(a|s) = −½ Σ ((a − μ)/σ)² − Σ log σ − ½ A ln 2π          [B, 1]
+    let z = (b.actions.clone() - mu.clone()) / sigma.clone();
+    let log_prob = z.square().sum_dim(1).mul_scalar(-0.5) - log_std.clone().sum_dim(1);
+    let log_prob = log_prob.sub_scalar(0.5 * a as f64 * LN_2PI);
+    let ratio = (log_prob - b.old_log_prob.clone()).exp(); // [B, 1]
+    let eps = cfg.clip_param as f64;
+    let surr = -(b.advantages.clone() * ratio.clone());
+    let surr_clipped = -(b.advantages.clone() * ratio.clamp(1.0 - eps, 1.0 + eps));
+    let surrogate = surr.max_pair(surr_clipped).mean();
+    let value = if cfg.clipped_value_loss {
+        let v_clipped = b.old_values.clone() + (v.clone() - b.old_values.clone()).clamp(-eps, eps);
+        let l1 = (v - b.returns.clone()).square();
+        let l2 = (v_clipped - b.returns.clone()).square();
+        l1.max_pair(l2).mean()
+    } else {
+        (v - b.returns.clone()).square().mean()
+    };
+    let entropy = log_std.clone().sum_dim(1).add_scalar(0.5 * a as f64 * (1.0 + LN_2PI)).reshape([1]); // [1]
+    let total = surrogate.clone() + value.clone().mul_scalar(cfg.value_loss_coef as f64) - entropy.clone().mul_scalar(cfg.entropy_coef as f64);
+    // KL of diagonal Gaussians, per row, then the mean
+    let mu_d = mu.detach();
+    let ls_d = log_std.detach();
+    let sig_d = sigma.detach();
+    let kl_rows = (ls_d - b.old_sigma.clone().log())
+        + (b.old_sigma.clone().square() + (b.old_mu.clone() - mu_d).square()) / (sig_d.square().mul_scalar(2.0))
+        - 0.5; // [B, A]
+    let kl = kl_rows.sum_dim(1).mean();
+    Losses { total, surrogate, value, entropy, kl }
+}
+
+/// What one update did (means over its minibatches; `lr` after the update).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct UpdateStats {
+    pub surrogate: f64,
+    pub value: f64,
+    pub entropy: f64,
+    pub kl: f64,
+    pub lr: f64,
+    pub grad_norm: f64,
+    pub mean_std: f64,
+}
+
+/// The PPO learner: networks, optimiser, normalisers, rollout storage, learning rate and RNG.
+pub struct Ppo {
+    pub cfg: PpoConfig,
+    pub device: Device,
+    pub net: ActorCritic,
+    pub adam: Adam,
+    pub normalize: bool,
+    pub obs_norm: Normalizer,
+    pub priv_norm: Normalizer,
+    pub storage: RolloutStorage,
+    pub lr: f64,
+    pub rng: Rng,
+    /// Env steps recorded in the current rollout.
+    step: usize,
+}
+
+impl Ppo {
+    /// A fresh learner for `num_envs` envs and rollouts of `steps` env steps.
+    pub fn new(dims: Dims, num_envs: usize, steps: usize, cfg: &PpoConfig, policy: &PolicyConfig, device: Device, seed: u64) -> Result<Ppo> {
+        let mut rng = Rng::new(seed, 0x5050_4f21);
+        let net = ActorCritic::new(dims, policy, &device, &mut rng)?;
+        let adam = Adam::new(&net.shapes(), &device);
+        Ok(Ppo {
+            cfg: cfg.clone(),
+            device,
+            net,
+            adam,
+            normalize: policy.obs_normalization,
+            obs_norm: Normalizer::new(dims.obs),
+            priv_norm: Normalizer::new(dims.priv_obs),
+            storage: RolloutStorage::new(steps, num_envs, dims.obs, dims.priv_obs, dims.act),
+            lr: cfg.learning_rate as f64,
+            rng,
+            step: 0,
+        })
+    }
+
+    pub fn dims(&self) -> Dims {
+        self.net.dims
+    }
+
+    fn normalized(&self, norm: &Normalizer, x: &[f32]) -> Vec<f32> {
+        let mut x = x.to_vec();
+        if self.normalize {
+            norm.apply(&mut x);
+        }
+        x
+    }
+
+    /// Deterministic action (the policy mean) for raw observations [N, O]; statistics unchanged.
+    pub fn act_mean(&self, obs: &[f32]) -> Result<Vec<f32>> {
+        let d = self.dims();
+        let n = obs.len() / d.obs;
+        let x = to_tensor(self.normalized(&self.obs_norm, obs), [n, d.obs], &self.device);
+        to_host(self.net.actor(&self.net.inference_params(), x))
+    }
+
+    /// Samples actions [N, A] for raw observations `obs` [N, O] / `priv_obs` [N, P], updating the
+    /// normalisers first (training), and records the first half of the transition.
+    pub fn act(&mut self, obs: &[f32], priv_obs: &[f32]) -> Result<Vec<f32>> {
+        let d = self.dims();
+        let n = self.storage.envs;
+        ensure!(obs.len() == n * d.obs && priv_obs.len() == n * d.priv_obs, "observation sizes do not match the learner");
+        ensure!(self.step < self.storage.steps, "rollout storage is full: call update()");
+        if self.normalize {
+            self.obs_norm.update(obs);
+            self.priv_norm.update(priv_obs);
+        }
+        let obs_n = self.normalized(&self.obs_norm, obs);
+        let priv_n = self.normalized(&self.priv_norm, priv_obs);
+        let params = self.net.inference_params();
+        let mu = to_host(self.net.actor(&params, to_tensor(obs_n.clone(), [n, d.obs], &self.device)))?; // [N, A]
+        let values = to_host(self.net.critic(&params, to_tensor(priv_n.clone(), [n, d.priv_obs], &self.device)))?; // [N, 1]
+        let log_std = to_host(self.net.log_std(&params))?; // [A]
+        let sigma: Vec<f32> = log_std.iter().map(|l| l.exp()).collect();
+        let sum_log_std: f64 = log_std.iter().map(|&l| l as f64).sum();
+        let mut eps = vec![0.0f32; n * d.act];
+        self.rng.fill_normal(&mut eps);
+        let t = self.step;
+        let s = &mut self.storage;
+        let mut actions = vec![0.0f32; n * d.act];
+        for i in 0..n {
+            let row = t * n + i;
+            let mut sq = 0.0f64;
+            for k in 0..d.act {
+                let a = mu[i * d.act + k] + sigma[k] * eps[i * d.act + k]; // a = μ + σ ε
+                actions[i * d.act + k] = a;
+                sq += (eps[i * d.act + k] as f64).powi(2);
+                s.mu[row * d.act + k] = mu[i * d.act + k];
+                s.sigma[row * d.act + k] = sigma[k];
+            }
+            // log π(a|s) = −½ Σ ε² − Σ log σ − ½ A ln 2π
+            s.log_prob[row] = (-0.5 * sq - sum_log_std - 0.5 * d.act as f64 * LN_2PI) as f32;
+            s.values[row] = values[i];
+        }
+        s.obs[t * n * d.obs..(t + 1) * n * d.obs].copy_from_slice(&obs_n);
+        s.priv_obs[t * n * d.priv_obs..(t + 1) * n * d.priv_obs].copy_from_slice(&priv_n);
+        s.actions[t * n * d.act..(t + 1) * n * d.act].copy_from_slice(&actions);
+        Ok(actions)
+    }
+
+    /// Records the outcome of the step started by the last `act`: rewards [N], and which envs
+    /// terminated or timed out (then reset). A time-out adds `γ V(s_t)` to the reward.
+    pub fn process_step(&mut self, rewards: &[f32], terminated: &[bool], time_outs: &[bool]) {
+        let n = self.storage.envs;
+        let t = self.step;
+        let gamma = self.cfg.gamma;
+        let s = &mut self.storage;
+        for i in 0..n {
+            let row = t * n + i;
+            let mut r = rewards[i];
+            if time_outs[i] && !terminated[i] {
+                r += gamma * s.values[row]; // bootstrap through the time-out
+            }
+            s.rewards[row] = r;
+            s.dones[row] = (terminated[i] || time_outs[i]) as u8 as f32;
+        }
+        self.step += 1;
+        s.len = self.step * n;
+    }
+
+    /// Whether `steps` transitions per env have been recorded.
+    pub fn rollout_full(&self) -> bool {
+        self.step == self.storage.steps
+    }
+
+    /// GAE from the critic's value of `last_priv_obs` (raw, [N, P]), then `epochs` × `minibatches`
+    /// gradient steps. Clears the storage.
+    pub fn update(&mut self, last_priv_obs: &[f32]) -> Result<UpdateStats> {
+        ensure!(self.rollout_full(), "update() before the rollout is full ({} of {} steps)", self.step, self.storage.steps);
+        let d = self.dims();
+        let n = self.storage.envs;
+        let priv_n = self.normalized(&self.priv_norm, last_priv_obs);
+        let last_values = to_host(self.net.critic(&self.net.inference_params(), to_tensor(priv_n, [n, d.priv_obs], &self.device)))?;
+        self.storage.compute_returns(&last_values, self.cfg.gamma, self.cfg.lam);
+
+        let s = &self.storage;
+        let total = s.capacity();
+        let dev = &self.device;
+        let col = |v: &Vec<f32>| to_tensor(v.clone(), [total, 1], dev);
+        let all = Batch {
+            obs: to_tensor(s.obs.clone(), [total, d.obs], dev),
+            priv_obs: to_tensor(s.priv_obs.clone(), [total, d.priv_obs], dev),
+            actions: to_tensor(s.actions.clone(), [total, d.act], dev),
+            old_log_prob: col(&s.log_prob),
+            old_mu: to_tensor(s.mu.clone(), [total, d.act], dev),
+            old_sigma: to_tensor(s.sigma.clone(), [total, d.act], dev),
+            advantages: col(&s.advantages),
+            returns: col(&s.returns),
+            old_values: col(&s.values),
+        };
+        let mb_size = total / self.cfg.minibatches as usize;
+        let mut sums = [0.0f64; 5];
+        let mut count = 0usize;
+        for _epoch in 0..self.cfg.epochs {
+            let perm = self.rng.permutation(total);
+            for m in 0..self.cfg.minibatches as usize {
+                let idx: Vec<i64> = perm[m * mb_size..(m + 1) * mb_size].iter().map(|&i| i as i64).collect();
+                let idx = Tensor::<1, Int>::from_data(TensorData::new(idx, [mb_size]), dev);
+                let pick = |t: &Tensor<2>| t.clone().select(0, idx.clone());
+                let b = Batch {
+                    obs: pick(&all.obs),
+                    priv_obs: pick(&all.priv_obs),
+                    actions: pick(&all.actions),
+                    old_log_prob: pick(&all.old_log_prob),
+                    old_mu: pick(&all.old_mu),
+                    old_sigma: pick(&all.old_sigma),
+                    advantages: pick(&all.advantages),
+                    returns: pick(&all.returns),
+                    old_values: pick(&all.old_values),
+                };
+                let params = &self.net.params;
+                let mu = self.net.actor(params, b.obs.clone());
+                let v = self.net.critic(params, b.priv_obs.clone());
+                let losses = ppo_losses(mu, self.net.log_std(params), v, &b, &self.cfg);
+                // one readback per minibatch: kl, surrogate, value, entropy
+                let scalars = to_host(Tensor::cat(
+                    vec![losses.kl.clone().inner(), losses.surrogate.clone().detach().inner(), losses.value.clone().detach().inner(), losses.entropy.clone().detach().inner()],
+                    0,
+                ))?;
+                let kl = scalars[0] as f64;
+                if self.cfg.schedule == "adaptive" && kl.is_finite() {
+                    let target = self.cfg.desired_kl as f64;
+                    if kl > 2.0 * target {
+                        self.lr = (self.lr / 1.5).max(self.cfg.min_learning_rate as f64);
+                    } else if kl < 0.5 * target && kl > 0.0 {
+                        self.lr = (self.lr * 1.5).min(self.cfg.max_learning_rate as f64);
+                    }
+                }
+                let grads = losses.total.backward();
+                let (gs, norm) = clipped_grads(params, &grads, self.cfg.max_grad_norm as f64)?;
+                let new_params = self.adam.step(params, gs, self.lr);
+                self.net.params = new_params;
+                let norm = to_host(norm)?[0] as f64;
+                for (acc, v) in sums.iter_mut().zip([scalars[1] as f64, scalars[2] as f64, scalars[3] as f64, kl, norm]) {
+                    *acc += v;
+                }
+                count += 1;
+            }
+        }
+        self.storage.clear();
+        self.step = 0;
+        let c = count.max(1) as f64;
+        let log_std = to_host(self.net.log_std(&self.net.inference_params()))?;
+        Ok(UpdateStats {
+            surrogate: sums[0] / c,
+            value: sums[1] / c,
+            entropy: sums[2] / c,
+            kl: sums[3] / c,
+            grad_norm: sums[4] / c,
+            lr: self.lr,
+            mean_std: log_std.iter().map(|l| (*l as f64).exp()).sum::<f64>() / log_std.len().max(1) as f64,
+        })
+    }
+}

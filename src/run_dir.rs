@@ -1,0 +1,71 @@
+//! Run directories (DESIGN §7): `runs/<name>/` with the exact resolved config, metrics, TensorBoard
+//! events, plots, checkpoints and eval reports.
+//!
+//! A run name is one path component of letters, digits, `-`, `_` and `.` (not `.` or `..`), so a
+//! run cannot escape `runs/`. An existing run directory is never overwritten unless `--force` is
+//! given (then it is removed first).
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail};
+
+/// Checks a run name.
+pub fn validate_name(name: &str) -> Result<()> {
+    let ok = !name.is_empty()
+        && name.len() <= 200
+        && name != "."
+        && name != ".."
+        && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.');
+    if !ok {
+        bail!("--name {name:?}: expected a run name of letters, digits, '-', '_' and '.' (one path component inside runs/)");
+    }
+    Ok(())
+}
+
+/// Seconds since the Unix epoch → "YYYYMMDD-HHMMSS" (UTC).
+pub fn timestamp(secs: u64) -> String {
+    let days = (secs / 86_400) as i64;
+    let rem = secs % 86_400;
+    // civil-from-days (Howard Hinnant)
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z - era * 146_097;
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let y = yoe + era * 400;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = doy - (153 * mp + 2) / 5 + 1;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 };
+    let y = if m <= 2 { y + 1 } else { y };
+    format!("{y:04}{m:02}{d:02}-{:02}{:02}{:02}", rem / 3600, rem % 3600 / 60, rem % 60)
+}
+
+/// The default run name: `<config file stem>_<UTC timestamp>`.
+pub fn default_name(config: &Path) -> String {
+    let stem = config.file_stem().and_then(|s| s.to_str()).unwrap_or("run");
+    let stem: String = stem.chars().map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' || c == '.' { c } else { '_' }).collect();
+    let secs = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).map(|d| d.as_secs()).unwrap_or(0);
+    format!("{stem}_{}", timestamp(secs))
+}
+
+/// Creates `runs_root/name` (fails if it exists, unless `force`, which removes it first).
+pub fn create(runs_root: &Path, name: &str, force: bool) -> Result<PathBuf> {
+    validate_name(name)?;
+    let dir = runs_root.join(name);
+    if dir.exists() {
+        if !force {
+            bail!("{}: the run directory exists; pick another --name, resume it with --resume, or pass --force to overwrite it", dir.display());
+        }
+        std::fs::remove_dir_all(&dir).with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create the run directory {}", dir.display()))?;
+    Ok(dir)
+}
+
+/// Checks that `dir` is a run directory (it has `config.toml`).
+pub fn check_run(dir: &Path) -> Result<()> {
+    if !dir.join("config.toml").is_file() {
+        bail!("{}: not a run directory (expected {})", dir.display(), dir.join("config.toml").display());
+    }
+    Ok(())
+}

@@ -1,0 +1,338 @@
+//! `dextrain train`: the on-policy runner (rsl_rl's `OnPolicyRunner`): collect `steps_per_env` env
+//! steps of every env with the current policy, update PPO, log one metrics row, checkpoint, repeat.
+//!
+//! `dextrain train CONFIG [--set k=v]… [--name NAME] [--force]` starts a run in `runs/NAME/`;
+//! `dextrain train --resume runs/NAME` continues it from its latest checkpoint, exactly: the
+//! checkpoint holds the networks, Adam, the normalisers, the learning rate, the learner RNG, the
+//! counters and the whole env batch (states, parameters, task state, current observations and the
+//! running episodes' accumulators), so an interrupted run and a straight run write the same
+//! `metrics.csv` (but for the wall-clock columns `time_s` and `fps`).
+//!
+//! Ctrl-C stops a run at the end of the current iteration with a checkpoint.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde_json::json;
+
+use crate::checkpoint::{self, CheckpointState, EnvSnapshot};
+use crate::config::{BackendChoice, Config};
+use crate::env::SimModel;
+use crate::env::task::{TaskBatch, TaskSpec, make_task_batch};
+use crate::learn::device::learner_device;
+use crate::learn::ppo::{Dims, Ppo, UpdateStats};
+use crate::metrics::MetricsLog;
+use crate::run_dir;
+
+/// Arguments of `dextrain train`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct TrainArgs {
+    /// The TOML config of the run (not with --resume).
+    #[arg(required_unless_present = "resume", conflicts_with = "resume")]
+    pub config: Option<PathBuf>,
+    /// Override a config value: `--set ppo.learning_rate=1e-3` (repeatable). With --resume only
+    /// `train.*` keys may change (e.g. `--set train.iterations=2000` to train longer).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub sets: Vec<String>,
+    /// Run name (default: `<config stem>_<UTC time>`); the run is written to `<runs-dir>/<NAME>/`.
+    #[arg(long, conflicts_with = "resume")]
+    pub name: Option<String>,
+    /// Continue the run in this directory from its latest checkpoint.
+    #[arg(long, value_name = "RUN_DIR")]
+    pub resume: Option<PathBuf>,
+    /// Overwrite an existing run directory of the same name.
+    #[arg(long)]
+    pub force: bool,
+    /// Where runs are written.
+    #[arg(long, default_value = "runs")]
+    pub runs_dir: PathBuf,
+    /// Stop (with a checkpoint) after this many iterations of this invocation; resume later.
+    #[arg(long)]
+    pub stop_after: Option<u64>,
+    /// No progress bar; one log line every 10 % of the run instead.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_sigint(_: libc::c_int) {
+    STOP.store(true, Ordering::SeqCst);
+}
+
+/// The metrics columns of a run, in order (after "iteration").
+pub fn metric_columns(spec: &TaskSpec) -> Vec<String> {
+    let mut c: Vec<String> = ["env_steps", "time_s", "fps", "reward/mean"].iter().map(|s| s.to_string()).collect();
+    c.extend(spec.term_names.iter().map(|t| format!("reward/{t}")));
+    c.extend(
+        [
+            "episode/count",
+            "episode/return",
+            "episode/length",
+            "episode/success_rate",
+            "episode/lift_height",
+            "episode/terminated_frac",
+            "loss/surrogate",
+            "loss/value",
+            "loss/entropy",
+            "kl",
+            "lr",
+            "grad_norm",
+            "policy/std",
+        ]
+        .iter()
+        .map(|s| s.to_string()),
+    );
+    c
+}
+
+/// What happened during one iteration's rollout (host-side sums).
+#[derive(Default)]
+struct RolloutSums {
+    reward: f64,
+    terms: Vec<f64>,
+    steps: u64,
+    episodes: u64,
+    successes: u64,
+    terminated: u64,
+    ep_return: f64,
+    ep_len: f64,
+    lift: f64,
+}
+
+/// Per-env accumulators of the running episodes.
+struct Episodes {
+    ret: Vec<f64>,
+    len: Vec<f64>,
+}
+
+/// One rollout of `T` steps: act, step, record; returns the sums. `obs`/`priv_obs` are updated to
+/// the observations after the last step.
+fn collect(task: &mut dyn TaskBatch, ppo: &mut Ppo, obs: &mut Vec<f32>, priv_obs: &mut Vec<f32>, eps: &mut Episodes, steps: usize) -> Result<RolloutSums> {
+    let n_terms = task.spec().term_names.len();
+    let mut s = RolloutSums { terms: vec![0.0; n_terms], ..Default::default() };
+    for _ in 0..steps {
+        let actions = ppo.act(obs, priv_obs)?;
+        let b = task.step(&actions)?;
+        ppo.process_step(&b.reward, &b.terminated, &b.time_out);
+        let n = b.reward.len();
+        for i in 0..n {
+            let r = b.reward[i] as f64;
+            s.reward += r;
+            for k in 0..n_terms {
+                s.terms[k] += b.terms[i * n_terms + k] as f64;
+            }
+            eps.ret[i] += r;
+            eps.len[i] += 1.0;
+            if b.done(i) {
+                s.episodes += 1;
+                s.successes += b.success[i] as u64;
+                s.terminated += b.terminated[i] as u64;
+                s.ep_return += eps.ret[i];
+                s.ep_len += eps.len[i];
+                s.lift += b.lift_height[i] as f64;
+                eps.ret[i] = 0.0;
+                eps.len[i] = 0.0;
+            }
+        }
+        s.steps += n as u64;
+        obs.copy_from_slice(&b.obs);
+        priv_obs.copy_from_slice(&b.priv_obs);
+    }
+    Ok(s)
+}
+
+fn metric_row(s: &RolloutSums, u: &UpdateStats, env_steps: u64, time_s: f64, fps: f64) -> Vec<f64> {
+    let per_step = |x: f64| if s.steps > 0 { x / s.steps as f64 } else { f64::NAN };
+    let per_ep = |x: f64| if s.episodes > 0 { x / s.episodes as f64 } else { f64::NAN };
+    let mut row = vec![env_steps as f64, time_s, fps, per_step(s.reward)];
+    row.extend(s.terms.iter().map(|&t| per_step(t)));
+    row.extend([
+        s.episodes as f64,
+        per_ep(s.ep_return),
+        per_ep(s.ep_len),
+        per_ep(s.successes as f64),
+        per_ep(s.lift),
+        per_ep(s.terminated as f64),
+        u.surrogate,
+        u.value,
+        u.entropy,
+        u.kl,
+        u.lr,
+        u.grad_norm,
+        u.mean_std,
+    ]);
+    row
+}
+
+/// Loads the config of a new run (with overrides) or of a resumed one.
+fn setup(args: &TrainArgs) -> Result<(Config, PathBuf, Option<PathBuf>)> {
+    if let Some(dir) = &args.resume {
+        run_dir::check_run(dir)?;
+        let cfg_path = dir.join("config.toml");
+        for s in &args.sets {
+            if !s.trim_start().starts_with("train.") {
+                bail!("--set {s:?}: only train.* keys can change when resuming (the rest of {} is fixed)", cfg_path.display());
+            }
+        }
+        let cfg = Config::load_with_overrides(&cfg_path, &args.sets)?;
+        let ckpt = checkpoint::find(dir, "latest")?;
+        if !args.sets.is_empty() {
+            std::fs::write(&cfg_path, cfg.to_toml()?).with_context(|| format!("cannot write {}", cfg_path.display()))?;
+        }
+        return Ok((cfg, dir.clone(), Some(ckpt)));
+    }
+    let path = args.config.as_ref().context("a config file or --resume is needed")?;
+    let cfg = Config::load_with_overrides(path, &args.sets)?;
+    let name = match &args.name {
+        Some(n) => n.clone(),
+        None => run_dir::default_name(path),
+    };
+    run_dir::validate_name(&name)?;
+    // the hand must load before a run directory is made
+    SimModel::from_config(&cfg)?;
+    let dir = run_dir::create(&args.runs_dir, &name, args.force)?;
+    // the exact resolved config; paths in it stay relative to the original config's directory
+    let mut saved = cfg.clone();
+    saved.hand.urdf = absolute(&cfg.resolve(&cfg.hand.urdf));
+    std::fs::write(dir.join("config.toml"), saved.to_toml()?).with_context(|| format!("cannot write {}", dir.join("config.toml").display()))?;
+    Ok((cfg, dir, None))
+}
+
+fn absolute(p: &Path) -> String {
+    std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf()).display().to_string()
+}
+
+/// Runs (or resumes) a training run; returns its directory.
+pub fn run(args: &TrainArgs) -> Result<PathBuf> {
+    let (cfg, dir, resume) = setup(args)?;
+    let model = SimModel::from_config(&cfg)?;
+    let mut task = make_task_batch(&cfg, model)?;
+    let spec = task.spec().clone();
+    let choice = BackendChoice::parse(&cfg.train.device).unwrap_or(BackendChoice::Cpu);
+    let (device, device_name) = learner_device(&choice, task.gpu_context())?;
+    let n = spec.num_envs;
+    let steps = cfg.train.steps_per_env as usize;
+    let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
+    let mut ppo = Ppo::new(dims, n, steps, &cfg.ppo, &cfg.policy, device, cfg.seed as u64)?;
+    let columns = metric_columns(&spec);
+    let (mut iteration, mut env_steps, mut time_base, mut obs, mut priv_obs, mut eps, mut metrics) = match &resume {
+        Some(ckpt) => {
+            let (st, snap) = checkpoint::load(ckpt, &mut ppo)?;
+            task.load_state(&snap.task_state).with_context(|| format!("{}: cannot restore the env batch", ckpt.display()))?;
+            let metrics = MetricsLog::resume(&dir, &columns, st.iteration)?;
+            (st.iteration, st.env_steps, st.time_s, snap.obs, snap.priv_obs, Episodes { ret: snap.ep_return, len: snap.ep_len }, metrics)
+        }
+        None => {
+            let first = task.reset_all()?;
+            let (o, p) = (first.obs.clone(), first.priv_obs.clone());
+            let metrics = MetricsLog::create(&dir, &columns)?;
+            (0, 0, 0.0, o, p, Episodes { ret: vec![0.0; n], len: vec![0.0; n] }, metrics)
+        }
+    };
+    let total = cfg.train.iterations as u64;
+    if iteration >= total {
+        bail!("{}: the run has finished its {total} iterations; resume with --set train.iterations=N (N > {iteration}) to train longer", dir.display());
+    }
+    let stop_at = args.stop_after.map(|k| (iteration + k).min(total)).unwrap_or(total);
+    eprintln!(
+        "dextrain train: {} | envs: {} ({n} envs, obs {}, critic obs {}, actions {}) | learner: {device_name} | iterations {iteration}..{stop_at} of {total}",
+        dir.display(),
+        task.backend_name(),
+        dims.obs,
+        dims.priv_obs,
+        dims.act
+    );
+    unsafe {
+        libc::signal(libc::SIGINT, on_sigint as *const () as libc::sighandler_t);
+    }
+    let bar = ProgressBar::new(total);
+    bar.set_position(iteration);
+    if args.quiet {
+        bar.set_draw_target(ProgressDrawTarget::hidden());
+    }
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} it | {msg} | {elapsed_precise} ETA {eta_precise}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let started = Instant::now();
+    let mut last_saved = iteration;
+    let mut last_row = Vec::new();
+    while iteration < stop_at {
+        let t0 = Instant::now();
+        let sums = collect(task.as_mut(), &mut ppo, &mut obs, &mut priv_obs, &mut eps, steps)?;
+        let upd = ppo.update(&priv_obs)?;
+        iteration += 1;
+        env_steps += sums.steps;
+        let dt = t0.elapsed().as_secs_f64();
+        let time_s = time_base + started.elapsed().as_secs_f64();
+        let fps = sums.steps as f64 / dt.max(1e-9);
+        let row = metric_row(&sums, &upd, env_steps, time_s, fps);
+        metrics.append(iteration, &row)?;
+        let success = row[columns.iter().position(|c| c == "episode/success_rate").unwrap_or(0)];
+        let msg = format!("{:.0} steps/s, reward {:.3}, success {:.0}%", fps, row[3], 100.0 * success);
+        bar.set_message(msg.clone());
+        bar.set_position(iteration);
+        if (args.quiet || bar.is_hidden()) && (iteration % (total / 10).max(1) == 0 || iteration == stop_at) {
+            eprintln!("iteration {iteration}/{total}: {env_steps} env steps, {time_s:.1} s, {msg}");
+        }
+        last_row = row;
+        let interrupted = STOP.load(Ordering::SeqCst);
+        if iteration % cfg.train.save_interval as u64 == 0 || iteration == stop_at || interrupted {
+            let snap = EnvSnapshot { task_state: task.save_state()?, obs: obs.clone(), priv_obs: priv_obs.clone(), ep_return: eps.ret.clone(), ep_len: eps.len.clone() };
+            let st = CheckpointState {
+                iteration,
+                env_steps,
+                time_s,
+                learning_rate: ppo.lr,
+                adam_step: ppo.adam.t,
+                rng_state: format!("{:016x}", ppo.rng.state),
+                obs_dim: dims.obs,
+                priv_dim: dims.priv_obs,
+                action_dim: dims.act,
+            };
+            checkpoint::save(&dir.join("checkpoints"), &st, &ppo, &snap)?;
+            last_saved = iteration;
+            prune(&dir, cfg.train.keep_checkpoints)?;
+        }
+        if cfg.train.plot_interval > 0 && iteration % cfg.train.plot_interval as u64 == 0 {
+            crate::plot::plot_run(&dir.join("metrics.csv"), &dir.join("plots"))?;
+        }
+        if interrupted {
+            bar.abandon_with_message("interrupted");
+            eprintln!("dextrain train: interrupted at iteration {iteration}; checkpoint written; continue with --resume {}", dir.display());
+            break;
+        }
+    }
+    bar.finish();
+    time_base = time_base + started.elapsed().as_secs_f64();
+    crate::plot::plot_run(&dir.join("metrics.csv"), &dir.join("plots"))?;
+    let summary = json!({
+        "run": dir.display().to_string(),
+        "iterations": iteration,
+        "env_steps": env_steps,
+        "time_s": time_base,
+        "checkpoint": last_saved,
+        "env_backend": task.backend_name(),
+        "learner_device": device_name,
+        "last": columns.iter().zip(&last_row).map(|(c, v)| (c.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
+    });
+    println!("{summary}");
+    Ok(dir)
+}
+
+/// Removes all but the newest `keep` checkpoints (0 = keep all).
+fn prune(dir: &Path, keep: u32) -> Result<()> {
+    if keep == 0 {
+        return Ok(());
+    }
+    let all = checkpoint::list(dir)?;
+    let excess = all.len().saturating_sub(keep as usize);
+    for (_, p) in all.into_iter().take(excess) {
+        std::fs::remove_dir_all(&p).with_context(|| format!("cannot remove old checkpoint {}", p.display()))?;
+    }
+    Ok(())
+}
