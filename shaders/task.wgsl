@@ -168,10 +168,10 @@ fn obs_noise(k: u32) -> f32 {
     return sqrt(-2.0 * log(u1)) * cos(6.2831853 * u2);
 }
 
-// v + std · N(0, 1) for obs entry k (v itself when std = 0)
-fn noisy(k: u32, v: f32, std: f32) -> f32 {
-    if (std > 0.0) {
-        return v + std * obs_noise(k);
+// v + σ · N(0, 1) for obs entry k (v itself when σ = 0)
+fn noisy(k: u32, v: f32, sigma: f32) -> f32 {
+    if (sigma > 0.0) {
+        return v + sigma * obs_noise(k);
     }
     return v;
 }

@@ -179,3 +179,113 @@ pub fn run_bench(env: &mut dyn EnvBatch, model: &SimModel, opts: &BenchOptions) 
         "wall_s": start.elapsed().as_secs_f64(),
     }))
 }
+
+/// Shapes of the PPO update benchmark (the peer `rsl_rl_ppo_bench.py`'s defaults).
+#[derive(Clone, Debug)]
+pub struct PpoBenchOptions {
+    pub envs: usize,
+    pub steps: usize,
+    pub obs: usize,
+    pub priv_obs: usize,
+    pub actions: usize,
+    pub hidden: Vec<usize>,
+    pub epochs: u32,
+    pub minibatches: u32,
+    pub warmup: usize,
+    pub iters: usize,
+}
+
+impl Default for PpoBenchOptions {
+    fn default() -> Self {
+        PpoBenchOptions { envs: 4096, steps: 24, obs: 96, priv_obs: 130, actions: 22, hidden: vec![512, 256, 128], epochs: 5, minibatches: 4, warmup: 1, iters: 5 }
+    }
+}
+
+fn stats(xs: &[f64]) -> serde_json::Value {
+    let mut s = xs.to_vec();
+    s.sort_by(f64::total_cmp);
+    let median = if s.is_empty() { f64::NAN } else if s.len() % 2 == 1 { s[s.len() / 2] } else { 0.5 * (s[s.len() / 2 - 1] + s[s.len() / 2]) };
+    json!({"median": median, "min": s.first(), "max": s.last(), "n_runs": s.len()})
+}
+
+/// The learner-side cost of one PPO iteration on synthetic data, as rsl_rl's peer benchmark times it:
+/// a rollout of `steps` × [act + process_step] with pre-generated observations, rewards and dones
+/// (1/250 of transitions end an episode, half of those by time-out), then `update` (GAE +
+/// `epochs` × `minibatches` gradient steps with the adaptive-KL learning rate). Prints one JSON line.
+pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_name: &str) -> Result<serde_json::Value> {
+    use crate::config::{PolicyConfig, PpoConfig};
+    use crate::learn::ppo::{Dims, Ppo};
+    use crate::learn::rng::Rng;
+    let cfg = PpoConfig { learning_rate: 1e-3, epochs: o.epochs, minibatches: o.minibatches, ..PpoConfig::default() };
+    let pol = PolicyConfig { actor_hidden: o.hidden.clone(), critic_hidden: o.hidden.clone(), ..PolicyConfig::default() };
+    let dims = Dims { obs: o.obs, priv_obs: o.priv_obs, act: o.actions };
+    let mut ppo = Ppo::new(dims, o.envs, o.steps, &cfg, &pol, device, 0)?;
+    let mut rng = Rng::new(1, 1);
+    let mut draw = |len: usize| -> Vec<f32> { (0..len).map(|_| rng.normal() as f32).collect() };
+    let obs: Vec<(Vec<f32>, Vec<f32>)> = (0..2).map(|_| (draw(o.envs * o.obs), draw(o.envs * o.priv_obs))).collect();
+    let rewards: Vec<Vec<f32>> = (0..o.steps).map(|_| draw(o.envs)).collect();
+    let mut rng = Rng::new(2, 2);
+    let mut dones = Vec::new();
+    for _ in 0..o.steps {
+        let d: Vec<bool> = (0..o.envs).map(|_| rng.uniform() < 1.0 / 250.0).collect();
+        let to: Vec<bool> = d.iter().map(|&x| x && rng.uniform() < 0.5).collect();
+        let term: Vec<bool> = d.iter().zip(&to).map(|(&x, &t)| x && !t).collect();
+        dones.push((term, to));
+    }
+    let (mut rollout_ms, mut update_ms, mut update_cpu_s) = (Vec::new(), Vec::new(), Vec::new());
+    let mut last = None;
+    for it in 0..o.warmup + o.iters {
+        let t0 = Instant::now();
+        for k in 0..o.steps {
+            let (ob, pr) = &obs[k % 2];
+            ppo.act(ob, pr)?;
+            ppo.process_step(&rewards[k], &dones[k].0, &dones[k].1);
+        }
+        let t1 = Instant::now();
+        let c1 = process_cpu_time();
+        let u = ppo.update(&obs[o.steps % 2].1)?;
+        let t2 = Instant::now();
+        let c2 = process_cpu_time();
+        eprintln!(
+            "  iter {it}{}: rollout {:.0} ms, update {:.0} ms (cpu {:.1} s), lr {:.2e}",
+            if it < o.warmup { " (warm-up)" } else { "" },
+            1e3 * (t1 - t0).as_secs_f64(),
+            1e3 * (t2 - t1).as_secs_f64(),
+            c2 - c1,
+            u.lr
+        );
+        if it >= o.warmup {
+            rollout_ms.push(1e3 * (t1 - t0).as_secs_f64());
+            update_ms.push(1e3 * (t2 - t1).as_secs_f64());
+            update_cpu_s.push(c2 - c1);
+        }
+        last = Some(u);
+    }
+    let mut inf_ms = Vec::new();
+    for _ in 0..10 {
+        let t0 = Instant::now();
+        ppo.act_mean(&obs[0].0)?;
+        inf_ms.push(1e3 * t0.elapsed().as_secs_f64());
+    }
+    let transitions = (o.envs * o.steps) as f64;
+    let mut upd_sorted = update_ms.clone();
+    upd_sorted.sort_by(f64::total_cmp);
+    let upd_median_s = upd_sorted.get(upd_sorted.len() / 2).copied().unwrap_or(f64::NAN) / 1e3;
+    let u = last.unwrap_or_default();
+    Ok(json!({
+        "bench": "dextrain_ppo_bench",
+        "device": device_name,
+        "threads": rayon::current_num_threads(),
+        "config": {"num_envs": o.envs, "num_steps_per_env": o.steps, "obs_dim": o.obs, "critic_obs_dim": o.priv_obs,
+                   "action_dim": o.actions, "hidden": o.hidden, "activation": "elu", "epochs": o.epochs,
+                   "minibatches": o.minibatches, "minibatch_size": o.envs * o.steps / o.minibatches as usize,
+                   "schedule": "adaptive", "desired_kl": 0.01, "clipped_value_loss": true},
+        "transitions_per_iteration": o.envs * o.steps,
+        "update_ms": stats(&update_ms),
+        "update_process_cpu_s": stats(&update_cpu_s),
+        "update_transitions_per_s_median": transitions / upd_median_s,
+        "rollout_policy_ms_24_steps": stats(&rollout_ms),
+        "policy_inference_ms": stats(&inf_ms),
+        "last_losses": {"surrogate": u.surrogate, "value": u.value, "entropy": u.entropy, "kl": u.kl, "lr": u.lr},
+    }))
+}

@@ -24,8 +24,22 @@ enum Command {
         /// The TOML config file.
         config: PathBuf,
     },
-    /// Measure env-step throughput on the contact-rich benchmark scene; prints one JSON line.
+    /// Measure env-step throughput on the contact-rich benchmark scene (or, with --ppo, the PPO
+    /// update of the peer rsl_rl benchmark); prints one JSON line.
     Bench {
+        /// Time a PPO update (4096 envs × 24 steps, obs 96, critic obs 130, 22 actions, [512, 256, 128]
+        /// ELU, 5 epochs × 4 minibatches) on synthetic data instead of the simulator.
+        #[arg(long)]
+        ppo: bool,
+        /// Worker threads of the CPU backends (default: one per core).
+        #[arg(long)]
+        threads: Option<usize>,
+        /// PPO bench: learner device (cpu, gpu, gpu:NAME, auto).
+        #[arg(long, default_value = "cpu")]
+        device: String,
+        /// PPO bench: timed iterations (after one warm-up).
+        #[arg(long, default_value_t = 5)]
+        iters: usize,
         /// A config file (default: the built-in scene of configs/bench_cube.toml).
         config: Option<PathBuf>,
         /// Backend: cpu, gpu, gpu:NAME or auto (overrides the config).
@@ -86,7 +100,19 @@ fn run(cli: Cli) -> Result<()> {
             );
             Ok(())
         }
-        Command::Bench { config, backend, envs, chunks, seconds } => {
+        Command::Bench { ppo, threads, device, iters, config, backend, envs, chunks, seconds } => {
+            if let Some(t) = threads {
+                rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot size the thread pool")?;
+            }
+            if ppo {
+                let choice = dextrain::config::BackendChoice::parse(&device)
+                    .with_context(|| format!("--device {device:?}: expected cpu, gpu, gpu:NAME or auto"))?;
+                let (dev, name) = dextrain::learn::device::learner_device(&choice, None)?;
+                let opts = dextrain::bench::PpoBenchOptions { envs: envs.unwrap_or(4096), iters: iters.max(1), ..Default::default() };
+                let report = dextrain::bench::run_ppo_bench(&opts, dev, &name)?;
+                println!("{}", serde_json::to_string(&report).context("cannot serialise the report")?);
+                return Ok(());
+            }
             let mut cfg = match &config {
                 Some(p) => load_config(p)?,
                 None => bench_config(1024),

@@ -6,7 +6,7 @@
 //! checkpoint holds the networks, Adam, the normalisers, the learning rate, the learner RNG, the
 //! counters and the whole env batch (states, parameters, task state, current observations and the
 //! running episodes' accumulators), so an interrupted run and a straight run write the same
-//! `metrics.csv` (but for the wall-clock columns `time_s` and `fps`).
+//! `metrics.csv` (but for the wall-clock columns `time_s`, `fps`, `time/collect_s`, `time/learn_s`).
 //!
 //! Ctrl-C stops a run at the end of the current iteration with a checkpoint.
 
@@ -65,7 +65,7 @@ extern "C" fn on_sigint(_: libc::c_int) {
 
 /// The metrics columns of a run, in order (after "iteration").
 pub fn metric_columns(spec: &TaskSpec) -> Vec<String> {
-    let mut c: Vec<String> = ["env_steps", "time_s", "fps", "reward/mean"].iter().map(|s| s.to_string()).collect();
+    let mut c: Vec<String> = ["env_steps", "time_s", "fps", "time/collect_s", "time/learn_s", "reward/mean"].iter().map(|s| s.to_string()).collect();
     c.extend(spec.term_names.iter().map(|t| format!("reward/{t}")));
     c.extend(
         [
@@ -145,10 +145,10 @@ fn collect(task: &mut dyn TaskBatch, ppo: &mut Ppo, obs: &mut Vec<f32>, priv_obs
     Ok(s)
 }
 
-fn metric_row(s: &RolloutSums, u: &UpdateStats, env_steps: u64, time_s: f64, fps: f64) -> Vec<f64> {
+fn metric_row(s: &RolloutSums, u: &UpdateStats, env_steps: u64, time_s: f64, fps: f64, collect_s: f64, learn_s: f64) -> Vec<f64> {
     let per_step = |x: f64| if s.steps > 0 { x / s.steps as f64 } else { f64::NAN };
     let per_ep = |x: f64| if s.episodes > 0 { x / s.episodes as f64 } else { f64::NAN };
-    let mut row = vec![env_steps as f64, time_s, fps, per_step(s.reward)];
+    let mut row = vec![env_steps as f64, time_s, fps, collect_s, learn_s, per_step(s.reward)];
     row.extend(s.terms.iter().map(|&t| per_step(t)));
     row.extend([
         s.episodes as f64,
@@ -264,16 +264,19 @@ pub fn run(args: &TrainArgs) -> Result<PathBuf> {
     while iteration < stop_at {
         let t0 = Instant::now();
         let sums = collect(task.as_mut(), &mut ppo, &mut obs, &mut priv_obs, &mut eps, steps)?;
+        let collect_s = t0.elapsed().as_secs_f64();
         let upd = ppo.update(&priv_obs)?;
+        let learn_s = t0.elapsed().as_secs_f64() - collect_s;
         iteration += 1;
         env_steps += sums.steps;
         let dt = t0.elapsed().as_secs_f64();
         let time_s = time_base + started.elapsed().as_secs_f64();
         let fps = sums.steps as f64 / dt.max(1e-9);
-        let row = metric_row(&sums, &upd, env_steps, time_s, fps);
+        let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s);
         metrics.append(iteration, &row)?;
         let success = row[columns.iter().position(|c| c == "episode/success_rate").unwrap_or(0)];
-        let msg = format!("{:.0} steps/s, reward {:.3}, success {:.0}%", fps, row[3], 100.0 * success);
+        let reward = row[columns.iter().position(|c| c == "reward/mean").unwrap_or(0)];
+        let msg = format!("{fps:.0} steps/s (collect {collect_s:.2} s, learn {learn_s:.2} s), reward {reward:.3}, success {:.0}%", 100.0 * success);
         bar.set_message(msg.clone());
         bar.set_position(iteration);
         if (args.quiet || bar.is_hidden()) && (iteration % (total / 10).max(1) == 0 || iteration == stop_at) {

@@ -562,10 +562,10 @@ pub fn obs_noise(o: &ObsOut, k: u32) -> f32 {
     (-2.0 * u1.ln()).sqrt() * (6.2831853f32 * u2).cos()
 }
 
-/// `v + std · N(0, 1)` for obs entry `k` (`v` itself when std = 0).
-pub fn noisy(o: &ObsOut, k: u32, v: f32, std: f32) -> f32 {
-    if std > 0.0 {
-        return v + std * obs_noise(o, k);
+/// `v + σ · N(0, 1)` for obs entry `k` (`v` itself when σ = 0).
+pub fn noisy(o: &ObsOut, k: u32, v: f32, sigma: f32) -> f32 {
+    if sigma > 0.0 {
+        return v + sigma * obs_noise(o, k);
     }
     v
 }

@@ -1,0 +1,185 @@
+//! Training runs end to end on the CPU with the shipped lift config shrunk by `--set`: the same seed
+//! gives the same metrics, an interrupted and resumed run continues exactly, metrics.csv and the
+//! TensorBoard events agree, eval writes its report and recording, and bad runs, names and
+//! checkpoints are one-line errors.
+
+use std::path::{Path, PathBuf};
+
+use dextrain::eval::{EvalArgs, run as eval};
+use dextrain::metrics::{event_files, read_csv};
+use dextrain::tensorboard::read_scalars;
+use dextrain::train::{TrainArgs, run as train};
+
+const CONFIG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/lift_cube_cpu.toml");
+/// Wall-clock columns: they differ between any two runs.
+const CLOCK: [&str; 4] = ["time_s", "fps", "time/collect_s", "time/learn_s"];
+
+fn tiny_sets() -> Vec<String> {
+    [
+        "sim.num_envs=8",
+        "task.episode_length=5",
+        "train.iterations=4",
+        "train.steps_per_env=4",
+        "train.save_interval=2",
+        "train.plot_interval=0",
+        "policy.actor_hidden=[32, 16]",
+        "policy.critic_hidden=[32, 16]",
+        "task.obs_noise.object_pos=0.002",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect()
+}
+
+fn args(runs: &Path, name: &str) -> TrainArgs {
+    TrainArgs {
+        config: Some(CONFIG.into()),
+        sets: tiny_sets(),
+        name: Some(name.into()),
+        resume: None,
+        force: false,
+        runs_dir: runs.to_path_buf(),
+        stop_after: None,
+        quiet: true,
+    }
+}
+
+/// metrics.csv without the wall-clock columns.
+fn metrics(dir: &Path) -> (Vec<String>, Vec<(u64, Vec<f64>)>) {
+    let (cols, rows) = read_csv(&dir.join("metrics.csv")).expect("metrics.csv");
+    let keep: Vec<usize> = (0..cols.len()).filter(|&i| !CLOCK.contains(&cols[i].as_str())).collect();
+    let names = keep.iter().map(|&i| cols[i].clone()).collect();
+    let rows = rows.into_iter().map(|(it, v)| (it, keep.iter().map(|&i| v[i]).collect::<Vec<f64>>())).collect();
+    (names, rows)
+}
+
+fn same_bits(a: &[(u64, Vec<f64>)], b: &[(u64, Vec<f64>)]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.0 == y.0 && x.1.iter().zip(&y.1).all(|(p, q)| p.to_bits() == q.to_bits()))
+}
+
+fn model_bytes(dir: &Path, it: u64) -> Vec<u8> {
+    std::fs::read(dir.join(format!("checkpoints/{it}/model.safetensors"))).expect("model")
+}
+
+#[test]
+fn same_seed_is_identical_and_resume_continues_exactly() {
+    let tmp = tempfile::tempdir().unwrap();
+    let runs = tmp.path();
+    let a = train(&args(runs, "a")).expect("run a");
+    let c = train(&args(runs, "c")).expect("run c");
+    // b: stopped after 2 iterations (with a checkpoint), then resumed
+    let mut b_args = args(runs, "b");
+    b_args.stop_after = Some(2);
+    let b = train(&b_args).expect("run b, first half");
+    assert_eq!(metrics(&b).1.len(), 2);
+    let resume = TrainArgs { config: None, sets: vec![], name: None, resume: Some(b.clone()), ..args(runs, "unused") };
+    train(&resume).expect("run b, resumed");
+
+    let (cols, ma) = metrics(&a);
+    assert!(cols.contains(&"reward/reaching".to_string()) && cols.contains(&"loss/value".to_string()), "{cols:?}");
+    assert_eq!(ma.len(), 4);
+    assert!(ma.iter().any(|(_, v)| v[cols.iter().position(|c| c == "episode/count").unwrap()] > 0.0), "episodes must end in the test");
+    assert!(same_bits(&ma, &metrics(&c).1), "same seed, different metrics.csv");
+    assert!(same_bits(&ma, &metrics(&b).1), "resumed run differs from the straight run:\n{:?}\n{:?}", ma, metrics(&b).1);
+    assert_eq!(model_bytes(&a, 4), model_bytes(&c, 4));
+    assert_eq!(model_bytes(&a, 4), model_bytes(&b, 4), "final model differs after resume");
+    // a different seed gives different numbers
+    let mut d_args = args(runs, "d");
+    d_args.sets.push("seed=5".into());
+    let d = train(&d_args).expect("run d");
+    assert!(!same_bits(&ma, &metrics(&d).1));
+
+    // resuming a finished run is an error that says how to go on; --set train.iterations extends it
+    let err = train(&TrainArgs { resume: Some(a.clone()), ..resume.clone() }).unwrap_err().to_string();
+    assert!(err.contains("train.iterations"), "{err}");
+    let err = train(&TrainArgs { resume: Some(a.clone()), sets: vec!["sim.num_envs=4".into()], ..resume.clone() }).unwrap_err().to_string();
+    assert!(err.contains("only train.* keys"), "{err}");
+    train(&TrainArgs { resume: Some(a.clone()), sets: vec!["train.iterations=5".into()], ..resume.clone() }).expect("extend");
+    assert_eq!(metrics(&a).1.len(), 5);
+    assert!(std::fs::read_to_string(a.join("config.toml")).unwrap().contains("iterations = 5"));
+}
+
+#[test]
+fn metrics_tensorboard_plots_and_eval_agree_with_the_run() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = train(&args(tmp.path(), "run")).expect("train");
+    for f in ["config.toml", "metrics.csv", "plots/learning_curves.png", "checkpoints/2/state.json", "checkpoints/4/optimizer.safetensors", "checkpoints/4/env.safetensors"] {
+        assert!(dir.join(f).is_file(), "missing {f}");
+    }
+    // the saved config is the exact resolved one: it loads and has the overrides
+    let saved = dextrain::config::Config::load(&dir.join("config.toml")).expect("saved config loads");
+    assert_eq!(saved.sim.num_envs, 8);
+    assert_eq!(saved.policy.actor_hidden, vec![32, 16]);
+    // TensorBoard holds the same scalars as metrics.csv
+    let (cols, rows) = read_csv(&dir.join("metrics.csv")).unwrap();
+    let events = event_files(&dir).unwrap();
+    assert_eq!(events.len(), 1);
+    let scalars = read_scalars(&events[0]).unwrap();
+    let k = cols.iter().position(|c| c == "reward/mean").unwrap();
+    for (it, v) in &rows {
+        let tb = scalars.iter().find(|(tag, step, _)| tag == "reward/mean" && *step == *it as i64).expect("scalar in TensorBoard");
+        assert_eq!(tb.2, v[k] as f32);
+    }
+
+    let rec = tmp.path().join("eval.mcap");
+    let eargs = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 5, max_envs: 3, seed: None, record: Some(rec.clone()), backend: None };
+    let r = eval(&eargs).expect("eval");
+    assert_eq!(r.episodes, 5);
+    assert_eq!(r.iteration, 4);
+    assert!((0.0..=1.0).contains(&r.success_rate));
+    assert!(r.episode_length.mean >= 1.0 && r.episode_length.mean <= 5.0, "{:?}", r.episode_length);
+    assert!(r.reward_terms.contains_key("reaching"));
+    assert!(r.path.is_file());
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&r.path).unwrap()).unwrap();
+    assert_eq!(json["episodes"], 5);
+    let bytes = std::fs::read(&rec).unwrap();
+    assert!(bytes.starts_with(b"\x89MCAP0\r\n") && bytes.len() > 1000, "recording");
+    // deterministic: the same eval twice gives the same report
+    let r2 = eval(&EvalArgs { record: None, ..eargs.clone() }).unwrap();
+    assert_eq!(r2.episode_return, r.episode_return);
+    // another checkpoint and fresh seeds give another report
+    let r3 = eval(&EvalArgs { checkpoint: "2".into(), record: None, ..eargs.clone() }).unwrap();
+    assert_eq!(r3.iteration, 2);
+}
+
+#[test]
+fn bad_names_existing_runs_and_broken_checkpoints_are_one_line_errors() {
+    let tmp = tempfile::tempdir().unwrap();
+    let runs = tmp.path();
+    for bad in ["../escape", "a/b", "..", ""] {
+        let err = train(&args(runs, bad)).unwrap_err().to_string();
+        assert!(err.contains("--name") && !err.contains('\n'), "{bad}: {err}");
+    }
+    assert!(!runs.join("escape").exists() && !tmp.path().parent().unwrap().join("escape").exists());
+    let dir = train(&args(runs, "r")).expect("train");
+    let err = train(&args(runs, "r")).unwrap_err().to_string();
+    assert!(err.contains("exists") && err.contains("--force"), "{err}");
+    let mut force = args(runs, "r");
+    force.force = true;
+    force.sets.push("train.iterations=2".into());
+    train(&force).expect("--force replaces the run");
+    assert_eq!(metrics(&dir).1.len(), 2);
+
+    // a bad config key names the file and the key
+    let mut bad = args(runs, "x");
+    bad.sets.push("task.rewards.flying=1.0".into());
+    let err = train(&bad).unwrap_err().to_string();
+    assert!(err.contains("lift_cube_cpu.toml") && err.contains("task.rewards.flying"), "{err}");
+    assert!(!runs.join("x").exists(), "no run directory for a bad config");
+
+    // a missing checkpoint iteration lists the ones there are
+    let e = EvalArgs { run: dir.clone(), checkpoint: "7".into(), episodes: 2, max_envs: 2, seed: None, record: None, backend: None };
+    let err = eval(&e).unwrap_err().to_string();
+    assert!(err.contains("iteration 7") && err.contains("have: 2"), "{err}");
+    // a truncated model file names the file
+    let model: PathBuf = dir.join("checkpoints/2/model.safetensors");
+    let bytes = std::fs::read(&model).unwrap();
+    std::fs::write(&model, &bytes[..bytes.len() / 2]).unwrap();
+    let err = format!("{:#}", eval(&EvalArgs { checkpoint: "2".into(), ..e.clone() }).unwrap_err());
+    assert!(err.contains("model.safetensors") && !err.contains('\n'), "{err}");
+    let err = format!("{:#}", train(&TrainArgs { config: None, sets: vec![], name: None, resume: Some(dir.clone()), ..args(runs, "u") }).unwrap_err());
+    assert!(err.contains("model.safetensors") || err.contains("train.iterations"), "{err}");
+    // not a run directory
+    let err = eval(&EvalArgs { run: tmp.path().join("nope"), ..e }).unwrap_err().to_string();
+    assert!(err.contains("not a run directory"), "{err}");
+}
