@@ -3,7 +3,7 @@
 //! `runs/NAME/checkpoints/<iteration>/` holds
 //! - `model.safetensors`: the actor and critic parameters (`actor.0.weight` [in, out], …, `log_std`
 //!   [1, A], `critic.…`) in f32, and the observation normalisers (`obs_norm.mean`, `obs_norm.m2`,
-//!   `priv_norm.…`, f64); the file's metadata holds the normaliser counts, dims and activation;
+//!   `priv_norm.…`: mean, m2, count, eps; f64); the metadata key `dextrain` holds the dims and activation;
 //! - `optimizer.safetensors`: Adam's moments `adam.m.<param>`, `adam.v.<param>` (f32);
 //! - `env.safetensors`: the env batch's full state (`task_state`, raw bytes), the last observations
 //!   (`obs`, `priv_obs`) and the per-env episode accumulators (`ep_return`, `ep_len`, f64);
@@ -99,11 +99,6 @@ impl TensorsIn {
         SafeTensors::deserialize(&self.bytes).expect("validated in open")
     }
 
-    fn meta(&self) -> Result<HashMap<String, String>> {
-        let (_, m) = SafeTensors::read_metadata(&self.bytes).map_err(|e| anyhow!("{}: {e}", self.path.display()))?;
-        Ok(m.metadata().clone().unwrap_or_default())
-    }
-
     fn raw(&self, name: &str, dtype: Dtype, len: Option<usize>) -> Result<Vec<u8>> {
         let st = self.st();
         let t = st.tensor(name).map_err(|_| anyhow!("{}: tensor `{name}` is missing", self.path.display()))?;
@@ -128,21 +123,20 @@ impl TensorsIn {
     }
 }
 
-fn norm_tensors(prefix: &str, n: &Normalizer, out: &mut Vec<(String, Vec<usize>, Values)>, meta: &mut HashMap<String, String>) {
+fn norm_tensors(prefix: &str, n: &Normalizer, out: &mut Vec<(String, Vec<usize>, Values)>) {
     out.push((format!("{prefix}.mean"), vec![n.dim()], Values::F64(n.mean.clone())));
     out.push((format!("{prefix}.m2"), vec![n.dim()], Values::F64(n.m2.clone())));
-    meta.insert(format!("{prefix}.count"), format!("{:e}", n.count));
-    meta.insert(format!("{prefix}.eps"), format!("{:e}", n.eps));
+    out.push((format!("{prefix}.count"), vec![1], Values::F64(vec![n.count])));
+    out.push((format!("{prefix}.eps"), vec![1], Values::F64(vec![n.eps])));
 }
 
 fn read_norm(f: &TensorsIn, prefix: &str, dim: usize) -> Result<Normalizer> {
-    let meta = f.meta()?;
-    let num = |k: &str| -> Result<f64> {
-        meta.get(&format!("{prefix}.{k}"))
-            .and_then(|v| v.parse().ok())
-            .ok_or_else(|| anyhow!("{}: metadata `{prefix}.{k}` is missing or not a number", f.path.display()))
-    };
-    Ok(Normalizer { count: num("count")?, mean: f.f64s(&format!("{prefix}.mean"), Some(dim))?, m2: f.f64s(&format!("{prefix}.m2"), Some(dim))?, eps: num("eps")? })
+    Ok(Normalizer {
+        count: f.f64s(&format!("{prefix}.count"), Some(1))?[0],
+        mean: f.f64s(&format!("{prefix}.mean"), Some(dim))?,
+        m2: f.f64s(&format!("{prefix}.m2"), Some(dim))?,
+        eps: f.f64s(&format!("{prefix}.eps"), Some(1))?[0],
+    })
 }
 
 /// Writes the policy (parameters + normalisers) to `path` (safetensors).
@@ -152,17 +146,20 @@ pub fn save_model(path: &Path, ppo: &Ppo) -> Result<()> {
     let values = ppo.net.values()?;
     let mut tensors: Vec<(String, Vec<usize>, Values)> =
         names.into_iter().zip(shapes).zip(values).map(|((n, s), v)| (n, s.to_vec(), Values::F32(v))).collect();
-    let mut meta = HashMap::new();
-    norm_tensors("obs_norm", &ppo.obs_norm, &mut tensors, &mut meta);
-    norm_tensors("priv_norm", &ppo.priv_norm, &mut tensors, &mut meta);
+    norm_tensors("obs_norm", &ppo.obs_norm, &mut tensors);
+    norm_tensors("priv_norm", &ppo.priv_norm, &mut tensors);
     let d = ppo.dims();
-    meta.insert("format".into(), "dextrain.policy.v1".into());
-    meta.insert("obs_dim".into(), d.obs.to_string());
-    meta.insert("priv_dim".into(), d.priv_obs.to_string());
-    meta.insert("action_dim".into(), d.act.to_string());
-    meta.insert("activation".into(), format!("{:?}", ppo.net.activation).to_lowercase());
-    meta.insert("obs_normalization".into(), ppo.normalize.to_string());
-    write_tensors(path, tensors, meta)
+    // one metadata key (a HashMap of several would serialise in a random order, and checkpoints
+    // of identical runs must be identical files)
+    let info = serde_json::json!({
+        "format": "dextrain.policy.v1",
+        "obs_dim": d.obs,
+        "priv_dim": d.priv_obs,
+        "action_dim": d.act,
+        "activation": format!("{:?}", ppo.net.activation).to_lowercase(),
+        "obs_normalization": ppo.normalize,
+    });
+    write_tensors(path, tensors, HashMap::from([("dextrain".to_string(), info.to_string())]))
 }
 
 /// Loads parameters and normalisers saved by [`save_model`] into `ppo` (same config).

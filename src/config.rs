@@ -304,6 +304,9 @@ pub struct TrainConfig {
     pub keep_checkpoints: u32,
     /// Redraw the learning-curve PNGs every this many iterations (0 = only at the end).
     pub plot_interval: u32,
+    /// Start each env's first episode at a random step count in [0, episode_length), so that the
+    /// envs' episodes do not all end in the same iteration (rsl_rl's `init_at_random_ep_len`).
+    pub init_at_random_ep_len: bool,
 }
 
 /// `[ppo]` (DESIGN §6; rsl_rl's names and defaults)
@@ -407,7 +410,15 @@ impl Default for LiftConfig {
 
 impl Default for TrainConfig {
     fn default() -> Self {
-        TrainConfig { device: "cpu".into(), iterations: 100, steps_per_env: 32, save_interval: 50, keep_checkpoints: 0, plot_interval: 50 }
+        TrainConfig {
+            device: "cpu".into(),
+            iterations: 100,
+            steps_per_env: 32,
+            save_interval: 50,
+            keep_checkpoints: 0,
+            plot_interval: 50,
+            init_at_random_ep_len: true,
+        }
     }
 }
 

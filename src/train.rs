@@ -229,6 +229,15 @@ pub fn run(args: &TrainArgs) -> Result<PathBuf> {
         None => {
             let first = task.reset_all()?;
             let (o, p) = (first.obs.clone(), first.priv_obs.clone());
+            if cfg.train.init_at_random_ep_len {
+                // desynchronise the episodes: each env's first episode starts at a random step count
+                let mut rng = crate::learn::rng::Rng::new(cfg.seed as u64, 0xE915_0DE5);
+                let mut states = task.env().states()?;
+                for s in &mut states {
+                    s.step = rng.below(spec.episode_length as usize) as u32;
+                }
+                task.env().set_states(&states)?;
+            }
             let metrics = MetricsLog::create(&dir, &columns)?;
             (0, 0, 0.0, o, p, Episodes { ret: vec![0.0; n], len: vec![0.0; n] }, metrics)
         }

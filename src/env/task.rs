@@ -22,7 +22,7 @@
 //! to the box `[wrist_pos_min, wrist_pos_max]`; wrist rotation (`wrist_rx/ry/rz`, a world rotation
 //! vector): target ← exp(a · wrist_rot_scale) ⊗ target, then at most `wrist_rot_limit` away from the
 //! initial wrist orientation (clamped along the same axis); then one action per actuated joint
-//! ([`EnvSpec::actuated`] order): `absolute`: target = lower + (a + 1)/2 · (upper − lower) (a
+//! ([`EnvSpec::actuated`](super::EnvSpec::actuated) order): `absolute`: target = lower + (a + 1)/2 · (upper − lower) (a
 //! continuous joint: default + a·π), `delta`: target = clamp(target + a · finger_delta_scale, lower,
 //! upper). At a reset the targets are the model's default targets ([`SimModel::default_targets`]).
 //!
@@ -439,7 +439,7 @@ pub fn actuated_joint(tc: &TaskGlobals, i: u32) -> usize {
 pub fn finger_target(tc: &TaskGlobals, mode: u32, jd: &JointDesc, a: f32, prev: f32) -> f32 {
     if mode == 0 {
         if jd.lower <= -1e29 || jd.upper >= 1e29 {
-            return jd.default_q + a * 3.14159265;
+            return jd.default_q + a * std::f32::consts::PI;
         }
         return jd.lower + 0.5 * (a + 1.0) * (jd.upper - jd.lower);
     }
@@ -470,7 +470,7 @@ pub fn task_act(actions: &[f32], ts: &mut TaskState, m: &Model, tc: &TaskGlobals
     let mut rate = 0.0f32;
     let mut mag = 0.0f32;
     for i in 0..tc.n_act as usize {
-        let ai = actions[i].max(-1.0).min(1.0);
+        let ai = actions[i].clamp(-1.0, 1.0);
         let d = ai - ts.prev_action[i];
         // Σ (a_t − a_{t−1})², Σ a_t²
         rate += d * d;
@@ -559,7 +559,8 @@ pub fn obs_noise(o: &ObsOut, k: u32) -> f32 {
     let key = o.step.wrapping_mul(OBS_KEY_STRIDE).wrapping_add(2 * k);
     let u1 = 1.0 - rand_uniform(o.seed, o.env, o.episode, PURPOSE_OBS_NOISE, key);
     let u2 = rand_uniform(o.seed, o.env, o.episode, PURPOSE_OBS_NOISE, key.wrapping_add(1));
-    (-2.0 * u1.ln()).sqrt() * (6.2831853f32 * u2).cos()
+    // 2π as the shader's 6.2831853 (the same f32)
+    (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
 }
 
 /// `v + σ · N(0, 1)` for obs entry `k` (`v` itself when σ = 0).
@@ -682,8 +683,8 @@ pub fn task_observe(env: u32, st: &EnvState, p: &EnvParams, ts: &mut TaskState, 
     }
     // privileged extras
     for v in [st.obj_vel, st.obj_angvel, st.wrist_vel, st.wrist_angvel] {
-        for c in 0..3 {
-            put_priv(&mut o, k, v[c]);
+        for &x in &v[..3] {
+            put_priv(&mut o, k, x);
             k += 1;
         }
     }
@@ -720,14 +721,14 @@ pub struct CpuTaskBatch {
 }
 
 impl CpuTaskBatch {
-    /// Builds the env batch and the task; every env starts episode 0 (call `reset_all` for the
-    /// first observations).
+    /// Builds the env batch and the task, with every env at the start of episode 0 (`reset_all`
+    /// returns the first observations).
     pub fn new(cfg: &Config, model: SimModel) -> Result<CpuTaskBatch> {
         let (spec, tc) = task_setup(cfg, &model)?;
         let n = spec.num_envs;
         let targets = vec![model.default_targets(); n];
         let batch = StepBatch::new(&spec);
-        Ok(CpuTaskBatch {
+        let mut b = CpuTaskBatch {
             env: CpuEnvBatch::new(model),
             spec,
             tc,
@@ -737,7 +738,9 @@ impl CpuTaskBatch {
             mask: vec![0; n],
             mask_bool: vec![false; n],
             batch,
-        })
+        };
+        b.reset_all()?;
+        Ok(b)
     }
 
     /// The task constants (as uploaded to the GPU by the GPU backend).

@@ -42,20 +42,20 @@ pub struct GpuTaskBatch {
 }
 
 impl GpuTaskBatch {
-    /// Builds the env batch on `ctx` and the task pipelines; every env starts episode 0 (call
-    /// `reset_all` for the first observations).
+    /// Builds the env batch on `ctx` and the task pipelines, with every env at the start of
+    /// episode 0 (`reset_all` returns the first observations).
     pub fn new(cfg: &Config, ctx: GpuContext, model: SimModel) -> Result<GpuTaskBatch> {
         let (spec, tc) = task_setup(cfg, &model)?;
         let n = spec.num_envs;
         let out_floats = n * (spec.obs_dim + spec.priv_dim + OUT_MISC);
         let out_bytes = (out_floats * 4) as u64;
         let limits = ctx.device.limits();
-        if out_bytes > limits.max_storage_buffer_binding_size as u64 || out_bytes > limits.max_buffer_size {
+        if out_bytes > limits.max_storage_buffer_binding_size || out_bytes > limits.max_buffer_size {
             bail!(
                 "sim.num_envs = {n} needs {} MiB of task outputs, but adapter {} allows {} MiB per storage binding",
                 out_bytes >> 20,
                 ctx.info.name,
-                (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size) >> 20
+                limits.max_storage_buffer_binding_size.min(limits.max_buffer_size) >> 20
             );
         }
         let tips_host = model.tips.clone();
@@ -132,7 +132,7 @@ impl GpuTaskBatch {
             ],
         );
         let batch = StepBatch::new(&spec);
-        Ok(GpuTaskBatch {
+        let mut b = GpuTaskBatch {
             env,
             spec,
             tc,
@@ -149,7 +149,9 @@ impl GpuTaskBatch {
             observe_group,
             host: vec![0.0; out_floats],
             batch,
-        })
+        };
+        b.reset_all()?;
+        Ok(b)
     }
 
     /// The task constants uploaded to the GPU.

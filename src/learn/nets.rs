@@ -31,7 +31,9 @@ impl Activation {
 
     pub fn apply(self, x: Tensor<2>) -> Tensor<2> {
         match self {
-            Activation::Elu => activation::elu(x, 1.0),
+            // ELU(x) = max(x, 0) + exp(min(x, 0)) − 1, written with relu: burn's `elu` uses
+            // mask_where, which burn's CPU backend runs on a slow generic path under autodiff
+            Activation::Elu => activation::relu(x.clone()) + activation::relu(-x).neg().exp().sub_scalar(1.0),
             Activation::Relu => activation::relu(x),
             Activation::Tanh => activation::tanh(x),
         }
