@@ -89,14 +89,19 @@ fn run(cli: Cli) -> Result<()> {
             let cfg = load_config(&config)?;
             // the hand must load too
             let model = SimModel::from_config(&cfg)?;
+            let (task, _) = dextrain::env::task::task_setup(&cfg, &model)?;
             print!("{}", cfg.to_toml()?);
             eprintln!(
-                "{}: ok ({} joints, {} actuated, {} colliders, {} fingertips)",
+                "{}: ok ({} joints, {} actuated, {} colliders, {} fingertips; task {}: obs {}, critic obs {}, actions {})",
                 config.display(),
                 model.joints.len(),
                 model.spec.actuated.len(),
                 model.colliders.len(),
-                model.tips.len()
+                model.tips.len(),
+                cfg.task.kind,
+                task.obs_dim,
+                task.priv_dim,
+                task.action_dim
             );
             Ok(())
         }

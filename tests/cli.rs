@@ -128,3 +128,36 @@ fn synth_and_replay_work_for_the_three_finger_mimic_hand() {
     assert_eq!(r.envs, 2);
     assert!(r.peak_penetration_mm < 5.0, "{}", r.peak_penetration_mm);
 }
+
+#[test]
+fn train_eval_and_plot_through_the_binary() {
+    let tmp = tempfile::tempdir().unwrap();
+    let runs = tmp.path().to_str().unwrap();
+    let sets = ["sim.num_envs=4", "task.episode_length=4", "train.iterations=2", "train.steps_per_env=4", "policy.actor_hidden=[8]", "policy.critic_hidden=[8]"];
+    let mut args = vec!["train", "configs/lift_cube_cpu.toml", "--name", "cli", "--runs-dir", runs, "--quiet"];
+    for s in &sets {
+        args.extend(["--set", s]);
+    }
+    let (ok, stdout, stderr) = dextrain(&args);
+    assert!(ok, "{stderr}");
+    let summary = json_line(&stdout);
+    assert_eq!(summary["iterations"], 2);
+    assert_eq!(summary["env_steps"], 2 * 4 * 4);
+    let run = tmp.path().join("cli");
+    let run_s = run.to_str().unwrap();
+    let (ok, stdout, stderr) = dextrain(&["eval", run_s, "--episodes", "3"]);
+    assert!(ok, "{stderr}");
+    assert_eq!(json_line(&stdout)["episodes"], 3);
+    let (ok, stdout, stderr) = dextrain(&["plot", run_s]);
+    assert!(ok, "{stderr}");
+    assert!(stdout.trim().ends_with("learning_curves.png"), "{stdout}");
+    // a second run of the same name is refused in one line, and nothing is lost
+    let (ok, _, stderr) = dextrain(&args);
+    assert!(!ok && stderr.trim().lines().count() == 1 && stderr.contains("--force"), "{stderr}");
+    assert!(run.join("checkpoints/2/state.json").is_file());
+    // check prints the task's sizes; a bad key is one line naming the file and key
+    let (ok, _, stderr) = dextrain(&["check", "configs/lift_cube_cpu.toml"]);
+    assert!(ok && stderr.contains("obs 86") && stderr.contains("actions 22"), "{stderr}");
+    let (ok, _, stderr) = dextrain(&["train", "configs/lift_cube_cpu.toml", "--set", "ppo.clip=0.3", "--runs-dir", runs]);
+    assert!(!ok && stderr.trim().lines().count() == 1 && stderr.contains("lift_cube_cpu.toml") && stderr.contains("ppo"), "{stderr}");
+}

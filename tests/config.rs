@@ -114,3 +114,44 @@ fn cli_errors_are_one_line_and_exit_nonzero() {
         assert!(err.contains(".toml"), "{err}");
     }
 }
+
+#[test]
+fn task_and_learner_keys_are_checked_with_one_line_errors() {
+    let p = Path::new("run.toml");
+    for (text, key, hint) in [
+        ("[task.rewards]\nflying = 1.0\n", "task.rewards.flying", "reaching"),
+        ("[task]\nkind = \"juggle\"\n", "task.kind", "lift"),
+        ("[task.action]\nfinger_mode = \"torque\"\n", "task.action.finger_mode", "absolute"),
+        ("[ppo]\nschedule = \"cosine\"\n", "ppo.schedule", "adaptive"),
+        ("[ppo]\ngamma = 1.5\n", "ppo.gamma", "[0, 1]"),
+        ("[ppo]\nminibatches = 100000\n", "ppo.minibatches", "sim.num_envs"),
+        ("[policy]\nactor_hidden = []\n", "policy.actor_hidden", "non-empty"),
+        ("[policy]\nactivation = \"gelu\"\n", "policy.activation", "elu"),
+        ("[train]\ndevice = \"tpu\"\n", "train.device", "gpu:ADAPTER_NAME"),
+        ("[train]\nsteps_per_env = 0\n", "train.steps_per_env", "[1, 100000]"),
+    ] {
+        let e = format!("{:#}", Config::from_toml_str(text, p).unwrap_err());
+        assert!(e.contains("run.toml") && e.contains(key) && e.contains(hint) && !e.contains('\n'), "{text}: {e}");
+    }
+    // the defaults are valid and match DESIGN §6
+    let c = Config::from_toml_str("", p).unwrap();
+    assert_eq!((c.ppo.clip_param, c.ppo.entropy_coef, c.ppo.epochs, c.ppo.minibatches, c.ppo.desired_kl), (0.2, 0.005, 5, 4, 0.01));
+    assert_eq!((c.ppo.gamma, c.ppo.lam, c.ppo.learning_rate, c.ppo.max_grad_norm), (0.99, 0.95, 5e-4, 1.0));
+}
+
+#[test]
+fn set_overrides_apply_before_validation() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("c.toml");
+    std::fs::write(&f, "[ppo]\nlearning_rate = 1e-3\n").unwrap();
+    let sets = ["ppo.learning_rate=3e-4", "policy.actor_hidden=[64, 32]", "sim.backend=cpu", "task.rewards.lifting=2"].map(String::from);
+    let c = Config::load_with_overrides(&f, &sets).unwrap();
+    assert_eq!(c.ppo.learning_rate, 3e-4);
+    assert_eq!(c.policy.actor_hidden, vec![64, 32]);
+    assert_eq!(c.sim.backend, "cpu");
+    assert_eq!(c.task.rewards["lifting"], 2.0);
+    for (bad, want) in [("ppo.learning_rate", "key=value"), ("ppo.nope=1", "ppo.nope"), ("ppo.learning_rate=-1", "ppo.learning_rate")] {
+        let e = format!("{:#}", Config::load_with_overrides(&f, &[bad.to_string()]).unwrap_err());
+        assert!(e.contains(want) && !e.contains('\n'), "{bad}: {e}");
+    }
+}

@@ -2,6 +2,8 @@
 //! errors, the normaliser vs a two-pass mean/variance, the PPO loss terms vs hand-computed values,
 //! global gradient clipping and Adam's first step, and a tiny task that PPO must learn in seconds.
 
+mod common;
+
 use burn::prelude::*;
 use dextrain::config::{PolicyConfig, PpoConfig};
 use dextrain::learn::nets::{Adam, clipped_grads, to_host, to_tensor};
@@ -226,4 +228,46 @@ fn ppo_learns_a_tiny_steering_task_in_seconds() {
     eprintln!("tiny task: mean reward per step {first:.3} (first iteration) -> {last:.3} (last)");
     assert!(first < -0.6, "the untrained policy should not steer: {first}");
     assert!(last > -0.45, "PPO did not learn to steer: {last}");
+}
+
+/// The same small PPO iteration on burn's wgpu backend (on the simulator's kind of device, e.g.
+/// lavapipe) and on the CPU backend: the updated parameters agree to float rounding.
+#[test]
+fn the_wgpu_learner_matches_the_cpu_learner() {
+    let Some(ctx) = common::gpu_context("the_wgpu_learner_matches_the_cpu_learner") else { return };
+    let choice = dextrain::config::BackendChoice::Gpu(Some(ctx.info.name.clone()));
+    let (gpu, name) = dextrain::learn::device::learner_device(&choice, Some(&ctx)).expect("burn wgpu on the test adapter");
+    assert!(name.starts_with("gpu (burn wgpu"), "{name}");
+    let (n, steps) = (16, 4);
+    let cfg = PpoConfig { minibatches: 2, epochs: 2, ..PpoConfig::default() };
+    let pol = PolicyConfig { actor_hidden: vec![16], critic_hidden: vec![16], ..PolicyConfig::default() };
+    let dims = Dims { obs: 3, priv_obs: 4, act: 2 };
+    let mut rng = Rng::new(9, 9);
+    let obs: Vec<f32> = (0..n * 3).map(|_| rng.normal() as f32).collect();
+    let priv_obs: Vec<f32> = (0..n * 4).map(|_| rng.normal() as f32).collect();
+    let rewards: Vec<f32> = (0..n).map(|_| rng.normal() as f32).collect();
+    let mut run = |device: Device| {
+        let mut ppo = Ppo::new(dims, n, steps, &cfg, &pol, device, 5).unwrap();
+        let mut actions = Vec::new();
+        for _ in 0..steps {
+            actions.push(ppo.act(&obs, &priv_obs).unwrap());
+            ppo.process_step(&rewards, &vec![false; n], &vec![false; n]);
+        }
+        let stats = ppo.update(&priv_obs).unwrap();
+        (ppo.net.values().unwrap(), actions, stats)
+    };
+    let (p_cpu, a_cpu, s_cpu) = run(cpu());
+    let (p_gpu, a_gpu, s_gpu) = run(gpu);
+    for (x, y) in a_cpu.iter().flatten().zip(a_gpu.iter().flatten()) {
+        assert!((x - y).abs() < 1e-4, "sampled actions differ: {x} vs {y}");
+    }
+    let mut worst = 0.0f32;
+    for (x, y) in p_cpu.iter().flatten().zip(p_gpu.iter().flatten()) {
+        worst = worst.max((x - y).abs());
+    }
+    assert!(worst < 1e-4, "parameters after one update differ by {worst}");
+    assert!((s_cpu.value - s_gpu.value).abs() < 1e-3 * (1.0 + s_cpu.value.abs()), "{s_cpu:?} vs {s_gpu:?}");
+    // the update did change the parameters
+    let fresh = Ppo::new(dims, n, steps, &cfg, &pol, cpu(), 5).unwrap().net.values().unwrap();
+    assert!(fresh.iter().flatten().zip(p_cpu.iter().flatten()).any(|(a, b)| a != b));
 }
