@@ -180,6 +180,7 @@ fn setup(args: &TrainArgs) -> Result<(Config, PathBuf, Option<PathBuf>)> {
         }
         let cfg = Config::load_with_overrides(&cfg_path, &args.sets)?;
         let ckpt = checkpoint::find(dir, "latest")?;
+        checkpoint::read_state(&ckpt)?;
         if !args.sets.is_empty() {
             std::fs::write(&cfg_path, cfg.to_toml()?).with_context(|| format!("cannot write {}", cfg_path.display()))?;
         }
@@ -195,7 +196,7 @@ fn setup(args: &TrainArgs) -> Result<(Config, PathBuf, Option<PathBuf>)> {
     // the hand must load before a run directory is made
     SimModel::from_config(&cfg)?;
     let dir = run_dir::create(&args.runs_dir, &name, args.force)?;
-    // the exact resolved config; paths in it stay relative to the original config's directory
+    // the exact resolved config, with the hand's URDF as an absolute path so that it loads from the run directory
     let mut saved = cfg.clone();
     saved.hand.urdf = absolute(&cfg.resolve(&cfg.hand.urdf));
     std::fs::write(dir.join("config.toml"), saved.to_toml()?).with_context(|| format!("cannot write {}", dir.join("config.toml").display()))?;

@@ -133,7 +133,7 @@ fn synth_and_replay_work_for_the_three_finger_mimic_hand() {
 fn train_eval_and_plot_through_the_binary() {
     let tmp = tempfile::tempdir().unwrap();
     let runs = tmp.path().to_str().unwrap();
-    let sets = ["sim.num_envs=4", "task.episode_length=4", "train.iterations=2", "train.steps_per_env=4", "policy.actor_hidden=[8]", "policy.critic_hidden=[8]"];
+    let sets = ["sim.backend=cpu", "train.device=cpu", "sim.num_envs=4", "task.episode_length=4", "train.iterations=2", "train.steps_per_env=4", "policy.actor_hidden=[8]", "policy.critic_hidden=[8]"];
     let mut args = vec!["train", "configs/lift_cube_cpu.toml", "--name", "cli", "--runs-dir", runs, "--quiet"];
     for s in &sets {
         args.extend(["--set", s]);

@@ -16,6 +16,8 @@ const CLOCK: [&str; 4] = ["time_s", "fps", "time/collect_s", "time/learn_s"];
 
 fn tiny_sets() -> Vec<String> {
     [
+        "sim.backend=cpu",
+        "train.device=cpu",
         "sim.num_envs=8",
         "task.episode_length=5",
         "train.iterations=4",
