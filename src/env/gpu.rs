@@ -47,7 +47,13 @@ impl GpuContext {
     /// Metal and DX12 before OpenGL); `None` = the first hardware adapter — a software adapter such as
     /// lavapipe is only used when asked for by name.
     pub fn new(name: Option<&str>) -> Result<GpuContext> {
-        let instance = wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
+        if std::env::var_os("WGPU_BACKEND").is_none() {
+            // Vulkan, Metal, DX12: probing OpenGL (EGL) prints errors on headless machines, and its
+            // adapters lack what the shaders need; WGPU_BACKEND=gl still selects it
+            desc.backends = wgpu::Backends::PRIMARY;
+        }
+        let instance = wgpu::Instance::new(desc);
         let mut adapters = pollster::block_on(instance.enumerate_adapters(wgpu::Backends::all()));
         // prefer the native APIs over OpenGL
         adapters.sort_by_key(|a| (a.get_info().backend == wgpu::Backend::Gl) as u8);

@@ -307,7 +307,7 @@ pub fn make_env_batch(cfg: &Config, model: SimModel) -> Result<Box<dyn EnvBatch>
         BackendChoice::Auto => match gpu::GpuContext::new(None) {
             Ok(ctx) => Ok(Box::new(gpu::GpuEnvBatch::new(ctx, model)?)),
             Err(e) => {
-                eprintln!("dextrain: no hardware GPU adapter ({e:#}); using the CPU backend");
+                eprintln!("dextrain: {e:#}; using the CPU backend");
                 Ok(Box::new(cpu::CpuEnvBatch::new(model)))
             }
         },

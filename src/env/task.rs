@@ -254,7 +254,7 @@ pub fn make_task_batch(cfg: &Config, model: SimModel) -> Result<Box<dyn TaskBatc
         BackendChoice::Auto => match GpuContext::new(None) {
             Ok(ctx) => Ok(Box::new(GpuTaskBatch::new(cfg, ctx, model)?)),
             Err(e) => {
-                eprintln!("dextrain: no hardware GPU adapter ({e:#}); using the CPU backend");
+                eprintln!("dextrain: {e:#}; using the CPU backend");
                 Ok(Box::new(CpuTaskBatch::new(cfg, model)?))
             }
         },
