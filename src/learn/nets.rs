@@ -98,7 +98,7 @@ pub struct Adam {
 impl Adam {
     /// torch's defaults: β = (0.9, 0.999), ε = 1e-8; moments start at zero.
     pub fn new(shapes: &[[usize; 2]], device: &Device) -> Adam {
-        let zeros = || shapes.iter().map(|s| Tensor::zeros(*s, device)).collect::<Vec<_>>();
+        let zeros = || shapes.iter().map(|s| Tensor::zeros(*s, device).inner()).collect::<Vec<_>>();
         Adam { beta1: 0.9, beta2: 0.999, eps: 1e-8, t: 0, m: zeros(), v: zeros() }
     }
 
