@@ -3,6 +3,8 @@
 //! TensorBoard events agree, eval writes its report and recording, and bad runs, names and
 //! checkpoints are one-line errors.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use dextrain::eval::{EvalArgs, run as eval};
@@ -184,4 +186,25 @@ fn bad_names_existing_runs_and_broken_checkpoints_are_one_line_errors() {
     // not a run directory
     let err = eval(&EvalArgs { run: tmp.path().join("nope"), ..e }).unwrap_err().to_string();
     assert!(err.contains("not a run directory"), "{err}");
+}
+
+/// The whole loop on a GPU adapter (lavapipe in CI): the envs and burn's wgpu learner share one
+/// wgpu device; the run checkpoints and its policy evaluates.
+#[test]
+fn training_runs_with_env_and_learner_on_one_gpu_device() {
+    let Some(ctx) = common::gpu_context("training_runs_with_env_and_learner_on_one_gpu_device") else { return };
+    let adapter = format!("gpu:{}", ctx.info.name.split_whitespace().next().unwrap_or("llvmpipe"));
+    drop(ctx);
+    let tmp = tempfile::tempdir().unwrap();
+    let mut a = args(tmp.path(), "gpu");
+    a.sets.retain(|s| !s.starts_with("sim.backend") && !s.starts_with("train.device"));
+    a.sets.extend([format!("sim.backend={adapter}"), format!("train.device={adapter}"), "train.iterations=2".into()]);
+    let dir = train(&a).expect("train on the GPU");
+    let (cols, rows) = metrics(&dir);
+    assert_eq!(rows.len(), 2);
+    let k = cols.iter().position(|c| c == "loss/value").unwrap();
+    assert!(rows.iter().all(|(_, v)| v[k].is_finite()));
+    let r = eval(&EvalArgs { run: dir, checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None }).expect("eval");
+    assert!(r.env_backend.starts_with("gpu") && r.learner_device.starts_with("gpu (burn wgpu"), "{} / {}", r.env_backend, r.learner_device);
+    assert_eq!(r.episodes, 3);
 }
