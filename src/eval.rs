@@ -241,10 +241,6 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
     Ok(report)
 }
 
-fn pose_of(p: [f32; 4], q: [f32; 4]) -> Pose {
-    Pose::new(glam::Vec3::new(p[0], p[1], p[2]), glam::Quat::from_array(q))
-}
-
 /// Writes env 0's current state as one recording frame.
 fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::env::task::TaskBatch, t: f64) -> Result<()> {
     let targets = task.targets()?;
@@ -258,8 +254,8 @@ fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::e
         joint_pos: s.q[..nj].to_vec(),
         joint_vel: s.qd[..nj].to_vec(),
         joint_target: targets[0].q[..nj].to_vec(),
-        wrist: pose_of(s.wrist_pos, s.wrist_rot),
-        object: pose_of(s.obj_pos, s.obj_rot),
+        wrist: Pose::from_arrays(s.wrist_pos, s.wrist_rot),
+        object: Pose::from_arrays(s.obj_pos, s.obj_rot),
         links: hand_link_poses(model, s),
         contacts: contact_records(model, s, &params[0]),
         object_ref: None,

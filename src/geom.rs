@@ -21,6 +21,11 @@ impl Default for Pose {
 impl Pose {
     pub const IDENTITY: Pose = Pose { pos: Vec3::ZERO, rot: Quat::IDENTITY };
 
+    /// From the GPU layout's `[x, y, z, _]` position and `[x, y, z, w]` quaternion (EnvState fields).
+    pub fn from_arrays(p: [f32; 4], q: [f32; 4]) -> Self {
+        Self { pos: Vec3::new(p[0], p[1], p[2]), rot: Quat::from_array(q) }
+    }
+
     pub fn new(pos: Vec3, rot: Quat) -> Self {
         Self { pos, rot }
     }

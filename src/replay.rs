@@ -10,7 +10,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
-use glam::{Quat, Vec3};
+use glam::Quat;
 use serde::Serialize;
 
 use crate::config::Config;
@@ -112,10 +112,6 @@ fn state_on_reference(model: &SimModel, base: &EnvState, tg: &Targets, object: O
     s
 }
 
-fn pose_of(p: [f32; 4], r: [f32; 4]) -> Pose {
-    Pose::new(Vec3::new(p[0], p[1], p[2]), Quat::from_array(r))
-}
-
 /// Per-env accumulators of the metrics.
 #[derive(Default, Clone)]
 struct Acc {
@@ -166,7 +162,7 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
         for i in 0..n {
             let s = &states[i];
             let a = &mut acc[i];
-            let obj = pose_of(s.obj_pos, s.obj_rot);
+            let obj = Pose::from_arrays(s.obj_pos, s.obj_rot);
             if k == 0 {
                 a.z0 = obj.pos.z as f64;
             }
@@ -188,7 +184,7 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
                 }
             }
         }
-        trace.push((t, pose_of(states[0].obj_pos, states[0].obj_rot), pose_of(states[0].wrist_pos, states[0].wrist_rot)));
+        trace.push((t, Pose::from_arrays(states[0].obj_pos, states[0].obj_rot), Pose::from_arrays(states[0].wrist_pos, states[0].wrist_rot)));
         if let Some(w) = writer.as_mut() {
             let s = &states[0];
             w.write_frame(&RolloutFrame {
@@ -196,8 +192,8 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
                 joint_pos: s.q[..model.joints.len()].to_vec(),
                 joint_vel: s.qd[..model.joints.len()].to_vec(),
                 joint_target: tg.q[..model.joints.len()].to_vec(),
-                wrist: pose_of(s.wrist_pos, s.wrist_rot),
-                object: pose_of(s.obj_pos, s.obj_rot),
+                wrist: Pose::from_arrays(s.wrist_pos, s.wrist_rot),
+                object: Pose::from_arrays(s.obj_pos, s.obj_rot),
                 links: hand_link_poses(&model, s),
                 contacts: contact_records(&model, s, &params[0]),
                 object_ref: r.object,

@@ -298,17 +298,24 @@ fn outer(a: Vec3, b: Vec3) -> Mat3 {
 /// Makes the env batch the config asks for (`sim.backend`): `cpu`, `gpu`, `gpu:NAME` or `auto` (a
 /// hardware GPU adapter if there is one, else the CPU; never a software adapter unless named).
 pub fn make_env_batch(cfg: &Config, model: SimModel) -> Result<Box<dyn EnvBatch>> {
+    match sim_gpu_context(cfg)? {
+        Some(ctx) => Ok(Box::new(gpu::GpuEnvBatch::new(ctx, model)?)),
+        None => Ok(Box::new(cpu::CpuEnvBatch::new(model))),
+    }
+}
+
+/// The GPU the config's `sim.backend` asks for: `None` for `cpu`, the named or any hardware adapter
+/// for `gpu`/`gpu:NAME` (an error if there is none), and for `auto` a hardware adapter if there is
+/// one, else `None` (with a message saying why).
+pub fn sim_gpu_context(cfg: &Config) -> Result<Option<gpu::GpuContext>> {
     match cfg.backend() {
-        BackendChoice::Cpu => Ok(Box::new(cpu::CpuEnvBatch::new(model))),
-        BackendChoice::Gpu(name) => {
-            let ctx = gpu::GpuContext::new(name.as_deref())?;
-            Ok(Box::new(gpu::GpuEnvBatch::new(ctx, model)?))
-        }
+        BackendChoice::Cpu => Ok(None),
+        BackendChoice::Gpu(name) => Ok(Some(gpu::GpuContext::new(name.as_deref())?)),
         BackendChoice::Auto => match gpu::GpuContext::new(None) {
-            Ok(ctx) => Ok(Box::new(gpu::GpuEnvBatch::new(ctx, model)?)),
+            Ok(ctx) => Ok(Some(ctx)),
             Err(e) => {
                 eprintln!("dextrain: {e:#}; using the CPU backend");
-                Ok(Box::new(cpu::CpuEnvBatch::new(model)))
+                Ok(None)
             }
         },
     }

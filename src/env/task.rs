@@ -68,7 +68,7 @@ use super::cpu::CpuEnvBatch;
 use super::layout::*;
 use super::physics::{Model, Scratch, hand_kinematics};
 use super::{EnvBatch, SimModel};
-use crate::config::{BackendChoice, Config, LIFT_TERMS};
+use crate::config::{Config, LIFT_TERMS};
 use crate::hand::MAX_JOINTS;
 
 /// RNG purpose of the observation noise (keep in sync with task.wgsl; reset.rs uses 1 and 2).
@@ -243,21 +243,9 @@ pub(crate) fn decode_snapshot(bytes: &[u8], n: usize) -> Result<(Vec<EnvState>, 
 /// Builds the task on the backend the config asks for (`cfg.backend()`, the rules of
 /// [`super::make_env_batch`]: `auto` = a hardware GPU adapter if there is one, else the CPU).
 pub fn make_task_batch(cfg: &Config, model: SimModel) -> Result<Box<dyn TaskBatch>> {
-    use super::gpu::GpuContext;
-    use super::task_gpu::GpuTaskBatch;
-    match cfg.backend() {
-        BackendChoice::Cpu => Ok(Box::new(CpuTaskBatch::new(cfg, model)?)),
-        BackendChoice::Gpu(name) => {
-            let ctx = GpuContext::new(name.as_deref())?;
-            Ok(Box::new(GpuTaskBatch::new(cfg, ctx, model)?))
-        }
-        BackendChoice::Auto => match GpuContext::new(None) {
-            Ok(ctx) => Ok(Box::new(GpuTaskBatch::new(cfg, ctx, model)?)),
-            Err(e) => {
-                eprintln!("dextrain: {e:#}; using the CPU backend");
-                Ok(Box::new(CpuTaskBatch::new(cfg, model)?))
-            }
-        },
+    match super::sim_gpu_context(cfg)? {
+        Some(ctx) => Ok(Box::new(super::task_gpu::GpuTaskBatch::new(cfg, ctx, model)?)),
+        None => Ok(Box::new(CpuTaskBatch::new(cfg, model)?)),
     }
 }
 
