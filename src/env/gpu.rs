@@ -319,3 +319,82 @@ impl EnvBatch for GpuEnvBatch {
         self.read(&self.stats, self.model.spec.num_envs)
     }
 }
+
+/// One binding of a [`run_kernel`] dispatch (its bytes are uploaded as they are).
+pub enum KernelBinding<'a> {
+    Uniform(&'a [u8]),
+    /// `var<storage, read>`.
+    Storage(&'a [u8]),
+    /// `var<storage, read_write>`: read back after the dispatch.
+    StorageRw(&'a [u8]),
+}
+
+/// Runs entry point `entry_point` of the WGSL module `source` once over `invocations` invocations
+/// (workgroups of [`WORKGROUP_SIZE`] along x; the kernel must ignore ids past the end), with
+/// `bindings` in group 0 (exactly those the entry point uses: the layout is derived from the shader).
+/// Returns the contents of every `StorageRw` binding after the dispatch, in the order given.
+/// For tests that compare a shader function with its CPU twin.
+pub fn run_kernel(ctx: &GpuContext, source: &str, entry_point: &str, bindings: &[(u32, KernelBinding)], invocations: u32) -> Result<Vec<Vec<u8>>> {
+    let device = &ctx.device;
+    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(entry_point), source: wgpu::ShaderSource::Wgsl(source.into()) });
+    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+        label: Some(entry_point),
+        layout: None,
+        module: &module,
+        entry_point: Some(entry_point),
+        compilation_options: Default::default(),
+        cache: None,
+    });
+    let buffers: Vec<wgpu::Buffer> = bindings
+        .iter()
+        .map(|(b, k)| {
+            let (bytes, usage) = match k {
+                KernelBinding::Uniform(d) => (*d, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST),
+                KernelBinding::Storage(d) | KernelBinding::StorageRw(d) => (*d, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC),
+            };
+            // zero-length bindings are invalid: pad to 16 bytes
+            let mut contents = bytes.to_vec();
+            contents.resize(contents.len().max(16), 0);
+            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(&format!("binding {b}")), contents: &contents, usage })
+        })
+        .collect();
+    let entries: Vec<wgpu::BindGroupEntry> = bindings.iter().zip(&buffers).map(|((b, _), buf)| entry(*b, buf)).collect();
+    let group = device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(entry_point), layout: &pipeline.get_bind_group_layout(0), entries: &entries });
+    let rw: Vec<usize> = bindings.iter().enumerate().filter(|(_, (_, k))| matches!(k, KernelBinding::StorageRw(_))).map(|(i, _)| i).collect();
+    let readbacks: Vec<wgpu::Buffer> = rw
+        .iter()
+        .map(|&i| device.create_buffer(&wgpu::BufferDescriptor { label: Some("kernel readback"), size: buffers[i].size(), usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false }))
+        .collect();
+    let mut enc = device.create_command_encoder(&Default::default());
+    {
+        let mut pass = enc.begin_compute_pass(&Default::default());
+        pass.set_pipeline(&pipeline);
+        pass.set_bind_group(0, &group, &[]);
+        pass.dispatch_workgroups(invocations.div_ceil(WORKGROUP_SIZE).max(1), 1, 1);
+    }
+    for (&i, rb) in rw.iter().zip(&readbacks) {
+        enc.copy_buffer_to_buffer(&buffers[i], 0, rb, 0, buffers[i].size());
+    }
+    ctx.queue.submit([enc.finish()]);
+    let mut out = Vec::new();
+    for (&i, rb) in rw.iter().zip(&readbacks) {
+        let slice = rb.slice(..);
+        let (tx, rx) = mpsc::channel();
+        slice.map_async(wgpu::MapMode::Read, move |r| {
+            let _ = tx.send(r);
+        });
+        device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU poll failed: {e}"))?;
+        rx.recv().context("GPU readback was dropped")?.map_err(|e| anyhow!("GPU readback failed: {e}"))?;
+        let bytes = {
+            let view = slice.get_mapped_range().map_err(|e| anyhow!("GPU readback failed: {e:?}"))?;
+            let len = match &bindings[i].1 {
+                KernelBinding::StorageRw(d) => d.len(),
+                _ => 0,
+            };
+            view[..len].to_vec()
+        };
+        rb.unmap();
+        out.push(bytes);
+    }
+    Ok(out)
+}
