@@ -18,6 +18,7 @@ use glam::{Quat, Vec3};
 use crate::geom::Pose;
 
 pub mod io;
+pub mod perturb;
 pub mod synth;
 
 pub use io::{FORMAT_VERSION, REFERENCE_JSON_SCHEMA, REFERENCE_METADATA_NAME, REFERENCE_SCHEMA_NAME, REFERENCE_TOPIC};

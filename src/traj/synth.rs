@@ -17,9 +17,10 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use glam::{Quat, Vec3};
 
+use super::perturb::{PerturbArgs, perturb};
 use super::{Frame, Trajectory};
 use crate::config::Config;
 use crate::env::SimModel;
@@ -51,12 +52,22 @@ pub struct SynthArgs {
     /// For hands other than dexhand16: fraction of each actuated joint's range the grasp closes to.
     #[arg(long, default_value_t = 0.6)]
     pub close_fraction: f32,
+    /// Number of references to write. Above 1, `--out` is a directory that receives
+    /// `ref_000.mcap`, `ref_001.mcap`, …, each perturbed with its own draws (see `traj::perturb`).
+    #[arg(long, default_value_t = 1)]
+    pub count: usize,
+    /// Seed of the perturbations.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Retargeting-like errors on the hand part (the object part stays clean).
+    #[command(flatten)]
+    pub perturb: PerturbArgs,
 }
 
 impl SynthArgs {
     /// The defaults for a config file.
     pub fn defaults(config: PathBuf, out: PathBuf) -> SynthArgs {
-        SynthArgs { config, out, lift: 0.15, approach: 1.0, close: 0.8, lift_time: 1.5, hold: 1.0, close_fraction: 0.6 }
+        SynthArgs { config, out, lift: 0.15, approach: 1.0, close: 0.8, lift_time: 1.5, hold: 1.0, close_fraction: 0.6, count: 1, seed: 0, perturb: PerturbArgs::default() }
     }
 }
 
@@ -160,11 +171,33 @@ pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
     Ok(traj)
 }
 
+/// The references `dextrain traj synth` writes: the scripted one, or `count` perturbed copies of it
+/// (when `count` > 1 or a perturbation is set).
+pub fn synth_set(cfg: &Config, args: &SynthArgs) -> Result<Vec<Trajectory>> {
+    if args.count == 0 || args.count > 10_000 {
+        bail!("--count = {}: expected 1 to 10000 references", args.count);
+    }
+    let clean = synth(cfg, args)?;
+    if args.count == 1 && !args.perturb.is_active() {
+        return Ok(vec![clean]);
+    }
+    let model = SimModel::from_config(cfg)?;
+    (0..args.count as u64).map(|i| perturb(&clean, &model.hand, &args.perturb, args.seed, i)).collect()
+}
+
 /// `dextrain traj synth`.
 pub fn run(args: &SynthArgs) -> Result<()> {
     let cfg = Config::load(&args.config)?;
-    let traj = synth(&cfg, args)?;
-    traj.save(&args.out)?;
-    eprintln!("wrote {} ({} keyframes, {:.2} s)", args.out.display(), traj.frames.len(), traj.duration());
+    let set = synth_set(&cfg, args)?;
+    if args.count == 1 {
+        set[0].save(&args.out)?;
+        eprintln!("wrote {} ({} keyframes, {:.2} s)", args.out.display(), set[0].frames.len(), set[0].duration());
+        return Ok(());
+    }
+    std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create the directory {}", args.out.display()))?;
+    for (i, t) in set.iter().enumerate() {
+        t.save(&args.out.join(format!("ref_{i:03}.mcap")))?;
+    }
+    eprintln!("wrote {} references to {} ({:.2} s each)", set.len(), args.out.display(), set[0].duration());
     Ok(())
 }
