@@ -157,53 +157,6 @@ struct StepStats {
     _pad: u32,
 }
 
-// The task layer's constants (twin: layout.rs TaskGlobals; a uniform, so arrays are of vec4).
-struct TaskGlobals {
-    wrist_pos_min: vec4<f32>,
-    wrist_pos_max: vec4<f32>,
-    palm_offset: vec4<f32>,
-    weights: array<vec4<f32>, 2>,
-    actuated: array<vec4<u32>, 6>,
-    n_actuated: u32,
-    n_act: u32,
-    obs_dim: u32,
-    priv_dim: u32,
-    episode_length: u32,
-    finger_mode: u32,
-    thumb: u32,
-    _pad0: u32,
-    wrist_pos_scale: f32,
-    wrist_rot_scale: f32,
-    wrist_rot_limit: f32,
-    finger_delta_scale: f32,
-    reach_alpha: f32,
-    success_height: f32,
-    contact_force: f32,
-    drop_height: f32,
-    table_half_extent: f32,
-    max_hand_distance: f32,
-    noise_joint_pos: f32,
-    noise_joint_vel: f32,
-    noise_hand_pos: f32,
-    noise_object_pos: f32,
-    noise_object_rot: f32,
-    _pad1: f32,
-}
-
-// The task layer's per-env state (twin: layout.rs TaskState).
-struct TaskState {
-    targets: Targets,
-    rest_pos: vec4<f32>,
-    prev_action: array<f32, 32>,
-    tip_force: array<f32, 6>,
-    act_rate: f32,
-    act_mag: f32,
-    done: u32,
-    _pad0: u32,
-    _pad1: u32,
-    _pad2: u32,
-}
-
 // Hamilton product a ⊗ b.
 fn quat_mul(a: vec4<f32>, b: vec4<f32>) -> vec4<f32> {
     return vec4<f32>(
@@ -285,14 +238,6 @@ fn rand_uniform(seed: u32, env: u32, episode: u32, purpose: u32, k: u32) -> f32 
 @group(0) @binding(7) var<storage, read_write> stats: array<StepStats>;
 // reset request per env: 0 none, 1 next episode, 2 episode 0 (written by the task layer's task_reward)
 @group(0) @binding(8) var<storage, read_write> reset_mask: array<u32>;
-// the task layer (shaders/task.wgsl, src/env/task_gpu.rs)
-@group(0) @binding(9) var<uniform> tc: TaskGlobals;
-@group(0) @binding(10) var<storage, read_write> task_states: array<TaskState>;
-// actions [N, n_act]
-@group(0) @binding(11) var<storage, read> actions: array<f32>;
-// obs [N, obs_dim], then priv obs [N, priv_dim], then per-env reward/terms/flags [N, OUT_MISC]
-@group(0) @binding(12) var<storage, read_write> task_out: array<f32>;
-
 const WORKGROUP_SIZE: u32 = 64u;
 
 // Env index of an invocation of a (possibly 2-D) dispatch.

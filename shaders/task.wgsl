@@ -5,20 +5,131 @@
 // is the contract and lists the observation layout). This file is appended to common + reset +
 // physics: it reuses hand_kinematics and its var<private> memory (st, link_pos, link_rot).
 
+// The task layer's constants (twin: layout.rs TaskGlobals; a uniform, so arrays are of vec4).
+struct TaskGlobals {
+    wrist_pos_min: vec4<f32>,
+    wrist_pos_max: vec4<f32>,
+    palm_offset: vec4<f32>,
+    weights: array<vec4<f32>, 2>,
+    actuated: array<vec4<u32>, 6>,
+    n_actuated: u32,
+    n_act: u32,
+    obs_dim: u32,
+    priv_dim: u32,
+    episode_length: u32,
+    finger_mode: u32,
+    thumb: u32,
+    _pad0: u32,
+    wrist_pos_scale: f32,
+    wrist_rot_scale: f32,
+    wrist_rot_limit: f32,
+    finger_delta_scale: f32,
+    reach_alpha: f32,
+    success_height: f32,
+    contact_force: f32,
+    drop_height: f32,
+    table_half_extent: f32,
+    max_hand_distance: f32,
+    noise_joint_pos: f32,
+    noise_joint_vel: f32,
+    noise_hand_pos: f32,
+    noise_object_pos: f32,
+    noise_object_rot: f32,
+    _pad1: f32,
+    kind: u32,
+    n_terms: u32,
+    start_mode: u32,
+    lookahead: u32,
+    lookahead_stride: u32,
+    n_res: u32,
+    open_loop: u32,
+    _pad2: u32,
+    beta_joint: f32,
+    beta_wrist_pos: f32,
+    beta_wrist_rot: f32,
+    alpha_joint: f32,
+    alpha_wrist_pos: f32,
+    alpha_wrist_rot: f32,
+    alpha_object_pos: f32,
+    alpha_object_rot: f32,
+    success_pos_tol: f32,
+    success_rot_tol: f32,
+    max_object_error: f32,
+    res_alpha: f32,
+    res_wrist_pos_alpha: f32,
+    res_wrist_rot_alpha: f32,
+    res_obj_pos_coef: f32,
+    res_obj_rot_coef: f32,
+    res_ema: f32,
+    res_scale_wrist_pos: f32,
+    res_scale_wrist_rot: f32,
+    res_scale_tips: f32,
+    res_clamp_wrist_pos: f32,
+    res_clamp_wrist_rot: f32,
+    res_clamp_tips: f32,
+    control_dt: f32,
+    rw_obj_pos: f32,
+    rw_obj_rot: f32,
+    rw_tips: f32,
+    rw_wrist_pos: f32,
+    rw_wrist_rot: f32,
+    _pad3: f32,
+    _pad4: f32,
+    _pad5: f32,
+    ik: IkParams,
+}
+
+// The task layer's per-env state (twin: layout.rs TaskState).
+struct TaskState {
+    targets: Targets,
+    rest_pos: vec4<f32>,
+    prev_action: array<f32, 32>,
+    tip_force: array<f32, 6>,
+    act_rate: f32,
+    act_mag: f32,
+    done: u32,
+    // ‖δ‖² of the last residual (residual kinds)
+    res_sq: f32,
+    _pad1: u32,
+    _pad2: u32,
+    // the reference this episode follows (reference kinds)
+    cursor: RefCursor,
+    // residual_task: the EMA-smoothed output ũ and the integrated residual Δa [n_res]
+    res_ema: array<f32, 24>,
+    res_delta: array<f32, 24>,
+}
+
+// the task layer (shaders/task.wgsl, src/env/task_gpu.rs)
+@group(0) @binding(9) var<uniform> tc: TaskGlobals;
+@group(0) @binding(10) var<storage, read_write> task_states: array<TaskState>;
+// actions [N, n_act]
+@group(0) @binding(11) var<storage, read> actions: array<f32>;
+// obs [N, obs_dim], then priv obs [N, priv_dim], then per-env reward/terms/flags [N, OUT_MISC]
+@group(0) @binding(12) var<storage, read_write> task_out: array<f32>;
+
+
 const PURPOSE_OBS_NOISE: u32 = 3u;
 // noise draw k of obs entry i at env step s: key = s * OBS_KEY_STRIDE + 2 i + k (k = 0, 1)
 const OBS_KEY_STRIDE: u32 = 4096u;
 const MAX_ACTIONS: u32 = 32u;
-const N_TERMS: u32 = 6u;
+const KIND_LIFT: u32 = 0u;
+const KIND_TRACK: u32 = 1u;
+const KIND_RESIDUAL_JOINT: u32 = 2u;
+const KIND_RESIDUAL_TASK: u32 = 3u;
+const MAX_TERMS: u32 = 8u;
 // per-env record of the outputs after the obs and priv obs sections of task_out
 const OUT_REWARD: u32 = 0u;
 const OUT_TERMS: u32 = 1u;
-const OUT_TERMINATED: u32 = 7u;
-const OUT_TIME_OUT: u32 = 8u;
-const OUT_SUCCESS: u32 = 9u;
-const OUT_LIFT: u32 = 10u;
-const OUT_MAX_PEN: u32 = 11u;
-const OUT_MISC: u32 = 12u;
+const OUT_TERMINATED: u32 = 9u;
+const OUT_TIME_OUT: u32 = 10u;
+const OUT_SUCCESS: u32 = 11u;
+const OUT_LIFT: u32 = 12u;
+const OUT_MAX_PEN: u32 = 13u;
+const OUT_OBJ_POS_ERR: u32 = 14u;
+const OUT_OBJ_ROT_ERR: u32 = 15u;
+const OUT_MISC: u32 = 16u;
+// the env step ref_sample clamps to the reference's last frame
+const REF_END_STEP: u32 = 1073741824u;
 
 // ---- per-invocation observation cursor (the twin's ObsOut) ----
 var<private> ob_env: u32;
@@ -58,6 +169,80 @@ fn wrist_rot_target(rot: vec4<f32>, rv: vec3<f32>) -> vec4<f32> {
     return r;
 }
 
+// targets that follow a reference frame exactly (what `dextrain replay` drives)
+fn nominal_targets(f: RefFrame) -> Targets {
+    var t: Targets;
+    t.wrist_pos = f.wrist_pos;
+    t.wrist_rot = f.wrist_rot;
+    t.q = f.q;
+    return t;
+}
+
+// exp(rv) ⊗ rot, normalised; rot itself when the rotation is below 1e-9 rad
+fn rotate_by(rot: vec4<f32>, rv: vec3<f32>) -> vec4<f32> {
+    let angle = length(rv);
+    if (angle > 1e-9) {
+        return quat_normalize(quat_mul(quat_from_axis_angle(rv / angle, angle), rot));
+    }
+    return rot;
+}
+
+// residual kinds: targets from the nominal frame f and the clipped actions a (see the twin)
+fn residual_targets(a: array<f32, 32>, f: RefFrame, ts: ptr<function, TaskState>) -> Targets {
+    var t = nominal_targets(f);
+    var sq = 0.0;
+    if (tc.kind == KIND_RESIDUAL_JOINT) {
+        let dp = vec3<f32>(a[0], a[1], a[2]) * tc.res_wrist_pos_alpha;
+        let dr = vec3<f32>(a[3], a[4], a[5]) * tc.res_wrist_rot_alpha;
+        t.wrist_pos = vec4<f32>(f.wrist_pos.x + dp.x, f.wrist_pos.y + dp.y, f.wrist_pos.z + dp.z, 0.0);
+        t.wrist_rot = rotate_by(f.wrist_rot, dr);
+        // ‖δ‖² = Σ δ_i² over every component
+        sq = dot(dp, dp) + dot(dr, dr);
+        for (var i = 0u; i < tc.n_actuated; i++) {
+            let j = actuated_joint(i);
+            let jd = joints[j];
+            let d = a[6u + i] * tc.res_alpha;
+            t.q[j] = min(max(f.q[j] + d, jd.lower), jd.upper);
+            sq += d * d;
+        }
+    } else {
+        var tips_moved = false;
+        for (var c = 0u; c < tc.n_res; c++) {
+            // ũ_t = ema·u_t + (1 − ema)·ũ_{t−1}
+            (*ts).res_ema[c] = tc.res_ema * a[c] + (1.0 - tc.res_ema) * (*ts).res_ema[c];
+            var scale = tc.res_scale_tips;
+            var lim = tc.res_clamp_tips;
+            if (c < 3u) {
+                scale = tc.res_scale_wrist_pos;
+                lim = tc.res_clamp_wrist_pos;
+            } else if (c < 6u) {
+                scale = tc.res_scale_wrist_rot;
+                lim = tc.res_clamp_wrist_rot;
+            }
+            // Δa_t = clamp(Δa_{t−1} + s ũ_t Δt, −c, c)
+            (*ts).res_delta[c] = min(max((*ts).res_delta[c] + scale * (*ts).res_ema[c] * tc.control_dt, -lim), lim);
+            sq += (*ts).res_delta[c] * (*ts).res_delta[c];
+            if (c >= 6u && (*ts).res_delta[c] != 0.0) {
+                tips_moved = true;
+            }
+        }
+        let d = (*ts).res_delta;
+        t.wrist_pos = vec4<f32>(f.wrist_pos.x + d[0], f.wrist_pos.y + d[1], f.wrist_pos.z + d[2], 0.0);
+        t.wrist_rot = rotate_by(f.wrist_rot, vec3<f32>(d[3], d[4], d[5]));
+        if (tips_moved) {
+            let base = ik_tip_positions(f.q);
+            var goal: array<vec3<f32>, MAX_TIPS>;
+            for (var k = 0u; k < g.n_tips; k++) {
+                goal[k] = base[k] + vec3<f32>(d[6u + 3u * k], d[7u + 3u * k], d[8u + 3u * k]);
+            }
+            let mask = (1u << g.n_tips) - 1u;
+            t.q = ik_solve(f.q, goal, mask, tc.ik);
+        }
+    }
+    (*ts).res_sq = sq;
+    return t;
+}
+
 @compute @workgroup_size(64)
 fn task_act(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let env = env_index(gid, nwg);
@@ -80,6 +265,19 @@ fn task_act(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
     }
     ts.act_rate = rate;
     ts.act_mag = mag;
+    if (tc.kind != KIND_LIFT && (tc.open_loop != 0u || tc.kind != KIND_TRACK)) {
+        // the reference at the end of this step: replay's targets for control step `step`
+        let f = ref_sample(ts.cursor, states[env].step, 1u);
+        if (tc.open_loop != 0u) {
+            ts.targets = nominal_targets(f);
+            ts.res_sq = 0.0;
+        } else {
+            ts.targets = residual_targets(a, f, &ts);
+        }
+        task_states[env] = ts;
+        targets[env] = ts.targets;
+        return;
+    }
     let wp = ts.targets.wrist_pos.xyz + vec3<f32>(a[0], a[1], a[2]) * tc.wrist_pos_scale;
     ts.targets.wrist_pos = vec4<f32>(clamp(wp, tc.wrist_pos_min.xyz, tc.wrist_pos_max.xyz), 0.0);
     ts.targets.wrist_rot = wrist_rot_target(ts.targets.wrist_rot, vec3<f32>(a[3], a[4], a[5]) * tc.wrist_rot_scale);
@@ -94,6 +292,83 @@ fn task_act(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
 // p_palm = p_wrist + R_wrist · palm_offset
 fn palm_position(wrist_pos: vec3<f32>, wrist_rot: vec4<f32>) -> vec3<f32> {
     return wrist_pos + quat_rotate(wrist_rot, tc.palm_offset.xyz);
+}
+
+// the tracking reward terms (raw, the kind's order) against the reference frame f of this instant;
+// e = the object's position and angle error against f (see the twin)
+fn tracking_terms(s: EnvState, p: EnvParams, ts: TaskState, f: RefFrame, e: vec2<f32>, fin: bool, contact: bool, h: f32) -> array<f32, 8> {
+    var raw: array<f32, 8>;
+    let wp = s.wrist_pos.xyz;
+    let wr = s.wrist_rot;
+    let e_wp = length(wp - f.wrist_pos.xyz);
+    let e_wr = length(quat_error(f.wrist_rot, wr));
+    let ended = f.ended != 0u;
+    if (tc.kind == KIND_TRACK) {
+        var dq = 0.0;
+        for (var i = 0u; i < tc.n_actuated; i++) {
+            let j = actuated_joint(i);
+            let d = s.q[j] - f.q[j];
+            dq += d * d;
+        }
+        // R_f = β1 (1 − tanh(α1‖q − q̂‖)) + β2 (1 − tanh(α2‖x − x̂‖)) + β3 (1 − tanh(α3 φ))
+        let rj = 1.0 - tanh(min(tc.alpha_joint * sqrt(dq), 20.0));
+        let rx = 1.0 - tanh(min(tc.alpha_wrist_pos * e_wp, 20.0));
+        let rr = 1.0 - tanh(min(tc.alpha_wrist_rot * e_wr, 20.0));
+        raw[0] = tc.beta_joint * rj + tc.beta_wrist_pos * rx + tc.beta_wrist_rot * rr;
+        // R_o = exp(−α4‖T − T̂‖) + exp(−α5‖log(q̂⁻¹ ⊗ q)‖)
+        raw[1] = exp(-tc.alpha_object_pos * e.x) + exp(-tc.alpha_object_rot * e.y);
+        // contact while the reference grasps
+        raw[2] = select(0.0, 1.0, contact && f.grasp > 0.5);
+        raw[3] = select(0.0, 1.0, fin && ended);
+        raw[4] = clamp(h, 0.0, tc.success_height) * 100.0;
+        raw[5] = ts.act_rate;
+        raw[6] = ts.act_mag;
+    } else if (tc.kind == KIND_RESIDUAL_JOINT) {
+        // w_p exp(−k_p e_p) + w_r exp(−k_r e_R) − λ_a ‖δ‖²
+        raw[0] = exp(-tc.res_obj_pos_coef * e.x);
+        raw[1] = exp(-tc.res_obj_rot_coef * e.y);
+        raw[2] = ts.res_sq;
+        raw[3] = select(0.0, 1.0, fin && ended);
+    } else {
+        st = s;
+        hand_kinematics();
+        var e_tips = 0.0;
+        for (var t = 0u; t < g.n_tips; t++) {
+            e_tips += length(tip_position(t) - f.tips[t].xyz);
+        }
+        e_tips /= f32(max(g.n_tips, 1u));
+        // object exp(−a_p e_p − a_R e_R), gated by contact or the object being on its reference
+        let gate = contact || e.x <= tc.success_pos_tol;
+        raw[0] = select(0.0, exp(-tc.rw_obj_pos * e.x - tc.rw_obj_rot * e.y), gate);
+        raw[1] = exp(-tc.rw_tips * e_tips);
+        raw[2] = exp(-tc.rw_wrist_pos * e_wp - tc.rw_wrist_rot * e_wr);
+        raw[3] = select(0.0, 1.0, contact && f.grasp > 0.5);
+        var vel = 0.0;
+        var torque = 0.0;
+        var work = 0.0;
+        for (var i = 0u; i < tc.n_actuated; i++) {
+            let j = actuated_joint(i);
+            let jd = joints[j];
+            let qd = s.qd[j];
+            // the servo's torque: clamp(kp (clamp(q*, lo, hi) − q) − kd q̇, ±effort)
+            let goal = clamp(ts.targets.q[j], jd.lower * p.limit_scale, jd.upper * p.limit_scale);
+            let tau = clamp(jd.kp * p.kp_scale * (goal - s.q[j]) - jd.kd * p.kd_scale * qd, -jd.effort, jd.effort);
+            vel += qd * qd;
+            torque += tau * tau;
+            work += abs(tau * qd);
+        }
+        raw[4] = vel;
+        raw[5] = torque;
+        raw[6] = work;
+        var table = false;
+        for (var c = 0u; c < g.n_colliders; c++) {
+            if (s.anchor_ht[c].w > 0.0) {
+                table = true;
+            }
+        }
+        raw[7] = select(0.0, 1.0, table);
+    }
+    return raw;
 }
 
 @compute @workgroup_size(64)
@@ -118,41 +393,76 @@ fn task_reward(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
         }
     }
     let thumb = sts.tip_force[tc.thumb] > tc.contact_force;
-    var raw: array<f32, 6>;
-    // reaching 1 − tanh(α d) (tanh saturates at 20: some GPUs' tanh overflows beyond)
-    raw[0] = 1.0 - tanh(min(tc.reach_alpha * dist, 20.0));
-    // lifting: h in cm, capped at the success height
-    raw[1] = clamp(h, 0.0, tc.success_height) * 100.0;
-    raw[2] = select(0.0, 1.0, thumb && other);
-    raw[3] = select(0.0, 1.0, h >= tc.success_height);
-    raw[4] = ts.act_rate;
-    raw[5] = ts.act_mag;
-    var lift = h;
-    if (bad) {
-        // the physics already reset this env: its state says nothing about the step
-        raw[0] = 0.0;
-        raw[1] = 0.0;
-        raw[2] = 0.0;
-        raw[3] = 0.0;
-        lift = 0.0;
-    }
+    var raw: array<f32, 8>;
     var terminated = bad || obj.z < tc.drop_height || abs(obj.x) > tc.table_half_extent || abs(obj.y) > tc.table_half_extent;
     terminated = terminated || dist > tc.max_hand_distance;
-    let time_out = !terminated && s.step >= tc.episode_length;
+    var time_out: bool;
+    var success: f32;
+    var err = vec2<f32>(0.0, 0.0);
+    if (tc.kind == KIND_LIFT) {
+        // reaching 1 − tanh(α d) (tanh saturates at 20: some GPUs' tanh overflows beyond)
+        raw[0] = 1.0 - tanh(min(tc.reach_alpha * dist, 20.0));
+        // lifting: h in cm, capped at the success height
+        raw[1] = clamp(h, 0.0, tc.success_height) * 100.0;
+        raw[2] = select(0.0, 1.0, thumb && other);
+        raw[3] = select(0.0, 1.0, h >= tc.success_height);
+        raw[4] = ts.act_rate;
+        raw[5] = ts.act_mag;
+        success = raw[3];
+        time_out = !terminated && s.step >= tc.episode_length;
+        if (bad) {
+            // the physics already reset this env: its state says nothing about the step
+            raw[0] = 0.0;
+            raw[1] = 0.0;
+            raw[2] = 0.0;
+            raw[3] = 0.0;
+            success = 0.0;
+        }
+    } else {
+        let f = ref_sample(ts.cursor, s.step, 0u);
+        let fin_ref = ref_sample(ts.cursor, REF_END_STEP, 0u);
+        // the object's error against its reference now (m, rad) and against the final pose
+        err = vec2<f32>(length(obj - f.obj_pos.xyz), length(quat_error(f.obj_rot, s.obj_rot)));
+        let fin_p = length(obj - fin_ref.obj_pos.xyz);
+        let fin_r = length(quat_error(fin_ref.obj_rot, s.obj_rot));
+        let fin = fin_p <= tc.success_pos_tol && fin_r <= tc.success_rot_tol;
+        raw = tracking_terms(s, params[env], ts, f, err, fin, thumb && other, h);
+        success = select(0.0, 1.0, fin);
+        terminated = terminated || (tc.max_object_error > 0.0 && err.x > tc.max_object_error);
+        var ended = s.step >= tc.episode_length;
+        if (tc.episode_length == 0u) {
+            ended = f.ended != 0u;
+        }
+        time_out = !terminated && ended;
+        if (bad) {
+            for (var k = 0u; k < MAX_TERMS; k++) {
+                raw[k] = 0.0;
+            }
+            success = 0.0;
+            err = vec2<f32>(0.0, 0.0);
+        }
+    }
+    var lift = h;
+    if (bad) {
+        lift = 0.0;
+    }
     let mb = g.n_envs * (tc.obs_dim + tc.priv_dim) + env * OUT_MISC;
     var reward = 0.0;
-    for (var k = 0u; k < N_TERMS; k++) {
+    for (var k = 0u; k < MAX_TERMS; k++) {
         // term_k = w_k · raw_k, reward = Σ_k term_k
         let wk = tc.weights[k / 4u][k % 4u] * raw[k];
         task_out[mb + OUT_TERMS + k] = wk;
         reward += wk;
     }
+    time_out = time_out && !terminated;
     task_out[mb + OUT_REWARD] = reward;
     task_out[mb + OUT_TERMINATED] = select(0.0, 1.0, terminated);
     task_out[mb + OUT_TIME_OUT] = select(0.0, 1.0, time_out);
-    task_out[mb + OUT_SUCCESS] = raw[3];
+    task_out[mb + OUT_SUCCESS] = success;
     task_out[mb + OUT_LIFT] = lift;
     task_out[mb + OUT_MAX_PEN] = sts.max_pen_ho;
+    task_out[mb + OUT_OBJ_POS_ERR] = err.x;
+    task_out[mb + OUT_OBJ_ROT_ERR] = err.y;
     let done = terminated || time_out;
     ts.done = select(0u, 1u, done);
     task_states[env] = ts;
@@ -193,16 +503,118 @@ fn tip_position(t: u32) -> vec3<f32> {
     return link_pos[tip.link] + quat_rotate(link_rot[tip.link], tip.pos.xyz);
 }
 
-// the task state of an env that was just reset: default targets, no previous action, rest position
-fn task_init(s: EnvState) -> TaskState {
+// the task state of an env that was just reset: default targets, no previous action, rest position;
+// reference kinds begin the episode's reference and may place hand and object on it (see the twin)
+fn task_init(env: u32, s: ptr<function, EnvState>) -> TaskState {
     var ts: TaskState;
     ts.targets.wrist_pos = g.init_wrist_pos;
     ts.targets.wrist_rot = g.init_wrist_rot;
     for (var j = 0u; j < g.n_joints; j++) {
         ts.targets.q[j] = joints[j].default_q;
     }
-    ts.rest_pos = vec4<f32>(s.obj_pos.xyz, 0.0);
+    if (tc.kind != KIND_LIFT) {
+        ts.cursor = ref_begin(env, (*s).episode, *s);
+        if (tc.start_mode == 0u) {
+            let f0 = ref_sample(ts.cursor, 0u, 0u);
+            (*s).wrist_pos = f0.wrist_pos;
+            (*s).wrist_rot = f0.wrist_rot;
+            (*s).wrist_vel = vec4<f32>(0.0);
+            (*s).wrist_angvel = vec4<f32>(0.0);
+            for (var j = 0u; j < g.n_joints; j++) {
+                let jd = joints[j];
+                (*s).q[j] = f0.q[j];
+                (*s).qd[j] = 0.0;
+                if (jd.mimic_leader != NO_JOINT) {
+                    (*s).q[j] = jd.mimic_mult * f0.q[jd.mimic_leader] + jd.mimic_offset;
+                }
+            }
+            if (rg.reground == 0u) {
+                let o = ref_object_start(ts.cursor);
+                (*s).obj_pos = vec4<f32>(o.pos, 0.0);
+                (*s).obj_rot = o.rot;
+                (*s).obj_vel = vec4<f32>(0.0);
+                (*s).obj_angvel = vec4<f32>(0.0);
+            }
+            ts.targets = nominal_targets(f0);
+        }
+    }
+    ts.rest_pos = vec4<f32>((*s).obj_pos.xyz, 0.0);
     return ts;
+}
+
+// the actor's noisy view of the state the reference observations are relative to (twin: NoisyState)
+var<private> ns_wrist: vec3<f32>;
+var<private> ns_obj: vec3<f32>;
+var<private> ns_obj_rot: vec4<f32>;
+var<private> ns_q: array<f32, MAX_JOINTS>;
+var<private> ns_tips: array<vec3<f32>, MAX_TIPS>;
+
+// reference kinds: the frames ref0 … refK relative to the state, the phase and (residual_task) the
+// integrated residual over its clamps (after hand_kinematics of st; see the twin)
+fn observe_reference(k0: u32, ts: TaskState) -> u32 {
+    var k = k0;
+    let wp = st.wrist_pos.xyz;
+    let wr = st.wrist_rot;
+    let op = st.obj_pos.xyz;
+    let orot = st.obj_rot;
+    for (var i = 0u; i <= tc.lookahead; i++) {
+        let f = ref_sample(ts.cursor, st.step, i * tc.lookahead_stride);
+        let d = f.wrist_pos.xyz - wp;
+        let dn = f.wrist_pos.xyz - ns_wrist;
+        for (var c = 0u; c < 3u; c++) {
+            put_obs(k, d[c], dn[c]);
+            k++;
+        }
+        let e = quat_error(f.wrist_rot, wr);
+        for (var c = 0u; c < 3u; c++) {
+            put_obs(k, e[c], e[c]);
+            k++;
+        }
+        for (var a = 0u; a < tc.n_actuated; a++) {
+            let j = actuated_joint(a);
+            put_obs(k, f.q[j] - st.q[j], f.q[j] - ns_q[a]);
+            k++;
+        }
+        let d2 = f.obj_pos.xyz - op;
+        let dn2 = f.obj_pos.xyz - ns_obj;
+        for (var c = 0u; c < 3u; c++) {
+            put_obs(k, d2[c], dn2[c]);
+            k++;
+        }
+        let e2 = quat_error(f.obj_rot, orot);
+        let en2 = quat_error(f.obj_rot, ns_obj_rot);
+        for (var c = 0u; c < 3u; c++) {
+            put_obs(k, e2[c], en2[c]);
+            k++;
+        }
+        for (var t = 0u; t < g.n_tips; t++) {
+            let d3 = f.tips[t].xyz - tip_position(t);
+            let dn3 = f.tips[t].xyz - ns_tips[t];
+            for (var c = 0u; c < 3u; c++) {
+                put_obs(k, d3[c], dn3[c]);
+                k++;
+            }
+        }
+    }
+    // phase: the reference's progress, 0 at its first frame, 1 from its end on
+    let info = ref_info[ts.cursor.ref_id];
+    let phase = min(f32(st.step) * ts.cursor.speed / f32(max(info.n_frames, 2u) - 1u), 1.0);
+    put_obs(k, phase, phase);
+    k++;
+    if (tc.kind == KIND_RESIDUAL_TASK) {
+        for (var c = 0u; c < tc.n_res; c++) {
+            var lim = tc.res_clamp_tips;
+            if (c < 3u) {
+                lim = tc.res_clamp_wrist_pos;
+            } else if (c < 6u) {
+                lim = tc.res_clamp_wrist_rot;
+            }
+            let v = ts.res_delta[c] / max(lim, 1e-9);
+            put_obs(k, v, v);
+            k++;
+        }
+    }
+    return k;
 }
 
 @compute @workgroup_size(64)
@@ -211,13 +623,17 @@ fn task_observe(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
     if (env >= g.n_envs) {
         return;
     }
-    st = states[env];
+    var s0 = states[env];
     let p = params[env];
     var ts = task_states[env];
     if (reset_mask[env] != 0u || ts.done != 0u) {
-        ts = task_init(st);
+        ts = task_init(env, &s0);
         task_states[env] = ts;
+        if (tc.kind != KIND_LIFT) {
+            states[env] = s0;
+        }
     }
+    st = s0;
     hand_kinematics();
     ob_env = env;
     ob_episode = st.episode;
@@ -227,7 +643,9 @@ fn task_observe(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
     var k = 0u;
     for (var i = 0u; i < tc.n_actuated; i++) {
         let v = st.q[actuated_joint(i)];
-        put_obs(k, v, noisy(k, v, tc.noise_joint_pos));
+        let nv = noisy(k, v, tc.noise_joint_pos);
+        ns_q[i] = nv;
+        put_obs(k, v, nv);
         k++;
     }
     for (var i = 0u; i < tc.n_actuated; i++) {
@@ -252,10 +670,13 @@ fn task_observe(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
     }
     for (var t = 0u; t < g.n_tips; t++) {
         let tp = tip_position(t);
+        var tn = tp;
         for (var c = 0u; c < 3u; c++) {
-            put_obs(k, tp[c], noisy(k, tp[c], tc.noise_hand_pos));
+            tn[c] = noisy(k, tp[c], tc.noise_hand_pos);
+            put_obs(k, tp[c], tn[c]);
             k++;
         }
+        ns_tips[t] = tn;
     }
     let op = st.obj_pos.xyz;
     var on = op;
@@ -276,18 +697,25 @@ fn task_observe(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
         put_obs(k, oq[c], qn[c]);
         k++;
     }
-    // goal: the rest position raised by the success height
-    let goal = vec3<f32>(ts.rest_pos.x, ts.rest_pos.y, ts.rest_pos.z + tc.success_height);
-    for (var c = 0u; c < 3u; c++) {
-        put_obs(k, goal[c], goal[c]);
-        k++;
-    }
-    // p_obj − p_palm (the actor's from the noisy object and wrist positions)
-    let rel = op - palm_position(wp, st.wrist_rot);
-    let rel_n = on - palm_position(wn, st.wrist_rot);
-    for (var c = 0u; c < 3u; c++) {
-        put_obs(k, rel[c], rel_n[c]);
-        k++;
+    if (tc.kind == KIND_LIFT) {
+        // goal: the rest position raised by the success height
+        let goal = vec3<f32>(ts.rest_pos.x, ts.rest_pos.y, ts.rest_pos.z + tc.success_height);
+        for (var c = 0u; c < 3u; c++) {
+            put_obs(k, goal[c], goal[c]);
+            k++;
+        }
+        // p_obj − p_palm (the actor's from the noisy object and wrist positions)
+        let rel = op - palm_position(wp, st.wrist_rot);
+        let rel_n = on - palm_position(wn, st.wrist_rot);
+        for (var c = 0u; c < 3u; c++) {
+            put_obs(k, rel[c], rel_n[c]);
+            k++;
+        }
+    } else {
+        ns_wrist = wn;
+        ns_obj = on;
+        ns_obj_rot = qn;
+        k = observe_reference(k, ts);
     }
     // privileged extras
     for (var c = 0u; c < 3u; c++) {

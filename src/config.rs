@@ -203,14 +203,62 @@ pub struct RandomizationConfig {
 
 /// The reward terms of the lift task, in the order of `StepBatch::terms` (DESIGN §5).
 pub const LIFT_TERMS: [&str; 6] = ["reaching", "lifting", "contact", "success", "action_rate", "action_magnitude"];
+/// Reward terms of the trajectory-following task (`kind = "track"`, DESIGN §5), in output order.
+pub const TRACK_TERMS: [&str; 7] = ["hand_following", "object_following", "contact", "success", "lifting", "action_rate", "action_magnitude"];
+/// Reward terms of the joint-space residual task (`kind = "residual_joint"`, Real2Sim), in output order.
+pub const RESIDUAL_JOINT_TERMS: [&str; 4] = ["object_pos", "object_rot", "residual", "success"];
+/// Reward terms of the task-space residual task (`kind = "residual_task"`, DexRefine), in output order.
+pub const RESIDUAL_TASK_TERMS: [&str; 8] = ["object", "fingertips", "wrist", "contact", "velocity", "torque", "work", "table_collision"];
+/// The task kinds.
+pub const TASK_KINDS: [&str; 4] = ["lift", "track", "residual_joint", "residual_task"];
+
+/// The reward terms of a task kind (empty for an unknown kind).
+pub fn task_terms(kind: &str) -> &'static [&'static str] {
+    match kind {
+        "lift" => &LIFT_TERMS,
+        "track" => &TRACK_TERMS,
+        "residual_joint" => &RESIDUAL_JOINT_TERMS,
+        "residual_task" => &RESIDUAL_TASK_TERMS,
+        _ => &[],
+    }
+}
+
+/// The default weights of a task kind's reward terms: lift as tuned for the shipped configs;
+/// track with the papers' λ1 = λ2 = λ3 = 1, λ4 = 15 (no lifting, no action penalties);
+/// residual_joint `w_p = 1, w_r = 1, λ_a = 1` (the residual term is ‖δ‖², so its weight is −λ_a);
+/// residual_task with DexRefine's w_obj 30, w_hand 10, w_wrist 5, w_contact 0.05 and small
+/// penalties.
+pub fn default_rewards(kind: &str) -> BTreeMap<String, f32> {
+    let w: &[(&str, f32)] = match kind {
+        "lift" => &[("reaching", 1.0), ("lifting", 0.5), ("contact", 0.5), ("success", 5.0), ("action_rate", -0.01), ("action_magnitude", -0.001)],
+        "track" => &[("hand_following", 1.0), ("object_following", 1.0), ("contact", 1.0), ("success", 15.0), ("lifting", 0.0), ("action_rate", 0.0), ("action_magnitude", 0.0)],
+        "residual_joint" => &[("object_pos", 1.0), ("object_rot", 1.0), ("residual", -1.0), ("success", 0.0)],
+        "residual_task" => &[
+            ("object", 30.0),
+            ("fingertips", 10.0),
+            ("wrist", 5.0),
+            ("contact", 0.05),
+            ("velocity", -1e-3),
+            ("torque", -1e-2),
+            ("work", -1e-2),
+            ("table_collision", -1.0),
+        ],
+        _ => &[],
+    };
+    w.iter().map(|(k, v)| (k.to_string(), *v)).collect()
+}
 
 /// `[task]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TaskConfig {
-    /// The task: `"lift"` (grasp the object and lift it at least `lift.success_height`).
+    /// The task: `"lift"` (grasp the object and lift it at least `lift.success_height`), `"track"`
+    /// (follow reference trajectories: DESIGN §5), `"residual_joint"` (a bounded joint-space
+    /// correction of the reference's joint targets) or `"residual_task"` (a smoothed, integrated
+    /// task-space correction of the reference's wrist pose and fingertips, mapped to joints by IK).
     pub kind: String,
     /// Episode length in env steps; reaching it is a time-out (returns bootstrap through it).
+    /// 0 (reference kinds only): until the env's reference (time-scaled) has ended.
     pub episode_length: u32,
     /// How the policy's actions become joint and wrist targets.
     pub action: ActionConfig,
@@ -222,8 +270,130 @@ pub struct TaskConfig {
     /// while lifted ≥ success height), action_rate `‖a_t − a_{t−1}‖²`, action_magnitude `‖a_t‖²`.
     /// Penalties have negative weights (Isaac Lab's convention).
     pub rewards: BTreeMap<String, f32>,
-    /// Parameters of the lift task.
+    /// Parameters of the lift task; `thumb`, `contact_force`, `palm_offset`, `drop_height`,
+    /// `table_half_extent` and `max_hand_distance` apply to every kind.
     pub lift: LiftConfig,
+    /// The references of the reference-following kinds (track, residual_joint, residual_task) and
+    /// their augmentation.
+    pub reference: crate::env::reference::ReferenceConfig,
+    /// Observations, rewards and success of the reference-following kinds.
+    pub track: TrackConfig,
+    /// Parameters of the residual kinds.
+    pub residual: ResidualConfig,
+    /// The open-loop baseline of the reference kinds: actions are ignored and the targets follow the
+    /// (augmented) reference, as `dextrain replay` drives them (`dextrain eval --baseline open-loop`
+    /// sets it).
+    pub open_loop: bool,
+}
+
+/// `[task.track]`: observations, tracking rewards and success of `track`, `residual_joint` and
+/// `residual_task` (DESIGN §5); the references themselves are `[task.reference]`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TrackConfig {
+    /// Where an episode starts: `"reference"` (hand and object at the reference's first frame, as
+    /// `dextrain replay` starts) or `"config"` (hand at `wrist.init_*` and default joints, object
+    /// where the simulator's reset puts it; pair with `task.reference.reground`/`reinterp`).
+    pub start: String,
+    /// Look-ahead reference frames observed after the current one.
+    pub lookahead: u32,
+    /// Env steps between observed look-ahead frames.
+    pub lookahead_stride: u32,
+    /// β1, β2, β3 of `R_f = β1 R_j + β2 R_ee,x + β3 R_ee,r` (joints, wrist position, wrist rotation).
+    pub beta_joint: f32,
+    pub beta_wrist_pos: f32,
+    pub beta_wrist_rot: f32,
+    /// α1 of `R_j = 1 − tanh(α1‖q − q̂‖)` (1/rad), α2 of `R_ee,x` (1/m), α3 of `R_ee,r` (1/rad).
+    pub alpha_joint: f32,
+    pub alpha_wrist_pos: f32,
+    pub alpha_wrist_rot: f32,
+    /// α4 of `exp(−α4‖T − T̂‖)` (1/m) and α5 of `exp(−α5‖log(q̂⁻¹ ⊗ q)‖)` (1/rad) in `R_o`.
+    pub alpha_object_pos: f32,
+    pub alpha_object_rot: f32,
+    /// Success: the object ends within this distance (m) of the reference's final object position …
+    pub success_pos_tol: f32,
+    /// … and this angle (rad) of its final orientation (and so lifted where the reference lifts).
+    pub success_rot_tol: f32,
+    /// Terminate an episode when the object is farther than this (m) from its reference (0 = never).
+    pub max_object_error: f32,
+}
+
+/// `[task.residual]`: how residual actions correct the reference (DESIGN §1, §5).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ResidualConfig {
+    /// residual_joint: `q* = clip(q̄ + α·a, lower, upper)` for the finger joints (rad at |a| = 1).
+    pub alpha: f32,
+    /// residual_joint: wrist position residual at |a| = 1 (m): `p* = p̄ + wrist_pos_alpha·a`.
+    pub wrist_pos_alpha: f32,
+    /// residual_joint: wrist rotation residual at |a| = 1 (rad): `R* = exp(wrist_rot_alpha·a) ⊗ R̄`.
+    pub wrist_rot_alpha: f32,
+    /// residual_joint rewards: `r_obj-p = exp(−obj_pos_coef·e_p)`, `r_obj-r = exp(−obj_rot_coef·e_R)`.
+    pub obj_pos_coef: f32,
+    pub obj_rot_coef: f32,
+    /// residual_task: EMA weight of the new output, `ũ_t = ema·u_t + (1 − ema)·ũ_{t−1}`.
+    pub ema: f32,
+    /// residual_task: integration scales s of `Δa_t = Δa_{t−1} + s ⊙ ũ_t Δt` (wrist translation m/s,
+    /// wrist rotation rad/s, fingertips m/s).
+    pub scale_wrist_pos: f32,
+    pub scale_wrist_rot: f32,
+    pub scale_tips: f32,
+    /// residual_task: clamps of the integrated residual (m, rad, m per component).
+    pub clamp_wrist_pos: f32,
+    pub clamp_wrist_rot: f32,
+    pub clamp_tips: f32,
+    /// residual_task rewards: object `exp(−a_pos e_p − a_rot e_R)`, fingertips `exp(−a e_tips)`,
+    /// wrist `exp(−a_pos e_p − a_rot e_R)` (e in m and rad; e_tips the mean fingertip distance).
+    pub reward_obj_pos: f32,
+    pub reward_obj_rot: f32,
+    pub reward_tips: f32,
+    pub reward_wrist_pos: f32,
+    pub reward_wrist_rot: f32,
+}
+
+impl Default for TrackConfig {
+    fn default() -> Self {
+        TrackConfig {
+            start: "reference".into(),
+            lookahead: 2,
+            lookahead_stride: 3,
+            beta_joint: 0.1,
+            beta_wrist_pos: 1.0,
+            beta_wrist_rot: 1.0,
+            alpha_joint: 1.0,
+            alpha_wrist_pos: 1.0,
+            alpha_wrist_rot: 1.0,
+            alpha_object_pos: 1.0,
+            alpha_object_rot: 1.0,
+            success_pos_tol: 0.03,
+            success_rot_tol: 0.35,
+            max_object_error: 0.0,
+        }
+    }
+}
+
+impl Default for ResidualConfig {
+    fn default() -> Self {
+        ResidualConfig {
+            alpha: 0.1,
+            wrist_pos_alpha: 0.05,
+            wrist_rot_alpha: 0.1,
+            obj_pos_coef: 10.0,
+            obj_rot_coef: 1.0,
+            ema: 0.8,
+            scale_wrist_pos: 0.05,
+            scale_wrist_rot: 0.2,
+            scale_tips: 0.05,
+            clamp_wrist_pos: 0.1,
+            clamp_wrist_rot: 40f32.to_radians(),
+            clamp_tips: 0.04,
+            reward_obj_pos: 10.0,
+            reward_obj_rot: 20.0,
+            reward_tips: 10.0,
+            reward_wrist_pos: 5.0,
+            reward_wrist_rot: 5.0,
+        }
+    }
 }
 
 /// `[task.action]`: the action is `6 + actuated joints` numbers in [−1, 1] (clipped): wrist
@@ -361,14 +531,17 @@ pub struct PolicyConfig {
 
 impl Default for TaskConfig {
     fn default() -> Self {
-        let rewards = [("reaching", 1.0), ("lifting", 0.5), ("contact", 0.5), ("success", 5.0), ("action_rate", -0.01), ("action_magnitude", -0.001)];
         TaskConfig {
             kind: "lift".into(),
             episode_length: 90,
             action: ActionConfig::default(),
             obs_noise: ObsNoiseConfig::default(),
-            rewards: rewards.iter().map(|(k, v)| (k.to_string(), *v)).collect(),
+            rewards: default_rewards("lift"),
             lift: LiftConfig::default(),
+            reference: Default::default(),
+            track: TrackConfig::default(),
+            residual: ResidualConfig::default(),
+            open_loop: false,
         }
     }
 }
@@ -624,10 +797,15 @@ impl Config {
                 bail!("{file}{at}: invalid TOML: {}", one_line(e.message()));
             }
         };
+        // without a [task.rewards] table, the kind's default weights
+        let has_rewards = value.get("task").and_then(|t| t.get("rewards")).is_some();
         let mut cfg: Config = serde_path_to_error::deserialize(value).map_err(|e| {
             let key = e.path().to_string();
             anyhow::anyhow!("{file}: key `{key}`: {}", one_line(&e.into_inner().to_string()))
         })?;
+        if !has_rewards {
+            cfg.task.rewards = default_rewards(&cfg.task.kind);
+        }
         cfg.source = path.to_path_buf();
         cfg.base_dir = path.parent().map(Path::to_path_buf).unwrap_or_else(|| PathBuf::from("."));
         if cfg.base_dir.as_os_str().is_empty() {
@@ -782,11 +960,16 @@ impl Config {
     /// Validation of `[task]`, `[train]`, `[ppo]` and `[policy]`.
     fn validate_learning(&self, err: &dyn Fn(&str, String, &str) -> anyhow::Error) -> Result<()> {
         let t = &self.task;
-        if t.kind != "lift" {
-            return Err(err("task.kind", format!("{:?}", t.kind), "\"lift\""));
+        if !TASK_KINDS.contains(&t.kind.as_str()) {
+            return Err(err("task.kind", format!("{:?}", t.kind), "one of \"lift\", \"track\", \"residual_joint\", \"residual_task\""));
         }
-        if !(1..=1_000_000).contains(&t.episode_length) {
-            return Err(err("task.episode_length", t.episode_length.to_string(), "an integer number of env steps in [1, 1000000]"));
+        let follows = t.kind != "lift";
+        if t.episode_length > 1_000_000 || (t.episode_length == 0 && !follows) {
+            return Err(err(
+                "task.episode_length",
+                t.episode_length.to_string(),
+                if follows { "an integer number of env steps in [0, 1000000] (0: until the reference ends)" } else { "an integer number of env steps in [1, 1000000]" },
+            ));
         }
         let a = &t.action;
         if a.finger_mode != "absolute" && a.finger_mode != "delta" {
@@ -813,12 +996,64 @@ impl Config {
         ] {
             non_neg(err, key, v)?;
         }
+        let terms = task_terms(&t.kind);
         for (name, w) in &t.rewards {
-            if !LIFT_TERMS.contains(&name.as_str()) {
-                return Err(err(&format!("task.rewards.{name}"), w.to_string(), &format!("a term of the lift task: {}", LIFT_TERMS.join(", "))));
+            if !terms.contains(&name.as_str()) {
+                return Err(err(&format!("task.rewards.{name}"), w.to_string(), &format!("a term of the {} task: {}", t.kind, terms.join(", "))));
             }
             finite(err, &format!("task.rewards.{name}"), *w)?;
         }
+        if follows && t.reference.files.is_empty() {
+            return Err(err("task.reference.files", "[]".into(), &format!("at least one reference file for task.kind = {:?}", t.kind)));
+        }
+        t.reference.validate().map_err(|e| anyhow::anyhow!("{}: {e:#}", self.source.display()))?;
+        let k = &t.track;
+        if k.start != "reference" && k.start != "config" {
+            return Err(err("task.track.start", format!("{:?}", k.start), "\"reference\" or \"config\""));
+        }
+        if k.lookahead > 8 {
+            return Err(err("task.track.lookahead", k.lookahead.to_string(), "an integer in [0, 8]"));
+        }
+        if !(1..=1000).contains(&k.lookahead_stride) {
+            return Err(err("task.track.lookahead_stride", k.lookahead_stride.to_string(), "an integer in [1, 1000]"));
+        }
+        for (key, v) in [
+            ("task.track.beta_joint", k.beta_joint),
+            ("task.track.beta_wrist_pos", k.beta_wrist_pos),
+            ("task.track.beta_wrist_rot", k.beta_wrist_rot),
+            ("task.track.alpha_joint", k.alpha_joint),
+            ("task.track.alpha_wrist_pos", k.alpha_wrist_pos),
+            ("task.track.alpha_wrist_rot", k.alpha_wrist_rot),
+            ("task.track.alpha_object_pos", k.alpha_object_pos),
+            ("task.track.alpha_object_rot", k.alpha_object_rot),
+            ("task.track.max_object_error", k.max_object_error),
+        ] {
+            non_neg(err, key, v)?;
+        }
+        pos_in(err, "task.track.success_pos_tol", k.success_pos_tol, 1e-4, 10.0, "a distance in m in [0.0001, 10]")?;
+        pos_in(err, "task.track.success_rot_tol", k.success_rot_tol, 1e-4, std::f32::consts::PI, "an angle in rad in [0.0001, π]")?;
+        let r = &t.residual;
+        for (key, v) in [
+            ("task.residual.alpha", r.alpha),
+            ("task.residual.wrist_pos_alpha", r.wrist_pos_alpha),
+            ("task.residual.wrist_rot_alpha", r.wrist_rot_alpha),
+            ("task.residual.obj_pos_coef", r.obj_pos_coef),
+            ("task.residual.obj_rot_coef", r.obj_rot_coef),
+            ("task.residual.scale_wrist_pos", r.scale_wrist_pos),
+            ("task.residual.scale_wrist_rot", r.scale_wrist_rot),
+            ("task.residual.scale_tips", r.scale_tips),
+            ("task.residual.clamp_wrist_pos", r.clamp_wrist_pos),
+            ("task.residual.clamp_tips", r.clamp_tips),
+            ("task.residual.reward_obj_pos", r.reward_obj_pos),
+            ("task.residual.reward_obj_rot", r.reward_obj_rot),
+            ("task.residual.reward_tips", r.reward_tips),
+            ("task.residual.reward_wrist_pos", r.reward_wrist_pos),
+            ("task.residual.reward_wrist_rot", r.reward_wrist_rot),
+        ] {
+            non_neg(err, key, v)?;
+        }
+        pos_in(err, "task.residual.ema", r.ema, 1e-3, 1.0, "a weight in [0.001, 1]")?;
+        pos_in(err, "task.residual.clamp_wrist_rot", r.clamp_wrist_rot, 0.0, std::f32::consts::PI, "an angle in rad in [0, π]")?;
         let l = &t.lift;
         non_neg(err, "task.lift.reach_alpha", l.reach_alpha)?;
         pos_in(err, "task.lift.success_height", l.success_height, 1e-3, 10.0, "a height in m in [0.001, 10]")?;

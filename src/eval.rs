@@ -2,6 +2,10 @@
 //! seeds, a JSON report in `runs/NAME/eval/`, and optionally an MCAP recording of env 0's first
 //! episode that Foxglove shows in 3-D.
 //!
+//! Reference kinds add the tracking metrics (OTE, OOE, terminal object error) per episode and
+//! aggregated; `--baseline open-loop` evaluates the same episodes with the policy off (the targets
+//! follow the reference), so the JSON and the Markdown table next to it show policy vs replay.
+//!
 //! Every env runs exactly one episode (envs = the number of episodes, in rounds of at most
 //! `--max-envs`), so short and long episodes are counted alike. The eval seed defaults to the run's
 //! seed + 1,000,003 (`--seed` overrides it): the initial states and physical parameters are draws
@@ -9,7 +13,7 @@
 
 use std::path::PathBuf;
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, bail};
 use serde::Serialize;
 
 use crate::checkpoint;
@@ -46,6 +50,10 @@ pub struct EvalArgs {
     /// Env backend (overrides the run's config): cpu, gpu, gpu:NAME or auto.
     #[arg(long)]
     pub backend: Option<String>,
+    /// Also evaluate a baseline on the same seeds: `open-loop` (reference kinds) drives the
+    /// targets along the references with the policy switched off, as `dextrain replay` does.
+    #[arg(long)]
+    pub baseline: Option<String>,
 }
 
 /// Mean and standard deviation.
@@ -62,19 +70,30 @@ fn mean_std(x: &[f64]) -> MeanStd {
     MeanStd { mean, std: var.sqrt() }
 }
 
-/// The eval report (written as JSON).
+/// One evaluated episode.
+#[derive(Clone, Debug, Serialize, PartialEq)]
+pub struct EpisodeRow {
+    /// Undiscounted return and length (env steps).
+    pub ret: f64,
+    pub length: u32,
+    pub success: bool,
+    pub terminated: bool,
+    /// Reference kinds: mean object translation (m) and orientation (deg) error against the
+    /// reference over the episode's steps (OTE, OOE), and the errors at its last step.
+    pub ote_m: f64,
+    pub ooe_deg: f64,
+    pub terminal_pos_err_m: f64,
+    pub terminal_rot_err_deg: f64,
+}
+
+/// What a set of episodes did (the policy's, or the open-loop baseline's).
 #[derive(Clone, Debug, Serialize)]
-pub struct EvalReport {
-    pub run: String,
-    pub checkpoint: String,
-    pub iteration: u64,
-    pub seed: u32,
-    pub episodes: usize,
-    pub env_backend: String,
-    pub learner_device: String,
-    /// Fraction of episodes whose last step had the object ≥ success height above its rest height.
+pub struct Summary {
+    /// The task's success at the episode's last step (lift: object ≥ success height above its rest
+    /// height; reference kinds: object within the tolerances of the reference's final pose).
     pub success_rate: f64,
-    /// Fraction of episodes that ended by termination (drop, hand too far, bad state) rather than time-out.
+    /// Fraction of episodes that ended by termination (drop, hand too far, object too far from its
+    /// reference, bad state) rather than time-out.
     pub terminated_rate: f64,
     /// Undiscounted episode return.
     pub episode_return: MeanStd,
@@ -84,6 +103,12 @@ pub struct EvalReport {
     pub final_lift_height_m: MeanStd,
     /// Largest lift height during the episode (m).
     pub max_lift_height_m: MeanStd,
+    /// Reference kinds (0 for lift): OTE (m) and OOE (deg) per episode, aggregated.
+    pub ote_m: MeanStd,
+    pub ooe_deg: MeanStd,
+    /// Reference kinds: the object's error against the reference at the episode's last step.
+    pub terminal_obj_pos_err_m: MeanStd,
+    pub terminal_obj_rot_err_deg: MeanStd,
     /// Mean weighted value per env step of each reward term.
     pub reward_terms: serde_json::Map<String, serde_json::Value>,
     /// Deepest hand–object penetration of an episode (mm), over episodes.
@@ -92,6 +117,30 @@ pub struct EvalReport {
     pub max_penetration_mm: f64,
     /// Fraction of all env steps with a hand–object penetration > 1 mm.
     pub frac_frames_penetration_over_1mm: f64,
+    /// Mean normal force (N) of a fingertip while it touches the object (above
+    /// `task.lift.contact_force`), over all such fingertip-steps.
+    pub mean_contact_force_n: f64,
+    /// Every episode, in env order.
+    pub per_episode: Vec<EpisodeRow>,
+}
+
+/// The eval report (written as JSON, and a Markdown table next to it).
+#[derive(Clone, Debug, Serialize)]
+pub struct EvalReport {
+    pub run: String,
+    pub checkpoint: String,
+    pub iteration: u64,
+    pub seed: u32,
+    pub episodes: usize,
+    pub task: String,
+    pub env_backend: String,
+    pub learner_device: String,
+    /// The policy's episodes (deterministic: the policy mean).
+    #[serde(flatten)]
+    pub policy: Summary,
+    /// `--baseline open-loop`: the same episodes (same seeds, references and augmentation) with
+    /// the policy switched off and the targets driven along the reference, as `dextrain replay`.
+    pub baseline: Option<Summary>,
     /// The report's path (not in the JSON).
     #[serde(skip)]
     pub path: PathBuf,
@@ -108,19 +157,94 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
     if let Some(b) = &args.backend {
         cfg.sim.backend = b.clone();
     }
+    let baseline = match args.baseline.as_deref() {
+        None => false,
+        Some("open-loop") => {
+            if cfg.task.kind == "lift" {
+                bail!("--baseline open-loop: the lift task has no reference to replay; expected a run of task.kind = track, residual_joint or residual_task");
+            }
+            true
+        }
+        Some(other) => bail!("--baseline {other:?}: expected \"open-loop\""),
+    };
+    let (policy, env_backend, device_name) = run_episodes(&cfg, &ckpt, args, false)?;
+    let base = if baseline { Some(run_episodes(&cfg, &ckpt, args, true)?.0) } else { None };
+    let mut report = EvalReport {
+        run: args.run.display().to_string(),
+        checkpoint: ckpt.display().to_string(),
+        iteration: state.iteration,
+        seed,
+        episodes: policy.per_episode.len(),
+        task: cfg.task.kind.clone(),
+        env_backend,
+        learner_device: device_name,
+        policy,
+        baseline: base,
+        path: PathBuf::new(),
+    };
+    let dir = args.run.join("eval");
+    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    let stem = format!("eval_it{}_seed{}_n{}{}", state.iteration, seed, report.episodes, if baseline { "_openloop" } else { "" });
+    let path = dir.join(format!("{stem}.json"));
+    let json = serde_json::to_string_pretty(&report).context("cannot serialise the eval report")?;
+    std::fs::write(&path, json).with_context(|| format!("cannot write {}", path.display()))?;
+    let md = dir.join(format!("{stem}.md"));
+    std::fs::write(&md, markdown(&report)).with_context(|| format!("cannot write {}", md.display()))?;
+    report.path = path;
+    Ok(report)
+}
+
+/// The short Markdown table of a report: policy (and baseline) side by side.
+pub fn markdown(r: &EvalReport) -> String {
+    let mut cols: Vec<(&str, &Summary)> = vec![("policy", &r.policy)];
+    if let Some(b) = &r.baseline {
+        cols.push(("open-loop replay", b));
+    }
+    let ms = |m: &MeanStd, scale: f64, digits: usize| format!("{:.*} ± {:.*}", digits, m.mean * scale, digits, m.std * scale);
+    let rows: Vec<(&str, Box<dyn Fn(&Summary) -> String>)> = vec![
+        ("success rate", Box::new(|s: &Summary| format!("{:.1} %", 100.0 * s.success_rate))),
+        ("OTE (mm)", Box::new(move |s: &Summary| ms(&s.ote_m, 1e3, 1))),
+        ("OOE (deg)", Box::new(move |s: &Summary| ms(&s.ooe_deg, 1.0, 1))),
+        ("terminal object error (mm)", Box::new(move |s: &Summary| ms(&s.terminal_obj_pos_err_m, 1e3, 1))),
+        ("terminal object error (deg)", Box::new(move |s: &Summary| ms(&s.terminal_obj_rot_err_deg, 1.0, 1))),
+        ("terminated", Box::new(|s: &Summary| format!("{:.1} %", 100.0 * s.terminated_rate))),
+        ("episode return", Box::new(move |s: &Summary| ms(&s.episode_return, 1.0, 2))),
+        ("peak penetration (mm)", Box::new(move |s: &Summary| ms(&s.peak_penetration_mm, 1.0, 2))),
+        ("frames with penetration > 1 mm", Box::new(|s: &Summary| format!("{:.1} %", 100.0 * s.frac_frames_penetration_over_1mm))),
+        ("mean contact force (N)", Box::new(|s: &Summary| format!("{:.2}", s.mean_contact_force_n))),
+    ];
+    let mut out = format!(
+        "# Evaluation of {} ({}, iteration {}, seed {}, {} episodes)\n\n| metric | {} |\n|---|{}\n",
+        r.run,
+        r.task,
+        r.iteration,
+        r.seed,
+        r.episodes,
+        cols.iter().map(|c| c.0).collect::<Vec<_>>().join(" | "),
+        "---|".repeat(cols.len())
+    );
+    for (name, f) in &rows {
+        out.push_str(&format!("| {name} | {} |\n", cols.iter().map(|c| f(c.1)).collect::<Vec<_>>().join(" | ")));
+    }
+    out
+}
+
+/// Every episode of an evaluation (the policy's, or with `open_loop` the baseline's), the env
+/// backend and the learner device.
+fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop: bool) -> Result<(Summary, String, String)> {
+    let seed = cfg.seed;
     let episodes = args.episodes.max(1);
     let max_envs = args.max_envs.max(1);
     let rounds = episodes.div_ceil(max_envs);
-    let mut ep_return = Vec::new();
-    let mut ep_len = Vec::new();
+    let mut rows: Vec<EpisodeRow> = Vec::new();
     let mut final_lift = Vec::new();
     let mut max_lift_ep = Vec::new();
     let mut peak_pen = Vec::new();
-    let mut successes = 0usize;
-    let mut terminated = 0usize;
     let mut frames = 0u64;
     let mut frames_over = 0u64;
     let mut max_pen = 0.0f64;
+    let mut force_sum = 0.0f64;
+    let mut force_n = 0u64;
     let mut term_sums: Vec<f64> = Vec::new();
     let mut term_names: Vec<String> = Vec::new();
     let mut env_backend = String::new();
@@ -129,6 +253,7 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
         let n = (episodes - round * max_envs).min(max_envs);
         let mut c = cfg.clone();
         c.sim.num_envs = n;
+        c.task.open_loop = open_loop;
         // each round draws other episodes: the seed moves by the round
         c.seed = seed.wrapping_add(round as u32 * 7919);
         c.validate()?;
@@ -144,8 +269,10 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
         checkpoint::load_model(&ckpt.join("model.safetensors"), &mut ppo).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
         term_names = spec.term_names.clone();
         term_sums.resize(term_names.len(), 0.0);
-        let mut writer = match (&args.record, round) {
-            (Some(path), 0) => {
+        // the fingertip forces are critic observations
+        let force_cols: Vec<usize> = spec.priv_names.iter().enumerate().filter(|(_, n)| n.starts_with("tip_force.")).map(|(k, _)| k).collect();
+        let mut writer = match (&args.record, round, open_loop) {
+            (Some(path), 0, false) => {
                 let g = &model.globals;
                 let meta = RolloutMeta {
                     hand: model.hand.clone(),
@@ -161,24 +288,27 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
         let mut obs = first.obs.clone();
         let mut done = vec![false; n];
         let mut ret = vec![0.0f64; n];
-        let mut len = vec![0.0f64; n];
+        let mut len = vec![0u32; n];
         let mut lift_max = vec![0.0f64; n];
         let mut pen_max = vec![0.0f64; n];
+        let mut err_sum = vec![(0.0f64, 0.0f64); n];
         let mut t = 0.0f64;
         if let Some(w) = writer.as_mut() {
             record_frame(w, &model, task.as_mut(), t)?;
         }
+        let zeros = vec![0.0f32; n * spec.action_dim];
         while done.iter().any(|d| !d) {
-            let actions = ppo.act_mean(&obs)?;
+            let actions = if open_loop { zeros.clone() } else { ppo.act_mean(&obs)? };
             let b = task.step(&actions)?;
             t += spec.control_dt as f64;
             let nt = term_names.len();
+            let pd = spec.priv_dim;
             for i in 0..n {
                 if done[i] {
                     continue;
                 }
                 ret[i] += b.reward[i] as f64;
-                len[i] += 1.0;
+                len[i] += 1;
                 for k in 0..nt {
                     term_sums[k] += b.terms[i * nt + k] as f64;
                 }
@@ -188,15 +318,34 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
                 frames += 1;
                 frames_over += (pen_mm > 1.0) as u64;
                 lift_max[i] = lift_max[i].max(b.lift_height[i] as f64);
+                err_sum[i].0 += b.obj_pos_err[i] as f64;
+                err_sum[i].1 += (b.obj_rot_err[i] as f64).to_degrees();
+                if !b.done(i) {
+                    // forces of this step (a done env's critic obs are its next episode's first)
+                    for &k in &force_cols {
+                        let f = b.priv_obs[i * pd + k] as f64;
+                        if f > c.task.lift.contact_force as f64 {
+                            force_sum += f;
+                            force_n += 1;
+                        }
+                    }
+                }
                 if b.done(i) {
                     done[i] = true;
-                    ep_return.push(ret[i]);
-                    ep_len.push(len[i]);
+                    let l = len[i].max(1) as f64;
+                    rows.push(EpisodeRow {
+                        ret: ret[i],
+                        length: len[i],
+                        success: b.success[i],
+                        terminated: b.terminated[i],
+                        ote_m: err_sum[i].0 / l,
+                        ooe_deg: err_sum[i].1 / l,
+                        terminal_pos_err_m: b.obj_pos_err[i] as f64,
+                        terminal_rot_err_deg: (b.obj_rot_err[i] as f64).to_degrees(),
+                    });
                     final_lift.push(b.lift_height[i] as f64);
                     max_lift_ep.push(lift_max[i]);
                     peak_pen.push(pen_max[i]);
-                    successes += b.success[i] as usize;
-                    terminated += b.terminated[i] as usize;
                 }
             }
             let env0_running = !done[0];
@@ -211,34 +360,27 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
     }
     let total_frames = frames.max(1) as f64;
     let reward_terms = term_names.iter().zip(&term_sums).map(|(k, v)| (k.clone(), serde_json::json!(v / total_frames))).collect();
-    let n_ep = ep_return.len().max(1) as f64;
-    let mut report = EvalReport {
-        run: args.run.display().to_string(),
-        checkpoint: ckpt.display().to_string(),
-        iteration: state.iteration,
-        seed,
-        episodes: ep_return.len(),
-        env_backend,
-        learner_device: device_name,
-        success_rate: successes as f64 / n_ep,
-        terminated_rate: terminated as f64 / n_ep,
-        episode_return: mean_std(&ep_return),
-        episode_length: mean_std(&ep_len),
+    let n_ep = rows.len().max(1) as f64;
+    let col = |f: fn(&EpisodeRow) -> f64| rows.iter().map(f).collect::<Vec<f64>>();
+    let summary = Summary {
+        success_rate: rows.iter().filter(|r| r.success).count() as f64 / n_ep,
+        terminated_rate: rows.iter().filter(|r| r.terminated).count() as f64 / n_ep,
+        episode_return: mean_std(&col(|r| r.ret)),
+        episode_length: mean_std(&col(|r| r.length as f64)),
         final_lift_height_m: mean_std(&final_lift),
         max_lift_height_m: mean_std(&max_lift_ep),
+        ote_m: mean_std(&col(|r| r.ote_m)),
+        ooe_deg: mean_std(&col(|r| r.ooe_deg)),
+        terminal_obj_pos_err_m: mean_std(&col(|r| r.terminal_pos_err_m)),
+        terminal_obj_rot_err_deg: mean_std(&col(|r| r.terminal_rot_err_deg)),
         reward_terms,
         peak_penetration_mm: mean_std(&peak_pen),
         max_penetration_mm: max_pen,
         frac_frames_penetration_over_1mm: frames_over as f64 / total_frames,
-        path: PathBuf::new(),
+        mean_contact_force_n: if force_n > 0 { force_sum / force_n as f64 } else { 0.0 },
+        per_episode: rows,
     };
-    let dir = args.run.join("eval");
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let path = dir.join(format!("eval_it{}_seed{}_n{}.json", state.iteration, seed, report.episodes));
-    let json = serde_json::to_string_pretty(&report).context("cannot serialise the eval report")?;
-    std::fs::write(&path, json).with_context(|| format!("cannot write {}", path.display()))?;
-    report.path = path;
-    Ok(report)
+    Ok((summary, env_backend, device_name))
 }
 
 /// Writes env 0's current state as one recording frame.

@@ -89,7 +89,7 @@ fn run(cli: Cli) -> Result<()> {
             let cfg = load_config(&config)?;
             // the hand must load too
             let model = SimModel::from_config(&cfg)?;
-            let (task, _) = dextrain::env::task::task_setup(&cfg, &model)?;
+            let task = dextrain::env::task::task_setup(&cfg, &model)?.spec;
             print!("{}", cfg.to_toml()?);
             eprintln!(
                 "{}: ok ({} joints, {} actuated, {} colliders, {} fingertips; task {}: obs {}, critic obs {}, actions {})",

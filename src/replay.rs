@@ -76,7 +76,7 @@ pub fn rot_err_deg(a: Quat, b: Quat) -> f64 {
     (2.0 * (d.w.abs().min(1.0) as f64).acos()).to_degrees()
 }
 
-fn targets_at(model: &SimModel, traj: &Trajectory, map: &[Option<usize>], t: f64) -> Targets {
+pub fn targets_at(model: &SimModel, traj: &Trajectory, map: &[Option<usize>], t: f64) -> Targets {
     let f = traj.sample(t);
     let mut out = model.default_targets();
     out.wrist_pos = [f.wrist.pos.x, f.wrist.pos.y, f.wrist.pos.z, 0.0];

@@ -94,9 +94,14 @@ fn pod_structs_match_their_wgsl_twins() {
         weights, actuated, n_actuated, n_act, obs_dim, priv_dim, episode_length, finger_mode, thumb, _pad0, wrist_pos_scale,
         wrist_rot_scale, wrist_rot_limit, finger_delta_scale, reach_alpha, success_height, contact_force, drop_height,
         table_half_extent, max_hand_distance, noise_joint_pos, noise_joint_vel, noise_hand_pos, noise_object_pos,
-        noise_object_rot, _pad1));
+        noise_object_rot, _pad1, kind, n_terms, start_mode, lookahead, lookahead_stride, n_res, open_loop, _pad2,
+        beta_joint, beta_wrist_pos, beta_wrist_rot, alpha_joint, alpha_wrist_pos, alpha_wrist_rot, alpha_object_pos,
+        alpha_object_rot, success_pos_tol, success_rot_tol, max_object_error, res_alpha, res_wrist_pos_alpha,
+        res_wrist_rot_alpha, res_obj_pos_coef, res_obj_rot_coef, res_ema, res_scale_wrist_pos, res_scale_wrist_rot,
+        res_scale_tips, res_clamp_wrist_pos, res_clamp_wrist_rot, res_clamp_tips, control_dt, rw_obj_pos, rw_obj_rot,
+        rw_tips, rw_wrist_pos, rw_wrist_rot, _pad3, ik));
     check(&m, "TaskState", size_of::<TaskState>(), rust_fields!(TaskState; targets, rest_pos, prev_action, tip_force,
-        act_rate, act_mag, done, _pad));
+        act_rate, act_mag, done, res_sq, _pad, cursor, res_ema, res_delta));
     // a uniform struct's size must be a multiple of 16
     assert_eq!(size_of::<TaskGlobals>() % 16, 0);
 }
@@ -119,7 +124,12 @@ fn shader_constants_match_rust() {
         ("PURPOSE_OBS_NOISE", task::PURPOSE_OBS_NOISE as usize),
         ("OBS_KEY_STRIDE", task::OBS_KEY_STRIDE as usize),
         ("MAX_ACTIONS", MAX_ACTIONS),
-        ("N_TERMS", task::N_TERMS),
+        ("MAX_TERMS", task::MAX_TERMS),
+        ("KIND_LIFT", task::KIND_LIFT as usize),
+        ("KIND_TRACK", task::KIND_TRACK as usize),
+        ("KIND_RESIDUAL_JOINT", task::KIND_RESIDUAL_JOINT as usize),
+        ("KIND_RESIDUAL_TASK", task::KIND_RESIDUAL_TASK as usize),
+        ("REF_END_STEP", task::REF_END_STEP as usize),
         ("OUT_REWARD", task::OUT_REWARD),
         ("OUT_TERMS", task::OUT_TERMS),
         ("OUT_TERMINATED", task::OUT_TERMINATED),
@@ -127,11 +137,17 @@ fn shader_constants_match_rust() {
         ("OUT_SUCCESS", task::OUT_SUCCESS),
         ("OUT_LIFT", task::OUT_LIFT),
         ("OUT_MAX_PEN", task::OUT_MAX_PEN),
+        ("OUT_OBJ_POS_ERR", task::OUT_OBJ_POS_ERR),
+        ("OUT_OBJ_ROT_ERR", task::OUT_OBJ_ROT_ERR),
         ("OUT_MISC", task::OUT_MISC),
     ] {
         assert!(SHADER_TASK.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in task.wgsl");
     }
-    assert_eq!(task::N_TERMS, dextrain::config::LIFT_TERMS.len());
+    // every kind's terms fit the output record's term slots, and the kinds are the config's
+    for kind in dextrain::config::TASK_KINDS {
+        assert!(dextrain::config::task_terms(kind).len() <= task::MAX_TERMS, "{kind}");
+        assert!(task::kind_index(kind).is_some(), "{kind}");
+    }
     // the reset purposes and the task's are distinct
     for p in [dextrain::env::reset::PURPOSE_PARAMS, dextrain::env::reset::PURPOSE_INIT] {
         assert_ne!(p, task::PURPOSE_OBS_NOISE);

@@ -86,7 +86,7 @@ fn cpu_and_gpu_agree_over_random_actions_with_resets_and_noise() {
         if d > worst.borrow().0 {
             *worst.borrow_mut() = (d, format!("step {step} {at}"));
         }
-        let (d, at) = max_rel(&a.terms, &b.terms, 1e-2, N_TERMS, &term_names);
+        let (d, at) = max_rel(&a.terms, &b.terms, 1e-2, spec.term_names.len(), &term_names);
         assert!(d < 2e-4, "step {step}: reward terms differ by {d:e}: {at}");
         let (d, _) = max_rel(&a.reward, &b.reward, 1e-2, 1, &["reward".to_string()]);
         assert!(d < 2e-4, "step {step}: rewards differ by {d:e}: {:?} vs {:?}", a.reward, b.reward);
@@ -176,7 +176,8 @@ fn reward_terms_match_hand_computed_values_on_constructed_states() {
     assert!(b.success[0] && !b.success[1]);
     assert_eq!(b.terms[term(&spec, "success")], w("success"));
     assert!((b.terms[term(&spec, "lifting")] - w("lifting") * 100.0 * sh).abs() < 1e-5);
-    assert!(b.terms[N_TERMS + term(&spec, "lifting")].abs() < 1e-3 * w("lifting"), "env 1 rests on the table");
+    let nt = spec.term_names.len();
+    assert!(b.terms[nt + term(&spec, "lifting")].abs() < 1e-3 * w("lifting"), "env 1 rests on the table");
     // reaching of every env from its post-step state: 1 − tanh(α‖p_palm − p_obj‖)
     for i in [0, 1, 3] {
         let st = &post[i];
@@ -184,8 +185,8 @@ fn reward_terms_match_hand_computed_values_on_constructed_states() {
         let palm = Vec3::from_slice(&st.wrist_pos[..3]) + rot * Vec3::from(c.task.lift.palm_offset);
         let d = (palm - Vec3::from_slice(&st.obj_pos[..3])).length();
         let want = w("reaching") * (1.0 - (c.task.lift.reach_alpha * d).tanh());
-        assert!((b.terms[i * N_TERMS + term(&spec, "reaching")] - want).abs() < 1e-5, "env {i}: reaching");
-        let sum: f32 = b.terms[i * N_TERMS..(i + 1) * N_TERMS].iter().sum();
+        assert!((b.terms[i * nt + term(&spec, "reaching")] - want).abs() < 1e-5, "env {i}: reaching");
+        let sum: f32 = b.terms[i * nt..(i + 1) * nt].iter().sum();
         assert!((b.reward[i] - sum).abs() < 1e-6);
         assert!(!b.terminated[i] && !b.time_out[i]);
     }
@@ -212,8 +213,11 @@ fn reward_terms_match_hand_computed_values_on_constructed_states() {
 fn reward_twin_on_exact_states_contact_and_bad_resets() {
     let c = task_config(1);
     let model = SimModel::from_config(&c).unwrap();
-    let (spec, tc) = task_setup(&c, &model).unwrap();
+    let TaskSetup { spec, tc, .. } = task_setup(&c, &model).unwrap();
     let m = model.view();
+    let rg = dextrain::env::reference::RefGlobals::default();
+    let r = ref_model(&model, None, &rg);
+    let params: dextrain::env::EnvParams = bytemuck::Zeroable::zeroed();
     let mut st = dextrain::env::EnvState::default();
     st.wrist_rot = [0.0, 0.0, 0.0, 1.0];
     st.obj_rot = [0.0, 0.0, 0.0, 1.0];
@@ -229,7 +233,7 @@ fn reward_twin_on_exact_states_contact_and_bad_resets() {
     stats.max_pen_ho = 0.002;
     let mut out = [0.0f32; OUT_MISC];
     let w = |name: &str| c.task.rewards.get(name).copied().unwrap_or(0.0);
-    let req = task_reward(&st, &stats, &mut ts, &m, &tc, &mut out);
+    let req = task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out);
     assert_eq!(req, 0);
     let t = |name: &str| out[OUT_TERMS + term(&spec, name)];
     assert!((t("reaching") - w("reaching") * (1.0 - (c.task.lift.reach_alpha * 0.05f32).tanh())).abs() < 1e-6);
@@ -241,42 +245,42 @@ fn reward_twin_on_exact_states_contact_and_bad_resets() {
     assert_eq!(ts.tip_force[thumb], 1.0);
     let other = if thumb == 0 { 1 } else { 0 };
     stats.tip_force[other] = 1.0;
-    task_reward(&st, &stats, &mut ts, &m, &tc, &mut out);
+    task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out);
     assert_eq!(out[OUT_TERMS + term(&spec, "contact")], w("contact"), "thumb and another finger");
     stats.tip_force[thumb] = 0.5 * c.task.lift.contact_force;
-    task_reward(&st, &stats, &mut ts, &m, &tc, &mut out);
+    task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out);
     assert_eq!(out[OUT_TERMS + term(&spec, "contact")], 0.0, "thumb below the contact force");
     // 5 cm up: lifting = 100 h, no success yet
     st.obj_pos[2] = palm.z + 0.05;
-    task_reward(&st, &stats, &mut ts, &m, &tc, &mut out);
+    task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out);
     assert!((out[OUT_TERMS + term(&spec, "lifting")] - w("lifting") * 5.0).abs() < 1e-4);
     assert_eq!(out[OUT_SUCCESS], 0.0);
     assert!((out[OUT_LIFT] - 0.05).abs() < 1e-6);
     // time-out at episode_length, not before
     st.step = c.task.episode_length - 1;
-    assert_eq!(task_reward(&st, &stats, &mut ts, &m, &tc, &mut out), 0);
+    assert_eq!(task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out), 0);
     assert_eq!(out[OUT_TIME_OUT], 0.0);
     st.step = c.task.episode_length;
-    assert_eq!(task_reward(&st, &stats, &mut ts, &m, &tc, &mut out), 1);
+    assert_eq!(task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out), 1);
     assert_eq!((out[OUT_TIME_OUT], out[OUT_TERMINATED], ts.done), (1.0, 0.0, 1));
     // hand too far: terminated, not timed out
     st.obj_pos[0] = palm.x + c.task.lift.max_hand_distance + 0.01;
-    assert_eq!(task_reward(&st, &stats, &mut ts, &m, &tc, &mut out), 1);
+    assert_eq!(task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out), 1);
     assert_eq!((out[OUT_TIME_OUT], out[OUT_TERMINATED]), (0.0, 1.0));
     // dropped below the table
     st.obj_pos = [palm.x, palm.y, c.task.lift.drop_height - 0.01, 0.0];
-    task_reward(&st, &stats, &mut ts, &m, &tc, &mut out);
+    task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out);
     assert_eq!(out[OUT_TERMINATED], 1.0);
     // a bad-state reset: terminated, already reset by the physics (no reset request), state terms 0
     st.step = 0;
     st.obj_pos = [0.0, 0.0, 0.02, 0.0];
     stats.bad_reset = 1;
-    assert_eq!(task_reward(&st, &stats, &mut ts, &m, &tc, &mut out), 0);
+    assert_eq!(task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out), 0);
     assert_eq!((out[OUT_TERMINATED], ts.done), (1.0, 1));
     for name in ["reaching", "lifting", "contact", "success"] {
         assert_eq!(out[OUT_TERMS + term(&spec, name)], 0.0, "{name}");
     }
-    let sum: f32 = (0..N_TERMS).map(|k| out[OUT_TERMS + k]).sum();
+    let sum: f32 = (0..spec.term_names.len()).map(|k| out[OUT_TERMS + k]).sum();
     assert_eq!(out[OUT_REWARD], sum);
 }
 
@@ -516,7 +520,7 @@ fn bad_thumb_names_give_one_line_errors_naming_the_key() {
     assert!(make_task_batch(&c, SimModel::from_config(&c).unwrap()).is_ok());
     let c = task_config(1);
     let model = SimModel::from_config(&c).unwrap();
-    let (_, tc) = task_setup(&c, &model).unwrap();
+    let tc = task_setup(&c, &model).unwrap().tc;
     assert_eq!(model.spec.tip_names[tc.thumb as usize], "th_tip");
     // wrong action counts and non-finite actions are errors, not NaNs
     let mut task = cpu_task(&c);

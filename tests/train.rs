@@ -126,13 +126,14 @@ fn metrics_tensorboard_plots_and_eval_agree_with_the_run() {
     }
 
     let rec = tmp.path().join("eval.mcap");
-    let eargs = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 5, max_envs: 3, seed: None, record: Some(rec.clone()), backend: None };
+    let eargs = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 5, max_envs: 3, seed: None, record: Some(rec.clone()), backend: None, baseline: None };
     let r = eval(&eargs).expect("eval");
     assert_eq!(r.episodes, 5);
     assert_eq!(r.iteration, 4);
-    assert!((0.0..=1.0).contains(&r.success_rate));
-    assert!(r.episode_length.mean >= 1.0 && r.episode_length.mean <= 5.0, "{:?}", r.episode_length);
-    assert!(r.reward_terms.contains_key("reaching"));
+    assert!((0.0..=1.0).contains(&r.policy.success_rate));
+    assert!(r.policy.episode_length.mean >= 1.0 && r.policy.episode_length.mean <= 5.0, "{:?}", r.policy.episode_length);
+    assert!(r.policy.reward_terms.contains_key("reaching"));
+    assert_eq!(r.policy.per_episode.len(), 5);
     assert!(r.path.is_file());
     let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&r.path).unwrap()).unwrap();
     assert_eq!(json["episodes"], 5);
@@ -140,7 +141,7 @@ fn metrics_tensorboard_plots_and_eval_agree_with_the_run() {
     assert!(bytes.starts_with(b"\x89MCAP0\r\n") && bytes.len() > 1000, "recording");
     // deterministic: the same eval twice gives the same report
     let r2 = eval(&EvalArgs { record: None, ..eargs.clone() }).unwrap();
-    assert_eq!(r2.episode_return, r.episode_return);
+    assert_eq!(r2.policy.episode_return, r.policy.episode_return);
     // another checkpoint and fresh seeds give another report
     let r3 = eval(&EvalArgs { checkpoint: "2".into(), record: None, ..eargs.clone() }).unwrap();
     assert_eq!(r3.iteration, 2);
@@ -172,7 +173,7 @@ fn bad_names_existing_runs_and_broken_checkpoints_are_one_line_errors() {
     assert!(!runs.join("x").exists(), "no run directory for a bad config");
 
     // a missing checkpoint iteration lists the ones there are
-    let e = EvalArgs { run: dir.clone(), checkpoint: "7".into(), episodes: 2, max_envs: 2, seed: None, record: None, backend: None };
+    let e = EvalArgs { run: dir.clone(), checkpoint: "7".into(), episodes: 2, max_envs: 2, seed: None, record: None, backend: None, baseline: None };
     let err = eval(&e).unwrap_err().to_string();
     assert!(err.contains("iteration 7") && err.contains("have: 2"), "{err}");
     // a truncated model file names the file
@@ -204,7 +205,7 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     assert_eq!(rows.len(), 2);
     let k = cols.iter().position(|c| c == "loss/value").unwrap();
     assert!(rows.iter().all(|(_, v)| v[k].is_finite()));
-    let r = eval(&EvalArgs { run: dir, checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None }).expect("eval");
+    let r = eval(&EvalArgs { run: dir, checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None, baseline: None }).expect("eval");
     assert!(r.env_backend.starts_with("gpu") && r.learner_device.starts_with("gpu (burn wgpu"), "{} / {}", r.env_backend, r.learner_device);
     assert_eq!(r.episodes, 3);
 }

@@ -38,6 +38,12 @@ impl CpuEnvBatch {
         &self.states
     }
 
+    /// The model, the states (mutable: the task layer places a reference task's hand and object at
+    /// a reset) and the parameters, borrowed together.
+    pub fn parts_mut(&mut self) -> (&SimModel, &mut [EnvState], &[EnvParams]) {
+        (&self.model, &mut self.states, &self.params)
+    }
+
     /// The current parameters, borrowed.
     pub fn params_ref(&self) -> &[EnvParams] {
         &self.params

@@ -15,6 +15,8 @@ pub const SHADER_COMMON: &str = include_str!("../../shaders/common.wgsl");
 pub const SHADER_RESET: &str = include_str!("../../shaders/reset.wgsl");
 pub const SHADER_PHYSICS: &str = include_str!("../../shaders/physics.wgsl");
 pub const SHADER_TASK: &str = include_str!("../../shaders/task.wgsl");
+pub const SHADER_REFERENCE: &str = include_str!("../../shaders/reference.wgsl");
+pub const SHADER_IK: &str = include_str!("../../shaders/ik.wgsl");
 /// Invocations per workgroup (keep in sync with `WORKGROUP_SIZE` in common.wgsl).
 pub const WORKGROUP_SIZE: u32 = 64;
 
@@ -23,10 +25,10 @@ pub fn shader_source() -> String {
     [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS].join("\n")
 }
 
-/// The WGSL module of the task layer: the simulator's module with task.wgsl appended (task.wgsl
-/// reuses the physics' hand kinematics).
+/// The WGSL module of the task layer: the simulator's module with the reference layer, the
+/// fingertip IK and task.wgsl appended (task.wgsl reuses the physics' hand kinematics).
 pub fn task_shader_source() -> String {
-    [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_TASK].join("\n")
+    [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_REFERENCE, SHADER_IK, SHADER_TASK].join("\n")
 }
 
 /// A wgpu instance, adapter, device and queue.

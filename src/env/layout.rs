@@ -282,6 +282,55 @@ pub struct TaskGlobals {
     pub noise_object_pos: f32,
     pub noise_object_rot: f32,
     pub _pad1: f32,
+    /// `KIND_LIFT`, `KIND_TRACK`, `KIND_RESIDUAL_JOINT` or `KIND_RESIDUAL_TASK` (env::task).
+    pub kind: u32,
+    /// Number of reward terms of the kind (≤ `MAX_TERMS`).
+    pub n_terms: u32,
+    /// 0: episodes start at the reference's first frame; 1: where the config puts hand and object.
+    pub start_mode: u32,
+    /// Look-ahead reference frames observed, and env steps between them.
+    pub lookahead: u32,
+    pub lookahead_stride: u32,
+    /// residual_task: residual components (6 + 3 · fingertips).
+    pub n_res: u32,
+    /// 1: the open-loop baseline (actions ignored, targets = the reference's).
+    pub open_loop: u32,
+    pub _pad2: u32,
+    /// `[task.track]` β1–β3, α1–α5, success tolerances (m, rad), early-termination distance (m).
+    pub beta_joint: f32,
+    pub beta_wrist_pos: f32,
+    pub beta_wrist_rot: f32,
+    pub alpha_joint: f32,
+    pub alpha_wrist_pos: f32,
+    pub alpha_wrist_rot: f32,
+    pub alpha_object_pos: f32,
+    pub alpha_object_rot: f32,
+    pub success_pos_tol: f32,
+    pub success_rot_tol: f32,
+    pub max_object_error: f32,
+    /// `[task.residual]` (see config::ResidualConfig).
+    pub res_alpha: f32,
+    pub res_wrist_pos_alpha: f32,
+    pub res_wrist_rot_alpha: f32,
+    pub res_obj_pos_coef: f32,
+    pub res_obj_rot_coef: f32,
+    pub res_ema: f32,
+    pub res_scale_wrist_pos: f32,
+    pub res_scale_wrist_rot: f32,
+    pub res_scale_tips: f32,
+    pub res_clamp_wrist_pos: f32,
+    pub res_clamp_wrist_rot: f32,
+    pub res_clamp_tips: f32,
+    /// Seconds per env step (Δt of the residual integration).
+    pub control_dt: f32,
+    pub rw_obj_pos: f32,
+    pub rw_obj_rot: f32,
+    pub rw_tips: f32,
+    pub rw_wrist_pos: f32,
+    pub rw_wrist_rot: f32,
+    pub _pad3: [f32; 3],
+    /// The fingertip IK of residual_task.
+    pub ik: crate::env::ik::IkParams,
 }
 
 /// The task layer's per-env state (WGSL `TaskState`), kept between steps.
@@ -301,8 +350,18 @@ pub struct TaskState {
     pub act_mag: f32,
     /// 1 if the last step ended the episode (terminated or timed out).
     pub done: u32,
-    pub _pad: [u32; 3],
+    /// ‖δ‖² of the last residual (residual kinds).
+    pub res_sq: f32,
+    pub _pad: [u32; 2],
+    /// The reference this episode follows (reference kinds).
+    pub cursor: crate::env::reference::RefCursor,
+    /// residual_task: the EMA-smoothed output ũ and the integrated residual Δa (`n_res` used).
+    pub res_ema: [f32; MAX_RES],
+    pub res_delta: [f32; MAX_RES],
 }
+
+/// Most residual components of residual_task: 6 wrist + 3 per fingertip.
+pub const MAX_RES: usize = 6 + 3 * MAX_TIPS;
 
 impl Default for TaskState {
     fn default() -> Self {

@@ -25,8 +25,10 @@
 pub mod common;
 pub mod cpu;
 pub mod gpu;
+pub mod ik;
 pub mod layout;
 pub mod physics;
+pub mod reference;
 pub mod reset;
 pub mod task;
 pub mod task_gpu;

@@ -60,7 +60,7 @@
 //! order, same arithmetic (tests/shaders.rs checks the order, tests/task.rs the results).
 
 use anyhow::{Result, bail, ensure};
-use glam::{Vec3, Vec4};
+use glam::{Vec2, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::common::{quat_error, quat_from_axis_angle, quat_mul, quat_normalize, quat_rotate, rand_uniform};
@@ -68,26 +68,40 @@ use super::cpu::CpuEnvBatch;
 use super::layout::*;
 use super::physics::{Model, Scratch, hand_kinematics};
 use super::{EnvBatch, SimModel};
-use crate::config::{Config, LIFT_TERMS};
-use crate::hand::MAX_JOINTS;
+use super::ik::{IkParams, ik_solve, ik_tip_positions, IkScratch};
+use super::reference::{RefFrame, RefGlobals, RefModel, ref_begin, ref_object_start, ref_sample};
+use crate::config::{Config, TASK_KINDS, task_terms};
+use crate::traj::bank::RefBank;
+use crate::hand::{MAX_JOINTS, MAX_TIPS};
 
 /// RNG purpose of the observation noise (keep in sync with task.wgsl; reset.rs uses 1 and 2).
 pub const PURPOSE_OBS_NOISE: u32 = 3;
 /// Noise draws of one env step: draw k of obs entry i at step s has key s · OBS_KEY_STRIDE + 2i + k.
 pub const OBS_KEY_STRIDE: u32 = 4096;
-/// Number of reward terms (`config::LIFT_TERMS`).
-pub const N_TERMS: usize = 6;
+/// Task kinds (`TaskGlobals::kind`; keep in sync with task.wgsl).
+pub const KIND_LIFT: u32 = 0;
+pub const KIND_TRACK: u32 = 1;
+pub const KIND_RESIDUAL_JOINT: u32 = 2;
+pub const KIND_RESIDUAL_TASK: u32 = 3;
+/// Most reward terms of a kind (the output record's term slots).
+pub const MAX_TERMS: usize = 8;
 /// Offsets in the per-env output record (after the obs and priv obs sections of the GPU's output
-/// buffer; keep in sync with task.wgsl `OUT_*`): reward, the weighted terms, terminated, time_out,
-/// success, lift height, max hand–object penetration; `OUT_MISC` floats in all.
+/// buffer; keep in sync with task.wgsl `OUT_*`): reward, the weighted terms (`MAX_TERMS` slots,
+/// the kind's first), terminated, time_out, success, lift height, max hand–object penetration, the
+/// object's position (m) and orientation (rad) error against its reference (reference kinds);
+/// `OUT_MISC` floats in all.
 pub const OUT_REWARD: usize = 0;
 pub const OUT_TERMS: usize = 1;
-pub const OUT_TERMINATED: usize = 7;
-pub const OUT_TIME_OUT: usize = 8;
-pub const OUT_SUCCESS: usize = 9;
-pub const OUT_LIFT: usize = 10;
-pub const OUT_MAX_PEN: usize = 11;
-pub const OUT_MISC: usize = 12;
+pub const OUT_TERMINATED: usize = 9;
+pub const OUT_TIME_OUT: usize = 10;
+pub const OUT_SUCCESS: usize = 11;
+pub const OUT_LIFT: usize = 12;
+pub const OUT_MAX_PEN: usize = 13;
+pub const OUT_OBJ_POS_ERR: usize = 14;
+pub const OUT_OBJ_ROT_ERR: usize = 15;
+pub const OUT_MISC: usize = 16;
+/// The env step that `ref_sample` clamps to the reference's last frame (its final pose).
+pub const REF_END_STEP: u32 = 1 << 30;
 
 /// Names and sizes of a task batch.
 #[derive(Clone, Debug)]
@@ -136,6 +150,12 @@ pub struct StepBatch {
     pub lift_height: Vec<f32>,
     /// `[N]` deepest hand–object penetration during this step (m).
     pub max_pen: Vec<f32>,
+    /// `[N]` the object's distance (m) and angle (rad) from its reference at this step (pre-reset;
+    /// 0 for the lift task).
+    pub obj_pos_err: Vec<f32>,
+    pub obj_rot_err: Vec<f32>,
+    /// Reward terms per env (the kind's).
+    pub n_terms: usize,
 }
 
 impl StepBatch {
@@ -146,12 +166,15 @@ impl StepBatch {
             obs: vec![0.0; n * spec.obs_dim],
             priv_obs: vec![0.0; n * spec.priv_dim],
             reward: vec![0.0; n],
-            terms: vec![0.0; n * N_TERMS],
+            terms: vec![0.0; n * spec.term_names.len()],
             terminated: vec![false; n],
             time_out: vec![false; n],
             success: vec![false; n],
             lift_height: vec![0.0; n],
             max_pen: vec![0.0; n],
+            obj_pos_err: vec![0.0; n],
+            obj_rot_err: vec![0.0; n],
+            n_terms: spec.term_names.len(),
         }
     }
 
@@ -164,12 +187,15 @@ impl StepBatch {
     pub(crate) fn fill_misc(&mut self, misc: &[f32]) {
         for (i, r) in misc.chunks_exact(OUT_MISC).enumerate() {
             self.reward[i] = r[OUT_REWARD];
-            self.terms[i * N_TERMS..(i + 1) * N_TERMS].copy_from_slice(&r[OUT_TERMS..OUT_TERMS + N_TERMS]);
+            let nt = self.n_terms;
+            self.terms[i * nt..(i + 1) * nt].copy_from_slice(&r[OUT_TERMS..OUT_TERMS + nt]);
             self.terminated[i] = r[OUT_TERMINATED] != 0.0;
             self.time_out[i] = r[OUT_TIME_OUT] != 0.0;
             self.success[i] = r[OUT_SUCCESS] != 0.0;
             self.lift_height[i] = r[OUT_LIFT];
             self.max_pen[i] = r[OUT_MAX_PEN];
+            self.obj_pos_err[i] = r[OUT_OBJ_POS_ERR];
+            self.obj_rot_err[i] = r[OUT_OBJ_ROT_ERR];
         }
     }
 
@@ -182,6 +208,8 @@ impl StepBatch {
         self.success.fill(false);
         self.lift_height.fill(0.0);
         self.max_pen.fill(0.0);
+        self.obj_pos_err.fill(0.0);
+        self.obj_rot_err.fill(0.0);
     }
 }
 
@@ -249,23 +277,73 @@ pub fn make_task_batch(cfg: &Config, model: SimModel) -> Result<Box<dyn TaskBatc
     }
 }
 
-/// The task's spec and constants from the config's `[task]` and the hand (both backends).
-pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<(TaskSpec, TaskGlobals)> {
+/// Everything both backends build a task from: names and sizes, the constants, and (reference
+/// kinds) the reference bank and its constants.
+pub struct TaskSetup {
+    pub spec: TaskSpec,
+    pub tc: TaskGlobals,
+    /// The references (`task.reference.files`); `None` for the lift task.
+    pub bank: Option<RefBank>,
+    /// The reference layer's constants (zeroed for the lift task).
+    pub rg: RefGlobals,
+}
+
+/// The reference files of `task.reference.files`, resolved against the config's directory; a
+/// directory stands for every `.mcap` and `.csv` file in it, sorted by name.
+pub fn reference_paths(cfg: &Config) -> Result<Vec<std::path::PathBuf>> {
+    let mut out = Vec::new();
+    for f in &cfg.task.reference.files {
+        let p = cfg.resolve(f);
+        if p.is_dir() {
+            let mut inside: Vec<std::path::PathBuf> = std::fs::read_dir(&p)
+                .map_err(|e| anyhow::anyhow!("{}: key `task.reference.files`: cannot list {}: {e}", cfg.source.display(), p.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|q| q.extension().is_some_and(|x| x == "mcap" || x == "csv"))
+                .collect();
+            if inside.is_empty() {
+                bail!("{}: key `task.reference.files`: the directory {} holds no .mcap or .csv reference", cfg.source.display(), p.display());
+            }
+            inside.sort();
+            out.extend(inside);
+        } else {
+            out.push(p);
+        }
+    }
+    Ok(out)
+}
+
+/// `task.kind` → `TaskGlobals::kind`.
+pub fn kind_index(kind: &str) -> Option<u32> {
+    match kind {
+        "lift" => Some(KIND_LIFT),
+        "track" => Some(KIND_TRACK),
+        "residual_joint" => Some(KIND_RESIDUAL_JOINT),
+        "residual_task" => Some(KIND_RESIDUAL_TASK),
+        _ => None,
+    }
+}
+
+/// The task's spec, constants and references from the config's `[task]` and the hand (both backends).
+pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<TaskSetup> {
     let file = cfg.source.display();
     let t = &cfg.task;
     let es = &model.spec;
     let hand = model.hand.source.display();
     let joint_names = &es.joint_names;
     let tips = &es.tip_names;
+    let kind = kind_index(&t.kind).ok_or_else(|| anyhow::anyhow!("{file}: key `task.kind` = {:?}: expected one of {}", t.kind, TASK_KINDS.join(", ")))?;
+    let terms = task_terms(&t.kind);
     let n_actuated = es.actuated.len();
-    let action_dim = 6 + n_actuated;
+    let n_res = 6 + 3 * tips.len();
+    let action_dim = if kind == KIND_RESIDUAL_TASK { n_res } else { 6 + n_actuated };
     if action_dim > MAX_ACTIONS || n_actuated > MAX_JOINTS {
         bail!(
-            "{file}: the hand {hand} has {n_actuated} actuated joints, so the lift task would have {action_dim} actions; at most {MAX_ACTIONS} (MAX_ACTIONS) are supported"
+            "{file}: the hand {hand} has {n_actuated} actuated joints, so the {} task would have {action_dim} actions; at most {MAX_ACTIONS} (MAX_ACTIONS) are supported",
+            t.kind
         );
     }
     if tips.is_empty() {
-        bail!("{file}: the lift task needs fingertips, but the hand {hand} has none: name them in `hand.fingertips`");
+        bail!("{file}: the {} task needs fingertips, but the hand {hand} has none: name them in `hand.fingertips`", t.kind);
     }
     let thumb = if t.lift.thumb.is_empty() {
         tips.iter().position(|n| n.to_lowercase().starts_with("th")).ok_or_else(|| {
@@ -289,15 +367,30 @@ pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<(TaskSpec, TaskGloba
         other => bail!("{file}: key `task.action.finger_mode` = {other:?}: expected \"absolute\" or \"delta\""),
     };
     for name in t.rewards.keys() {
-        if !LIFT_TERMS.contains(&name.as_str()) {
-            bail!("{file}: key `task.rewards.{name}`: expected a term of the lift task: {}", LIFT_TERMS.join(", "));
+        if !terms.contains(&name.as_str()) {
+            bail!("{file}: key `task.rewards.{name}`: expected a term of the {} task: {}", t.kind, terms.join(", "));
         }
     }
+    let (bank, rg) = if kind == KIND_LIFT {
+        (None, RefGlobals::default())
+    } else {
+        let paths = reference_paths(cfg)?;
+        let bank = RefBank::load(&paths, model, thumb).map_err(|e| anyhow::anyhow!("{file}: key `task.reference.files`: {e:#}"))?;
+        let mut rg = bank.globals();
+        t.reference.fill(&mut rg);
+        (Some(bank), rg)
+    };
 
     let xyz = ["x", "y", "z"];
     let quat = ["qx", "qy", "qz", "qw"];
     let mut action_names: Vec<String> = ["wrist_dx", "wrist_dy", "wrist_dz", "wrist_rx", "wrist_ry", "wrist_rz"].iter().map(|s| s.to_string()).collect();
-    action_names.extend(es.actuated.iter().map(|&j| format!("q.{}", joint_names[j])));
+    if kind == KIND_RESIDUAL_TASK {
+        for tip in tips {
+            action_names.extend(xyz.iter().map(|c| format!("tip.{tip}.{c}")));
+        }
+    } else {
+        action_names.extend(es.actuated.iter().map(|&j| format!("q.{}", joint_names[j])));
+    }
     let mut obs_names = Vec::new();
     obs_names.extend(es.actuated.iter().map(|&j| format!("q.{}", joint_names[j])));
     obs_names.extend(es.actuated.iter().map(|&j| format!("qd.{}", joint_names[j])));
@@ -309,8 +402,26 @@ pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<(TaskSpec, TaskGloba
     }
     obs_names.extend(xyz.iter().map(|c| format!("obj_pos.{c}")));
     obs_names.extend(quat.iter().map(|c| format!("obj_rot.{c}")));
-    obs_names.extend(xyz.iter().map(|c| format!("goal.{c}")));
-    obs_names.extend(xyz.iter().map(|c| format!("obj_rel.{c}")));
+    if kind == KIND_LIFT {
+        obs_names.extend(xyz.iter().map(|c| format!("goal.{c}")));
+        obs_names.extend(xyz.iter().map(|c| format!("obj_rel.{c}")));
+    } else {
+        for i in 0..=t.track.lookahead {
+            let r = format!("ref{i}");
+            obs_names.extend(xyz.iter().map(|c| format!("{r}.wrist_pos.{c}")));
+            obs_names.extend(xyz.iter().map(|c| format!("{r}.wrist_rot.{c}")));
+            obs_names.extend(es.actuated.iter().map(|&j| format!("{r}.q.{}", joint_names[j])));
+            obs_names.extend(xyz.iter().map(|c| format!("{r}.obj_pos.{c}")));
+            obs_names.extend(xyz.iter().map(|c| format!("{r}.obj_rot.{c}")));
+            for tip in tips {
+                obs_names.extend(xyz.iter().map(|c| format!("{r}.tip_pos.{tip}.{c}")));
+            }
+        }
+        obs_names.push("phase".into());
+        if kind == KIND_RESIDUAL_TASK {
+            obs_names.extend(action_names.iter().map(|a| format!("residual.{a}")));
+        }
+    }
     let mut priv_names = obs_names.clone();
     for v in ["obj_vel", "obj_angvel", "wrist_vel", "wrist_angvel"] {
         priv_names.extend(xyz.iter().map(|c| format!("{v}.{c}")));
@@ -324,7 +435,7 @@ pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<(TaskSpec, TaskGloba
     }
 
     let mut weights = [[0.0f32; 4]; 2];
-    for (k, name) in LIFT_TERMS.iter().enumerate() {
+    for (k, name) in terms.iter().enumerate() {
         weights[k / 4][k % 4] = t.rewards.get(*name).copied().unwrap_or(0.0);
     }
     let mut actuated = [[0u32; 4]; MAX_JOINTS / 4];
@@ -334,6 +445,9 @@ pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<(TaskSpec, TaskGloba
     let a = &t.action;
     let l = &t.lift;
     let n = &t.obs_noise;
+    let k = &t.track;
+    let r = &t.residual;
+    let control_dt = es.dt * es.decimation as f32;
     let v4 = |v: [f32; 3]| [v[0], v[1], v[2], 0.0];
     let tc = TaskGlobals {
         wrist_pos_min: v4(a.wrist_pos_min),
@@ -365,6 +479,50 @@ pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<(TaskSpec, TaskGloba
         noise_object_pos: n.object_pos,
         noise_object_rot: n.object_rot,
         _pad1: 0.0,
+        kind,
+        n_terms: terms.len() as u32,
+        start_mode: (k.start == "config") as u32,
+        lookahead: k.lookahead,
+        lookahead_stride: k.lookahead_stride,
+        n_res: n_res as u32,
+        open_loop: t.open_loop as u32,
+        _pad2: 0,
+        beta_joint: k.beta_joint,
+        beta_wrist_pos: k.beta_wrist_pos,
+        beta_wrist_rot: k.beta_wrist_rot,
+        alpha_joint: k.alpha_joint,
+        alpha_wrist_pos: k.alpha_wrist_pos,
+        alpha_wrist_rot: k.alpha_wrist_rot,
+        alpha_object_pos: k.alpha_object_pos,
+        alpha_object_rot: k.alpha_object_rot,
+        success_pos_tol: k.success_pos_tol,
+        success_rot_tol: k.success_rot_tol,
+        max_object_error: k.max_object_error,
+        res_alpha: r.alpha,
+        res_wrist_pos_alpha: r.wrist_pos_alpha,
+        res_wrist_rot_alpha: r.wrist_rot_alpha,
+        res_obj_pos_coef: r.obj_pos_coef,
+        res_obj_rot_coef: r.obj_rot_coef,
+        res_ema: r.ema,
+        res_scale_wrist_pos: r.scale_wrist_pos,
+        res_scale_wrist_rot: r.scale_wrist_rot,
+        res_scale_tips: r.scale_tips,
+        res_clamp_wrist_pos: r.clamp_wrist_pos,
+        res_clamp_wrist_rot: r.clamp_wrist_rot,
+        res_clamp_tips: r.clamp_tips,
+        control_dt,
+        rw_obj_pos: r.reward_obj_pos,
+        rw_obj_rot: r.reward_obj_rot,
+        rw_tips: r.reward_tips,
+        rw_wrist_pos: r.reward_wrist_pos,
+        rw_wrist_rot: r.reward_wrist_rot,
+        _pad3: [0.0; 3],
+        ik: IkParams::default(),
+    };
+    // episode length for the learner's random initial episode lengths: the longest reference
+    let episode_length = match (&bank, t.episode_length) {
+        (Some(b), 0) => b.info.iter().map(|i| i.n_frames.saturating_sub(1)).max().unwrap_or(1).max(1),
+        _ => t.episode_length,
     };
     let spec = TaskSpec {
         num_envs: es.num_envs,
@@ -374,11 +532,11 @@ pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<(TaskSpec, TaskGloba
         obs_names,
         priv_names,
         action_names,
-        term_names: LIFT_TERMS.iter().map(|s| s.to_string()).collect(),
-        episode_length: t.episode_length,
-        control_dt: es.dt * es.decimation as f32,
+        term_names: terms.iter().map(|s| s.to_string()).collect(),
+        episode_length,
+        control_dt,
     };
-    Ok((spec, tc))
+    Ok(TaskSetup { spec, tc, bank, rg })
 }
 
 /// Checks the length and finiteness of a step's actions.
@@ -451,9 +609,85 @@ pub fn wrist_rot_target(g: &Globals, tc: &TaskGlobals, rot: Vec4, rv: Vec3) -> V
     r
 }
 
+/// Targets that follow a reference frame exactly (what `dextrain replay` drives).
+pub fn nominal_targets(f: &RefFrame) -> Targets {
+    Targets { wrist_pos: f.wrist_pos, wrist_rot: f.wrist_rot, q: f.q }
+}
+
+/// `exp(rv) ⊗ rot`, normalised; `rot` itself (bit for bit) when the rotation is below 1e-9 rad.
+pub fn rotate_by(rot: Vec4, rv: Vec3) -> Vec4 {
+    let angle = rv.length();
+    if angle > 1e-9 {
+        return quat_normalize(quat_mul(quat_from_axis_angle(rv / angle, angle), rot));
+    }
+    rot
+}
+
+/// Residual kinds: the targets of this step from the nominal frame `f` (the reference at the end
+/// of the step) and the clipped actions `a`; records ‖δ‖² (and, residual_task, ũ and Δa) in `ts`.
+/// residual_joint: `p* = p̄ + α_p a[0..3]`, `R* = exp(α_r a[3..6]) ⊗ R̄`, `q*_j = clamp(q̄_j + α a_j,
+/// lower, upper)`. residual_task: `ũ = ema·a + (1 − ema)·ũ`, `Δa = clamp(Δa + s ⊙ ũ Δt, ±c)`
+/// (per component), `p* = p̄ + Δa[0..3]`, `R* = exp(Δa[3..6]) ⊗ R̄`, and the finger joints from IK
+/// of the fingertips `FK(q̄) + Δa_tip` (wrist frame), seeded at q̄ (q̄ itself when every Δa_tip is 0).
+pub fn residual_targets(a: &[f32; MAX_ACTIONS], f: &RefFrame, ts: &mut TaskState, m: &Model, tc: &TaskGlobals) -> Targets {
+    let mut t = nominal_targets(f);
+    let mut sq = 0.0f32;
+    if tc.kind == KIND_RESIDUAL_JOINT {
+        let dp = Vec3::new(a[0], a[1], a[2]) * tc.res_wrist_pos_alpha;
+        let dr = Vec3::new(a[3], a[4], a[5]) * tc.res_wrist_rot_alpha;
+        t.wrist_pos = [f.wrist_pos[0] + dp.x, f.wrist_pos[1] + dp.y, f.wrist_pos[2] + dp.z, 0.0];
+        t.wrist_rot = rotate_by(Vec4::from_array(f.wrist_rot), dr).to_array();
+        // ‖δ‖² = Σ δ_i² over every component
+        sq = dp.dot(dp) + dr.dot(dr);
+        for i in 0..tc.n_actuated {
+            let j = actuated_joint(tc, i);
+            let jd = &m.joints[j];
+            let d = a[6 + i as usize] * tc.res_alpha;
+            t.q[j] = (f.q[j] + d).max(jd.lower).min(jd.upper);
+            sq += d * d;
+        }
+    } else {
+        let mut tips_moved = false;
+        for c in 0..tc.n_res as usize {
+            // ũ_t = ema·u_t + (1 − ema)·ũ_{t−1}
+            ts.res_ema[c] = tc.res_ema * a[c] + (1.0 - tc.res_ema) * ts.res_ema[c];
+            let (scale, lim) = if c < 3 {
+                (tc.res_scale_wrist_pos, tc.res_clamp_wrist_pos)
+            } else if c < 6 {
+                (tc.res_scale_wrist_rot, tc.res_clamp_wrist_rot)
+            } else {
+                (tc.res_scale_tips, tc.res_clamp_tips)
+            };
+            // Δa_t = clamp(Δa_{t−1} + s ũ_t Δt, −c, c)
+            ts.res_delta[c] = (ts.res_delta[c] + scale * ts.res_ema[c] * tc.control_dt).max(-lim).min(lim);
+            sq += ts.res_delta[c] * ts.res_delta[c];
+            if c >= 6 && ts.res_delta[c] != 0.0 {
+                tips_moved = true;
+            }
+        }
+        let d = &ts.res_delta;
+        t.wrist_pos = [f.wrist_pos[0] + d[0], f.wrist_pos[1] + d[1], f.wrist_pos[2] + d[2], 0.0];
+        t.wrist_rot = rotate_by(Vec4::from_array(f.wrist_rot), Vec3::new(d[3], d[4], d[5])).to_array();
+        if tips_moved {
+            let mut s = IkScratch::default();
+            let base = ik_tip_positions(m, &f.q, &mut s);
+            let mut goal = [Vec3::ZERO; MAX_TIPS];
+            for k in 0..m.g.n_tips as usize {
+                goal[k] = base[k] + Vec3::new(d[6 + 3 * k], d[7 + 3 * k], d[8 + 3 * k]);
+            }
+            let mask = (1u32 << m.g.n_tips) - 1;
+            t.q = ik_solve(m, &f.q, &goal, mask, &tc.ik);
+        }
+    }
+    ts.res_sq = sq;
+    t
+}
+
 /// Maps one env's actions (`[n_act]`, clipped here) to its targets; records the action terms and the
-/// action in `ts`. Returns the targets the physics steps toward.
-pub fn task_act(actions: &[f32], ts: &mut TaskState, m: &Model, tc: &TaskGlobals) -> Targets {
+/// action in `ts`. Returns the targets the physics steps toward. lift and track: the wrist and
+/// finger mapping of `[task.action]`; residual kinds: [`residual_targets`] around the reference at
+/// the end of this step; the open-loop baseline: that reference itself.
+pub fn task_act(actions: &[f32], st: &EnvState, ts: &mut TaskState, m: &Model, tc: &TaskGlobals, r: &RefModel) -> Targets {
     let mut a = [0.0f32; MAX_ACTIONS];
     let mut rate = 0.0f32;
     let mut mag = 0.0f32;
@@ -468,6 +702,17 @@ pub fn task_act(actions: &[f32], ts: &mut TaskState, m: &Model, tc: &TaskGlobals
     }
     ts.act_rate = rate;
     ts.act_mag = mag;
+    if tc.kind != KIND_LIFT && (tc.open_loop != 0 || tc.kind != KIND_TRACK) {
+        // the reference at the end of this step: replay's targets for control step `st.step`
+        let f = ref_sample(r, &ts.cursor, st.step, 1);
+        if tc.open_loop != 0 {
+            ts.targets = nominal_targets(&f);
+            ts.res_sq = 0.0;
+        } else {
+            ts.targets = residual_targets(&a, &f, ts, m, tc);
+        }
+        return ts.targets;
+    }
     let wp = v3(ts.targets.wrist_pos) + Vec3::new(a[0], a[1], a[2]) * tc.wrist_pos_scale;
     let wp = wp.max(v3(tc.wrist_pos_min)).min(v3(tc.wrist_pos_max));
     ts.targets.wrist_pos = [wp.x, wp.y, wp.z, 0.0];
@@ -485,10 +730,91 @@ pub fn palm_position(tc: &TaskGlobals, wrist_pos: Vec3, wrist_rot: Vec4) -> Vec3
     wrist_pos + quat_rotate(wrist_rot, v3(tc.palm_offset))
 }
 
+/// The tracking reward terms (raw, the kind's order) of one env on its post-step state against the
+/// reference frame `f` of this instant; `e` = the object's position and angle error against `f`,
+/// `fin` = whether the object is within the success tolerance of the reference's final pose,
+/// `contact` = the thumb and another fingertip touch the object, `h` = the lift height (m).
+#[allow(clippy::too_many_arguments)]
+pub fn tracking_terms(st: &EnvState, p: &EnvParams, ts: &TaskState, f: &RefFrame, e: Vec2, fin: bool, contact: bool, h: f32, m: &Model, tc: &TaskGlobals) -> [f32; MAX_TERMS] {
+    let mut raw = [0.0f32; MAX_TERMS];
+    let wp = v3(st.wrist_pos);
+    let wr = Vec4::from_array(st.wrist_rot);
+    let e_wp = (wp - v3(f.wrist_pos)).length();
+    let e_wr = quat_error(Vec4::from_array(f.wrist_rot), wr).length();
+    let ended = f.ended != 0;
+    if tc.kind == KIND_TRACK {
+        let mut dq = 0.0f32;
+        for i in 0..tc.n_actuated {
+            let j = actuated_joint(tc, i);
+            let d = st.q[j] - f.q[j];
+            dq += d * d;
+        }
+        // R_f = β1 (1 − tanh(α1‖q − q̂‖)) + β2 (1 − tanh(α2‖x − x̂‖)) + β3 (1 − tanh(α3 φ))
+        let rj = 1.0 - (tc.alpha_joint * dq.sqrt()).min(20.0).tanh();
+        let rx = 1.0 - (tc.alpha_wrist_pos * e_wp).min(20.0).tanh();
+        let rr = 1.0 - (tc.alpha_wrist_rot * e_wr).min(20.0).tanh();
+        raw[0] = tc.beta_joint * rj + tc.beta_wrist_pos * rx + tc.beta_wrist_rot * rr;
+        // R_o = exp(−α4‖T − T̂‖) + exp(−α5‖log(q̂⁻¹ ⊗ q)‖)
+        raw[1] = (-tc.alpha_object_pos * e.x).exp() + (-tc.alpha_object_rot * e.y).exp();
+        // contact while the reference grasps
+        raw[2] = if contact && f.grasp > 0.5 { 1.0 } else { 0.0 };
+        raw[3] = if fin && ended { 1.0 } else { 0.0 };
+        raw[4] = h.max(0.0).min(tc.success_height) * 100.0;
+        raw[5] = ts.act_rate;
+        raw[6] = ts.act_mag;
+    } else if tc.kind == KIND_RESIDUAL_JOINT {
+        // w_p exp(−k_p e_p) + w_r exp(−k_r e_R) − λ_a ‖δ‖²
+        raw[0] = (-tc.res_obj_pos_coef * e.x).exp();
+        raw[1] = (-tc.res_obj_rot_coef * e.y).exp();
+        raw[2] = ts.res_sq;
+        raw[3] = if fin && ended { 1.0 } else { 0.0 };
+    } else {
+        let mut s = Scratch::default();
+        hand_kinematics(st, m, &mut s);
+        let mut e_tips = 0.0f32;
+        for t in 0..m.g.n_tips as usize {
+            e_tips += (tip_position(m, &s, t) - v3(f.tips[t])).length();
+        }
+        e_tips /= m.g.n_tips.max(1) as f32;
+        // object exp(−a_p e_p − a_R e_R), gated by contact or the object being on its reference
+        let gate = contact || e.x <= tc.success_pos_tol;
+        raw[0] = if gate { (-tc.rw_obj_pos * e.x - tc.rw_obj_rot * e.y).exp() } else { 0.0 };
+        raw[1] = (-tc.rw_tips * e_tips).exp();
+        raw[2] = (-tc.rw_wrist_pos * e_wp - tc.rw_wrist_rot * e_wr).exp();
+        raw[3] = if contact && f.grasp > 0.5 { 1.0 } else { 0.0 };
+        let mut vel = 0.0f32;
+        let mut torque = 0.0f32;
+        let mut work = 0.0f32;
+        for i in 0..tc.n_actuated {
+            let j = actuated_joint(tc, i);
+            let jd = &m.joints[j];
+            let qd = st.qd[j];
+            // the servo's torque: clamp(kp (clamp(q*, lo, hi) − q) − kd q̇, ±effort)
+            let goal = ts.targets.q[j].clamp(jd.lower * p.limit_scale, jd.upper * p.limit_scale);
+            let tau = (jd.kp * p.kp_scale * (goal - st.q[j]) - jd.kd * p.kd_scale * qd).clamp(-jd.effort, jd.effort);
+            vel += qd * qd;
+            torque += tau * tau;
+            work += (tau * qd).abs();
+        }
+        raw[4] = vel;
+        raw[5] = torque;
+        raw[6] = work;
+        let mut table = false;
+        for c in 0..m.g.n_colliders as usize {
+            if st.anchor_ht[c][3] > 0.0 {
+                table = true;
+            }
+        }
+        raw[7] = if table { 1.0 } else { 0.0 };
+    }
+    raw
+}
+
 /// Reward terms, terminated and time-out of one env on its post-step state; writes the env's output
 /// record `out` (`[OUT_MISC]`) and the step's fingertip forces and done flag into `ts`. Returns the
 /// env's reset request (1 = reset to the next episode; a bad-state env was reset by the physics).
-pub fn task_reward(st: &EnvState, stats: &StepStats, ts: &mut TaskState, m: &Model, tc: &TaskGlobals, out: &mut [f32]) -> u32 {
+#[allow(clippy::too_many_arguments)]
+pub fn task_reward(st: &EnvState, p: &EnvParams, stats: &StepStats, ts: &mut TaskState, m: &Model, tc: &TaskGlobals, r: &RefModel, out: &mut [f32]) -> u32 {
     let bad = stats.bad_reset != 0;
     let obj = v3(st.obj_pos);
     let dist = (obj - palm_position(tc, v3(st.wrist_pos), Vec4::from_array(st.wrist_rot))).length();
@@ -502,40 +828,67 @@ pub fn task_reward(st: &EnvState, stats: &StepStats, ts: &mut TaskState, m: &Mod
         }
     }
     let thumb = stats.tip_force[tc.thumb as usize] > tc.contact_force;
-    let mut raw = [0.0f32; N_TERMS];
-    // reaching 1 − tanh(α d) (tanh saturates at 20: some GPUs' tanh overflows beyond)
-    raw[0] = 1.0 - (tc.reach_alpha * dist).min(20.0).tanh();
-    // lifting: h in cm, capped at the success height
-    raw[1] = h.max(0.0).min(tc.success_height) * 100.0;
-    raw[2] = if thumb && other { 1.0 } else { 0.0 };
-    raw[3] = if h >= tc.success_height { 1.0 } else { 0.0 };
-    raw[4] = ts.act_rate;
-    raw[5] = ts.act_mag;
-    let mut lift = h;
-    if bad {
-        // the physics already reset this env: its state says nothing about the step
-        raw[0] = 0.0;
-        raw[1] = 0.0;
-        raw[2] = 0.0;
-        raw[3] = 0.0;
-        lift = 0.0;
-    }
+    let mut raw = [0.0f32; MAX_TERMS];
     let mut terminated = bad || obj.z < tc.drop_height || obj.x.abs() > tc.table_half_extent || obj.y.abs() > tc.table_half_extent;
     terminated = terminated || dist > tc.max_hand_distance;
-    let time_out = !terminated && st.step >= tc.episode_length;
+    let mut time_out;
+    let mut success;
+    let mut err = Vec2::ZERO;
+    if tc.kind == KIND_LIFT {
+        // reaching 1 − tanh(α d) (tanh saturates at 20: some GPUs' tanh overflows beyond)
+        raw[0] = 1.0 - (tc.reach_alpha * dist).min(20.0).tanh();
+        // lifting: h in cm, capped at the success height
+        raw[1] = h.max(0.0).min(tc.success_height) * 100.0;
+        raw[2] = if thumb && other { 1.0 } else { 0.0 };
+        raw[3] = if h >= tc.success_height { 1.0 } else { 0.0 };
+        raw[4] = ts.act_rate;
+        raw[5] = ts.act_mag;
+        success = raw[3];
+        time_out = !terminated && st.step >= tc.episode_length;
+        if bad {
+            // the physics already reset this env: its state says nothing about the step
+            raw[0] = 0.0;
+            raw[1] = 0.0;
+            raw[2] = 0.0;
+            raw[3] = 0.0;
+            success = 0.0;
+        }
+    } else {
+        let f = ref_sample(r, &ts.cursor, st.step, 0);
+        let fin_ref = ref_sample(r, &ts.cursor, REF_END_STEP, 0);
+        let orot = Vec4::from_array(st.obj_rot);
+        // the object's error against its reference now (m, rad) and against the final pose
+        err = Vec2::new((obj - v3(f.obj_pos)).length(), quat_error(Vec4::from_array(f.obj_rot), orot).length());
+        let fin_p = (obj - v3(fin_ref.obj_pos)).length();
+        let fin_r = quat_error(Vec4::from_array(fin_ref.obj_rot), orot).length();
+        let fin = fin_p <= tc.success_pos_tol && fin_r <= tc.success_rot_tol;
+        raw = tracking_terms(st, p, ts, &f, err, fin, thumb && other, h, m, tc);
+        success = if fin { 1.0 } else { 0.0 };
+        terminated = terminated || (tc.max_object_error > 0.0 && err.x > tc.max_object_error);
+        time_out = !terminated && if tc.episode_length > 0 { st.step >= tc.episode_length } else { f.ended != 0 };
+        if bad {
+            raw = [0.0; MAX_TERMS];
+            success = 0.0;
+            err = Vec2::ZERO;
+        }
+    }
+    let lift = if bad { 0.0 } else { h };
     let mut reward = 0.0f32;
-    for k in 0..N_TERMS {
+    for k in 0..MAX_TERMS {
         // term_k = w_k · raw_k, reward = Σ_k term_k
         let wk = tc.weights[k / 4][k % 4] * raw[k];
         out[OUT_TERMS + k] = wk;
         reward += wk;
     }
+    time_out = time_out && !terminated;
     out[OUT_REWARD] = reward;
     out[OUT_TERMINATED] = if terminated { 1.0 } else { 0.0 };
     out[OUT_TIME_OUT] = if time_out { 1.0 } else { 0.0 };
-    out[OUT_SUCCESS] = raw[3];
+    out[OUT_SUCCESS] = success;
     out[OUT_LIFT] = lift;
     out[OUT_MAX_PEN] = stats.max_pen_ho;
+    out[OUT_OBJ_POS_ERR] = err.x;
+    out[OUT_OBJ_ROT_ERR] = err.y;
     let done = terminated || time_out;
     ts.done = done as u32;
     // a bad-state env was already reset by the physics
@@ -578,32 +931,149 @@ pub fn tip_position(m: &Model, s: &Scratch, t: usize) -> Vec3 {
 }
 
 /// The task state of an env that was just reset: default targets, no previous action, the rest
-/// position of the object.
-pub fn task_init(st: &EnvState, m: &Model) -> TaskState {
+/// position of the object. Reference kinds also begin the episode's reference ([`ref_begin`]) and,
+/// with `task.track.start = "reference"`, place the hand at the reference's first frame at rest
+/// (followers from their leaders) and, unless the reference is re-grounded, the object at the
+/// reference's first object pose, as `dextrain replay` starts; the targets are then that frame's.
+pub fn task_init(env: u32, st: &mut EnvState, m: &Model, tc: &TaskGlobals, r: &RefModel) -> TaskState {
     let mut ts = TaskState::default();
     ts.targets.wrist_pos = m.g.init_wrist_pos;
     ts.targets.wrist_rot = m.g.init_wrist_rot;
     for j in 0..m.g.n_joints as usize {
         ts.targets.q[j] = m.joints[j].default_q;
     }
+    if tc.kind != KIND_LIFT {
+        ts.cursor = ref_begin(r, env, st.episode, st);
+        if tc.start_mode == 0 {
+            let f0 = ref_sample(r, &ts.cursor, 0, 0);
+            st.wrist_pos = f0.wrist_pos;
+            st.wrist_rot = f0.wrist_rot;
+            st.wrist_vel = [0.0; 4];
+            st.wrist_angvel = [0.0; 4];
+            for j in 0..m.g.n_joints as usize {
+                let jd = &m.joints[j];
+                st.q[j] = f0.q[j];
+                st.qd[j] = 0.0;
+                if jd.mimic_leader != NO_JOINT {
+                    st.q[j] = jd.mimic_mult * f0.q[jd.mimic_leader as usize] + jd.mimic_offset;
+                }
+            }
+            if r.rg.reground == 0 {
+                let (p, q) = ref_object_start(r, &ts.cursor);
+                st.obj_pos = [p.x, p.y, p.z, 0.0];
+                st.obj_rot = q.to_array();
+                st.obj_vel = [0.0; 4];
+                st.obj_angvel = [0.0; 4];
+            }
+            ts.targets = nominal_targets(&f0);
+        }
+    }
     ts.rest_pos = [st.obj_pos[0], st.obj_pos[1], st.obj_pos[2], 0.0];
     ts
 }
 
-/// Observes one env (initialising its task state first when it was just reset: `reset_req` ≠ 0 or
-/// `ts.done`), writing its actor row `obs` and critic row `privo`.
+/// Reference kinds: the reference frames `ref0 … refK` (the current step and the look-ahead steps
+/// `i · lookahead_stride`), each relative to the env's state — wrist position and rotation error
+/// (rotation vector), actuated joints, object position and rotation error, fingertips — then the
+/// phase, and (residual_task) the integrated residual over its clamps. Actor entries are relative
+/// to the noisy state (`wn`, `qn`, `on`, `rn`, `tn`), critic entries to the clean one.
 #[allow(clippy::too_many_arguments)]
-pub fn task_observe(env: u32, st: &EnvState, p: &EnvParams, ts: &mut TaskState, reset_req: u32, m: &Model, tc: &TaskGlobals, obs: &mut [f32], privo: &mut [f32]) {
-    if reset_req != 0 || ts.done != 0 {
-        *ts = task_init(st, m);
+pub fn observe_reference(o: &mut ObsOut, k0: u32, st: &EnvState, ts: &TaskState, s: &Scratch, noisy_state: &NoisyState, m: &Model, tc: &TaskGlobals, r: &RefModel) -> u32 {
+    let mut k = k0;
+    let wp = v3(st.wrist_pos);
+    let wr = Vec4::from_array(st.wrist_rot);
+    let op = v3(st.obj_pos);
+    let orot = Vec4::from_array(st.obj_rot);
+    for i in 0..=tc.lookahead {
+        let f = ref_sample(r, &ts.cursor, st.step, i * tc.lookahead_stride);
+        let d = v3(f.wrist_pos) - wp;
+        let dn = v3(f.wrist_pos) - noisy_state.wrist;
+        for c in 0..3 {
+            put_obs(o, k, d[c], dn[c]);
+            k += 1;
+        }
+        let e = quat_error(Vec4::from_array(f.wrist_rot), wr);
+        for c in 0..3 {
+            put_obs(o, k, e[c], e[c]);
+            k += 1;
+        }
+        for a in 0..tc.n_actuated {
+            let j = actuated_joint(tc, a);
+            put_obs(o, k, f.q[j] - st.q[j], f.q[j] - noisy_state.q[a as usize]);
+            k += 1;
+        }
+        let d = v3(f.obj_pos) - op;
+        let dn = v3(f.obj_pos) - noisy_state.obj;
+        for c in 0..3 {
+            put_obs(o, k, d[c], dn[c]);
+            k += 1;
+        }
+        let e = quat_error(Vec4::from_array(f.obj_rot), orot);
+        let en = quat_error(Vec4::from_array(f.obj_rot), noisy_state.obj_rot);
+        for c in 0..3 {
+            put_obs(o, k, e[c], en[c]);
+            k += 1;
+        }
+        for t in 0..m.g.n_tips as usize {
+            let d = v3(f.tips[t]) - tip_position(m, s, t);
+            let dn = v3(f.tips[t]) - noisy_state.tips[t];
+            for c in 0..3 {
+                put_obs(o, k, d[c], dn[c]);
+                k += 1;
+            }
+        }
     }
+    // phase: the reference's progress, 0 at its first frame, 1 from its end on
+    let info = &r.info[ts.cursor.ref_id as usize];
+    let phase = (st.step as f32 * ts.cursor.speed / (info.n_frames.max(2) - 1) as f32).min(1.0);
+    put_obs(o, k, phase, phase);
+    k += 1;
+    if tc.kind == KIND_RESIDUAL_TASK {
+        for c in 0..tc.n_res as usize {
+            let lim = if c < 3 {
+                tc.res_clamp_wrist_pos
+            } else if c < 6 {
+                tc.res_clamp_wrist_rot
+            } else {
+                tc.res_clamp_tips
+            };
+            let v = ts.res_delta[c] / lim.max(1e-9);
+            put_obs(o, k, v, v);
+            k += 1;
+        }
+    }
+    k
+}
+
+/// The actor's (noisy) view of the state that the reference observations are relative to.
+#[derive(Clone, Copy)]
+pub struct NoisyState {
+    pub wrist: Vec3,
+    pub obj: Vec3,
+    pub obj_rot: Vec4,
+    /// Actuated joints in `TaskGlobals::actuated` order.
+    pub q: [f32; MAX_JOINTS],
+    pub tips: [Vec3; MAX_TIPS],
+}
+
+/// Observes one env (initialising its task state first when it was just reset: `reset_req` ≠ 0 or
+/// `ts.done`; reference kinds may then move the hand and object, see [`task_init`]), writing its
+/// actor row `obs` and critic row `privo`.
+#[allow(clippy::too_many_arguments)]
+pub fn task_observe(env: u32, st: &mut EnvState, p: &EnvParams, ts: &mut TaskState, reset_req: u32, m: &Model, tc: &TaskGlobals, r: &RefModel, obs: &mut [f32], privo: &mut [f32]) {
+    if reset_req != 0 || ts.done != 0 {
+        *ts = task_init(env, st, m, tc, r);
+    }
+    let st: &EnvState = st;
     let mut s = Scratch::default();
     hand_kinematics(st, m, &mut s);
     let mut o = ObsOut { seed: m.g.seed, env, episode: st.episode, step: st.step, obs, privo };
+    let mut ns = NoisyState { wrist: Vec3::ZERO, obj: Vec3::ZERO, obj_rot: Vec4::W, q: [0.0; MAX_JOINTS], tips: [Vec3::ZERO; MAX_TIPS] };
     let mut k = 0u32;
     for i in 0..tc.n_actuated {
         let v = st.q[actuated_joint(tc, i)];
         let nv = noisy(&o, k, v, tc.noise_joint_pos);
+        ns.q[i as usize] = nv;
         put_obs(&mut o, k, v, nv);
         k += 1;
     }
@@ -630,11 +1100,13 @@ pub fn task_observe(env: u32, st: &EnvState, p: &EnvParams, ts: &mut TaskState, 
     }
     for t in 0..m.g.n_tips as usize {
         let tp = tip_position(m, &s, t);
+        let mut tn = tp;
         for c in 0..3 {
-            let nv = noisy(&o, k, tp[c], tc.noise_hand_pos);
-            put_obs(&mut o, k, tp[c], nv);
+            tn[c] = noisy(&o, k, tp[c], tc.noise_hand_pos);
+            put_obs(&mut o, k, tp[c], tn[c]);
             k += 1;
         }
+        ns.tips[t] = tn;
     }
     let op = v3(st.obj_pos);
     let mut on = op;
@@ -655,19 +1127,26 @@ pub fn task_observe(env: u32, st: &EnvState, p: &EnvParams, ts: &mut TaskState, 
         put_obs(&mut o, k, oq[c], qn[c]);
         k += 1;
     }
-    // goal: the rest position raised by the success height
-    let goal = Vec3::new(ts.rest_pos[0], ts.rest_pos[1], ts.rest_pos[2] + tc.success_height);
-    for c in 0..3 {
-        put_obs(&mut o, k, goal[c], goal[c]);
-        k += 1;
-    }
-    // p_obj − p_palm (the actor's from the noisy object and wrist positions)
-    let wrot = Vec4::from_array(st.wrist_rot);
-    let rel = op - palm_position(tc, wp, wrot);
-    let rel_n = on - palm_position(tc, wn, wrot);
-    for c in 0..3 {
-        put_obs(&mut o, k, rel[c], rel_n[c]);
-        k += 1;
+    if tc.kind == KIND_LIFT {
+        // goal: the rest position raised by the success height
+        let goal = Vec3::new(ts.rest_pos[0], ts.rest_pos[1], ts.rest_pos[2] + tc.success_height);
+        for c in 0..3 {
+            put_obs(&mut o, k, goal[c], goal[c]);
+            k += 1;
+        }
+        // p_obj − p_palm (the actor's from the noisy object and wrist positions)
+        let wrot = Vec4::from_array(st.wrist_rot);
+        let rel = op - palm_position(tc, wp, wrot);
+        let rel_n = on - palm_position(tc, wn, wrot);
+        for c in 0..3 {
+            put_obs(&mut o, k, rel[c], rel_n[c]);
+            k += 1;
+        }
+    } else {
+        ns.wrist = wn;
+        ns.obj = on;
+        ns.obj_rot = qn;
+        k = observe_reference(&mut o, k, st, ts, &s, &ns, m, tc, r);
     }
     // privileged extras
     for v in [st.obj_vel, st.obj_angvel, st.wrist_vel, st.wrist_angvel] {
@@ -693,11 +1172,21 @@ pub fn task_observe(env: u32, st: &EnvState, p: &EnvParams, ts: &mut TaskState, 
 // The CPU backend
 // ---------------------------------------------------------------------------------------------
 
+/// The reference layer's view of a task's bank (an empty one for the lift task).
+pub fn ref_model<'a>(model: &'a SimModel, bank: Option<&'a RefBank>, rg: &'a RefGlobals) -> RefModel<'a> {
+    match bank {
+        Some(b) => RefModel::new(model, b, rg),
+        None => RefModel { g: &model.globals, joints: &model.joints, rg, info: &[], frames: &[] },
+    }
+}
+
 /// The task on the CPU: a [`CpuEnvBatch`] and the twins above, rayon over envs, in the GPU's order.
 pub struct CpuTaskBatch {
     env: CpuEnvBatch,
     spec: TaskSpec,
     tc: TaskGlobals,
+    bank: Option<RefBank>,
+    rg: RefGlobals,
     task: Vec<TaskState>,
     targets: Vec<Targets>,
     /// `[N, OUT_MISC]` output records of the last step.
@@ -712,7 +1201,7 @@ impl CpuTaskBatch {
     /// Builds the env batch and the task, with every env at the start of episode 0 (`reset_all`
     /// returns the first observations).
     pub fn new(cfg: &Config, model: SimModel) -> Result<CpuTaskBatch> {
-        let (spec, tc) = task_setup(cfg, &model)?;
+        let TaskSetup { spec, tc, bank, rg } = task_setup(cfg, &model)?;
         let n = spec.num_envs;
         let targets = vec![model.default_targets(); n];
         let batch = StepBatch::new(&spec);
@@ -720,6 +1209,8 @@ impl CpuTaskBatch {
             env: CpuEnvBatch::new(model),
             spec,
             tc,
+            bank,
+            rg,
             task: vec![TaskState::default(); n],
             targets,
             misc: vec![0.0; n * OUT_MISC],
@@ -741,19 +1232,33 @@ impl CpuTaskBatch {
         &self.task
     }
 
+    /// The reference bank (reference kinds).
+    pub fn bank(&self) -> Option<&RefBank> {
+        self.bank.as_ref()
+    }
+
+    /// Reference kinds: env `env`'s (augmented) reference at env step `step + k` of its episode.
+    pub fn reference_frame(&self, env: usize, step: u32, k: u32) -> Option<RefFrame> {
+        let bank = self.bank.as_ref()?;
+        let r = RefModel::new(self.env.model(), bank, &self.rg);
+        Some(ref_sample(&r, &self.task[env].cursor, step, k))
+    }
+
     /// `task_observe` for every env with reset requests `self.mask`.
     fn observe(&mut self) {
-        let model = self.env.model();
+        let (model, states, params) = self.env.parts_mut();
         let m = model.view();
+        let r = ref_model(model, self.bank.as_ref(), &self.rg);
         let tc = &self.tc;
+        let mask = &self.mask;
         let (od, pd) = (self.spec.obs_dim, self.spec.priv_dim);
-        let (states, params) = (self.env.states_ref(), self.env.params_ref());
         self.task
             .par_iter_mut()
+            .zip(states.par_iter_mut())
             .zip(self.batch.obs.par_chunks_mut(od))
             .zip(self.batch.priv_obs.par_chunks_mut(pd))
             .enumerate()
-            .for_each(|(i, ((ts, obs), privo))| task_observe(i as u32, &states[i], &params[i], ts, self.mask[i], &m, tc, obs, privo));
+            .for_each(|(i, (((ts, st), obs), privo))| task_observe(i as u32, st, &params[i], ts, mask[i], &m, tc, &r, obs, privo));
     }
 }
 
@@ -787,25 +1292,31 @@ impl TaskBatch for CpuTaskBatch {
         check_actions(&self.spec, actions)?;
         let na = self.spec.action_dim;
         {
-            let m = self.env.model().view();
+            let model = self.env.model();
+            let m = model.view();
+            let r = ref_model(model, self.bank.as_ref(), &self.rg);
             let tc = &self.tc;
+            let states = self.env.states_ref();
             self.task
                 .par_iter_mut()
                 .zip(self.targets.par_iter_mut())
                 .zip(actions.par_chunks(na))
-                .for_each(|((ts, t), a)| *t = task_act(a, ts, &m, tc));
+                .enumerate()
+                .for_each(|(i, ((ts, t), a))| *t = task_act(a, &states[i], ts, &m, tc, &r));
         }
         self.env.step(&self.targets)?;
         {
-            let m = self.env.model().view();
+            let model = self.env.model();
+            let m = model.view();
+            let r = ref_model(model, self.bank.as_ref(), &self.rg);
             let tc = &self.tc;
-            let (states, stats) = (self.env.states_ref(), self.env.stats_ref());
+            let (states, params, stats) = (self.env.states_ref(), self.env.params_ref(), self.env.stats_ref());
             self.task
                 .par_iter_mut()
                 .zip(self.misc.par_chunks_mut(OUT_MISC))
                 .zip(self.mask.par_iter_mut())
                 .enumerate()
-                .for_each(|(i, ((ts, out), mask))| *mask = task_reward(&states[i], &stats[i], ts, &m, tc, out));
+                .for_each(|(i, ((ts, out), mask))| *mask = task_reward(&states[i], &params[i], &stats[i], ts, &m, tc, &r, out));
         }
         for (b, &m) in self.mask_bool.iter_mut().zip(&self.mask) {
             *b = m != 0;

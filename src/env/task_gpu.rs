@@ -14,7 +14,7 @@ use wgpu::util::DeviceExt;
 
 use super::gpu::{GpuContext, GpuEnvBatch, entry, storage, task_shader_source};
 use super::layout::*;
-use super::task::{OUT_MISC, StepBatch, TaskBatch, TaskSpec, check_actions, decode_snapshot, encode_snapshot, task_setup};
+use super::task::{OUT_MISC, StepBatch, TaskBatch, TaskSpec, check_actions, decode_snapshot, encode_snapshot, task_setup, TaskSetup};
 use super::{EnvBatch, SimModel};
 use crate::config::Config;
 
@@ -45,7 +45,7 @@ impl GpuTaskBatch {
     /// Builds the env batch on `ctx` and the task pipelines, with every env at the start of
     /// episode 0 (`reset_all` returns the first observations).
     pub fn new(cfg: &Config, ctx: GpuContext, model: SimModel) -> Result<GpuTaskBatch> {
-        let (spec, tc) = task_setup(cfg, &model)?;
+        let TaskSetup { spec, tc, bank, rg } = task_setup(cfg, &model)?;
         let n = spec.num_envs;
         let out_floats = n * (spec.obs_dim + spec.priv_dim + OUT_MISC);
         let out_bytes = (out_floats * 4) as u64;
@@ -72,6 +72,18 @@ impl GpuTaskBatch {
         });
         let none = wgpu::BufferUsages::empty();
         let tips = storage(device, "tips", &tips_host, none);
+        // the reference layer (bindings 13–15; one zeroed element each for the lift task)
+        let (ref_frames_host, ref_info_host) = match &bank {
+            Some(b) => (b.frames.clone(), b.info.clone()),
+            None => (Vec::new(), Vec::new()),
+        };
+        let ref_frames = storage(device, "ref_frames", &ref_frames_host, none);
+        let ref_info = storage(device, "ref_info", &ref_info_host, none);
+        let ref_cfg = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
+            label: Some("ref_cfg"),
+            contents: bytemuck::bytes_of(&rg),
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        });
         let task_states = storage(device, "task_states", &vec![TaskState::default(); n], none);
         let actions = storage(device, "actions", &vec![0f32; n * spec.action_dim], none);
         let out = storage(device, "task_out", &vec![0f32; out_floats], none);
@@ -101,19 +113,37 @@ impl GpuTaskBatch {
         let act_group = group(
             &act_pipeline,
             "task_act",
-            &[entry(0, &env.globals), entry(1, &env.joints), entry(6, &env.targets), entry(9, &task_cfg), entry(10, &task_states), entry(11, &actions)],
+            &[
+                entry(0, &env.globals),
+                entry(1, &env.joints),
+                entry(3, &tips),
+                entry(4, &env.states),
+                entry(6, &env.targets),
+                entry(9, &task_cfg),
+                entry(10, &task_states),
+                entry(11, &actions),
+                entry(13, &ref_frames),
+                entry(14, &ref_info),
+                entry(15, &ref_cfg),
+            ],
         );
         let reward_group = group(
             &reward_pipeline,
             "task_reward",
             &[
                 entry(0, &env.globals),
+                entry(1, &env.joints),
+                entry(3, &tips),
                 entry(4, &env.states),
+                entry(5, &env.params),
                 entry(7, &env.stats),
                 entry(8, &env.reset_mask),
                 entry(9, &task_cfg),
                 entry(10, &task_states),
                 entry(12, &out),
+                entry(13, &ref_frames),
+                entry(14, &ref_info),
+                entry(15, &ref_cfg),
             ],
         );
         let observe_group = group(
@@ -129,6 +159,9 @@ impl GpuTaskBatch {
                 entry(9, &task_cfg),
                 entry(10, &task_states),
                 entry(12, &out),
+                entry(13, &ref_frames),
+                entry(14, &ref_info),
+                entry(15, &ref_cfg),
             ],
         );
         let batch = StepBatch::new(&spec);

@@ -17,6 +17,7 @@ use glam::{Quat, Vec3};
 
 use crate::geom::Pose;
 
+pub mod bank;
 pub mod io;
 pub mod perturb;
 pub mod synth;

@@ -1,0 +1,322 @@
+//! The reference-following task kinds (track, residual_joint, residual_task): a zero residual and
+//! the open-loop baseline reproduce `dextrain replay` exactly; the residual mappings, the reward
+//! terms and the success test against hand-computed values; CPU and GPU agree.
+
+mod common;
+
+use std::path::PathBuf;
+
+use common::*;
+use dextrain::config::Config;
+use dextrain::env::ik::{IkScratch, ik_tip_positions};
+use dextrain::env::layout::TaskState;
+use dextrain::env::reference::RefFrame;
+use dextrain::env::task::*;
+use dextrain::env::task_gpu::GpuTaskBatch;
+use dextrain::env::{EnvState, SimModel};
+use dextrain::replay::replay;
+use dextrain::traj::Trajectory;
+use glam::{Vec2, Vec3};
+
+fn configs() -> PathBuf {
+    PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/configs"))
+}
+
+/// The grasp-and-lift scene with a reference kind on the shipped clean reference, no augmentation.
+fn track_config(kind: &str, n: usize) -> Config {
+    let mut c = Config::load(&configs().join("grasp_lift.toml")).expect("config");
+    c.sim.backend = "cpu".into();
+    c.sim.num_envs = n;
+    c.task.kind = kind.into();
+    c.task.rewards = dextrain::config::default_rewards(kind);
+    c.task.reference.files = vec!["refs/grasp_lift.mcap".into()];
+    // long enough that no env resets inside the compared window
+    c.task.episode_length = 1000;
+    c.validate().expect("valid");
+    c
+}
+
+fn reference() -> Trajectory {
+    Trajectory::load(&configs().join("refs/grasp_lift.mcap")).expect("reference")
+}
+
+/// Steps `task` with `actions` for `steps` env steps and returns env 0's object and wrist poses
+/// after each step (as raw arrays, to compare bit for bit).
+fn rollout(task: &mut dyn TaskBatch, actions: &[f32], steps: usize) -> Vec<([f32; 4], [f32; 4], [f32; 4])> {
+    task.reset_all().unwrap();
+    let s0 = task.env().states().unwrap()[0];
+    let mut out = vec![(s0.obj_pos, s0.obj_rot, s0.wrist_pos)];
+    for _ in 0..steps {
+        task.step(actions).unwrap();
+        let s = task.env().states().unwrap()[0];
+        out.push((s.obj_pos, s.obj_rot, s.wrist_pos));
+    }
+    out
+}
+
+#[test]
+fn zero_residual_and_open_loop_reproduce_replay_exactly() {
+    let traj = reference();
+    let base = track_config("residual_joint", 2);
+    let r = replay(&base, &traj, false, None).unwrap();
+    let frames = r.trace.len();
+    assert!(frames > 100);
+    let check = |name: &str, got: &[([f32; 4], [f32; 4], [f32; 4])]| {
+        for (k, (o, q, w)) in got.iter().enumerate() {
+            let (_, obj, wrist) = &r.trace[k];
+            assert_eq!([o[0], o[1], o[2]], obj.pos.to_array(), "{name}: object position at frame {k}");
+            assert_eq!(*q, obj.rot.to_array(), "{name}: object orientation at frame {k}");
+            assert_eq!([w[0], w[1], w[2]], wrist.pos.to_array(), "{name}: wrist position at frame {k}");
+        }
+    };
+    for kind in ["residual_joint", "residual_task"] {
+        let c = track_config(kind, 2);
+        let mut task = make_task_batch(&c, SimModel::from_config(&c).unwrap()).unwrap();
+        let zero = vec![0.0; 2 * task.spec().action_dim];
+        let got = rollout(task.as_mut(), &zero, frames - 1);
+        check(kind, &got);
+    }
+    // the open-loop baseline ignores the actions, for every reference kind
+    for kind in ["track", "residual_joint", "residual_task"] {
+        let mut c = track_config(kind, 2);
+        c.task.open_loop = true;
+        let mut task = make_task_batch(&c, SimModel::from_config(&c).unwrap()).unwrap();
+        let ones = vec![0.7; 2 * task.spec().action_dim];
+        let got = rollout(task.as_mut(), &ones, frames - 1);
+        check(&format!("{kind} open-loop"), &got);
+    }
+    // and a non-zero residual does change the outcome
+    let c = track_config("residual_joint", 2);
+    let mut task = make_task_batch(&c, SimModel::from_config(&c).unwrap()).unwrap();
+    let push = vec![0.5; 2 * task.spec().action_dim];
+    let got = rollout(task.as_mut(), &push, 40);
+    assert_ne!(got[40].2, [r.trace[40].2.pos.x, r.trace[40].2.pos.y, r.trace[40].2.pos.z, got[40].2[3]]);
+}
+
+fn frame_of(task: &CpuTaskBatch, step: u32, k: u32) -> RefFrame {
+    task.reference_frame(0, step, k).expect("a reference kind")
+}
+
+#[test]
+fn residual_joint_maps_actions_around_the_reference() {
+    let c = track_config("residual_joint", 1);
+    let model = SimModel::from_config(&c).unwrap();
+    let mut task = CpuTaskBatch::new(&c, model.clone()).unwrap();
+    task.reset_all().unwrap();
+    let spec = task.spec().clone();
+    let mut a = vec![0.0f32; spec.action_dim];
+    a[0] = 1.0; // wrist +x
+    a[5] = -0.5; // wrist rotation about z
+    a[6] = 1.0; // first actuated joint
+    a[7] = -3.0; // clipped to −1
+    let nominal = frame_of(&task, 0, 1);
+    task.step(&a).unwrap();
+    let t = task.targets().unwrap()[0];
+    let r = &c.task.residual;
+    assert!((t.wrist_pos[0] - (nominal.wrist_pos[0] + r.wrist_pos_alpha)).abs() < 1e-7);
+    assert_eq!(t.wrist_pos[1], nominal.wrist_pos[1]);
+    // R* = exp(α_r a) ⊗ R̄: the rotation between them is 0.5 α_r about −z
+    let d = glam::Quat::from_array(t.wrist_rot) * glam::Quat::from_array(nominal.wrist_rot).inverse();
+    let (axis, angle) = d.to_axis_angle();
+    assert!((angle - 0.5 * r.wrist_rot_alpha).abs() < 1e-5 && (axis - glam::Vec3::NEG_Z).length() < 1e-3, "{axis} {angle}");
+    let es = &model.spec;
+    let (j0, j1) = (es.actuated[0], es.actuated[1]);
+    let clampj = |j: usize, v: f32| v.max(model.joints[j].lower).min(model.joints[j].upper);
+    assert_eq!(t.q[j0], clampj(j0, nominal.q[j0] + r.alpha));
+    assert_eq!(t.q[j1], clampj(j1, nominal.q[j1] - r.alpha));
+    for &j in &es.actuated[2..] {
+        assert_eq!(t.q[j], nominal.q[j], "joint {j} follows the reference");
+    }
+    // the residual term: ‖δ‖² with δ = (α_p a_wrist, α_r a_rot, α a_joints), weighted
+    let want = r.wrist_pos_alpha.powi(2) + (0.5 * r.wrist_rot_alpha).powi(2) + 2.0 * r.alpha.powi(2);
+    assert!((task.task_states()[0].res_sq - want).abs() < 1e-6, "{} vs {want}", task.task_states()[0].res_sq);
+}
+
+#[test]
+fn residual_task_smooths_integrates_clamps_and_moves_fingertips_by_ik() {
+    let c = track_config("residual_task", 1);
+    let model = SimModel::from_config(&c).unwrap();
+    let mut task = CpuTaskBatch::new(&c, model.clone()).unwrap();
+    task.reset_all().unwrap();
+    let spec = task.spec().clone();
+    let r = c.task.residual.clone();
+    let dt = spec.control_dt;
+    assert_eq!(spec.action_dim, 6 + 3 * model.tips.len());
+    // constant u = 1 on wrist x and on the first fingertip's z (wrist frame: the open finger points
+    // along x, so z is the direction its flexion moves the tip)
+    let mut a = vec![0.0f32; spec.action_dim];
+    a[0] = 1.0;
+    a[8] = 1.0;
+    let (mut ema, mut delta) = (0.0f32, 0.0f32);
+    for step in 0..3 {
+        let nominal = frame_of(&task, step, 1);
+        task.step(&a).unwrap();
+        // ũ = 0.8 u + 0.2 ũ;  Δa = clamp(Δa + s ũ Δt)
+        ema = r.ema * 1.0 + (1.0 - r.ema) * ema;
+        delta = (delta + r.scale_wrist_pos * ema * dt).clamp(-r.clamp_wrist_pos, r.clamp_wrist_pos);
+        let ts = task.task_states()[0];
+        assert!((ts.res_ema[0] - ema).abs() < 1e-7 && (ts.res_delta[0] - delta).abs() < 1e-7, "step {step}");
+        let t = task.targets().unwrap()[0];
+        assert!((t.wrist_pos[0] - (nominal.wrist_pos[0] + delta)).abs() < 1e-6, "step {step}");
+        // the fingertip residual moves the first fingertip (wrist frame) by Δa_tip, the others stay
+        let m = model.view();
+        let mut s = IkScratch::default();
+        let base = ik_tip_positions(&m, &nominal.q, &mut s);
+        let got = ik_tip_positions(&m, &t.q, &mut s);
+        let want0 = base[0] + Vec3::new(0.0, 0.0, ts.res_delta[8]);
+        assert!((got[0] - want0).length() < 1e-3, "step {step}: tip 0 at {} vs {}", got[0], want0);
+        for k in 1..model.tips.len() {
+            assert!((got[k] - base[k]).length() < 1e-3, "step {step}: tip {k} moved");
+        }
+    }
+    // the integrated residual saturates at its clamp
+    for _ in 0..400 {
+        task.step(&a).unwrap();
+        if task.task_states()[0].res_delta[0] >= r.clamp_wrist_pos {
+            break;
+        }
+    }
+    assert_eq!(task.task_states()[0].res_delta[0], r.clamp_wrist_pos);
+    assert!(task.task_states()[0].res_delta[8] <= r.clamp_tips);
+}
+
+#[test]
+fn tracking_reward_terms_match_hand_computed_values() {
+    let frame = |dx: f32, rot: f32| {
+        let mut f = RefFrame::default();
+        f.wrist_pos = [0.1 + dx, 0.0, 0.3, 0.0];
+        f.wrist_rot = glam::Quat::from_rotation_z(rot).to_array();
+        f.obj_pos = [0.0, 0.0, 0.05, 0.0];
+        f.obj_rot = [0.0, 0.0, 0.0, 1.0];
+        f.grasp = 1.0;
+        f
+    };
+    let mut st = EnvState::default();
+    st.wrist_pos = [0.1, 0.0, 0.3, 0.0];
+    st.wrist_rot = [0.0, 0.0, 0.0, 1.0];
+    st.obj_rot = [0.0, 0.0, 0.0, 1.0];
+    let params: dextrain::env::EnvParams = bytemuck::Zeroable::zeroed();
+    let ts = TaskState { act_rate: 0.25, act_mag: 1.5, res_sq: 0.04, ..Default::default() };
+    for kind in ["track", "residual_joint", "residual_task"] {
+        let mut c = track_config(kind, 1);
+        c.task.track.alpha_wrist_pos = 10.0;
+        c.task.track.alpha_object_pos = 20.0;
+        let model = SimModel::from_config(&c).unwrap();
+        let tc = task_setup(&c, &model).unwrap().tc;
+        let m = model.view();
+        let mut f = frame(0.02, 0.3);
+        // joints: every actuated joint 0.1 rad off the reference
+        for &j in &model.spec.actuated {
+            f.q[j] = st.q[j] + 0.1;
+        }
+        let e = Vec2::new(0.01, 0.2);
+        let raw = tracking_terms(&st, &params, &ts, &f, e, false, true, 0.04, &m, &tc);
+        let k = &c.task.track;
+        match kind {
+            "track" => {
+                let nj = model.spec.actuated.len() as f32;
+                let rj = 1.0 - (k.alpha_joint * (nj * 0.01).sqrt()).tanh();
+                let rx = 1.0 - (k.alpha_wrist_pos * 0.02f32).tanh();
+                let rr = 1.0 - (k.alpha_wrist_rot * 0.3f32).tanh();
+                let rf = k.beta_joint * rj + k.beta_wrist_pos * rx + k.beta_wrist_rot * rr;
+                assert!((raw[0] - rf).abs() < 1e-5, "R_f {} vs {rf}", raw[0]);
+                let ro = (-k.alpha_object_pos * 0.01f32).exp() + (-k.alpha_object_rot * 0.2f32).exp();
+                assert!((raw[1] - ro).abs() < 1e-6, "R_o {} vs {ro}", raw[1]);
+                assert_eq!(raw[2], 1.0, "contact while the reference grasps");
+                assert_eq!(raw[3], 0.0, "not at the final pose");
+                assert!((raw[4] - 4.0).abs() < 1e-4, "lifting in cm");
+                assert_eq!((raw[5], raw[6]), (0.25, 1.5));
+                // success only once the reference has ended and the object is at its final pose
+                f.ended = 1;
+                assert_eq!(tracking_terms(&st, &params, &ts, &f, e, true, true, 0.04, &m, &tc)[3], 1.0);
+                f.grasp = 0.0;
+                assert_eq!(tracking_terms(&st, &params, &ts, &f, e, true, true, 0.04, &m, &tc)[2], 0.0, "no contact bonus before the grasp");
+            }
+            "residual_joint" => {
+                let r = &c.task.residual;
+                assert!((raw[0] - (-r.obj_pos_coef * 0.01f32).exp()).abs() < 1e-6);
+                assert!((raw[1] - (-r.obj_rot_coef * 0.2f32).exp()).abs() < 1e-6);
+                assert_eq!(raw[2], 0.04);
+            }
+            _ => {
+                let r = &c.task.residual;
+                // object term gated by contact (true here)
+                assert!((raw[0] - (-r.reward_obj_pos * 0.01 - r.reward_obj_rot * 0.2f32).exp()).abs() < 1e-6);
+                let e_w = (-r.reward_wrist_pos * 0.02 - r.reward_wrist_rot * 0.3f32).exp();
+                assert!((raw[2] - e_w).abs() < 1e-5, "wrist {} vs {e_w}", raw[2]);
+                // fingertips: the reference tips 1 cm above the actual ones
+                let mut s = dextrain::env::physics::Scratch::default();
+                dextrain::env::physics::hand_kinematics(&st, &m, &mut s);
+                for t in 0..model.tips.len() {
+                    let p = tip_position(&m, &s, t) + Vec3::Z * 0.01;
+                    f.tips[t] = [p.x, p.y, p.z, 0.0];
+                }
+                let far = Vec2::new(c.task.track.success_pos_tol + 0.01, 0.2);
+                let raw = tracking_terms(&st, &params, &ts, &f, far, false, false, 0.0, &m, &tc);
+                assert!((raw[1] - (-r.reward_tips * 0.01f32).exp()).abs() < 1e-5, "tips {}", raw[1]);
+                assert_eq!(raw[0], 0.0, "no contact and beyond the tolerance: the object term is gated off");
+                let near = tracking_terms(&st, &params, &ts, &f, e, false, false, 0.0, &m, &tc);
+                assert!(near[0] > 0.0, "within the tolerance the object term counts without contact");
+                assert_eq!(raw[3], 0.0);
+                assert_eq!(raw[7], 0.0, "no hand–table contact");
+                let mut st2 = st;
+                st2.anchor_ht[0][3] = 1.0;
+                assert_eq!(tracking_terms(&st2, &params, &ts, &f, e, false, false, 0.0, &m, &tc)[7], 1.0);
+            }
+        }
+    }
+}
+
+#[test]
+fn cpu_and_gpu_agree_on_every_reference_kind() {
+    let Some(_) = gpu_context("cpu_and_gpu_agree_on_every_reference_kind") else { return };
+    for kind in ["track", "residual_joint", "residual_task"] {
+        let mut c = track_config(kind, 16);
+        // every augmentation on, observation noise on, short episodes so that resets happen
+        let a = &mut c.task.reference;
+        a.translate_xy = 0.03;
+        a.rotate_z = 0.3;
+        a.mirror_prob = 0.5;
+        a.wrist_pos_offset = 0.01;
+        a.joint_offset = 0.05;
+        a.wrist_pos_noise = 0.002;
+        a.joint_noise = 0.01;
+        a.time_scale = 0.1;
+        c.task.obs_noise.joint_pos = 0.01;
+        c.task.obs_noise.object_pos = 0.005;
+        c.task.episode_length = 12;
+        let model = SimModel::from_config(&c).unwrap();
+        let mut cpu = CpuTaskBatch::new(&c, model.clone()).unwrap();
+        let ctx = gpu_context(kind).unwrap();
+        let mut gpu = GpuTaskBatch::new(&c, ctx, model).unwrap();
+        let spec = cpu.spec().clone();
+        let a0 = cpu.reset_all().unwrap().clone();
+        let b0 = gpu.reset_all().unwrap().clone();
+        let close = |x: &[f32], y: &[f32], floor: f32, what: &str, step: usize| {
+            for (i, (u, v)) in x.iter().zip(y).enumerate() {
+                let d = (u - v).abs() / u.abs().max(v.abs()).max(floor);
+                assert!(d < 2e-4, "{kind} step {step}: {what}[{i}] cpu {u} gpu {v}");
+            }
+        };
+        close(&a0.obs, &b0.obs, 0.1, "obs", 0);
+        let mut rng = 12345u64;
+        for step in 1..=30 {
+            let actions: Vec<f32> = (0..spec.num_envs * spec.action_dim)
+                .map(|_| {
+                    rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+                    ((rng >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+                })
+                .collect();
+            let a = cpu.step(&actions).unwrap().clone();
+            let b = gpu.step(&actions).unwrap().clone();
+            close(&a.obs, &b.obs, 0.1, "obs", step);
+            close(&a.priv_obs, &b.priv_obs, 0.1, "priv_obs", step);
+            close(&a.reward, &b.reward, 1e-2, "reward", step);
+            close(&a.terms, &b.terms, 1e-2, "terms", step);
+            close(&a.obj_pos_err, &b.obj_pos_err, 1e-2, "obj_pos_err", step);
+            assert_eq!(a.terminated, b.terminated, "{kind} step {step}");
+            assert_eq!(a.time_out, b.time_out, "{kind} step {step}");
+            assert_eq!(a.success, b.success, "{kind} step {step}");
+        }
+    }
+}
