@@ -193,12 +193,15 @@ fn setup(args: &TrainArgs) -> Result<(Config, PathBuf, Option<PathBuf>)> {
         None => run_dir::default_name(path),
     };
     run_dir::validate_name(&name)?;
-    // the hand must load before a run directory is made
-    SimModel::from_config(&cfg)?;
+    // the hand and the references must load before a run directory is made
+    let model = SimModel::from_config(&cfg)?;
+    crate::env::task::task_setup(&cfg, &model)?;
     let dir = run_dir::create(&args.runs_dir, &name, args.force)?;
-    // the exact resolved config, with the hand's URDF as an absolute path so that it loads from the run directory
+    // the exact resolved config, with the hand's URDF and the reference files as absolute paths so
+    // that it loads from the run directory
     let mut saved = cfg.clone();
     saved.hand.urdf = absolute(&cfg.resolve(&cfg.hand.urdf));
+    saved.task.reference.files = cfg.task.reference.files.iter().map(|f| absolute(&cfg.resolve(f))).collect();
     std::fs::write(dir.join("config.toml"), saved.to_toml()?).with_context(|| format!("cannot write {}", dir.join("config.toml").display()))?;
     Ok((cfg, dir, None))
 }

@@ -140,6 +140,41 @@ fn task_and_learner_keys_are_checked_with_one_line_errors() {
 }
 
 #[test]
+fn reference_task_keys_are_checked_and_each_kind_has_its_default_rewards() {
+    let p = Path::new("run.toml");
+    let track = "[task]\nkind = \"track\"\n[task.reference]\nfiles = [\"refs/grasp_lift.mcap\"]\n";
+    for (text, key, hint) in [
+        ("[task]\nkind = \"track\"\n".to_string(), "task.reference.files", "at least one reference"),
+        (format!("{track}[task.track]\nstart = \"table\"\n"), "task.track.start", "\"config\""),
+        (format!("{track}[task.track]\nlookahead = 20\n"), "task.track.lookahead", "[0, 8]"),
+        (format!("{track}[task.track]\nsuccess_pos_tol = 0\n"), "task.track.success_pos_tol", "distance"),
+        (format!("{track}[task.track]\nalpha_joint = -1\n"), "task.track.alpha_joint", ">= 0"),
+        (format!("{track}[task.residual]\nema = 0\n"), "task.residual.ema", "[0.001, 1]"),
+        (format!("{track}[task.residual]\nclamp_wrist_rot = 4\n"), "task.residual.clamp_wrist_rot", "π"),
+        (format!("{track}[task.reference]\nmirror_prob = 2\n").replace("[task.reference]\nfiles = [\"refs/grasp_lift.mcap\"]\n[task.reference]\n", "[task.reference]\nfiles = [\"refs/grasp_lift.mcap\"]\n"), "task.reference.mirror_prob", "probability"),
+        (format!("{track}[task.rewards]\nreaching = 1.0\n"), "task.rewards.reaching", "hand_following"),
+        ("[task]\nkind = \"lift\"\nepisode_length = 0\n".to_string(), "task.episode_length", "[1, 1000000]"),
+    ] {
+        let e = format!("{:#}", Config::from_toml_str(&text, p).unwrap_err());
+        assert!(e.contains("run.toml") && e.contains(key) && e.contains(hint) && !e.contains('\n'), "{text}: {e}");
+    }
+    // without a [task.rewards] table every kind gets its own default weights (the papers')
+    for kind in dextrain::config::TASK_KINDS {
+        let text = if kind == "lift" { String::new() } else { track.replace("track", kind) };
+        let c = Config::from_toml_str(&text, p).unwrap();
+        assert_eq!(c.task.rewards, dextrain::config::default_rewards(kind), "{kind}");
+        let names: Vec<&str> = c.task.rewards.keys().map(|k| k.as_str()).collect();
+        let mut want: Vec<&str> = dextrain::config::task_terms(kind).to_vec();
+        want.sort();
+        assert_eq!(names, want, "{kind}: a default weight for every term");
+    }
+    let c = Config::from_toml_str(track, p).unwrap();
+    assert_eq!((c.task.rewards["hand_following"], c.task.rewards["success"]), (1.0, 15.0));
+    assert_eq!((c.task.track.beta_joint, c.task.track.beta_wrist_pos, c.task.track.alpha_object_pos), (0.1, 1.0, 1.0));
+    assert_eq!((c.task.residual.alpha, c.task.residual.ema, c.task.residual.clamp_tips), (0.1, 0.8, 0.04));
+}
+
+#[test]
 fn set_overrides_apply_before_validation() {
     let dir = tempfile::tempdir().unwrap();
     let f = dir.path().join("c.toml");

@@ -10,35 +10,38 @@
 //! its parent link (`ik_joint_frame`, the same per-joint arithmetic as `physics::hand_kinematics`).
 //! `ik_link_poses` walks every joint in topological order; a fingertip's position (link pose ·
 //! `TipDesc::pos`) is computed along its own chain only (`ik_chain` walks from the tip's link up to
-//! the root, `ik_chain_fk` back down), and `ik_tip_positions` and the solver use that same code, so
-//! a target taken from `ik_tip_positions(q)` gives a residual of exactly zero at `q`.
+//! the root, `ik_chain_fk` back down). `ik_tip_positions` and the solver share that code, so a
+//! target taken from `ik_tip_positions(q)` is a residual of exactly zero at `q`.
 //!
-//! **Solver** (`ik_solve`): a fixed number of sweeps (`IkParams::iters`); each sweep visits the
-//! active fingertips (bit `t` of `mask`) in index order, and for fingertip t (`ik_tip_step`):
-//! 1. chain FK: tip position p, world axis aⱼ and origin oⱼ of every joint j on its chain;
-//! 2. e = x*ₜ − p; if |e| ≤ `tol` (an exact zero included) the tip is left alone;
-//! 3. one Jacobian column per *actuated* joint k that moves the tip:
-//!    cₖ = Σ_{j on the chain, j = k or j follows k} wⱼ · aⱼ × (p − oⱼ), with wⱼ = 1 for k itself and
-//!    the mimic multiplier for a follower (q_f = mult·q_k + offset), so a leader that is not on the
-//!    chain still moves the tip through its follower;
-//! 4. damped least squares: Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e, a 3×3 SPD solve (Cholesky, `ik_solve3`),
-//!    Δqₖ = cₖ · y with y = (Σₖ cₖ cₖᵀ + λ² I)⁻¹ e;
-//! 5. the step is scaled (direction kept) so that max |Δqₖ| ≤ `max_step`, each qₖ is clamped to its
-//!    joint limits (`lower`, `upper` of `JointDesc`; ±1e30 = unlimited), and every follower is
-//!    recomputed from its leader (`ik_apply_mimic`).
+//! **Solver** (`ik_solve`): at most `IkParams::iters` iterations of damped least squares on the
+//! stacked fingertip residuals of the active tips (bit t of `mask`; m of them, slots a = 0..m in tip
+//! order). One iteration (`ik_iterate`):
+//! 1. per active tip (`ik_tip_jacobian`): chain FK at q, eₐ = x*ₐ − xₐ, and one Jacobian column per
+//!    *actuated* joint k: Jₐₖ = Σ_{j on the chain, j = k or j follows k} wⱼ aⱼ × (xₐ − oⱼ), with aⱼ,
+//!    oⱼ joint j's axis and origin and wⱼ = 1 for k, the mimic multiplier for a follower
+//!    (q_f = mult·q_k + offset): a leader that is not on the chain still moves the tip through its
+//!    follower; followers themselves are never solved for;
+//! 2. if every |eₐ| ≤ `tol` (an exact zero included) the solve stops: nothing moves;
+//! 3. Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e (`ik_gram`, `ik_cholesky`, `ik_dls_step`): J Jᵀ is the
+//!    3m × 3m matrix of 3×3 blocks Σₖ Jₐₖ Jᵦₖᵀ, so fingertips that share a joint (tri3's wrist roll,
+//!    its mimic-coupled spread) are solved together, and tips on independent chains (dexhand16's
+//!    fingers) give a block-diagonal matrix, i.e. one 3×3 DLS solve per tip;
+//! 4. a joint at a limit that Δq pushes further out is locked (its columns zeroed) and step 3
+//!    repeated, so that it does not absorb the step;
+//! 5. Δq is scaled (direction kept) so that max |Δqₖ| ≤ `max_step`, each moved qₖ is clamped to its
+//!    limits (`lower`, `upper` of `JointDesc`; ±1e30 = unlimited), and every follower is recomputed
+//!    from its leader (`ik_apply_mimic`).
 //!
-//! Fingertips that share a joint (tri3's wrist roll and mimic-coupled spread, a palm joint) are
-//! handled **sequentially** (block Gauss–Seidel / Kaczmarz): each tip's step starts from the joints
-//! the previous tips of the sweep left, so a shared joint is never moved twice by stale Jacobians,
-//! and the sweeps converge to a joint vector that satisfies every consistent target. A sweep in which
-//! no tip moved ends the solve early; since such a sweep leaves `q` unchanged, every further sweep
-//! would too, so the early exit never changes the result.
+//! The damping is λ = `damping` · clamp(max |eₐ| / `IK_DAMPING_DIST`, `IK_DAMPING_FLOOR`, 1):
+//! full λ far from the targets (bounded steps near singular, straight fingers), shrinking as the
+//! tips arrive, so that directions the Jacobian barely sees (tri3's roll against its spreads)
+//! converge in a few iterations instead of hundreds.
 //!
 //! Exactness: if every active target equals `ik_tip_positions(q_seed)`, every residual is exactly
-//! zero, no tip moves and `ik_solve` returns `q_seed` bit for bit (followers and out-of-limit
-//! entries included). Joints that are on no active chain (and lead no follower on one) are never
-//! written. NaN or infinite targets leave their tip alone (the residual test and the finite-step
-//! test both fail for NaN), so the result stays finite.
+//! zero and `ik_solve` returns `q_seed` bit for bit (followers and out-of-limit entries included).
+//! Actuated joints on no active chain are never written (followers are recomputed from their
+//! leaders once anything moves). A non-finite step (a NaN or infinite target) moves nothing, so the
+//! result stays finite on the CPU; the GPU may assume no NaN, so feed it finite targets.
 
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec3, Vec4};
@@ -48,39 +51,37 @@ use super::layout::*;
 use super::physics::{MAX_LINKS, Model};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 
-/// Default sweeps of [`ik_solve`]. Measured (tests/ik.rs): from the default seed (straight fingers, a
-/// singular pose) to random reachable targets, the worst fingertip error over 400 targets per shipped
-/// hand is well under 1 mm after 24 sweeps; from a seed within 0.3 rad, a handful of sweeps suffice
-/// and the early exit ends the solve.
+/// Rows of the stacked system: 3 per fingertip (keep in sync with ik.wgsl `IK_ROWS`).
+pub const IK_ROWS: usize = 3 * MAX_TIPS;
+/// Default iteration bound of [`ik_solve`] (see tests/ik.rs for the measured accuracy).
 pub const IK_ITERS: u32 = 24;
-/// Default damping λ (m) of `(J Jᵀ + λ² I)`: small against the fingers' lever arms (3–15 cm, so
-/// convergence is fast away from singularities) and large enough to bound the step near a
-/// straight finger (|Δq| ≤ |e| / 2λ).
-pub const IK_DAMPING: f32 = 0.01;
-/// Default largest joint change (rad) of one tip step: keeps far targets from flinging a finger
+/// Default damping λ (m) of `(J Jᵀ + λ² I)` far from the targets: small against the fingers' lever
+/// arms (3–15 cm) and large enough to bound the step near a straight finger (|Δq| ≤ |e| / 2λ).
+pub const IK_DAMPING: f32 = 0.02;
+/// Residual (m) below which the damping shrinks in proportion to it.
+pub const IK_DAMPING_DIST: f32 = 0.01;
+/// Smallest damping, as a fraction of `damping` (keeps J Jᵀ + λ² I well conditioned in f32).
+pub const IK_DAMPING_FLOOR: f32 = 0.05;
+/// Default largest joint change (rad) of one iteration: keeps far targets from flinging a finger
 /// through half a turn on a linearisation that only holds near the current pose.
 pub const IK_MAX_STEP: f32 = 0.3;
-/// Default residual (m) at or below which a fingertip counts as reached and is left alone. Small
-/// enough that stopping one step earlier or later (CPU vs GPU rounding around the threshold) changes
-/// a joint by less than 1e-5 rad (|Δq| ≤ tol / 2λ), and above the f32 noise of the kinematics
-/// (~1e-8 m), so converged solves exit early.
+/// Default residual (m) at or below which every tip counts as reached and the solve stops. Above
+/// the f32 noise of the kinematics (~1e-8 m), so converged solves stop early, and small enough that
+/// stopping one iteration earlier or later (CPU vs GPU rounding at the threshold) changes a joint by
+/// about 1e-5 rad at most.
 pub const IK_TOL: f32 = 1e-7;
-
-/// Block Gauss–Seidel sweeps of the stacked solve per iteration when active chains share a joint
-/// (tri3's wrist roll); one sweep is exact for independent chains.
-pub const IK_SWEEPS: u32 = 4;
 
 /// Solver settings (WGSL `IkParams`).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct IkParams {
-    /// Sweeps over the active fingertips (the loop bound; a sweep that moves nothing ends early).
+    /// Most iterations (the loop bound; the solve stops early once every tip is within `tol`).
     pub iters: u32,
-    /// λ (m), must be > 0.
+    /// λ (m) far from the targets, > 0.
     pub damping: f32,
-    /// Largest joint change of one tip step (rad), > 0.
+    /// Largest joint change of one iteration (rad), > 0.
     pub max_step: f32,
-    /// Residual (m) at or below which a fingertip is left alone, ≥ 0.
+    /// Residual (m) at or below which every tip counts as reached, ≥ 0.
     pub tol: f32,
 }
 
@@ -108,24 +109,26 @@ pub struct IkScratch {
     /// Link poses of `ik_link_poses` (wrist frame).
     pub link_pos: [Vec3; MAX_LINKS],
     pub link_rot: [Vec4; MAX_LINKS],
-    /// Joints of the current chain, root → tip (`ik_chain`), and how many (`ik_tip_jacobian`).
+    /// Joints of the current chain, root → tip (`ik_chain`).
     pub chain_j: [u32; MAX_JOINTS],
-    pub chain_n: usize,
-    /// The actuated joint whose Jacobian column chain entry i carries (at the first entry driven by
-    /// each unlocked leader), `NO_JOINT` for the others.
-    pub chain_k: [u32; MAX_JOINTS],
     /// World origin and axis of each chain joint (`ik_chain_fk`).
     pub chain_o: [Vec3; MAX_JOINTS],
     pub chain_a: [Vec3; MAX_JOINTS],
-    /// Jacobian column cₖ of chain entry i (zero when `chain_k[i]` is `NO_JOINT`).
-    pub chain_c: [Vec3; MAX_JOINTS],
-    /// Active fingertips whose chain each actuated joint drives (`ik_share`).
-    pub share: [u32; MAX_JOINTS],
+    /// Jacobian `[slot][joint]`: column of actuated joint k in active tip slot a at `a * MAX_JOINTS + k`
+    /// (zero for followers, joints off the chain and locked joints).
+    pub jac: [Vec3; MAX_TIPS * MAX_JOINTS],
+    /// Residual eₐ of each slot.
+    pub err: [Vec3; MAX_TIPS],
+    /// J Jᵀ + λ² I (`[IK_ROWS, IK_ROWS]`, row-major), then its Cholesky factor L (lower triangle).
+    pub gram: [f32; IK_ROWS * IK_ROWS],
+    /// The multipliers y = (J Jᵀ + λ² I)⁻¹ e `[IK_ROWS]`.
+    pub y: [f32; IK_ROWS],
+    /// The step Δq = Jᵀ y.
+    pub dq: [f32; MAX_JOINTS],
+    /// 1 for an actuated joint that drives an active chain (`ik_touched`).
+    pub touched: [u32; MAX_JOINTS],
     /// 1 for a joint locked at a limit during the current iteration.
     pub lock: [u32; MAX_JOINTS],
-    /// The step Δq = Jᵀ y and the multipliers y of each tip (`ik_dls_step`).
-    pub dq: [f32; MAX_JOINTS],
-    pub y: [Vec3; MAX_TIPS],
     /// The solver's joint vector.
     pub q: [f32; MAX_JOINTS],
 }
@@ -136,15 +139,15 @@ impl Default for IkScratch {
             link_pos: [Vec3::ZERO; MAX_LINKS],
             link_rot: [Vec4::W; MAX_LINKS],
             chain_j: [0; MAX_JOINTS],
-            chain_n: 0,
-            chain_k: [NO_JOINT; MAX_JOINTS],
             chain_o: [Vec3::ZERO; MAX_JOINTS],
             chain_a: [Vec3::ZERO; MAX_JOINTS],
-            chain_c: [Vec3::ZERO; MAX_JOINTS],
-            share: [0; MAX_JOINTS],
-            lock: [0; MAX_JOINTS],
+            jac: [Vec3::ZERO; MAX_TIPS * MAX_JOINTS],
+            err: [Vec3::ZERO; MAX_TIPS],
+            gram: [0.0; IK_ROWS * IK_ROWS],
+            y: [0.0; IK_ROWS],
             dq: [0.0; MAX_JOINTS],
-            y: [Vec3::ZERO; MAX_TIPS],
+            touched: [0; MAX_JOINTS],
+            lock: [0; MAX_JOINTS],
             q: [0.0; MAX_JOINTS],
         }
     }
@@ -241,185 +244,152 @@ pub fn ik_tip_positions(m: &Model, q: &[f32; MAX_JOINTS], s: &mut IkScratch) -> 
     out
 }
 
-/// Solves A x = b for a symmetric positive definite 3×3 A given as (a00, a01, a02, a11, a12, a22),
-/// by Cholesky (A = L Lᵀ).
-pub fn ik_solve3(a: [f32; 6], b: Vec3) -> Vec3 {
-    let l00 = a[0].max(1e-20).sqrt();
-    let l10 = a[1] / l00;
-    let l20 = a[2] / l00;
-    let l11 = (a[3] - l10 * l10).max(1e-20).sqrt();
-    let l21 = (a[4] - l20 * l10) / l11;
-    let l22 = (a[5] - l20 * l20 - l21 * l21).max(1e-20).sqrt();
-    // L y = b
-    let y0 = b.x / l00;
-    let y1 = (b.y - l10 * y0) / l11;
-    let y2 = (b.z - l20 * y0 - l21 * y1) / l22;
-    // Lᵀ x = y
-    let x2 = y2 / l22;
-    let x1 = (y1 - l21 * x2) / l11;
-    let x0 = (y0 - l10 * x1 - l20 * x2) / l00;
-    Vec3::new(x0, x1, x2)
-}
-
 /// Actuated joint that drives joint `j`: itself, or its mimic leader.
 pub fn ik_leader(m: &Model, j: u32) -> u32 {
     let l = m.joints[j as usize].mimic_leader;
     if l != NO_JOINT { l } else { j }
 }
 
-/// Counts, for every actuated joint k, the active fingertips (bit t of `mask`) whose chain it drives
-/// (itself or through a follower) into `s.share`; returns the largest count (> 1: the active chains
-/// are coupled).
-pub fn ik_share(m: &Model, mask: u32, s: &mut IkScratch) -> u32 {
+/// Marks in `s.touched` every actuated joint that drives the chain of an active fingertip (bit t of
+/// `mask`), itself or through a follower; returns how many tips are active.
+pub fn ik_touched(m: &Model, mask: u32, s: &mut IkScratch) -> usize {
     for k in 0..MAX_JOINTS {
-        s.share[k] = 0;
+        s.touched[k] = 0;
     }
-    let mut most = 0;
+    let mut n_active = 0;
     for t in 0..m.g.n_tips as usize {
         if ((mask >> t) & 1) != 0 {
+            n_active += 1;
             let n = ik_chain(m, t, s);
             for i in 0..n {
-                let k = ik_leader(m, s.chain_j[i]) as usize;
-                // once per tip: skip a leader that an earlier entry of this chain already counted
-                let mut first = true;
-                for i2 in 0..i {
-                    if ik_leader(m, s.chain_j[i2]) as usize == k {
-                        first = false;
-                    }
-                }
-                if first {
-                    s.share[k] += 1;
-                    most = most.max(s.share[k]);
-                }
+                s.touched[ik_leader(m, s.chain_j[i]) as usize] = 1;
             }
         }
     }
-    most
+    n_active
 }
 
-/// Chain FK of fingertip `t` at `s.q` and its Jacobian: for each actuated joint k that moves the tip
-/// and is not locked, the column cₖ = Σ_{j on the chain driven by k} wⱼ aⱼ × (p − oⱼ) (wⱼ = 1 for k,
-/// the mimic multiplier for its followers), kept at k's first chain entry (`s.chain_k`,
-/// `s.chain_c`; other entries get `NO_JOINT` and a zero column). Returns e = target − p.
-pub fn ik_tip_jacobian(m: &Model, t: usize, target: Vec3, s: &mut IkScratch) -> Vec3 {
+/// Chain FK of fingertip `t` at `s.q` and its Jacobian row block in slot `a` of `s.jac` (columns of
+/// unlocked actuated joints, see the module documentation); stores and returns e = target − x.
+pub fn ik_tip_jacobian(m: &Model, t: usize, a: usize, target: Vec3, s: &mut IkScratch) -> Vec3 {
     let n = ik_chain(m, t, s);
-    s.chain_n = n;
     let q = s.q;
-    let p = ik_chain_fk(m, t, n, &q, s);
+    let x = ik_chain_fk(m, t, n, &q, s);
+    for k in 0..MAX_JOINTS {
+        s.jac[a * MAX_JOINTS + k] = Vec3::ZERO;
+    }
     for i in 0..n {
-        let k = ik_leader(m, s.chain_j[i]);
-        // the first chain entry driven by k carries k's column
-        let mut first = true;
-        for i2 in 0..i {
-            if ik_leader(m, s.chain_j[i2]) == k {
-                first = false;
-            }
+        let j = s.chain_j[i];
+        let k = ik_leader(m, j) as usize;
+        if s.lock[k] == 0 {
+            let w = if j as usize == k { 1.0 } else { m.joints[j as usize].mimic_mult };
+            // Jₐₖ += wⱼ aⱼ × (x − oⱼ)
+            s.jac[a * MAX_JOINTS + k] += w * s.chain_a[i].cross(x - s.chain_o[i]);
         }
-        let mut c = Vec3::ZERO;
-        s.chain_k[i] = NO_JOINT;
-        if first && s.lock[k as usize] == 0 {
-            s.chain_k[i] = k;
-            for i2 in i..n {
-                let j2 = s.chain_j[i2];
-                if ik_leader(m, j2) == k {
-                    let w = if j2 == k { 1.0 } else { m.joints[j2 as usize].mimic_mult };
-                    // cₖ += w aⱼ × (p − oⱼ)
-                    c += w * s.chain_a[i2].cross(p - s.chain_o[i2]);
-                }
-            }
-        }
-        s.chain_c[i] = c;
     }
     // e = x* − x
-    target - p
+    let e = target - x;
+    s.err[a] = e;
+    e
 }
 
-/// Jₜ Jₜᵀ + λ² I = Σᵢ cᵢ cᵢᵀ + λ² I over the columns of `ik_tip_jacobian`, as
-/// (a00, a01, a02, a11, a12, a22).
-pub fn ik_normal_matrix(damping: f32, s: &IkScratch) -> [f32; 6] {
-    let l2 = damping * damping;
-    let mut a = [l2, 0.0, 0.0, l2, 0.0, l2];
-    for i in 0..s.chain_n {
-        let c = s.chain_c[i];
-        a[0] += c.x * c.x;
-        a[1] += c.x * c.y;
-        a[2] += c.x * c.z;
-        a[3] += c.y * c.y;
-        a[4] += c.y * c.z;
-        a[5] += c.z * c.z;
-    }
-    a
-}
-
-/// One block Gauss–Seidel update of fingertip `t`'s rows of (J Jᵀ + λ² I) y = e, the stacked DLS
-/// system of all active tips: rₜ = eₜ − Jₜ Δq − λ² yₜ, δ = (Jₜ Jₜᵀ + λ² I)⁻¹ rₜ, yₜ += δ,
-/// Δq += Jₜᵀ δ (Δq = Jᵀ y is kept in `s.dq`, yₜ in `s.y`).
-pub fn ik_block_update(m: &Model, t: usize, target: Vec3, damping: f32, s: &mut IkScratch) {
-    let e = ik_tip_jacobian(m, t, target, s);
-    // a non-finite target (NaN, ±inf) takes no part in the solve
-    if !(e.length() < 1e30) {
-        return;
-    }
-    // rₜ = eₜ − Jₜ Δq − λ² yₜ
-    let mut r = e - damping * damping * s.y[t];
-    for i in 0..s.chain_n {
-        let k = s.chain_k[i];
-        if k != NO_JOINT {
-            r -= s.chain_c[i] * s.dq[k as usize];
-        }
-    }
-    let d = ik_solve3(ik_normal_matrix(damping, s), r);
-    s.y[t] += d;
-    // Δqₖ += cₖ · δ
-    for i in 0..s.chain_n {
-        let k = s.chain_k[i];
-        if k != NO_JOINT {
-            s.dq[k as usize] += s.chain_c[i].dot(d);
-        }
-    }
-}
-
-/// Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e over the active tips, by `sweeps` block Gauss–Seidel sweeps from
-/// y = 0 (exact after one sweep when no two active chains share a joint), into `s.dq`.
-pub fn ik_dls_step(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, damping: f32, sweeps: u32, s: &mut IkScratch) {
-    for k in 0..MAX_JOINTS {
-        s.dq[k] = 0.0;
-    }
-    for t in 0..MAX_TIPS {
-        s.y[t] = Vec3::ZERO;
-    }
-    for _ in 0..sweeps {
-        for t in 0..m.g.n_tips as usize {
-            if ((mask >> t) & 1) != 0 {
-                ik_block_update(m, t, targets[t], damping, s);
+/// J Jᵀ + λ² I over `n_active` slots into `s.gram` (`[3m, 3m]` at stride `IK_ROWS`, lower triangle
+/// and diagonal): block (a, b) = Σₖ Jₐₖ Jᵦₖᵀ.
+pub fn ik_gram(m: &Model, n_active: usize, damping: f32, s: &mut IkScratch) {
+    let n = m.g.n_joints as usize;
+    for a in 0..n_active {
+        for b in 0..=a {
+            for r in 0..3 {
+                for c in 0..3 {
+                    let mut sum = 0.0;
+                    for k in 0..n {
+                        sum += s.jac[a * MAX_JOINTS + k][r] * s.jac[b * MAX_JOINTS + k][c];
+                    }
+                    if a == b && r == c {
+                        sum += damping * damping;
+                    }
+                    s.gram[(3 * a + r) * IK_ROWS + 3 * b + c] = sum;
+                }
             }
         }
     }
 }
 
-/// One solver iteration on `s.q` (see the module documentation): returns false, leaving `s.q`
+/// Solves (J Jᵀ + λ² I) y = e (`3 · n_active` rows) into `s.y` by Cholesky, L overwriting
+/// `s.gram`'s lower triangle.
+pub fn ik_cholesky(n_active: usize, s: &mut IkScratch) {
+    let n = 3 * n_active;
+    for i in 0..n {
+        for j in 0..=i {
+            let mut sum = s.gram[i * IK_ROWS + j];
+            for k in 0..j {
+                sum -= s.gram[i * IK_ROWS + k] * s.gram[j * IK_ROWS + k];
+            }
+            if i == j {
+                s.gram[i * IK_ROWS + i] = sum.max(1e-20).sqrt();
+            } else {
+                s.gram[i * IK_ROWS + j] = sum / s.gram[j * IK_ROWS + j];
+            }
+        }
+    }
+    // L z = e
+    for i in 0..n {
+        let mut sum = s.err[i / 3][i % 3];
+        for k in 0..i {
+            sum -= s.gram[i * IK_ROWS + k] * s.y[k];
+        }
+        s.y[i] = sum / s.gram[i * IK_ROWS + i];
+    }
+    // Lᵀ y = z
+    for ii in 0..n {
+        let i = n - 1 - ii;
+        let mut sum = s.y[i];
+        for k in (i + 1)..n {
+            sum -= s.gram[k * IK_ROWS + i] * s.y[k];
+        }
+        s.y[i] = sum / s.gram[i * IK_ROWS + i];
+    }
+}
+
+/// Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e into `s.dq` (Δqₖ = Σₐ Jₐₖ · yₐ).
+pub fn ik_dls_step(m: &Model, n_active: usize, damping: f32, s: &mut IkScratch) {
+    ik_gram(m, n_active, damping, s);
+    ik_cholesky(n_active, s);
+    for k in 0..m.g.n_joints as usize {
+        let mut d = 0.0;
+        for a in 0..n_active {
+            d += s.jac[a * MAX_JOINTS + k].dot(Vec3::new(s.y[3 * a], s.y[3 * a + 1], s.y[3 * a + 2]));
+        }
+        s.dq[k] = d;
+    }
+}
+
+/// One solver iteration on `s.q` (see the module documentation); returns false, leaving `s.q`
 /// untouched, when every active residual is ≤ `tol` or the step is not finite.
-pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, prm: &IkParams, sweeps: u32, s: &mut IkScratch) -> bool {
-    let mut worst = 0.0f32;
+pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, n_active: usize, prm: &IkParams, s: &mut IkScratch) -> bool {
     for k in 0..MAX_JOINTS {
         s.lock[k] = 0;
     }
+    let mut worst = 0.0f32;
+    let mut a = 0;
     for t in 0..m.g.n_tips as usize {
         if ((mask >> t) & 1) != 0 {
-            let e = ik_tip_jacobian(m, t, targets[t], s);
-            // NaN fails the comparison: a NaN target counts as reached
-            if e.length() > worst {
-                worst = e.length();
+            let e = ik_tip_jacobian(m, t, a, targets[t], s).length();
+            // written so that a NaN propagates
+            if !(e <= worst) {
+                worst = e;
             }
+            a += 1;
         }
     }
     if !(worst > prm.tol) {
         return false;
     }
-    // a joint at a limit that Δq pushes further out is locked and the step solved again without it,
-    // so that it does not absorb the step
+    // λ = damping · clamp(max |e| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1)
+    let damping = prm.damping * (worst / IK_DAMPING_DIST).clamp(IK_DAMPING_FLOOR, 1.0);
     for _ in 0..MAX_JOINTS {
-        ik_dls_step(m, targets, mask, prm.damping, sweeps, s);
+        ik_dls_step(m, n_active, damping, s);
+        // lock every joint at a limit that Δq pushes further out, zero its columns, solve again
         let mut locked = false;
         for k in 0..m.g.n_joints as usize {
             let jd = &m.joints[k];
@@ -427,6 +397,9 @@ pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, prm: &IkPara
             if s.lock[k] == 0 && ((s.q[k] <= jd.lower && d < 0.0) || (s.q[k] >= jd.upper && d > 0.0)) {
                 s.lock[k] = 1;
                 locked = true;
+                for b in 0..n_active {
+                    s.jac[b * MAX_JOINTS + k] = Vec3::ZERO;
+                }
             }
         }
         if !locked {
@@ -435,10 +408,9 @@ pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, prm: &IkPara
     }
     let mut dmax = 0.0f32;
     for k in 0..m.g.n_joints as usize {
-        // written so that a NaN propagates
-        let a = s.dq[k].abs();
-        if !(a <= dmax) {
-            dmax = a;
+        let d = s.dq[k].abs();
+        if !(d <= dmax) {
+            dmax = d;
         }
     }
     // a non-finite step moves nothing
@@ -449,7 +421,7 @@ pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, prm: &IkPara
     let scale = if dmax > prm.max_step { prm.max_step / dmax } else { 1.0 };
     for k in 0..m.g.n_joints as usize {
         let jd = &m.joints[k];
-        if s.share[k] > 0 && s.lock[k] == 0 {
+        if s.touched[k] != 0 && s.lock[k] == 0 {
             s.q[k] = (s.q[k] + scale * s.dq[k]).clamp(jd.lower, jd.upper);
         }
     }
@@ -463,10 +435,9 @@ pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, prm: &IkPara
 pub fn ik_solve(m: &Model, q_seed: &[f32; MAX_JOINTS], targets: &[Vec3; MAX_TIPS], mask: u32, prm: &IkParams) -> [f32; MAX_JOINTS] {
     let mut s = IkScratch::default();
     s.q = *q_seed;
-    // coupled chains need several sweeps for the stacked solve, independent ones one
-    let sweeps = if ik_share(m, mask, &mut s) > 1 { IK_SWEEPS } else { 1 };
+    let n_active = ik_touched(m, mask, &mut s);
     for _ in 0..prm.iters {
-        if !ik_iterate(m, targets, mask, prm, sweeps, &mut s) {
+        if !ik_iterate(m, targets, mask, n_active, prm, &mut s) {
             break;
         }
     }
