@@ -527,6 +527,9 @@ pub struct PolicyConfig {
     pub init_std: f32,
     /// Normalise observations with running mean and variance (saved with the model).
     pub obs_normalization: bool,
+    /// Start the actor's output layer at zero, so that the initial policy mean is 0: a residual
+    /// policy then starts as the reference it corrects (residual RL's usual initialisation).
+    pub zero_init_output: bool,
 }
 
 impl Default for TaskConfig {
@@ -618,7 +621,7 @@ impl Default for PpoConfig {
 
 impl Default for PolicyConfig {
     fn default() -> Self {
-        PolicyConfig { actor_hidden: vec![256, 128, 64], critic_hidden: vec![256, 128, 64], activation: "elu".into(), init_std: 1.0, obs_normalization: true }
+        PolicyConfig { actor_hidden: vec![256, 128, 64], critic_hidden: vec![256, 128, 64], activation: "elu".into(), init_std: 1.0, obs_normalization: true, zero_init_output: false }
     }
 }
 

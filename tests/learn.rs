@@ -246,7 +246,7 @@ fn the_wgpu_learner_matches_the_cpu_learner() {
     let obs: Vec<f32> = (0..n * 3).map(|_| rng.normal() as f32).collect();
     let priv_obs: Vec<f32> = (0..n * 4).map(|_| rng.normal() as f32).collect();
     let rewards: Vec<f32> = (0..n).map(|_| rng.normal() as f32).collect();
-    let mut run = |device: Device| {
+    let run = |device: Device| {
         let mut ppo = Ppo::new(dims, n, steps, &cfg, &pol, device, 5).unwrap();
         let mut actions = Vec::new();
         for _ in 0..steps {
@@ -270,4 +270,29 @@ fn the_wgpu_learner_matches_the_cpu_learner() {
     // the update did change the parameters
     let fresh = Ppo::new(dims, n, steps, &cfg, &pol, cpu(), 5).unwrap().net.values().unwrap();
     assert!(fresh.iter().flatten().zip(p_cpu.iter().flatten()).any(|(a, b)| a != b));
+}
+
+/// `policy.zero_init_output`: the initial policy mean is exactly 0 for any observation (a residual
+/// policy starts as its reference), the std is still `init_std`, and one update moves the mean.
+#[test]
+fn zero_initialised_output_layer_starts_at_a_zero_mean_and_still_learns() {
+    let (n, steps) = (8, 4);
+    let dims = Dims { obs: 3, priv_obs: 3, act: 2 };
+    let cfg = PpoConfig { minibatches: 1, epochs: 2, ..PpoConfig::default() };
+    let mut rng = Rng::new(3, 3);
+    let obs: Vec<f32> = (0..n * 3).map(|_| 3.0 * rng.normal() as f32).collect();
+    let plain = PolicyConfig { actor_hidden: vec![16], critic_hidden: vec![16], init_std: 0.3, ..PolicyConfig::default() };
+    let zero = PolicyConfig { zero_init_output: true, ..plain.clone() };
+    let mean_of = |pol: &PolicyConfig| Ppo::new(dims, n, steps, &cfg, pol, cpu(), 5).unwrap().act_mean(&obs).unwrap();
+    assert!(mean_of(&plain).iter().any(|m| m.abs() > 1e-3), "torch's initialisation gives a non-zero mean");
+    assert!(mean_of(&zero).iter().all(|&m| m == 0.0));
+    let mut ppo = Ppo::new(dims, n, steps, &cfg, &zero, cpu(), 5).unwrap();
+    let rewards: Vec<f32> = (0..n).map(|i| if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
+    for _ in 0..steps {
+        let a = ppo.act(&obs, &obs).unwrap();
+        assert!(a.iter().all(|x| x.abs() < 2.0), "actions ~ N(0, 0.3²)");
+        ppo.process_step(&rewards, &vec![false; n], &vec![false; n]);
+    }
+    ppo.update(&obs).unwrap();
+    assert!(ppo.act_mean(&obs).unwrap().iter().any(|&m| m != 0.0), "the update moved the mean");
 }

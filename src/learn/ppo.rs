@@ -50,6 +50,13 @@ impl ActorCritic {
         let actor_shapes = mlp_shapes(dims.obs, &cfg.actor_hidden, dims.act);
         let critic_shapes = mlp_shapes(dims.priv_obs, &cfg.critic_hidden, 1);
         let mut values = init_mlp(&actor_shapes, rng);
+        if cfg.zero_init_output {
+            // the last layer's weight and bias: μ(s) = 0 for every s at the start
+            let n = values.len();
+            for v in &mut values[n - 2..] {
+                v.fill(0.0);
+            }
+        }
         values.push(vec![cfg.init_std.ln(); dims.act]);
         values.extend(init_mlp(&critic_shapes, rng));
         let mut ac = ActorCritic { dims, activation, actor_shapes, critic_shapes, params: Vec::new() };
