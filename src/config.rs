@@ -476,6 +476,8 @@ pub struct TrainConfig {
     pub plot_interval: u32,
     /// Start each env's first episode at a random step count in [0, episode_length), so that the
     /// envs' episodes do not all end in the same iteration (rsl_rl's `init_at_random_ep_len`).
+    /// The lift task only: a reference kind's episodes start at their reference's first frame
+    /// (`task.reference.time_scale` spreads their ends).
     pub init_at_random_ep_len: bool,
 }
 

@@ -233,7 +233,9 @@ pub fn run(args: &TrainArgs) -> Result<PathBuf> {
         None => {
             let first = task.reset_all()?;
             let (o, p) = (first.obs.clone(), first.priv_obs.clone());
-            if cfg.train.init_at_random_ep_len {
+            // (the lift task only: a reference kind's episode starts at its reference's first frame,
+            // and a random step count would start the reference elsewhere than the hand and object)
+            if cfg.train.init_at_random_ep_len && cfg.task.kind == "lift" {
                 // desynchronise the episodes: each env's first episode starts at a random step count
                 let mut rng = crate::learn::rng::Rng::new(cfg.seed as u64, 0xE915_0DE5);
                 let mut states = task.env().states()?;

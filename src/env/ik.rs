@@ -22,7 +22,7 @@
 //!    (q_f = mult·q_k + offset): a leader that is not on the chain still moves the tip through its
 //!    follower; followers themselves are never solved for;
 //! 2. if every |eₐ| ≤ `tol` (an exact zero included) the solve stops: nothing moves;
-//! 3. Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e (`ik_gram`, `ik_cholesky`, `ik_dls_step`): J Jᵀ is the
+//! 3. Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e (`ik_build_gram`, `ik_cholesky`, `ik_dls_step`): J Jᵀ is the
 //!    3m × 3m matrix of 3×3 blocks Σₖ Jₐₖ Jᵦₖᵀ, so fingertips that share a joint (tri3's wrist roll,
 //!    its mimic-coupled spread) are solved together, and tips on independent chains (dexhand16's
 //!    fingers) give a block-diagonal matrix, i.e. one 3×3 DLS solve per tip;
@@ -64,7 +64,7 @@ pub const IK_DAMPING_DIST: f32 = 0.01;
 pub const IK_DAMPING_FLOOR: f32 = 0.05;
 /// Default largest joint change (rad) of one iteration: keeps far targets from flinging a finger
 /// through half a turn on a linearisation that only holds near the current pose.
-pub const IK_MAX_STEP: f32 = 0.3;
+pub const IK_MAX_STEP: f32 = 0.5;
 /// Default residual (m) at or below which every tip counts as reached and the solve stops. Above
 /// the f32 noise of the kinematics (~1e-8 m), so converged solves stop early, and small enough that
 /// stopping one iteration earlier or later (CPU vs GPU rounding at the threshold) changes a joint by
@@ -125,7 +125,7 @@ pub struct IkScratch {
     pub y: [f32; IK_ROWS],
     /// The step Δq = Jᵀ y.
     pub dq: [f32; MAX_JOINTS],
-    /// 1 for an actuated joint that drives an active chain (`ik_touched`).
+    /// 1 for an actuated joint that drives an active chain (`ik_touched`; WGSL `ik_touched_k`).
     pub touched: [u32; MAX_JOINTS],
     /// 1 for a joint locked at a limit during the current iteration.
     pub lock: [u32; MAX_JOINTS],
@@ -270,8 +270,8 @@ pub fn ik_touched(m: &Model, mask: u32, s: &mut IkScratch) -> usize {
 }
 
 /// Chain FK of fingertip `t` at `s.q` and its Jacobian row block in slot `a` of `s.jac` (columns of
-/// unlocked actuated joints, see the module documentation); stores and returns e = target − x.
-pub fn ik_tip_jacobian(m: &Model, t: usize, a: usize, target: Vec3, s: &mut IkScratch) -> Vec3 {
+/// unlocked actuated joints, see the module documentation); stores and returns e = goal − x.
+pub fn ik_tip_jacobian(m: &Model, t: usize, a: usize, goal: Vec3, s: &mut IkScratch) -> Vec3 {
     let n = ik_chain(m, t, s);
     let q = s.q;
     let x = ik_chain_fk(m, t, n, &q, s);
@@ -288,14 +288,14 @@ pub fn ik_tip_jacobian(m: &Model, t: usize, a: usize, target: Vec3, s: &mut IkSc
         }
     }
     // e = x* − x
-    let e = target - x;
+    let e = goal - x;
     s.err[a] = e;
     e
 }
 
 /// J Jᵀ + λ² I over `n_active` slots into `s.gram` (`[3m, 3m]` at stride `IK_ROWS`, lower triangle
 /// and diagonal): block (a, b) = Σₖ Jₐₖ Jᵦₖᵀ.
-pub fn ik_gram(m: &Model, n_active: usize, damping: f32, s: &mut IkScratch) {
+pub fn ik_build_gram(m: &Model, n_active: usize, damping: f32, s: &mut IkScratch) {
     let n = m.g.n_joints as usize;
     for a in 0..n_active {
         for b in 0..=a {
@@ -353,7 +353,7 @@ pub fn ik_cholesky(n_active: usize, s: &mut IkScratch) {
 
 /// Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e into `s.dq` (Δqₖ = Σₐ Jₐₖ · yₐ).
 pub fn ik_dls_step(m: &Model, n_active: usize, damping: f32, s: &mut IkScratch) {
-    ik_gram(m, n_active, damping, s);
+    ik_build_gram(m, n_active, damping, s);
     ik_cholesky(n_active, s);
     for k in 0..m.g.n_joints as usize {
         let mut d = 0.0;
