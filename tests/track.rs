@@ -320,3 +320,61 @@ fn cpu_and_gpu_agree_on_every_reference_kind() {
         }
     }
 }
+
+/// A residual run end to end: train a few iterations from the shipped config, then `eval
+/// --baseline open-loop`: the JSON holds both, the Markdown table is written, and the baseline's
+/// episodes (un-augmented reference, no randomisation) end exactly where `dextrain replay` ends.
+#[test]
+fn residual_run_trains_and_evaluates_against_the_open_loop_baseline() {
+    use dextrain::eval::{EvalArgs, run as eval};
+    use dextrain::train::{TrainArgs, run as train};
+    let tmp = tempfile::tempdir().unwrap();
+    let sets: Vec<String> = [
+        "sim.backend=cpu",
+        "train.device=cpu",
+        "sim.num_envs=4",
+        "train.iterations=2",
+        "train.steps_per_env=8",
+        "train.save_interval=2",
+        "train.plot_interval=0",
+        "policy.actor_hidden=[16]",
+        "policy.critic_hidden=[16]",
+        "task.reference.files=[\"refs/grasp_lift.mcap\"]",
+        "task.reference.translate_xy=0",
+        "task.reference.rotate_z=0",
+        "task.reference.time_scale=0",
+    ]
+    .iter()
+    .map(|s| s.to_string())
+    .collect();
+    let args = TrainArgs {
+        config: Some(configs().join("residual_joint_cube.toml")),
+        sets,
+        name: Some("rj".into()),
+        resume: None,
+        force: false,
+        runs_dir: tmp.path().to_path_buf(),
+        stop_after: None,
+        quiet: true,
+    };
+    let dir = train(&args).expect("train");
+    let e = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 2, max_envs: 2, seed: None, record: None, backend: None, baseline: Some("open-loop".into()) };
+    let r = eval(&e).expect("eval");
+    let base = r.baseline.as_ref().expect("baseline");
+    assert_eq!((r.policy.per_episode.len(), base.per_episode.len()), (2, 2));
+    assert!(r.path.with_extension("md").is_file());
+    let json: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&r.path).unwrap()).unwrap();
+    assert!(json["baseline"]["ote_m"]["mean"].is_number() && json["ote_m"]["mean"].is_number());
+    // replay of the same reference under the run's config
+    let cfg = Config::load(&dir.join("config.toml")).unwrap();
+    let rep = replay(&Config { sim: dextrain::config::SimConfig { num_envs: 1, ..cfg.sim.clone() }, ..cfg.clone() }, &reference(), false, None).unwrap();
+    let want = rep.terminal_object_pos_err_m.unwrap();
+    for ep in &base.per_episode {
+        assert!((ep.terminal_pos_err_m - want).abs() < 1e-6, "baseline ends {} m off, replay {want} m", ep.terminal_pos_err_m);
+        assert_eq!(ep.length as usize, rep.trace.len() - 1, "the episode plays the whole reference");
+    }
+    assert!(base.ote_m.mean > 0.0 && base.ote_m.mean < 0.05, "{:?}", base.ote_m);
+    // an unknown baseline is a one-line error
+    let bad = eval(&EvalArgs { baseline: Some("closed-loop".into()), ..e.clone() }).unwrap_err().to_string();
+    assert!(bad.contains("--baseline") && bad.contains("open-loop"), "{bad}");
+}
