@@ -100,15 +100,18 @@ pub struct Contact {
     pub point: Vec3,
 }
 
-fn v3(a: [f32; 4]) -> Vec3 {
+/// The xyz of a padded `[f32; 4]` (a WGSL `vec4`'s `.xyz`).
+pub fn v3(a: [f32; 4]) -> Vec3 {
     Vec3::new(a[0], a[1], a[2])
 }
 
-fn v4(a: [f32; 4]) -> Vec4 {
+/// A `[f32; 4]` as a Vec4 (quaternions, xyzw).
+pub fn v4(a: [f32; 4]) -> Vec4 {
     Vec4::from_array(a)
 }
 
-fn put3(v: Vec3) -> [f32; 4] {
+/// A Vec3 as a padded `[f32; 4]` (w = 0).
+pub fn put3(v: Vec3) -> [f32; 4] {
     [v.x, v.y, v.z, 0.0]
 }
 

@@ -73,6 +73,7 @@ use serde::{Deserialize, Serialize};
 use super::SimModel;
 use super::common::{quat_conj, quat_from_axis_angle, quat_mul, quat_normalize, quat_rotate, rand_uniform};
 use super::layout::{EnvState, Globals, JointDesc, NO_JOINT};
+use super::physics::{put3, v3, v4};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 use crate::traj::bank::RefBank;
 
@@ -359,18 +360,6 @@ impl<'a> RefModel<'a> {
     pub fn new(model: &'a SimModel, bank: &'a RefBank, rg: &'a RefGlobals) -> RefModel<'a> {
         RefModel { g: &model.globals, joints: &model.joints, rg, info: &bank.info, frames: &bank.frames }
     }
-}
-
-fn v3(a: [f32; 4]) -> Vec3 {
-    Vec3::new(a[0], a[1], a[2])
-}
-
-fn v4(a: [f32; 4]) -> Vec4 {
-    Vec4::from_array(a)
-}
-
-fn put3(v: Vec3) -> [f32; 4] {
-    [v.x, v.y, v.z, 0.0]
 }
 
 /// Index of the first float of frame `i` of the reference `info`.

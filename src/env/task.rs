@@ -66,7 +66,7 @@ use rayon::prelude::*;
 use super::common::{quat_error, quat_from_axis_angle, quat_mul, quat_normalize, quat_rotate, rand_uniform};
 use super::cpu::CpuEnvBatch;
 use super::layout::*;
-use super::physics::{Model, Scratch, hand_kinematics};
+use super::physics::{Model, Scratch, hand_kinematics, v3};
 use super::{EnvBatch, SimModel};
 use super::ik::{IkParams, ik_solve, ik_tip_positions, IkScratch};
 use super::reference::{RefFrame, RefGlobals, RefModel, ref_begin, ref_object_start, ref_sample};
@@ -557,10 +557,6 @@ pub(crate) fn check_actions(spec: &TaskSpec, actions: &[f32]) -> Result<()> {
 // ---------------------------------------------------------------------------------------------
 // CPU twin of shaders/task.wgsl (same function names, same order, same arithmetic)
 // ---------------------------------------------------------------------------------------------
-
-fn v3(a: [f32; 4]) -> Vec3 {
-    Vec3::new(a[0], a[1], a[2])
-}
 
 /// The observation cursor of one env (the shader's `ob_*` / `pr_base` private variables): where
 /// its actor and critic rows go and the counters its noise is drawn from.
