@@ -271,7 +271,7 @@ fn tracking_reward_terms_match_hand_computed_values() {
 fn cpu_and_gpu_agree_on_every_reference_kind() {
     let Some(_) = gpu_context("cpu_and_gpu_agree_on_every_reference_kind") else { return };
     for kind in ["track", "residual_joint", "residual_task"] {
-        let mut c = track_config(kind, 16);
+        let mut c = track_config(kind, 8);
         // every augmentation on, observation noise on, short episodes so that resets happen
         let a = &mut c.task.reference;
         a.translate_xy = 0.03;
@@ -300,7 +300,7 @@ fn cpu_and_gpu_agree_on_every_reference_kind() {
         };
         close(&a0.obs, &b0.obs, 0.1, "obs", 0);
         let mut rng = 12345u64;
-        for step in 1..=30 {
+        for step in 1..=16 {
             let actions: Vec<f32> = (0..spec.num_envs * spec.action_dim)
                 .map(|_| {
                     rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
