@@ -5,12 +5,12 @@
 
 mod common;
 
-use std::mem::{offset_of, size_of};
+use std::mem::size_of;
 use std::path::PathBuf;
 
 use common::{base_config, gpu_context};
 use dextrain::config::Config;
-use dextrain::env::gpu::{KernelBinding, SHADER_COMMON, SHADER_PHYSICS, SHADER_REFERENCE, SHADER_RESET, run_kernel};
+use dextrain::env::gpu::{KernelBinding, SHADER_REFERENCE, run_kernel};
 use dextrain::env::layout::{EnvState, NO_JOINT};
 use dextrain::env::reference::*;
 use dextrain::env::reset::{reset_params, reset_state};
@@ -601,108 +601,6 @@ fn reference_config_parses_validates_and_fills() {
 }
 
 // ---------------------------------------------------------------------------------------------
-// The WGSL twin: validation, layouts, function order (no GPU needed)
-// ---------------------------------------------------------------------------------------------
-
-fn reference_module_source() -> String {
-    [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_REFERENCE].join("\n")
-}
-
-fn validate(src: &str) -> naga::Module {
-    let module = naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("WGSL parse error:\n{}", e.emit_to_string(src)));
-    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("WGSL validation error: {e:?}"));
-    module
-}
-
-fn wgsl_struct(m: &naga::Module, name: &str) -> (u32, Vec<(String, u32)>) {
-    for (_, ty) in m.types.iter() {
-        if ty.name.as_deref() == Some(name) {
-            if let naga::TypeInner::Struct { members, span } = &ty.inner {
-                return (*span, members.iter().map(|mb| (mb.name.clone().unwrap_or_default(), mb.offset)).collect());
-            }
-        }
-    }
-    panic!("no WGSL struct {name}");
-}
-
-macro_rules! rust_fields {
-    ($t:ty; $($f:ident),* $(,)?) => {
-        vec![$((stringify!($f), offset_of!($t, $f))),*]
-    };
-}
-
-fn check(m: &naga::Module, name: &str, size: usize, fields: Vec<(&str, usize)>) {
-    let (span, members) = wgsl_struct(m, name);
-    assert_eq!(span as usize, size, "{name}: WGSL size {span} vs Rust size {size}");
-    let wgsl: Vec<(String, u32)> = members.into_iter().filter(|(n, _)| !n.starts_with('_')).collect();
-    let rust: Vec<(String, u32)> = fields.into_iter().filter(|(n, _)| !n.starts_with('_')).map(|(n, o)| (n.to_string(), o as u32)).collect();
-    assert_eq!(wgsl, rust, "{name}: field names/offsets differ between WGSL and Rust");
-}
-
-#[test]
-fn shader_validates_and_its_structs_match_the_cpu_twin() {
-    let m = validate(&reference_module_source());
-    // and as part of the task module (common + reset + physics + reference + ik + task)
-    let task_module = dextrain::env::gpu::task_shader_source();
-    assert!(task_module.contains(SHADER_REFERENCE));
-    validate(&task_module);
-    check(&m, "RefInfo", size_of::<RefInfo>(), rust_fields!(RefInfo; obj0_pos, obj0_rot, bbox_min, bbox_max, first_frame, n_frames, first_segment_steps, flags));
-    check(&m, "RefGlobals", size_of::<RefGlobals>(), rust_fields!(RefGlobals; n_refs, stride, n_joints, n_tips, off_wrist_pos, off_wrist_rot,
-        off_q, off_tips, off_obj_pos, off_obj_rot, off_grasp, reground, reinterp, reinterp_steps, _pad0, _pad1, translate_xy, rotate_z,
-        mirror_prob, time_scale, wrist_pos_offset, wrist_rot_offset, joint_offset, wrist_pos_noise, joint_noise, _pad2));
-    check(&m, "RefCursor", size_of::<RefCursor>(), rust_fields!(RefCursor; d_pos, d_rot, start_pos, start_rot, wrist_off_pos, wrist_off_rot,
-        ref_id, env, episode, flags, speed, seg_steps, _pad));
-    check(&m, "RefFrame", size_of::<RefFrame>(), rust_fields!(RefFrame; wrist_pos, wrist_rot, obj_pos, obj_rot, tips, q, grasp, ended, _pad));
-    assert_eq!(size_of::<RefGlobals>() % 16, 0);
-    assert!(size_of::<RefCursor>() <= 128 && size_of::<RefCursor>() % 16 == 0);
-    for (name, v) in [
-        ("PURPOSE_REF", PURPOSE_REF),
-        ("REF_KEY_ID", REF_KEY_ID),
-        ("REF_KEY_SPEED", REF_KEY_SPEED),
-        ("REF_KEY_MIRROR", REF_KEY_MIRROR),
-        ("REF_KEY_TRANSLATE", REF_KEY_TRANSLATE),
-        ("REF_KEY_ROTATE", REF_KEY_ROTATE),
-        ("REF_KEY_WRIST_POS", REF_KEY_WRIST_POS),
-        ("REF_KEY_WRIST_ROT", REF_KEY_WRIST_ROT),
-        ("REF_KEY_JOINT", REF_KEY_JOINT),
-        ("REF_KEY_NOISE", REF_KEY_NOISE),
-        ("REF_KEY_STRIDE", REF_KEY_STRIDE),
-        ("CUR_WRIST", CUR_WRIST),
-        ("CUR_JOINT", CUR_JOINT),
-        ("CUR_MIRROR", CUR_MIRROR),
-        ("CUR_TRANSFORM", CUR_TRANSFORM),
-        ("CUR_REINTERP", CUR_REINTERP),
-        ("REF_HAS_OBJECT", REF_HAS_OBJECT),
-        ("REF_TIPS_FROM_FILE", REF_TIPS_FROM_FILE),
-    ] {
-        assert!(SHADER_REFERENCE.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in reference.wgsl");
-    }
-    // the draw keys do not overlap: joints end before the noise, one step's noise fits its stride
-    assert!(REF_KEY_JOINT as usize + dextrain::hand::MAX_JOINTS <= REF_KEY_NOISE as usize);
-    assert!(2 * (3 + dextrain::hand::MAX_JOINTS) <= REF_KEY_STRIDE as usize);
-    // distinct from the other purposes
-    for p in [dextrain::env::reset::PURPOSE_PARAMS, dextrain::env::reset::PURPOSE_INIT, dextrain::env::task::PURPOSE_OBS_NOISE] {
-        assert_ne!(p, PURPOSE_REF);
-    }
-}
-
-#[test]
-fn every_shader_function_has_its_cpu_twin_in_the_same_order() {
-    let fns = |src: &str, prefix: &str| -> Vec<String> {
-        src.lines()
-            .filter_map(|l| l.trim_start().strip_prefix(prefix))
-            .map(|rest| rest.split(|c| c == '(' || c == '<').next().unwrap_or("").trim().to_string())
-            .collect()
-    };
-    let w = fns(SHADER_REFERENCE, "fn ");
-    let r: Vec<String> = fns(include_str!("../src/env/reference.rs"), "pub fn ").into_iter().filter(|n| n.starts_with("ref_")).collect();
-    assert!(w.len() >= 15, "{w:?}");
-    assert_eq!(w, r, "shader functions and their CPU twins differ in names or order");
-}
-
-// ---------------------------------------------------------------------------------------------
 // CPU/GPU parity
 // ---------------------------------------------------------------------------------------------
 
@@ -757,7 +655,8 @@ fn cpu_run(m: &SimModel, bank: &RefBank, rg: &RefGlobals, states: &[EnvState]) -
 
 fn gpu_run(ctx: &dextrain::env::gpu::GpuContext, m: &SimModel, bank: &RefBank, rg: &RefGlobals, states: &[EnvState]) -> Run {
     let n = states.len();
-    let src = format!("{}\n{KERNEL}", reference_module_source());
+    // the parity kernel, appended to the simulator's module and the reference layer
+    let src = format!("{}\n{SHADER_REFERENCE}\n{KERNEL}", dextrain::env::gpu::shader_source());
     let out = run_kernel(
         ctx,
         &src,

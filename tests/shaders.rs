@@ -2,7 +2,7 @@
 //! GPU backend builds, each shader parses on its own with common.wgsl, and every Pod struct in
 //! src/env/layout.rs has exactly the size and field offsets of its WGSL twin.
 
-use dextrain::env::gpu::{SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET, SHADER_TASK, shader_source, task_shader_source};
+use dextrain::env::gpu::{SHADER_COMMON, SHADER_IK, SHADER_PHYSICS, SHADER_REFERENCE, SHADER_RESET, SHADER_TASK, shader_source, task_shader_source};
 use dextrain::env::layout::*;
 use std::mem::{offset_of, size_of};
 
@@ -102,6 +102,17 @@ fn pod_structs_match_their_wgsl_twins() {
         rw_tips, rw_wrist_pos, rw_wrist_rot, _pad3, ik));
     check(&m, "TaskState", size_of::<TaskState>(), rust_fields!(TaskState; targets, rest_pos, prev_action, tip_force,
         act_rate, act_mag, done, res_sq, _pad, cursor, res_ema, res_delta));
+    // the reference layer (reference.wgsl, src/env/reference.rs)
+    use dextrain::env::reference::{RefCursor, RefFrame, RefGlobals, RefInfo};
+    check(&m, "RefInfo", size_of::<RefInfo>(), rust_fields!(RefInfo; obj0_pos, obj0_rot, bbox_min, bbox_max, first_frame, n_frames, first_segment_steps, flags));
+    check(&m, "RefGlobals", size_of::<RefGlobals>(), rust_fields!(RefGlobals; n_refs, stride, n_joints, n_tips, off_wrist_pos, off_wrist_rot,
+        off_q, off_tips, off_obj_pos, off_obj_rot, off_grasp, reground, reinterp, reinterp_steps, _pad0, _pad1, translate_xy, rotate_z,
+        mirror_prob, time_scale, wrist_pos_offset, wrist_rot_offset, joint_offset, wrist_pos_noise, joint_noise, _pad2));
+    check(&m, "RefCursor", size_of::<RefCursor>(), rust_fields!(RefCursor; d_pos, d_rot, start_pos, start_rot, wrist_off_pos, wrist_off_rot,
+        ref_id, env, episode, flags, speed, seg_steps, _pad));
+    check(&m, "RefFrame", size_of::<RefFrame>(), rust_fields!(RefFrame; wrist_pos, wrist_rot, obj_pos, obj_rot, tips, q, grasp, ended, _pad));
+    assert_eq!(size_of::<RefGlobals>() % 16, 0);
+    assert!(size_of::<RefCursor>() <= 128 && size_of::<RefCursor>() % 16 == 0);
     // a uniform struct's size must be a multiple of 16
     assert_eq!(size_of::<TaskGlobals>() % 16, 0);
 }
@@ -152,6 +163,35 @@ fn shader_constants_match_rust() {
     for p in [dextrain::env::reset::PURPOSE_PARAMS, dextrain::env::reset::PURPOSE_INIT] {
         assert_ne!(p, task::PURPOSE_OBS_NOISE);
     }
+    use dextrain::env::reference::*;
+    for (name, v) in [
+        ("PURPOSE_REF", PURPOSE_REF),
+        ("REF_KEY_ID", REF_KEY_ID),
+        ("REF_KEY_SPEED", REF_KEY_SPEED),
+        ("REF_KEY_MIRROR", REF_KEY_MIRROR),
+        ("REF_KEY_TRANSLATE", REF_KEY_TRANSLATE),
+        ("REF_KEY_ROTATE", REF_KEY_ROTATE),
+        ("REF_KEY_WRIST_POS", REF_KEY_WRIST_POS),
+        ("REF_KEY_WRIST_ROT", REF_KEY_WRIST_ROT),
+        ("REF_KEY_JOINT", REF_KEY_JOINT),
+        ("REF_KEY_NOISE", REF_KEY_NOISE),
+        ("REF_KEY_STRIDE", REF_KEY_STRIDE),
+        ("CUR_WRIST", CUR_WRIST),
+        ("CUR_JOINT", CUR_JOINT),
+        ("CUR_MIRROR", CUR_MIRROR),
+        ("CUR_TRANSFORM", CUR_TRANSFORM),
+        ("CUR_REINTERP", CUR_REINTERP),
+        ("REF_HAS_OBJECT", REF_HAS_OBJECT),
+        ("REF_TIPS_FROM_FILE", REF_TIPS_FROM_FILE),
+    ] {
+        assert!(SHADER_REFERENCE.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in reference.wgsl");
+    }
+    // the reference draw keys do not overlap: joints end before the noise, one step's noise fits its stride
+    assert!(REF_KEY_JOINT as usize + dextrain::hand::MAX_JOINTS <= REF_KEY_NOISE as usize);
+    assert!(2 * (3 + dextrain::hand::MAX_JOINTS) <= REF_KEY_STRIDE as usize);
+    for p in [dextrain::env::reset::PURPOSE_PARAMS, dextrain::env::reset::PURPOSE_INIT, task::PURPOSE_OBS_NOISE] {
+        assert_ne!(p, PURPOSE_REF);
+    }
     for (name, v) in [("SHAPE_SPHERE", SHAPE_SPHERE), ("SHAPE_BOX", SHAPE_BOX), ("SHAPE_CAPSULE", SHAPE_CAPSULE), ("SHAPE_CYLINDER", SHAPE_CYLINDER)] {
         assert!(src.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in the WGSL");
     }
@@ -170,6 +210,8 @@ fn every_shader_function_has_its_cpu_twin_in_the_same_order() {
         (SHADER_COMMON, include_str!("../src/env/common.rs")),
         (SHADER_RESET, include_str!("../src/env/reset.rs")),
         (SHADER_PHYSICS, include_str!("../src/env/physics.rs")),
+        (SHADER_REFERENCE, include_str!("../src/env/reference.rs")),
+        (SHADER_IK, include_str!("../src/env/ik.rs")),
         (SHADER_TASK, include_str!("../src/env/task.rs")),
     ] {
         let w: Vec<String> = fns(wgsl, "fn ").into_iter().filter(|n| !n.ends_with("_main") && n != "env_index").collect();
