@@ -3,10 +3,19 @@
 // the var<private> ik_* memory below). The algorithm is described at the top of the twin.
 // Needs common.wgsl before it (g: Globals, joints: binding 1, tips: binding 3, quaternion maths).
 
-// Default sweeps, damping λ (m), largest joint change per tip step (rad), residual tolerance (m).
+// 3×3 blocks in the lower block triangle of the stacked system, Jacobian entries.
+const IK_BLOCKS: u32 = 21u;
+const IK_JAC_LEN: u32 = 144u;
+// Defaults: iterations, damping λ (m), residual below which λ shrinks (m), smallest λ / damping,
+// rounds of locking joints at limits per iteration, largest residual one iteration aims to remove
+// (m), largest joint change per iteration (rad), residual tolerance (m).
 const IK_ITERS: u32 = 24u;
-const IK_DAMPING: f32 = 0.01;
-const IK_MAX_STEP: f32 = 0.3;
+const IK_DAMPING: f32 = 0.02;
+const IK_DAMPING_DIST: f32 = 0.01;
+const IK_DAMPING_FLOOR: f32 = 0.05;
+const IK_LOCK_ROUNDS: u32 = 2u;
+const IK_ERR_CLAMP: f32 = 0.02;
+const IK_MAX_STEP: f32 = 0.5;
 const IK_TOL: f32 = 1e-7;
 
 struct IkParams {
@@ -25,11 +34,30 @@ struct IkFrame {
 // ---- per-invocation working memory (the twin's IkScratch) ----
 var<private> ik_link_pos: array<vec3<f32>, MAX_LINKS>;
 var<private> ik_link_rot: array<vec4<f32>, MAX_LINKS>;
-var<private> ik_chain_j: array<u32, MAX_JOINTS>;
-var<private> ik_chain_k: array<u32, MAX_JOINTS>;
+// fingertip t's chain (root → tip) at t * MAX_JOINTS + i, its length, and whether entry i is the
+// first driven by its actuated joint
+var<private> ik_chain_j: array<u32, IK_JAC_LEN>;
+var<private> ik_chain_n: array<u32, MAX_TIPS>;
+var<private> ik_first: array<u32, IK_JAC_LEN>;
 var<private> ik_chain_o: array<vec3<f32>, MAX_JOINTS>;
 var<private> ik_chain_a: array<vec3<f32>, MAX_JOINTS>;
-var<private> ik_chain_c: array<vec3<f32>, MAX_JOINTS>;
+// actuated joints driving active slot a's chain: ik_lead[a * MAX_JOINTS + i], i < ik_lead_n[a]
+var<private> ik_lead: array<u32, IK_JAC_LEN>;
+var<private> ik_lead_n: array<u32, MAX_TIPS>;
+// bit a: actuated joint k drives active slot a's chain; bit b of ik_couple[a]: slots a, b share a joint
+var<private> ik_slots: array<u32, MAX_JOINTS>;
+var<private> ik_couple: array<u32, MAX_TIPS>;
+// 1 when the model has mimic followers
+var<private> ik_followers: u32;
+var<private> ik_lock: array<u32, MAX_JOINTS>;
+// [slot][joint]: column of actuated joint k for active slot a at a * MAX_JOINTS + k
+var<private> ik_jac: array<vec3<f32>, IK_JAC_LEN>;
+var<private> ik_err: array<vec3<f32>, MAX_TIPS>;
+var<private> ik_y: array<vec3<f32>, MAX_TIPS>;
+// lower block triangle of J Jᵀ + λ² I ((a, b), b ≤ a, at a(a+1)/2 + b), then of its block
+// Cholesky factor, with L_aa⁻¹ in the diagonal blocks
+var<private> ik_blk: array<mat3x3<f32>, IK_BLOCKS>;
+var<private> ik_dq: array<f32, MAX_JOINTS>;
 var<private> ik_q: array<f32, MAX_JOINTS>;
 
 fn ik_joint_frame(jd: JointDesc, parent_pos: vec3<f32>, parent_rot: vec4<f32>, q: f32) -> IkFrame {
@@ -64,6 +92,7 @@ fn ik_apply_mimic(q: ptr<function, array<f32, MAX_JOINTS>>) {
 }
 
 fn ik_chain(t: u32) -> u32 {
+    let base = t * MAX_JOINTS;
     // walk up: link l is moved by joint l − 1, whose parent link is next
     var n = 0u;
     var link = tips[t].link;
@@ -72,15 +101,15 @@ fn ik_chain(t: u32) -> u32 {
             break;
         }
         let j = link - 1u;
-        ik_chain_j[n] = j;
+        ik_chain_j[base + n] = j;
         n += 1u;
         link = joints[j].parent_link;
     }
     // reverse into root → tip order
     for (var i = 0u; i < n / 2u; i++) {
-        let a = ik_chain_j[i];
-        ik_chain_j[i] = ik_chain_j[n - 1u - i];
-        ik_chain_j[n - 1u - i] = a;
+        let a = ik_chain_j[base + i];
+        ik_chain_j[base + i] = ik_chain_j[base + n - 1u - i];
+        ik_chain_j[base + n - 1u - i] = a;
     }
     return n;
 }
@@ -89,7 +118,7 @@ fn ik_chain_fk(t: u32, n: u32, q: array<f32, MAX_JOINTS>) -> vec3<f32> {
     var pos = vec3<f32>(0.0);
     var rot = vec4<f32>(0.0, 0.0, 0.0, 1.0);
     for (var i = 0u; i < n; i++) {
-        let j = ik_chain_j[i];
+        let j = ik_chain_j[t * MAX_JOINTS + i];
         let f = ik_joint_frame(joints[j], pos, rot, q[j]);
         ik_chain_o[i] = f.origin;
         ik_chain_a[i] = f.axis;
@@ -109,109 +138,241 @@ fn ik_tip_positions(q: array<f32, MAX_JOINTS>) -> array<vec3<f32>, MAX_TIPS> {
     return out;
 }
 
-// A x = b for a symmetric positive definite A = (a00, a01, a02, a11, a12, a22), by Cholesky
-fn ik_solve3(a: array<f32, 6>, b: vec3<f32>) -> vec3<f32> {
-    let l00 = sqrt(max(a[0], 1e-20));
-    let l10 = a[1] / l00;
-    let l20 = a[2] / l00;
-    let l11 = sqrt(max(a[3] - l10 * l10, 1e-20));
-    let l21 = (a[4] - l20 * l10) / l11;
-    let l22 = sqrt(max(a[5] - l20 * l20 - l21 * l21, 1e-20));
-    // L y = b
-    let y0 = b.x / l00;
-    let y1 = (b.y - l10 * y0) / l11;
-    let y2 = (b.z - l20 * y0 - l21 * y1) / l22;
-    // Lᵀ x = y
-    let x2 = y2 / l22;
-    let x1 = (y1 - l21 * x2) / l11;
-    let x0 = (y0 - l10 * x1 - l20 * x2) / l00;
-    return vec3<f32>(x0, x1, x2);
-}
-
 fn ik_leader(j: u32) -> u32 {
     let l = joints[j].mimic_leader;
     return select(j, l, l != NO_JOINT);
 }
 
-fn ik_tip_step(t: u32, target: vec3<f32>, prm: IkParams) -> bool {
-    let n = ik_chain(t);
-    let q = ik_q;
-    let p = ik_chain_fk(t, n, q);
-    // e = x* − x
-    let e = target - p;
-    if (!(length(e) > prm.tol)) {
-        return false;
-    }
-    // A = J Jᵀ + λ² I = Σₖ cₖ cₖᵀ + λ² I, (a00, a01, a02, a11, a12, a22)
-    let l2 = prm.damping * prm.damping;
-    var a = array<f32, 6>(l2, 0.0, 0.0, l2, 0.0, l2);
-    for (var i = 0u; i < n; i++) {
-        let k = ik_leader(ik_chain_j[i]);
-        // the first chain entry driven by k carries k's column
-        var first = true;
-        for (var i2 = 0u; i2 < i; i2++) {
-            if (ik_leader(ik_chain_j[i2]) == k) {
-                first = false;
-            }
+fn ik_setup(mask: u32) -> u32 {
+    ik_followers = 0u;
+    for (var k = 0u; k < MAX_JOINTS; k++) {
+        ik_slots[k] = 0u;
+        ik_lock[k] = 0u;
+        if (k < g.n_joints && joints[k].mimic_leader != NO_JOINT) {
+            ik_followers = 1u;
         }
-        var c = vec3<f32>(0.0);
-        ik_chain_k[i] = NO_JOINT;
-        if (first) {
-            ik_chain_k[i] = k;
-            for (var i2 = i; i2 < n; i2++) {
-                let j2 = ik_chain_j[i2];
-                if (ik_leader(j2) == k) {
-                    let w = select(joints[j2].mimic_mult, 1.0, j2 == k);
-                    // cₖ += w aⱼ × (p − oⱼ)
-                    c += w * cross(ik_chain_a[i2], p - ik_chain_o[i2]);
+    }
+    var a = 0u;
+    for (var t = 0u; t < g.n_tips; t++) {
+        if (((mask >> t) & 1u) != 0u) {
+            let n = ik_chain(t);
+            ik_chain_n[t] = n;
+            for (var k = 0u; k < g.n_joints; k++) {
+                ik_jac[a * MAX_JOINTS + k] = vec3<f32>(0.0);
+            }
+            var cnt = 0u;
+            for (var i = 0u; i < n; i++) {
+                let k = ik_leader(ik_chain_j[t * MAX_JOINTS + i]);
+                // each leader once per slot
+                let first = ((ik_slots[k] >> a) & 1u) == 0u;
+                ik_first[t * MAX_JOINTS + i] = select(0u, 1u, first);
+                if (first) {
+                    ik_lead[a * MAX_JOINTS + cnt] = k;
+                    cnt += 1u;
+                }
+                ik_slots[k] |= 1u << a;
+            }
+            ik_lead_n[a] = cnt;
+            a += 1u;
+        }
+    }
+    for (var b = 0u; b < a; b++) {
+        ik_couple[b] = 0u;
+        for (var i = 0u; i < ik_lead_n[b]; i++) {
+            ik_couple[b] |= ik_slots[ik_lead[b * MAX_JOINTS + i]];
+        }
+    }
+    return a;
+}
+
+fn ik_tip_jacobian(t: u32, a: u32, goal: vec3<f32>) -> vec3<f32> {
+    let n = ik_chain_n[t];
+    let q = ik_q;
+    let x = ik_chain_fk(t, n, q);
+    for (var i = 0u; i < n; i++) {
+        let j = ik_chain_j[t * MAX_JOINTS + i];
+        let k = ik_leader(j);
+        let w = select(joints[j].mimic_mult, 1.0, j == k);
+        // Jₐₖ = Σ wⱼ aⱼ × (x − oⱼ) over the chain joints driven by k
+        let c = w * cross(ik_chain_a[i], x - ik_chain_o[i]);
+        if (ik_first[t * MAX_JOINTS + i] != 0u) {
+            ik_jac[a * MAX_JOINTS + k] = c;
+        } else {
+            ik_jac[a * MAX_JOINTS + k] += c;
+        }
+    }
+    // e = x* − x, aimed at no farther than IK_ERR_CLAMP per iteration
+    let e = goal - x;
+    let len = length(e);
+    ik_err[a] = select(e, e * (IK_ERR_CLAMP / len), len > IK_ERR_CLAMP);
+    return e;
+}
+
+// u vᵀ
+fn ik_outer(u: vec3<f32>, v: vec3<f32>) -> mat3x3<f32> {
+    return mat3x3<f32>(u * v.x, u * v.y, u * v.z);
+}
+
+// L⁻¹ for the lower Cholesky factor of a symmetric positive definite a (lower triangle read)
+fn ik_chol3_inv(a: mat3x3<f32>) -> mat3x3<f32> {
+    let l00 = sqrt(max(a[0].x, 1e-20));
+    let l10 = a[0].y / l00;
+    let l20 = a[0].z / l00;
+    let l11 = sqrt(max(a[1].y - l10 * l10, 1e-20));
+    let l21 = (a[1].z - l20 * l10) / l11;
+    let l22 = sqrt(max(a[2].z - l20 * l20 - l21 * l21, 1e-20));
+    let i00 = 1.0 / l00;
+    let i11 = 1.0 / l11;
+    let i22 = 1.0 / l22;
+    let i10 = -l10 * i00 * i11;
+    let i21 = -l21 * i11 * i22;
+    let i20 = -(l20 * i00 + l21 * i10) * i22;
+    return mat3x3<f32>(vec3<f32>(i00, i10, i20), vec3<f32>(0.0, i11, i21), vec3<f32>(0.0, 0.0, i22));
+}
+
+// block (a, b) of J Jᵀ + λ² I = Σₖ Jₐₖ Jᵦₖᵀ (+ λ² I for a = b), over slot a's joints
+fn ik_build_gram(n_active: u32, damping: f32) {
+    for (var a = 0u; a < n_active; a++) {
+        for (var b = 0u; b <= a; b++) {
+            var sum = mat3x3<f32>(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+            if (a == b) {
+                let l2 = damping * damping;
+                sum = mat3x3<f32>(vec3<f32>(l2, 0.0, 0.0), vec3<f32>(0.0, l2, 0.0), vec3<f32>(0.0, 0.0, l2));
+            }
+            // chains that share no joint leave their block zero
+            if (((ik_couple[a] >> b) & 1u) != 0u) {
+                for (var i = 0u; i < ik_lead_n[a]; i++) {
+                    let k = ik_lead[a * MAX_JOINTS + i];
+                    sum += ik_outer(ik_jac[a * MAX_JOINTS + k], ik_jac[b * MAX_JOINTS + k]);
                 }
             }
+            ik_blk[a * (a + 1u) / 2u + b] = sum;
         }
-        ik_chain_c[i] = c;
-        a[0] += c.x * c.x;
-        a[1] += c.x * c.y;
-        a[2] += c.x * c.z;
-        a[3] += c.y * c.y;
-        a[4] += c.y * c.z;
-        a[5] += c.z * c.z;
     }
-    // y = (J Jᵀ + λ² I)⁻¹ e;  Δqₖ = cₖ · y
-    let y = ik_solve3(a, e);
-    var dmax = 0.0;
-    for (var i = 0u; i < n; i++) {
-        dmax = max(dmax, abs(dot(ik_chain_c[i], y)));
+}
+
+// (J Jᵀ + λ² I) y = e by block Cholesky, then L z = e and Lᵀ y = z
+fn ik_cholesky(n_active: u32) {
+    for (var i = 0u; i < n_active; i++) {
+        for (var j = 0u; j <= i; j++) {
+            var mm = ik_blk[i * (i + 1u) / 2u + j];
+            for (var k = 0u; k < j; k++) {
+                mm -= ik_blk[i * (i + 1u) / 2u + k] * transpose(ik_blk[j * (j + 1u) / 2u + k]);
+            }
+            if (i == j) {
+                // the diagonal block keeps L_ii⁻¹
+                ik_blk[i * (i + 1u) / 2u + i] = ik_chol3_inv(mm);
+            } else {
+                ik_blk[i * (i + 1u) / 2u + j] = mm * transpose(ik_blk[j * (j + 1u) / 2u + j]);
+            }
+        }
     }
-    // a non-finite step (NaN or infinite target) moves nothing
-    if (!(dmax < 1e30)) {
+    // L z = e: z_i = L_ii⁻¹ (e_i − Σ_{k<i} L_ik z_k)
+    for (var i = 0u; i < n_active; i++) {
+        var r = ik_err[i];
+        for (var k = 0u; k < i; k++) {
+            r -= ik_blk[i * (i + 1u) / 2u + k] * ik_y[k];
+        }
+        ik_y[i] = ik_blk[i * (i + 1u) / 2u + i] * r;
+    }
+    // Lᵀ y = z: y_i = L_ii⁻ᵀ (z_i − Σ_{k>i} L_kiᵀ y_k)
+    for (var ii = 0u; ii < n_active; ii++) {
+        let i = n_active - 1u - ii;
+        var r = ik_y[i];
+        for (var k = i + 1u; k < n_active; k++) {
+            r -= transpose(ik_blk[k * (k + 1u) / 2u + i]) * ik_y[k];
+        }
+        ik_y[i] = transpose(ik_blk[i * (i + 1u) / 2u + i]) * r;
+    }
+}
+
+// Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e, Δqₖ = Σₐ Jₐₖ · yₐ
+fn ik_dls_step(n_active: u32, damping: f32) {
+    ik_build_gram(n_active, damping);
+    ik_cholesky(n_active);
+    for (var k = 0u; k < g.n_joints; k++) {
+        ik_dq[k] = 0.0;
+    }
+    for (var a = 0u; a < n_active; a++) {
+        for (var i = 0u; i < ik_lead_n[a]; i++) {
+            let k = ik_lead[a * MAX_JOINTS + i];
+            ik_dq[k] += dot(ik_jac[a * MAX_JOINTS + k], ik_y[a]);
+        }
+    }
+}
+
+fn ik_iterate(targets: array<vec3<f32>, MAX_TIPS>, mask: u32, n_active: u32, prm: IkParams) -> bool {
+    let n = g.n_joints;
+    var worst = 0.0;
+    var finite = true;
+    var a = 0u;
+    for (var t = 0u; t < g.n_tips; t++) {
+        if (((mask >> t) & 1u) != 0u) {
+            let e = length(ik_tip_jacobian(t, a, targets[t]));
+            worst = max(worst, e);
+            // NaN fails the comparison
+            finite = finite && e < 1e30;
+            a += 1u;
+        }
+    }
+    // every tip reached, or a non-finite target: nothing moves
+    if (!(worst > prm.tol) || !finite) {
         return false;
     }
-    // scale Δq so that max |Δqₖ| ≤ max_step
-    let scale = select(1.0, prm.max_step / dmax, dmax > prm.max_step);
-    for (var i = 0u; i < n; i++) {
-        let k = ik_chain_k[i];
-        if (k != NO_JOINT) {
+    // λ = damping · clamp(max |e| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1)
+    let damping = prm.damping * clamp(worst / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1.0);
+    var dmax = 0.0;
+    for (var lr = 0u; lr < IK_LOCK_ROUNDS; lr++) {
+        ik_dls_step(n_active, damping);
+        // lock every joint at a limit that Δq pushes further out, zero its columns, solve again
+        var locked = false;
+        dmax = 0.0;
+        for (var k = 0u; k < n; k++) {
             let jd = joints[k];
-            ik_q[k] = clamp(ik_q[k] + scale * dot(ik_chain_c[i], y), jd.lower, jd.upper);
+            let d = ik_dq[k];
+            if (ik_lock[k] == 0u && ((ik_q[k] <= jd.lower && d < 0.0) || (ik_q[k] >= jd.upper && d > 0.0))) {
+                ik_lock[k] = 1u;
+                locked = true;
+                for (var b = 0u; b < n_active; b++) {
+                    ik_jac[b * MAX_JOINTS + k] = vec3<f32>(0.0);
+                }
+            } else if (ik_lock[k] == 0u) {
+                dmax = max(dmax, abs(d));
+                // NaN fails the comparison
+                finite = finite && abs(d) < 1e30;
+            }
+        }
+        if (!locked) {
+            break;
         }
     }
-    var qm = ik_q;
-    ik_apply_mimic(&qm);
-    ik_q = qm;
+    // a non-finite step moves nothing
+    if (!finite) {
+        return false;
+    }
+    // scale Δq so that max |Δqₖ| ≤ max_step, keeping its direction
+    let scale = select(1.0, prm.max_step / dmax, dmax > prm.max_step);
+    for (var k = 0u; k < n; k++) {
+        let jd = joints[k];
+        if (ik_slots[k] != 0u && ik_lock[k] == 0u) {
+            ik_q[k] = clamp(ik_q[k] + scale * ik_dq[k], jd.lower, jd.upper);
+        }
+        // the locks hold for one iteration
+        ik_lock[k] = 0u;
+    }
+    if (ik_followers != 0u) {
+        var qm = ik_q;
+        ik_apply_mimic(&qm);
+        ik_q = qm;
+    }
     return true;
 }
 
 fn ik_solve(q_seed: array<f32, MAX_JOINTS>, targets: array<vec3<f32>, MAX_TIPS>, mask: u32, prm: IkParams) -> array<f32, MAX_JOINTS> {
     ik_q = q_seed;
+    let n_active = ik_setup(mask);
     for (var it = 0u; it < prm.iters; it++) {
-        var moved = false;
-        for (var t = 0u; t < g.n_tips; t++) {
-            if (((mask >> t) & 1u) != 0u) {
-                let mv = ik_tip_step(t, targets[t], prm);
-                moved = moved || mv;
-            }
-        }
-        // a sweep that moved nothing would repeat forever: stop
-        if (!moved) {
+        if (!ik_iterate(targets, mask, n_active, prm)) {
             break;
         }
     }

@@ -13,21 +13,23 @@
 //! the root, `ik_chain_fk` back down). `ik_tip_positions` and the solver share that code, so a
 //! target taken from `ik_tip_positions(q)` is a residual of exactly zero at `q`.
 //!
-//! **Solver** (`ik_solve`): at most `IkParams::iters` iterations of damped least squares on the
-//! stacked fingertip residuals of the active tips (bit t of `mask`; m of them, slots a = 0..m in tip
-//! order). One iteration (`ik_iterate`):
+//! **Solver** (`ik_solve`): at most `IkParams::iters` iterations of damped least squares (DLS) on
+//! the stacked residuals of the active fingertips (bit t of `mask`; m of them, slots a = 0..m in tip
+//! order; `ik_setup` finds their chains once). One iteration (`ik_iterate`):
 //! 1. per active tip (`ik_tip_jacobian`): chain FK at q, eₐ = x*ₐ − xₐ, and one Jacobian column per
 //!    *actuated* joint k: Jₐₖ = Σ_{j on the chain, j = k or j follows k} wⱼ aⱼ × (xₐ − oⱼ), with aⱼ,
-//!    oⱼ joint j's axis and origin and wⱼ = 1 for k, the mimic multiplier for a follower
-//!    (q_f = mult·q_k + offset): a leader that is not on the chain still moves the tip through its
-//!    follower; followers themselves are never solved for;
+//!    oⱼ joint j's world axis and origin and wⱼ = 1 for k itself, the mimic multiplier for a
+//!    follower (q_f = mult·q_k + offset): a leader that is not on the chain still moves the tip
+//!    through its follower; followers are never solved for;
 //! 2. if every |eₐ| ≤ `tol` (an exact zero included) the solve stops: nothing moves;
-//! 3. Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e (`ik_build_gram`, `ik_cholesky`, `ik_dls_step`): J Jᵀ is the
-//!    3m × 3m matrix of 3×3 blocks Σₖ Jₐₖ Jᵦₖᵀ, so fingertips that share a joint (tri3's wrist roll,
-//!    its mimic-coupled spread) are solved together, and tips on independent chains (dexhand16's
-//!    fingers) give a block-diagonal matrix, i.e. one 3×3 DLS solve per tip;
+//! 3. Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ ê (`ik_build_gram`, `ik_cholesky`, `ik_dls_step`), ê the residuals
+//!    shortened to at most `IK_ERR_CLAMP` each. J Jᵀ is the 3m × 3m matrix of 3×3 blocks
+//!    Σₖ Jₐₖ Jᵦₖᵀ, factored by block Cholesky: tips on independent chains (dexhand16's fingers) give a
+//!    block-diagonal matrix, i.e. one 3×3 DLS solve per tip; tips that share a joint (tri3's wrist
+//!    roll and its mimic-coupled spread) are solved together, so a shared joint takes the
+//!    least-squares compromise instead of being pulled back and forth by one tip after another;
 //! 4. a joint at a limit that Δq pushes further out is locked (its columns zeroed) and step 3
-//!    repeated, so that it does not absorb the step;
+//!    repeated (at most `IK_LOCK_ROUNDS` solves), so that it does not absorb the step;
 //! 5. Δq is scaled (direction kept) so that max |Δqₖ| ≤ `max_step`, each moved qₖ is clamped to its
 //!    limits (`lower`, `upper` of `JointDesc`; ±1e30 = unlimited), and every follower is recomputed
 //!    from its leader (`ik_apply_mimic`).
@@ -37,38 +39,64 @@
 //! tips arrive, so that directions the Jacobian barely sees (tri3's roll against its spreads)
 //! converge in a few iterations instead of hundreds.
 //!
+//! Limits of a local method: from a seed far from the answer the solve can end in a local minimum,
+//! e.g. a straight finger that bent the wrong way into two joint limits (1 target in 400 from
+//! dexhand16's straight default pose, 1.7 mm), or tri3's fingers when the continuous wrist roll
+//! must turn by more than about 1 rad; tests/ik.rs measures this.
+//!
 //! Exactness: if every active target equals `ik_tip_positions(q_seed)`, every residual is exactly
 //! zero and `ik_solve` returns `q_seed` bit for bit (followers and out-of-limit entries included).
 //! Actuated joints on no active chain are never written (followers are recomputed from their
-//! leaders once anything moves). A non-finite step (a NaN or infinite target) moves nothing, so the
-//! result stays finite on the CPU; the GPU may assume no NaN, so feed it finite targets.
+//! leaders once anything moves). A non-finite target or step moves nothing, so the result stays
+//! finite on the CPU; GPUs may assume no NaN, so feed the shader finite targets.
+//!
+//! Cost: every loop is bounded by the model's sizes (joints, tips, chain lengths), `iters` and
+//! `IK_LOCK_ROUNDS`. Mesa's lavapipe stops all loops of an invocation after 65,535 iterations in
+//! all; a full 24-iteration solve of dexhand16 takes fewer than ~15,000 (tests/ik.rs checks that it
+//! leaves ~45,000 to the rest of a kernel).
+
+// the loops index arrays as the shader's do; `!(x > tol)` is true for NaN on purpose
+#![allow(clippy::needless_range_loop, clippy::neg_cmp_op_on_partial_ord)]
 
 use bytemuck::{Pod, Zeroable};
-use glam::{Vec3, Vec4};
+use glam::{Mat3, Vec3, Vec4};
 
 use super::common::*;
 use super::layout::*;
 use super::physics::{MAX_LINKS, Model};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 
-/// Rows of the stacked system: 3 per fingertip (keep in sync with ik.wgsl `IK_ROWS`).
-pub const IK_ROWS: usize = 3 * MAX_TIPS;
-/// Default iteration bound of [`ik_solve`] (see tests/ik.rs for the measured accuracy).
+/// 3×3 blocks in the lower block triangle of the stacked system (keep in sync with ik.wgsl
+/// `IK_BLOCKS`).
+pub const IK_BLOCKS: usize = MAX_TIPS * (MAX_TIPS + 1) / 2;
+/// Default iteration bound of [`ik_solve`]: enough for a straight hand to reach random reachable
+/// targets (99.75 % within 1 mm on dexhand16, all on tri3; tests/ik.rs); a seed near the answer,
+/// the task layer's case, stops after a few iterations (4–7 on average).
 pub const IK_ITERS: u32 = 24;
 /// Default damping λ (m) of `(J Jᵀ + λ² I)` far from the targets: small against the fingers' lever
 /// arms (3–15 cm) and large enough to bound the step near a straight finger (|Δq| ≤ |e| / 2λ).
 pub const IK_DAMPING: f32 = 0.02;
-/// Residual (m) below which the damping shrinks in proportion to it.
+/// Residual (m) below which the damping shrinks in proportion to the largest residual.
 pub const IK_DAMPING_DIST: f32 = 0.01;
-/// Smallest damping, as a fraction of `damping` (keeps J Jᵀ + λ² I well conditioned in f32).
+/// Smallest damping, as a fraction of `damping` (λ ≥ 1 mm keeps J Jᵀ + λ² I well conditioned in
+/// f32 and bounds a step taken at the noise floor).
 pub const IK_DAMPING_FLOOR: f32 = 0.05;
+/// Most DLS solves per iteration while locking joints at their limits (the last solve's step is
+/// taken even if it locked another joint; that joint then stays where it is).
+pub const IK_LOCK_ROUNDS: u32 = 2;
+/// Largest residual (m) one iteration aims to remove per fingertip: longer residuals are scaled down
+/// to it, so that the linearisation holds and a finger stretched toward a far target does not
+/// swing about its straight (singular) pose (at 5 cm such solves differed by 1e-4 rad between CPU
+/// and GPU; at 2 cm by 3e-6).
+pub const IK_ERR_CLAMP: f32 = 0.02;
 /// Default largest joint change (rad) of one iteration: keeps far targets from flinging a finger
 /// through half a turn on a linearisation that only holds near the current pose.
 pub const IK_MAX_STEP: f32 = 0.5;
-/// Default residual (m) at or below which every tip counts as reached and the solve stops. Above
-/// the f32 noise of the kinematics (~1e-8 m), so converged solves stop early, and small enough that
-/// stopping one iteration earlier or later (CPU vs GPU rounding at the threshold) changes a joint by
-/// about 1e-5 rad at most.
+/// Default residual (m) at or below which every tip counts as reached and the solve stops: above
+/// the f32 noise of the kinematics (~3e-8 m), so converged solves stop early. CPU and GPU round the
+/// residual differently, so at the threshold one may take one more step than the other; that step
+/// moves the tips by less than `tol` and a joint by at most tol / 2λ_min = 5e-5 rad, along a
+/// direction the tips barely see.
 pub const IK_TOL: f32 = 1e-7;
 
 /// Solver settings (WGSL `IkParams`).
@@ -109,26 +137,38 @@ pub struct IkScratch {
     /// Link poses of `ik_link_poses` (wrist frame).
     pub link_pos: [Vec3; MAX_LINKS],
     pub link_rot: [Vec4; MAX_LINKS],
-    /// Joints of the current chain, root → tip (`ik_chain`).
-    pub chain_j: [u32; MAX_JOINTS],
+    /// Joints of fingertip t's chain, root → tip, at `t * MAX_JOINTS + i` (`ik_chain`), how many
+    /// (`ik_setup`), and whether entry i is the first driven by its actuated joint.
+    pub chain_j: [u32; MAX_TIPS * MAX_JOINTS],
+    pub chain_n: [u32; MAX_TIPS],
+    pub first: [u32; MAX_TIPS * MAX_JOINTS],
     /// World origin and axis of each chain joint (`ik_chain_fk`).
     pub chain_o: [Vec3; MAX_JOINTS],
     pub chain_a: [Vec3; MAX_JOINTS],
-    /// Jacobian `[slot][joint]`: column of actuated joint k in active tip slot a at `a * MAX_JOINTS + k`
-    /// (zero for followers, joints off the chain and locked joints).
-    pub jac: [Vec3; MAX_TIPS * MAX_JOINTS],
-    /// Residual eₐ of each slot.
-    pub err: [Vec3; MAX_TIPS],
-    /// J Jᵀ + λ² I (`[IK_ROWS, IK_ROWS]`, row-major), then its Cholesky factor L (lower triangle).
-    pub gram: [f32; IK_ROWS * IK_ROWS],
-    /// The multipliers y = (J Jᵀ + λ² I)⁻¹ e `[IK_ROWS]`.
-    pub y: [f32; IK_ROWS],
-    /// The step Δq = Jᵀ y.
-    pub dq: [f32; MAX_JOINTS],
-    /// 1 for an actuated joint that drives an active chain (`ik_touched`; WGSL `ik_touched_k`).
-    pub touched: [u32; MAX_JOINTS],
+    /// The actuated joints that drive active slot a's chain: `lead[a * MAX_JOINTS + i]`, i <
+    /// `lead_n[a]` (`ik_setup`).
+    pub lead: [u32; MAX_TIPS * MAX_JOINTS],
+    pub lead_n: [u32; MAX_TIPS],
+    /// Bit a set: actuated joint k drives active slot a's chain.
+    pub slots: [u32; MAX_JOINTS],
+    /// Bit b set: slots a and b share a joint (their block of J Jᵀ is not zero).
+    pub couple: [u32; MAX_TIPS],
+    /// 1 when the model has mimic followers.
+    pub followers: u32,
     /// 1 for a joint locked at a limit during the current iteration.
     pub lock: [u32; MAX_JOINTS],
+    /// Jacobian `[slot][joint]`: column of actuated joint k for active slot a at
+    /// `a * MAX_JOINTS + k` (zero off the slot's chain and for locked joints).
+    pub jac: [Vec3; MAX_TIPS * MAX_JOINTS],
+    /// Residual eₐ of each slot (at most `IK_ERR_CLAMP` long), and the multipliers yₐ of
+    /// (J Jᵀ + λ² I) y = e.
+    pub err: [Vec3; MAX_TIPS],
+    pub y: [Vec3; MAX_TIPS],
+    /// Lower block triangle of J Jᵀ + λ² I (3×3 blocks, (a, b) with b ≤ a at a(a+1)/2 + b), then
+    /// of its block Cholesky factor L, with L_aa⁻¹ in the diagonal blocks.
+    pub blk: [Mat3; IK_BLOCKS],
+    /// The step Δq = Jᵀ y.
+    pub dq: [f32; MAX_JOINTS],
     /// The solver's joint vector.
     pub q: [f32; MAX_JOINTS],
 }
@@ -138,16 +178,22 @@ impl Default for IkScratch {
         IkScratch {
             link_pos: [Vec3::ZERO; MAX_LINKS],
             link_rot: [Vec4::W; MAX_LINKS],
-            chain_j: [0; MAX_JOINTS],
+            chain_j: [0; MAX_TIPS * MAX_JOINTS],
+            chain_n: [0; MAX_TIPS],
+            first: [0; MAX_TIPS * MAX_JOINTS],
             chain_o: [Vec3::ZERO; MAX_JOINTS],
             chain_a: [Vec3::ZERO; MAX_JOINTS],
+            lead: [0; MAX_TIPS * MAX_JOINTS],
+            lead_n: [0; MAX_TIPS],
+            slots: [0; MAX_JOINTS],
+            couple: [0; MAX_TIPS],
+            followers: 0,
+            lock: [0; MAX_JOINTS],
             jac: [Vec3::ZERO; MAX_TIPS * MAX_JOINTS],
             err: [Vec3::ZERO; MAX_TIPS],
-            gram: [0.0; IK_ROWS * IK_ROWS],
-            y: [0.0; IK_ROWS],
+            y: [Vec3::ZERO; MAX_TIPS],
+            blk: [Mat3::ZERO; IK_BLOCKS],
             dq: [0.0; MAX_JOINTS],
-            touched: [0; MAX_JOINTS],
-            lock: [0; MAX_JOINTS],
             q: [0.0; MAX_JOINTS],
         }
     }
@@ -194,8 +240,10 @@ pub fn ik_apply_mimic(m: &Model, q: &mut [f32; MAX_JOINTS]) {
     }
 }
 
-/// The joints that move fingertip `t`, root → tip, into `s.chain_j`; returns how many.
+/// The joints that move fingertip `t`, root → tip, into `s.chain_j[t * MAX_JOINTS..]`; returns
+/// how many.
 pub fn ik_chain(m: &Model, t: usize, s: &mut IkScratch) -> usize {
+    let base = t * MAX_JOINTS;
     // walk up: link l is moved by joint l − 1, whose parent link is next
     let mut n = 0;
     let mut link = m.tips[t].link;
@@ -204,15 +252,13 @@ pub fn ik_chain(m: &Model, t: usize, s: &mut IkScratch) -> usize {
             break;
         }
         let j = link - 1;
-        s.chain_j[n] = j;
+        s.chain_j[base + n] = j;
         n += 1;
         link = m.joints[j as usize].parent_link;
     }
     // reverse into root → tip order
     for i in 0..n / 2 {
-        let a = s.chain_j[i];
-        s.chain_j[i] = s.chain_j[n - 1 - i];
-        s.chain_j[n - 1 - i] = a;
+        s.chain_j.swap(base + i, base + n - 1 - i);
     }
     n
 }
@@ -223,7 +269,7 @@ pub fn ik_chain_fk(m: &Model, t: usize, n: usize, q: &[f32; MAX_JOINTS], s: &mut
     let mut pos = Vec3::ZERO;
     let mut rot = Vec4::W;
     for i in 0..n {
-        let j = s.chain_j[i] as usize;
+        let j = s.chain_j[t * MAX_JOINTS + i] as usize;
         let f = ik_joint_frame(&m.joints[j], pos, rot, q[j]);
         s.chain_o[i] = f.origin;
         s.chain_a[i] = f.axis;
@@ -250,148 +296,204 @@ pub fn ik_leader(m: &Model, j: u32) -> u32 {
     if l != NO_JOINT { l } else { j }
 }
 
-/// Marks in `s.touched` every actuated joint that drives the chain of an active fingertip (bit t of
-/// `mask`), itself or through a follower; returns how many tips are active.
-pub fn ik_touched(m: &Model, mask: u32, s: &mut IkScratch) -> usize {
+/// For every active fingertip (bit t of `mask`, slots a = 0.. in tip order): its chain
+/// (`ik_chain`, `s.chain_n`), which chain entries are the first driven by their actuated joint
+/// (`s.first`), the actuated joints that drive the chain (itself or through a follower; `s.lead`,
+/// `s.lead_n`), which slots each joint drives (`s.slots`) and which slots share a joint
+/// (`s.couple`); clears the locks and the slots' Jacobian rows. Returns the number of active tips.
+pub fn ik_setup(m: &Model, mask: u32, s: &mut IkScratch) -> usize {
+    s.followers = 0;
     for k in 0..MAX_JOINTS {
-        s.touched[k] = 0;
+        s.slots[k] = 0;
+        s.lock[k] = 0;
+        if k < m.g.n_joints as usize && m.joints[k].mimic_leader != NO_JOINT {
+            s.followers = 1;
+        }
     }
-    let mut n_active = 0;
+    let mut a = 0;
     for t in 0..m.g.n_tips as usize {
         if ((mask >> t) & 1) != 0 {
-            n_active += 1;
             let n = ik_chain(m, t, s);
-            for i in 0..n {
-                s.touched[ik_leader(m, s.chain_j[i]) as usize] = 1;
+            s.chain_n[t] = n as u32;
+            for k in 0..m.g.n_joints as usize {
+                s.jac[a * MAX_JOINTS + k] = Vec3::ZERO;
             }
+            let mut cnt = 0;
+            for i in 0..n {
+                let k = ik_leader(m, s.chain_j[t * MAX_JOINTS + i]);
+                // each leader once per slot
+                let first = (s.slots[k as usize] >> a) & 1 == 0;
+                s.first[t * MAX_JOINTS + i] = first as u32;
+                if first {
+                    s.lead[a * MAX_JOINTS + cnt] = k;
+                    cnt += 1;
+                }
+                s.slots[k as usize] |= 1 << a;
+            }
+            s.lead_n[a] = cnt as u32;
+            a += 1;
         }
     }
-    n_active
+    for b in 0..a {
+        s.couple[b] = 0;
+        for i in 0..s.lead_n[b] as usize {
+            s.couple[b] |= s.slots[s.lead[b * MAX_JOINTS + i] as usize];
+        }
+    }
+    a
 }
 
-/// Chain FK of fingertip `t` at `s.q` and its Jacobian row block in slot `a` of `s.jac` (columns of
-/// unlocked actuated joints, see the module documentation); stores and returns e = goal − x.
+/// Chain FK of fingertip `t` at `s.q` and its Jacobian columns in slot `a` of `s.jac` (unlocked
+/// actuated joints, see the module documentation; needs `ik_setup`); stores the residual, at most
+/// `IK_ERR_CLAMP` long, in `s.err[a]` and returns e = goal − x.
 pub fn ik_tip_jacobian(m: &Model, t: usize, a: usize, goal: Vec3, s: &mut IkScratch) -> Vec3 {
-    let n = ik_chain(m, t, s);
+    let n = s.chain_n[t] as usize;
     let q = s.q;
     let x = ik_chain_fk(m, t, n, &q, s);
-    for k in 0..MAX_JOINTS {
-        s.jac[a * MAX_JOINTS + k] = Vec3::ZERO;
-    }
     for i in 0..n {
-        let j = s.chain_j[i];
+        let j = s.chain_j[t * MAX_JOINTS + i];
         let k = ik_leader(m, j) as usize;
-        if s.lock[k] == 0 {
-            let w = if j as usize == k { 1.0 } else { m.joints[j as usize].mimic_mult };
-            // Jₐₖ += wⱼ aⱼ × (x − oⱼ)
-            s.jac[a * MAX_JOINTS + k] += w * s.chain_a[i].cross(x - s.chain_o[i]);
+        let w = if j as usize == k { 1.0 } else { m.joints[j as usize].mimic_mult };
+        // Jₐₖ = Σ wⱼ aⱼ × (x − oⱼ) over the chain joints driven by k
+        let c = w * s.chain_a[i].cross(x - s.chain_o[i]);
+        if s.first[t * MAX_JOINTS + i] != 0 {
+            s.jac[a * MAX_JOINTS + k] = c;
+        } else {
+            s.jac[a * MAX_JOINTS + k] += c;
         }
     }
-    // e = x* − x
+    // e = x* − x, aimed at no farther than IK_ERR_CLAMP per iteration
     let e = goal - x;
-    s.err[a] = e;
+    let len = e.length();
+    s.err[a] = if len > IK_ERR_CLAMP { e * (IK_ERR_CLAMP / len) } else { e };
     e
 }
 
-/// J Jᵀ + λ² I over `n_active` slots into `s.gram` (`[3m, 3m]` at stride `IK_ROWS`, lower triangle
-/// and diagonal): block (a, b) = Σₖ Jₐₖ Jᵦₖᵀ.
-pub fn ik_build_gram(m: &Model, n_active: usize, damping: f32, s: &mut IkScratch) {
-    let n = m.g.n_joints as usize;
+/// u vᵀ.
+pub fn ik_outer(u: Vec3, v: Vec3) -> Mat3 {
+    Mat3::from_cols(u * v.x, u * v.y, u * v.z)
+}
+
+/// L⁻¹ for the lower Cholesky factor L of a symmetric positive definite 3×3 `a` (L Lᵀ = a; only
+/// its lower triangle is read), a lower triangular matrix.
+pub fn ik_chol3_inv(a: Mat3) -> Mat3 {
+    let l00 = a.x_axis.x.max(1e-20).sqrt();
+    let l10 = a.x_axis.y / l00;
+    let l20 = a.x_axis.z / l00;
+    let l11 = (a.y_axis.y - l10 * l10).max(1e-20).sqrt();
+    let l21 = (a.y_axis.z - l20 * l10) / l11;
+    let l22 = (a.z_axis.z - l20 * l20 - l21 * l21).max(1e-20).sqrt();
+    let i00 = 1.0 / l00;
+    let i11 = 1.0 / l11;
+    let i22 = 1.0 / l22;
+    let i10 = -l10 * i00 * i11;
+    let i21 = -l21 * i11 * i22;
+    let i20 = -(l20 * i00 + l21 * i10) * i22;
+    Mat3::from_cols(Vec3::new(i00, i10, i20), Vec3::new(0.0, i11, i21), Vec3::new(0.0, 0.0, i22))
+}
+
+/// Lower block triangle of J Jᵀ + λ² I over `n_active` slots into `s.blk`: block (a, b) =
+/// Σₖ Jₐₖ Jᵦₖᵀ (+ λ² I for a = b), the sum over slot a's joints (Jᵦₖ = 0 off b's chain).
+pub fn ik_build_gram(n_active: usize, damping: f32, s: &mut IkScratch) {
     for a in 0..n_active {
         for b in 0..=a {
-            for r in 0..3 {
-                for c in 0..3 {
-                    let mut sum = 0.0;
-                    for k in 0..n {
-                        sum += s.jac[a * MAX_JOINTS + k][r] * s.jac[b * MAX_JOINTS + k][c];
-                    }
-                    if a == b && r == c {
-                        sum += damping * damping;
-                    }
-                    s.gram[(3 * a + r) * IK_ROWS + 3 * b + c] = sum;
+            let mut sum = Mat3::ZERO;
+            if a == b {
+                sum = Mat3::from_diagonal(Vec3::splat(damping * damping));
+            }
+            // chains that share no joint leave their block zero
+            if ((s.couple[a] >> b) & 1) != 0 {
+                for i in 0..s.lead_n[a] as usize {
+                    let k = s.lead[a * MAX_JOINTS + i] as usize;
+                    sum += ik_outer(s.jac[a * MAX_JOINTS + k], s.jac[b * MAX_JOINTS + k]);
                 }
             }
+            s.blk[a * (a + 1) / 2 + b] = sum;
         }
     }
 }
 
-/// Solves (J Jᵀ + λ² I) y = e (`3 · n_active` rows) into `s.y` by Cholesky, L overwriting
-/// `s.gram`'s lower triangle.
+/// Solves (J Jᵀ + λ² I) y = e (`n_active` block rows) into `s.y` by block Cholesky (3×3 blocks):
+/// L_ij = (S_ij − Σ_{k<j} L_ik L_jkᵀ) L_jj⁻ᵀ, L_jj the Cholesky factor of S_jj − Σ_{k<j} L_jk L_jkᵀ;
+/// then L z = e and Lᵀ y = z.
 pub fn ik_cholesky(n_active: usize, s: &mut IkScratch) {
-    let n = 3 * n_active;
-    for i in 0..n {
+    for i in 0..n_active {
         for j in 0..=i {
-            let mut sum = s.gram[i * IK_ROWS + j];
+            let mut mm = s.blk[i * (i + 1) / 2 + j];
             for k in 0..j {
-                sum -= s.gram[i * IK_ROWS + k] * s.gram[j * IK_ROWS + k];
+                mm -= s.blk[i * (i + 1) / 2 + k] * s.blk[j * (j + 1) / 2 + k].transpose();
             }
             if i == j {
-                s.gram[i * IK_ROWS + i] = sum.max(1e-20).sqrt();
+                // the diagonal block keeps L_ii⁻¹
+                s.blk[i * (i + 1) / 2 + i] = ik_chol3_inv(mm);
             } else {
-                s.gram[i * IK_ROWS + j] = sum / s.gram[j * IK_ROWS + j];
+                s.blk[i * (i + 1) / 2 + j] = mm * s.blk[j * (j + 1) / 2 + j].transpose();
             }
         }
     }
-    // L z = e
-    for i in 0..n {
-        let mut sum = s.err[i / 3][i % 3];
+    // L z = e: z_i = L_ii⁻¹ (e_i − Σ_{k<i} L_ik z_k)
+    for i in 0..n_active {
+        let mut r = s.err[i];
         for k in 0..i {
-            sum -= s.gram[i * IK_ROWS + k] * s.y[k];
+            r -= s.blk[i * (i + 1) / 2 + k] * s.y[k];
         }
-        s.y[i] = sum / s.gram[i * IK_ROWS + i];
+        s.y[i] = s.blk[i * (i + 1) / 2 + i] * r;
     }
-    // Lᵀ y = z
-    for ii in 0..n {
-        let i = n - 1 - ii;
-        let mut sum = s.y[i];
-        for k in (i + 1)..n {
-            sum -= s.gram[k * IK_ROWS + i] * s.y[k];
+    // Lᵀ y = z: y_i = L_ii⁻ᵀ (z_i − Σ_{k>i} L_kiᵀ y_k)
+    for ii in 0..n_active {
+        let i = n_active - 1 - ii;
+        let mut r = s.y[i];
+        for k in (i + 1)..n_active {
+            r -= s.blk[k * (k + 1) / 2 + i].transpose() * s.y[k];
         }
-        s.y[i] = sum / s.gram[i * IK_ROWS + i];
+        s.y[i] = s.blk[i * (i + 1) / 2 + i].transpose() * r;
     }
 }
 
 /// Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e into `s.dq` (Δqₖ = Σₐ Jₐₖ · yₐ).
 pub fn ik_dls_step(m: &Model, n_active: usize, damping: f32, s: &mut IkScratch) {
-    ik_build_gram(m, n_active, damping, s);
+    ik_build_gram(n_active, damping, s);
     ik_cholesky(n_active, s);
     for k in 0..m.g.n_joints as usize {
-        let mut d = 0.0;
-        for a in 0..n_active {
-            d += s.jac[a * MAX_JOINTS + k].dot(Vec3::new(s.y[3 * a], s.y[3 * a + 1], s.y[3 * a + 2]));
+        s.dq[k] = 0.0;
+    }
+    for a in 0..n_active {
+        for i in 0..s.lead_n[a] as usize {
+            let k = s.lead[a * MAX_JOINTS + i] as usize;
+            s.dq[k] += s.jac[a * MAX_JOINTS + k].dot(s.y[a]);
         }
-        s.dq[k] = d;
     }
 }
 
 /// One solver iteration on `s.q` (see the module documentation); returns false, leaving `s.q`
 /// untouched, when every active residual is ≤ `tol` or the step is not finite.
 pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, n_active: usize, prm: &IkParams, s: &mut IkScratch) -> bool {
-    for k in 0..MAX_JOINTS {
-        s.lock[k] = 0;
-    }
+    let n = m.g.n_joints as usize;
     let mut worst = 0.0f32;
+    let mut finite = true;
     let mut a = 0;
     for t in 0..m.g.n_tips as usize {
         if ((mask >> t) & 1) != 0 {
             let e = ik_tip_jacobian(m, t, a, targets[t], s).length();
-            // written so that a NaN propagates
-            if !(e <= worst) {
-                worst = e;
-            }
+            worst = worst.max(e);
+            // NaN fails the comparison
+            finite = finite && e < 1e30;
             a += 1;
         }
     }
-    if !(worst > prm.tol) {
+    // every tip reached, or a non-finite target: nothing moves
+    if !(worst > prm.tol) || !finite {
         return false;
     }
     // λ = damping · clamp(max |e| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1)
     let damping = prm.damping * (worst / IK_DAMPING_DIST).clamp(IK_DAMPING_FLOOR, 1.0);
-    for _ in 0..MAX_JOINTS {
+    let mut dmax = 0.0f32;
+    for _ in 0..IK_LOCK_ROUNDS {
         ik_dls_step(m, n_active, damping, s);
         // lock every joint at a limit that Δq pushes further out, zero its columns, solve again
         let mut locked = false;
-        for k in 0..m.g.n_joints as usize {
+        dmax = 0.0;
+        for k in 0..n {
             let jd = &m.joints[k];
             let d = s.dq[k];
             if s.lock[k] == 0 && ((s.q[k] <= jd.lower && d < 0.0) || (s.q[k] >= jd.upper && d > 0.0)) {
@@ -400,32 +502,33 @@ pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, n_active: us
                 for b in 0..n_active {
                     s.jac[b * MAX_JOINTS + k] = Vec3::ZERO;
                 }
+            } else if s.lock[k] == 0 {
+                dmax = dmax.max(d.abs());
+                // NaN fails the comparison
+                finite = finite && d.abs() < 1e30;
             }
         }
         if !locked {
             break;
         }
     }
-    let mut dmax = 0.0f32;
-    for k in 0..m.g.n_joints as usize {
-        let d = s.dq[k].abs();
-        if !(d <= dmax) {
-            dmax = d;
-        }
-    }
     // a non-finite step moves nothing
-    if !(dmax < 1e30) {
+    if !finite {
         return false;
     }
     // scale Δq so that max |Δqₖ| ≤ max_step, keeping its direction
     let scale = if dmax > prm.max_step { prm.max_step / dmax } else { 1.0 };
-    for k in 0..m.g.n_joints as usize {
+    for k in 0..n {
         let jd = &m.joints[k];
-        if s.touched[k] != 0 && s.lock[k] == 0 {
+        if s.slots[k] != 0 && s.lock[k] == 0 {
             s.q[k] = (s.q[k] + scale * s.dq[k]).clamp(jd.lower, jd.upper);
         }
+        // the locks hold for one iteration
+        s.lock[k] = 0;
     }
-    ik_apply_mimic(m, &mut s.q);
+    if s.followers != 0 {
+        ik_apply_mimic(m, &mut s.q);
+    }
     true
 }
 
@@ -433,9 +536,9 @@ pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, n_active: us
 /// damped least squares from `q_seed` (see the module documentation). Actuated joints on no active
 /// chain keep their seed values; every joint the solver moves stays within its limits.
 pub fn ik_solve(m: &Model, q_seed: &[f32; MAX_JOINTS], targets: &[Vec3; MAX_TIPS], mask: u32, prm: &IkParams) -> [f32; MAX_JOINTS] {
-    let mut s = IkScratch::default();
-    s.q = *q_seed;
-    let n_active = ik_touched(m, mask, &mut s);
+    // the shader's ik_q = q_seed
+    let mut s = IkScratch { q: *q_seed, ..Default::default() };
+    let n_active = ik_setup(m, mask, &mut s);
     for _ in 0..prm.iters {
         if !ik_iterate(m, targets, mask, n_active, prm, &mut s) {
             break;
