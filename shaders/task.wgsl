@@ -1,9 +1,11 @@
-// task.wgsl — the lift task on top of the physics: actions -> targets, reward terms and dones,
-// observations. One invocation per env, three entry points run in this order around the physics:
+// task.wgsl — the task kinds (lift, track, residual_joint, residual_task) on top of the physics:
+// actions -> targets, reward terms and dones, observations. One invocation per env, three entry
+// points run in this order around the physics:
 //   task_act -> step_main -> task_reward -> reset_main -> task_observe
 // CPU twin: src/env/task.rs (same function names, same order, same arithmetic; the module doc there
 // is the contract and lists the observation layout). This file is appended to common + reset +
-// physics: it reuses hand_kinematics and its var<private> memory (st, link_pos, link_rot).
+// physics + reference + ik: it reuses hand_kinematics and its var<private> memory (st, link_pos,
+// link_rot), the reference sampler (ref_begin, ref_sample) and the fingertip IK (ik_solve).
 
 // The task layer's constants (twin: layout.rs TaskGlobals; a uniform, so arrays are of vec4).
 struct TaskGlobals {

@@ -1,4 +1,12 @@
-//! The task layer: the lift task (DESIGN §5) on top of an [`EnvBatch`], on both backends.
+//! The task layer: the lift task and the reference-following kinds (`track`, `residual_joint`,
+//! `residual_task`; DESIGN §5) on top of an [`EnvBatch`], on both backends.
+//!
+//! The sections below describe the lift task (`task.kind = "lift"`). The reference kinds share the
+//! contract and the order of the kernels; their actions, observations, rewards, success and
+//! resets are documented on [`residual_targets`], [`task_act`], [`tracking_terms`],
+//! [`task_reward`], [`task_init`] and [`observe_reference`], and in the README ("The
+//! reference-following tasks"). Their per-env reference cursor lives in [`TaskState::cursor`]
+//! (`env::reference`), their bank in bindings 13–15.
 //!
 //! # The task contract
 //!
