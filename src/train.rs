@@ -86,6 +86,10 @@ pub fn metric_columns(spec: &TaskSpec) -> Vec<String> {
         .iter()
         .map(|s| s.to_string()),
     );
+    if spec.kind != "lift" {
+        // the object's error against its reference, mean over the rollout's env steps
+        c.extend(["tracking/obj_pos_err_m", "tracking/obj_rot_err_deg"].iter().map(|s| s.to_string()));
+    }
     c
 }
 
@@ -101,6 +105,9 @@ struct RolloutSums {
     ep_return: f64,
     ep_len: f64,
     lift: f64,
+    /// Σ over env steps of the object's position (m) and orientation (deg) error against its reference.
+    obj_pos_err: f64,
+    obj_rot_err: f64,
 }
 
 /// Per-env accumulators of the running episodes.
@@ -127,6 +134,8 @@ fn collect(task: &mut dyn TaskBatch, ppo: &mut Ppo, obs: &mut Vec<f32>, priv_obs
             }
             eps.ret[i] += r;
             eps.len[i] += 1.0;
+            s.obj_pos_err += b.obj_pos_err[i] as f64;
+            s.obj_rot_err += (b.obj_rot_err[i] as f64).to_degrees();
             if b.done(i) {
                 s.episodes += 1;
                 s.successes += b.success[i] as u64;
@@ -145,7 +154,9 @@ fn collect(task: &mut dyn TaskBatch, ppo: &mut Ppo, obs: &mut Vec<f32>, priv_obs
     Ok(s)
 }
 
-fn metric_row(s: &RolloutSums, u: &UpdateStats, env_steps: u64, time_s: f64, fps: f64, collect_s: f64, learn_s: f64) -> Vec<f64> {
+/// One metrics row in `metric_columns` order (`tracking`: the reference kinds' extra columns).
+#[allow(clippy::too_many_arguments)]
+fn metric_row(s: &RolloutSums, u: &UpdateStats, env_steps: u64, time_s: f64, fps: f64, collect_s: f64, learn_s: f64, tracking: bool) -> Vec<f64> {
     let per_step = |x: f64| if s.steps > 0 { x / s.steps as f64 } else { f64::NAN };
     let per_ep = |x: f64| if s.episodes > 0 { x / s.episodes as f64 } else { f64::NAN };
     let mut row = vec![env_steps as f64, time_s, fps, collect_s, learn_s, per_step(s.reward)];
@@ -165,6 +176,9 @@ fn metric_row(s: &RolloutSums, u: &UpdateStats, env_steps: u64, time_s: f64, fps
         u.grad_norm,
         u.mean_std,
     ]);
+    if tracking {
+        row.extend([per_step(s.obj_pos_err), per_step(s.obj_rot_err)]);
+    }
     row
 }
 
@@ -287,7 +301,7 @@ pub fn run(args: &TrainArgs) -> Result<PathBuf> {
         let dt = t0.elapsed().as_secs_f64();
         let time_s = time_base + started.elapsed().as_secs_f64();
         let fps = sums.steps as f64 / dt.max(1e-9);
-        let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s);
+        let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s, spec.kind != "lift");
         metrics.append(iteration, &row)?;
         let success = row[columns.iter().position(|c| c == "episode/success_rate").unwrap_or(0)];
         let reward = row[columns.iter().position(|c| c == "reward/mean").unwrap_or(0)];

@@ -373,6 +373,13 @@ fn residual_run_trains_and_evaluates_against_the_open_loop_baseline() {
         quiet: true,
     };
     let dir = train(&args).expect("train");
+    // metrics.csv logs the object's tracking error for the reference kinds
+    let (cols, rows) = dextrain::metrics::read_csv(&dir.join("metrics.csv")).unwrap();
+    let k = cols.iter().position(|c| c == "tracking/obj_pos_err_m").expect("a tracking column");
+    assert!(cols.contains(&"tracking/obj_rot_err_deg".to_string()) && cols.contains(&"reward/object_pos".to_string()));
+    for (_, v) in &rows {
+        assert!(v[k] > 0.0 && v[k] < 0.2, "mean object error {} m", v[k]);
+    }
     let e = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 2, max_envs: 2, seed: None, record: None, backend: None, baseline: Some("open-loop".into()) };
     let r = eval(&e).expect("eval");
     let base = r.baseline.as_ref().expect("baseline");

@@ -135,6 +135,8 @@ pub struct TaskSpec {
     pub episode_length: u32,
     /// Seconds per env step (`sim.dt · sim.decimation`).
     pub control_dt: f32,
+    /// `task.kind`.
+    pub kind: String,
 }
 
 /// Everything the learner needs from one control step, on the host. Row-major `[N, dim]` arrays.
@@ -543,6 +545,7 @@ pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<TaskSetup> {
         term_names: terms.iter().map(|s| s.to_string()).collect(),
         episode_length,
         control_dt,
+        kind: t.kind.clone(),
     };
     Ok(TaskSetup { spec, tc, bank, rg })
 }
