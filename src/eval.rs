@@ -386,6 +386,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
 /// Writes env 0's current state as one recording frame.
 fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::env::task::TaskBatch, t: f64) -> Result<()> {
     let targets = task.targets()?;
+    let object_ref = task.reference_now(0)?.map(|f| Pose::from_arrays(f.obj_pos, f.obj_rot));
     let env = task.env();
     let states = env.states()?;
     let params = env.params()?;
@@ -400,7 +401,7 @@ fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::e
         object: Pose::from_arrays(s.obj_pos, s.obj_rot),
         links: hand_link_poses(model, s),
         contacts: contact_records(model, s, &params[0]),
-        object_ref: None,
+        object_ref,
     })
 }
 

@@ -380,8 +380,22 @@ fn residual_run_trains_and_evaluates_against_the_open_loop_baseline() {
     for (_, v) in &rows {
         assert!(v[k] > 0.0 && v[k] < 0.2, "mean object error {} m", v[k]);
     }
-    let e = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 2, max_envs: 2, seed: None, record: None, backend: None, baseline: Some("open-loop".into()) };
+    let rec = tmp.path().join("eval.mcap");
+    let e = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 2, max_envs: 2, seed: None, record: Some(rec.clone()), backend: None, baseline: Some("open-loop".into()) };
     let r = eval(&e).expect("eval");
+    // the recording shows the reference object next to the object, frame by frame
+    let bytes = std::fs::read(&rec).unwrap();
+    let mut poses = 0;
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        if m.channel.topic == "/dextrain/poses" {
+            let v: serde_json::Value = serde_json::from_slice(&m.data).unwrap();
+            assert!(v["object_ref"]["qw"].is_number(), "object_ref in {v}");
+            poses += 1;
+        }
+    }
+    assert!(poses > 100, "{poses} pose messages");
+    let e = EvalArgs { record: None, ..e };
     let base = r.baseline.as_ref().expect("baseline");
     assert_eq!((r.policy.per_episode.len(), base.per_episode.len()), (2, 2));
     assert!(r.path.with_extension("md").is_file());

@@ -242,6 +242,9 @@ pub trait TaskBatch: Send {
     /// The wrist and joint targets of every env's last step (for an env that was just reset: the
     /// default targets its next step starts from).
     fn targets(&mut self) -> Result<Vec<Targets>>;
+    /// Reference kinds: env `env`'s (augmented) reference at its current env step (the frame its
+    /// tracking error is measured against); `None` for the lift task.
+    fn reference_now(&mut self, env: usize) -> Result<Option<RefFrame>>;
     /// Everything that decides the envs' future (env states, parameters, task states), as bytes for
     /// a checkpoint; [`TaskBatch::load_state`] restores it.
     fn save_state(&mut self) -> Result<Vec<u8>>;
@@ -1338,6 +1341,11 @@ impl TaskBatch for CpuTaskBatch {
 
     fn targets(&mut self) -> Result<Vec<Targets>> {
         Ok(self.task.iter().map(|t| t.targets).collect())
+    }
+
+    fn reference_now(&mut self, env: usize) -> Result<Option<RefFrame>> {
+        let step = self.env.states_ref()[env].step;
+        Ok(self.reference_frame(env, step, 0))
     }
 
     fn save_state(&mut self) -> Result<Vec<u8>> {

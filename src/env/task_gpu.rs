@@ -23,6 +23,9 @@ pub struct GpuTaskBatch {
     env: GpuEnvBatch,
     spec: TaskSpec,
     tc: TaskGlobals,
+    /// The reference bank's host copy and constants (to sample an env's reference on the host).
+    bank: Option<crate::traj::bank::RefBank>,
+    rg: crate::env::reference::RefGlobals,
     /// `[N, action_dim]` f32.
     actions: wgpu::Buffer,
     task_states: wgpu::Buffer,
@@ -169,6 +172,8 @@ impl GpuTaskBatch {
             env,
             spec,
             tc,
+            bank,
+            rg,
             actions,
             task_states,
             out,
@@ -253,6 +258,17 @@ impl TaskBatch for GpuTaskBatch {
 
     fn targets(&mut self) -> Result<Vec<Targets>> {
         Ok(self.task_states()?.iter().map(|t| t.targets).collect())
+    }
+
+    fn reference_now(&mut self, env: usize) -> Result<Option<crate::env::reference::RefFrame>> {
+        if self.bank.is_none() {
+            return Ok(None);
+        }
+        // the shader's sampler, run on the host (its CPU twin) with the env's cursor and step
+        let cursor = self.task_states()?[env].cursor;
+        let step = self.env.states()?[env].step;
+        let r = crate::env::task::ref_model(&self.env.model, self.bank.as_ref(), &self.rg);
+        Ok(Some(crate::env::reference::ref_sample(&r, &cursor, step, 0)))
     }
 
     fn save_state(&mut self) -> Result<Vec<u8>> {
