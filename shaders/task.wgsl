@@ -155,13 +155,18 @@ fn finger_target(mode: u32, jd: JointDesc, a: f32, prev: f32) -> f32 {
     return clamp(prev + a * tc.finger_delta_scale, jd.lower, jd.upper);
 }
 
-// exp(rv) ⊗ rot, then at most wrist_rot_limit from the initial orientation: exp(e·limit/|e|) ⊗ init
-fn wrist_rot_target(rot: vec4<f32>, rv: vec3<f32>) -> vec4<f32> {
-    var r = rot;
+// exp(rv) ⊗ rot, normalised; rot itself when the rotation is below 1e-9 rad
+fn rotate_by(rot: vec4<f32>, rv: vec3<f32>) -> vec4<f32> {
     let angle = length(rv);
     if (angle > 1e-9) {
-        r = quat_normalize(quat_mul(quat_from_axis_angle(rv / angle, angle), rot));
+        return quat_normalize(quat_mul(quat_from_axis_angle(rv / angle, angle), rot));
     }
+    return rot;
+}
+
+// exp(rv) ⊗ rot, then at most wrist_rot_limit from the initial orientation: exp(e·limit/|e|) ⊗ init
+fn wrist_rot_target(rot: vec4<f32>, rv: vec3<f32>) -> vec4<f32> {
+    var r = rotate_by(rot, rv);
     let init = g.init_wrist_rot;
     let e = quat_error(r, init);
     let d = length(e);
@@ -178,15 +183,6 @@ fn nominal_targets(f: RefFrame) -> Targets {
     t.wrist_rot = f.wrist_rot;
     t.q = f.q;
     return t;
-}
-
-// exp(rv) ⊗ rot, normalised; rot itself when the rotation is below 1e-9 rad
-fn rotate_by(rot: vec4<f32>, rv: vec3<f32>) -> vec4<f32> {
-    let angle = length(rv);
-    if (angle > 1e-9) {
-        return quat_normalize(quat_mul(quat_from_axis_angle(rv / angle, angle), rot));
-    }
-    return rot;
 }
 
 // residual kinds: targets from the nominal frame f and the clipped actions a (see the twin)

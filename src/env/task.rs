@@ -603,13 +603,18 @@ pub fn finger_target(tc: &TaskGlobals, mode: u32, jd: &JointDesc, a: f32, prev: 
     (prev + a * tc.finger_delta_scale).max(jd.lower).min(jd.upper)
 }
 
-/// exp(rv) ⊗ rot, then at most `wrist_rot_limit` from the initial orientation: exp(e·limit/|e|) ⊗ init.
-pub fn wrist_rot_target(g: &Globals, tc: &TaskGlobals, rot: Vec4, rv: Vec3) -> Vec4 {
-    let mut r = rot;
+/// `exp(rv) ⊗ rot`, normalised; `rot` itself (bit for bit) when the rotation is below 1e-9 rad.
+pub fn rotate_by(rot: Vec4, rv: Vec3) -> Vec4 {
     let angle = rv.length();
     if angle > 1e-9 {
-        r = quat_normalize(quat_mul(quat_from_axis_angle(rv / angle, angle), rot));
+        return quat_normalize(quat_mul(quat_from_axis_angle(rv / angle, angle), rot));
     }
+    rot
+}
+
+/// exp(rv) ⊗ rot, then at most `wrist_rot_limit` from the initial orientation: exp(e·limit/|e|) ⊗ init.
+pub fn wrist_rot_target(g: &Globals, tc: &TaskGlobals, rot: Vec4, rv: Vec3) -> Vec4 {
+    let mut r = rotate_by(rot, rv);
     let init = Vec4::from_array(g.init_wrist_rot);
     let e = quat_error(r, init);
     let d = e.length();
@@ -622,15 +627,6 @@ pub fn wrist_rot_target(g: &Globals, tc: &TaskGlobals, rot: Vec4, rv: Vec3) -> V
 /// Targets that follow a reference frame exactly (what `dextrain replay` drives).
 pub fn nominal_targets(f: &RefFrame) -> Targets {
     Targets { wrist_pos: f.wrist_pos, wrist_rot: f.wrist_rot, q: f.q }
-}
-
-/// `exp(rv) ⊗ rot`, normalised; `rot` itself (bit for bit) when the rotation is below 1e-9 rad.
-pub fn rotate_by(rot: Vec4, rv: Vec3) -> Vec4 {
-    let angle = rv.length();
-    if angle > 1e-9 {
-        return quat_normalize(quat_mul(quat_from_axis_angle(rv / angle, angle), rot));
-    }
-    rot
 }
 
 /// Residual kinds: the targets of this step from the nominal frame `f` (the reference at the end
