@@ -61,6 +61,16 @@ impl GpuTaskBatch {
                 limits.max_storage_buffer_binding_size.min(limits.max_buffer_size) >> 20
             );
         }
+        let ref_bytes = (bank.as_ref().map_or(0, |b| b.frames.len()) * 4) as u64;
+        if ref_bytes > limits.max_storage_buffer_binding_size || ref_bytes > limits.max_buffer_size {
+            bail!(
+                "{}: key `task.reference.files`: the references need {} MiB on the device, but adapter {} allows {} MiB per storage binding",
+                cfg.source.display(),
+                ref_bytes >> 20,
+                ctx.info.name,
+                limits.max_storage_buffer_binding_size.min(limits.max_buffer_size) >> 20
+            );
+        }
         let tips_host = model.tips.clone();
         let env = GpuEnvBatch::new(ctx, model)?;
         let device = &env.ctx.device;
