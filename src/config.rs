@@ -299,16 +299,21 @@ pub struct TrackConfig {
     pub lookahead: u32,
     /// Env steps between observed look-ahead frames.
     pub lookahead_stride: u32,
-    /// β1, β2, β3 of `R_f = β1 R_j + β2 R_ee,x + β3 R_ee,r` (joints, wrist position, wrist rotation).
+    /// β1 of `R_f = β1 R_j + β2 R_ee,x + β3 R_ee,r`: the weight of joint tracking.
     pub beta_joint: f32,
+    /// β2: the weight of wrist position tracking.
     pub beta_wrist_pos: f32,
+    /// β3: the weight of wrist rotation tracking.
     pub beta_wrist_rot: f32,
-    /// α1 of `R_j = 1 − tanh(α1‖q − q̂‖)` (1/rad), α2 of `R_ee,x` (1/m), α3 of `R_ee,r` (1/rad).
+    /// α1 of `R_j = 1 − tanh(α1‖q − q̂‖)` (1/rad, over the actuated joints).
     pub alpha_joint: f32,
+    /// α2 of `R_ee,x = 1 − tanh(α2‖x − x̂‖)` (1/m, the wrist position).
     pub alpha_wrist_pos: f32,
+    /// α3 of `R_ee,r = 1 − tanh(α3 φ)` (1/rad, φ the wrist's angle from its reference).
     pub alpha_wrist_rot: f32,
-    /// α4 of `exp(−α4‖T − T̂‖)` (1/m) and α5 of `exp(−α5‖log(q̂⁻¹ ⊗ q)‖)` (1/rad) in `R_o`.
+    /// α4 of `exp(−α4‖T − T̂‖)` in `R_o` (1/m, the object position).
     pub alpha_object_pos: f32,
+    /// α5 of `exp(−α5‖log(q̂⁻¹ ⊗ q)‖)` in `R_o` (1/rad, the object orientation).
     pub alpha_object_rot: f32,
     /// Success: the object ends within this distance (m) of the reference's final object position …
     pub success_pos_tol: f32,
@@ -328,26 +333,34 @@ pub struct ResidualConfig {
     pub wrist_pos_alpha: f32,
     /// residual_joint: wrist rotation residual at |a| = 1 (rad): `R* = exp(wrist_rot_alpha·a) ⊗ R̄`.
     pub wrist_rot_alpha: f32,
-    /// residual_joint rewards: `r_obj-p = exp(−obj_pos_coef·e_p)`, `r_obj-r = exp(−obj_rot_coef·e_R)`.
+    /// residual_joint reward `r_obj-p = exp(−obj_pos_coef·e_p)` (1/m).
     pub obj_pos_coef: f32,
+    /// residual_joint reward `r_obj-r = exp(−obj_rot_coef·e_R)` (1/rad).
     pub obj_rot_coef: f32,
     /// residual_task: EMA weight of the new output, `ũ_t = ema·u_t + (1 − ema)·ũ_{t−1}`.
     pub ema: f32,
-    /// residual_task: integration scales s of `Δa_t = Δa_{t−1} + s ⊙ ũ_t Δt` (wrist translation m/s,
-    /// wrist rotation rad/s, fingertips m/s).
+    /// residual_task: integration scale s of `Δa_t = Δa_{t−1} + s ⊙ ũ_t Δt` for the wrist
+    /// translation (m/s at |ũ| = 1).
     pub scale_wrist_pos: f32,
+    /// … for the wrist rotation (rad/s).
     pub scale_wrist_rot: f32,
+    /// … for the fingertips (m/s, wrist frame).
     pub scale_tips: f32,
-    /// residual_task: clamps of the integrated residual (m, rad, m per component).
+    /// residual_task: clamp of each wrist-translation component of Δa (m).
     pub clamp_wrist_pos: f32,
+    /// … of each wrist-rotation component (rad).
     pub clamp_wrist_rot: f32,
+    /// … of each fingertip component (m).
     pub clamp_tips: f32,
-    /// residual_task rewards: object `exp(−a_pos e_p − a_rot e_R)`, fingertips `exp(−a e_tips)`,
-    /// wrist `exp(−a_pos e_p − a_rot e_R)` (e in m and rad; e_tips the mean fingertip distance).
+    /// residual_task reward: a_pos of the object term `exp(−a_pos e_p − a_rot e_R)` (1/m).
     pub reward_obj_pos: f32,
+    /// … its a_rot (1/rad).
     pub reward_obj_rot: f32,
+    /// a of the fingertip term `exp(−a e_tips)` (1/m; e_tips the mean fingertip distance).
     pub reward_tips: f32,
+    /// a_pos of the wrist term `exp(−a_pos e_p − a_rot e_R)` (1/m).
     pub reward_wrist_pos: f32,
+    /// … its a_rot (1/rad).
     pub reward_wrist_rot: f32,
 }
 
