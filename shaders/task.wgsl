@@ -45,7 +45,7 @@ struct TaskGlobals {
     lookahead_stride: u32,
     n_res: u32,
     open_loop: u32,
-    _pad2: u32,
+    track_action: u32,
     beta_joint: f32,
     beta_wrist_pos: f32,
     beta_wrist_rot: f32,
@@ -185,11 +185,12 @@ fn nominal_targets(f: RefFrame) -> Targets {
     return t;
 }
 
-// residual kinds: targets from the nominal frame f and the clipped actions a (see the twin)
+// residual kinds (and track with action "reference"): targets from the nominal frame f and the clipped actions a (see the twin)
 fn residual_targets(a: array<f32, 32>, f: RefFrame, ts: ptr<function, TaskState>) -> Targets {
     var t = nominal_targets(f);
     var sq = 0.0;
-    if (tc.kind == KIND_RESIDUAL_JOINT) {
+    if (tc.kind != KIND_RESIDUAL_TASK) {
+        // residual_joint, and track with `task.track.action = "reference"`
         let dp = vec3<f32>(a[0], a[1], a[2]) * tc.res_wrist_pos_alpha;
         let dr = vec3<f32>(a[3], a[4], a[5]) * tc.res_wrist_rot_alpha;
         t.wrist_pos = vec4<f32>(f.wrist_pos.x + dp.x, f.wrist_pos.y + dp.y, f.wrist_pos.z + dp.z, 0.0);
@@ -263,7 +264,7 @@ fn task_act(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
     }
     ts.act_rate = rate;
     ts.act_mag = mag;
-    if (tc.kind != KIND_LIFT && (tc.open_loop != 0u || tc.kind != KIND_TRACK)) {
+    if (tc.kind != KIND_LIFT && (tc.open_loop != 0u || tc.kind != KIND_TRACK || tc.track_action != 0u)) {
         // the reference at the end of this step: replay's targets for control step `step`
         let f = ref_sample(ts.cursor, states[env].step, 1u);
         if (tc.open_loop != 0u) {

@@ -295,6 +295,12 @@ pub struct TrackConfig {
     /// `dextrain replay` starts) or `"config"` (hand at `wrist.init_*` and default joints, object
     /// where the simulator's reset puts it; pair with `task.reference.reground`/`reinterp`).
     pub start: String,
+    /// How `track`'s actions become targets. `"reference"`: the reference's targets of this step
+    /// plus a bounded offset, mapped as `residual_joint` maps its residual with `[task.residual]`'s
+    /// `alpha`, `wrist_pos_alpha` and `wrist_rot_alpha` (PD targets around the reference, as
+    /// DeepMimic-style trackers act); `"free"`: lift's `[task.action]` mapping (wrist moves and
+    /// finger targets the policy integrates itself, with no reference in the action).
+    pub action: String,
     /// Look-ahead reference frames observed after the current one.
     pub lookahead: u32,
     /// Env steps between observed look-ahead frames.
@@ -368,6 +374,7 @@ impl Default for TrackConfig {
     fn default() -> Self {
         TrackConfig {
             start: "reference".into(),
+            action: "reference".into(),
             lookahead: 2,
             lookahead_stride: 3,
             beta_joint: 0.1,
@@ -526,6 +533,11 @@ pub struct PpoConfig {
     pub minibatches: u32,
     /// Clip of the global gradient norm (actor and critic together).
     pub max_grad_norm: f32,
+    /// Factor on the rewards before the value targets and advantages (rl_games' `scale_value`);
+    /// logged rewards and returns are unscaled. With large per-step rewards (DexRefine's weights
+    /// sum to ~45 per step) the value loss dwarfs the surrogate and the clip of the global gradient
+    /// norm leaves the actor almost no step; 0.01–0.1 brings the returns back to O(10–100).
+    pub reward_scale: f32,
 }
 
 /// `[policy]`
@@ -630,6 +642,7 @@ impl Default for PpoConfig {
             epochs: 5,
             minibatches: 4,
             max_grad_norm: 1.0,
+            reward_scale: 1.0,
         }
     }
 }
@@ -1029,6 +1042,9 @@ impl Config {
         if k.start != "reference" && k.start != "config" {
             return Err(err("task.track.start", format!("{:?}", k.start), "\"reference\" or \"config\""));
         }
+        if k.action != "reference" && k.action != "free" {
+            return Err(err("task.track.action", format!("{:?}", k.action), "\"reference\" or \"free\""));
+        }
         if k.lookahead > 8 {
             return Err(err("task.track.lookahead", k.lookahead.to_string(), "an integer in [0, 8]"));
         }
@@ -1111,6 +1127,7 @@ impl Config {
         non_neg(err, "ppo.value_loss_coef", p.value_loss_coef)?;
         non_neg(err, "ppo.entropy_coef", p.entropy_coef)?;
         pos_in(err, "ppo.max_grad_norm", p.max_grad_norm, 1e-9, 1e9, "a gradient norm > 0")?;
+        pos_in(err, "ppo.reward_scale", p.reward_scale, 1e-9, 1e9, "a factor > 0")?;
         if !(1..=1000).contains(&p.epochs) {
             return Err(err("ppo.epochs", p.epochs.to_string(), "an integer in [1, 1000]"));
         }

@@ -146,6 +146,7 @@ fn reference_task_keys_are_checked_and_each_kind_has_its_default_rewards() {
     for (text, key, hint) in [
         ("[task]\nkind = \"track\"\n".to_string(), "task.reference.files", "at least one reference"),
         (format!("{track}[task.track]\nstart = \"table\"\n"), "task.track.start", "\"config\""),
+        (format!("{track}[task.track]\naction = \"joint\"\n"), "task.track.action", "\"free\""),
         (format!("{track}[task.track]\nlookahead = 20\n"), "task.track.lookahead", "[0, 8]"),
         (format!("{track}[task.track]\nsuccess_pos_tol = 0\n"), "task.track.success_pos_tol", "distance"),
         (format!("{track}[task.track]\nalpha_joint = -1\n"), "task.track.alpha_joint", ">= 0"),

@@ -94,7 +94,7 @@ fn pod_structs_match_their_wgsl_twins() {
         weights, actuated, n_actuated, n_act, obs_dim, priv_dim, episode_length, finger_mode, thumb, _pad0, wrist_pos_scale,
         wrist_rot_scale, wrist_rot_limit, finger_delta_scale, reach_alpha, success_height, contact_force, drop_height,
         table_half_extent, max_hand_distance, noise_joint_pos, noise_joint_vel, noise_hand_pos, noise_object_pos,
-        noise_object_rot, _pad1, kind, n_terms, start_mode, lookahead, lookahead_stride, n_res, open_loop, _pad2,
+        noise_object_rot, _pad1, kind, n_terms, start_mode, lookahead, lookahead_stride, n_res, open_loop, track_action,
         beta_joint, beta_wrist_pos, beta_wrist_rot, alpha_joint, alpha_wrist_pos, alpha_wrist_rot, alpha_object_pos,
         alpha_object_rot, success_pos_tol, success_rot_tol, max_object_error, res_alpha, res_wrist_pos_alpha,
         res_wrist_rot_alpha, res_obj_pos_coef, res_obj_rot_coef, res_ema, res_scale_wrist_pos, res_scale_wrist_rot,

@@ -69,7 +69,7 @@ fn zero_residual_and_open_loop_reproduce_replay_exactly() {
             assert_eq!([w[0], w[1], w[2]], wrist.pos.to_array(), "{name}: wrist position at frame {k}");
         }
     };
-    for kind in ["residual_joint", "residual_task"] {
+    for kind in ["residual_joint", "residual_task", "track"] {
         let c = track_config(kind, 2);
         let mut task = make_task_batch(&c, SimModel::from_config(&c).unwrap()).unwrap();
         let zero = vec![0.0; 2 * task.spec().action_dim];
@@ -97,9 +97,29 @@ fn frame_of(task: &CpuTaskBatch, step: u32, k: u32) -> RefFrame {
     task.reference_frame(0, step, k).expect("a reference kind")
 }
 
+/// residual_joint, and track with `task.track.action = "reference"` (the default), map their actions
+/// around the reference with `[task.residual]`'s α; track with `"free"` does not.
 #[test]
-fn residual_joint_maps_actions_around_the_reference() {
-    let c = track_config("residual_joint", 1);
+fn residual_joint_and_reference_track_map_actions_around_the_reference() {
+    for kind in ["residual_joint", "track"] {
+        joint_mapping_around_the_reference(kind);
+    }
+    let mut c = track_config("track", 1);
+    c.task.track.action = "free".into();
+    let model = SimModel::from_config(&c).unwrap();
+    let mut task = CpuTaskBatch::new(&c, model.clone()).unwrap();
+    task.reset_all().unwrap();
+    let mut a = vec![0.0f32; task.spec().action_dim];
+    a[0] = 1.0;
+    let before = task.targets().unwrap()[0];
+    task.step(&a).unwrap();
+    let t = task.targets().unwrap()[0];
+    // [task.action]: the wrist target moves by wrist_pos_scale from where it was
+    assert!((t.wrist_pos[0] - (before.wrist_pos[0] + c.task.action.wrist_pos_scale)).abs() < 1e-6, "{:?} {:?}", t.wrist_pos, before.wrist_pos);
+}
+
+fn joint_mapping_around_the_reference(kind: &str) {
+    let c = track_config(kind, 1);
     let model = SimModel::from_config(&c).unwrap();
     let mut task = CpuTaskBatch::new(&c, model.clone()).unwrap();
     task.reset_all().unwrap();
@@ -270,8 +290,12 @@ fn tracking_reward_terms_match_hand_computed_values() {
 #[test]
 fn cpu_and_gpu_agree_on_every_reference_kind() {
     let Some(_) = gpu_context("cpu_and_gpu_agree_on_every_reference_kind") else { return };
-    for kind in ["track", "residual_joint", "residual_task"] {
+    for name in ["track", "track_free", "residual_joint", "residual_task"] {
+        let kind = name.trim_end_matches("_free");
         let mut c = track_config(kind, 8);
+        if name == "track_free" {
+            c.task.track.action = "free".into();
+        }
         // every augmentation on, observation noise on, short episodes so that resets happen
         let a = &mut c.task.reference;
         a.translate_xy = 0.03;
@@ -303,7 +327,7 @@ fn cpu_and_gpu_agree_on_every_reference_kind() {
         let close = |x: &[f32], y: &[f32], floor: f32, what: &str, step: usize| {
             for (i, (u, v)) in x.iter().zip(y).enumerate() {
                 let d = (u - v).abs() / u.abs().max(v.abs()).max(floor);
-                assert!(d < tol, "{kind} step {step}: {what}[{i}] cpu {u} gpu {v}");
+                assert!(d < tol, "{name} step {step}: {what}[{i}] cpu {u} gpu {v}");
             }
         };
         close(&a0.obs, &b0.obs, 0.1, "obs", 0);
@@ -320,18 +344,18 @@ fn cpu_and_gpu_agree_on_every_reference_kind() {
             let b = gpu.step(&actions).unwrap().clone();
             for (e, (x, y)) in cpu.targets().unwrap().iter().zip(gpu.targets().unwrap()).enumerate() {
                 let d = x.q.iter().zip(&y.q).map(|(u, v)| (u - v).abs()).fold(0.0f32, f32::max);
-                assert!(d < 1e-5, "{kind} step {step} env {e}: joint targets differ by {d} rad");
+                assert!(d < 1e-5, "{name} step {step} env {e}: joint targets differ by {d} rad");
                 let w = (glam::Vec4::from_array(x.wrist_pos) - glam::Vec4::from_array(y.wrist_pos)).abs().max_element();
-                assert!(w < 1e-5, "{kind} step {step} env {e}: wrist targets differ by {w} m");
+                assert!(w < 1e-5, "{name} step {step} env {e}: wrist targets differ by {w} m");
             }
             close(&a.obs, &b.obs, 0.1, "obs", step);
             close(&a.priv_obs, &b.priv_obs, 0.1, "priv_obs", step);
             close(&a.reward, &b.reward, 1e-2, "reward", step);
             close(&a.terms, &b.terms, 1e-2, "terms", step);
             close(&a.obj_pos_err, &b.obj_pos_err, 1e-2, "obj_pos_err", step);
-            assert_eq!(a.terminated, b.terminated, "{kind} step {step}");
-            assert_eq!(a.time_out, b.time_out, "{kind} step {step}");
-            assert_eq!(a.success, b.success, "{kind} step {step}");
+            assert_eq!(a.terminated, b.terminated, "{name} step {step}");
+            assert_eq!(a.time_out, b.time_out, "{name} step {step}");
+            assert_eq!(a.success, b.success, "{name} step {step}");
         }
     }
 }

@@ -295,7 +295,9 @@ pub struct TaskGlobals {
     pub n_res: u32,
     /// 1: the open-loop baseline (actions ignored, targets = the reference's).
     pub open_loop: u32,
-    pub _pad2: u32,
+    /// track: 1 maps the actions around the reference like residual_joint (`task.track.action =
+    /// "reference"`), 0 with `[task.action]` (`"free"`).
+    pub track_action: u32,
     /// `[task.track]` β1–β3, α1–α5, success tolerances (m, rad), early-termination distance (m).
     pub beta_joint: f32,
     pub beta_wrist_pos: f32,

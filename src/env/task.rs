@@ -499,7 +499,7 @@ pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<TaskSetup> {
         lookahead_stride: k.lookahead_stride,
         n_res: n_res as u32,
         open_loop: t.open_loop as u32,
-        _pad2: 0,
+        track_action: (k.action == "reference") as u32,
         beta_joint: k.beta_joint,
         beta_wrist_pos: k.beta_wrist_pos,
         beta_wrist_rot: k.beta_wrist_rot,
@@ -629,16 +629,17 @@ pub fn nominal_targets(f: &RefFrame) -> Targets {
     Targets { wrist_pos: f.wrist_pos, wrist_rot: f.wrist_rot, q: f.q }
 }
 
-/// Residual kinds: the targets of this step from the nominal frame `f` (the reference at the end
-/// of the step) and the clipped actions `a`; records ‖δ‖² (and, residual_task, ũ and Δa) in `ts`.
-/// residual_joint: `p* = p̄ + α_p a[0..3]`, `R* = exp(α_r a[3..6]) ⊗ R̄`, `q*_j = clamp(q̄_j + α a_j,
+/// Residual kinds (and track with `task.track.action = "reference"`): the targets of this step from
+/// the nominal frame `f` (the reference at the end of the step) and the clipped actions `a`;
+/// records ‖δ‖² (and, residual_task, ũ and Δa) in `ts`. residual_joint and track: `p* = p̄ + α_p a[0..3]`, `R* = exp(α_r a[3..6]) ⊗ R̄`, `q*_j = clamp(q̄_j + α a_j,
 /// lower, upper)`. residual_task: `ũ = ema·a + (1 − ema)·ũ`, `Δa = clamp(Δa + s ⊙ ũ Δt, ±c)`
 /// (per component), `p* = p̄ + Δa[0..3]`, `R* = exp(Δa[3..6]) ⊗ R̄`, and the finger joints from IK
 /// of the fingertips `FK(q̄) + Δa_tip` (wrist frame), seeded at q̄ (q̄ itself when every Δa_tip is 0).
 pub fn residual_targets(a: &[f32; MAX_ACTIONS], f: &RefFrame, ts: &mut TaskState, m: &Model, tc: &TaskGlobals) -> Targets {
     let mut t = nominal_targets(f);
     let mut sq = 0.0f32;
-    if tc.kind == KIND_RESIDUAL_JOINT {
+    if tc.kind != KIND_RESIDUAL_TASK {
+        // residual_joint, and track with `task.track.action = "reference"`
         let dp = Vec3::new(a[0], a[1], a[2]) * tc.res_wrist_pos_alpha;
         let dr = Vec3::new(a[3], a[4], a[5]) * tc.res_wrist_rot_alpha;
         t.wrist_pos = [f.wrist_pos[0] + dp.x, f.wrist_pos[1] + dp.y, f.wrist_pos[2] + dp.z, 0.0];
@@ -690,9 +691,10 @@ pub fn residual_targets(a: &[f32; MAX_ACTIONS], f: &RefFrame, ts: &mut TaskState
 }
 
 /// Maps one env's actions (`[n_act]`, clipped here) to its targets; records the action terms and the
-/// action in `ts`. Returns the targets the physics steps toward. lift and track: the wrist and
-/// finger mapping of `[task.action]`; residual kinds: [`residual_targets`] around the reference at
-/// the end of this step; the open-loop baseline: that reference itself.
+/// action in `ts`. Returns the targets the physics steps toward. lift and track with
+/// `task.track.action = "free"`: the wrist and finger mapping of `[task.action]`; residual kinds and
+/// track with `"reference"`: [`residual_targets`] around the reference at the end of this step; the
+/// open-loop baseline: that reference itself.
 pub fn task_act(actions: &[f32], st: &EnvState, ts: &mut TaskState, m: &Model, tc: &TaskGlobals, r: &RefModel) -> Targets {
     let mut a = [0.0f32; MAX_ACTIONS];
     let mut rate = 0.0f32;
@@ -708,7 +710,7 @@ pub fn task_act(actions: &[f32], st: &EnvState, ts: &mut TaskState, m: &Model, t
     }
     ts.act_rate = rate;
     ts.act_mag = mag;
-    if tc.kind != KIND_LIFT && (tc.open_loop != 0 || tc.kind != KIND_TRACK) {
+    if tc.kind != KIND_LIFT && (tc.open_loop != 0 || tc.kind != KIND_TRACK || tc.track_action != 0) {
         // the reference at the end of this step: replay's targets for control step `st.step`
         let f = ref_sample(r, &ts.cursor, st.step, 1);
         if tc.open_loop != 0 {

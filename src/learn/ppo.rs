@@ -301,7 +301,8 @@ impl Ppo {
     }
 
     /// Records the outcome of the step started by the last `act`: rewards [N], and which envs
-    /// terminated or timed out (then reset). A time-out adds `γ V(s_t)` to the reward.
+    /// terminated or timed out (then reset). The rewards are scaled by `ppo.reward_scale`; a
+    /// time-out adds `γ V(s_t)` (on that scale) to the reward.
     pub fn process_step(&mut self, rewards: &[f32], terminated: &[bool], time_outs: &[bool]) {
         let n = self.storage.envs;
         let t = self.step;
@@ -309,7 +310,8 @@ impl Ppo {
         let s = &mut self.storage;
         for i in 0..n {
             let row = t * n + i;
-            let mut r = rewards[i];
+            // the learner's reward: ppo.reward_scale × the env's
+            let mut r = rewards[i] * self.cfg.reward_scale;
             if time_outs[i] && !terminated[i] {
                 r += gamma * s.values[row]; // bootstrap through the time-out
             }
