@@ -92,14 +92,6 @@ fn check_limits_and_mimic(m: &Model, q: &[f32; MAX_JOINTS], what: &str) {
     }
 }
 
-fn validate(src: &str) -> naga::Module {
-    let module = naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("WGSL parse error:\n{}", e.emit_to_string(src)));
-    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("WGSL validation error: {e:?}"));
-    module
-}
-
 #[test]
 fn shader_validates_and_mirrors_its_twin() {
     // alone with common.wgsl, and after common + reset + physics as in the task module (whose

@@ -2,17 +2,12 @@
 //! GPU backend builds, each shader parses on its own with common.wgsl, and every Pod struct in
 //! src/env/layout.rs has exactly the size and field offsets of its WGSL twin.
 
+mod common;
+
+use common::validate;
 use dextrain::env::gpu::{SHADER_COMMON, SHADER_IK, SHADER_PHYSICS, SHADER_REFERENCE, SHADER_RESET, SHADER_TASK, shader_source, task_shader_source};
 use dextrain::env::layout::*;
 use std::mem::{offset_of, size_of};
-
-fn validate(src: &str) -> naga::Module {
-    let module = naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("WGSL parse error:\n{}", e.emit_to_string(src)));
-    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
-        .validate(&module)
-        .unwrap_or_else(|e| panic!("WGSL validation error: {e:?}"));
-    module
-}
 
 #[test]
 fn full_module_validates_with_both_entry_points() {

@@ -54,3 +54,13 @@ pub fn run(b: &mut dyn EnvBatch, t: dextrain::env::Targets, n: usize) {
         b.step(&targets).expect("step");
     }
 }
+
+/// Parses and validates a WGSL source with naga (every validation flag), panicking with the
+/// error; returns the module.
+pub fn validate(src: &str) -> naga::Module {
+    let module = naga::front::wgsl::parse_str(src).unwrap_or_else(|e| panic!("WGSL parse error:\n{}", e.emit_to_string(src)));
+    naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("WGSL validation error: {e:?}"));
+    module
+}
