@@ -534,9 +534,10 @@ pub struct PpoConfig {
     /// Clip of the global gradient norm (actor and critic together).
     pub max_grad_norm: f32,
     /// Factor on the rewards before the value targets and advantages (rl_games' `scale_value`);
-    /// logged rewards and returns are unscaled. With large per-step rewards (DexRefine's weights
-    /// sum to ~45 per step) the value loss dwarfs the surrogate and the clip of the global gradient
-    /// norm leaves the actor almost no step; 0.01–0.1 brings the returns back to O(10–100).
+    /// logged rewards and returns are unscaled. The clipped value loss moves each value by at most
+    /// `clip_param` per update, so with large per-step rewards (DexRefine's weights sum to ~45 per
+    /// step, returns of thousands) the critic needs many updates to follow; 0.01–0.1 brings the
+    /// returns back to O(10–100).
     pub reward_scale: f32,
 }
 
