@@ -185,7 +185,8 @@ fn nominal_targets(f: RefFrame) -> Targets {
     return t;
 }
 
-// residual kinds (and track with action "reference"): targets from the nominal frame f and the clipped actions a (see the twin)
+// residual kinds (and track with action "reference"): targets from the nominal frame f and the
+// clipped actions a (see the twin)
 fn residual_targets(a: array<f32, 32>, f: RefFrame, ts: ptr<function, TaskState>) -> Targets {
     var t = nominal_targets(f);
     var sq = 0.0;

@@ -631,8 +631,8 @@ pub fn nominal_targets(f: &RefFrame) -> Targets {
 
 /// Residual kinds (and track with `task.track.action = "reference"`): the targets of this step from
 /// the nominal frame `f` (the reference at the end of the step) and the clipped actions `a`;
-/// records ‖δ‖² (and, residual_task, ũ and Δa) in `ts`. residual_joint and track: `p* = p̄ + α_p a[0..3]`, `R* = exp(α_r a[3..6]) ⊗ R̄`, `q*_j = clamp(q̄_j + α a_j,
-/// lower, upper)`. residual_task: `ũ = ema·a + (1 − ema)·ũ`, `Δa = clamp(Δa + s ⊙ ũ Δt, ±c)`
+/// records ‖δ‖² (and, residual_task, ũ and Δa) in `ts`. residual_joint and track:
+/// `p* = p̄ + α_p a[0..3]`, `R* = exp(α_r a[3..6]) ⊗ R̄`, `q*_j = clamp(q̄_j + α a_j, lower, upper)`. residual_task: `ũ = ema·a + (1 − ema)·ũ`, `Δa = clamp(Δa + s ⊙ ũ Δt, ±c)`
 /// (per component), `p* = p̄ + Δa[0..3]`, `R* = exp(Δa[3..6]) ⊗ R̄`, and the finger joints from IK
 /// of the fingertips `FK(q̄) + Δa_tip` (wrist frame), seeded at q̄ (q̄ itself when every Δa_tip is 0).
 pub fn residual_targets(a: &[f32; MAX_ACTIONS], f: &RefFrame, ts: &mut TaskState, m: &Model, tc: &TaskGlobals) -> Targets {
