@@ -9,7 +9,7 @@ mod common;
 use common::*;
 use dextrain::env::SimModel;
 use dextrain::env::common::rand_uniform;
-use dextrain::env::gpu::{KernelBinding, SHADER_COMMON, SHADER_IK, SHADER_PHYSICS, SHADER_RESET, run_kernel};
+use dextrain::env::gpu::{GpuContext, KernelBinding, SHADER_COMMON, SHADER_IK, SHADER_PHYSICS, SHADER_RESET, run_kernel};
 use dextrain::env::ik::*;
 use dextrain::env::layout::NO_JOINT;
 use dextrain::env::physics::Model;
@@ -362,6 +362,27 @@ fn t_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 }
 "#;
 
+/// Runs `kernel` (the parity kernel or a variant) after the IK's shader chain, one invocation per
+/// case, and returns its outputs.
+fn run_ik_kernel(ctx: &GpuContext, sm: &SimModel, kernel: &str, cases: &[IkCase]) -> Vec<IkOut> {
+    let source = [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_IK, kernel].join("\n");
+    let out = run_kernel(
+        ctx,
+        &source,
+        "t_main",
+        &[
+            (0, KernelBinding::Uniform(bytemuck::bytes_of(&sm.globals))),
+            (1, KernelBinding::Storage(bytemuck::cast_slice(&sm.joints))),
+            (3, KernelBinding::Storage(bytemuck::cast_slice(&sm.tips))),
+            (20, KernelBinding::Storage(bytemuck::cast_slice(cases))),
+            (21, KernelBinding::StorageRw(&vec![0u8; cases.len() * std::mem::size_of::<IkOut>()])),
+        ],
+        cases.len() as u32,
+    )
+    .expect("kernel");
+    bytemuck::cast_slice::<u8, IkOut>(&out[0]).to_vec()
+}
+
 /// `ik_solve` and `ik_tip_positions` in WGSL against their CPU twins: reachable targets from
 /// perturbed seeds, far targets, single fingers, and zero residuals (which must return the seed bit
 /// for bit on the GPU too, its targets coming from its own FK).
@@ -391,22 +412,7 @@ fn cpu_and_gpu_solve_the_same_joints() {
             }
             cases.push(IkCase { seed, targets, mask, mode: (kind == 3) as u32, _pad: [0; 2], prm });
         }
-        let source = [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_IK, PARITY_KERNEL].join("\n");
-        let out = run_kernel(
-            &ctx,
-            &source,
-            "t_main",
-            &[
-                (0, KernelBinding::Uniform(bytemuck::bytes_of(&sm.globals))),
-                (1, KernelBinding::Storage(bytemuck::cast_slice(&sm.joints))),
-                (3, KernelBinding::Storage(bytemuck::cast_slice(&sm.tips))),
-                (20, KernelBinding::Storage(bytemuck::cast_slice(&cases))),
-                (21, KernelBinding::StorageRw(&vec![0u8; cases.len() * std::mem::size_of::<IkOut>()])),
-            ],
-            cases.len() as u32,
-        )
-        .expect("kernel");
-        let gpu: &[IkOut] = bytemuck::cast_slice(&out[0]);
+        let gpu = run_ik_kernel(&ctx, &sm, PARITY_KERNEL, &cases);
         let (mut worst_q, mut worst_tip, mut worst_at, mut within) = (0.0f32, 0.0f32, 0, 0);
         for (i, c) in cases.iter().enumerate() {
             let targets = if c.mode == 1 { tips(&m, &c.seed) } else { c.targets.map(|t| Vec3::new(t[0], t[1], t[2])) };
@@ -473,22 +479,7 @@ fn solve_leaves_room_in_lavapipes_loop_budget() {
         let spin =
             "    let c = t_cases[i];\n    var spin = 0u;\n    for (var it = 0u; it < 45000u; it++) { spin += it; }\n    if (spin == 7u) { return; }";
         let kernel = PARITY_KERNEL.replace("    let c = t_cases[i];", spin);
-        let source = [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_IK, &kernel].join("\n");
-        let out = run_kernel(
-            &ctx,
-            &source,
-            "t_main",
-            &[
-                (0, KernelBinding::Uniform(bytemuck::bytes_of(&sm.globals))),
-                (1, KernelBinding::Storage(bytemuck::cast_slice(&sm.joints))),
-                (3, KernelBinding::Storage(bytemuck::cast_slice(&sm.tips))),
-                (20, KernelBinding::Storage(bytemuck::cast_slice(&cases))),
-                (21, KernelBinding::StorageRw(&vec![0u8; cases.len() * std::mem::size_of::<IkOut>()])),
-            ],
-            cases.len() as u32,
-        )
-        .expect("kernel");
-        let gpu: &[IkOut] = bytemuck::cast_slice(&out[0]);
+        let gpu = run_ik_kernel(&ctx, &sm, &kernel, &cases);
         let mut worst = 0.0f32;
         for (i, c) in cases.iter().enumerate() {
             let t = c.targets.map(|t| Vec3::new(t[0], t[1], t[2]));
