@@ -6,12 +6,12 @@
 # curve of the training episodes' OTE / success, and the eval report's policy and replay figures
 # with the cut in terminal object error.
 #   benches/residual_learning.sh                 (from the repository root, after cargo build --release)
-#   RUNS="residual_task" SEEDS="0" ITERS=300 benches/residual_learning.sh
+#   RUNS="residual_task" SEEDS="0" ITERS=100 benches/residual_learning.sh
 # RUNS names entries of the table below (default: all of them).
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=${DEXTRAIN:-target/release/dextrain}
-iters=${ITERS:-700}
+iters=${ITERS:-350}
 episodes=${EPISODES:-64}
 # name | config | extra --set overrides (space-separated)
 table=$(cat <<'EOF'

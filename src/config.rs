@@ -325,7 +325,8 @@ pub struct TrackConfig {
     pub success_pos_tol: f32,
     /// … and this angle (rad) of its final orientation (and so lifted where the reference lifts).
     pub success_rot_tol: f32,
-    /// Terminate an episode when the object is farther than this (m) from its reference (0 = never).
+    /// Terminate a training episode when the object is farther than this (m) from its reference
+    /// (0 = never). `dextrain eval` ignores it: its episodes run to the reference's end.
     pub max_object_error: f32,
 }
 

@@ -19,7 +19,7 @@ use serde::Serialize;
 use crate::checkpoint;
 use crate::config::{BackendChoice, Config};
 use crate::env::reset::reset_params;
-use crate::env::task::make_task_batch;
+use crate::env::task::{decode_snapshot, make_task_batch, reference_paths};
 use crate::env::{SimModel, contact_records, hand_link_poses};
 use crate::geom::Pose;
 use crate::learn::device::learner_device;
@@ -84,6 +84,9 @@ pub struct EpisodeRow {
     pub ooe_deg: f64,
     pub terminal_pos_err_m: f64,
     pub terminal_rot_err_deg: f64,
+    /// Reference kinds: the file name of the episode's reference (`task.reference.files`), so that
+    /// the demonstrations the policy cannot follow stand out; empty for lift.
+    pub reference: String,
 }
 
 /// What a set of episodes did (the policy's, or the open-loop baseline's).
@@ -226,6 +229,27 @@ pub fn markdown(r: &EvalReport) -> String {
     for (name, f) in &rows {
         out.push_str(&format!("| {name} | {} |\n", cols.iter().map(|c| f(c.1)).collect::<Vec<_>>().join(" | ")));
     }
+    // reference kinds: per reference, its episodes' mean terminal error and success
+    let mut names: Vec<&str> = r.policy.per_episode.iter().map(|e| e.reference.as_str()).filter(|n| !n.is_empty()).collect();
+    names.sort_unstable();
+    names.dedup();
+    if !names.is_empty() {
+        let per_ref = |s: &Summary, name: &str| {
+            let eps: Vec<&EpisodeRow> = s.per_episode.iter().filter(|e| e.reference == name).collect();
+            let k = eps.len().max(1) as f64;
+            let err = eps.iter().map(|e| e.terminal_pos_err_m).sum::<f64>() / k;
+            let ok = eps.iter().filter(|e| e.success).count();
+            format!("{:.1} mm, {ok}/{}", err * 1e3, eps.len())
+        };
+        out.push_str(&format!(
+            "\nPer reference: terminal object error (mean) and successes\n\n| reference | {} |\n|---|{}\n",
+            cols.iter().map(|c| c.0).collect::<Vec<_>>().join(" | "),
+            "---|".repeat(cols.len())
+        ));
+        for name in names {
+            out.push_str(&format!("| {name} | {} |\n", cols.iter().map(|c| per_ref(c.1, name)).collect::<Vec<_>>().join(" | ")));
+        }
+    }
     out
 }
 
@@ -249,11 +273,19 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
     let mut term_names: Vec<String> = Vec::new();
     let mut env_backend = String::new();
     let mut device_name = String::new();
+    let ref_names: Vec<String> = if cfg.task.kind == "lift" {
+        Vec::new()
+    } else {
+        reference_paths(cfg)?.iter().map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default()).collect()
+    };
     for round in 0..rounds {
         let n = (episodes - round * max_envs).min(max_envs);
         let mut c = cfg.clone();
         c.sim.num_envs = n;
         c.task.open_loop = open_loop;
+        // episodes run to the reference's end: an early termination on the object's error
+        // (`task.track.max_object_error`, a training aid) would cap the terminal error it reports
+        c.task.track.max_object_error = 0.0;
         // each round draws other episodes: the seed moves by the round
         c.seed = seed.wrapping_add(round as u32 * 7919);
         c.validate()?;
@@ -284,8 +316,14 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
             }
             _ => None,
         };
-        let first = task.reset_all()?;
-        let mut obs = first.obs.clone();
+        let mut obs = task.reset_all()?.obs.clone();
+        // the reference of each env's (only) episode, drawn at the reset
+        let refs: Vec<String> = if c.task.kind == "lift" {
+            vec![String::new(); n]
+        } else {
+            let (_, _, ts) = decode_snapshot(&task.save_state()?, n)?;
+            ts.iter().map(|t| ref_names.get(t.cursor.ref_id as usize).cloned().unwrap_or_default()).collect()
+        };
         let mut done = vec![false; n];
         let mut ret = vec![0.0f64; n];
         let mut len = vec![0u32; n];
@@ -342,6 +380,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
                         ooe_deg: err_sum[i].1 / l,
                         terminal_pos_err_m: b.obj_pos_err[i] as f64,
                         terminal_rot_err_deg: (b.obj_rot_err[i] as f64).to_degrees(),
+                        reference: refs[i].clone(),
                     });
                     final_lift.push(b.lift_height[i] as f64);
                     max_lift_ep.push(lift_max[i]);

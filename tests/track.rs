@@ -382,6 +382,8 @@ fn residual_run_trains_and_evaluates_against_the_open_loop_baseline() {
         "task.reference.translate_xy=0",
         "task.reference.rotate_z=0",
         "task.reference.time_scale=0",
+        // training ends episodes 5 mm off the reference; eval must play every reference to its end
+        "task.track.max_object_error=0.005",
     ]
     .iter()
     .map(|s| s.to_string())
@@ -429,10 +431,18 @@ fn residual_run_trains_and_evaluates_against_the_open_loop_baseline() {
     let cfg = Config::load(&dir.join("config.toml")).unwrap();
     let rep = replay(&Config { sim: dextrain::config::SimConfig { num_envs: 1, ..cfg.sim.clone() }, ..cfg.clone() }, &reference(), false, None).unwrap();
     let want = rep.terminal_object_pos_err_m.unwrap();
+    assert!(want > 0.005, "replay ends {want} m off: the early termination would have cut it");
     for ep in &base.per_episode {
         assert!((ep.terminal_pos_err_m - want).abs() < 1e-6, "baseline ends {} m off, replay {want} m", ep.terminal_pos_err_m);
         assert_eq!(ep.length as usize, rep.trace.len() - 1, "the episode plays the whole reference");
     }
+    // every episode names its reference, and the Markdown has a row per reference
+    for ep in r.policy.per_episode.iter().chain(&base.per_episode) {
+        assert_eq!(ep.reference, "grasp_lift.mcap");
+        assert_eq!(ep.length as usize, rep.trace.len() - 1, "eval ignores task.track.max_object_error");
+    }
+    let md = std::fs::read_to_string(r.path.with_extension("md")).unwrap();
+    assert!(md.lines().any(|l| l.starts_with("| grasp_lift.mcap | ") && l.matches("/2").count() == 2), "{md}");
     assert!(base.ote_m.mean > 0.0 && base.ote_m.mean < 0.05, "{:?}", base.ote_m);
     // an unknown baseline is a one-line error
     let bad = eval(&EvalArgs { baseline: Some("closed-loop".into()), ..e.clone() }).unwrap_err().to_string();
