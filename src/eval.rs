@@ -84,8 +84,9 @@ pub struct EpisodeRow {
     pub ooe_deg: f64,
     pub terminal_pos_err_m: f64,
     pub terminal_rot_err_deg: f64,
-    /// Reference kinds: the file name of the episode's reference (`task.reference.files`), so that
-    /// the demonstrations the policy cannot follow stand out; empty for lift.
+    /// Reference kinds: the file name of the episode's reference (`task.reference.files`; its path
+    /// when two references share a name), so that the demonstrations the policy cannot follow
+    /// stand out; empty for lift.
     pub reference: String,
 }
 
@@ -273,10 +274,14 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
     let mut term_names: Vec<String> = Vec::new();
     let mut env_backend = String::new();
     let mut device_name = String::new();
+    // the bank's references in its order (file names; whole paths where two names are the same)
     let ref_names: Vec<String> = if cfg.task.kind == "lift" {
         Vec::new()
     } else {
-        reference_paths(cfg)?.iter().map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default()).collect()
+        let paths = reference_paths(cfg)?;
+        let names: Vec<String> = paths.iter().map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default()).collect();
+        let unique = names.iter().collect::<std::collections::HashSet<_>>().len() == names.len();
+        if unique { names } else { paths.iter().map(|p| p.display().to_string()).collect() }
     };
     for round in 0..rounds {
         let n = (episodes - round * max_envs).min(max_envs);
