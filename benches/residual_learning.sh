@@ -11,7 +11,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/.."
 bin=${DEXTRAIN:-target/release/dextrain}
-iters=${ITERS:-350}
+iters=${ITERS:-1000}
 episodes=${EPISODES:-64}
 # name | config | extra --set overrides (space-separated)
 table=$(cat <<'EOF'
