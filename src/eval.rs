@@ -256,6 +256,14 @@ pub fn markdown(r: &EvalReport) -> String {
 
 /// Every episode of an evaluation (the policy's, or with `open_loop` the baseline's), the env
 /// backend and the learner device.
+/// The names the report gives the bank's references, in its order: their file names, or their whole
+/// paths where two file names are the same (two datasets with a `ref_000.mcap` each).
+pub fn reference_names(paths: &[PathBuf]) -> Vec<String> {
+    let names: Vec<String> = paths.iter().map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default()).collect();
+    let unique = names.iter().collect::<std::collections::HashSet<_>>().len() == names.len();
+    if unique { names } else { paths.iter().map(|p| p.display().to_string()).collect() }
+}
+
 fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop: bool) -> Result<(Summary, String, String)> {
     let seed = cfg.seed;
     let episodes = args.episodes.max(1);
@@ -274,14 +282,10 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
     let mut term_names: Vec<String> = Vec::new();
     let mut env_backend = String::new();
     let mut device_name = String::new();
-    // the bank's references in its order (file names; whole paths where two names are the same)
     let ref_names: Vec<String> = if cfg.task.kind == "lift" {
         Vec::new()
     } else {
-        let paths = reference_paths(cfg)?;
-        let names: Vec<String> = paths.iter().map(|p| p.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default()).collect();
-        let unique = names.iter().collect::<std::collections::HashSet<_>>().len() == names.len();
-        if unique { names } else { paths.iter().map(|p| p.display().to_string()).collect() }
+        reference_names(&reference_paths(cfg)?)
     };
     for round in 0..rounds {
         let n = (episodes - round * max_envs).min(max_envs);
@@ -448,4 +452,3 @@ fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::e
         object_ref,
     })
 }
-

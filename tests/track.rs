@@ -448,3 +448,14 @@ fn residual_run_trains_and_evaluates_against_the_open_loop_baseline() {
     let bad = eval(&EvalArgs { baseline: Some("closed-loop".into()), ..e.clone() }).unwrap_err().to_string();
     assert!(bad.contains("--baseline") && bad.contains("open-loop"), "{bad}");
 }
+
+#[test]
+fn eval_names_references_by_file_name_unless_two_collide() {
+    use dextrain::eval::reference_names;
+    use std::path::PathBuf;
+    let p = |s: &str| PathBuf::from(s);
+    assert_eq!(reference_names(&[p("refs/a/ref_000.mcap"), p("refs/a/ref_001.mcap")]), ["ref_000.mcap", "ref_001.mcap"]);
+    // two datasets with a ref_000.mcap each: every reference is named by its whole path
+    let both = [p("refs/a/ref_000.mcap"), p("refs/b/ref_000.mcap"), p("refs/b/ref_001.mcap")];
+    assert_eq!(reference_names(&both), ["refs/a/ref_000.mcap", "refs/b/ref_000.mcap", "refs/b/ref_001.mcap"]);
+}
