@@ -254,8 +254,6 @@ pub fn markdown(r: &EvalReport) -> String {
     out
 }
 
-/// Every episode of an evaluation (the policy's, or with `open_loop` the baseline's), the env
-/// backend and the learner device.
 /// The names the report gives the bank's references, in its order: their file names, or their whole
 /// paths where two file names are the same (two datasets with a `ref_000.mcap` each).
 pub fn reference_names(paths: &[PathBuf]) -> Vec<String> {
@@ -264,6 +262,8 @@ pub fn reference_names(paths: &[PathBuf]) -> Vec<String> {
     if unique { names } else { paths.iter().map(|p| p.display().to_string()).collect() }
 }
 
+/// Every episode of an evaluation (the policy's, or with `open_loop` the baseline's), the env
+/// backend and the learner device.
 fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop: bool) -> Result<(Summary, String, String)> {
     let seed = cfg.seed;
     let episodes = args.episodes.max(1);
