@@ -119,6 +119,33 @@ const KIND_TRACK: u32 = 1u;
 const KIND_RESIDUAL_JOINT: u32 = 2u;
 const KIND_RESIDUAL_TASK: u32 = 3u;
 const MAX_TERMS: u32 = 8u;
+// the slot of each reward term in its kind's output (the tables of src/task/spec.rs, in their
+// order; tests/suite/shaders.rs checks every name and index)
+const T_LIFT_REACHING: u32 = 0u;
+const T_LIFT_LIFTING: u32 = 1u;
+const T_LIFT_CONTACT: u32 = 2u;
+const T_LIFT_SUCCESS: u32 = 3u;
+const T_LIFT_ACTION_RATE: u32 = 4u;
+const T_LIFT_ACTION_MAGNITUDE: u32 = 5u;
+const T_TRACK_HAND_FOLLOWING: u32 = 0u;
+const T_TRACK_OBJECT_FOLLOWING: u32 = 1u;
+const T_TRACK_CONTACT: u32 = 2u;
+const T_TRACK_SUCCESS: u32 = 3u;
+const T_TRACK_LIFTING: u32 = 4u;
+const T_TRACK_ACTION_RATE: u32 = 5u;
+const T_TRACK_ACTION_MAGNITUDE: u32 = 6u;
+const T_RESIDUAL_JOINT_OBJECT_POS: u32 = 0u;
+const T_RESIDUAL_JOINT_OBJECT_ROT: u32 = 1u;
+const T_RESIDUAL_JOINT_RESIDUAL: u32 = 2u;
+const T_RESIDUAL_JOINT_SUCCESS: u32 = 3u;
+const T_RESIDUAL_TASK_OBJECT: u32 = 0u;
+const T_RESIDUAL_TASK_FINGERTIPS: u32 = 1u;
+const T_RESIDUAL_TASK_WRIST: u32 = 2u;
+const T_RESIDUAL_TASK_CONTACT: u32 = 3u;
+const T_RESIDUAL_TASK_VELOCITY: u32 = 4u;
+const T_RESIDUAL_TASK_TORQUE: u32 = 5u;
+const T_RESIDUAL_TASK_WORK: u32 = 6u;
+const T_RESIDUAL_TASK_TABLE_COLLISION: u32 = 7u;
 // per-env record of the outputs after the obs and priv obs sections of task_out
 const OUT_REWARD: u32 = 0u;
 const OUT_TERMS: u32 = 1u;
@@ -129,7 +156,8 @@ const OUT_LIFT: u32 = 12u;
 const OUT_MAX_PEN: u32 = 13u;
 const OUT_OBJ_POS_ERR: u32 = 14u;
 const OUT_OBJ_ROT_ERR: u32 = 15u;
-const OUT_MISC: u32 = 16u;
+const OUT_BAD_RESET: u32 = 16u;
+const OUT_MISC: u32 = 17u;
 // the env step ref_sample clamps to the reference's last frame
 const REF_END_STEP: u32 = 1073741824u;
 
@@ -294,80 +322,88 @@ fn palm_position(wrist_pos: vec3<f32>, wrist_rot: vec4<f32>) -> vec3<f32> {
     return wrist_pos + quat_rotate(wrist_rot, tc.palm_offset.xyz);
 }
 
-// the tracking reward terms (raw, the kind's order) against the reference frame f of this instant;
-// e = the object's position and angle error against f (see the twin)
-fn tracking_terms(s: EnvState, p: EnvParams, ts: TaskState, f: RefFrame, e: vec2<f32>, fin: bool, contact: bool, h: f32) -> array<f32, 8> {
+// track's raw reward terms (slots T_TRACK_*) against the reference frame f of this instant;
+// e = the object's position and angle error against f, fin = within the success tolerances of the
+// reference's final pose, contact = the thumb and another fingertip touch, h = the lift height (m)
+fn track_terms(s: EnvState, ts: TaskState, f: RefFrame, e: vec2<f32>, fin: bool, contact: bool, h: f32) -> array<f32, 8> {
     var raw: array<f32, 8>;
-    let wp = s.wrist_pos.xyz;
-    let wr = s.wrist_rot;
-    let e_wp = length(wp - f.wrist_pos.xyz);
-    let e_wr = length(quat_error(f.wrist_rot, wr));
-    let ended = f.ended != 0u;
-    if (tc.kind == KIND_TRACK) {
-        var dq = 0.0;
-        for (var i = 0u; i < tc.n_actuated; i++) {
-            let j = actuated_joint(i);
-            let d = s.q[j] - f.q[j];
-            dq += d * d;
-        }
-        // R_f = β1 (1 − tanh(α1‖q − q̂‖)) + β2 (1 − tanh(α2‖x − x̂‖)) + β3 (1 − tanh(α3 φ))
-        let rj = 1.0 - tanh(min(tc.alpha_joint * sqrt(dq), 20.0));
-        let rx = 1.0 - tanh(min(tc.alpha_wrist_pos * e_wp, 20.0));
-        let rr = 1.0 - tanh(min(tc.alpha_wrist_rot * e_wr, 20.0));
-        raw[0] = tc.beta_joint * rj + tc.beta_wrist_pos * rx + tc.beta_wrist_rot * rr;
-        // R_o = exp(−α4‖T − T̂‖) + exp(−α5‖log(q̂⁻¹ ⊗ q)‖)
-        raw[1] = exp(-tc.alpha_object_pos * e.x) + exp(-tc.alpha_object_rot * e.y);
-        // contact while the reference grasps
-        raw[2] = select(0.0, 1.0, contact && f.grasp > 0.5);
-        raw[3] = select(0.0, 1.0, fin && ended);
-        raw[4] = clamp(h, 0.0, tc.success_height) * 100.0;
-        raw[5] = ts.act_rate;
-        raw[6] = ts.act_mag;
-    } else if (tc.kind == KIND_RESIDUAL_JOINT) {
-        // w_p exp(−k_p e_p) + w_r exp(−k_r e_R) − λ_a ‖δ‖²
-        raw[0] = exp(-tc.res_obj_pos_coef * e.x);
-        raw[1] = exp(-tc.res_obj_rot_coef * e.y);
-        raw[2] = ts.res_sq;
-        raw[3] = select(0.0, 1.0, fin && ended);
-    } else {
-        st = s;
-        hand_kinematics();
-        var e_tips = 0.0;
-        for (var t = 0u; t < g.n_tips; t++) {
-            e_tips += length(tip_position(t) - f.tips[t].xyz);
-        }
-        e_tips /= f32(max(g.n_tips, 1u));
-        // object exp(−a_p e_p − a_R e_R), gated by contact or the object being on its reference
-        let gate = contact || e.x <= tc.success_pos_tol;
-        raw[0] = select(0.0, exp(-tc.rw_obj_pos * e.x - tc.rw_obj_rot * e.y), gate);
-        raw[1] = exp(-tc.rw_tips * e_tips);
-        raw[2] = exp(-tc.rw_wrist_pos * e_wp - tc.rw_wrist_rot * e_wr);
-        raw[3] = select(0.0, 1.0, contact && f.grasp > 0.5);
-        var vel = 0.0;
-        var torque = 0.0;
-        var work = 0.0;
-        for (var i = 0u; i < tc.n_actuated; i++) {
-            let j = actuated_joint(i);
-            let jd = joints[j];
-            let qd = s.qd[j];
-            // the servo's torque: clamp(kp (clamp(q*, lo, hi) − q) − kd q̇, ±effort)
-            let goal = clamp(ts.targets.q[j], jd.lower * p.limit_scale, jd.upper * p.limit_scale);
-            let tau = clamp(jd.kp * p.kp_scale * (goal - s.q[j]) - jd.kd * p.kd_scale * qd, -jd.effort, jd.effort);
-            vel += qd * qd;
-            torque += tau * tau;
-            work += abs(tau * qd);
-        }
-        raw[4] = vel;
-        raw[5] = torque;
-        raw[6] = work;
-        var table = false;
-        for (var c = 0u; c < g.n_colliders; c++) {
-            if (s.anchor_ht[c].w > 0.0) {
-                table = true;
-            }
-        }
-        raw[7] = select(0.0, 1.0, table);
+    let e_wp = length(s.wrist_pos.xyz - f.wrist_pos.xyz);
+    let e_wr = length(quat_error(f.wrist_rot, s.wrist_rot));
+    var dq = 0.0;
+    for (var i = 0u; i < tc.n_actuated; i++) {
+        let j = actuated_joint(i);
+        let d = s.q[j] - f.q[j];
+        dq += d * d;
     }
+    // R_f = β1 (1 − tanh(α1‖q − q̂‖)) + β2 (1 − tanh(α2‖x − x̂‖)) + β3 (1 − tanh(α3 φ))
+    let rj = 1.0 - tanh(min(tc.alpha_joint * sqrt(dq), 20.0));
+    let rx = 1.0 - tanh(min(tc.alpha_wrist_pos * e_wp, 20.0));
+    let rr = 1.0 - tanh(min(tc.alpha_wrist_rot * e_wr, 20.0));
+    raw[T_TRACK_HAND_FOLLOWING] = tc.beta_joint * rj + tc.beta_wrist_pos * rx + tc.beta_wrist_rot * rr;
+    // R_o = exp(−α4‖T − T̂‖) + exp(−α5‖log(q̂⁻¹ ⊗ q)‖)
+    raw[T_TRACK_OBJECT_FOLLOWING] = exp(-tc.alpha_object_pos * e.x) + exp(-tc.alpha_object_rot * e.y);
+    // contact while the reference grasps
+    raw[T_TRACK_CONTACT] = select(0.0, 1.0, contact && f.grasp > 0.5);
+    raw[T_TRACK_SUCCESS] = select(0.0, 1.0, fin && f.ended != 0u);
+    raw[T_TRACK_LIFTING] = clamp(h, 0.0, tc.success_height) * 100.0;
+    raw[T_TRACK_ACTION_RATE] = ts.act_rate;
+    raw[T_TRACK_ACTION_MAGNITUDE] = ts.act_mag;
+    return raw;
+}
+
+// residual_joint's raw reward terms (slots T_RESIDUAL_JOINT_*): w_p exp(−k_p e_p) + w_r exp(−k_r e_R) − λ_a ‖δ‖²
+fn residual_joint_terms(ts: TaskState, f: RefFrame, e: vec2<f32>, fin: bool) -> array<f32, 8> {
+    var raw: array<f32, 8>;
+    raw[T_RESIDUAL_JOINT_OBJECT_POS] = exp(-tc.res_obj_pos_coef * e.x);
+    raw[T_RESIDUAL_JOINT_OBJECT_ROT] = exp(-tc.res_obj_rot_coef * e.y);
+    raw[T_RESIDUAL_JOINT_RESIDUAL] = ts.res_sq;
+    raw[T_RESIDUAL_JOINT_SUCCESS] = select(0.0, 1.0, fin && f.ended != 0u);
+    return raw;
+}
+
+// residual_task's raw reward terms (slots T_RESIDUAL_TASK_*; DexRefine): the object, fingertip and
+// wrist tracking exponentials, contact, and the joint velocity, torque, work and table penalties
+fn residual_task_terms(s: EnvState, p: EnvParams, ts: TaskState, f: RefFrame, e: vec2<f32>, contact: bool) -> array<f32, 8> {
+    var raw: array<f32, 8>;
+    let e_wp = length(s.wrist_pos.xyz - f.wrist_pos.xyz);
+    let e_wr = length(quat_error(f.wrist_rot, s.wrist_rot));
+    st = s;
+    hand_kinematics();
+    var e_tips = 0.0;
+    for (var t = 0u; t < g.n_tips; t++) {
+        e_tips += length(tip_position(t) - f.tips[t].xyz);
+    }
+    e_tips /= f32(max(g.n_tips, 1u));
+    // object exp(−a_p e_p − a_R e_R), gated by contact or the object being on its reference
+    let gate = contact || e.x <= tc.success_pos_tol;
+    raw[T_RESIDUAL_TASK_OBJECT] = select(0.0, exp(-tc.rw_obj_pos * e.x - tc.rw_obj_rot * e.y), gate);
+    raw[T_RESIDUAL_TASK_FINGERTIPS] = exp(-tc.rw_tips * e_tips);
+    raw[T_RESIDUAL_TASK_WRIST] = exp(-tc.rw_wrist_pos * e_wp - tc.rw_wrist_rot * e_wr);
+    raw[T_RESIDUAL_TASK_CONTACT] = select(0.0, 1.0, contact && f.grasp > 0.5);
+    var vel = 0.0;
+    var torque = 0.0;
+    var work = 0.0;
+    for (var i = 0u; i < tc.n_actuated; i++) {
+        let j = actuated_joint(i);
+        let jd = joints[j];
+        let qd = s.qd[j];
+        // the servo's torque: clamp(kp (clamp(q*, lo, hi) − q) − kd q̇, ±effort)
+        let goal = clamp(ts.targets.q[j], jd.lower * p.limit_scale, jd.upper * p.limit_scale);
+        let tau = clamp(jd.kp * p.kp_scale * (goal - s.q[j]) - jd.kd * p.kd_scale * qd, -jd.effort, jd.effort);
+        vel += qd * qd;
+        torque += tau * tau;
+        work += abs(tau * qd);
+    }
+    raw[T_RESIDUAL_TASK_VELOCITY] = vel;
+    raw[T_RESIDUAL_TASK_TORQUE] = torque;
+    raw[T_RESIDUAL_TASK_WORK] = work;
+    var table = false;
+    for (var c = 0u; c < g.n_colliders; c++) {
+        if (s.anchor_ht[c].w > 0.0) {
+            table = true;
+        }
+    }
+    raw[T_RESIDUAL_TASK_TABLE_COLLISION] = select(0.0, 1.0, table);
     return raw;
 }
 
@@ -401,21 +437,21 @@ fn task_reward(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
     var err = vec2<f32>(0.0, 0.0);
     if (tc.kind == KIND_LIFT) {
         // reaching 1 − tanh(α d) (tanh saturates at 20: some GPUs' tanh overflows beyond)
-        raw[0] = 1.0 - tanh(min(tc.reach_alpha * dist, 20.0));
+        raw[T_LIFT_REACHING] = 1.0 - tanh(min(tc.reach_alpha * dist, 20.0));
         // lifting: h in cm, capped at the success height
-        raw[1] = clamp(h, 0.0, tc.success_height) * 100.0;
-        raw[2] = select(0.0, 1.0, thumb && other);
-        raw[3] = select(0.0, 1.0, h >= tc.success_height);
-        raw[4] = ts.act_rate;
-        raw[5] = ts.act_mag;
-        success = raw[3];
+        raw[T_LIFT_LIFTING] = clamp(h, 0.0, tc.success_height) * 100.0;
+        raw[T_LIFT_CONTACT] = select(0.0, 1.0, thumb && other);
+        raw[T_LIFT_SUCCESS] = select(0.0, 1.0, h >= tc.success_height);
+        raw[T_LIFT_ACTION_RATE] = ts.act_rate;
+        raw[T_LIFT_ACTION_MAGNITUDE] = ts.act_mag;
+        success = raw[T_LIFT_SUCCESS];
         time_out = !terminated && s.step >= tc.episode_length;
         if (bad) {
             // the physics already reset this env: its state says nothing about the step
-            raw[0] = 0.0;
-            raw[1] = 0.0;
-            raw[2] = 0.0;
-            raw[3] = 0.0;
+            raw[T_LIFT_REACHING] = 0.0;
+            raw[T_LIFT_LIFTING] = 0.0;
+            raw[T_LIFT_CONTACT] = 0.0;
+            raw[T_LIFT_SUCCESS] = 0.0;
             success = 0.0;
         }
     } else {
@@ -426,7 +462,13 @@ fn task_reward(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
         let fin_p = length(obj - fin_ref.obj_pos.xyz);
         let fin_r = length(quat_error(fin_ref.obj_rot, s.obj_rot));
         let fin = fin_p <= tc.success_pos_tol && fin_r <= tc.success_rot_tol;
-        raw = tracking_terms(s, params[env], ts, f, err, fin, thumb && other, h);
+        if (tc.kind == KIND_TRACK) {
+            raw = track_terms(s, ts, f, err, fin, thumb && other, h);
+        } else if (tc.kind == KIND_RESIDUAL_JOINT) {
+            raw = residual_joint_terms(ts, f, err, fin);
+        } else {
+            raw = residual_task_terms(s, params[env], ts, f, err, thumb && other);
+        }
         success = select(0.0, 1.0, fin);
         terminated = terminated || (tc.max_object_error > 0.0 && err.x > tc.max_object_error);
         var ended = s.step >= tc.episode_length;
@@ -463,6 +505,7 @@ fn task_reward(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
     task_out[mb + OUT_MAX_PEN] = sts.max_pen_ho;
     task_out[mb + OUT_OBJ_POS_ERR] = err.x;
     task_out[mb + OUT_OBJ_ROT_ERR] = err.y;
+    task_out[mb + OUT_BAD_RESET] = select(0.0, 1.0, bad);
     let done = terminated || time_out;
     ts.done = select(0u, 1u, done);
     task_states[env] = ts;
@@ -490,6 +533,14 @@ fn noisy(k: u32, v: f32, sigma: f32) -> f32 {
 fn put_obs(k: u32, clean: f32, noisy_v: f32) {
     task_out[ob_base + k] = noisy_v;
     task_out[pr_base + k] = clean;
+}
+
+// actor entries k, k+1, k+2 (noisy) and the same critic entries (clean); returns k + 3
+fn put_obs3(k: u32, clean: vec3<f32>, noisy_v: vec3<f32>) -> u32 {
+    for (var c = 0u; c < 3u; c++) {
+        put_obs(k + c, clean[c], noisy_v[c]);
+    }
+    return k + 3u;
 }
 
 // critic-only entry k (k >= obs_dim)
@@ -559,41 +610,18 @@ fn observe_reference(k0: u32, ts: TaskState) -> u32 {
     let orot = st.obj_rot;
     for (var i = 0u; i <= tc.lookahead; i++) {
         let f = ref_sample(ts.cursor, st.step, i * tc.lookahead_stride);
-        let d = f.wrist_pos.xyz - wp;
-        let dn = f.wrist_pos.xyz - ns_wrist;
-        for (var c = 0u; c < 3u; c++) {
-            put_obs(k, d[c], dn[c]);
-            k++;
-        }
+        k = put_obs3(k, f.wrist_pos.xyz - wp, f.wrist_pos.xyz - ns_wrist);
         let e = quat_error(f.wrist_rot, wr);
-        for (var c = 0u; c < 3u; c++) {
-            put_obs(k, e[c], e[c]);
-            k++;
-        }
+        k = put_obs3(k, e, e);
         for (var a = 0u; a < tc.n_actuated; a++) {
             let j = actuated_joint(a);
             put_obs(k, f.q[j] - st.q[j], f.q[j] - ns_q[a]);
             k++;
         }
-        let d2 = f.obj_pos.xyz - op;
-        let dn2 = f.obj_pos.xyz - ns_obj;
-        for (var c = 0u; c < 3u; c++) {
-            put_obs(k, d2[c], dn2[c]);
-            k++;
-        }
-        let e2 = quat_error(f.obj_rot, orot);
-        let en2 = quat_error(f.obj_rot, ns_obj_rot);
-        for (var c = 0u; c < 3u; c++) {
-            put_obs(k, e2[c], en2[c]);
-            k++;
-        }
+        k = put_obs3(k, f.obj_pos.xyz - op, f.obj_pos.xyz - ns_obj);
+        k = put_obs3(k, quat_error(f.obj_rot, orot), quat_error(f.obj_rot, ns_obj_rot));
         for (var t = 0u; t < g.n_tips; t++) {
-            let d3 = f.tips[t].xyz - tip_position(t);
-            let dn3 = f.tips[t].xyz - ns_tips[t];
-            for (var c = 0u; c < 3u; c++) {
-                put_obs(k, d3[c], dn3[c]);
-                k++;
-            }
+            k = put_obs3(k, f.tips[t].xyz - tip_position(t), f.tips[t].xyz - ns_tips[t]);
         }
     }
     // phase: the reference's progress, 0 at its first frame, 1 from its end on

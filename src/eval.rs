@@ -17,9 +17,9 @@ use anyhow::{Context, Result, bail};
 use serde::Serialize;
 
 use crate::checkpoint;
-use crate::config::{BackendChoice, Config};
+use crate::config::{Config, TaskKind};
 use crate::env::reset::reset_params;
-use crate::env::task::{decode_snapshot, make_task_batch, reference_paths};
+use crate::task::{decode_snapshot, make_task_batch, reference_paths};
 use crate::env::{SimModel, contact_records, hand_link_poses};
 use crate::geom::Pose;
 use crate::learn::device::learner_device;
@@ -49,11 +49,19 @@ pub struct EvalArgs {
     pub record: Option<PathBuf>,
     /// Env backend (overrides the run's config): cpu, gpu, gpu:NAME or auto.
     #[arg(long)]
-    pub backend: Option<String>,
+    pub backend: Option<crate::config::BackendChoice>,
     /// Also evaluate a baseline on the same seeds: `open-loop` (reference kinds) drives the
     /// targets along the references with the policy switched off, as `dextrain replay` does.
-    #[arg(long)]
-    pub baseline: Option<String>,
+    #[arg(long, value_enum)]
+    pub baseline: Option<Baseline>,
+}
+
+/// `dextrain eval --baseline`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum Baseline {
+    /// The policy switched off: the targets follow the (augmented) references, as `dextrain
+    /// replay` drives them (reference kinds).
+    OpenLoop,
 }
 
 /// Mean and standard deviation.
@@ -161,15 +169,14 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
     if let Some(b) = &args.backend {
         cfg.sim.backend = b.clone();
     }
-    let baseline = match args.baseline.as_deref() {
+    let baseline = match args.baseline {
         None => false,
-        Some("open-loop") => {
-            if cfg.task.kind == "lift" {
+        Some(Baseline::OpenLoop) => {
+            if cfg.task.kind == TaskKind::Lift {
                 bail!("--baseline open-loop: the lift task has no reference to replay; expected a run of task.kind = track, residual_joint or residual_task");
             }
             true
         }
-        Some(other) => bail!("--baseline {other:?}: expected \"open-loop\""),
     };
     let (policy, env_backend, device_name) = run_episodes(&cfg, &ckpt, args, false)?;
     let base = if baseline { Some(run_episodes(&cfg, &ckpt, args, true)?.0) } else { None };
@@ -179,7 +186,7 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
         iteration: state.iteration,
         seed,
         episodes: policy.per_episode.len(),
-        task: cfg.task.kind.clone(),
+        task: cfg.task.kind.to_string(),
         env_backend,
         learner_device: device_name,
         policy,
@@ -282,7 +289,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
     let mut term_names: Vec<String> = Vec::new();
     let mut env_backend = String::new();
     let mut device_name = String::new();
-    let ref_names: Vec<String> = if cfg.task.kind == "lift" {
+    let ref_names: Vec<String> = if cfg.task.kind == TaskKind::Lift {
         Vec::new()
     } else {
         reference_names(&reference_paths(cfg)?)
@@ -302,7 +309,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
         let mut task = make_task_batch(&c, model.clone())?;
         let spec = task.spec().clone();
         env_backend = task.backend_name();
-        let choice = BackendChoice::parse(&c.train.device).unwrap_or(BackendChoice::Cpu);
+        let choice = c.train.device.clone();
         let (device, dn) = learner_device(&choice, task.gpu_context())?;
         device_name = dn;
         let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
@@ -327,7 +334,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
         };
         let mut obs = task.reset_all()?.obs.clone();
         // the reference of each env's (only) episode, drawn at the reset
-        let refs: Vec<String> = if c.task.kind == "lift" {
+        let refs: Vec<String> = if c.task.kind == TaskKind::Lift {
             vec![String::new(); n]
         } else {
             let (_, _, ts) = decode_snapshot(&task.save_state()?, n)?;
@@ -371,7 +378,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
                     // forces of this step (a done env's critic obs are its next episode's first)
                     for &k in &force_cols {
                         let f = b.priv_obs[i * pd + k] as f64;
-                        if f > c.task.lift.contact_force as f64 {
+                        if f > c.task.hand.contact_force as f64 {
                             force_sum += f;
                             force_n += 1;
                         }
@@ -432,7 +439,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
 }
 
 /// Writes env 0's current state as one recording frame.
-fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::env::task::TaskBatch, t: f64) -> Result<()> {
+fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::task::TaskBatch, t: f64) -> Result<()> {
     let targets = task.targets()?;
     let object_ref = task.reference_now(0)?.map(|f| Pose::from_arrays(f.obj_pos, f.obj_rot));
     let env = task.env();

@@ -17,5 +17,6 @@ pub mod record;
 pub mod replay;
 pub mod run_dir;
 pub mod train;
+pub mod task;
 pub mod tensorboard;
 pub mod traj;

@@ -19,7 +19,8 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Validate a config and print it resolved, with every default filled in.
+    /// Validate a config and print it resolved, with every default filled in (stdout), and the
+    /// layout of the actor's and the critic's observations (stderr).
     Check {
         /// The TOML config file.
         config: PathBuf,
@@ -36,7 +37,7 @@ enum Command {
         threads: Option<usize>,
         /// PPO bench: learner device (cpu, gpu, gpu:NAME, auto).
         #[arg(long, default_value = "cpu")]
-        device: String,
+        device: dextrain::config::BackendChoice,
         /// PPO bench: timed iterations (after one warm-up).
         #[arg(long, default_value_t = 5)]
         iters: usize,
@@ -44,7 +45,7 @@ enum Command {
         config: Option<PathBuf>,
         /// Backend: cpu, gpu, gpu:NAME or auto (overrides the config).
         #[arg(long)]
-        backend: Option<String>,
+        backend: Option<dextrain::config::BackendChoice>,
         /// Number of envs (overrides the config).
         #[arg(long)]
         envs: Option<usize>,
@@ -89,7 +90,7 @@ fn run(cli: Cli) -> Result<()> {
             let cfg = load_config(&config)?;
             // the hand must load too
             let model = SimModel::from_config(&cfg)?;
-            let task = dextrain::env::task::task_setup(&cfg, &model)?.spec;
+            let task = dextrain::task::task_setup(&cfg, &model)?.spec;
             print!("{}", cfg.to_toml()?);
             eprintln!(
                 "{}: ok ({} joints, {} actuated, {} colliders, {} fingertips; task {}: obs {}, critic obs {}, actions {})",
@@ -103,6 +104,9 @@ fn run(cli: Cli) -> Result<()> {
                 task.priv_dim,
                 task.action_dim
             );
+            // what the policy sees: the actor's and the critic's observation layouts
+            eprint!("{}", dextrain::task::spec::layout_table(&task.obs_layout, "actor observation"));
+            eprint!("{}", dextrain::task::spec::layout_table(&task.priv_layout, "critic observation"));
             Ok(())
         }
         Command::Bench { ppo, threads, device, iters, config, backend, envs, chunks, seconds } => {
@@ -110,9 +114,7 @@ fn run(cli: Cli) -> Result<()> {
                 rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot size the thread pool")?;
             }
             if ppo {
-                let choice = dextrain::config::BackendChoice::parse(&device)
-                    .with_context(|| format!("--device {device:?}: expected cpu, gpu, gpu:NAME or auto"))?;
-                let (dev, name) = dextrain::learn::device::learner_device(&choice, None)?;
+                let (dev, name) = dextrain::learn::device::learner_device(&device, None)?;
                 let opts = dextrain::bench::PpoBenchOptions { envs: envs.unwrap_or(4096), iters: iters.max(1), ..Default::default() };
                 let report = dextrain::bench::run_ppo_bench(&opts, dev, &name)?;
                 println!("{}", serde_json::to_string(&report).context("cannot serialise the report")?);

@@ -39,7 +39,7 @@ pub struct ReplayArgs {
     pub envs: usize,
     /// Backend: cpu, gpu, gpu:NAME or auto (overrides the config).
     #[arg(long)]
-    pub backend: Option<String>,
+    pub backend: Option<crate::config::BackendChoice>,
 }
 
 /// The one-line JSON report of a replay (means over envs; peaks are maxima).
@@ -99,7 +99,7 @@ fn state_on_reference(model: &SimModel, base: &EnvState, tg: &Targets, object: O
     for (j, jd) in model.joints.iter().enumerate() {
         s.q[j] = tg.q[j];
         s.qd[j] = 0.0;
-        if jd.mimic_leader != crate::env::layout::NO_JOINT {
+        if jd.mimic_leader != crate::env::gpu_layout::NO_JOINT {
             s.q[j] = jd.mimic_mult * tg.q[jd.mimic_leader as usize] + jd.mimic_offset;
         }
     }
@@ -217,7 +217,7 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
                     if c.kind == ContactKind::HandObject {
                         pen[i] = pen[i].max(c.depth);
                         let tip = model.colliders[c.index as usize].tip;
-                        if tip != crate::env::layout::NO_JOINT {
+                        if tip != crate::env::gpu_layout::NO_JOINT {
                             tips[i][tip as usize] += c.force.dot(c.normal);
                         }
                     }

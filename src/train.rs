@@ -19,9 +19,9 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::json;
 
 use crate::checkpoint::{self, CheckpointState, EnvSnapshot};
-use crate::config::{BackendChoice, Config};
+use crate::config::{Config, TaskKind};
 use crate::env::SimModel;
-use crate::env::task::{TaskBatch, TaskSpec, make_task_batch};
+use crate::task::{TaskBatch, TaskSpec, make_task_batch};
 use crate::learn::device::learner_device;
 use crate::learn::ppo::{Dims, Ppo, UpdateStats};
 use crate::metrics::MetricsLog;
@@ -86,7 +86,7 @@ pub fn metric_columns(spec: &TaskSpec) -> Vec<String> {
         .iter()
         .map(|s| s.to_string()),
     );
-    if spec.kind != "lift" {
+    if spec.kind.follows_reference() {
         // the object's error against its reference, mean over the rollout's env steps
         c.extend(["tracking/obj_pos_err_m", "tracking/obj_rot_err_deg"].iter().map(|s| s.to_string()));
     }
@@ -209,7 +209,7 @@ fn setup(args: &TrainArgs) -> Result<(Config, PathBuf, Option<PathBuf>)> {
     run_dir::validate_name(&name)?;
     // the hand and the references must load before a run directory is made
     let model = SimModel::from_config(&cfg)?;
-    crate::env::task::task_setup(&cfg, &model)?;
+    crate::task::task_setup(&cfg, &model)?;
     let dir = run_dir::create(&args.runs_dir, &name, args.force)?;
     // the exact resolved config, with the hand's URDF and the reference files as absolute paths so
     // that it loads from the run directory
@@ -230,7 +230,7 @@ pub fn run(args: &TrainArgs) -> Result<PathBuf> {
     let model = SimModel::from_config(&cfg)?;
     let mut task = make_task_batch(&cfg, model)?;
     let spec = task.spec().clone();
-    let choice = BackendChoice::parse(&cfg.train.device).unwrap_or(BackendChoice::Cpu);
+    let choice = cfg.train.device.clone();
     let (device, device_name) = learner_device(&choice, task.gpu_context())?;
     let n = spec.num_envs;
     let steps = cfg.train.steps_per_env as usize;
@@ -249,7 +249,7 @@ pub fn run(args: &TrainArgs) -> Result<PathBuf> {
             let (o, p) = (first.obs.clone(), first.priv_obs.clone());
             // (the lift task only: a reference kind's episode starts at its reference's first frame,
             // and a random step count would start the reference elsewhere than the hand and object)
-            if cfg.train.init_at_random_ep_len && cfg.task.kind == "lift" {
+            if cfg.train.init_at_random_ep_len && cfg.task.kind == TaskKind::Lift {
                 // desynchronise the episodes: each env's first episode starts at a random step count
                 let mut rng = crate::learn::rng::Rng::new(cfg.seed as u64, 0xE915_0DE5);
                 let mut states = task.env().states()?;
@@ -301,7 +301,7 @@ pub fn run(args: &TrainArgs) -> Result<PathBuf> {
         let dt = t0.elapsed().as_secs_f64();
         let time_s = time_base + started.elapsed().as_secs_f64();
         let fps = sums.steps as f64 / dt.max(1e-9);
-        let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s, spec.kind != "lift");
+        let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s, spec.kind.follows_reference());
         metrics.append(iteration, &row)?;
         let success = row[columns.iter().position(|c| c == "episode/success_rate").unwrap_or(0)];
         let reward = row[columns.iter().position(|c| c == "reward/mean").unwrap_or(0)];

@@ -3,7 +3,7 @@
 use anyhow::{Result, ensure};
 use rayon::prelude::*;
 
-use super::layout::*;
+use super::gpu_layout::*;
 use super::physics::env_step;
 use super::reset::{reset_params, reset_state};
 use super::{EnvBatch, EnvSpec, SimModel};

@@ -8,7 +8,7 @@ use anyhow::{Context, Result, anyhow, bail, ensure};
 use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
-use super::layout::*;
+use super::gpu_layout::*;
 use super::{EnvBatch, EnvSpec, SimModel};
 
 pub const SHADER_COMMON: &str = include_str!("../../shaders/common.wgsl");

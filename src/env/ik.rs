@@ -62,7 +62,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat3, Vec3, Vec4};
 
 use super::common::*;
-use super::layout::*;
+use super::gpu_layout::*;
 use super::physics::{MAX_LINKS, Model};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 

@@ -26,20 +26,18 @@ pub mod common;
 pub mod cpu;
 pub mod gpu;
 pub mod ik;
-pub mod layout;
+pub mod gpu_layout;
 pub mod physics;
 pub mod reference;
 pub mod reset;
-pub mod task;
-pub mod task_gpu;
 
 use anyhow::{Result, bail};
 use glam::{Mat3, Quat, Vec3};
 
 use crate::config::{BackendChoice, Config};
 use crate::hand::{ColliderShape, HandModel, MAX_TIPS};
-pub use layout::{EnvParams, EnvState, StepStats, Targets};
-use layout::*;
+pub use gpu_layout::{EnvParams, EnvState, StepStats, Targets};
+use gpu_layout::*;
 
 /// Names and sizes of the env batch.
 #[derive(Clone, Debug)]

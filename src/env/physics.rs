@@ -19,7 +19,7 @@
 use glam::{Vec3, Vec4};
 
 use super::common::*;
-use super::layout::*;
+use super::gpu_layout::*;
 use super::reset::{reset_params, reset_state};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 

@@ -23,7 +23,7 @@
 //! - Both backends draw the same numbers: every draw is `rand_uniform(g.seed, env, episode,`
 //!   [`PURPOSE_REF`]`, key)` with the keys `REF_KEY_*` below.
 //!
-//! # Augmentations (each off at its default; [`ReferenceConfig`], `[task.reference]`)
+//! # Augmentations (each off at its default; [`crate::config::ReferenceConfig`], `[task.reference]`)
 //!
 //! Drawn once per episode in [`ref_begin`]: the reference (uniform over the bank), the speed
 //! `1 + time_scale · U(−1, 1)`, the mirror (with probability `mirror_prob`), the wrist offsets
@@ -65,14 +65,13 @@
 //!
 //! Expressing a frame relative to the current state (observations, rewards) is the task layer's.
 
-use anyhow::{Result, bail};
 use bytemuck::{Pod, Zeroable};
 use glam::{Vec3, Vec4};
-use serde::{Deserialize, Serialize};
+
 
 use super::SimModel;
 use super::common::{quat_conj, quat_from_axis_angle, quat_mul, quat_normalize, quat_rotate, rand_uniform};
-use super::layout::{EnvState, Globals, JointDesc, NO_JOINT};
+use super::gpu_layout::{EnvState, Globals, JointDesc, NO_JOINT};
 use super::physics::{put3, v3, v4};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 use crate::traj::bank::RefBank;
@@ -135,7 +134,7 @@ pub struct RefInfo {
 
 /// Run-wide constants of the reference layer (WGSL `RefGlobals`, uniform binding 15 `rg`): the
 /// bank's sizes and record offsets ([`RefBank::globals`]) and the augmentation settings
-/// ([`ReferenceConfig::fill`]; see the module documentation).
+/// ([`crate::task::setup::reference_globals`]; see the module documentation).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq, Default)]
 pub struct RefGlobals {
@@ -234,113 +233,6 @@ pub struct RefFrame {
 impl Default for RefFrame {
     fn default() -> Self {
         Zeroable::zeroed()
-    }
-}
-
-/// `[task.reference]`: the references a trajectory-following or residual task tracks and their
-/// augmentation (module documentation). Every augmentation is off by default.
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ReferenceConfig {
-    /// Reference trajectories (`.mcap` or `.csv`, paths relative to the config file); each episode
-    /// plays one drawn uniformly.
-    pub files: Vec<String>,
-    /// Half-range (m) of a uniform x and y shift of the whole reference (object and hand together).
-    pub translate_xy: f32,
-    /// Half-range (rad) of a uniform rotation of the whole reference about the vertical axis through
-    /// its first object position.
-    pub rotate_z: f32,
-    /// Re-ground the reference onto the object where the env's reset put it (Praxis): every wrist
-    /// pose keeps its pose relative to the object. Makes `translate_xy` and `rotate_z` moot.
-    pub reground: bool,
-    /// Re-interpolate the wrist over the first segment from the robot's start pose to the reference
-    /// (DexRefine App. C).
-    pub reinterp: bool,
-    /// Length (env steps) of the re-interpolated segment; 0 = up to the reference's keyframe 1.
-    pub reinterp_steps: u32,
-    /// Probability (0–1) that an episode's reference is mirrored across the vertical x–z plane
-    /// through its first object position.
-    pub mirror_prob: f32,
-    /// Half-range (m) of a per-episode constant offset of the wrist position (per axis).
-    pub wrist_pos_offset: f32,
-    /// Half-range (rad) of a per-episode constant wrist rotation offset (each component of a
-    /// rotation vector).
-    pub wrist_rot_offset: f32,
-    /// Half-range (rad) of a per-episode constant offset of each joint.
-    pub joint_offset: f32,
-    /// Standard deviation (m) of per-frame Gaussian noise on the wrist position.
-    pub wrist_pos_noise: f32,
-    /// Standard deviation (rad) of per-frame Gaussian noise on each joint.
-    pub joint_noise: f32,
-    /// Half-range of the playback speed: each episode plays the reference at speed
-    /// 1 + time_scale · U(−1, 1) reference frames per env step (a fraction in [0, 0.9]).
-    pub time_scale: f32,
-}
-
-impl Default for ReferenceConfig {
-    fn default() -> Self {
-        ReferenceConfig {
-            files: Vec::new(),
-            translate_xy: 0.0,
-            rotate_z: 0.0,
-            reground: false,
-            reinterp: false,
-            reinterp_steps: 0,
-            mirror_prob: 0.0,
-            wrist_pos_offset: 0.0,
-            wrist_rot_offset: 0.0,
-            joint_offset: 0.0,
-            wrist_pos_noise: 0.0,
-            joint_noise: 0.0,
-            time_scale: 0.0,
-        }
-    }
-}
-
-impl ReferenceConfig {
-    /// Checks every value; the error is one line naming the key (`task.reference.KEY`), the value
-    /// and what is allowed.
-    pub fn validate(&self) -> Result<()> {
-        let in_range = |key: &str, v: f32, lo: f32, hi: f32, what: &str| -> Result<()> {
-            if !(v.is_finite() && v >= lo && v <= hi) {
-                bail!("key `task.reference.{key}` = {v}: expected {what}");
-            }
-            Ok(())
-        };
-        for (k, f) in self.files.iter().enumerate() {
-            if f.trim().is_empty() {
-                bail!("key `task.reference.files[{k}]` = \"\": expected the path of a .mcap or .csv reference");
-            }
-        }
-        in_range("translate_xy", self.translate_xy, 0.0, 10.0, "a distance in m in [0, 10]")?;
-        in_range("rotate_z", self.rotate_z, 0.0, std::f32::consts::PI, "an angle in rad in [0, π]")?;
-        if self.reinterp_steps > 1_000_000 {
-            bail!("key `task.reference.reinterp_steps` = {}: expected a number of env steps in [0, 1000000]", self.reinterp_steps);
-        }
-        in_range("mirror_prob", self.mirror_prob, 0.0, 1.0, "a probability in [0, 1]")?;
-        in_range("wrist_pos_offset", self.wrist_pos_offset, 0.0, 1.0, "a distance in m in [0, 1]")?;
-        in_range("wrist_rot_offset", self.wrist_rot_offset, 0.0, std::f32::consts::PI, "an angle in rad in [0, π]")?;
-        in_range("joint_offset", self.joint_offset, 0.0, std::f32::consts::PI, "an angle in rad in [0, π]")?;
-        in_range("wrist_pos_noise", self.wrist_pos_noise, 0.0, 1.0, "a standard deviation in m in [0, 1]")?;
-        in_range("joint_noise", self.joint_noise, 0.0, std::f32::consts::PI, "a standard deviation in rad in [0, π]")?;
-        in_range("time_scale", self.time_scale, 0.0, 0.9, "a fraction in [0, 0.9] (the speed 1 ± u must stay > 0)")?;
-        Ok(())
-    }
-
-    /// Writes the augmentation settings into `rg` (its bank part, from [`RefBank::globals`], is kept).
-    pub fn fill(&self, rg: &mut RefGlobals) {
-        rg.reground = self.reground as u32;
-        rg.reinterp = self.reinterp as u32;
-        rg.reinterp_steps = self.reinterp_steps;
-        rg.translate_xy = self.translate_xy;
-        rg.rotate_z = self.rotate_z;
-        rg.mirror_prob = self.mirror_prob;
-        rg.time_scale = self.time_scale;
-        rg.wrist_pos_offset = self.wrist_pos_offset;
-        rg.wrist_rot_offset = self.wrist_rot_offset;
-        rg.joint_offset = self.joint_offset;
-        rg.wrist_pos_noise = self.wrist_pos_noise;
-        rg.joint_noise = self.joint_noise;
     }
 }
 

@@ -11,24 +11,11 @@ use burn::tensor::{TensorData, activation};
 
 use super::rng::Rng;
 
-/// Hidden-layer activation.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Activation {
-    Elu,
-    Relu,
-    Tanh,
-}
+/// Hidden-layer activation (`policy.activation`; the enum is the config's).
+pub use crate::config::Activation;
 
 impl Activation {
-    pub fn parse(s: &str) -> Result<Activation> {
-        match s {
-            "elu" => Ok(Activation::Elu),
-            "relu" => Ok(Activation::Relu),
-            "tanh" => Ok(Activation::Tanh),
-            _ => Err(anyhow!("unknown activation {s:?}: expected \"elu\", \"relu\" or \"tanh\"")),
-        }
-    }
-
+    /// The activation applied element-wise.
     pub fn apply(self, x: Tensor<2>) -> Tensor<2> {
         match self {
             // ELU(x) = max(x, 0) + exp(min(x, 0)) − 1, written with relu: burn's `elu` uses

@@ -21,7 +21,7 @@ use super::nets::{Activation, Adam, clipped_grads, init_mlp, mlp_forward, mlp_sh
 use super::normalizer::Normalizer;
 use super::rng::Rng;
 use super::storage::RolloutStorage;
-use crate::config::{PolicyConfig, PpoConfig};
+use crate::config::{LrSchedule, PolicyConfig, PpoConfig};
 
 const LN_2PI: f64 = 1.837_877_066_409_345_3; // ln(2π)
 
@@ -46,7 +46,7 @@ pub struct ActorCritic {
 impl ActorCritic {
     /// Fresh networks (torch's Linear initialisation from `rng`, log σ = ln init_std).
     pub fn new(dims: Dims, cfg: &PolicyConfig, device: &Device, rng: &mut Rng) -> Result<ActorCritic> {
-        let activation = Activation::parse(&cfg.activation)?;
+        let activation = cfg.activation;
         let actor_shapes = mlp_shapes(dims.obs, &cfg.actor_hidden, dims.act);
         let critic_shapes = mlp_shapes(dims.priv_obs, &cfg.critic_hidden, 1);
         let mut values = init_mlp(&actor_shapes, rng);
@@ -382,7 +382,7 @@ impl Ppo {
                     0,
                 ))?;
                 let kl = scalars[0] as f64;
-                if self.cfg.schedule == "adaptive" && kl.is_finite() {
+                if self.cfg.schedule == LrSchedule::Adaptive && kl.is_finite() {
                     let target = self.cfg.desired_kl as f64;
                     if kl > 2.0 * target {
                         self.lr = (self.lr / 1.5).max(self.cfg.min_learning_rate as f64);

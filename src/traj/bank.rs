@@ -45,7 +45,7 @@ use glam::{Quat, Vec3};
 
 use crate::env::SimModel;
 use crate::env::common::quat_from_axis_angle;
-use crate::env::layout::NO_JOINT;
+use crate::env::gpu_layout::NO_JOINT;
 use crate::env::physics::bounding_radius;
 pub use crate::env::reference::{REF_HAS_OBJECT, REF_TIPS_FROM_FILE, RefGlobals, RefInfo};
 use crate::geom::Pose;
@@ -277,7 +277,7 @@ impl RefBank {
     }
 
     /// The bank's [`RefGlobals`]: sizes and record offsets, every augmentation off (fill those with
-    /// `ReferenceConfig::fill`).
+    /// `task::setup::reference_globals`).
     pub fn globals(&self) -> RefGlobals {
         let l = self.layout;
         RefGlobals {

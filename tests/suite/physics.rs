@@ -1,8 +1,7 @@
 //! Physics behaviour on the CPU backend (the GPU backend is held to the same numbers by tests/parity.rs).
 
-mod common;
 
-use common::*;
+use crate::common::*;
 use dextrain::env::EnvBatch;
 use dextrain::geom::ObjectShape;
 
@@ -173,7 +172,7 @@ fn grasp_lift_replay() -> dextrain::replay::ReplayReport {
     use dextrain::traj::synth::{SynthArgs, synth};
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml");
     let mut cfg = dextrain::config::Config::load(std::path::Path::new(path)).unwrap();
-    cfg.sim.backend = "cpu".into();
+    cfg.sim.backend = "cpu".parse().unwrap();
     let traj = synth(&cfg, &SynthArgs::defaults(path.into(), "unused.mcap".into())).unwrap();
     dextrain::replay::replay(&cfg, &traj, false, None).unwrap()
 }
@@ -202,7 +201,7 @@ fn kinematic_replay_measures_the_penetration_that_physics_prevents() {
     use dextrain::traj::synth::{SynthArgs, synth};
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml");
     let mut cfg = dextrain::config::Config::load(std::path::Path::new(path)).unwrap();
-    cfg.sim.backend = "cpu".into();
+    cfg.sim.backend = "cpu".parse().unwrap();
     let traj = synth(&cfg, &SynthArgs::defaults(path.into(), "unused.mcap".into())).unwrap();
     let k = dextrain::replay::replay(&cfg, &traj, true, None).unwrap();
     // the scripted grasp closes past the object: set kinematically, the fingers sink into it

@@ -4,14 +4,13 @@
 //! GPU tests run on any wgpu adapter, lavapipe included; without one they print why (fail with
 //! REQUIRE_GPU=1).
 
-mod common;
 
-use common::*;
+use crate::common::*;
 use dextrain::env::SimModel;
 use dextrain::env::common::rand_uniform;
 use dextrain::env::gpu::{GpuContext, KernelBinding, SHADER_COMMON, SHADER_IK, SHADER_PHYSICS, SHADER_RESET, run_kernel};
 use dextrain::env::ik::*;
-use dextrain::env::layout::NO_JOINT;
+use dextrain::env::gpu_layout::NO_JOINT;
 use dextrain::env::physics::Model;
 use dextrain::env::{EnvState, hand_link_poses};
 use dextrain::hand::{MAX_JOINTS, MAX_TIPS};
@@ -106,7 +105,7 @@ fn shader_validates_and_mirrors_its_twin() {
             .collect()
     };
     let w = fns(SHADER_IK, "fn ");
-    let r: Vec<String> = fns(include_str!("../src/env/ik.rs"), "pub fn ").into_iter().filter(|n| w.contains(n)).collect();
+    let r: Vec<String> = fns(include_str!("../../src/env/ik.rs"), "pub fn ").into_iter().filter(|n| w.contains(n)).collect();
     assert!(w.len() >= 10 && w.iter().all(|n| n.starts_with("ik_")), "{w:?}");
     assert_eq!(w, r, "ik.wgsl functions and their CPU twins differ in names or order");
     // the constants agree

@@ -12,7 +12,7 @@ use dextrain::traj::synth::{SynthArgs, synth, synth_set};
 
 fn grasp_config() -> Config {
     let mut cfg = Config::load(&PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml"))).expect("config");
-    cfg.sim.backend = "cpu".into();
+    cfg.sim.backend = "cpu".parse().unwrap();
     cfg.sim.num_envs = 1;
     cfg
 }

@@ -3,15 +3,16 @@
 //! GPU tests run on any wgpu adapter, lavapipe included; without one they print why (fail with
 //! REQUIRE_GPU=1).
 
-mod common;
 
-use common::*;
-use dextrain::config::{Config, LIFT_TERMS};
+use crate::common::*;
+use dextrain::config::Config;
+use dextrain::task::spec::LIFT_TERMS;
 use dextrain::env::common::{quat_error, rand_uniform};
-use dextrain::env::layout::{StepStats, TaskState};
+use dextrain::env::gpu_layout::{StepStats, TaskState};
 use dextrain::env::physics::hand_kinematics;
-use dextrain::env::task::*;
-use dextrain::env::task_gpu::GpuTaskBatch;
+use dextrain::task::*;
+use dextrain::task::task::*;
+use dextrain::task::GpuTaskBatch;
 use dextrain::env::{SimModel, hand_link_poses};
 use glam::{Vec3, Vec4};
 
@@ -19,7 +20,7 @@ use glam::{Vec3, Vec4};
 fn task_config(n: usize) -> Config {
     let mut c = base_config(n);
     c.wrist.init_pos = [0.0, 0.0, 0.35];
-    c.task.lift.max_hand_distance = 1.0;
+    c.task.termination.max_hand_distance = 1.0;
     c
 }
 
@@ -166,7 +167,7 @@ fn reward_terms_match_hand_computed_values_on_constructed_states() {
     let mut s = task.env().states().unwrap();
     // env 0: the object lifted 12 cm (it falls ~5 mm during the step); env 2: off the table
     s[0].obj_pos[2] = rest[0][2] + 0.12;
-    s[2].obj_pos[0] = c.task.lift.table_half_extent + 0.2;
+    s[2].obj_pos[0] = c.task.termination.table_half_extent + 0.2;
     task.env().set_states(&s).unwrap();
     let zero = vec![0.0; n * spec.action_dim];
     let b = task.step(&zero).unwrap().clone();
@@ -182,7 +183,7 @@ fn reward_terms_match_hand_computed_values_on_constructed_states() {
     for i in [0, 1, 3] {
         let st = &post[i];
         let rot = glam::Quat::from_array(st.wrist_rot);
-        let palm = Vec3::from_slice(&st.wrist_pos[..3]) + rot * Vec3::from(c.task.lift.palm_offset);
+        let palm = Vec3::from_slice(&st.wrist_pos[..3]) + rot * Vec3::from(c.task.hand.palm_offset);
         let d = (palm - Vec3::from_slice(&st.obj_pos[..3])).length();
         let want = w("reaching") * (1.0 - (c.task.lift.reach_alpha * d).tanh());
         assert!((b.terms[i * nt + term(&spec, "reaching")] - want).abs() < 1e-5, "env {i}: reaching");
@@ -224,7 +225,7 @@ fn reward_twin_on_exact_states_contact_and_bad_resets() {
     st.wrist_pos = [0.1, 0.2, 0.3, 0.0];
     st.step = 3;
     // palm = wrist + palm_offset; the object 5 cm beside it
-    let palm = Vec3::new(0.1, 0.2, 0.3) + Vec3::from(c.task.lift.palm_offset);
+    let palm = Vec3::new(0.1, 0.2, 0.3) + Vec3::from(c.task.hand.palm_offset);
     st.obj_pos = [palm.x + 0.05, palm.y, palm.z, 0.0];
     let mut ts = TaskState { rest_pos: [0.0, 0.0, palm.z, 0.0], act_rate: 0.5, act_mag: 2.0, ..Default::default() };
     let mut stats: StepStats = bytemuck::Zeroable::zeroed();
@@ -247,7 +248,7 @@ fn reward_twin_on_exact_states_contact_and_bad_resets() {
     stats.tip_force[other] = 1.0;
     task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out);
     assert_eq!(out[OUT_TERMS + term(&spec, "contact")], w("contact"), "thumb and another finger");
-    stats.tip_force[thumb] = 0.5 * c.task.lift.contact_force;
+    stats.tip_force[thumb] = 0.5 * c.task.hand.contact_force;
     task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out);
     assert_eq!(out[OUT_TERMS + term(&spec, "contact")], 0.0, "thumb below the contact force");
     // 5 cm up: lifting = 100 h, no success yet
@@ -264,11 +265,11 @@ fn reward_twin_on_exact_states_contact_and_bad_resets() {
     assert_eq!(task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out), 1);
     assert_eq!((out[OUT_TIME_OUT], out[OUT_TERMINATED], ts.done), (1.0, 0.0, 1));
     // hand too far: terminated, not timed out
-    st.obj_pos[0] = palm.x + c.task.lift.max_hand_distance + 0.01;
+    st.obj_pos[0] = palm.x + c.task.termination.max_hand_distance + 0.01;
     assert_eq!(task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out), 1);
     assert_eq!((out[OUT_TIME_OUT], out[OUT_TERMINATED]), (0.0, 1.0));
     // dropped below the table
-    st.obj_pos = [palm.x, palm.y, c.task.lift.drop_height - 0.01, 0.0];
+    st.obj_pos = [palm.x, palm.y, c.task.termination.drop_height - 0.01, 0.0];
     task_reward(&st, &params, &stats, &mut ts, &m, &tc, &r, &mut out);
     assert_eq!(out[OUT_TERMINATED], 1.0);
     // a bad-state reset: terminated, already reset by the physics (no reset request), state terms 0
@@ -339,7 +340,7 @@ fn action_mapping_reaches_limits_and_clips_the_wrist() {
     assert!((b.terms[term(&spec, "action_magnitude")] - mag).abs() < 1e-5);
 
     // delta: targets move by a·scale and stop at the limits
-    c.task.action.finger_mode = "delta".into();
+    c.task.action.finger_mode = dextrain::config::FingerMode::Delta;
     c.task.action.finger_delta_scale = 0.25;
     let mut task = cpu_task(&c);
     task.reset_all().unwrap();
@@ -387,7 +388,7 @@ fn observations_match_the_state_and_noise_has_the_configured_std() {
     assert_eq!(spec.action_dim, 6 + nj);
     assert_eq!(spec.obs_dim, 3 * nj + 26 + 3 * nt);
     assert_eq!(spec.priv_dim, spec.obs_dim + 15 + 2 * nt);
-    assert_eq!(spec.term_names, LIFT_TERMS.to_vec());
+    assert_eq!(spec.term_names, LIFT_TERMS.iter().map(|t| t.name).collect::<Vec<_>>());
     assert_eq!(spec.priv_names[..spec.obs_dim], spec.obs_names[..]);
     let mut uniq = spec.priv_names.clone();
     uniq.sort();
@@ -442,7 +443,7 @@ fn observations_match_the_state_and_noise_has_the_configured_std() {
             assert_eq!(pt(&format!("tip_force.{}", tip.name)), stats[i].tip_force[k]);
         }
         let rot = glam::Quat::from_array(st.wrist_rot);
-        let palm = Vec3::from_slice(&st.wrist_pos[..3]) + rot * Vec3::from(c.task.lift.palm_offset);
+        let palm = Vec3::from_slice(&st.wrist_pos[..3]) + rot * Vec3::from(c.task.hand.palm_offset);
         let rel = Vec3::from_slice(&st.obj_pos[..3]) - palm;
         for (c3, axis) in ["x", "y", "z"].iter().enumerate() {
             assert!((at(&format!("obj_rel.{axis}")) - rel[c3]).abs() < 1e-6);
@@ -505,18 +506,18 @@ fn spec_tips(c: &Config) -> Vec<String> {
 #[test]
 fn bad_thumb_names_give_one_line_errors_naming_the_key() {
     let mut c = task_config(1);
-    c.task.lift.thumb = "pinky_tip".into();
+    c.task.hand.thumb = "pinky_tip".into();
     let e = format!("{:#}", CpuTaskBatch::new(&c, SimModel::from_config(&c).unwrap()).err().expect("an error"));
-    assert!(e.contains("task.lift.thumb") && e.contains("pinky_tip") && e.contains("th_tip") && e.contains("test.toml"), "{e}");
+    assert!(e.contains("task.hand.thumb") && e.contains("pinky_tip") && e.contains("th_tip") && e.contains("test.toml"), "{e}");
     assert!(!e.contains('\n'), "{e}");
     // "" = the first fingertip starting with "th": none among the chosen fingertips
     let mut c = task_config(1);
     c.hand.fingertips = vec!["if_tip".into(), "mf_tip".into()];
     let e = format!("{:#}", make_task_batch(&c, SimModel::from_config(&c).unwrap()).err().expect("an error"));
-    assert!(e.contains("task.lift.thumb") && e.contains("if_tip"), "{e}");
+    assert!(e.contains("task.hand.thumb") && e.contains("if_tip"), "{e}");
     assert!(!e.contains('\n'), "{e}");
     // a named thumb among them works, and the default finds th_tip
-    c.task.lift.thumb = "mf_tip".into();
+    c.task.hand.thumb = "mf_tip".into();
     assert!(make_task_batch(&c, SimModel::from_config(&c).unwrap()).is_ok());
     let c = task_config(1);
     let model = SimModel::from_config(&c).unwrap();
@@ -531,4 +532,107 @@ fn bad_thumb_names_give_one_line_errors_naming_the_key() {
     bad[2] = f32::NAN;
     let e = format!("{:#}", task.step(&bad).err().unwrap());
     assert!(e.contains("finite"), "{e}");
+}
+
+/// The observation spec (`task::spec::OBS_FIELDS`) is what the twins write: the layout covers the
+/// observation exactly, and each field's values land at its offset — checked against the env
+/// state, the drawn parameters and the applied actions, on the CPU and (when there is an adapter)
+/// the GPU, for the lift task and every reference kind.
+#[test]
+fn each_observation_field_lands_at_its_offset_on_both_backends() {
+    use dextrain::config::TaskKind;
+    for kind in TaskKind::ALL {
+        let mut c = if kind == TaskKind::Lift {
+            task_config(4)
+        } else {
+            let mut c = Config::load(std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml"))).expect("config");
+            c.sim.backend = "cpu".parse().unwrap();
+            c.sim.num_envs = 4;
+            c.task.kind = kind;
+            c.task.rewards = kind.default_rewards();
+            c.task.reference.files = vec!["refs/grasp_lift.mcap".into()];
+            c
+        };
+        // no resets inside the checked step
+        c.task.episode_length = 1000;
+        c.validate().unwrap();
+        let model = SimModel::from_config(&c).unwrap();
+        let mut backends: Vec<(String, Box<dyn TaskBatch>)> = vec![("cpu".into(), Box::new(CpuTaskBatch::new(&c, model.clone()).unwrap()))];
+        if let Some(ctx) = gpu_context("each_observation_field_lands_at_its_offset_on_both_backends") {
+            backends.push(("gpu".into(), Box::new(GpuTaskBatch::new(&c, ctx, model.clone()).unwrap())));
+        }
+        for (backend, mut task) in backends {
+            let spec = task.spec().clone();
+            let what = format!("{kind} on {backend}");
+            // the layouts tile the observations exactly, the critic's starting with the actor's
+            for (layout, dim, names) in [(&spec.obs_layout, spec.obs_dim, &spec.obs_names), (&spec.priv_layout, spec.priv_dim, &spec.priv_names)] {
+                let mut next = 0;
+                for s in layout.iter() {
+                    assert_eq!((s.offset, s.entries.len()), (next, s.size), "{what}: {}", s.name);
+                    assert_eq!(&names[s.offset..s.offset + s.size], &s.entries[..], "{what}: {}", s.name);
+                    next += s.size;
+                }
+                assert_eq!(next, dim, "{what}");
+            }
+            assert_eq!(&spec.priv_layout[..spec.obs_layout.len()], &spec.obs_layout[..], "{what}");
+            task.reset_all().unwrap();
+            let actions: Vec<f32> = random_actions(spec.num_envs, spec.action_dim, 1);
+            let b = task.step(&actions).unwrap().clone();
+            assert!(b.terminated.iter().chain(&b.time_out).all(|d| !d), "{what}: no env may reset in the checked step");
+            let states = task.env().states().unwrap();
+            let params = task.env().params().unwrap();
+            let (od, pd, na) = (spec.obs_dim, spec.priv_dim, spec.action_dim);
+            let act = &model.spec.actuated;
+            for e in 0..spec.num_envs {
+                let (st, p) = (&states[e], &params[e]);
+                let obs = &b.obs[e * od..(e + 1) * od];
+                let privo = &b.priv_obs[e * pd..(e + 1) * pd];
+                // no observation noise in these configs: the actor sees what the critic sees
+                assert_eq!(obs, &privo[..od], "{what}");
+                let slot = |name: &str| spec.priv_layout.iter().find(|s| s.name == name).unwrap_or_else(|| panic!("{what}: no field {name}"));
+                let at = |name: &str| {
+                    let s = slot(name);
+                    &privo[s.offset..s.offset + s.size]
+                };
+                let close = |name: &str, want: &[f32]| {
+                    let got = at(name);
+                    assert_eq!(got.len(), want.len(), "{what}: {name}");
+                    for (i, (g, w)) in got.iter().zip(want).enumerate() {
+                        assert!((g - w).abs() <= 1e-5 * w.abs().max(1.0), "{what} env {e}: {name}[{i}] = {g}, expected {w}");
+                    }
+                };
+                close("q", &act.iter().map(|&j| st.q[j]).collect::<Vec<_>>());
+                close("qd", &act.iter().map(|&j| st.qd[j]).collect::<Vec<_>>());
+                close("prev_action", &actions[e * na..(e + 1) * na].iter().map(|a| a.clamp(-1.0, 1.0)).collect::<Vec<_>>());
+                close("wrist_pos", &st.wrist_pos[..3]);
+                close("wrist_rot", &st.wrist_rot);
+                close("obj_pos", &st.obj_pos[..3]);
+                close("obj_rot", &st.obj_rot);
+                close("obj_vel", &st.obj_vel[..3]);
+                close("obj_angvel", &st.obj_angvel[..3]);
+                close("wrist_vel", &st.wrist_vel[..3]);
+                close("wrist_angvel", &st.wrist_angvel[..3]);
+                close("obj_mass", &[p.obj_inertia[3]]);
+                close("obj_friction", &[p.obj_friction]);
+                close("obj_scale", &[p.obj_scale]);
+                assert!(at("tip_contact").iter().all(|&v| v == 0.0 || v == 1.0), "{what}: tip_contact");
+                let contact = at("tip_contact").to_vec();
+                for (t, f) in at("tip_force").iter().enumerate() {
+                    assert_eq!(contact[t] == 1.0, *f > c.task.hand.contact_force, "{what}: tip_contact follows tip_force");
+                }
+                if kind == TaskKind::Lift {
+                    let goal = at("goal");
+                    assert!((goal[2] - at("obj_pos")[2] - c.task.lift.success_height).abs() < 0.01, "{what}: the goal is the rest position raised by success_height");
+                } else {
+                    let phase = at("phase")[0];
+                    assert!(phase > 0.0 && phase < 1.0, "{what}: phase {phase} one step into the reference");
+                    assert_eq!(slot("ref0.q").size, act.len(), "{what}");
+                    assert!(spec.priv_layout.iter().any(|s| s.name == format!("ref{}.tip_pos", c.task.track.lookahead)), "{what}: one block per look-ahead frame");
+                }
+                if kind == TaskKind::ResidualTask {
+                    assert!(at("residual").iter().all(|v| v.abs() <= 1.0), "{what}: the residual over its clamps");
+                }
+            }
+        }
+    }
 }

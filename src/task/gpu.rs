@@ -1,4 +1,4 @@
-//! `GpuTaskBatch`: the task layer on the GPU (the contract is in `env::task`).
+//! `GpuTaskBatch`: the task layer on the GPU (the contract is in [`crate::task`]).
 //!
 //! The module is the simulator's WGSL with `shaders/task.wgsl` appended; its three pipelines and
 //! their bind groups, the task buffers (constants, per-env task states, actions, outputs, fingertip
@@ -12,10 +12,13 @@ use std::sync::mpsc;
 use anyhow::{Context, Result, anyhow, bail};
 use wgpu::util::DeviceExt;
 
-use super::gpu::{GpuContext, GpuEnvBatch, entry, storage, task_shader_source};
-use super::layout::*;
-use super::task::{OUT_MISC, StepBatch, TaskBatch, TaskSpec, check_actions, decode_snapshot, encode_snapshot, task_setup, TaskSetup};
-use super::{EnvBatch, SimModel};
+use super::setup::{TaskSetup, task_setup};
+use super::spec::TaskSpec;
+use super::task::OUT_MISC;
+use super::{StepBatch, TaskBatch, check_actions, decode_snapshot, encode_snapshot};
+use crate::env::gpu::{GpuContext, GpuEnvBatch, entry, storage, task_shader_source};
+use crate::env::gpu_layout::*;
+use crate::env::{EnvBatch, SimModel};
 use crate::config::Config;
 
 /// The task on a GPU: a [`GpuEnvBatch`] and the task kernels.
@@ -277,7 +280,7 @@ impl TaskBatch for GpuTaskBatch {
         // the shader's sampler, run on the host (its CPU twin) with the env's cursor and step
         let cursor = self.task_states()?[env].cursor;
         let step = self.env.states()?[env].step;
-        let r = crate::env::task::ref_model(&self.env.model, self.bank.as_ref(), &self.rg);
+        let r = crate::task::ref_model(&self.env.model, self.bank.as_ref(), &self.rg);
         Ok(Some(crate::env::reference::ref_sample(&r, &cursor, step, 0)))
     }
 

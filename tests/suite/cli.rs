@@ -161,3 +161,28 @@ fn train_eval_and_plot_through_the_binary() {
     let (ok, _, stderr) = dextrain(&["train", "configs/lift_cube_cpu.toml", "--set", "ppo.clip=0.3", "--runs-dir", runs]);
     assert!(!ok && stderr.trim().lines().count() == 1 && stderr.contains("lift_cube_cpu.toml") && stderr.contains("ppo"), "{stderr}");
 }
+
+/// `dextrain check` prints the layout of what the policy sees: the actor's and the critic's
+/// observation fields with offsets, sizes, units and frames.
+#[test]
+fn check_prints_the_observation_layout() {
+    let cfg = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/residual_task_cube.toml");
+    let (ok, stdout, stderr) = dextrain(&["check", cfg]);
+    assert!(ok, "{stderr}");
+    assert!(stdout.contains("kind = \"residual_task\""), "the resolved config on stdout");
+    let actor = stderr.find("actor observation").expect("an actor table");
+    let critic = stderr.find("critic observation").expect("a critic table");
+    assert!(actor < critic);
+    for field in ["q ", "prev_action", "ref0.obj_pos", "ref0.tip_pos", "phase", "residual"] {
+        assert!(stderr[actor..critic].contains(field), "actor field {field:?} in\n{stderr}");
+    }
+    for field in ["obj_vel", "tip_force", "obj_mass"] {
+        assert!(!stderr[actor..critic].contains(field) && stderr[critic..].contains(field), "critic-only field {field:?}");
+    }
+    assert!(stderr.contains("rad/s") && stderr.contains("world") && stderr.contains("task.obs_noise."), "units, frames, noise keys");
+    // the offsets in the table are the spec's: the actor table's sizes sum to its count
+    let head = stderr[actor..].lines().next().unwrap();
+    let n: usize = head.split('(').nth(1).and_then(|s| s.split_whitespace().next()).and_then(|s| s.parse().ok()).expect("a count");
+    let sizes: usize = stderr[actor..critic].lines().skip(2).filter_map(|l| l.split_whitespace().nth(1)?.parse::<usize>().ok()).sum();
+    assert_eq!(sizes, n);
+}

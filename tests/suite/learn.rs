@@ -2,7 +2,6 @@
 //! errors, the normaliser vs a two-pass mean/variance, the PPO loss terms vs hand-computed values,
 //! global gradient clipping and Adam's first step, and a tiny task that PPO must learn in seconds.
 
-mod common;
 
 use burn::prelude::*;
 use dextrain::config::{PolicyConfig, PpoConfig};
@@ -234,7 +233,7 @@ fn ppo_learns_a_tiny_steering_task_in_seconds() {
 /// lavapipe) and on the CPU backend: the updated parameters agree to float rounding.
 #[test]
 fn the_wgpu_learner_matches_the_cpu_learner() {
-    let Some(ctx) = common::gpu_context("the_wgpu_learner_matches_the_cpu_learner") else { return };
+    let Some(ctx) = crate::common::gpu_context("the_wgpu_learner_matches_the_cpu_learner") else { return };
     let choice = dextrain::config::BackendChoice::Gpu(Some(ctx.info.name.clone()));
     let (gpu, name) = dextrain::learn::device::learner_device(&choice, Some(&ctx)).expect("burn wgpu on the test adapter");
     assert!(name.starts_with("gpu (burn wgpu"), "{name}");

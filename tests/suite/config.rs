@@ -160,12 +160,12 @@ fn reference_task_keys_are_checked_and_each_kind_has_its_default_rewards() {
         assert!(e.contains("run.toml") && e.contains(key) && e.contains(hint) && !e.contains('\n'), "{text}: {e}");
     }
     // without a [task.rewards] table every kind gets its own default weights (the papers')
-    for kind in dextrain::config::TASK_KINDS {
-        let text = if kind == "lift" { String::new() } else { track.replace("track", kind) };
+    for kind in dextrain::config::TaskKind::ALL {
+        let text = if kind == dextrain::config::TaskKind::Lift { String::new() } else { track.replace("track", kind.name()) };
         let c = Config::from_toml_str(&text, p).unwrap();
-        assert_eq!(c.task.rewards, dextrain::config::default_rewards(kind), "{kind}");
+        assert_eq!(c.task.rewards, kind.default_rewards(), "{kind}");
         let names: Vec<&str> = c.task.rewards.keys().map(|k| k.as_str()).collect();
-        let mut want: Vec<&str> = dextrain::config::task_terms(kind).to_vec();
+        let mut want: Vec<&str> = kind.term_names();
         want.sort();
         assert_eq!(names, want, "{kind}: a default weight for every term");
     }
@@ -184,10 +184,45 @@ fn set_overrides_apply_before_validation() {
     let c = Config::load_with_overrides(&f, &sets).unwrap();
     assert_eq!(c.ppo.learning_rate, 3e-4);
     assert_eq!(c.policy.actor_hidden, vec![64, 32]);
-    assert_eq!(c.sim.backend, "cpu");
+    assert_eq!(c.sim.backend, dextrain::config::BackendChoice::Cpu);
     assert_eq!(c.task.rewards["lifting"], 2.0);
     for (bad, want) in [("ppo.learning_rate", "key=value"), ("ppo.nope=1", "ppo.nope"), ("ppo.learning_rate=-1", "ppo.learning_rate")] {
         let e = format!("{:#}", Config::load_with_overrides(&f, &[bad.to_string()]).unwrap_err());
         assert!(e.contains(want) && !e.contains('\n'), "{bad}: {e}");
     }
+}
+
+/// Closed choices are enums: a wrong spelling is a one-line error naming the file and the key and
+/// listing the allowed values; a key defined twice names the key; a huge value is cut in the
+/// message.
+#[test]
+fn closed_choices_duplicate_keys_and_long_values_give_readable_one_line_errors() {
+    let p = Path::new("run.toml");
+    for (text, key, allowed) in [
+        ("[task]\nkind = \"lfit\"\n", "task.kind", "\"residual_task\""),
+        ("[task.action]\nfinger_mode = \"relative\"\n", "task.action.finger_mode", "\"delta\""),
+        ("[ppo]\nschedule = \"cosine\"\n", "ppo.schedule", "\"adaptive\""),
+        ("[policy]\nactivation = \"gelu\"\n", "policy.activation", "\"tanh\""),
+        ("[sim]\nbackend = \"cuda\"\n", "sim.backend", "\"gpu:ADAPTER_NAME\""),
+        ("[train]\ndevice = \"gpu:\"\n", "train.device", "\"auto\""),
+        ("[hand]\nmesh_approx = \"hull\"\n", "hand.mesh_approx", "capsule"),
+    ] {
+        let e = format!("{:#}", Config::from_toml_str(text, p).unwrap_err());
+        assert!(e.contains("run.toml") && e.contains(&format!("`{key}`")) && e.contains(allowed) && !e.contains('\n'), "{text}: {e}");
+    }
+    // a key given twice: the error names it (and where)
+    let e = format!("{:#}", Config::from_toml_str("[sim]\nnum_envs = 4\ndt = 0.01\nnum_envs = 8\n", p).unwrap_err());
+    assert!(e.contains("run.toml:4") && e.contains("sim.num_envs") && !e.contains('\n'), "{e}");
+    // a 5,000-character value is cut to a readable line
+    let long = "x".repeat(5000);
+    for text in [format!("[task]\nkind = \"{long}\"\n"), format!("[sim]\nbackend = \"{long}\"\n"), format!("[task.rewards]\n{long} = 1.0\n"), format!("[hand.joint_kp]\n{long} = -1.0\n")] {
+        let e = format!("{:#}", Config::from_toml_str(&text, p).unwrap_err());
+        assert!(e.len() < 400 && !e.contains('\n'), "{} characters: {}", e.len(), &e[..e.len().min(400)]);
+    }
+    // the typed config round-trips through its TOML (what a run directory keeps)
+    let c = Config::from_toml_str("[task]\nkind = \"residual_task\"\n[task.reference]\nfiles = [\"a.mcap\"]\n[sim]\nbackend = \"gpu:llvmpipe\"\n", p).unwrap();
+    let again = Config::from_toml_str(&c.to_toml().unwrap(), p).unwrap();
+    assert_eq!(again.task.kind, dextrain::config::TaskKind::ResidualTask);
+    assert_eq!(again.sim.backend, dextrain::config::BackendChoice::Gpu(Some("llvmpipe".into())));
+    assert_eq!(again, Config { base_dir: again.base_dir.clone(), ..c });
 }

@@ -12,7 +12,7 @@ pub fn base_config(n: usize) -> Config {
     let mut c = Config::default();
     c.base_dir = concat!(env!("CARGO_MANIFEST_DIR"), "/configs").into();
     c.source = "test.toml".into();
-    c.sim.backend = "cpu".into();
+    c.sim.backend = "cpu".parse().unwrap();
     c.sim.num_envs = n;
     c.wrist.init_pos = [0.0, 0.0, 0.5];
     c

@@ -1,9 +1,8 @@
 //! CPU/GPU parity: the WGSL kernels and their CPU twins must compute the same thing.
 //! Runs on any wgpu adapter, lavapipe included; without one it prints why (fails with REQUIRE_GPU=1).
 
-mod common;
 
-use common::*;
+use crate::common::*;
 use dextrain::env::{EnvBatch, EnvState, Targets};
 
 /// Every f32 of two Pod values, side by side.
@@ -183,9 +182,9 @@ fn scripted_grasp_and_lift_has_the_same_outcome_on_both_backends() {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml");
     let mut cfg = dextrain::config::Config::load(std::path::Path::new(path)).unwrap();
     let traj = dextrain::traj::synth::synth(&cfg, &dextrain::traj::synth::SynthArgs::defaults(path.into(), "unused.mcap".into())).unwrap();
-    cfg.sim.backend = "cpu".into();
+    cfg.sim.backend = "cpu".parse().unwrap();
     let cpu = dextrain::replay::replay(&cfg, &traj, false, None).unwrap();
-    cfg.sim.backend = format!("gpu:{adapter}");
+    cfg.sim.backend = format!("gpu:{adapter}").parse().unwrap();
     let gpu = dextrain::replay::replay(&cfg, &traj, false, None).unwrap();
     assert!(gpu.backend.starts_with("gpu"), "{}", gpu.backend);
     for r in [&cpu, &gpu] {

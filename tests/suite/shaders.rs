@@ -2,11 +2,10 @@
 //! GPU backend builds, each shader parses on its own with common.wgsl, and every Pod struct in
 //! src/env/layout.rs has exactly the size and field offsets of its WGSL twin.
 
-mod common;
 
-use common::validate;
+use crate::common::validate;
 use dextrain::env::gpu::{SHADER_COMMON, SHADER_IK, SHADER_PHYSICS, SHADER_REFERENCE, SHADER_RESET, SHADER_TASK, shader_source, task_shader_source};
-use dextrain::env::layout::*;
+use dextrain::env::gpu_layout::*;
 use std::mem::{offset_of, size_of};
 
 #[test]
@@ -125,7 +124,7 @@ fn shader_constants_match_rust() {
     ] {
         assert!(src.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in the WGSL");
     }
-    use dextrain::env::task;
+    use dextrain::task::task;
     for (name, v) in [
         ("PURPOSE_OBS_NOISE", task::PURPOSE_OBS_NOISE as usize),
         ("OBS_KEY_STRIDE", task::OBS_KEY_STRIDE as usize),
@@ -145,14 +144,16 @@ fn shader_constants_match_rust() {
         ("OUT_MAX_PEN", task::OUT_MAX_PEN),
         ("OUT_OBJ_POS_ERR", task::OUT_OBJ_POS_ERR),
         ("OUT_OBJ_ROT_ERR", task::OUT_OBJ_ROT_ERR),
+        ("OUT_BAD_RESET", task::OUT_BAD_RESET),
         ("OUT_MISC", task::OUT_MISC),
     ] {
         assert!(SHADER_TASK.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in task.wgsl");
     }
     // every kind's terms fit the output record's term slots, and the kinds are the config's
-    for kind in dextrain::config::TASK_KINDS {
-        assert!(dextrain::config::task_terms(kind).len() <= task::MAX_TERMS, "{kind}");
-        assert!(task::kind_index(kind).is_some(), "{kind}");
+    for kind in dextrain::config::TaskKind::ALL {
+        assert!(dextrain::task::spec::reward_terms(kind).len() <= task::MAX_TERMS, "{kind}");
+        let name = format!("KIND_{}", kind.name().to_uppercase());
+        assert!(SHADER_TASK.contains(&format!("const {name}: u32 = {}u;", kind.index())), "{name} should be {} in task.wgsl", kind.index());
     }
     // the reset purposes and the task's are distinct
     for p in [dextrain::env::reset::PURPOSE_PARAMS, dextrain::env::reset::PURPOSE_INIT] {
@@ -202,16 +203,65 @@ fn every_shader_function_has_its_cpu_twin_in_the_same_order() {
             .collect()
     };
     for (wgsl, rs) in [
-        (SHADER_COMMON, include_str!("../src/env/common.rs")),
-        (SHADER_RESET, include_str!("../src/env/reset.rs")),
-        (SHADER_PHYSICS, include_str!("../src/env/physics.rs")),
-        (SHADER_REFERENCE, include_str!("../src/env/reference.rs")),
-        (SHADER_IK, include_str!("../src/env/ik.rs")),
-        (SHADER_TASK, include_str!("../src/env/task.rs")),
+        (SHADER_COMMON, include_str!("../../src/env/common.rs")),
+        (SHADER_RESET, include_str!("../../src/env/reset.rs")),
+        (SHADER_PHYSICS, include_str!("../../src/env/physics.rs")),
+        (SHADER_REFERENCE, include_str!("../../src/env/reference.rs")),
+        (SHADER_IK, include_str!("../../src/env/ik.rs")),
+        (SHADER_TASK, include_str!("../../src/task/task.rs")),
     ] {
         let w: Vec<String> = fns(wgsl, "fn ").into_iter().filter(|n| !n.ends_with("_main") && n != "env_index").collect();
         let r: Vec<String> = fns(rs, "pub fn ").into_iter().filter(|n| w.contains(n)).collect();
         assert!(!w.is_empty());
         assert_eq!(w, r, "shader functions and their CPU twins differ in names or order");
+    }
+}
+
+/// Reward terms are named, not positional: each kind's terms come from one table
+/// (`task::spec::reward_terms`), task.wgsl has one `T_<KIND>_<TERM>` slot constant per table row at
+/// the row's index (and no other), the Rust twin's constants are the same, and the config's
+/// default weights name exactly the table's terms.
+#[test]
+fn reward_term_slots_agree_in_the_table_the_shader_and_the_config() {
+    use dextrain::config::TaskKind;
+    use dextrain::task::spec::reward_terms;
+    use dextrain::task::task::*;
+    let declared: Vec<(String, usize)> = SHADER_TASK
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("const T_"))
+        .filter_map(|l| {
+            let (name, rest) = l.split_once(": u32 = ")?;
+            Some((name.to_string(), rest.trim_end_matches(';').trim_end_matches('u').parse().ok()?))
+        })
+        .collect();
+    let mut expected = Vec::new();
+    for kind in TaskKind::ALL {
+        let terms = reward_terms(kind);
+        assert!(terms.len() <= MAX_TERMS, "{kind}");
+        let mut names: Vec<&str> = terms.iter().map(|t| t.name).collect();
+        for (k, t) in terms.iter().enumerate() {
+            let name = format!("{}_{}", kind.name().to_uppercase(), t.name.to_uppercase());
+            assert!(declared.contains(&(name.clone(), k)), "task.wgsl should declare `const T_{name}: u32 = {k}u;` ({kind}'s term {:?})", t.name);
+            expected.push((name, k));
+            assert!(!t.formula.is_empty(), "{kind}.{}: a formula", t.name);
+        }
+        names.sort();
+        let defaults = kind.default_rewards();
+        assert_eq!(defaults.keys().map(String::as_str).collect::<Vec<_>>(), names, "{kind}: the default weights name the table's terms");
+    }
+    let mut declared_sorted = declared.clone();
+    declared_sorted.sort();
+    expected.sort();
+    assert_eq!(declared_sorted, expected, "task.wgsl declares exactly the tables' term slots");
+    // the Rust twin's slots are the tables' (a sample of each kind)
+    assert_eq!((T_LIFT_REACHING, T_LIFT_ACTION_MAGNITUDE), (0, 5));
+    assert_eq!((T_TRACK_HAND_FOLLOWING, T_TRACK_LIFTING), (0, 4));
+    assert_eq!((T_RESIDUAL_JOINT_RESIDUAL, T_RESIDUAL_TASK_TABLE_COLLISION), (2, 7));
+    for (name, k) in &declared {
+        let (kind, term) = TaskKind::ALL
+            .iter()
+            .find_map(|kd| name.strip_prefix(&format!("{}_", kd.name().to_uppercase())).map(|t| (*kd, t.to_lowercase())))
+            .unwrap_or_else(|| panic!("T_{name}: no task kind"));
+        assert_eq!(reward_terms(kind).iter().position(|t| t.name == term), Some(*k), "T_{name}");
     }
 }

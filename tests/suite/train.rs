@@ -3,7 +3,6 @@
 //! TensorBoard events agree, eval writes its report and recording, and bad runs, names and
 //! checkpoints are one-line errors.
 
-mod common;
 
 use std::path::{Path, PathBuf};
 
@@ -193,7 +192,7 @@ fn bad_names_existing_runs_and_broken_checkpoints_are_one_line_errors() {
 /// wgpu device; the run checkpoints and its policy evaluates.
 #[test]
 fn training_runs_with_env_and_learner_on_one_gpu_device() {
-    let Some(ctx) = common::gpu_context("training_runs_with_env_and_learner_on_one_gpu_device") else { return };
+    let Some(ctx) = crate::common::gpu_context("training_runs_with_env_and_learner_on_one_gpu_device") else { return };
     let adapter = format!("gpu:{}", ctx.info.name.split_whitespace().next().unwrap_or("llvmpipe"));
     drop(ctx);
     let tmp = tempfile::tempdir().unwrap();

@@ -3,15 +3,14 @@
 //! augmentation's defining property, and the WGSL twin (`shaders/reference.wgsl`): it validates, its
 //! structs and functions match the CPU twin's, and it computes the same cursors and frames.
 
-mod common;
 
 use std::mem::size_of;
 use std::path::PathBuf;
 
-use common::{base_config, gpu_context};
-use dextrain::config::Config;
+use crate::common::{base_config, gpu_context};
+use dextrain::config::{Config, ReferenceConfig};
 use dextrain::env::gpu::{KernelBinding, SHADER_REFERENCE, run_kernel};
-use dextrain::env::layout::{EnvState, NO_JOINT};
+use dextrain::env::gpu_layout::{EnvState, NO_JOINT};
 use dextrain::env::reference::*;
 use dextrain::env::reset::{reset_params, reset_state};
 use dextrain::env::SimModel;
@@ -93,11 +92,14 @@ fn all_on(reground: bool) -> ReferenceConfig {
     }
 }
 
+/// The validation context of the tests' configs.
+fn check() -> dextrain::config::Check {
+    dextrain::config::Check::new(std::path::Path::new("run.toml"))
+}
+
 fn globals(bank: &RefBank, cfg: &ReferenceConfig) -> RefGlobals {
-    cfg.validate().expect("valid reference config");
-    let mut rg = bank.globals();
-    cfg.fill(&mut rg);
-    rg
+    cfg.validate(&check()).expect("valid reference config");
+    dextrain::task::setup::reference_globals(bank, cfg)
 }
 
 /// Env `i`'s state right after the reset of episode `i % 3`, its wrist moved away from the
@@ -577,9 +579,9 @@ fn bank_errors_are_one_line_and_name_the_file() {
 fn reference_config_parses_validates_and_fills() {
     let cfg: ReferenceConfig = toml::from_str("files = [\"refs/a.mcap\"]\nrotate_z = 0.5\nreground = true\ntime_scale = 0.2").unwrap();
     assert_eq!((cfg.rotate_z, cfg.reground, cfg.time_scale, cfg.translate_xy), (0.5, true, 0.2, 0.0));
-    cfg.validate().unwrap();
-    ReferenceConfig::default().validate().unwrap();
-    all_on(true).validate().unwrap();
+    cfg.validate(&check()).unwrap();
+    ReferenceConfig::default().validate(&check()).unwrap();
+    all_on(true).validate(&check()).unwrap();
     let e = toml::from_str::<ReferenceConfig>("rotate_zz = 0.5").unwrap_err().to_string();
     assert!(e.contains("rotate_zz"), "{e}");
     for (patch, key) in [
@@ -592,11 +594,11 @@ fn reference_config_parses_validates_and_fills() {
         (ReferenceConfig { reinterp_steps: 2_000_000, ..Default::default() }, "task.reference.reinterp_steps"),
         (ReferenceConfig { files: vec![" ".into()], ..Default::default() }, "task.reference.files[0]"),
     ] {
-        let e = format!("{:#}", patch.validate().unwrap_err());
+        let e = format!("{:#}", patch.validate(&check()).unwrap_err());
         assert!(e.contains(&format!("`{key}`")) && !e.contains('\n'), "{e}");
     }
     let mut rg = RefGlobals { n_refs: 3, stride: 50, ..Default::default() };
-    all_on(true).fill(&mut rg);
+    dextrain::task::setup::apply_augmentation(&all_on(true), &mut rg);
     assert_eq!((rg.n_refs, rg.stride, rg.reground, rg.reinterp, rg.mirror_prob, rg.joint_noise, rg.time_scale), (3, 50, 1, 1, 0.5, 0.02, 0.3));
 }
 

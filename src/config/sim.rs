@@ -1,0 +1,313 @@
+//! `[sim]`, `[object]`, `[table]`, `[contact]` and `[randomization]`: the batched physics (DESIGN §4)
+//! and the backend it runs on.
+
+use std::fmt;
+use std::str::FromStr;
+
+use anyhow::Result;
+use serde::{Deserialize, Serialize};
+
+use super::Check;
+use crate::geom::ObjectShape;
+
+/// Where the simulator (`sim.backend`) or the learner (`train.device`) runs. In the TOML and on the
+/// command line: `"auto"` (a hardware GPU adapter if there is one, else the CPU), `"cpu"`, `"gpu"`
+/// (a hardware GPU adapter; an error if there is none) or `"gpu:NAME"` (the wgpu adapter whose name
+/// contains NAME, e.g. `"gpu:llvmpipe"` for Mesa's software Vulkan driver).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum BackendChoice {
+    /// A hardware GPU adapter if there is one, else the CPU.
+    Auto,
+    /// The CPU.
+    Cpu,
+    /// A GPU adapter; `None` = any hardware adapter, `Some(name)` = the adapter whose name contains it.
+    Gpu(Option<String>),
+}
+
+/// The allowed spellings, for error messages.
+pub const BACKEND_CHOICES: &str = "one of \"auto\", \"cpu\", \"gpu\", \"gpu:ADAPTER_NAME\"";
+
+impl BackendChoice {
+    /// `"auto"`, `"cpu"`, `"gpu"` or `"gpu:NAME"` (NAME not empty); `None` otherwise.
+    pub fn parse(s: &str) -> Option<BackendChoice> {
+        match s {
+            "auto" => Some(BackendChoice::Auto),
+            "cpu" => Some(BackendChoice::Cpu),
+            "gpu" => Some(BackendChoice::Gpu(None)),
+            _ => s.strip_prefix("gpu:").filter(|n| !n.is_empty()).map(|n| BackendChoice::Gpu(Some(n.to_string()))),
+        }
+    }
+}
+
+impl FromStr for BackendChoice {
+    type Err = String;
+    fn from_str(s: &str) -> Result<Self, String> {
+        BackendChoice::parse(s).ok_or_else(|| format!("expected {BACKEND_CHOICES}"))
+    }
+}
+
+impl fmt::Display for BackendChoice {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            BackendChoice::Auto => f.write_str("auto"),
+            BackendChoice::Cpu => f.write_str("cpu"),
+            BackendChoice::Gpu(None) => f.write_str("gpu"),
+            BackendChoice::Gpu(Some(n)) => write!(f, "gpu:{n}"),
+        }
+    }
+}
+
+impl Serialize for BackendChoice {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_str(self)
+    }
+}
+
+impl<'de> Deserialize<'de> for BackendChoice {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let s = String::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// `[sim]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SimConfig {
+    /// `"auto"` (a hardware GPU adapter if there is one, else the CPU), `"cpu"`, `"gpu"` (a hardware
+    /// GPU adapter; an error if there is none) or `"gpu:NAME"` (the wgpu adapter whose name contains
+    /// NAME, e.g. `"gpu:llvmpipe"` for Mesa's software Vulkan driver).
+    pub backend: BackendChoice,
+    /// Number of parallel environments.
+    pub num_envs: usize,
+    /// Physics step (s).
+    pub dt: f32,
+    /// Substeps inside each physics step (contact stiffness needs them).
+    pub substeps: u32,
+    /// Physics steps per env (control) step.
+    pub decimation: u32,
+    /// Object or wrist speed (m/s) above which an env counts as exploded and is reset.
+    pub max_speed: f32,
+    /// Distance (m) from the origin beyond which an object or wrist counts as exploded.
+    pub max_distance: f32,
+}
+
+/// `[object]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ObjectConfig {
+    /// Shape and size: `{ type = "box", half_extents = [..] }`, `{ type = "sphere", radius = .. }`,
+    /// `{ type = "capsule", radius = .., half_length = .. }` or `{ type = "cylinder", radius = .., half_length = .. }`.
+    pub shape: ObjectShape,
+    /// Mass (kg).
+    pub mass: f32,
+    /// Coulomb friction coefficient (combined with the other body's by averaging).
+    pub friction: f32,
+    /// Coefficient of restitution of the object's contacts, in [0, 1).
+    pub restitution: f32,
+    /// Initial x, y (m) of the object's centre; it starts resting on the table.
+    pub init_xy: [f32; 2],
+    /// Initial rotation about z (rad).
+    pub init_yaw: f32,
+    /// Half widths (m) of the uniform noise added to the initial x and y at each reset.
+    pub xy_noise: [f32; 2],
+    /// Half width (rad) of the uniform noise added to the initial yaw at each reset.
+    pub yaw_noise: f32,
+}
+
+/// `[table]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct TableConfig {
+    /// Coulomb friction coefficient of the table.
+    pub friction: f32,
+    /// Whether the hand collides with the table.
+    pub hand_collision: bool,
+}
+
+/// `[contact]`
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct ContactConfig {
+    /// Normal penalty stiffness (N/m per contact).
+    pub stiffness: f32,
+    /// Stiffness of the tangential spring that holds a sticking contact (N/m).
+    pub friction_stiffness: f32,
+    /// Effective mass of a hand link at a contact (kg), used with the object's mass to turn the
+    /// restitution into a damping coefficient (reduced mass of the pair).
+    pub hand_effective_mass: f32,
+    /// Radius (m) of the contact patch of hand–object and object–table contacts: it resists spinning
+    /// about the contact normal with up to μ·Fn·radius (torsional friction); 0 turns it off.
+    pub torsion_radius: f32,
+}
+
+/// `[randomization]`: ranges `[lo, hi]` drawn uniformly per env at every reset. Scales multiply the
+/// nominal value; `[1, 1]` turns a scale off.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RandomizationConfig {
+    /// Scale of every hand link mass (and the inertias that follow from it).
+    pub hand_mass: [f32; 2],
+    /// Scale of the hand's friction coefficient.
+    pub hand_friction: [f32; 2],
+    /// Scale of the finger joints' position limits (both limits are multiplied).
+    pub joint_limits: [f32; 2],
+    /// Scale of the finger joints' servo stiffness `kp`.
+    pub joint_stiffness: [f32; 2],
+    /// Scale of the finger joints' servo damping `kd` and joint damping.
+    pub joint_damping: [f32; 2],
+    /// Scale of the object's mass.
+    pub object_mass: [f32; 2],
+    /// Scale of the object's friction coefficient.
+    pub object_friction: [f32; 2],
+    /// Scale of every length of the object.
+    pub object_scale: [f32; 2],
+    /// Absolute restitution of the object's contacts; unset = `object.restitution`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub object_restitution: Option<[f32; 2]>,
+    /// Scale of the table's friction coefficient.
+    pub table_friction: [f32; 2],
+    /// Extra downward acceleration on the object (m/s², added to g).
+    pub added_gravity: [f32; 2],
+}
+
+impl Default for SimConfig {
+    fn default() -> Self {
+        SimConfig { backend: BackendChoice::Auto, num_envs: 64, dt: 1.0 / 120.0, substeps: 4, decimation: 4, max_speed: 50.0, max_distance: 10.0 }
+    }
+}
+
+impl Default for ObjectConfig {
+    fn default() -> Self {
+        ObjectConfig {
+            shape: ObjectShape::Box { half_extents: [0.025, 0.025, 0.025] },
+            mass: 0.1,
+            friction: 1.0,
+            restitution: 0.0,
+            init_xy: [0.0, 0.0],
+            init_yaw: 0.0,
+            xy_noise: [0.0, 0.0],
+            yaw_noise: 0.0,
+        }
+    }
+}
+
+impl Default for TableConfig {
+    fn default() -> Self {
+        TableConfig { friction: 1.0, hand_collision: true }
+    }
+}
+
+impl Default for ContactConfig {
+    fn default() -> Self {
+        ContactConfig { stiffness: 1.0e4, friction_stiffness: 1.0e4, hand_effective_mass: 0.1, torsion_radius: 0.005 }
+    }
+}
+
+impl Default for RandomizationConfig {
+    fn default() -> Self {
+        RandomizationConfig {
+            hand_mass: [1.0, 1.0],
+            hand_friction: [1.0, 1.0],
+            joint_limits: [1.0, 1.0],
+            joint_stiffness: [1.0, 1.0],
+            joint_damping: [1.0, 1.0],
+            object_mass: [1.0, 1.0],
+            object_friction: [1.0, 1.0],
+            object_scale: [1.0, 1.0],
+            object_restitution: None,
+            table_friction: [1.0, 1.0],
+            added_gravity: [0.0, 0.0],
+        }
+    }
+}
+
+impl SimConfig {
+    /// Checks `[sim]`.
+    pub fn validate(&self, c: &Check) -> Result<()> {
+        if self.num_envs == 0 || self.num_envs > 16_777_216 {
+            return Err(c.err("sim.num_envs", self.num_envs, "an integer in [1, 16777216]"));
+        }
+        c.in_range("sim.dt", self.dt, 1e-5, 0.1, "a time step in seconds in [1e-5, 0.1]")?;
+        if !(1..=64).contains(&self.substeps) {
+            return Err(c.err("sim.substeps", self.substeps, "an integer in [1, 64]"));
+        }
+        if !(1..=1000).contains(&self.decimation) {
+            return Err(c.err("sim.decimation", self.decimation, "an integer in [1, 1000]"));
+        }
+        c.in_range("sim.max_speed", self.max_speed, 1e-3, 1e6, "a speed in m/s in (0, 1e6]")?;
+        c.in_range("sim.max_distance", self.max_distance, 1e-3, 1e6, "a distance in m in (0, 1e6]")
+    }
+}
+
+impl ObjectConfig {
+    /// Checks `[object]`.
+    pub fn validate(&self, c: &Check) -> Result<()> {
+        match self.shape {
+            ObjectShape::Sphere { radius } => c.in_range("object.shape.radius", radius, 1e-4, 10.0, "a radius in m in [1e-4, 10]")?,
+            ObjectShape::Box { half_extents } => {
+                for (i, v) in half_extents.iter().enumerate() {
+                    c.in_range(&format!("object.shape.half_extents[{i}]"), *v, 1e-4, 10.0, "a half extent in m in [1e-4, 10]")?;
+                }
+            }
+            ObjectShape::Capsule { radius, half_length } | ObjectShape::Cylinder { radius, half_length } => {
+                c.in_range("object.shape.radius", radius, 1e-4, 10.0, "a radius in m in [1e-4, 10]")?;
+                c.in_range("object.shape.half_length", half_length, 0.0, 10.0, "a half length in m in [0, 10]")?;
+            }
+        }
+        c.in_range("object.mass", self.mass, 1e-4, 1e3, "a mass in kg in [1e-4, 1000]")?;
+        c.non_neg("object.friction", self.friction)?;
+        c.unit_interval("object.restitution", self.restitution)?;
+        for (i, v) in self.init_xy.iter().enumerate() {
+            c.finite(&format!("object.init_xy[{i}]"), *v)?;
+        }
+        c.finite("object.init_yaw", self.init_yaw)?;
+        for (i, v) in self.xy_noise.iter().enumerate() {
+            c.non_neg(&format!("object.xy_noise[{i}]"), *v)?;
+        }
+        c.non_neg("object.yaw_noise", self.yaw_noise)
+    }
+}
+
+impl ContactConfig {
+    /// Checks `[contact]`.
+    pub fn validate(&self, c: &Check) -> Result<()> {
+        c.in_range("contact.stiffness", self.stiffness, 1.0, 1e8, "a stiffness in N/m in [1, 1e8]")?;
+        c.in_range("contact.friction_stiffness", self.friction_stiffness, 1.0, 1e8, "a stiffness in N/m in [1, 1e8]")?;
+        c.in_range("contact.hand_effective_mass", self.hand_effective_mass, 1e-4, 1e3, "a mass in kg in [1e-4, 1000]")?;
+        c.in_range("contact.torsion_radius", self.torsion_radius, 0.0, 0.1, "a patch radius in m in [0, 0.1]")
+    }
+}
+
+impl RandomizationConfig {
+    /// Checks `[randomization]`.
+    pub fn validate(&self, c: &Check) -> Result<()> {
+        for (key, range) in [
+            ("randomization.hand_mass", self.hand_mass),
+            ("randomization.hand_friction", self.hand_friction),
+            ("randomization.joint_limits", self.joint_limits),
+            ("randomization.joint_stiffness", self.joint_stiffness),
+            ("randomization.joint_damping", self.joint_damping),
+            ("randomization.object_mass", self.object_mass),
+            ("randomization.object_friction", self.object_friction),
+            ("randomization.object_scale", self.object_scale),
+            ("randomization.table_friction", self.table_friction),
+        ] {
+            let ok = range.iter().all(|v| v.is_finite() && *v > 0.0 && *v <= 100.0) && range[0] <= range[1];
+            if !ok {
+                return Err(c.err(key, format!("{range:?}"), "a scale range [lo, hi] with 0 < lo <= hi <= 100"));
+            }
+        }
+        if let Some(range) = self.object_restitution {
+            let ok = range.iter().all(|v| v.is_finite() && (0.0..1.0).contains(v)) && range[0] <= range[1];
+            if !ok {
+                return Err(c.err("randomization.object_restitution", format!("{range:?}"), "a range [lo, hi] with 0 <= lo <= hi < 1"));
+            }
+        }
+        let g = self.added_gravity;
+        if !(g.iter().all(|v| v.is_finite() && (0.0..=100.0).contains(v)) && g[0] <= g[1]) {
+            return Err(c.err("randomization.added_gravity", format!("{g:?}"), "a range [lo, hi] in m/s² with 0 <= lo <= hi <= 100"));
+        }
+        Ok(())
+    }
+}

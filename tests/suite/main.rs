@@ -1,0 +1,21 @@
+//! The integration tests, folded into one test binary (linking a binary against burn and wgpu
+//! dominates the build: one binary links once). One module per area; `cargo test --release
+//! --test suite <module>::` runs one area.
+
+mod common;
+mod cli;
+mod config;
+mod hand;
+mod ik;
+mod learn;
+mod metrics;
+mod parity;
+mod perturb;
+mod physics;
+mod record;
+mod reference;
+mod shaders;
+mod task;
+mod track;
+mod train;
+mod traj;
