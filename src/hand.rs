@@ -112,13 +112,16 @@ pub struct HandLoadOptions {
 pub struct Mimic {
     /// Index into `HandModel::joints` of the leader (never itself a follower).
     pub leader: usize,
+    /// `multiplier` of `q = multiplier * q[leader] + offset` (composed along a mimic chain).
     pub multiplier: f32,
+    /// `offset` (rad) of `q = multiplier * q[leader] + offset` (composed along a mimic chain).
     pub offset: f32,
 }
 
 /// A movable (revolute or continuous) joint.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Joint {
+    /// The URDF joint name.
     pub name: String,
     /// Index into `HandModel::links` of the parent link.
     pub parent_link: usize,
@@ -126,8 +129,9 @@ pub struct Joint {
     pub origin: Pose,
     /// Unit rotation axis in the joint frame (URDF `<axis>`, default x).
     pub axis: Vec3,
-    /// Position limits (rad). Continuous joints: -inf / +inf.
+    /// Lower position limit (rad). Continuous joints: -inf.
     pub lower: f32,
+    /// Upper position limit (rad). Continuous joints: +inf.
     pub upper: f32,
     /// Effort limit (N·m); URDF `effort`.
     pub effort: f32,
@@ -146,6 +150,7 @@ pub struct Joint {
 /// A rigid link after fixed joints are merged.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Link {
+    /// The URDF link name.
     pub name: String,
     /// Mass (kg), including merged links.
     pub mass: f32,
@@ -158,9 +163,11 @@ pub struct Link {
 /// Collision shape of a hand link. Capsule axes are the collider's local z (as URDF cylinders).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ColliderShape {
+    /// A sphere of `radius` (m) about the collider's origin.
     Sphere { radius: f32 },
     /// A URDF cylinder or capsule becomes a capsule: `half_length` of the segment, not counting caps.
     Capsule { radius: f32, half_length: f32 },
+    /// A box with `half_extents` (m) along the collider's axes.
     Box { half_extents: Vec3 },
 }
 
@@ -171,6 +178,7 @@ pub struct Collider {
     pub link: usize,
     /// Pose of the shape in the link frame.
     pub pose: Pose,
+    /// The shape and its size.
     pub shape: ColliderShape,
 }
 
@@ -202,9 +210,13 @@ pub struct HandModel {
     pub name: String,
     /// The URDF file (or the `source` given to [`HandModel::from_urdf_str`]).
     pub source: PathBuf,
+    /// Rigid links after fixed joints are merged; `links[0]` is the root (see the CONTRACT).
     pub links: Vec<Link>,
+    /// Movable joints in topological order; `links[i + 1]` is the child of `joints[i]`.
     pub joints: Vec<Joint>,
+    /// Collision shapes, sorted by link.
     pub colliders: Vec<Collider>,
+    /// Fingertip frames, in the order of the `fingertips` option (or of the URDF).
     pub fingertips: Vec<Fingertip>,
     /// URDF links merged away by fixed joints, in URDF document order (the links of `links` are
     /// not repeated here). Use [`HandModel::frame`] to resolve any URDF link name.

@@ -95,6 +95,9 @@ pub fn rot_err_deg(a: Quat, b: Quat) -> f64 {
     (2.0 * (d.w.abs().min(1.0) as f64).acos()).to_degrees()
 }
 
+/// The targets of `model` at time `t` (s) of `traj`: the sampled wrist pose and, through `map`
+/// (model joint -> reference column, [`Trajectory::joint_map`]), its joint targets; joints the
+/// reference does not name hold their default.
 pub fn targets_at(model: &SimModel, traj: &Trajectory, map: &[Option<usize>], t: f64) -> Targets {
     let f = traj.sample(t);
     let mut out = model.default_targets();

@@ -61,8 +61,11 @@ pub struct Frame {
 /// A reference trajectory.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Trajectory {
+    /// Names of the joints the frames give targets for, in `Frame::joints` order.
     pub joint_names: Vec<String>,
+    /// Names of the fingertips the frames give positions for, in `Frame::fingertips` order.
     pub fingertip_names: Vec<String>,
+    /// Keyframes by strictly increasing time.
     pub frames: Vec<Frame>,
 }
 
