@@ -55,7 +55,7 @@ curve = []
 for i in range(99, len(rows), 100):
     curve.append({"iteration": int(rows[i]["iteration"]), "time_s": round(float(rows[i]["time_s"]), 1),
                   "success_rate": window(i, "episode/success_rate"), "return": window(i, "episode/return")})
-keys = ["success_rate", "ote_m", "ooe_deg", "terminal_obj_pos_err_m", "terminal_obj_rot_err_deg", "terminated_rate", "mean_contact_force_n", "peak_penetration_mm"]
+keys = ["success_rate", "ote_m", "ooe_deg", "terminal_obj_pos_err_m", "terminal_obj_rot_err_deg", "terminated_rate", "mean_fingertip_force_n", "peak_penetration_mm"]
 def pick(d):
     out = {}
     for k in keys:

@@ -3,7 +3,7 @@
 //! episode that Foxglove shows in 3-D.
 //!
 //! Reference kinds add the tracking metrics (OTE, OOE, terminal object error) per episode and
-//! aggregated; `--baseline open-loop` evaluates the same episodes with the policy off (the targets
+//! aggregated (the lift task has no reference: its report leaves them out); `--baseline open-loop` evaluates the same episodes with the policy off (the targets
 //! follow the reference), so the JSON and the Markdown table next to it show policy vs replay.
 //!
 //! Every env runs exactly one episode (envs = the number of episodes, in rounds of at most
@@ -67,7 +67,9 @@ pub enum Baseline {
 /// Mean and standard deviation.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct MeanStd {
+    /// Mean of the values.
     pub mean: f64,
+    /// Population standard deviation of the values.
     pub std: f64,
 }
 
@@ -78,27 +80,40 @@ fn mean_std(x: &[f64]) -> MeanStd {
     MeanStd { mean, std: var.sqrt() }
 }
 
-/// One evaluated episode.
+/// One evaluated episode. The tracking errors are `None` (left out of the JSON) for the lift
+/// task, which has no reference to measure them against.
 #[derive(Clone, Debug, Serialize, PartialEq)]
 pub struct EpisodeRow {
-    /// Undiscounted return and length (env steps).
+    /// Undiscounted return.
     pub ret: f64,
+    /// Length (env steps).
     pub length: u32,
+    /// The task's success at the episode's last step.
     pub success: bool,
+    /// Whether the episode ended by termination rather than time-out.
     pub terminated: bool,
-    /// Reference kinds: mean object translation (m) and orientation (deg) error against the
-    /// reference over the episode's steps (OTE, OOE), and the errors at its last step.
-    pub ote_m: f64,
-    pub ooe_deg: f64,
-    pub terminal_pos_err_m: f64,
-    pub terminal_rot_err_deg: f64,
+    /// Reference kinds: OTE, the mean object translation error (m) against the reference over the
+    /// episode's steps.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ote_m: Option<f64>,
+    /// Reference kinds: OOE, the mean object orientation error (deg) over the episode's steps.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ooe_deg: Option<f64>,
+    /// Reference kinds: the object translation error (m) at the episode's last step.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub terminal_pos_err_m: Option<f64>,
+    /// Reference kinds: the object orientation error (deg) at the episode's last step.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub terminal_rot_err_deg: Option<f64>,
     /// Reference kinds: the file name of the episode's reference (`task.reference.files`; its path
     /// when two references share a name), so that the demonstrations the policy cannot follow
     /// stand out; empty for lift.
     pub reference: String,
 }
 
-/// What a set of episodes did (the policy's, or the open-loop baseline's).
+/// What a set of episodes did (the policy's, or the open-loop baseline's). The metric names mean
+/// the same as in `dextrain replay`'s report (`crate::replay::ReplayReport`). The tracking metrics
+/// are `None` (left out of the JSON and of the Markdown table) for the lift task.
 #[derive(Clone, Debug, Serialize)]
 pub struct Summary {
     /// The task's success at the episode's last step (lift: object ≥ success height above its rest
@@ -115,23 +130,30 @@ pub struct Summary {
     pub final_lift_height_m: MeanStd,
     /// Largest lift height during the episode (m).
     pub max_lift_height_m: MeanStd,
-    /// Reference kinds (0 for lift): OTE (m) and OOE (deg) per episode, aggregated.
-    pub ote_m: MeanStd,
-    pub ooe_deg: MeanStd,
-    /// Reference kinds: the object's error against the reference at the episode's last step.
-    pub terminal_obj_pos_err_m: MeanStd,
-    pub terminal_obj_rot_err_deg: MeanStd,
+    /// Reference kinds: OTE (m), each episode's mean object translation error, over episodes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ote_m: Option<MeanStd>,
+    /// Reference kinds: OOE (deg), each episode's mean object orientation error, over episodes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ooe_deg: Option<MeanStd>,
+    /// Reference kinds: the object's translation error (m) at the episode's last step, over episodes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub terminal_obj_pos_err_m: Option<MeanStd>,
+    /// Reference kinds: the object's orientation error (deg) at the episode's last step, over episodes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub terminal_obj_rot_err_deg: Option<MeanStd>,
     /// Mean weighted value per env step of each reward term.
     pub reward_terms: serde_json::Map<String, serde_json::Value>,
-    /// Deepest hand–object penetration of an episode (mm), over episodes.
-    pub peak_penetration_mm: MeanStd,
-    /// Largest penetration of any frame (mm).
-    pub max_penetration_mm: f64,
-    /// Fraction of all env steps with a hand–object penetration > 1 mm.
+    /// Deepest hand–object penetration (mm) of any step of any episode (as replay's).
+    pub peak_penetration_mm: f64,
+    /// Each episode's deepest hand–object penetration (mm), over episodes.
+    pub episode_peak_penetration_mm: MeanStd,
+    /// Fraction of all env steps (every episode's) with a hand–object penetration > 1 mm (as replay's).
     pub frac_frames_penetration_over_1mm: f64,
-    /// Mean normal force (N) of a fingertip while it touches the object (above
-    /// `task.lift.contact_force`), over all such fingertip-steps.
-    pub mean_contact_force_n: f64,
+    /// Mean normal force (N) of a fingertip while it touches the object: over every fingertip-step
+    /// whose force exceeds `task.hand.contact_force` (the threshold of the task's contact flags), 0
+    /// when none does (as replay's).
+    pub mean_fingertip_force_n: f64,
     /// Every episode, in env order.
     pub per_episode: Vec<EpisodeRow>,
 }
@@ -139,23 +161,55 @@ pub struct Summary {
 /// The eval report (written as JSON, and a Markdown table next to it).
 #[derive(Clone, Debug, Serialize)]
 pub struct EvalReport {
+    /// The run directory.
     pub run: String,
+    /// The checkpoint directory evaluated.
     pub checkpoint: String,
+    /// The checkpoint's iteration.
     pub iteration: u64,
+    /// Seed of the eval episodes.
     pub seed: u32,
+    /// Number of episodes.
     pub episodes: usize,
+    /// The task kind (`task.kind`).
     pub task: String,
+    /// The env backend that ran the episodes.
     pub env_backend: String,
+    /// The device the policy ran on.
     pub learner_device: String,
     /// The policy's episodes (deterministic: the policy mean).
     #[serde(flatten)]
     pub policy: Summary,
     /// `--baseline open-loop`: the same episodes (same seeds, references and augmentation) with
     /// the policy switched off and the targets driven along the reference, as `dextrain replay`.
+    /// Left out of the JSON without `--baseline`.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub baseline: Option<Summary>,
     /// The report's path (not in the JSON).
     #[serde(skip)]
     pub path: PathBuf,
+}
+
+/// Checks that every number of a report is finite: serde_json writes a NaN or an infinity as
+/// `null`, and the reports leave absent values out rather than writing `null`, so any `null` in
+/// the serialised report is a non-finite value. The error is one line naming the field's path
+/// (e.g. `baseline.ote_m.mean`); `what` names the report.
+pub fn check_finite<T: Serialize>(report: &T, what: &str) -> Result<()> {
+    let value = serde_json::to_value(report).with_context(|| format!("cannot serialise the {what}"))?;
+    // depth-first over (path, value); arrays index by position
+    let mut stack: Vec<(String, &serde_json::Value)> = vec![(String::new(), &value)];
+    while let Some((path, v)) = stack.pop() {
+        let join = |k: &str| if path.is_empty() { k.to_string() } else { format!("{path}.{k}") };
+        match v {
+            serde_json::Value::Null => {
+                bail!("{what}: field `{path}` is not a finite number (NaN or infinite): expected every reported value finite")
+            }
+            serde_json::Value::Object(m) => stack.extend(m.iter().rev().map(|(k, v)| (join(k), v))),
+            serde_json::Value::Array(a) => stack.extend(a.iter().enumerate().rev().map(|(i, v)| (join(&i.to_string()), v))),
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 /// Runs the evaluation and writes the report.
@@ -197,6 +251,7 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
     let stem = format!("eval_it{}_seed{}_n{}{}", state.iteration, seed, report.episodes, if baseline { "_openloop" } else { "" });
     let path = dir.join(format!("{stem}.json"));
+    check_finite(&report, "eval report")?;
     let json = serde_json::to_string_pretty(&report).context("cannot serialise the eval report")?;
     std::fs::write(&path, json).with_context(|| format!("cannot write {}", path.display()))?;
     let md = dir.join(format!("{stem}.md"));
@@ -212,17 +267,20 @@ pub fn markdown(r: &EvalReport) -> String {
         cols.push(("open-loop replay", b));
     }
     let ms = |m: &MeanStd, scale: f64, digits: usize| format!("{:.*} ± {:.*}", digits, m.mean * scale, digits, m.std * scale);
-    let rows: Vec<(&str, Box<dyn Fn(&Summary) -> String>)> = vec![
-        ("success rate", Box::new(|s: &Summary| format!("{:.1} %", 100.0 * s.success_rate))),
-        ("OTE (mm)", Box::new(move |s: &Summary| ms(&s.ote_m, 1e3, 1))),
-        ("OOE (deg)", Box::new(move |s: &Summary| ms(&s.ooe_deg, 1.0, 1))),
-        ("terminal object error (mm)", Box::new(move |s: &Summary| ms(&s.terminal_obj_pos_err_m, 1e3, 1))),
-        ("terminal object error (deg)", Box::new(move |s: &Summary| ms(&s.terminal_obj_rot_err_deg, 1.0, 1))),
-        ("terminated", Box::new(|s: &Summary| format!("{:.1} %", 100.0 * s.terminated_rate))),
-        ("episode return", Box::new(move |s: &Summary| ms(&s.episode_return, 1.0, 2))),
-        ("peak penetration (mm)", Box::new(move |s: &Summary| ms(&s.peak_penetration_mm, 1.0, 2))),
-        ("frames with penetration > 1 mm", Box::new(|s: &Summary| format!("{:.1} %", 100.0 * s.frac_frames_penetration_over_1mm))),
-        ("mean contact force (N)", Box::new(|s: &Summary| format!("{:.2}", s.mean_contact_force_n))),
+    // a row whose metric applies to no column (the tracking errors of lift) is left out
+    type Cell = Box<dyn Fn(&Summary) -> Option<String>>;
+    let rows: Vec<(&str, Cell)> = vec![
+        ("success rate", Box::new(|s: &Summary| Some(format!("{:.1} %", 100.0 * s.success_rate)))),
+        ("OTE (mm)", Box::new(move |s: &Summary| s.ote_m.as_ref().map(|m| ms(m, 1e3, 1)))),
+        ("OOE (deg)", Box::new(move |s: &Summary| s.ooe_deg.as_ref().map(|m| ms(m, 1.0, 1)))),
+        ("terminal object error (mm)", Box::new(move |s: &Summary| s.terminal_obj_pos_err_m.as_ref().map(|m| ms(m, 1e3, 1)))),
+        ("terminal object error (deg)", Box::new(move |s: &Summary| s.terminal_obj_rot_err_deg.as_ref().map(|m| ms(m, 1.0, 1)))),
+        ("terminated", Box::new(|s: &Summary| Some(format!("{:.1} %", 100.0 * s.terminated_rate)))),
+        ("episode return", Box::new(move |s: &Summary| Some(ms(&s.episode_return, 1.0, 2)))),
+        ("peak penetration (mm)", Box::new(|s: &Summary| Some(format!("{:.2}", s.peak_penetration_mm)))),
+        ("episode peak penetration (mm)", Box::new(move |s: &Summary| Some(ms(&s.episode_peak_penetration_mm, 1.0, 2)))),
+        ("frames with penetration > 1 mm", Box::new(|s: &Summary| Some(format!("{:.1} %", 100.0 * s.frac_frames_penetration_over_1mm)))),
+        ("mean fingertip force (N)", Box::new(|s: &Summary| Some(format!("{:.2}", s.mean_fingertip_force_n)))),
     ];
     let mut out = format!(
         "# Evaluation of {} ({}, iteration {}, seed {}, {} episodes)\n\n| metric | {} |\n|---|{}\n",
@@ -235,7 +293,12 @@ pub fn markdown(r: &EvalReport) -> String {
         "---|".repeat(cols.len())
     );
     for (name, f) in &rows {
-        out.push_str(&format!("| {name} | {} |\n", cols.iter().map(|c| f(c.1)).collect::<Vec<_>>().join(" | ")));
+        let cells: Vec<Option<String>> = cols.iter().map(|c| f(c.1)).collect();
+        if cells.iter().all(Option::is_none) {
+            continue;
+        }
+        let cells: Vec<String> = cells.into_iter().map(|c| c.unwrap_or_else(|| "–".into())).collect();
+        out.push_str(&format!("| {name} | {} |\n", cells.join(" | ")));
     }
     // reference kinds: per reference, its episodes' mean terminal error and success
     let mut names: Vec<&str> = r.policy.per_episode.iter().map(|e| e.reference.as_str()).filter(|n| !n.is_empty()).collect();
@@ -245,7 +308,7 @@ pub fn markdown(r: &EvalReport) -> String {
         let per_ref = |s: &Summary, name: &str| {
             let eps: Vec<&EpisodeRow> = s.per_episode.iter().filter(|e| e.reference == name).collect();
             let k = eps.len().max(1) as f64;
-            let err = eps.iter().map(|e| e.terminal_pos_err_m).sum::<f64>() / k;
+            let err = eps.iter().filter_map(|e| e.terminal_pos_err_m).sum::<f64>() / k;
             let ok = eps.iter().filter(|e| e.success).count();
             format!("{:.1} mm, {ok}/{}", err * 1e3, eps.len())
         };
@@ -279,7 +342,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
     let mut rows: Vec<EpisodeRow> = Vec::new();
     let mut final_lift = Vec::new();
     let mut max_lift_ep = Vec::new();
-    let mut peak_pen = Vec::new();
+    let mut episode_peak_pen = Vec::new();
     let mut frames = 0u64;
     let mut frames_over = 0u64;
     let mut max_pen = 0.0f64;
@@ -289,7 +352,9 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
     let mut term_names: Vec<String> = Vec::new();
     let mut env_backend = String::new();
     let mut device_name = String::new();
-    let ref_names: Vec<String> = if cfg.task.kind == TaskKind::Lift {
+    // the reference kinds measure the object against a reference; lift has none
+    let has_reference = cfg.task.kind.follows_reference();
+    let ref_names: Vec<String> = if !has_reference {
         Vec::new()
     } else {
         reference_names(&reference_paths(cfg)?)
@@ -334,7 +399,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
         };
         let mut obs = task.reset_all()?.obs.clone();
         // the reference of each env's (only) episode, drawn at the reset
-        let refs: Vec<String> = if c.task.kind == TaskKind::Lift {
+        let refs: Vec<String> = if !has_reference {
             vec![String::new(); n]
         } else {
             let (_, _, ts) = decode_snapshot(&task.save_state()?, n)?;
@@ -392,15 +457,15 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
                         length: len[i],
                         success: b.success[i],
                         terminated: b.terminated[i],
-                        ote_m: err_sum[i].0 / l,
-                        ooe_deg: err_sum[i].1 / l,
-                        terminal_pos_err_m: b.obj_pos_err[i] as f64,
-                        terminal_rot_err_deg: (b.obj_rot_err[i] as f64).to_degrees(),
+                        ote_m: has_reference.then(|| err_sum[i].0 / l),
+                        ooe_deg: has_reference.then(|| err_sum[i].1 / l),
+                        terminal_pos_err_m: has_reference.then(|| b.obj_pos_err[i] as f64),
+                        terminal_rot_err_deg: has_reference.then(|| (b.obj_rot_err[i] as f64).to_degrees()),
                         reference: refs[i].clone(),
                     });
                     final_lift.push(b.lift_height[i] as f64);
                     max_lift_ep.push(lift_max[i]);
-                    peak_pen.push(pen_max[i]);
+                    episode_peak_pen.push(pen_max[i]);
                 }
             }
             let env0_running = !done[0];
@@ -417,6 +482,8 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
     let reward_terms = term_names.iter().zip(&term_sums).map(|(k, v)| (k.clone(), serde_json::json!(v / total_frames))).collect();
     let n_ep = rows.len().max(1) as f64;
     let col = |f: fn(&EpisodeRow) -> f64| rows.iter().map(f).collect::<Vec<f64>>();
+    // a tracking metric over episodes: None for lift
+    let tracking = |f: fn(&EpisodeRow) -> Option<f64>| has_reference.then(|| mean_std(&rows.iter().filter_map(f).collect::<Vec<f64>>()));
     let summary = Summary {
         success_rate: rows.iter().filter(|r| r.success).count() as f64 / n_ep,
         terminated_rate: rows.iter().filter(|r| r.terminated).count() as f64 / n_ep,
@@ -424,15 +491,15 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
         episode_length: mean_std(&col(|r| r.length as f64)),
         final_lift_height_m: mean_std(&final_lift),
         max_lift_height_m: mean_std(&max_lift_ep),
-        ote_m: mean_std(&col(|r| r.ote_m)),
-        ooe_deg: mean_std(&col(|r| r.ooe_deg)),
-        terminal_obj_pos_err_m: mean_std(&col(|r| r.terminal_pos_err_m)),
-        terminal_obj_rot_err_deg: mean_std(&col(|r| r.terminal_rot_err_deg)),
+        ote_m: tracking(|r| r.ote_m),
+        ooe_deg: tracking(|r| r.ooe_deg),
+        terminal_obj_pos_err_m: tracking(|r| r.terminal_pos_err_m),
+        terminal_obj_rot_err_deg: tracking(|r| r.terminal_rot_err_deg),
         reward_terms,
-        peak_penetration_mm: mean_std(&peak_pen),
-        max_penetration_mm: max_pen,
+        peak_penetration_mm: max_pen,
+        episode_peak_penetration_mm: mean_std(&episode_peak_pen),
         frac_frames_penetration_over_1mm: frames_over as f64 / total_frames,
-        mean_contact_force_n: if force_n > 0 { force_sum / force_n as f64 } else { 0.0 },
+        mean_fingertip_force_n: if force_n > 0 { force_sum / force_n as f64 } else { 0.0 },
         per_episode: rows,
     };
     Ok((summary, env_backend, device_name))

@@ -16,7 +16,28 @@
 //! composed multiplier and offset. URDF `rpy` is fixed-axis roll (x), pitch (y), yaw (z):
 //! R = Rz(yaw)·Ry(pitch)·Rx(roll). Cylinders and capsules become [`ColliderShape::Capsule`]s
 //! (`half_length` = length / 2, axis local z). Colliders are sorted by link (stable). Every error is
-//! one line naming the file and, where there is one, the link or joint, and says what is expected.
+//! one line naming the file and, where there is one, the link or joint, and says what is expected;
+//! values quoted in it are cut to [`MAX_QUOTED_CHARS`] characters.
+//!
+//! Before urdf-rs sees the text, a light pre-scan of the XML bounds its size ([`MAX_URDF_BYTES`])
+//! and nesting ([`MAX_URDF_DEPTH`]; urdf-rs and its XML parsers recurse per level, so 100,000 nested
+//! elements would overflow the stack), and checks every attribute that urdf-rs reads (present where
+//! required, a number, three numbers, a joint type…), so that such an error names the link or joint,
+//! the element, the attribute and its line instead of urdf-rs's vague message.
+//!
+//! Every number the model uses must fit it (the bounds are far outside what real hands use; the
+//! real URDFs of Allegro, LEAP, Shadow, Inspire, Ability and SCHUNK SVH load):
+//! - a link with `<inertial>` has a mass in [[`MIN_LINK_MASS_KG`], [`MAX_LINK_MASS_KG`]] and an
+//!   inertia tensor that is positive semi-definite (all principal minors ≥ 0; zero is a point mass,
+//!   as Shadow's tips are) with entries within ±[`MAX_INERTIA_KG_M2`]; the triangle inequality of
+//!   principal moments is not required (Allegro, Ability and SVH break it slightly). A link without
+//!   `<inertial>` is massless (a frame), as in URDF.
+//! - origins (`xyz`), collision sizes and mesh bounding boxes are within ±[`MAX_LENGTH_M`]; `rpy`,
+//!   revolute limits and mimic offsets within ±[`MAX_ANGLE_RAD`]; axes have components within
+//!   ±[`MAX_AXIS_COMPONENT`] and a non-zero length; `effort` in (0, [`MAX_EFFORT_NM`]], `velocity` in
+//!   (0, [`MAX_VELOCITY_RAD_S`]], damping and friction in [0, [`MAX_DAMPING`]]; mimic multipliers
+//!   (also composed along a chain) within ±[`MAX_MIMIC_MULTIPLIER`]; mesh scales within
+//!   ±[`MAX_MESH_SCALE`].
 
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -33,6 +54,35 @@ pub const MAX_JOINTS: usize = 24;
 pub const MAX_COLLIDERS: usize = 32;
 /// Most fingertip frames (keep in sync with shaders/common.wgsl `MAX_TIPS`).
 pub const MAX_TIPS: usize = 6;
+
+/// Largest URDF text the loader reads (bytes): 16 MiB (real hand URDFs are 15–40 kB).
+pub const MAX_URDF_BYTES: usize = 16 << 20;
+/// Deepest nesting of XML elements: 32 levels (a URDF uses 5: robot > link > collision > geometry > box).
+pub const MAX_URDF_DEPTH: usize = 32;
+/// Longest value (characters) quoted in an error message; longer ones are cut and end in "…".
+pub const MAX_QUOTED_CHARS: usize = 80;
+/// Smallest mass (kg) of a link that has an `<inertial>` (1 mg; real fingertip links weigh ≥ 1 g).
+pub const MIN_LINK_MASS_KG: f64 = 1e-6;
+/// Largest mass (kg) of a link (Shadow's forearm, the heaviest real link, is 3 kg).
+pub const MAX_LINK_MASS_KG: f64 = 100.0;
+/// Largest |entry| (kg·m²) of a link's inertia tensor (real links: ≤ 0.014).
+pub const MAX_INERTIA_KG_M2: f64 = 10.0;
+/// Largest |coordinate| (m) of an origin, and largest collision size or mesh extent (real: < 0.5 m).
+pub const MAX_LENGTH_M: f64 = 10.0;
+/// Largest |angle| (rad) of an `rpy`, a revolute limit or a mimic offset (real: ≤ π).
+pub const MAX_ANGLE_RAD: f64 = 100.0;
+/// Largest |component| of an `<axis xyz>` (it is normalised; real axes are unit vectors).
+pub const MAX_AXIS_COMPONENT: f64 = 1e3;
+/// Largest effort limit (N·m) of a joint (real: ≤ 1000, SCHUNK SVH).
+pub const MAX_EFFORT_NM: f64 = 1e5;
+/// Largest velocity limit (rad/s) of a joint (real: ≤ 40).
+pub const MAX_VELOCITY_RAD_S: f64 = 1e4;
+/// Largest `<dynamics damping>` (N·m·s/rad) or `friction` (N·m) of a joint (real: ≤ 0.2).
+pub const MAX_DAMPING: f64 = 1e3;
+/// Largest |multiplier| of a mimic joint, also composed along a mimic chain (real: ≤ 1.5).
+pub const MAX_MIMIC_MULTIPLIER: f64 = 100.0;
+/// Largest |component| of a mesh `scale` (1000 turns kilometres into metres).
+pub const MAX_MESH_SCALE: f64 = 1e3;
 
 /// What to do with a `<mesh>` collision element, which the simulator cannot represent.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -62,13 +112,16 @@ pub struct HandLoadOptions {
 pub struct Mimic {
     /// Index into `HandModel::joints` of the leader (never itself a follower).
     pub leader: usize,
+    /// `multiplier` of `q = multiplier * q[leader] + offset` (composed along a mimic chain).
     pub multiplier: f32,
+    /// `offset` (rad) of `q = multiplier * q[leader] + offset` (composed along a mimic chain).
     pub offset: f32,
 }
 
 /// A movable (revolute or continuous) joint.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Joint {
+    /// The URDF joint name.
     pub name: String,
     /// Index into `HandModel::links` of the parent link.
     pub parent_link: usize,
@@ -76,8 +129,9 @@ pub struct Joint {
     pub origin: Pose,
     /// Unit rotation axis in the joint frame (URDF `<axis>`, default x).
     pub axis: Vec3,
-    /// Position limits (rad). Continuous joints: -inf / +inf.
+    /// Lower position limit (rad). Continuous joints: -inf.
     pub lower: f32,
+    /// Upper position limit (rad). Continuous joints: +inf.
     pub upper: f32,
     /// Effort limit (N·m); URDF `effort`.
     pub effort: f32,
@@ -96,6 +150,7 @@ pub struct Joint {
 /// A rigid link after fixed joints are merged.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Link {
+    /// The URDF link name.
     pub name: String,
     /// Mass (kg), including merged links.
     pub mass: f32,
@@ -108,9 +163,11 @@ pub struct Link {
 /// Collision shape of a hand link. Capsule axes are the collider's local z (as URDF cylinders).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ColliderShape {
+    /// A sphere of `radius` (m) about the collider's origin.
     Sphere { radius: f32 },
     /// A URDF cylinder or capsule becomes a capsule: `half_length` of the segment, not counting caps.
     Capsule { radius: f32, half_length: f32 },
+    /// A box with `half_extents` (m) along the collider's axes.
     Box { half_extents: Vec3 },
 }
 
@@ -121,6 +178,7 @@ pub struct Collider {
     pub link: usize,
     /// Pose of the shape in the link frame.
     pub pose: Pose,
+    /// The shape and its size.
     pub shape: ColliderShape,
 }
 
@@ -152,9 +210,13 @@ pub struct HandModel {
     pub name: String,
     /// The URDF file (or the `source` given to [`HandModel::from_urdf_str`]).
     pub source: PathBuf,
+    /// Rigid links after fixed joints are merged; `links[0]` is the root (see the CONTRACT).
     pub links: Vec<Link>,
+    /// Movable joints in topological order; `links[i + 1]` is the child of `joints[i]`.
     pub joints: Vec<Joint>,
+    /// Collision shapes, sorted by link.
     pub colliders: Vec<Collider>,
+    /// Fingertip frames, in the order of the `fingertips` option (or of the URDF).
     pub fingertips: Vec<Fingertip>,
     /// URDF links merged away by fixed joints, in URDF document order (the links of `links` are
     /// not repeated here). Use [`HandModel::frame`] to resolve any URDF link name.
@@ -164,6 +226,15 @@ pub struct HandModel {
 impl HandModel {
     /// Loads a hand from a URDF file. Errors are one line and name the file and the link or joint.
     pub fn from_urdf_file(path: &Path, opts: &HandLoadOptions) -> Result<HandModel> {
+        if let Ok(meta) = std::fs::metadata(path)
+            && meta.len() > MAX_URDF_BYTES as u64
+        {
+            return Err(one_line_error(format!(
+                "cannot read hand URDF {}: {} bytes; expected at most {MAX_URDF_BYTES} bytes (MAX_URDF_BYTES)",
+                path.display(),
+                meta.len()
+            )));
+        }
         let text = std::fs::read_to_string(path).map_err(|e| {
             one_line_error(format!(
                 "cannot read hand URDF {}: {e}; expected a readable UTF-8 URDF file",
@@ -174,14 +245,46 @@ impl HandModel {
     }
 
     /// Parses a URDF document; `source` is used in error messages and to resolve mesh paths.
+    /// The text is pre-scanned first (size, nesting, the attributes urdf-rs reads; see the module
+    /// documentation), so that a malformed document is a one-line error naming the element.
     pub fn from_urdf_str(text: &str, source: &Path, opts: &HandLoadOptions) -> Result<HandModel> {
         let file = source.display().to_string();
+        if text.len() > MAX_URDF_BYTES {
+            return Err(one_line_error(format!(
+                "cannot parse hand URDF {file}: {} bytes; expected at most {MAX_URDF_BYTES} bytes (MAX_URDF_BYTES)",
+                text.len()
+            )));
+        }
+        let (elems, end) = scan_xml(text).map_err(|e| one_line_error(format!("cannot parse hand URDF {file}: {e}")))?;
+        let problem = match end {
+            ScanEnd::Complete => check_urdf_elements(&elems),
+            ScanEnd::EndsInside(e) => Some(format!(
+                "line {}: {}: <{}> is not closed before the end of the text (truncated?); expected a complete URDF document",
+                elems[e].line,
+                owner_of(&elems, e),
+                clip(&elems[e].name, MAX_QUOTED_CHARS)
+            )),
+            // malformed XML: urdf-rs's parser says where
+            ScanEnd::Stopped => None,
+        };
+        if let Some(e) = problem {
+            return Err(one_line_error(format!("cannot parse hand URDF {file}: {e}")));
+        }
         let robot = urdf_rs::read_from_string(text).map_err(|e| {
             one_line_error(format!(
-                "cannot parse hand URDF {file}: {e}; expected a well-formed URDF <robot> document"
+                "cannot parse hand URDF {file}: {}; expected a well-formed URDF <robot> document",
+                clip(&e.to_string(), 2 * MAX_QUOTED_CHARS)
             ))
         })?;
-        let loader = Loader { file, source, opts };
+        // links with an <inertial> element (the others are massless frames)
+        let inertial_links = elems
+            .iter()
+            .filter(|e| e.name == "inertial")
+            .filter_map(|e| e.parent.map(|p| &elems[p]))
+            .filter(|p| p.name == "link")
+            .filter_map(|p| p.attr("name").map(str::to_string))
+            .collect();
+        let loader = Loader { file, source, opts, inertial_links };
         loader.build(&robot).map_err(one_line_error)
     }
 
@@ -246,11 +349,47 @@ impl HandModel {
 // ---------------------------------------------------------------------------------------------
 // Loader internals. Everything is computed in f64 and converted to f32 at the end.
 
-/// Turns a message into a one-line `anyhow::Error`.
+/// Turns a message into a one-line `anyhow::Error`, quoted values cut to [`MAX_QUOTED_CHARS`].
 fn one_line_error(msg: String) -> anyhow::Error {
     let msg = msg.replace('\r', "\n");
     let line: Vec<&str> = msg.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
-    anyhow::anyhow!("{}", line.join(" "))
+    anyhow::anyhow!("{}", clip_quoted(&line.join(" ")))
+}
+
+/// `s` cut to `max` characters, with "…" where it was cut.
+fn clip(s: &str, max: usize) -> String {
+    if s.chars().count() > max { format!("{}…", s.chars().take(max).collect::<String>()) } else { s.to_string() }
+}
+
+/// Cuts every quoted value of a message ('…', "…", `…` or […], opening at the start of a word) to
+/// [`MAX_QUOTED_CHARS`] characters, so that a 5,000-character name or vector prints as 80.
+fn clip_quoted(msg: &str) -> String {
+    let chars: Vec<char> = msg.chars().collect();
+    let mut out = String::with_capacity(msg.len());
+    let mut i = 0;
+    while i < chars.len() {
+        let c = chars[i];
+        let close = match c {
+            '\'' | '"' | '`' => Some(c),
+            '[' => Some(']'),
+            _ => None,
+        };
+        let word_start = i == 0 || !chars[i - 1].is_alphanumeric();
+        if let (Some(close), true) = (close, word_start)
+            && let Some(len) = chars[i + 1..].iter().position(|&d| d == close)
+            && len > MAX_QUOTED_CHARS
+        {
+            out.push(c);
+            out.extend(&chars[i + 1..i + 1 + MAX_QUOTED_CHARS]);
+            out.push('…');
+            out.push(close);
+            i += len + 2;
+            continue;
+        }
+        out.push(c);
+        i += 1;
+    }
+    out
 }
 
 type R<T> = std::result::Result<T, String>;
@@ -289,11 +428,29 @@ fn finite3(v: &[f64; 3]) -> bool {
 }
 
 fn fmt3(v: &[f64; 3]) -> String {
-    format!("{} {} {}", v[0], v[1], v[2])
+    format!("{} {} {}", fnum(v[0]), fnum(v[1]), fnum(v[2]))
+}
+
+/// A number as a message shows it: plain, or in exponent form when huge or tiny (`1e300`, not
+/// 301 digits).
+fn fnum(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e6).contains(&v.abs()) { format!("{v:e}") } else { format!("{v}") }
 }
 
 fn pose_is_finite(p: &urdf_rs::Pose) -> bool {
     finite3(&p.xyz.0) && finite3(&p.rpy.0)
+}
+
+/// A finite `<origin>` whose `xyz` is within ±[`MAX_LENGTH_M`] and `rpy` within ±[`MAX_ANGLE_RAD`];
+/// `owner` names the link or joint (and the file), `what` the element.
+fn check_origin(owner: &str, what: &str, p: &urdf_rs::Pose) -> R<()> {
+    if p.xyz.0.iter().any(|v| v.abs() > MAX_LENGTH_M) {
+        return Err(format!("{owner} has {what} xyz {}; expected coordinates within ±{MAX_LENGTH_M} m", fmt3(&p.xyz.0)));
+    }
+    if p.rpy.0.iter().any(|v| v.abs() > MAX_ANGLE_RAD) {
+        return Err(format!("{owner} has {what} rpy {}; expected angles within ±{MAX_ANGLE_RAD} rad", fmt3(&p.rpy.0)));
+    }
+    Ok(())
 }
 
 fn is_movable(j: &urdf_rs::Joint) -> bool {
@@ -343,6 +500,8 @@ struct Loader<'a> {
     file: String,
     source: &'a Path,
     opts: &'a HandLoadOptions,
+    /// Names of the links that have an `<inertial>` element.
+    inertial_links: std::collections::HashSet<String>,
 }
 
 impl Loader<'_> {
@@ -409,6 +568,7 @@ impl Loader<'_> {
                     fmt3(&j.origin.rpy.0)
                 ));
             }
+            check_origin(&format!("joint '{name}' in {f}"), "<origin>", &j.origin)?;
             parent_joint[c] = Some(ji);
             children[p].push(ji);
             ends.push((p, c));
@@ -519,6 +679,13 @@ impl Loader<'_> {
                     }
                 }
             };
+            if mult.abs() > MAX_MIMIC_MULTIPLIER || off.abs() > MAX_ANGLE_RAD {
+                return Err(format!(
+                    "joint '{name}' in {f} follows its root leader with multiplier {} and offset {} (composed along its mimic chain); expected |multiplier| <= {MAX_MIMIC_MULTIPLIER} and |offset| <= {MAX_ANGLE_RAD} rad",
+                    fnum(mult),
+                    fnum(off)
+                ));
+            }
             joints[mi].mimic = Some(Mimic { leader, multiplier: mult as f32, offset: off as f32 });
         }
 
@@ -603,6 +770,13 @@ impl Loader<'_> {
         if m < 0.0 {
             return Err(format!("link '{name}' in {f} has a negative mass ({m}); expected a mass >= 0 kg"));
         }
+        // a link without <inertial> is a massless frame (urdf-rs reads it as mass 0, inertia 0)
+        if self.inertial_links.contains(name.as_str()) && !(MIN_LINK_MASS_KG..=MAX_LINK_MASS_KG).contains(&m) {
+            return Err(format!(
+                "link '{name}' in {f} has <inertial><mass value> {}; expected a mass in [{MIN_LINK_MASS_KG}, {MAX_LINK_MASS_KG}] kg (leave <inertial> out for a massless frame)",
+                fnum(m)
+            ));
+        }
         let t = &inr.inertia;
         let all = [t.ixx, t.ixy, t.ixz, t.iyy, t.iyz, t.izz];
         if !all.iter().all(|x| x.is_finite()) {
@@ -614,12 +788,40 @@ impl Loader<'_> {
                 t.ixx, t.iyy, t.izz
             ));
         }
+        for (attr, v) in ["ixx", "ixy", "ixz", "iyy", "iyz", "izz"].iter().zip(all) {
+            if v.abs() > MAX_INERTIA_KG_M2 {
+                return Err(format!(
+                    "link '{name}' in {f} has <inertia {attr}> {}; expected |{attr}| <= {MAX_INERTIA_KG_M2} kg·m²",
+                    fnum(v)
+                ));
+            }
+        }
+        // positive semi-definite: every principal minor >= 0 (up to rounding, relative to the
+        // largest moment s): ixx·iyy − ixy² ≥ 0, ixx·izz − ixz² ≥ 0, iyy·izz − iyz² ≥ 0, det ≥ 0
+        let s = t.ixx.max(t.iyy).max(t.izz);
+        let tol = 1e-6;
+        let det = t.ixx * (t.iyy * t.izz - t.iyz * t.iyz) - t.ixy * (t.ixy * t.izz - t.iyz * t.ixz)
+            + t.ixz * (t.ixy * t.iyz - t.iyy * t.ixz);
+        let minors = [t.ixx * t.iyy - t.ixy * t.ixy, t.ixx * t.izz - t.ixz * t.ixz, t.iyy * t.izz - t.iyz * t.iyz];
+        if minors.iter().any(|&m2| m2 < -tol * s * s) || det < -tol * s * s * s {
+            return Err(format!(
+                "link '{name}' in {f} has an <inertia> that is not positive semi-definite (ixx {} ixy {} ixz {} iyy {} iyz {} izz {}); expected a physical inertia tensor (ixx·iyy >= ixy², ixx·izz >= ixz², iyy·izz >= iyz², determinant >= 0)",
+                fnum(t.ixx),
+                fnum(t.ixy),
+                fnum(t.ixz),
+                fnum(t.iyy),
+                fnum(t.iyz),
+                fnum(t.izz)
+            ));
+        }
+        check_origin(&format!("link '{name}' in {f}"), "<inertial><origin>", &inr.origin)?;
         for (ci, c) in l.collision.iter().enumerate() {
             if !pose_is_finite(&c.origin) {
                 return Err(format!(
                     "link '{name}' in {f} has a non-finite <collision><origin> (collision {ci}); expected finite numbers"
                 ));
             }
+            check_origin(&format!("link '{name}' in {f}"), &format!("<collision><origin> (collision {ci})"), &c.origin)?;
         }
         Ok(())
     }
@@ -633,6 +835,14 @@ impl Loader<'_> {
                 self.file
             ));
         }
+        if mult.abs() > MAX_MIMIC_MULTIPLIER || off.abs() > MAX_ANGLE_RAD {
+            return Err(format!(
+                "joint '{joint}' in {} has <mimic multiplier=\"{}\" offset=\"{}\">; expected |multiplier| <= {MAX_MIMIC_MULTIPLIER} and |offset| <= {MAX_ANGLE_RAD} rad",
+                self.file,
+                fnum(mult),
+                fnum(off)
+            ));
+        }
         Ok((mult, off))
     }
 
@@ -640,9 +850,9 @@ impl Loader<'_> {
         let f = &self.file;
         let name = &j.name;
         let axis = DVec3::from_array(j.axis.xyz.0);
-        if !axis.is_finite() || axis.length() < 1e-9 {
+        if !axis.is_finite() || axis.length() < 1e-9 || axis.abs().max_element() > MAX_AXIS_COMPONENT {
             return Err(format!(
-                "joint '{name}' in {f} has axis ({}); expected a finite non-zero <axis xyz>",
+                "joint '{name}' in {f} has axis ({}); expected a finite non-zero <axis xyz> with components within ±{MAX_AXIS_COMPONENT}",
                 fmt3(&j.axis.xyz.0)
             ));
         }
@@ -657,6 +867,14 @@ impl Loader<'_> {
                     lim.lower, lim.upper
                 ));
             }
+            for (what, v) in [("lower", lim.lower), ("upper", lim.upper)] {
+                if v.abs() > MAX_ANGLE_RAD {
+                    return Err(format!(
+                        "joint '{name}' in {f} has <limit {what}> {}; expected a revolute limit within ±{MAX_ANGLE_RAD} rad",
+                        fnum(v)
+                    ));
+                }
+            }
             if lim.lower > lim.upper {
                 return Err(format!(
                     "joint '{name}' in {f} has lower limit {} > upper limit {}; expected lower <= upper",
@@ -665,19 +883,27 @@ impl Loader<'_> {
             }
             (lim.lower as f32, lim.upper as f32)
         };
-        for (what, v, unit) in [("effort", lim.effort, "N·m"), ("velocity", lim.velocity, "rad/s")] {
+        for (what, v, unit, max) in [("effort", lim.effort, "N·m", MAX_EFFORT_NM), ("velocity", lim.velocity, "rad/s", MAX_VELOCITY_RAD_S)] {
             if !(v.is_finite() && v > 0.0) {
                 return Err(format!(
-                    "joint '{name}' in {f} has {what} limit {v}{}; expected a positive finite <limit {what}> ({unit}) on a movable joint",
+                    "joint '{name}' in {f} has {what} limit {}{}; expected a positive finite <limit {what}> ({unit}) on a movable joint",
+                    fnum(v),
                     if v == 0.0 { " (a missing <limit> or attribute reads as 0)" } else { "" }
+                ));
+            }
+            if v > max {
+                return Err(format!(
+                    "joint '{name}' in {f} has {what} limit {}; expected a <limit {what}> of at most {max} {unit}",
+                    fnum(v)
                 ));
             }
         }
         let (damping, friction) = j.dynamics.as_ref().map_or((0.0, 0.0), |d| (d.damping, d.friction));
         for (what, v) in [("damping", damping), ("friction", friction)] {
-            if !(v.is_finite() && v >= 0.0) {
+            if !(v.is_finite() && (0.0..=MAX_DAMPING).contains(&v)) {
                 return Err(format!(
-                    "joint '{name}' in {f} has <dynamics {what}> {v}; expected a finite number >= 0"
+                    "joint '{name}' in {f} has <dynamics {what}> {}; expected a finite number in [0, {MAX_DAMPING}]",
+                    fnum(v)
                 ));
             }
         }
@@ -705,13 +931,14 @@ impl Loader<'_> {
             Some(n) => format!("collision '{n}'"),
             None => format!("collision {ci}"),
         };
-        let radius_ok = |r: f64| r.is_finite() && r > 0.0;
-        let size_ok = |s: f64| s.is_finite() && s >= 0.0;
+        let radius_ok = |r: f64| r.is_finite() && r > 0.0 && r <= MAX_LENGTH_M;
+        let size_ok = |s: f64| s.is_finite() && (0.0..=MAX_LENGTH_M).contains(&s);
         let (pose, shape) = match &c.geometry {
             urdf_rs::Geometry::Sphere { radius } => {
                 if !radius_ok(*radius) {
                     return Err(format!(
-                        "link '{name}' in {f}: {what} sphere radius {radius}; expected a positive finite radius (m)"
+                        "link '{name}' in {f}: {what} sphere radius {}; expected a positive finite radius <= {MAX_LENGTH_M} (m)",
+                        fnum(*radius)
                     ));
                 }
                 (pose, ColliderShape::Sphere { radius: *radius as f32 })
@@ -719,7 +946,7 @@ impl Loader<'_> {
             urdf_rs::Geometry::Box { size } => {
                 if !size.0.iter().all(|&s| size_ok(s)) {
                     return Err(format!(
-                        "link '{name}' in {f}: {what} box size {}; expected finite sizes >= 0 (m)",
+                        "link '{name}' in {f}: {what} box size {}; expected finite sizes in [0, {MAX_LENGTH_M}] (m)",
                         fmt3(&size.0)
                     ));
                 }
@@ -730,7 +957,9 @@ impl Loader<'_> {
                 let kind = if matches!(c.geometry, urdf_rs::Geometry::Cylinder { .. }) { "cylinder" } else { "capsule" };
                 if !radius_ok(*radius) || !size_ok(*length) {
                     return Err(format!(
-                        "link '{name}' in {f}: {what} {kind} radius {radius} length {length}; expected a positive finite radius and a finite length >= 0 (m)"
+                        "link '{name}' in {f}: {what} {kind} radius {} length {}; expected a positive finite radius and a finite length >= 0, both <= {MAX_LENGTH_M} (m)",
+                        fnum(*radius),
+                        fnum(*length)
                     ));
                 }
                 (pose, ColliderShape::Capsule { radius: *radius as f32, half_length: (*length * 0.5) as f32 })
@@ -783,8 +1012,11 @@ impl Loader<'_> {
             ));
         }
         let scale = scale.map_or(DVec3::ONE, |s| DVec3::from_array(s.0));
-        if !scale.is_finite() {
-            return Err(format!("link '{link}' in {f}: mesh '{filename}' has a non-finite scale; expected finite numbers"));
+        if !scale.is_finite() || scale.abs().max_element() > MAX_MESH_SCALE {
+            return Err(format!(
+                "link '{link}' in {f}: mesh '{filename}' has scale {}; expected finite numbers within ±{MAX_MESH_SCALE}",
+                fmt3(&scale.to_array())
+            ));
         }
         let candidates = self.mesh_candidates(filename);
         let Some(path) = candidates.iter().find(|p| p.is_file()) else {
@@ -810,6 +1042,14 @@ impl Loader<'_> {
         }
         let centre = (lo + hi) * 0.5;
         let half = (hi - lo) * 0.5;
+        if centre.abs().max_element() > MAX_LENGTH_M || half.max_element() > MAX_LENGTH_M {
+            return Err(format!(
+                "link '{link}' in {f}: mesh {} spans {} .. {} (scaled, m); expected a mesh within ±{MAX_LENGTH_M} m of its frame (in metres: set <mesh scale> for a mesh in millimetres)",
+                path.display(),
+                lo,
+                hi
+            ));
+        }
         match approx {
             MeshApprox::Capsule => {
                 // longest axis (ties prefer z, then x)
@@ -929,5 +1169,390 @@ fn check_vertices(v: Vec<DVec3>) -> R<Vec<DVec3>> {
         Ok(v)
     } else {
         Err("a vertex has a non-finite coordinate".to_string())
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The pre-scan: a light, non-recursive reading of the XML's elements and attributes, run before
+// urdf-rs (which recurses per nesting level) so that the nesting is bounded and a malformed
+// attribute is reported with its element. It stops quietly at anything it does not understand
+// (urdf-rs then reports the malformed XML); only the nesting depth is an error here.
+
+/// One element of the pre-scanned XML.
+struct XmlElem {
+    /// Tag name.
+    name: String,
+    /// Attributes in document order, values with the five predefined entities decoded.
+    attrs: Vec<(String, String)>,
+    /// Index of the parent element (None for the root).
+    parent: Option<usize>,
+    /// Line (from 1) of the element's `<`.
+    line: usize,
+    /// Whether the element holds non-whitespace text.
+    has_text: bool,
+}
+
+impl XmlElem {
+    fn attr(&self, name: &str) -> Option<&str> {
+        self.attrs.iter().find(|(k, _)| k == name).map(|(_, v)| v.as_str())
+    }
+}
+
+/// Decodes `&lt; &gt; &amp; &quot; &apos;` (other references are kept as written).
+fn decode_entities(v: &str) -> String {
+    if !v.contains('&') {
+        return v.to_string();
+    }
+    v.replace("&lt;", "<").replace("&gt;", ">").replace("&quot;", "\"").replace("&apos;", "'").replace("&amp;", "&")
+}
+
+/// How the pre-scan ended.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum ScanEnd {
+    /// Every element was read and closed.
+    Complete,
+    /// The text ends inside this element (a truncated file).
+    EndsInside(usize),
+    /// The scan met something it does not read (malformed XML, a mismatched end tag): urdf-rs reports it.
+    Stopped,
+}
+
+/// The elements of `text` in document order and how the scan ended. Errors (one line) when
+/// elements nest deeper than [`MAX_URDF_DEPTH`].
+fn scan_xml(text: &str) -> std::result::Result<(Vec<XmlElem>, ScanEnd), String> {
+    let b = text.as_bytes();
+    let lines_in = |from: usize, to: usize| b[from..to.min(b.len())].iter().filter(|&&c| c == b'\n').count();
+    let find = |from: usize, pat: &str| text.get(from..).and_then(|r| r.find(pat)).map(|k| from + k);
+    let mut elems: Vec<XmlElem> = Vec::new();
+    let mut open: Vec<usize> = Vec::new(); // indices of the elements not yet closed
+    let mut i = 0;
+    let mut line = 1;
+    while i < b.len() {
+        // text up to the next '<'
+        let next = find(i, "<").unwrap_or(b.len());
+        if let Some(&top) = open.last()
+            && !text[i..next].trim().is_empty()
+        {
+            elems[top].has_text = true;
+        }
+        line += lines_in(i, next);
+        i = next;
+        if i >= b.len() {
+            break;
+        }
+        let rest = &text[i..];
+        // comments, CDATA, processing instructions, DOCTYPE: skipped
+        let skip_to = |end: &str, start_len: usize| find(i + start_len, end).map(|k| k + end.len());
+        let skipped = if rest.starts_with("<!--") {
+            Some(skip_to("-->", 4))
+        } else if rest.starts_with("<![CDATA[") {
+            if let Some(&top) = open.last() {
+                elems[top].has_text = true;
+            }
+            Some(skip_to("]]>", 9))
+        } else if rest.starts_with("<?") {
+            Some(skip_to("?>", 2))
+        } else if rest.starts_with("<!") {
+            // DOCTYPE, possibly with an internal subset in [ ]
+            let mut depth = 0i32;
+            let mut end = None;
+            for (k, &c) in b[i..].iter().enumerate() {
+                match c {
+                    b'[' => depth += 1,
+                    b']' => depth -= 1,
+                    b'>' if depth <= 0 => {
+                        end = Some(i + k + 1);
+                        break;
+                    }
+                    _ => {}
+                }
+            }
+            Some(end)
+        } else {
+            None
+        };
+        if let Some(end) = skipped {
+            let Some(end) = end else { return Ok((elems, ScanEnd::Stopped)) };
+            line += lines_in(i, end);
+            i = end;
+            continue;
+        }
+        if rest.starts_with("</") {
+            let Some(end) = find(i, ">") else { return Ok((elems, ScanEnd::Stopped)) };
+            let closing = text[i + 2..end].trim();
+            match open.last() {
+                Some(&top) if elems[top].name == closing => {}
+                _ => return Ok((elems, ScanEnd::Stopped)),
+            }
+            line += lines_in(i, end);
+            open.pop();
+            i = end + 1;
+            continue;
+        }
+        // a start tag: <name attr="v" ...> or .../>
+        let tag_line = line;
+        let mut k = i + 1;
+        let name_end = b[k..].iter().position(|c| c.is_ascii_whitespace() || *c == b'/' || *c == b'>').map_or(b.len(), |p| k + p);
+        let name = &text[k..name_end];
+        if name.is_empty() {
+            return Ok((elems, ScanEnd::Stopped));
+        }
+        k = name_end;
+        let mut attrs = Vec::new();
+        let mut self_closing = false;
+        let mut complete = false;
+        while k < b.len() {
+            match b[k] {
+                c if c.is_ascii_whitespace() => {
+                    if c == b'\n' {
+                        line += 1;
+                    }
+                    k += 1;
+                }
+                b'>' => {
+                    k += 1;
+                    complete = true;
+                    break;
+                }
+                b'/' if b.get(k + 1) == Some(&b'>') => {
+                    k += 2;
+                    self_closing = true;
+                    complete = true;
+                    break;
+                }
+                _ => {
+                    let Some(eq) = find(k, "=") else { break };
+                    let key = text[k..eq].trim();
+                    if key.is_empty() || key.contains(['<', '>', '"', '\'']) {
+                        break;
+                    }
+                    let mut v = eq + 1;
+                    while v < b.len() && b[v].is_ascii_whitespace() {
+                        v += 1;
+                    }
+                    let Some(&q) = b.get(v).filter(|&&q| q == b'"' || q == b'\'') else { break };
+                    let Some(close) = find(v + 1, if q == b'"' { "\"" } else { "'" }) else { break };
+                    line += lines_in(k, close);
+                    attrs.push((key.to_string(), decode_entities(&text[v + 1..close])));
+                    k = close + 1;
+                }
+            }
+        }
+        if !complete {
+            return Ok((elems, ScanEnd::Stopped));
+        }
+        let depth = open.len() + 1;
+        if depth > MAX_URDF_DEPTH {
+            let path: Vec<&str> = open.iter().take(4).map(|&e| elems[e].name.as_str()).collect();
+            return Err(format!(
+                "line {tag_line}: element <{}> is nested {depth} levels deep (in <{}> …); expected at most {MAX_URDF_DEPTH} levels (a URDF nests 5: robot > link > collision > geometry > box)",
+                clip(name, MAX_QUOTED_CHARS),
+                path.join("> <")
+            ));
+        }
+        elems.push(XmlElem { name: name.to_string(), attrs, parent: open.last().copied(), line: tag_line, has_text: false });
+        if !self_closing {
+            open.push(elems.len() - 1);
+        }
+        i = k;
+    }
+    let end = match open.last() {
+        None => ScanEnd::Complete,
+        Some(&e) => ScanEnd::EndsInside(e),
+    };
+    Ok((elems, end))
+}
+
+/// How urdf-rs reads an attribute.
+#[derive(Clone, Copy)]
+enum AttrKind {
+    /// Any text.
+    Text,
+    /// One number (`f64`).
+    Number,
+    /// `n` numbers separated by spaces.
+    Numbers(usize),
+    /// A joint type.
+    JointType,
+}
+
+const JOINT_TYPES: [&str; 7] = ["revolute", "continuous", "prismatic", "fixed", "floating", "planar", "spherical"];
+
+/// What urdf-rs requires of an element under a given parent: `(attribute, kind, required)`,
+/// the child elements it requires, and those it reads at most once.
+struct ElemRule {
+    attrs: &'static [(&'static str, AttrKind, bool)],
+    required_children: &'static [&'static str],
+    single_children: &'static [&'static str],
+}
+
+fn elem_rule(parent: &str, name: &str, v12: bool) -> Option<ElemRule> {
+    use AttrKind::*;
+    const NONE: &[&str] = &[];
+    const NO_ATTRS: &[(&str, AttrKind, bool)] = &[];
+    const ORIGIN: &[(&str, AttrKind, bool)] = &[("xyz", Numbers(3), false), ("rpy", Numbers(3), false)];
+    fn rule(
+        attrs: &'static [(&'static str, AttrKind, bool)],
+        required_children: &'static [&'static str],
+        single_children: &'static [&'static str],
+    ) -> Option<ElemRule> {
+        Some(ElemRule { attrs, required_children, single_children })
+    }
+    match (parent, name) {
+        ("robot", "link") => rule(&[("name", Text, true)], NONE, &["inertial"]),
+        ("robot", "joint") => rule(
+            &[("name", Text, true), ("type", JointType, true)],
+            &["parent", "child"],
+            &["origin", "parent", "child", "axis", "limit", "calibration", "dynamics", "mimic", "safety_controller"],
+        ),
+        ("robot" | "visual", "material") => rule(&[("name", Text, true)], NONE, &["color", "texture"]),
+        ("material", "color") => rule(&[("rgba", Numbers(4), true)], NONE, NONE),
+        ("material", "texture") => rule(&[("filename", Text, true)], NONE, NONE),
+        ("link", "inertial") => rule(NO_ATTRS, &["mass", "inertia"], &["origin", "mass", "inertia"]),
+        ("link", "visual") => rule(NO_ATTRS, &["geometry"], &["origin", "geometry", "material"]),
+        ("link", "collision") => rule(NO_ATTRS, &["geometry"], &["origin", "geometry"]),
+        ("inertial", "mass") => rule(&[("value", Number, true)], NONE, NONE),
+        ("inertial", "inertia") => rule(
+            &[("ixx", Number, true), ("ixy", Number, true), ("ixz", Number, true), ("iyy", Number, true), ("iyz", Number, true), ("izz", Number, true)],
+            NONE,
+            NONE,
+        ),
+        ("inertial" | "visual" | "collision" | "joint", "origin") => rule(ORIGIN, NONE, NONE),
+        ("visual" | "collision", "geometry") => rule(NO_ATTRS, NONE, NONE),
+        ("geometry", "box") => rule(&[("size", Numbers(3), true)], NONE, NONE),
+        ("geometry", "cylinder" | "capsule") => rule(&[("radius", Number, true), ("length", Number, true)], NONE, NONE),
+        ("geometry", "sphere") => rule(&[("radius", Number, true)], NONE, NONE),
+        ("geometry", "mesh") => rule(&[("filename", Text, true), ("scale", Numbers(3), false)], NONE, NONE),
+        ("joint", "parent" | "child") => rule(&[("link", Text, true)], NONE, NONE),
+        ("joint", "axis") => rule(&[("xyz", Numbers(3), true)], NONE, NONE),
+        // URDF 1.2: urdf-rs fills in a missing velocity (infinite)
+        ("joint", "limit") if v12 => rule(
+            &[("lower", Number, false), ("upper", Number, false), ("effort", Number, false), ("velocity", Number, false)],
+            NONE,
+            NONE,
+        ),
+        ("joint", "limit") => rule(
+            &[("lower", Number, false), ("upper", Number, false), ("effort", Number, false), ("velocity", Number, true)],
+            NONE,
+            NONE,
+        ),
+        ("joint", "mimic") => rule(&[("joint", Text, true), ("multiplier", Number, false), ("offset", Number, false)], NONE, NONE),
+        ("joint", "dynamics") => rule(&[("damping", Number, false), ("friction", Number, false)], NONE, NONE),
+        ("joint", "calibration") => rule(&[("rising", Number, false), ("falling", Number, false)], NONE, NONE),
+        ("joint", "safety_controller") => rule(
+            &[("soft_lower_limit", Number, false), ("soft_upper_limit", Number, false), ("k_position", Number, false), ("k_velocity", Number, true)],
+            NONE,
+            NONE,
+        ),
+        _ => None,
+    }
+}
+
+/// "joint 'x'" / "link 'y'" / "material 'z'" for the nearest named link, joint or material
+/// enclosing element `i` (itself included), else "<name>".
+fn owner_of(elems: &[XmlElem], i: usize) -> String {
+    let mut k = Some(i);
+    while let Some(e) = k {
+        let el = &elems[e];
+        if matches!(el.name.as_str(), "link" | "joint" | "material")
+            && let Some(n) = el.attr("name")
+        {
+            return format!("{} '{}'", el.name, clip(n, MAX_QUOTED_CHARS));
+        }
+        k = el.parent;
+    }
+    format!("<{}>", elems[i].name)
+}
+
+/// Checks the elements urdf-rs reads against what it requires: the first problem, as "line N:
+/// <owner>: <what>; expected …", or None.
+fn check_urdf_elements(elems: &[XmlElem]) -> Option<String> {
+    let root = elems.first()?;
+    if root.name != "robot" {
+        return Some(format!("line {}: the root element is <{}>; expected <robot>", root.line, clip(&root.name, MAX_QUOTED_CHARS)));
+    }
+    let v12 = root
+        .attr("version")
+        .and_then(|v| v.trim().split_once('.'))
+        .and_then(|(a, b)| Some((a.parse::<u32>().ok()?, b.parse::<u32>().ok()?)))
+        .is_some_and(|v| v >= (1, 2));
+    let mut children: Vec<Vec<usize>> = vec![Vec::new(); elems.len()];
+    for (i, e) in elems.iter().enumerate() {
+        if let Some(p) = e.parent {
+            children[p].push(i);
+        }
+    }
+    for (i, e) in elems.iter().enumerate() {
+        let Some(p) = e.parent else { continue };
+        let parent = elems[p].name.as_str();
+        let Some(rule) = elem_rule(parent, &e.name, v12) else {
+            if parent == "geometry" && matches!(elems[p].parent.map(|g| elems[g].name.as_str()), Some("visual" | "collision")) {
+                return Some(format!(
+                    "line {}: {}: unknown geometry <{}>; expected <box>, <cylinder>, <capsule>, <sphere> or <mesh>",
+                    e.line,
+                    owner_of(elems, i),
+                    clip(&e.name, MAX_QUOTED_CHARS)
+                ));
+            }
+            continue;
+        };
+        let at = |what: String, expected: String| Some(format!("line {}: {}: <{}> {what}; expected {expected}", e.line, owner_of(elems, i), e.name));
+        for &(attr, kind, required) in rule.attrs {
+            let Some(v) = e.attr(attr) else {
+                if required {
+                    return at(format!("has no attribute `{attr}`"), format!("{} `{attr}`", kind_words(kind)));
+                }
+                continue;
+            };
+            let quoted = format!("{:?}", clip(v, MAX_QUOTED_CHARS));
+            let ok = match kind {
+                AttrKind::Text => true,
+                AttrKind::Number => v.trim().parse::<f64>().is_ok(),
+                AttrKind::Numbers(n) => {
+                    let parts: Vec<&str> = v.split_whitespace().collect();
+                    parts.len() == n && parts.iter().all(|x| x.parse::<f64>().is_ok())
+                }
+                AttrKind::JointType => JOINT_TYPES.contains(&v),
+            };
+            if !ok {
+                let expected = match kind {
+                    AttrKind::JointType => format!("`type` to be one of {}", JOINT_TYPES.join(", ")),
+                    _ => format!("{} `{attr}`", kind_words(kind)),
+                };
+                return at(format!("has `{attr}` = {quoted}"), expected);
+            }
+        }
+        let kids = &children[i];
+        for &req in rule.required_children {
+            if !kids.iter().any(|&c| elems[c].name == req) {
+                return at(format!("has no <{req}>"), format!("a <{req}> inside <{}>", e.name));
+            }
+        }
+        for &single in rule.single_children {
+            let n = kids.iter().filter(|&&c| elems[c].name == single).count();
+            if n > 1 {
+                return at(format!("has {n} <{single}> elements"), format!("at most one <{single}> inside <{}>", e.name));
+            }
+        }
+        if e.name == "geometry" {
+            let n = kids.len();
+            if n != 1 {
+                return at(format!("holds {n} shapes"), "exactly one of <box>, <cylinder>, <capsule>, <sphere>, <mesh>".into());
+            }
+        }
+        if e.has_text {
+            return at("holds text".into(), format!("only attributes and child elements in <{}>", e.name));
+        }
+    }
+    None
+}
+
+/// What an attribute of a kind should hold, in words.
+fn kind_words(kind: AttrKind) -> String {
+    match kind {
+        AttrKind::Text => "a value for".into(),
+        AttrKind::Number => "one number in".into(),
+        AttrKind::Numbers(n) => format!("{n} numbers separated by spaces in"),
+        AttrKind::JointType => "a joint type in".into(),
     }
 }

@@ -19,6 +19,7 @@ use crate::env::{EnvBatch, EnvState, SimModel, Targets, contact_records, hand_li
 use crate::geom::Pose;
 use crate::record::{ContactKind, RolloutFrame, RolloutMeta, RolloutWriter};
 use crate::traj::Trajectory;
+use crate::traj::bank::MAX_REF_FRAMES;
 
 /// Arguments of `dextrain replay`.
 #[derive(clap::Args, Debug, Clone)]
@@ -42,26 +43,44 @@ pub struct ReplayArgs {
     pub backend: Option<crate::config::BackendChoice>,
 }
 
-/// The one-line JSON report of a replay (means over envs; peaks are maxima).
+/// The one-line JSON report of a replay. Each metric name means the same as in the eval report
+/// (`crate::eval::Summary`); the envs play like eval's episodes. Object errors are left out of the
+/// JSON (not null) when the reference has no object pose; every value printed is finite (a
+/// non-finite one is an error, see [`crate::eval::check_finite`]).
 #[derive(Clone, Debug, Serialize)]
 pub struct ReplayReport {
+    /// `dynamic` (simulated, the targets follow the reference) or `kinematic` (states set from it).
     pub mode: String,
+    /// The env backend that ran the replay.
     pub backend: String,
+    /// Number of envs replayed (each with its own randomised parameters).
     pub envs: usize,
+    /// Frames per env: the initial state and one per control step, `ceil(duration / control step) + 1`.
     pub frames: usize,
-    /// Whether the reference has an object pose (the object errors are null without one).
+    /// Whether the reference has an object pose (the object errors are left out without one).
     pub has_object_reference: bool,
+    /// The object's distance (m) from the reference's object position at the last frame, mean over envs.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub terminal_object_pos_err_m: Option<f64>,
+    /// The object's angle (deg) from the reference's object orientation at the last frame, mean over envs.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub terminal_object_rot_err_deg: Option<f64>,
+    /// The object's distance (m) from the reference, mean over the frames of an env, then over envs.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub mean_object_pos_err_m: Option<f64>,
+    /// The object's angle (deg) from the reference, mean over the frames of an env, then over envs.
+    #[serde(skip_serializing_if = "Option::is_none")]
     pub mean_object_rot_err_deg: Option<f64>,
-    /// Deepest hand–object penetration over all frames (mm).
+    /// Deepest hand–object penetration (mm) of any frame of any env (as eval's `peak_penetration_mm`).
     pub peak_penetration_mm: f64,
-    /// Fraction of frames whose deepest hand–object penetration exceeds 1 mm.
+    /// Fraction of all frames (every env's) whose deepest hand–object penetration exceeds 1 mm
+    /// (as eval's `frac_frames_penetration_over_1mm`).
     pub frac_frames_penetration_over_1mm: f64,
-    /// Mean normal force of a fingertip while it touches the object (N).
+    /// Mean normal force (N) of a fingertip while it touches the object: over every fingertip-frame
+    /// whose force exceeds `task.hand.contact_force` (the threshold of the task's contact flags), 0
+    /// when none does (as eval's `mean_fingertip_force_n`).
     pub mean_fingertip_force_n: f64,
-    /// Height the object ended above where it started (m).
+    /// Height (m) the object ended above where it started, mean over envs.
     pub object_lift_m: f64,
     /// Resets caused by non-finite or exploding states.
     pub bad_resets: u64,
@@ -76,6 +95,9 @@ pub fn rot_err_deg(a: Quat, b: Quat) -> f64 {
     (2.0 * (d.w.abs().min(1.0) as f64).acos()).to_degrees()
 }
 
+/// The targets of `model` at time `t` (s) of `traj`: the sampled wrist pose and, through `map`
+/// (model joint -> reference column, [`Trajectory::joint_map`]), its joint targets; joints the
+/// reference does not name hold their default.
 pub fn targets_at(model: &SimModel, traj: &Trajectory, map: &[Option<usize>], t: f64) -> Targets {
     let f = traj.sample(t);
     let mut out = model.default_targets();
@@ -134,7 +156,20 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
     let g = model.globals;
     let n = cfg.sim.num_envs;
     let ctrl_dt = (g.dt * g.decimation as f32) as f64;
-    let frames = (traj.duration() / ctrl_dt).ceil() as usize + 1;
+    traj.validate().context("the reference")?;
+    // frames = ⌈duration / ctrl_dt⌉ + 1, bounded before anything is allocated
+    let steps = (traj.duration() / ctrl_dt).ceil();
+    if !(steps.is_finite() && steps < MAX_REF_FRAMES as f64) {
+        bail!(
+            "the reference lasts {} s (its last frame, frame {}): {steps} control steps of {ctrl_dt} s; expected at most {} frames (MAX_REF_FRAMES): shorten the reference or lengthen sim.dt · sim.decimation",
+            traj.duration(),
+            traj.frames.len().saturating_sub(1),
+            MAX_REF_FRAMES
+        );
+    }
+    let frames = steps as usize + 1;
+    // a fingertip touches the object when its force exceeds the task's contact threshold (N)
+    let contact_force = cfg.task.hand.contact_force as f64;
     let has_obj = traj.frames.first().is_some_and(|f| f.object.is_some());
     let mut writer = match out {
         Some(p) => {
@@ -178,7 +213,7 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
                 a.frames_over += 1;
             }
             for f in &tips[i] {
-                if *f > 1e-6 {
+                if *f as f64 > contact_force {
                     a.force_sum += *f as f64;
                     a.force_n += 1;
                 }
@@ -253,13 +288,10 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
     if let Some(w) = writer {
         w.finish()?;
     }
-    if frames == 0 {
-        bail!("the reference has no frames");
-    }
     let mean = |f: &dyn Fn(&Acc) -> f64| acc.iter().map(f).sum::<f64>() / n as f64;
     let obj_metric = |v: f64| if has_obj { Some(v) } else { None };
     let force_n: usize = acc.iter().map(|a| a.force_n).sum();
-    Ok(ReplayReport {
+    let report = ReplayReport {
         mode: if kinematic { "kinematic".into() } else { "dynamic".into() },
         backend,
         envs: n,
@@ -275,7 +307,9 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
         object_lift_m: mean(&|a| a.z_last - a.z0),
         bad_resets: bad,
         trace,
-    })
+    };
+    crate::eval::check_finite(&report, "replay report")?;
+    Ok(report)
 }
 
 /// `dextrain replay`.

@@ -4,7 +4,9 @@
 //!
 //! Reading is strict and never panics: every problem is a one-line error naming the file, the
 //! frame (MCAP: the index of the message on the reference topic, in file order, from 0) or CSV
-//! line (from 1), the field or column, and what was expected.
+//! line (from 1), the field or column, and what was expected. Values a simulation cannot hold are
+//! errors too: times beyond [`MAX_DURATION_S`], positions beyond ±[`MAX_POSITION_M`], joint values
+//! beyond ±[`MAX_JOINT_RAD`], more than [`MAX_KEYFRAMES`] frames.
 //!
 //! Numbers are parsed from their text with the standard library (correctly rounded, f32 values
 //! straight to f32), and written in the shortest form that reads back to the same value, so a
@@ -19,7 +21,7 @@ use anyhow::{Result, anyhow};
 use glam::{DVec4, Quat, Vec3};
 use serde::ser::{Serialize, SerializeMap, Serializer};
 
-use super::{QUAT_NORM_TOLERANCE, Trajectory, is_valid_name};
+use super::{MAX_DURATION_S, MAX_JOINT_RAD, MAX_KEYFRAMES, MAX_POSITION_M, QUAT_NORM_TOLERANCE, Trajectory, is_valid_name};
 use crate::geom::Pose;
 use crate::traj::Frame;
 
@@ -225,6 +227,9 @@ impl Trajectory {
                         continue;
                     }
                     let loc = Loc::Frame(raws.len());
+                    if raws.len() >= MAX_KEYFRAMES {
+                        return Err(fail(source, loc, too_many_frames()));
+                    }
                     if encoding != "json" {
                         return Err(fail(
                             source,
@@ -326,6 +331,9 @@ impl Trajectory {
         let mut raws = Vec::new();
         for (n, line) in lines {
             let loc = Loc::Line(n);
+            if raws.len() >= MAX_KEYFRAMES {
+                return Err(fail(source, loc, too_many_frames()));
+            }
             raws.push(layout.row(line, loc).map_err(|e| fail(source, loc, e))?);
         }
         if raws.is_empty() {
@@ -492,7 +500,7 @@ fn truncate(s: &str) -> String {
 fn number_f64(text: &str, label: &str) -> Result<f64, String> {
     let x: f64 = text.parse().map_err(|_| format!("{label}: expected a number, got {}", describe_text(text)))?;
     if !x.is_finite() {
-        return Err(format!("{label}: expected a finite number, got {text}"));
+        return Err(format!("{label}: expected a finite number, got {}", truncate(text)));
     }
     Ok(x)
 }
@@ -503,16 +511,50 @@ fn number_f32(text: &str, label: &str) -> Result<(f32, f64), String> {
     let x64 = number_f64(text, label)?;
     match text.parse::<f32>() {
         Ok(x) if x.is_finite() => Ok((x, x64)),
-        _ => Err(format!("{label}: expected a finite number within f32 range (|x| < 3.4e38), got {text}")),
+        _ => Err(format!("{label}: expected a finite number within f32 range (|x| < 3.4e38), got {}", truncate(text))),
     }
 }
 
 fn time(text: &str, label: &str) -> Result<f64, String> {
     let t = number_f64(text, label)?;
     if t < 0.0 {
-        return Err(format!("{label}: expected a time ≥ 0 (s), got {text}"));
+        return Err(format!("{label}: expected a time ≥ 0 (s), got {}", truncate(text)));
+    }
+    if t > MAX_DURATION_S {
+        return Err(format!(
+            "{label}: expected a time ≤ {MAX_DURATION_S} s (a reference lasts at most an hour, MAX_DURATION_S), got {}",
+            truncate(text)
+        ));
     }
     Ok(t)
+}
+
+/// A position coordinate (m): a finite f32 within ±[`MAX_POSITION_M`].
+fn position(text: &str, label: &str) -> Result<f32, String> {
+    let (x, x64) = number_f32(text, label)?;
+    if x64.abs() > MAX_POSITION_M {
+        return Err(format!(
+            "{label}: expected a position within ±{MAX_POSITION_M} m of the world origin (MAX_POSITION_M), got {}",
+            truncate(text)
+        ));
+    }
+    Ok(x)
+}
+
+/// A joint target (rad): a finite f32 within ±[`MAX_JOINT_RAD`].
+fn joint_value(text: &str, label: &str) -> Result<f32, String> {
+    let (x, x64) = number_f32(text, label)?;
+    if x64.abs() > MAX_JOINT_RAD {
+        return Err(format!(
+            "{label}: expected a joint value within ±{MAX_JOINT_RAD} rad (MAX_JOINT_RAD), got {}",
+            truncate(text)
+        ));
+    }
+    Ok(x)
+}
+
+fn too_many_frames() -> String {
+    format!("expected at most {MAX_KEYFRAMES} frames in a reference (MAX_KEYFRAMES), got more")
 }
 
 /// A pose from the texts of x, y, z, qx, qy, qz, qw. `labels` name them in errors,
@@ -522,6 +564,9 @@ fn pose_from_texts(texts: [&str; 7], labels: &[String; 7], quat_label: &str) -> 
     let mut v64 = [0f64; 7];
     for k in 0..7 {
         (v32[k], v64[k]) = number_f32(texts[k], &labels[k])?;
+        if k < 3 {
+            position(texts[k], &labels[k])?;
+        }
     }
     let q64 = DVec4::new(v64[3], v64[4], v64[5], v64[6]);
     let norm = q64.length();
@@ -752,7 +797,7 @@ fn raw_frame_from_json(v: &json::Value, loc: Loc) -> Result<RawFrame, String> {
     )? {
         check_name("joints", name)?;
         let label = format!("field `joints.{name}`");
-        joints.push((name.clone(), number_f32(expect_num(val, &format!("joints.{name}"))?, &label)?.0));
+        joints.push((name.clone(), joint_value(expect_num(val, &format!("joints.{name}"))?, &label)?));
     }
     let fingertips = match get("fingertips") {
         None => None,
@@ -764,7 +809,7 @@ fn raw_frame_from_json(v: &json::Value, loc: Loc) -> Result<RawFrame, String> {
                 let texts = keyed_numbers(val, &field, &POINT_KEYS)?;
                 let mut p = [0f32; 3];
                 for k in 0..3 {
-                    p[k] = number_f32(texts[k], &format!("field `{field}.{}`", POINT_KEYS[k]))?.0;
+                    p[k] = position(texts[k], &format!("field `{field}.{}`", POINT_KEYS[k]))?;
                 }
                 tips.push((name.clone(), Vec3::from_array(p)));
             }
@@ -956,8 +1001,8 @@ impl CsvLayout {
                 Col::T => t = time(cell, &label())?,
                 Col::Wrist(k) => wrist[k] = cell,
                 Col::Object(k) => object[k] = cell,
-                Col::Joint(j) => joints[j].1 = number_f32(cell, &label())?.0,
-                Col::Tip(j, a) => tips[j].1[a] = number_f32(cell, &label())?.0,
+                Col::Joint(j) => joints[j].1 = joint_value(cell, &label())?,
+                Col::Tip(j, a) => tips[j].1[a] = position(cell, &label())?,
             }
         }
         let labels = |prefix: &str| POSE_KEYS.map(|k| format!("column `{prefix}_{k}`"));

@@ -28,6 +28,21 @@ pub use io::{FORMAT_VERSION, REFERENCE_JSON_SCHEMA, REFERENCE_METADATA_NAME, REF
 /// read from a file); anything further from unit length is an error.
 pub const QUAT_NORM_TOLERANCE: f64 = 1e-3;
 
+/// Longest reference (s): one hour. Real demonstrations last seconds to minutes; the bound keeps
+/// what is derived from the duration finite and small (a replay or a reference bank holds
+/// `duration / control step` frames: 108,000 for an hour at 30 Hz), where a last time of `1e9` would
+/// ask for terabytes.
+pub const MAX_DURATION_S: f64 = 3600.0;
+/// Most keyframes in one reference: 2²² (4,194,304; an hour at 1 kHz is 3.6 M).
+pub const MAX_KEYFRAMES: usize = 1 << 22;
+/// Largest |coordinate| (m) of a wrist, object or fingertip position: 100 m from the world origin.
+/// A demonstration happens on a table near it; the simulator works in f32, whose spacing at 100 m
+/// is 7.6 µm, and errors are differences of positions, so they stay finite and meaningful.
+pub const MAX_POSITION_M: f64 = 100.0;
+/// Largest |joint target| (rad): 100 rad (16 turns of a continuous joint; revolute joints stay
+/// within their limits of a few rad). f32's spacing at 100 is 7.6 µrad.
+pub const MAX_JOINT_RAD: f64 = 100.0;
+
 /// One keyframe of a reference.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Frame {
@@ -46,8 +61,11 @@ pub struct Frame {
 /// A reference trajectory.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Trajectory {
+    /// Names of the joints the frames give targets for, in `Frame::joints` order.
     pub joint_names: Vec<String>,
+    /// Names of the fingertips the frames give positions for, in `Frame::fingertips` order.
     pub fingertip_names: Vec<String>,
+    /// Keyframes by strictly increasing time.
     pub frames: Vec<Frame>,
 }
 
@@ -67,18 +85,23 @@ impl Trajectory {
         self.frames.first().is_some_and(|f| f.object.is_some())
     }
 
-    /// Checks the CONTRACT and what the file formats need: at least one frame; finite times
-    /// `t ≥ 0`, strictly increasing; one joint value per joint name and, where present, one
-    /// fingertip per fingertip name in every frame; optional parts in all frames or none; finite
-    /// numbers; quaternions within [`QUAT_NORM_TOLERANCE`] of unit length; names valid (see
-    /// [`is_valid_name`]) and unique. The error is one line naming the frame and the field.
-    /// The savers call this first.
+    /// Checks the CONTRACT and what the file formats need: at least one and at most
+    /// [`MAX_KEYFRAMES`] frames; finite times `0 ≤ t ≤` [`MAX_DURATION_S`], strictly increasing;
+    /// one joint value per joint name and, where present, one fingertip per fingertip name in every
+    /// frame; optional parts in all frames or none; finite numbers, positions within
+    /// ±[`MAX_POSITION_M`] and joint values within ±[`MAX_JOINT_RAD`]; quaternions within
+    /// [`QUAT_NORM_TOLERANCE`] of unit length; names valid (see [`is_valid_name`]) and unique.
+    /// The error is one line naming the frame and the field. The savers, `replay` and the
+    /// reference bank call this first.
     pub fn validate(&self) -> Result<()> {
         check_names("joint_names", &self.joint_names)?;
         check_names("fingertip_names", &self.fingertip_names)?;
         let Some(first) = self.frames.first() else {
             bail!("trajectory has no frames: expected at least 1 frame");
         };
+        if self.frames.len() > MAX_KEYFRAMES {
+            bail!("trajectory has {} frames: expected at most {MAX_KEYFRAMES} (MAX_KEYFRAMES)", self.frames.len());
+        }
         let tips = first.fingertips.is_some();
         let object = first.object.is_some();
         if !tips && !self.fingertip_names.is_empty() {
@@ -91,6 +114,9 @@ impl Trajectory {
         for (i, f) in self.frames.iter().enumerate() {
             if !f.t.is_finite() || f.t < 0.0 {
                 bail!("frame {i}: field `t`: expected a finite time ≥ 0, got {}", f.t);
+            }
+            if f.t > MAX_DURATION_S {
+                bail!("frame {i}: field `t`: expected a time ≤ {MAX_DURATION_S} s (one hour, MAX_DURATION_S), got {}", f.t);
             }
             if f.t <= prev_t {
                 bail!("frame {i}: field `t`: expected times strictly increasing, got {} after {}", f.t, prev_t);
@@ -108,6 +134,9 @@ impl Trajectory {
                 if !v.is_finite() {
                     bail!("frame {i}: field `joints.{name}`: expected a finite number, got {v}");
                 }
+                if (*v as f64).abs() > MAX_JOINT_RAD {
+                    bail!("frame {i}: field `joints.{name}`: expected a joint value within ±{MAX_JOINT_RAD} rad (MAX_JOINT_RAD), got {v}");
+                }
             }
             match (&f.fingertips, tips) {
                 (Some(p), true) => {
@@ -122,6 +151,7 @@ impl Trajectory {
                         if !p.is_finite() {
                             bail!("frame {i}: field `fingertips.{name}`: expected finite numbers, got {p}");
                         }
+                        check_position(i, &format!("fingertips.{name}"), *p)?;
                     }
                 }
                 (None, false) => {}
@@ -255,9 +285,20 @@ fn check_pose(i: usize, field: &str, p: &Pose) -> Result<()> {
     if !p.pos.is_finite() || !p.rot.is_finite() {
         bail!("frame {i}: field `{field}`: expected finite numbers, got pos {} rot {}", p.pos, p.rot);
     }
+    check_position(i, field, p.pos)?;
     let norm = p.rot.as_dquat().length();
     if (norm - 1.0).abs() >= QUAT_NORM_TOLERANCE {
         bail!("frame {i}: field `{field}`: expected a unit quaternion (qx, qy, qz, qw), got norm {norm}");
+    }
+    Ok(())
+}
+
+/// A position within ±[`MAX_POSITION_M`] on every axis.
+fn check_position(i: usize, field: &str, p: Vec3) -> Result<()> {
+    for (axis, v) in ["x", "y", "z"].iter().zip(p.to_array()) {
+        if (v as f64).abs() > MAX_POSITION_M {
+            bail!("frame {i}: field `{field}.{axis}`: expected a position within ±{MAX_POSITION_M} m (MAX_POSITION_M), got {v}");
+        }
     }
     Ok(())
 }

@@ -438,7 +438,8 @@ fn residual_run_trains_and_evaluates_against_the_open_loop_baseline() {
     let want = rep.terminal_object_pos_err_m.unwrap();
     assert!(want > 0.005, "replay ends {want} m off: the early termination would have cut it");
     for ep in &base.per_episode {
-        assert!((ep.terminal_pos_err_m - want).abs() < 1e-6, "baseline ends {} m off, replay {want} m", ep.terminal_pos_err_m);
+        let end = ep.terminal_pos_err_m.expect("a reference kind reports the terminal error");
+        assert!((end - want).abs() < 1e-6, "baseline ends {end} m off, replay {want} m");
         assert_eq!(ep.length as usize, rep.trace.len() - 1, "the episode plays the whole reference");
     }
     // every episode names its reference, and the Markdown has a row per reference
@@ -448,7 +449,16 @@ fn residual_run_trains_and_evaluates_against_the_open_loop_baseline() {
     }
     let md = std::fs::read_to_string(r.path.with_extension("md")).unwrap();
     assert!(md.lines().any(|l| l.starts_with("| grasp_lift.mcap | ") && l.matches("/2").count() == 2), "{md}");
-    assert!(base.ote_m.mean > 0.0 && base.ote_m.mean < 0.05, "{:?}", base.ote_m);
+    let ote = base.ote_m.as_ref().expect("a reference kind reports OTE");
+    assert!(ote.mean > 0.0 && ote.mean < 0.05, "{ote:?}");
+    // one meaning per metric name: the peak is the deepest of any step, at least each episode's peak
+    for summary in [&json, &json["baseline"]] {
+        let peak = summary["peak_penetration_mm"].as_f64().expect("peak_penetration_mm is a number");
+        let per_episode = &summary["episode_peak_penetration_mm"];
+        assert!(peak >= per_episode["mean"].as_f64().unwrap() && peak >= 0.0, "{summary}");
+        assert!(summary["mean_fingertip_force_n"].is_number(), "{summary}");
+        assert!(summary.get("max_penetration_mm").is_none() && summary.get("mean_contact_force_n").is_none(), "{summary}");
+    }
     // an unknown baseline is an error that names the flag and the allowed value (a closed choice:
     // the command line rejects it before eval runs)
     let out = std::process::Command::new(env!("CARGO_BIN_EXE_dextrain")).arg("eval").arg(&dir).args(["--baseline", "closed-loop"]).output().unwrap();
@@ -465,4 +475,153 @@ fn eval_names_references_by_file_name_unless_two_collide() {
     // two datasets with a ref_000.mcap each: every reference is named by its whole path
     let both = [p("refs/a/ref_000.mcap"), p("refs/b/ref_000.mcap"), p("refs/b/ref_001.mcap")];
     assert_eq!(reference_names(&both), ["refs/a/ref_000.mcap", "refs/b/ref_000.mcap", "refs/b/ref_001.mcap"]);
+}
+
+// ------------------------------------------------------------------------------------------------
+// eval and replay reports
+
+/// A summary with every tracking metric set (reference kinds) or none (lift).
+fn summary(tracking: bool) -> dextrain::eval::Summary {
+    use dextrain::eval::{EpisodeRow, MeanStd, Summary};
+    let ms = |mean: f64| MeanStd { mean, std: 0.5 * mean };
+    let t = |v: f64| tracking.then_some(v);
+    Summary {
+        success_rate: 0.5,
+        terminated_rate: 0.25,
+        episode_return: ms(10.0),
+        episode_length: ms(100.0),
+        final_lift_height_m: ms(0.05),
+        max_lift_height_m: ms(0.08),
+        ote_m: tracking.then(|| ms(0.012)),
+        ooe_deg: tracking.then(|| ms(4.0)),
+        terminal_obj_pos_err_m: tracking.then(|| ms(0.02)),
+        terminal_obj_rot_err_deg: tracking.then(|| ms(6.0)),
+        reward_terms: serde_json::Map::new(),
+        peak_penetration_mm: 3.0,
+        episode_peak_penetration_mm: ms(1.5),
+        frac_frames_penetration_over_1mm: 0.1,
+        mean_fingertip_force_n: 2.0,
+        per_episode: vec![EpisodeRow {
+            ret: 10.0,
+            length: 100,
+            success: true,
+            terminated: false,
+            ote_m: t(0.012),
+            ooe_deg: t(4.0),
+            terminal_pos_err_m: t(0.02),
+            terminal_rot_err_deg: t(6.0),
+            reference: if tracking { "a.mcap".into() } else { String::new() },
+        }],
+    }
+}
+
+fn report(task: &str, tracking: bool, baseline: bool) -> dextrain::eval::EvalReport {
+    dextrain::eval::EvalReport {
+        run: "runs/x".into(),
+        checkpoint: "runs/x/checkpoints/4".into(),
+        iteration: 4,
+        seed: 7,
+        episodes: 1,
+        task: task.into(),
+        env_backend: "cpu".into(),
+        learner_device: "cpu".into(),
+        policy: summary(tracking),
+        baseline: baseline.then(|| summary(tracking)),
+        path: PathBuf::new(),
+    }
+}
+
+/// Item 6: the lift task has no reference, so its report leaves OTE, OOE and the terminal object
+/// error out (the Markdown rows, and the JSON keys) instead of printing "0.0 ± 0.0"; a reference
+/// kind shows them.
+#[test]
+fn lift_reports_leave_the_tracking_metrics_out() {
+    let lift = report("lift", false, false);
+    let md = dextrain::eval::markdown(&lift);
+    for row in ["OTE", "OOE", "terminal object error"] {
+        assert!(!md.contains(row), "lift table has a {row} row:\n{md}");
+    }
+    assert!(md.contains("| success rate | 50.0 % |") && md.contains("| peak penetration (mm) | 3.00 |"), "{md}");
+    assert!(md.contains("| episode peak penetration (mm) | 1.50 ± 0.75 |"), "{md}");
+    let json = serde_json::to_value(&lift).unwrap();
+    for key in ["ote_m", "ooe_deg", "terminal_obj_pos_err_m", "terminal_obj_rot_err_deg", "baseline"] {
+        assert!(json.get(key).is_none(), "lift JSON has `{key}`: {json}");
+    }
+    assert!(json["per_episode"][0].get("ote_m").is_none() && json["per_episode"][0]["ret"] == 10.0, "{json}");
+    let track = report("track", true, true);
+    let md = dextrain::eval::markdown(&track);
+    assert!(md.contains("| OTE (mm) | 12.0 ± 6.0 | 12.0 ± 6.0 |") && md.contains("| OOE (deg) | 4.0 ± 2.0 | 4.0 ± 2.0 |"), "{md}");
+    assert!(md.contains("| terminal object error (mm) | 20.0 ± 10.0 | 20.0 ± 10.0 |"), "{md}");
+    let json = serde_json::to_value(&track).unwrap();
+    assert_eq!(json["ote_m"]["mean"], 0.012);
+    assert_eq!(json["baseline"]["terminal_obj_rot_err_deg"]["mean"], 6.0);
+}
+
+/// Item 8, finding 5: a non-finite value in a report (serde_json would print it as `null`) is an
+/// error naming the field, in the policy's summary, the baseline's, an episode row or a reward term.
+#[test]
+fn a_non_finite_report_value_is_an_error_naming_the_field() {
+    use dextrain::eval::check_finite;
+    check_finite(&report("track", true, true), "eval report").expect("a finite report passes");
+    check_finite(&report("lift", false, false), "eval report").expect("absent lift metrics are not nulls");
+    let mut r = report("track", true, true);
+    r.policy.ote_m.as_mut().unwrap().mean = f64::NAN;
+    let e = check_finite(&r, "eval report").unwrap_err().to_string();
+    assert!(e.contains("eval report") && e.contains("`ote_m.mean`") && e.contains("finite") && !e.contains('\n'), "{e}");
+    let mut r = report("track", true, true);
+    r.baseline.as_mut().unwrap().peak_penetration_mm = f64::INFINITY;
+    let e = check_finite(&r, "eval report").unwrap_err().to_string();
+    assert!(e.contains("`baseline.peak_penetration_mm`"), "{e}");
+    let mut r = report("track", true, false);
+    r.policy.per_episode[0].terminal_rot_err_deg = Some(f64::NAN);
+    let e = check_finite(&r, "eval report").unwrap_err().to_string();
+    assert!(e.contains("`per_episode.0.terminal_rot_err_deg`"), "{e}");
+    let mut r = report("lift", false, false);
+    r.policy.reward_terms.insert("reaching".into(), serde_json::json!(f64::NAN));
+    let e = check_finite(&r, "eval report").unwrap_err().to_string();
+    assert!(e.contains("`reward_terms.reaching`"), "{e}");
+}
+
+/// Finding 5 at replay: a reference whose object is 3.4e38 m away is refused before it is
+/// simulated (it printed `"mean_object_pos_err_m": null` and exited 0), and a replay's report is
+/// all finite, with the object errors left out (not null) when the reference has no object.
+#[test]
+fn replay_refuses_values_it_cannot_simulate_and_reports_only_finite_numbers() {
+    let cfg = track_config("track", 1);
+    let mut traj = reference();
+    let k = traj.frames.len() / 2;
+    traj.frames[k].object.as_mut().expect("the reference has an object").pos.y = 3.4e38;
+    let e = format!("{:#}", replay(&cfg, &traj, true, None).unwrap_err());
+    assert!(e.contains(&format!("frame {k}")) && e.contains("`object.y`") && e.contains("±100 m") && !e.contains('\n'), "{e}");
+    // without an object pose the object errors are left out of the JSON, and nothing is null
+    let mut traj = reference();
+    traj.frames.truncate(10);
+    for f in &mut traj.frames {
+        f.object = None;
+    }
+    let r = replay(&cfg, &traj, true, None).expect("kinematic replay");
+    let json = serde_json::to_value(&r).unwrap();
+    assert_eq!(json["has_object_reference"], false);
+    assert!(json.get("mean_object_pos_err_m").is_none() && json.get("terminal_object_rot_err_deg").is_none(), "{json}");
+    dextrain::eval::check_finite(&r, "replay report").expect("finite");
+    assert!(json.as_object().unwrap().values().all(|v| !v.is_null()), "{json}");
+}
+
+/// Finding 1 at replay: the frame count (duration / control step) is bounded before anything is
+/// allocated: an hour-long reference at a 1 ms control step (3.6 M frames) is an error naming the
+/// duration, the last frame and the bound, where it used to allocate and run for hours.
+#[test]
+fn replay_bounds_the_frame_count_before_allocating() {
+    let mut cfg = track_config("track", 1);
+    cfg.sim.dt = 1e-3;
+    cfg.sim.decimation = 1;
+    cfg.validate().expect("a 1 ms step is a valid config");
+    let mut traj = reference();
+    traj.frames.truncate(2);
+    traj.frames[1].t = 3600.0;
+    let e = format!("{:#}", replay(&cfg, &traj, false, None).unwrap_err());
+    assert!(e.contains("3600 s") && e.contains("frame 1") && e.contains("MAX_REF_FRAMES") && !e.contains('\n'), "{e}");
+    // the bank says the same for training
+    let e = format!("{:#}", dextrain::traj::bank::RefBank::build(&[traj], &SimModel::from_config(&cfg).unwrap(), 0).unwrap_err());
+    assert!(e.contains("expected at most"), "{e}");
 }

@@ -62,7 +62,7 @@ fn awkward_trajectory(tips: bool, object: bool) -> Trajectory {
         if k == 3 {
             joints[0] = -0.0;
             joints[1] = 1e-30;
-            joints[2] = 3.0e7;
+            joints[2] = 99.999_99; // near MAX_JOINT_RAD, the largest joint value a reference may hold
             joints[3] = f32::MIN_POSITIVE;
         }
         frames.push(Frame {
@@ -646,6 +646,79 @@ fn saving_an_invalid_trajectory_is_an_error() {
     traj.frames[0].object = Some(Pose::IDENTITY);
     assert!(format!("{:#}", traj.to_mcap_bytes().unwrap_err()).contains("`object`"));
     assert!(Trajectory::default().to_mcap_bytes().is_err());
+}
+
+/// Finding 1 (fuzzing review): a huge last time made `replay` allocate terabytes (1e9), run for
+/// days (1e6) or wrap to "no frames" (1e18). A time beyond an hour is an error at load, naming the
+/// file and the frame (MCAP) or line (CSV) and the field, in both formats and in memory.
+#[test]
+fn a_time_beyond_an_hour_is_an_error_naming_file_and_frame() {
+    use dextrain::traj::MAX_DURATION_S;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ok0 = msg("0", r#"{"if_j0":0.1}"#);
+    for t in ["1e6", "1e9", "1e18", "3600.001"] {
+        let bytes = mcap_of(&[ok0.clone(), msg(t, r#"{"if_j0":0.2}"#)]);
+        load_err(d, "long.mcap", &bytes, &["frame 1", "`t`", "≤ 3600 s", t]);
+        let csv = format!("t,wrist_x,wrist_y,wrist_z,wrist_qx,wrist_qy,wrist_qz,wrist_qw,joint:if_j0
+0,0,0,0,0,0,0,1,0
+{t},0,0,0,0,0,0,1,0
+");
+        load_err(d, "long.csv", csv.as_bytes(), &["line 3", "column `t`", "≤ 3600 s", t]);
+    }
+    // exactly an hour still loads
+    let bytes = mcap_of(&[ok0.clone(), msg("3600", r#"{"if_j0":0.2}"#)]);
+    std::fs::write(d.join("hour.mcap"), bytes).unwrap();
+    assert_eq!(Trajectory::load(d.join("hour.mcap")).unwrap().duration(), MAX_DURATION_S);
+    // in memory: validate (savers, replay, the bank) says the same
+    let mut traj = example_expected();
+    traj.frames[2].t = 1e9;
+    let e = format!("{:#}", traj.validate().unwrap_err());
+    assert!(e.contains("frame 2") && e.contains("`t`") && e.contains("3600"), "{e}");
+}
+
+/// Finding 5 (fuzzing review): `object_y = 3.4e38` loaded and put `null` (a NaN) in replay's report.
+/// Positions beyond ±100 m and joint values beyond ±100 rad are errors naming the file, the frame
+/// or line and the field; values just inside the bounds load.
+#[test]
+fn values_a_simulation_cannot_hold_are_errors_naming_file_frame_and_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let h = "t,wrist_x,wrist_y,wrist_z,wrist_qx,wrist_qy,wrist_qz,wrist_qw,joint:if_j0,tip:th:x,tip:th:y,tip:th:z,object_x,object_y,object_z,object_qx,object_qy,object_qz,object_qw";
+    let row0 = "0,0,0,0.3,0,0,0,1,0.1,0,0,0.2,0,0,0.03,0,0,0,1";
+    let csv = |row: &str| format!("{h}
+{row0}
+{row}
+").into_bytes();
+    let cases: Vec<(&str, Vec<u8>, Vec<&str>)> = vec![
+        ("object_y.csv", csv("1,0,0,0.3,0,0,0,1,0.1,0,0,0.2,0,3.4e38,0.03,0,0,0,1"), vec!["line 3", "`object_y`", "±100 m", "3.4e38"]),
+        ("wrist_x.csv", csv("1,-100.5,0,0.3,0,0,0,1,0.1,0,0,0.2,0,0,0.03,0,0,0,1"), vec!["line 3", "`wrist_x`", "±100 m"]),
+        ("tip.csv", csv("1,0,0,0.3,0,0,0,1,0.1,0,0,1e30,0,0,0.03,0,0,0,1"), vec!["line 3", "`tip:th:z`", "±100 m"]),
+        ("joint.csv", csv("1,0,0,0.3,0,0,0,1,1e5,0,0,0.2,0,0,0.03,0,0,0,1"), vec!["line 3", "`joint:if_j0`", "±100 rad"]),
+    ];
+    for (name, bytes, needles) in &cases {
+        load_err(d, name, bytes, needles);
+    }
+    let ok0 = msg("0", r#"{"if_j0":0.1}"#);
+    let obj = |y: &str| format!(r#"{{"t":1,"wrist":{W},"joints":{{"if_j0":0.1}},"object":{{"x":0,"y":{y},"z":0,"qx":0,"qy":0,"qz":0,"qw":1}}}}"#);
+    let ok_obj = format!(r#"{{"t":0,"wrist":{W},"joints":{{"if_j0":0.1}},"object":{{"x":0,"y":0,"z":0,"qx":0,"qy":0,"qz":0,"qw":1}}}}"#);
+    load_err(d, "object.mcap", &mcap_of(&[ok_obj.clone(), obj("3.4e38")]), &["frame 1", "`object.y`", "±100 m"]);
+    load_err(d, "joint.mcap", &mcap_of(&[ok0.clone(), msg("1", r#"{"if_j0":-250}"#)]), &["frame 1", "`joints.if_j0`", "±100 rad"]);
+    let tips = format!(r#"{{"t":1,"wrist":{W},"joints":{{"if_j0":0.1}},"fingertips":{{"th":{{"x":0,"y":0,"z":-1e3}}}}}}"#);
+    let tips0 = format!(r#"{{"t":0,"wrist":{W},"joints":{{"if_j0":0.1}},"fingertips":{{"th":{{"x":0,"y":0,"z":0}}}}}}"#);
+    load_err(d, "tips.mcap", &mcap_of(&[tips0, tips]), &["frame 1", "`fingertips.th.z`", "±100 m"]);
+    // just inside the bounds loads
+    std::fs::write(d.join("edge.mcap"), mcap_of(&[ok_obj, obj("99.5")])).unwrap();
+    assert_eq!(Trajectory::load(d.join("edge.mcap")).unwrap().frames[1].object.unwrap().pos.y, 99.5);
+    // in memory too
+    let mut traj = example_expected();
+    traj.frames[1].wrist.pos.z = 3.4e38;
+    let e = format!("{:#}", traj.validate().unwrap_err());
+    assert!(e.contains("frame 1") && e.contains("`wrist.z`") && e.contains("±100 m"), "{e}");
+    let mut traj = example_expected();
+    traj.frames[0].joints[1] = 1e4;
+    let e = format!("{:#}", traj.validate().unwrap_err());
+    assert!(e.contains("frame 0") && e.contains("`joints.th_j0`") && e.contains("±100 rad"), "{e}");
 }
 
 /// Truncations, bit flips and random edits of valid files give errors or trajectories, never panics.
