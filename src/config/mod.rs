@@ -97,6 +97,12 @@ pub fn quote_short(value: &str) -> String {
     format!("{cut}… ({} characters)", value.chars().count())
 }
 
+/// A message with each double-quoted part cut to [`MAX_QUOTED_CHARS`] (serde's messages quote the
+/// offending value and list the allowed ones: the list stays, a 5,000-character value does not).
+pub fn shorten_quoted(message: &str) -> String {
+    message.split('"').enumerate().map(|(i, part)| if i % 2 == 1 { quote_short(part) } else { part.to_string() }).collect::<Vec<_>>().join("\"")
+}
+
 /// The validation context of one config file: builds the one-line errors
 /// `FILE: key `KEY` = VALUE: expected ALLOWED` and checks numbers.
 pub struct Check {
@@ -166,7 +172,9 @@ impl Config {
     /// Parses and validates config text; `path` is used for error messages and relative paths.
     pub fn from_toml_str(text: &str, path: &Path) -> Result<Config> {
         let file = path.display();
-        let value = toml::Value::Table(parse_toml(text, path)?);
+        let mut table = parse_toml(text, path)?;
+        migrate_moved_keys(&mut table).map_err(|e| anyhow::anyhow!("{file}: {e}"))?;
+        let value = toml::Value::Table(table);
         let parsed = value.clone();
         // without a [task.rewards] table, the kind's default weights
         let has_rewards = value.get("task").and_then(|t| t.get("rewards")).is_some();
@@ -177,7 +185,7 @@ impl Config {
             let msg = one_line(&e.into_inner().to_string()).replace('`', "\"");
             // the offending value, where the key holds one (not a table)
             let shown = value_at(&parsed, &key).filter(|v| !v.is_table()).map(|v| format!(" = {}", quote_short(&v.to_string()))).unwrap_or_default();
-            anyhow::anyhow!("{file}: key `{}`{shown}: {}", quote_short(&key), quote_short(&msg))
+            anyhow::anyhow!("{file}: key `{}`{shown}: {}", quote_short(&key), shorten_quoted(&msg))
         })?;
         if !has_rewards {
             cfg.task.rewards = cfg.task.kind.default_rewards();
@@ -222,6 +230,34 @@ impl Config {
         self.ppo.validate(&c, self.sim.num_envs as u64 * self.train.steps_per_env as u64)?;
         self.policy.validate(&c)
     }
+}
+
+/// Keys that moved, as (old table, key, new table): `[task.lift]`'s keys that every kind uses now
+/// live in `[task.hand]` and `[task.termination]`. Configs written before the move still load.
+pub const MOVED_KEYS: [(&str, &str, &str); 6] = [
+    ("lift", "thumb", "hand"),
+    ("lift", "contact_force", "hand"),
+    ("lift", "palm_offset", "hand"),
+    ("lift", "drop_height", "termination"),
+    ("lift", "table_half_extent", "termination"),
+    ("lift", "max_hand_distance", "termination"),
+];
+
+/// Moves the keys of [`MOVED_KEYS`] from their old `[task.*]` table to the new one; a key given in
+/// both places is an error.
+fn migrate_moved_keys(table: &mut toml::Table) -> Result<()> {
+    let Some(toml::Value::Table(task)) = table.get_mut("task") else { return Ok(()) };
+    for (old, key, new) in MOVED_KEYS {
+        let Some(toml::Value::Table(from)) = task.get_mut(old) else { continue };
+        let Some(v) = from.remove(key) else { continue };
+        let to = task.entry(new.to_string()).or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        let toml::Value::Table(to) = to else { bail!("key `task.{new}`: expected a table") };
+        if to.contains_key(key) {
+            bail!("key `task.{old}.{key}` (the old place of `task.{new}.{key}`) and `task.{new}.{key}` are both given; expected one of them");
+        }
+        to.insert(key.to_string(), v);
+    }
+    Ok(())
 }
 
 /// The value at a dotted key path such as `task.kind` or `wrist.init_pos[1]` (`None` where there is

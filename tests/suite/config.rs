@@ -226,3 +226,15 @@ fn closed_choices_duplicate_keys_and_long_values_give_readable_one_line_errors()
     assert_eq!(again.sim.backend, dextrain::config::BackendChoice::Gpu(Some("llvmpipe".into())));
     assert_eq!(again, Config { base_dir: again.base_dir.clone(), ..c });
 }
+
+/// `[task.lift]`'s keys that every kind uses moved to `[task.hand]` and `[task.termination]`;
+/// configs written before still load (into the new places), and giving both is an error.
+#[test]
+fn keys_moved_out_of_task_lift_still_load() {
+    let p = Path::new("run.toml");
+    let c = Config::from_toml_str("[task.lift]\nthumb = \"th_tip\"\ncontact_force = 0.2\nmax_hand_distance = 0.7\nsuccess_height = 0.05\n", p).unwrap();
+    assert_eq!((c.task.hand.thumb.as_str(), c.task.hand.contact_force, c.task.termination.max_hand_distance, c.task.lift.success_height), ("th_tip", 0.2, 0.7, 0.05));
+    assert!(!c.to_toml().unwrap().contains("[task.lift]\nthumb"), "written back in the new place");
+    let e = format!("{:#}", Config::from_toml_str("[task.lift]\ncontact_force = 0.2\n[task.hand]\ncontact_force = 0.3\n", p).unwrap_err());
+    assert!(e.contains("run.toml") && e.contains("task.lift.contact_force") && e.contains("task.hand.contact_force") && !e.contains('\n'), "{e}");
+}
