@@ -45,6 +45,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Result;
 use glam::{DMat3, DQuat, DVec3, Quat, Vec3};
 
+use crate::config::{MAX_QUOTED_CHARS, clip, clip_quoted};
 use crate::geom::Pose;
 
 /// Most movable joints (actuated + mimic followers) a hand may have (keep in sync with
@@ -59,8 +60,6 @@ pub const MAX_TIPS: usize = 6;
 pub const MAX_URDF_BYTES: usize = 16 << 20;
 /// Deepest nesting of XML elements: 32 levels (a URDF uses 5: robot > link > collision > geometry > box).
 pub const MAX_URDF_DEPTH: usize = 32;
-/// Longest value (characters) quoted in an error message; longer ones are cut and end in "…".
-pub const MAX_QUOTED_CHARS: usize = 80;
 /// Smallest mass (kg) of a link that has an `<inertial>` (1 mg; real fingertip links weigh ≥ 1 g).
 pub const MIN_LINK_MASS_KG: f64 = 1e-6;
 /// Largest mass (kg) of a link (Shadow's forearm, the heaviest real link, is 3 kg).
@@ -354,42 +353,6 @@ fn one_line_error(msg: String) -> anyhow::Error {
     let msg = msg.replace('\r', "\n");
     let line: Vec<&str> = msg.lines().map(str::trim).filter(|l| !l.is_empty()).collect();
     anyhow::anyhow!("{}", clip_quoted(&line.join(" ")))
-}
-
-/// `s` cut to `max` characters, with "…" where it was cut.
-fn clip(s: &str, max: usize) -> String {
-    if s.chars().count() > max { format!("{}…", s.chars().take(max).collect::<String>()) } else { s.to_string() }
-}
-
-/// Cuts every quoted value of a message ('…', "…", `…` or […], opening at the start of a word) to
-/// [`MAX_QUOTED_CHARS`] characters, so that a 5,000-character name or vector prints as 80.
-fn clip_quoted(msg: &str) -> String {
-    let chars: Vec<char> = msg.chars().collect();
-    let mut out = String::with_capacity(msg.len());
-    let mut i = 0;
-    while i < chars.len() {
-        let c = chars[i];
-        let close = match c {
-            '\'' | '"' | '`' => Some(c),
-            '[' => Some(']'),
-            _ => None,
-        };
-        let word_start = i == 0 || !chars[i - 1].is_alphanumeric();
-        if let (Some(close), true) = (close, word_start)
-            && let Some(len) = chars[i + 1..].iter().position(|&d| d == close)
-            && len > MAX_QUOTED_CHARS
-        {
-            out.push(c);
-            out.extend(&chars[i + 1..i + 1 + MAX_QUOTED_CHARS]);
-            out.push('…');
-            out.push(close);
-            i += len + 2;
-            continue;
-        }
-        out.push(c);
-        i += 1;
-    }
-    out
 }
 
 type R<T> = std::result::Result<T, String>;

@@ -85,22 +85,49 @@ impl Default for Config {
     }
 }
 
-/// Longest quoted value in an error message (characters); longer ones are cut with "…".
+/// Longest value (characters) quoted in an error message; longer ones are cut and end in "…".
 pub const MAX_QUOTED_CHARS: usize = 80;
+
+/// `s` cut to `max` characters, with "…" where it was cut.
+pub fn clip(s: &str, max: usize) -> String {
+    if s.chars().count() > max { format!("{}…", s.chars().take(max).collect::<String>()) } else { s.to_string() }
+}
 
 /// A value for an error message: at most [`MAX_QUOTED_CHARS`] characters.
 pub fn quote_short(value: &str) -> String {
-    if value.chars().count() <= MAX_QUOTED_CHARS {
-        return value.to_string();
-    }
-    let cut: String = value.chars().take(MAX_QUOTED_CHARS).collect();
-    format!("{cut}… ({} characters)", value.chars().count())
+    clip(value, MAX_QUOTED_CHARS)
 }
 
-/// A message with each double-quoted part cut to [`MAX_QUOTED_CHARS`] (serde's messages quote the
-/// offending value and list the allowed ones: the list stays, a 5,000-character value does not).
-pub fn shorten_quoted(message: &str) -> String {
-    message.split('"').enumerate().map(|(i, part)| if i % 2 == 1 { quote_short(part) } else { part.to_string() }).collect::<Vec<_>>().join("\"")
+/// Cuts every quoted value of a message ('…', "…", `…` or […], opening at the start of a word) to
+/// [`MAX_QUOTED_CHARS`] characters, so that a 5,000-character name or vector prints as 80 (serde's
+/// and urdf-rs's messages quote the offending value and list the allowed ones: the list stays).
+pub fn clip_quoted(msg: &str) -> String {
+    let chars: Vec<char> = msg.chars().collect();
+    let mut out = String::with_capacity(msg.len());
+    let mut i = 0;
+    while i < chars.len() {
+        let c = chars[i];
+        let close = match c {
+            '\'' | '"' | '`' => Some(c),
+            '[' => Some(']'),
+            _ => None,
+        };
+        let word_start = i == 0 || !chars[i - 1].is_alphanumeric();
+        if let (Some(close), true) = (close, word_start)
+            && let Some(len) = chars[i + 1..].iter().position(|&d| d == close)
+            && len > MAX_QUOTED_CHARS
+        {
+            out.push(c);
+            out.extend(&chars[i + 1..i + 1 + MAX_QUOTED_CHARS]);
+            out.push('…');
+            out.push(close);
+            i += len + 2;
+            continue;
+        }
+        out.push(c);
+        i += 1;
+    }
+    out
 }
 
 /// The validation context of one config file: builds the one-line errors
@@ -185,7 +212,7 @@ impl Config {
             let msg = one_line(&e.into_inner().to_string()).replace('`', "\"");
             // the offending value, where the key holds one (not a table)
             let shown = value_at(&parsed, &key).filter(|v| !v.is_table()).map(|v| format!(" = {}", quote_short(&v.to_string()))).unwrap_or_default();
-            anyhow::anyhow!("{file}: key `{}`{shown}: {}", quote_short(&key), shorten_quoted(&msg))
+            anyhow::anyhow!("{file}: key `{}`{shown}: {}", quote_short(&key), clip_quoted(&msg))
         })?;
         if !has_rewards {
             cfg.task.rewards = cfg.task.kind.default_rewards();

@@ -27,22 +27,16 @@ pub enum BackendChoice {
 /// The allowed spellings, for error messages.
 pub const BACKEND_CHOICES: &str = "one of \"auto\", \"cpu\", \"gpu\", \"gpu:ADAPTER_NAME\"";
 
-impl BackendChoice {
-    /// `"auto"`, `"cpu"`, `"gpu"` or `"gpu:NAME"` (NAME not empty); `None` otherwise.
-    pub fn parse(s: &str) -> Option<BackendChoice> {
-        match s {
-            "auto" => Some(BackendChoice::Auto),
-            "cpu" => Some(BackendChoice::Cpu),
-            "gpu" => Some(BackendChoice::Gpu(None)),
-            _ => s.strip_prefix("gpu:").filter(|n| !n.is_empty()).map(|n| BackendChoice::Gpu(Some(n.to_string()))),
-        }
-    }
-}
-
 impl FromStr for BackendChoice {
     type Err = String;
+    /// `"auto"`, `"cpu"`, `"gpu"` or `"gpu:NAME"` (NAME not empty).
     fn from_str(s: &str) -> Result<Self, String> {
-        BackendChoice::parse(s).ok_or_else(|| format!("expected {BACKEND_CHOICES}"))
+        match s {
+            "auto" => Ok(BackendChoice::Auto),
+            "cpu" => Ok(BackendChoice::Cpu),
+            "gpu" => Ok(BackendChoice::Gpu(None)),
+            _ => s.strip_prefix("gpu:").filter(|n| !n.is_empty()).map(|n| BackendChoice::Gpu(Some(n.to_string()))).ok_or_else(|| format!("expected {BACKEND_CHOICES}")),
+        }
     }
 }
 

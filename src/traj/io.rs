@@ -492,8 +492,9 @@ fn describe_text(text: &str) -> String {
     if text.is_empty() { "an empty cell".into() } else { format!("{:?}", truncate(text)) }
 }
 
+/// A cell or value for a message: at most 40 characters.
 fn truncate(s: &str) -> String {
-    if s.chars().count() > 40 { format!("{}…", s.chars().take(40).collect::<String>()) } else { s.to_string() }
+    crate::config::clip(s, 40)
 }
 
 /// Parses a number's text as f64 (finite).
