@@ -15,6 +15,7 @@ pub mod metrics;
 pub mod plot;
 pub mod record;
 pub mod replay;
+pub mod run;
 pub mod run_dir;
 pub mod train;
 pub mod tensorboard;

@@ -56,7 +56,7 @@ enum Command {
         seconds: f64,
     },
     /// Train a policy with PPO from a TOML config (or resume a run).
-    Train(dextrain::train::TrainArgs),
+    Train(dextrain::run::TrainArgs),
     /// Evaluate a run's checkpoint: deterministic episodes on fresh seeds, a JSON report in RUN/eval/.
     Eval(dextrain::eval::EvalArgs),
     /// Draw a run's learning curves (PNG) from its metrics.csv into RUN/plots/.
@@ -136,7 +136,7 @@ fn run(cli: Cli) -> Result<()> {
             println!("{}", serde_json::to_string(&report).context("cannot serialise the report")?);
             Ok(())
         }
-        Command::Train(args) => dextrain::train::run(&args).map(|_| ()),
+        Command::Train(args) => dextrain::run::train(&args).map(|_| ()),
         Command::Eval(args) => {
             let report = dextrain::eval::run(&args)?;
             println!("{}", serde_json::to_string(&report).context("cannot serialise the report")?);
