@@ -15,12 +15,16 @@ use super::rng::Rng;
 /// Hidden-layer activation.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Activation {
+    /// ELU (α = 1).
     Elu,
+    /// ReLU.
     Relu,
+    /// tanh.
     Tanh,
 }
 
 impl Activation {
+    /// Parses `policy.activation` ("elu", "relu" or "tanh").
     pub fn parse(s: &str) -> Result<Activation> {
         match s {
             "elu" => Ok(Activation::Elu),
@@ -30,6 +34,7 @@ impl Activation {
         }
     }
 
+    /// The activation, element-wise.
     pub fn apply(self, x: Tensor<2>) -> Tensor<2> {
         match self {
             // ELU(x) = max(x, 0) + exp(min(x, 0)) − 1, written with relu: burn's `elu` uses

@@ -50,9 +50,13 @@ pub struct Dims {
 
 /// Actor and critic parameters: `[actor layers…, log_std, critic layers…]` (see `nets.rs`).
 pub struct ActorCritic {
+    /// Input and output sizes.
     pub dims: Dims,
+    /// Hidden-layer activation.
     pub activation: Activation,
+    /// Shapes of the actor's layers `[w0, b0, …]`.
     pub actor_shapes: Vec<[usize; 2]>,
+    /// Shapes of the critic's layers.
     pub critic_shapes: Vec<[usize; 2]>,
     /// Autodiff leaves on the learner device.
     pub params: Vec<Tensor<2>>,
@@ -205,26 +209,43 @@ pub fn ppo_losses(mu: Tensor<2>, log_std: Tensor<2>, v: Tensor<2>, b: &Batch, cf
 /// What one update did (means over its minibatches; `lr` after the update).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct UpdateStats {
+    /// Clipped surrogate loss.
     pub surrogate: f64,
+    /// (Clipped) value loss.
     pub value: f64,
+    /// Entropy of the policy.
     pub entropy: f64,
+    /// KL(π_old ‖ π_new).
     pub kl: f64,
+    /// Learning rate after the update.
     pub lr: f64,
+    /// Global gradient norm before clipping.
     pub grad_norm: f64,
+    /// Mean policy standard deviation σ.
     pub mean_std: f64,
 }
 
 /// The PPO learner: networks, optimiser, normalisers, rollout storage, learning rate and RNG.
 pub struct Ppo {
+    /// The `[ppo]` settings.
     pub cfg: PpoConfig,
+    /// The learner device.
     pub device: Device,
+    /// Actor and critic parameters.
     pub net: ActorCritic,
+    /// The optimiser.
     pub adam: Adam,
+    /// Whether observations are normalised (`policy.obs_normalization`).
     pub normalize: bool,
+    /// Actor observation normaliser.
     pub obs_norm: Normalizer,
+    /// Critic observation normaliser.
     pub priv_norm: Normalizer,
+    /// The current rollout.
     pub storage: RolloutStorage,
+    /// Current learning rate (adaptive).
     pub lr: f64,
+    /// Action noise and minibatch shuffles.
     pub rng: Rng,
     /// Env steps recorded in the current rollout.
     step: usize,
