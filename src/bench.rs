@@ -246,14 +246,14 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
         let u = ppo.update(&obs[o.steps % 2].1)?;
         let t2 = Instant::now();
         let c2 = process_cpu_time();
-        eprintln!(
+        crate::console::status(&format!(
             "  iter {it}{}: rollout {:.0} ms, update {:.0} ms (cpu {:.1} s), lr {:.2e}",
             if it < o.warmup { " (warm-up)" } else { "" },
             1e3 * (t1 - t0).as_secs_f64(),
             1e3 * (t2 - t1).as_secs_f64(),
             c2 - c1,
             u.lr
-        );
+        ));
         if it >= o.warmup {
             rollout_ms.push(1e3 * (t1 - t0).as_secs_f64());
             update_ms.push(1e3 * (t2 - t1).as_secs_f64());

@@ -6,6 +6,7 @@
 pub mod bench;
 pub mod checkpoint;
 pub mod config;
+pub mod console;
 pub mod env;
 pub mod eval;
 pub mod geom;
@@ -15,6 +16,7 @@ pub mod metrics;
 pub mod plot;
 pub mod record;
 pub mod replay;
+pub mod run;
 pub mod run_dir;
 pub mod train;
 pub mod task;

@@ -8,6 +8,7 @@ use clap::{Parser, Subcommand};
 
 use dextrain::bench::{BenchOptions, bench_config, run_bench};
 use dextrain::config::Config;
+use dextrain::console;
 use dextrain::env::{SimModel, make_env_batch};
 
 #[derive(Parser)]
@@ -57,7 +58,7 @@ enum Command {
         seconds: f64,
     },
     /// Train a policy with PPO from a TOML config (or resume a run).
-    Train(dextrain::train::TrainArgs),
+    Train(dextrain::run::TrainArgs),
     /// Evaluate a run's checkpoint: deterministic episodes on fresh seeds, a JSON report in RUN/eval/.
     Eval(dextrain::eval::EvalArgs),
     /// Draw a run's learning curves (PNG) from its metrics.csv into RUN/plots/.
@@ -91,8 +92,8 @@ fn run(cli: Cli) -> Result<()> {
             // the hand must load too
             let model = SimModel::from_config(&cfg)?;
             let task = dextrain::task::task_setup(&cfg, &model)?.spec;
-            print!("{}", cfg.to_toml()?);
-            eprintln!(
+            console::result(cfg.to_toml()?.trim_end());
+            console::status(&format!(
                 "{}: ok ({} joints, {} actuated, {} colliders, {} fingertips; task {}: obs {}, critic obs {}, actions {})",
                 config.display(),
                 model.joints.len(),
@@ -103,10 +104,10 @@ fn run(cli: Cli) -> Result<()> {
                 task.obs_dim,
                 task.priv_dim,
                 task.action_dim
-            );
+            ));
             // what the policy sees: the actor's and the critic's observation layouts
-            eprint!("{}", dextrain::task::spec::layout_table(&task.obs_layout, "actor observation"));
-            eprint!("{}", dextrain::task::spec::layout_table(&task.priv_layout, "critic observation"));
+            console::status(dextrain::task::spec::layout_table(&task.obs_layout, "actor observation").trim_end());
+            console::status(dextrain::task::spec::layout_table(&task.priv_layout, "critic observation").trim_end());
             Ok(())
         }
         Command::Bench { ppo, threads, device, iters, config, backend, envs, chunks, seconds } => {
@@ -117,7 +118,7 @@ fn run(cli: Cli) -> Result<()> {
                 let (dev, name) = dextrain::learn::device::learner_device(&device, None)?;
                 let opts = dextrain::bench::PpoBenchOptions { envs: envs.unwrap_or(4096), iters: iters.max(1), ..Default::default() };
                 let report = dextrain::bench::run_ppo_bench(&opts, dev, &name)?;
-                println!("{}", serde_json::to_string(&report).context("cannot serialise the report")?);
+                console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
                 return Ok(());
             }
             let mut cfg = match &config {
@@ -135,20 +136,20 @@ fn run(cli: Cli) -> Result<()> {
             let mut env = make_env_batch(&cfg, model.clone())?;
             let mut report = run_bench(env.as_mut(), &model, &BenchOptions { min_chunks: chunks, min_seconds: seconds })?;
             report["config"] = serde_json::Value::String(config.map(|p| p.display().to_string()).unwrap_or_else(|| "<bench scene>".into()));
-            println!("{}", serde_json::to_string(&report).context("cannot serialise the report")?);
+            console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
             Ok(())
         }
-        Command::Train(args) => dextrain::train::run(&args).map(|_| ()),
+        Command::Train(args) => dextrain::run::train(&args).map(|_| ()),
         Command::Eval(args) => {
             let report = dextrain::eval::run(&args)?;
-            println!("{}", serde_json::to_string(&report).context("cannot serialise the report")?);
-            eprintln!("dextrain eval: report written to {}", report.path.display());
+            console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
+            console::status(&format!("dextrain eval: report written to {}", report.path.display()));
             Ok(())
         }
         Command::Plot { run } => {
             dextrain::run_dir::check_run(&run)?;
             for p in dextrain::plot::plot_run(&run.join("metrics.csv"), &run.join("plots"))? {
-                println!("{}", p.display());
+                console::result(&p.display().to_string());
             }
             Ok(())
         }
@@ -169,7 +170,7 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", dextrain::config::one_line(&format!("{e:#}")));
+            console::status(&format!("error: {}", dextrain::config::one_line(&format!("{e:#}"))));
             ExitCode::FAILURE
         }
     }

@@ -323,6 +323,6 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     let traj = Trajectory::load(&args.traj)?;
     let report = replay(&cfg, &traj, args.kinematic, args.out.as_deref())
         .with_context(|| format!("replaying {} with {}", args.traj.display(), args.config.display()))?;
-    println!("{}", serde_json::to_string(&report)?);
+    crate::console::result(&serde_json::to_string(&report)?);
     Ok(())
 }

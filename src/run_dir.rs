@@ -3,7 +3,11 @@
 //!
 //! A run name is one path component of letters, digits, `-`, `_` and `.` (not `.` or `..`), so a
 //! run cannot escape `runs/`. An existing run directory is never overwritten unless `--force` is
-//! given (then it is removed first).
+//! given, and `--force` only ever replaces a run directory: one with a `config.toml` and a
+//! `metrics.csv` that holds
+//! nothing but what dextrain writes into a run ([`RUN_ENTRIES`], TensorBoard event files). Anything
+//! else — a directory that is not a run, a run with a file of the user's in it — is refused with a
+//! one-line error and left untouched: nothing a user wrote is deleted.
 
 use std::path::{Path, PathBuf};
 
@@ -48,13 +52,43 @@ pub fn default_name(config: &Path) -> String {
     format!("{stem}_{}", timestamp(secs))
 }
 
-/// Creates `runs_root/name` (fails if it exists, unless `force`, which removes it first).
+/// What dextrain writes at the top of a run directory (besides TensorBoard's `events.out.tfevents.*`).
+pub const RUN_ENTRIES: [&str; 6] = ["config.toml", "metrics.csv", "plots", "checkpoints", "eval", "export"];
+
+/// Why `dir` may not be replaced by `--force`, or None when it is a run directory that holds only
+/// what dextrain writes.
+fn not_replaceable(dir: &Path) -> Result<Option<String>> {
+    let meta = std::fs::symlink_metadata(dir).with_context(|| format!("cannot read {}", dir.display()))?;
+    if !meta.is_dir() {
+        return Ok(Some("it is not a directory".into()));
+    }
+    for need in ["config.toml", "metrics.csv"] {
+        if !dir.join(need).is_file() {
+            return Ok(Some(format!("it is not a run directory (no {need})")));
+        }
+    }
+    let rd = std::fs::read_dir(dir).with_context(|| format!("cannot list {}", dir.display()))?;
+    for e in rd {
+        let e = e.with_context(|| format!("cannot list {}", dir.display()))?;
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !RUN_ENTRIES.contains(&name.as_str()) && !name.starts_with("events.out.tfevents.") {
+            return Ok(Some(format!("it holds {name:?}, which dextrain did not write")));
+        }
+    }
+    Ok(None)
+}
+
+/// Creates `runs_root/name`. It fails if the directory exists, unless `force` and it is a run
+/// directory that holds only what dextrain writes: then that run is removed first.
 pub fn create(runs_root: &Path, name: &str, force: bool) -> Result<PathBuf> {
     validate_name(name)?;
     let dir = runs_root.join(name);
-    if dir.exists() {
+    if std::fs::symlink_metadata(&dir).is_ok() {
         if !force {
             bail!("{}: the run directory exists; pick another --name, resume it with --resume, or pass --force to overwrite it", dir.display());
+        }
+        if let Some(why) = not_replaceable(&dir)? {
+            bail!("{}: --force only replaces a run directory, and {why}; nothing was deleted: pick another --name or move it away", dir.display());
         }
         std::fs::remove_dir_all(&dir).with_context(|| format!("cannot remove {}", dir.display()))?;
     }

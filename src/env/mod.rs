@@ -314,7 +314,7 @@ pub fn sim_gpu_context(cfg: &Config) -> Result<Option<gpu::GpuContext>> {
         BackendChoice::Auto => match gpu::GpuContext::new(None) {
             Ok(ctx) => Ok(Some(ctx)),
             Err(e) => {
-                eprintln!("dextrain: {e:#}; using the CPU backend");
+                crate::console::warn(&format!("dextrain: {e:#}; using the CPU backend"));
                 Ok(None)
             }
         },

@@ -1,15 +1,21 @@
-//! The learner: PPO on burn tensors (CPU `flex` backend or burn's wgpu backend).
+//! The learners, on burn tensors (CPU `flex` backend or burn's wgpu backend).
 //!
-//! - `rng.rs`: the host RNG (one `u64` of state, saved in checkpoints);
+//! Shared by every algorithm:
+//! - `nets.rs`: MLPs as flat lists of `Tensor<2>`;
+//! - `adam.rs`: Adam and global gradient-norm clipping;
 //! - `normalizer.rs`: empirical observation normalisation;
-//! - `storage.rs`: rollout storage and GAE;
-//! - `nets.rs`: MLPs as flat lists of `Tensor<2>`, Adam, global gradient-norm clipping;
-//! - `ppo.rs`: the algorithm;
-//! - `device.rs`: choosing the learner device (`train.device`).
+//! - `rng.rs`: the host RNG (one `u64` of state, saved in checkpoints);
+//! - `device.rs`: choosing the learner device (`train.device`);
+//! - `state.rs`: a learner's checkpoint state (named tensors and exact scalars).
+//!
+//! One folder per algorithm: `ppo/` (rollout storage, GAE, PPO). SAC (`sac/`: replay buffer, twin
+//! critics, targets) and distillation (`distill/`: GRU student, DAgger) go beside it; the loop that
+//! drives them is `run/`.
 
+pub mod adam;
 pub mod device;
 pub mod nets;
 pub mod normalizer;
 pub mod ppo;
 pub mod rng;
-pub mod storage;
+pub mod state;

@@ -5,10 +5,16 @@
 //! formula, so the result equals a two-pass mean/variance over all the data (tests/learn.rs checks
 //! it). They are saved with the model: a policy is only meaningful with its normaliser.
 
+use anyhow::Result;
+
+use super::state::{LearnerState, TensorValues};
+
 /// Running mean and (population) variance of a vector-valued observation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Normalizer {
+    /// Observations merged so far.
     pub count: f64,
+    /// Running mean of each component.
     pub mean: Vec<f64>,
     /// Σ (x − μ)² (the sum of squared deviations; variance = m2 / count).
     pub m2: Vec<f64>,
@@ -17,10 +23,12 @@ pub struct Normalizer {
 }
 
 impl Normalizer {
+    /// Empty statistics for `dim` components.
     pub fn new(dim: usize) -> Normalizer {
         Normalizer { count: 0.0, mean: vec![0.0; dim], m2: vec![0.0; dim], eps: 1e-2 }
     }
 
+    /// Number of components.
     pub fn dim(&self) -> usize {
         self.mean.len()
     }
@@ -78,5 +86,26 @@ impl Normalizer {
                 row[k] = ((row[k] as f64 - self.mean[k]) * scale[k]) as f32;
             }
         }
+    }
+}
+
+impl Normalizer {
+    /// Saves the statistics as `<prefix>.mean`, `.m2` ([dim] f64), `.count`, `.eps` ([1] f64) into
+    /// file `file` of `state`.
+    pub fn save(&self, prefix: &str, state: &mut LearnerState, file: &str) {
+        state.push_tensor(file, &format!("{prefix}.mean"), vec![self.dim()], TensorValues::F64(self.mean.clone()));
+        state.push_tensor(file, &format!("{prefix}.m2"), vec![self.dim()], TensorValues::F64(self.m2.clone()));
+        state.push_tensor(file, &format!("{prefix}.count"), vec![1], TensorValues::F64(vec![self.count]));
+        state.push_tensor(file, &format!("{prefix}.eps"), vec![1], TensorValues::F64(vec![self.eps]));
+    }
+
+    /// Reads what [`Normalizer::save`] wrote, for observations of `dim` components.
+    pub fn load(prefix: &str, dim: usize, state: &LearnerState, file: &str) -> Result<Normalizer> {
+        Ok(Normalizer {
+            count: state.f64s(file, &format!("{prefix}.count"), Some(1))?[0],
+            mean: state.f64s(file, &format!("{prefix}.mean"), Some(dim))?,
+            m2: state.f64s(file, &format!("{prefix}.m2"), Some(dim))?,
+            eps: state.f64s(file, &format!("{prefix}.eps"), Some(1))?[0],
+        })
     }
 }

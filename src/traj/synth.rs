@@ -191,13 +191,13 @@ pub fn run(args: &SynthArgs) -> Result<()> {
     let set = synth_set(&cfg, args)?;
     if args.count == 1 {
         set[0].save(&args.out)?;
-        eprintln!("wrote {} ({} keyframes, {:.2} s)", args.out.display(), set[0].frames.len(), set[0].duration());
+        crate::console::status(&format!("wrote {} ({} keyframes, {:.2} s)", args.out.display(), set[0].frames.len(), set[0].duration()));
         return Ok(());
     }
     std::fs::create_dir_all(&args.out).with_context(|| format!("cannot create the directory {}", args.out.display()))?;
     for (i, t) in set.iter().enumerate() {
         t.save(&args.out.join(format!("ref_{i:03}.mcap")))?;
     }
-    eprintln!("wrote {} references to {} ({:.2} s each)", set.len(), args.out.display(), set[0].duration());
+    crate::console::status(&format!("wrote {} references to {} ({:.2} s each)", set.len(), args.out.display(), set[0].duration()));
     Ok(())
 }

@@ -186,3 +186,29 @@ fn check_prints_the_observation_layout() {
     let sizes: usize = stderr[actor..critic].lines().skip(2).filter_map(|l| l.split_whitespace().nth(1)?.parse::<usize>().ok()).sum();
     assert_eq!(sizes, n);
 }
+
+/// `dextrain train … 2>&1 | head -1`: stdout and stderr are pipes whose readers are gone, so every
+/// write fails (EPIPE; Rust ignores SIGPIPE). The run must go on to its end, with its checkpoint.
+#[test]
+fn train_finishes_with_its_checkpoint_when_stdout_and_stderr_are_closed() {
+    use std::process::Stdio;
+    let tmp = tempfile::tempdir().unwrap();
+    let runs = tmp.path().to_str().unwrap();
+    let sets = ["sim.backend=cpu", "train.device=cpu", "sim.num_envs=4", "task.episode_length=4", "train.iterations=3", "train.steps_per_env=4", "train.save_interval=2", "policy.actor_hidden=[8]", "policy.critic_hidden=[8]"];
+    let mut args = vec!["train", "configs/lift_cube_cpu.toml", "--name", "piped", "--runs-dir", runs, "--quiet"];
+    for s in &sets {
+        args.extend(["--set", s]);
+    }
+    let mut child = Command::new(env!("CARGO_BIN_EXE_dextrain")).args(&args).current_dir(ROOT).stdout(Stdio::piped()).stderr(Stdio::piped()).spawn().unwrap();
+    // close the readers at once: the banner, the progress lines and the summary all hit EPIPE
+    drop(child.stdout.take());
+    drop(child.stderr.take());
+    let status = child.wait().unwrap();
+    assert!(status.success(), "train stopped on a closed pipe: {status:?}");
+    let run = tmp.path().join("piped");
+    for it in [2, 3] {
+        dextrain::checkpoint::verify(&run.join(format!("checkpoints/{it}"))).unwrap_or_else(|e| panic!("checkpoint {it}: {e:#}"));
+    }
+    let (_, rows) = dextrain::metrics::read_csv(&run.join("metrics.csv")).unwrap();
+    assert_eq!(rows.len(), 3);
+}

@@ -1,15 +1,17 @@
 //! The learner's parts against independent computations: GAE vs the naive sum of discounted TD
 //! errors, the normaliser vs a two-pass mean/variance, the PPO loss terms vs hand-computed values,
-//! global gradient clipping and Adam's first step, and a tiny task that PPO must learn in seconds.
+//! global gradient clipping and Adam's first step, and a tiny task that PPO must learn in seconds;
+//! PPO's checkpoint state round-trips and a restored learner continues exactly.
 
 
 use burn::prelude::*;
 use dextrain::config::{PolicyConfig, PpoConfig};
-use dextrain::learn::nets::{Adam, clipped_grads, to_host, to_tensor};
+use dextrain::learn::adam::{Adam, clipped_grads};
+use dextrain::learn::nets::{to_host, to_tensor};
 use dextrain::learn::normalizer::Normalizer;
+use dextrain::learn::ppo::storage::gae;
 use dextrain::learn::ppo::{Batch, Dims, Ppo, ppo_losses};
 use dextrain::learn::rng::Rng;
-use dextrain::learn::storage::gae;
 
 fn cpu() -> Device {
     Device::flex().autodiff()
@@ -294,4 +296,50 @@ fn zero_initialised_output_layer_starts_at_a_zero_mean_and_still_learns() {
     }
     ppo.update(&obs).unwrap();
     assert!(ppo.act_mean(&obs).unwrap().iter().any(|&m| m != 0.0), "the update moved the mean");
+}
+
+/// `Ppo::state` holds the whole learner: a fresh learner of another seed that loads it has the same
+/// state, and from there both draw the same actions and make the same update, bit for bit.
+#[test]
+fn ppo_state_restores_a_learner_that_continues_exactly() {
+    let (n, steps) = (16, 4);
+    let cfg = PpoConfig { learning_rate: 3e-3, ..PpoConfig::default() };
+    let pol = PolicyConfig { actor_hidden: vec![16], critic_hidden: vec![16], ..PolicyConfig::default() };
+    let dims = Dims { obs: 2, priv_obs: 2, act: 2 };
+    let mut env = PointTask::new(n);
+    let no_term = vec![false; n];
+    let rollout = |ppo: &mut Ppo, env: &mut PointTask| -> Vec<Vec<f32>> {
+        let mut actions = Vec::new();
+        let mut obs = env.obs();
+        for _ in 0..steps {
+            let a = ppo.act(&obs, &obs).unwrap();
+            let (r, to) = env.step(&a);
+            ppo.process_step(&r, &no_term, &to);
+            obs = env.obs();
+            actions.push(a);
+        }
+        ppo.update(&obs).unwrap();
+        actions
+    };
+    let mut a = Ppo::new(dims, n, steps, &cfg, &pol, cpu(), 3).unwrap();
+    rollout(&mut a, &mut env);
+    rollout(&mut a, &mut env);
+    let state = a.state().unwrap();
+    assert!(state.u64("adam_step").unwrap() > 0, "the learner has taken Adam steps");
+    assert!(state.file("optimizer").is_some() && state.file("model").is_some());
+    let mut b = Ppo::new(dims, n, steps, &cfg, &pol, cpu(), 99).unwrap();
+    assert_ne!(b.state().unwrap(), state, "another seed gives another learner");
+    b.load_state(&state).unwrap();
+    assert_eq!(b.state().unwrap(), state, "the loaded learner's state is the saved one");
+    assert_eq!(b.lr.to_bits(), a.lr.to_bits());
+    let mut env_b = PointTask { x: env.x.clone(), target: env.target.clone(), t: env.t.clone(), rng: env.rng.clone() };
+    let acts_a = rollout(&mut a, &mut env);
+    let acts_b = rollout(&mut b, &mut env_b);
+    assert_eq!(acts_a, acts_b, "the restored learner acts differently");
+    assert_eq!(a.state().unwrap(), b.state().unwrap(), "the restored learner updates differently");
+    // a state without the optimiser is an error that names the file
+    let mut partial = state.clone();
+    partial.files.retain(|f| f.name != "optimizer");
+    let err = format!("{:#}", b.load_state(&partial).unwrap_err());
+    assert!(err.contains("optimizer.safetensors"), "{err}");
 }

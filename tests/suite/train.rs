@@ -1,15 +1,18 @@
 //! Training runs end to end on the CPU with the shipped lift config shrunk by `--set`: the same seed
 //! gives the same metrics, an interrupted and resumed run continues exactly, metrics.csv and the
 //! TensorBoard events agree, eval writes its report and recording, and bad runs, names and
-//! checkpoints are one-line errors.
+//! checkpoints are one-line errors; `--force` replaces only runs; checkpoints keep floats exactly and
+//! a damaged, edited or incomplete checkpoint is skipped (latest) or refused (by number).
 
 
 use std::path::{Path, PathBuf};
 
+use dextrain::checkpoint::{self, CheckpointState, EnvSnapshot, xxh64};
 use dextrain::eval::{EvalArgs, run as eval};
+use dextrain::learn::state::{LearnerState, TensorValues};
 use dextrain::metrics::{event_files, read_csv};
+use dextrain::run::{TrainArgs, train};
 use dextrain::tensorboard::read_scalars;
-use dextrain::train::{TrainArgs, run as train};
 
 const CONFIG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/lift_cube_cpu.toml");
 /// Wall-clock columns: they differ between any two runs.
@@ -207,4 +210,142 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     let r = eval(&EvalArgs { run: dir, checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None, baseline: None }).expect("eval");
     assert!(r.env_backend.starts_with("gpu") && r.learner_device.starts_with("gpu (burn wgpu"), "{} / {}", r.env_backend, r.learner_device);
     assert_eq!(r.episodes, 3);
+}
+
+/// `--force` replaces a run, and only a run: a directory that is not one, or a run with a file of
+/// the user's in it, is refused in one line and keeps every file.
+#[test]
+fn force_only_ever_replaces_a_run_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let runs = tmp.path();
+    let mut force = args(runs, "mine");
+    force.force = true;
+    // a directory of the user's, not a run
+    let mine = runs.join("mine");
+    std::fs::create_dir_all(mine.join("sub")).unwrap();
+    std::fs::write(mine.join("notes.txt"), "my notes").unwrap();
+    std::fs::write(mine.join("sub/data.bin"), [1u8, 2, 3]).unwrap();
+    let err = format!("{:#}", train(&force).unwrap_err());
+    assert!(err.contains("not a run directory") && err.contains("nothing was deleted") && !err.contains('\n'), "{err}");
+    assert_eq!(std::fs::read_to_string(mine.join("notes.txt")).unwrap(), "my notes");
+    assert_eq!(std::fs::read(mine.join("sub/data.bin")).unwrap(), [1, 2, 3]);
+    // a directory with only a config.toml of the user's is not a run either
+    std::fs::write(mine.join("config.toml"), "seed = 1").unwrap();
+    assert!(train(&force).is_err());
+    assert_eq!(std::fs::read_to_string(mine.join("config.toml")).unwrap(), "seed = 1");
+    // a run with a file of the user's in it is refused too, and keeps it
+    let run = train(&args(runs, "r")).expect("train");
+    std::fs::write(run.join("analysis.ipynb"), "{}").unwrap();
+    let mut force_r = args(runs, "r");
+    force_r.force = true;
+    let err = format!("{:#}", train(&force_r).unwrap_err());
+    assert!(err.contains("analysis.ipynb") && err.contains("nothing was deleted"), "{err}");
+    assert!(run.join("analysis.ipynb").is_file() && run.join("checkpoints/4/state.json").is_file());
+    // without it, --force replaces the run (the replacement's eval/ etc. are gone with it)
+    std::fs::remove_file(run.join("analysis.ipynb")).unwrap();
+    force_r.sets.push("train.iterations=2".into());
+    train(&force_r).expect("--force replaces a run");
+    assert_eq!(metrics(&run).1.len(), 2);
+    assert!(!run.join("checkpoints/4").exists());
+}
+
+/// XXH64 against the reference implementation's published values (xxhsum / twox-hash's tests).
+#[test]
+fn xxh64_matches_the_reference_values() {
+    let hundred: Vec<u8> = (0..100u8).collect();
+    assert_eq!(xxh64(b"", 0), 0xef46_db37_51d8_e999);
+    assert_eq!(xxh64(&[42], 0), 0x0a9e_dece_beb0_3ae4);
+    assert_eq!(xxh64(b"Hello, world!\0", 0), 0x7b06_c531_ea43_e89f);
+    assert_eq!(xxh64(&hundred, 0), 0x6ac1_e580_3216_6597);
+    assert_eq!(xxh64(b"", 0xae05_4331_1b70_2d91), 0x4b6a_04fc_df7a_4672);
+    assert_eq!(xxh64(&hundred, 0xae05_4331_1b70_2d91), 0x567e_355e_0682_e1f1);
+}
+
+/// Every f64 of a checkpoint (the learner's scalars, the wall time) reads back with the same bits:
+/// values of the adaptive learning-rate schedule (lr ÷ 1.5 and × 1.5 within its clamps) and random
+/// bit patterns, among them `LOSSY`, which a plain decimal round trip through serde_json does not
+/// give back (it did not resume bit for bit before checkpoints kept the bits).
+#[test]
+fn checkpoint_scalars_read_back_bit_for_bit() {
+    // 5e-4 × 1.5 × 1.5: the default learning rate after two increases of the adaptive schedule
+    const LOSSY: f64 = 0.001_125_000_000_000_000_1;
+    let mut values = vec![LOSSY, 5e-4, 1e-5, 1e-2, f64::MIN_POSITIVE, 1.0 / 3.0];
+    let mut lr = 5e-4f64;
+    let mut rng = dextrain::learn::rng::Rng::new(7, 7);
+    for _ in 0..500 {
+        lr = if rng.uniform() < 0.5 { (lr / 1.5).max(1e-5) } else { (lr * 1.5).min(1e-2) };
+        values.push(lr);
+        values.push(f64::from_bits(rng.next_u64() >> 2)); // positive, finite
+    }
+    // the values include ones that a plain decimal round trip through serde_json does not give back
+    let plain = |v: &f64| serde_json::from_str::<f64>(&serde_json::to_string(v).unwrap()).unwrap();
+    let lossy: Vec<f64> = values.iter().copied().filter(|v| plain(v).to_bits() != v.to_bits()).collect();
+    eprintln!("{} of {} values change in a plain JSON round trip, e.g. {:?}", lossy.len(), values.len(), &lossy[..lossy.len().min(3)]);
+    assert!(lossy.contains(&LOSSY), "LOSSY reads back exactly through plain JSON: the test lost its point");
+    let mut learner = LearnerState::default();
+    learner.push_tensor("model", "w", vec![1, 2], TensorValues::F32(vec![1.0, 2.0]));
+    for (k, v) in values.iter().enumerate() {
+        learner.set_f64(&format!("x{k}"), *v);
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let env = EnvSnapshot { task_state: vec![1, 2, 3], obs: vec![0.5; 2], priv_obs: vec![0.25; 2], ep_return: vec![0.0; 2], ep_len: vec![1.0; 2] };
+    let time_s = values[3 * values.len() / 4];
+    let st = CheckpointState::new(3, 24, time_s, [1, 1, 2], &learner);
+    let dir = checkpoint::save(&tmp.path().join("checkpoints"), &st, &learner, &env).expect("save");
+    let (st2, learner2, env2) = checkpoint::load(&dir, [1, 1, 2], 2).expect("load");
+    assert_eq!(env2, env);
+    assert_eq!(st2.exact_time_s().to_bits(), time_s.to_bits());
+    for (k, v) in values.iter().enumerate() {
+        let got = learner2.f64(&format!("x{k}")).unwrap();
+        assert_eq!(got.to_bits(), v.to_bits(), "x{k}: {v:e} read back as {got:e}");
+    }
+    assert_eq!(learner2.f32s("model", "w", Some(2)).unwrap(), vec![1.0, 2.0]);
+}
+
+/// A checkpoint whose files were damaged, edited or not all written is never resumed from or
+/// evaluated silently: "latest" skips it (eval and resume agree on which checkpoint that is), and
+/// asking for it by number is a one-line error naming the file.
+#[test]
+fn damaged_edited_or_incomplete_checkpoints_are_skipped_or_refused() {
+    let tmp = tempfile::tempdir().unwrap();
+    let runs = tmp.path();
+    let mut a = args(runs, "a");
+    a.sets.push("train.iterations=6".into());
+    let dir = train(&a).expect("train");
+    for it in [2, 4, 6] {
+        checkpoint::verify(&dir.join(format!("checkpoints/{it}"))).expect("a fresh checkpoint passes");
+    }
+    let e = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 2, max_envs: 2, seed: None, record: None, backend: None, baseline: None };
+    // 64 bytes of 0xFF in the middle of the newest env.safetensors (same size)
+    let envf = dir.join("checkpoints/6/env.safetensors");
+    let mut bytes = std::fs::read(&envf).unwrap();
+    let mid = bytes.len() / 2;
+    bytes[mid..mid + 64].fill(0xFF);
+    std::fs::write(&envf, &bytes).unwrap();
+    assert_eq!(checkpoint::find(&dir, "latest").unwrap(), dir.join("checkpoints/4"));
+    assert_eq!(eval(&e).expect("eval of latest").iteration, 4);
+    let err = format!("{:#}", eval(&EvalArgs { checkpoint: "6".into(), ..e.clone() }).unwrap_err());
+    assert!(err.contains("env.safetensors") && err.contains("hash") && !err.contains('\n'), "{err}");
+    // state.json of checkpoint 4 edited to another iteration (same length)
+    let sj = dir.join("checkpoints/4/state.json");
+    let text = std::fs::read_to_string(&sj).unwrap();
+    assert!(text.contains("\"iteration\": 4"), "{text}");
+    std::fs::write(&sj, text.replace("\"iteration\": 4", "\"iteration\": 5")).unwrap();
+    let err = format!("{:#}", checkpoint::find(&dir, "4").unwrap_err());
+    assert!(err.contains("state.json") && !err.contains('\n'), "{err}");
+    // checkpoint 2 incomplete: no manifest
+    std::fs::remove_file(dir.join("checkpoints/2/manifest.json")).unwrap();
+    let err = format!("{:#}", checkpoint::find(&dir, "2").unwrap_err());
+    assert!(err.contains("manifest.json") && err.contains("incomplete"), "{err}");
+    let err = format!("{:#}", eval(&e).unwrap_err());
+    assert!(err.contains("no checkpoint passes"), "{err}");
+    // restore checkpoint 4: resume and eval both take it, and the resumed run ends as a straight one
+    std::fs::write(&sj, text).unwrap();
+    assert_eq!(eval(&e).expect("eval").iteration, 4);
+    let resume = TrainArgs { config: None, sets: vec![], name: None, resume: Some(dir.clone()), ..args(runs, "unused") };
+    train(&resume).expect("resume from checkpoint 4");
+    let straight = train(&TrainArgs { name: Some("b".into()), ..a.clone() }).expect("straight run");
+    assert!(same_bits(&metrics(&dir).1, &metrics(&straight).1), "resumed from 4 after skipping 6: metrics differ");
+    assert_eq!(model_bytes(&dir, 6), model_bytes(&straight, 6));
+    checkpoint::verify(&dir.join("checkpoints/6")).expect("checkpoint 6 was written again");
 }

@@ -12,32 +12,51 @@
 //!   the acting policy and the current one (÷1.5 above 2× the target, ×1.5 below ½×, clamped).
 //!
 //! Host RNG (action noise, minibatch shuffles) is one `Rng` whose state the checkpoint saves.
+//! [`Ppo::state`] / [`Ppo::load_state`] hand the whole learner to `checkpoint.rs` as named tensors
+//! (file `model`: the networks and normalisers; file `optimizer`: Adam's moments) and scalars
+//! (`learning_rate`, `adam_step`, `rng_state`).
+
+pub mod storage;
 
 use anyhow::{Result, ensure};
 use burn::prelude::*;
 use burn::tensor::{Int, TensorData};
 
-use super::nets::{Activation, Adam, clipped_grads, init_mlp, mlp_forward, mlp_shapes, to_host, to_tensor};
+use self::storage::RolloutStorage;
+use super::adam::{Adam, clipped_grads};
+use super::nets::{Activation, init_mlp, mlp_forward, mlp_shapes, to_host, to_tensor};
 use super::normalizer::Normalizer;
 use super::rng::Rng;
-use super::storage::RolloutStorage;
+use super::state::{LearnerState, TensorValues};
 use crate::config::{LrSchedule, PolicyConfig, PpoConfig};
+
+/// The state file of the policy (networks + normalisers): `model.safetensors`.
+pub const MODEL_FILE: &str = "model";
+/// The state file of the optimiser (Adam's moments): `optimizer.safetensors`.
+pub const OPTIMIZER_FILE: &str = "optimizer";
 
 const LN_2PI: f64 = 1.837_877_066_409_345_3; // ln(2π)
 
 /// Sizes of the learner's inputs and outputs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Dims {
+    /// Actor observation size O.
     pub obs: usize,
+    /// Critic (privileged) observation size P.
     pub priv_obs: usize,
+    /// Action size A.
     pub act: usize,
 }
 
 /// Actor and critic parameters: `[actor layers…, log_std, critic layers…]` (see `nets.rs`).
 pub struct ActorCritic {
+    /// Input and output sizes.
     pub dims: Dims,
+    /// Hidden-layer activation.
     pub activation: Activation,
+    /// Shapes of the actor's layers `[w0, b0, …]`.
     pub actor_shapes: Vec<[usize; 2]>,
+    /// Shapes of the critic's layers.
     pub critic_shapes: Vec<[usize; 2]>,
     /// Autodiff leaves on the learner device.
     pub params: Vec<Tensor<2>>,
@@ -190,26 +209,43 @@ pub fn ppo_losses(mu: Tensor<2>, log_std: Tensor<2>, v: Tensor<2>, b: &Batch, cf
 /// What one update did (means over its minibatches; `lr` after the update).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct UpdateStats {
+    /// Clipped surrogate loss.
     pub surrogate: f64,
+    /// (Clipped) value loss.
     pub value: f64,
+    /// Entropy of the policy.
     pub entropy: f64,
+    /// KL(π_old ‖ π_new).
     pub kl: f64,
+    /// Learning rate after the update.
     pub lr: f64,
+    /// Global gradient norm before clipping.
     pub grad_norm: f64,
+    /// Mean policy standard deviation σ.
     pub mean_std: f64,
 }
 
 /// The PPO learner: networks, optimiser, normalisers, rollout storage, learning rate and RNG.
 pub struct Ppo {
+    /// The `[ppo]` settings.
     pub cfg: PpoConfig,
+    /// The learner device.
     pub device: Device,
+    /// Actor and critic parameters.
     pub net: ActorCritic,
+    /// The optimiser.
     pub adam: Adam,
+    /// Whether observations are normalised (`policy.obs_normalization`).
     pub normalize: bool,
+    /// Actor observation normaliser.
     pub obs_norm: Normalizer,
+    /// Critic observation normaliser.
     pub priv_norm: Normalizer,
+    /// The current rollout.
     pub storage: RolloutStorage,
+    /// Current learning rate (adaptive).
     pub lr: f64,
+    /// Action noise and minibatch shuffles.
     pub rng: Rng,
     /// Env steps recorded in the current rollout.
     step: usize,
@@ -236,8 +272,72 @@ impl Ppo {
         })
     }
 
+    /// The learner's input and output sizes.
     pub fn dims(&self) -> Dims {
         self.net.dims
+    }
+
+    /// Writes the policy into file [`MODEL_FILE`] of `state`: every parameter (`actor.0.weight`
+    /// [in, out], …, `log_std` [1, A], `critic.…`, f32), the normalisers (`obs_norm.*`,
+    /// `priv_norm.*`, f64) and the JSON metadata (format, dims, activation).
+    pub fn save_policy(&self, state: &mut LearnerState) -> Result<()> {
+        let names = self.net.names();
+        let shapes = self.net.shapes();
+        for ((n, s), v) in names.iter().zip(&shapes).zip(self.net.values()?) {
+            state.push_tensor(MODEL_FILE, n, s.to_vec(), TensorValues::F32(v));
+        }
+        self.obs_norm.save("obs_norm", state, MODEL_FILE);
+        self.priv_norm.save("priv_norm", state, MODEL_FILE);
+        let d = self.dims();
+        let info = serde_json::json!({
+            "format": "dextrain.policy.v1",
+            "obs_dim": d.obs,
+            "priv_dim": d.priv_obs,
+            "action_dim": d.act,
+            "activation": format!("{:?}", self.net.activation).to_lowercase(),
+            "obs_normalization": self.normalize,
+        });
+        state.set_info(MODEL_FILE, info.to_string());
+        Ok(())
+    }
+
+    /// Loads the policy (parameters and normalisers) that [`Ppo::save_policy`] wrote (same config).
+    pub fn load_policy(&mut self, state: &LearnerState) -> Result<()> {
+        let names = self.net.names();
+        let shapes = self.net.shapes();
+        let mut values = Vec::with_capacity(names.len());
+        for (n, s) in names.iter().zip(&shapes) {
+            values.push(state.f32s(MODEL_FILE, n, Some(s[0] * s[1]))?);
+        }
+        let device = self.device.clone();
+        self.net.set_values(values, &device)?;
+        let d = self.dims();
+        self.obs_norm = Normalizer::load("obs_norm", d.obs, state, MODEL_FILE)?;
+        self.priv_norm = Normalizer::load("priv_norm", d.priv_obs, state, MODEL_FILE)?;
+        Ok(())
+    }
+
+    /// Everything a resumed run needs: the policy, Adam (moments in [`OPTIMIZER_FILE`], `adam_step`),
+    /// the learning rate (`learning_rate`, exact) and the RNG (`rng_state`). The rollout storage is
+    /// not saved: checkpoints are taken between iterations, when it is empty.
+    pub fn state(&self) -> Result<LearnerState> {
+        let mut state = LearnerState::default();
+        self.save_policy(&mut state)?;
+        self.adam.save(&self.net.names(), &self.net.shapes(), &mut state, OPTIMIZER_FILE)?;
+        state.set_f64("learning_rate", self.lr);
+        state.set_bits("rng_state", self.rng.state);
+        Ok(state)
+    }
+
+    /// Restores what [`Ppo::state`] gave.
+    pub fn load_state(&mut self, state: &LearnerState) -> Result<()> {
+        ensure!(self.step == 0, "load_state() in the middle of a rollout");
+        self.load_policy(state)?;
+        let device = self.device.clone();
+        self.adam.load(&self.net.names(), &self.net.shapes(), state, OPTIMIZER_FILE, &device)?;
+        self.lr = state.f64("learning_rate")?;
+        self.rng.state = state.bits("rng_state")?;
+        Ok(())
     }
 
     fn normalized(&self, norm: &Normalizer, x: &[f32]) -> Vec<f32> {

@@ -1,0 +1,98 @@
+//! Adam (Kingma & Ba 2015, torch's update rule) over a flat list of `Tensor<2>` parameters, and
+//! torch's global gradient-norm clipping. Shared by every learner; its moments and step count are
+//! part of the learner's checkpoint state ([`Adam::save`] / [`Adam::load`]).
+
+use anyhow::{Context, Result, ensure};
+use burn::prelude::*;
+
+use super::nets::{to_host, to_tensor};
+use super::state::{LearnerState, TensorValues};
+
+/// Adam with torch's update rule, over a flat list of `Tensor<2>` parameters.
+pub struct Adam {
+    /// Decay of the first moment (β1).
+    pub beta1: f64,
+    /// Decay of the second moment (β2).
+    pub beta2: f64,
+    /// ε added to √v̂ in the denominator.
+    pub eps: f64,
+    /// Steps taken.
+    pub t: u64,
+    /// First moment estimates, one per parameter (non-autodiff tensors).
+    pub m: Vec<Tensor<2>>,
+    /// Second moment estimates (same shapes as `m`).
+    pub v: Vec<Tensor<2>>,
+}
+
+impl Adam {
+    /// torch's defaults: β = (0.9, 0.999), ε = 1e-8; moments start at zero.
+    pub fn new(shapes: &[[usize; 2]], device: &Device) -> Adam {
+        let zeros = || shapes.iter().map(|s| Tensor::zeros(*s, device).inner()).collect::<Vec<_>>();
+        Adam { beta1: 0.9, beta2: 0.999, eps: 1e-8, t: 0, m: zeros(), v: zeros() }
+    }
+
+    /// One step: `params[i] ← params[i] − lr/(1−β1ᵗ) · m / (√v/√(1−β2ᵗ) + ε)`. `params` are the
+    /// autodiff leaves; the returned list holds new leaves (require_grad) with the updated values.
+    pub fn step(&mut self, params: &[Tensor<2>], grads: Vec<Tensor<2>>, lr: f64) -> Vec<Tensor<2>> {
+        self.t += 1;
+        let bc1 = 1.0 - self.beta1.powi(self.t as i32);
+        let bc2_sqrt = (1.0 - self.beta2.powi(self.t as i32)).sqrt();
+        let step_size = lr / bc1;
+        let mut out = Vec::with_capacity(params.len());
+        for (i, g) in grads.into_iter().enumerate() {
+            // m = β1 m + (1 − β1) g;  v = β2 v + (1 − β2) g²
+            self.m[i] = self.m[i].clone().mul_scalar(self.beta1) + g.clone().mul_scalar(1.0 - self.beta1);
+            self.v[i] = self.v[i].clone().mul_scalar(self.beta2) + g.square().mul_scalar(1.0 - self.beta2);
+            let denom = self.v[i].clone().sqrt().div_scalar(bc2_sqrt).add_scalar(self.eps);
+            let p = params[i].clone().inner() - self.m[i].clone().div(denom).mul_scalar(step_size);
+            out.push(p.autodiff().require_grad());
+        }
+        out
+    }
+
+    /// Saves the moments as `adam.m.<name>` / `adam.v.<name>` ([rows, cols] each, f32) into `file`
+    /// of `state`, and the step count as the scalar `adam_step` (`names`/`shapes`: the parameters').
+    pub fn save(&self, names: &[String], shapes: &[[usize; 2]], state: &mut LearnerState, file: &str) -> Result<()> {
+        for (i, (n, s)) in names.iter().zip(shapes).enumerate() {
+            state.push_tensor(file, &format!("adam.m.{n}"), s.to_vec(), TensorValues::F32(to_host(self.m[i].clone())?));
+            state.push_tensor(file, &format!("adam.v.{n}"), s.to_vec(), TensorValues::F32(to_host(self.v[i].clone())?));
+        }
+        state.set_u64("adam_step", self.t);
+        Ok(())
+    }
+
+    /// Restores what [`Adam::save`] wrote (same names and shapes).
+    pub fn load(&mut self, names: &[String], shapes: &[[usize; 2]], state: &LearnerState, file: &str, device: &Device) -> Result<()> {
+        ensure!(names.len() == self.m.len(), "Adam has {} moments but {} parameters were named", self.m.len(), names.len());
+        for (i, (n, s)) in names.iter().zip(shapes).enumerate() {
+            self.m[i] = to_tensor(state.f32s(file, &format!("adam.m.{n}"), Some(s[0] * s[1]))?, *s, device).inner();
+            self.v[i] = to_tensor(state.f32s(file, &format!("adam.v.{n}"), Some(s[0] * s[1]))?, *s, device).inner();
+        }
+        self.t = state.u64("adam_step")?;
+        Ok(())
+    }
+}
+
+/// The gradients of `params` (in order) from a backward pass, scaled so that their global L2 norm
+/// is at most `max_norm` (torch's `clip_grad_norm_`: coef = min(1, max_norm / (‖g‖ + 1e-6))).
+/// Returns the gradients and the norm before clipping (as a [1]-tensor, read lazily).
+pub fn clipped_grads(params: &[Tensor<2>], grads: &burn::tensor::Gradients, max_norm: f64) -> Result<(Vec<Tensor<2>>, Tensor<1>)> {
+    let gs: Vec<Tensor<2>> = params
+        .iter()
+        .enumerate()
+        .map(|(i, p)| p.grad(grads).with_context(|| format!("parameter {i} got no gradient")))
+        .collect::<Result<_>>()?;
+    let mut sq: Option<Tensor<1>> = None;
+    for g in &gs {
+        let s = g.clone().square().sum(); // [1]
+        sq = Some(match sq {
+            Some(acc) => acc + s,
+            None => s,
+        });
+    }
+    let norm = sq.context("no parameters")?.sqrt(); // [1]
+    let coef = norm.clone().add_scalar(1e-6).recip().mul_scalar(max_norm).clamp_max(1.0); // [1]
+    let coef2: Tensor<2> = coef.unsqueeze(); // [1, 1]
+    let out = gs.into_iter().map(|g| g * coef2.clone()).collect();
+    Ok((out, norm))
+}

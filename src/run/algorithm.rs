@@ -1,0 +1,59 @@
+//! The seam between the runner and a learning algorithm.
+//!
+//! The runner ([`super::runner`]) owns the env loop, the metrics, checkpoints, Ctrl-C and resume; an
+//! [`Algorithm`] owns the networks and how they learn. Per iteration the runner calls, for each of
+//! [`Algorithm::steps_per_iteration`] env steps, [`Algorithm::act`] then (after stepping the envs)
+//! [`Algorithm::observe`]; then [`Algorithm::update`] once, whose values become the metrics row's
+//! learner columns. This fits the three learners `learn/` is built for:
+//! - on-policy (PPO, `on_policy.rs`): `observe` stores the transition in the rollout, `update` runs
+//!   GAE and the epochs;
+//! - off-policy (SAC): `observe` pushes into the replay buffer and takes gradient steps every k env
+//!   steps (its stats accumulate), `update` only reports them;
+//! - distillation (DAgger): `act` runs the student (the teacher labels the same observations),
+//!   `observe` stores the labels, `update` fits the student.
+
+use anyhow::Result;
+
+use crate::learn::state::LearnerState;
+
+/// What one env step of all N envs gave, for the step that the last [`Algorithm::act`] started.
+pub struct StepOutcome<'a> {
+    /// The task's rewards [N] (unscaled).
+    pub reward: &'a [f32],
+    /// Envs whose episode ended by a termination [N] (no bootstrap through it).
+    pub terminated: &'a [bool],
+    /// Envs whose episode ended by a time-out [N] (bootstrap through it).
+    pub time_out: &'a [bool],
+    /// Raw actor observations after the step [N, O] (a done env's are its new episode's first).
+    pub obs: &'a [f32],
+    /// Raw critic observations after the step [N, P].
+    pub priv_obs: &'a [f32],
+}
+
+/// A learning algorithm that the runner drives.
+pub trait Algorithm {
+    /// Short name for the run's banner, e.g. "ppo".
+    fn name(&self) -> &str;
+
+    /// Env steps of every env per iteration (one `update` and one metrics row each).
+    fn steps_per_iteration(&self) -> usize;
+
+    /// The names of the values `update` returns, in order: metrics.csv columns after the env's.
+    fn stat_columns(&self) -> Vec<String>;
+
+    /// Training actions [N, A] for raw observations `obs` [N, O] and `priv_obs` [N, P].
+    fn act(&mut self, obs: &[f32], priv_obs: &[f32]) -> Result<Vec<f32>>;
+
+    /// The outcome of the step that the last `act` started.
+    fn observe(&mut self, step: &StepOutcome<'_>) -> Result<()>;
+
+    /// The iteration's end (`obs`/`priv_obs`: the current observations); returns one value per
+    /// [`Algorithm::stat_columns`] entry.
+    fn update(&mut self, obs: &[f32], priv_obs: &[f32]) -> Result<Vec<f64>>;
+
+    /// Everything that a resumed run needs to continue exactly (taken between iterations).
+    fn state(&self) -> Result<LearnerState>;
+
+    /// Restores what [`Algorithm::state`] gave.
+    fn load_state(&mut self, state: &LearnerState) -> Result<()>;
+}

@@ -1,0 +1,369 @@
+//! The runner: the env loop, logging, checkpoint cadence, Ctrl-C and resume, for any
+//! [`Algorithm`] (rsl_rl's runner with the algorithm behind a trait; `on_policy.rs` is PPO's part).
+//! Each iteration: `steps_per_iteration` env steps of every env with the algorithm acting, its
+//! `update`, one metrics row, a checkpoint every `train.save_interval` iterations, repeat.
+//!
+//! `dextrain train CONFIG [--set k=v]… [--name NAME] [--force]` starts a run in `runs/NAME/`;
+//! `dextrain train --resume runs/NAME` continues it from its latest checkpoint, exactly: the
+//! checkpoint holds the algorithm's whole state (PPO: the networks, Adam, the normalisers, the
+//! learning rate, the learner RNG), the counters and the whole env batch (states, parameters, task
+//! state, current observations and the running episodes' accumulators), so an interrupted run and a
+//! straight run write the same `metrics.csv` (but for the wall-clock columns `time_s`, `fps`,
+//! `time/collect_s`, `time/learn_s`).
+//!
+//! Ctrl-C stops a run at the end of the current iteration with a checkpoint. Console output goes
+//! through `crate::console`: a closed stdout or stderr never stops a run.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::time::Instant;
+
+use anyhow::{Context, Result, bail};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde_json::json;
+
+use super::algorithm::{Algorithm, StepOutcome};
+use crate::console;
+use crate::checkpoint::{self, CheckpointState, EnvSnapshot};
+use crate::config::{Config, TaskKind};
+use crate::env::SimModel;
+use crate::task::{TaskBatch, TaskSpec, make_task_batch};
+use crate::learn::device::learner_device;
+use crate::metrics::MetricsLog;
+use crate::run_dir;
+
+/// Arguments of `dextrain train`.
+#[derive(clap::Args, Debug, Clone)]
+pub struct TrainArgs {
+    /// The TOML config of the run (not with --resume).
+    #[arg(required_unless_present = "resume", conflicts_with = "resume")]
+    pub config: Option<PathBuf>,
+    /// Override a config value: `--set ppo.learning_rate=1e-3` (repeatable). With --resume only
+    /// `train.*` keys may change (e.g. `--set train.iterations=2000` to train longer).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub sets: Vec<String>,
+    /// Run name (default: `<config stem>_<UTC time>`); the run is written to `<runs-dir>/<NAME>/`.
+    #[arg(long, conflicts_with = "resume")]
+    pub name: Option<String>,
+    /// Continue the run in this directory from its latest checkpoint.
+    #[arg(long, value_name = "RUN_DIR")]
+    pub resume: Option<PathBuf>,
+    /// Replace an existing run of the same name (only a run directory: one that holds nothing but
+    /// what dextrain writes; anything else is refused and left as it is).
+    #[arg(long)]
+    pub force: bool,
+    /// Where runs are written.
+    #[arg(long, default_value = "runs")]
+    pub runs_dir: PathBuf,
+    /// Stop (with a checkpoint) after this many iterations of this invocation; resume later.
+    #[arg(long)]
+    pub stop_after: Option<u64>,
+    /// No progress bar; one log line every 10 % of the run instead.
+    #[arg(long)]
+    pub quiet: bool,
+}
+
+static STOP: AtomicBool = AtomicBool::new(false);
+
+extern "C" fn on_sigint(_: libc::c_int) {
+    STOP.store(true, Ordering::SeqCst);
+}
+
+/// The metrics columns of a run, in order (after "iteration"): the env's, the algorithm's
+/// (`learner`, e.g. PPO's losses, kl, lr…), then the reference kinds' tracking errors.
+pub fn metric_columns(spec: &TaskSpec, learner: &[String]) -> Vec<String> {
+    let mut c: Vec<String> = ["env_steps", "time_s", "fps", "time/collect_s", "time/learn_s", "reward/mean"].iter().map(|s| s.to_string()).collect();
+    c.extend(spec.term_names.iter().map(|t| format!("reward/{t}")));
+    c.extend(
+        ["episode/count", "episode/return", "episode/length", "episode/success_rate", "episode/lift_height", "episode/terminated_frac"]
+            .iter()
+            .map(|s| s.to_string()),
+    );
+    c.extend(learner.iter().cloned());
+    if spec.kind.follows_reference() {
+        // the object's error against its reference, mean over the rollout's env steps
+        c.extend(["tracking/obj_pos_err_m", "tracking/obj_rot_err_deg"].iter().map(|s| s.to_string()));
+    }
+    c
+}
+
+/// What the algorithm needs to know of the run to build itself.
+pub struct RunContext {
+    /// The run's config.
+    pub cfg: Config,
+    /// Number of envs N.
+    pub num_envs: usize,
+    /// [actor obs O, critic obs P, actions A].
+    pub dims: [usize; 3],
+    /// The learner device.
+    pub device: burn::prelude::Device,
+}
+
+/// Builds the algorithm of a run.
+pub type MakeAlgorithm = fn(&RunContext) -> Result<Box<dyn Algorithm>>;
+
+/// What happened during one iteration's rollout (host-side sums).
+#[derive(Default)]
+struct RolloutSums {
+    reward: f64,
+    terms: Vec<f64>,
+    steps: u64,
+    episodes: u64,
+    successes: u64,
+    terminated: u64,
+    ep_return: f64,
+    ep_len: f64,
+    lift: f64,
+    /// Σ over env steps of the object's position (m) and orientation (deg) error against its reference.
+    obj_pos_err: f64,
+    obj_rot_err: f64,
+}
+
+/// Per-env accumulators of the running episodes.
+struct Episodes {
+    /// Return so far [N].
+    ret: Vec<f64>,
+    /// Length so far [N].
+    len: Vec<f64>,
+}
+
+/// One iteration's env steps: act, step, observe; returns the sums. `obs`/`priv_obs` are updated to
+/// the observations after the last step.
+fn collect(task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, obs: &mut [f32], priv_obs: &mut [f32], eps: &mut Episodes, steps: usize) -> Result<RolloutSums> {
+    let n_terms = task.spec().term_names.len();
+    let mut s = RolloutSums { terms: vec![0.0; n_terms], ..Default::default() };
+    for _ in 0..steps {
+        let actions = algo.act(obs, priv_obs)?;
+        let b = task.step(&actions)?;
+        algo.observe(&StepOutcome { reward: &b.reward, terminated: &b.terminated, time_out: &b.time_out, obs: &b.obs, priv_obs: &b.priv_obs })?;
+        let n = b.reward.len();
+        for i in 0..n {
+            let r = b.reward[i] as f64;
+            s.reward += r;
+            for k in 0..n_terms {
+                s.terms[k] += b.terms[i * n_terms + k] as f64;
+            }
+            eps.ret[i] += r;
+            eps.len[i] += 1.0;
+            s.obj_pos_err += b.obj_pos_err[i] as f64;
+            s.obj_rot_err += (b.obj_rot_err[i] as f64).to_degrees();
+            if b.done(i) {
+                s.episodes += 1;
+                s.successes += b.success[i] as u64;
+                s.terminated += b.terminated[i] as u64;
+                s.ep_return += eps.ret[i];
+                s.ep_len += eps.len[i];
+                s.lift += b.lift_height[i] as f64;
+                eps.ret[i] = 0.0;
+                eps.len[i] = 0.0;
+            }
+        }
+        s.steps += n as u64;
+        obs.copy_from_slice(&b.obs);
+        priv_obs.copy_from_slice(&b.priv_obs);
+    }
+    Ok(s)
+}
+
+/// One metrics row in `metric_columns` order (`learner`: the algorithm's update values;
+/// `tracking`: the reference kinds' extra columns).
+#[allow(clippy::too_many_arguments)]
+fn metric_row(s: &RolloutSums, learner: &[f64], env_steps: u64, time_s: f64, fps: f64, collect_s: f64, learn_s: f64, tracking: bool) -> Vec<f64> {
+    let per_step = |x: f64| if s.steps > 0 { x / s.steps as f64 } else { f64::NAN };
+    let per_ep = |x: f64| if s.episodes > 0 { x / s.episodes as f64 } else { f64::NAN };
+    let mut row = vec![env_steps as f64, time_s, fps, collect_s, learn_s, per_step(s.reward)];
+    row.extend(s.terms.iter().map(|&t| per_step(t)));
+    row.extend([
+        s.episodes as f64,
+        per_ep(s.ep_return),
+        per_ep(s.ep_len),
+        per_ep(s.successes as f64),
+        per_ep(s.lift),
+        per_ep(s.terminated as f64),
+    ]);
+    row.extend_from_slice(learner);
+    if tracking {
+        row.extend([per_step(s.obj_pos_err), per_step(s.obj_rot_err)]);
+    }
+    row
+}
+
+/// Loads the config of a new run (with overrides) or of a resumed one.
+fn setup(args: &TrainArgs) -> Result<(Config, PathBuf, Option<PathBuf>)> {
+    if let Some(dir) = &args.resume {
+        run_dir::check_run(dir)?;
+        let cfg_path = dir.join("config.toml");
+        for s in &args.sets {
+            if !s.trim_start().starts_with("train.") {
+                bail!("--set {s:?}: only train.* keys can change when resuming (the rest of {} is fixed)", cfg_path.display());
+            }
+        }
+        let cfg = Config::load_with_overrides(&cfg_path, &args.sets)?;
+        let ckpt = checkpoint::find(dir, "latest")?;
+        checkpoint::read_state(&ckpt)?;
+        if !args.sets.is_empty() {
+            std::fs::write(&cfg_path, cfg.to_toml()?).with_context(|| format!("cannot write {}", cfg_path.display()))?;
+        }
+        return Ok((cfg, dir.clone(), Some(ckpt)));
+    }
+    let path = args.config.as_ref().context("a config file or --resume is needed")?;
+    let cfg = Config::load_with_overrides(path, &args.sets)?;
+    let name = match &args.name {
+        Some(n) => n.clone(),
+        None => run_dir::default_name(path),
+    };
+    run_dir::validate_name(&name)?;
+    // the hand and the references must load before a run directory is made
+    let model = SimModel::from_config(&cfg)?;
+    crate::task::task_setup(&cfg, &model)?;
+    let dir = run_dir::create(&args.runs_dir, &name, args.force)?;
+    // the exact resolved config, with the hand's URDF and the reference files as absolute paths so
+    // that it loads from the run directory
+    let mut saved = cfg.clone();
+    saved.hand.urdf = absolute(&cfg.resolve(&cfg.hand.urdf));
+    saved.task.reference.files = cfg.task.reference.files.iter().map(|f| absolute(&cfg.resolve(f))).collect();
+    std::fs::write(dir.join("config.toml"), saved.to_toml()?).with_context(|| format!("cannot write {}", dir.join("config.toml").display()))?;
+    Ok((cfg, dir, None))
+}
+
+fn absolute(p: &Path) -> String {
+    std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf()).display().to_string()
+}
+
+/// Runs (or resumes) a training run with the algorithm that `make` builds; returns its directory.
+pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
+    let (cfg, dir, resume) = setup(args)?;
+    let model = SimModel::from_config(&cfg)?;
+    let mut task = make_task_batch(&cfg, model)?;
+    let spec = task.spec().clone();
+    let choice = cfg.train.device.clone();
+    let (device, device_name) = learner_device(&choice, task.gpu_context())?;
+    let n = spec.num_envs;
+    let dims = [spec.obs_dim, spec.priv_dim, spec.action_dim];
+    let mut algo = make(&RunContext { cfg: cfg.clone(), num_envs: n, dims, device })?;
+    let steps = algo.steps_per_iteration();
+    let columns = metric_columns(&spec, &algo.stat_columns());
+    let (mut iteration, mut env_steps, mut time_base, mut obs, mut priv_obs, mut eps, mut metrics) = match &resume {
+        Some(ckpt) => {
+            let (st, learner, snap) = checkpoint::load(ckpt, dims, n)?;
+            algo.load_state(&learner).with_context(|| format!("{}: cannot restore the learner", ckpt.display()))?;
+            task.load_state(&snap.task_state).with_context(|| format!("{}: cannot restore the env batch", ckpt.display()))?;
+            let metrics = MetricsLog::resume(&dir, &columns, st.iteration)?;
+            (st.iteration, st.env_steps, st.exact_time_s(), snap.obs, snap.priv_obs, Episodes { ret: snap.ep_return, len: snap.ep_len }, metrics)
+        }
+        None => {
+            let first = task.reset_all()?;
+            let (o, p) = (first.obs.clone(), first.priv_obs.clone());
+            // (the lift task only: a reference kind's episode starts at its reference's first frame,
+            // and a random step count would start the reference elsewhere than the hand and object)
+            if cfg.train.init_at_random_ep_len && cfg.task.kind == TaskKind::Lift {
+                // desynchronise the episodes: each env's first episode starts at a random step count
+                let mut rng = crate::learn::rng::Rng::new(cfg.seed as u64, 0xE915_0DE5);
+                let mut states = task.env().states()?;
+                for s in &mut states {
+                    s.step = rng.below(spec.episode_length as usize) as u32;
+                }
+                task.env().set_states(&states)?;
+            }
+            let metrics = MetricsLog::create(&dir, &columns)?;
+            (0, 0, 0.0, o, p, Episodes { ret: vec![0.0; n], len: vec![0.0; n] }, metrics)
+        }
+    };
+    let total = cfg.train.iterations as u64;
+    if iteration >= total {
+        bail!("{}: the run has finished its {total} iterations; resume with --set train.iterations=N (N > {iteration}) to train longer", dir.display());
+    }
+    let stop_at = args.stop_after.map(|k| (iteration + k).min(total)).unwrap_or(total);
+    console::status(&format!(
+        "dextrain train: {} | envs: {} ({n} envs, obs {}, critic obs {}, actions {}) | learner: {} on {device_name} | iterations {iteration}..{stop_at} of {total}",
+        dir.display(),
+        task.backend_name(),
+        dims[0],
+        dims[1],
+        dims[2],
+        algo.name()
+    ));
+    unsafe {
+        libc::signal(libc::SIGINT, on_sigint as *const () as libc::sighandler_t);
+    }
+    let bar = ProgressBar::new(total);
+    bar.set_position(iteration);
+    if args.quiet {
+        bar.set_draw_target(ProgressDrawTarget::hidden());
+    }
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} it | {msg} | {elapsed_precise} ETA {eta_precise}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    let started = Instant::now();
+    let mut last_saved = iteration;
+    let mut last_row = Vec::new();
+    while iteration < stop_at {
+        let t0 = Instant::now();
+        let sums = collect(task.as_mut(), algo.as_mut(), &mut obs, &mut priv_obs, &mut eps, steps)?;
+        let collect_s = t0.elapsed().as_secs_f64();
+        let upd = algo.update(&obs, &priv_obs)?;
+        let learn_s = t0.elapsed().as_secs_f64() - collect_s;
+        iteration += 1;
+        env_steps += sums.steps;
+        let dt = t0.elapsed().as_secs_f64();
+        let time_s = time_base + started.elapsed().as_secs_f64();
+        let fps = sums.steps as f64 / dt.max(1e-9);
+        let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s, spec.kind.follows_reference());
+        metrics.append(iteration, &row)?;
+        let success = row[columns.iter().position(|c| c == "episode/success_rate").unwrap_or(0)];
+        let reward = row[columns.iter().position(|c| c == "reward/mean").unwrap_or(0)];
+        let msg = format!("{fps:.0} steps/s (collect {collect_s:.2} s, learn {learn_s:.2} s), reward {reward:.3}, success {:.0}%", 100.0 * success);
+        bar.set_message(msg.clone());
+        bar.set_position(iteration);
+        if (args.quiet || bar.is_hidden()) && (iteration % (total / 10).max(1) == 0 || iteration == stop_at) {
+            console::status(&format!("iteration {iteration}/{total}: {env_steps} env steps, {time_s:.1} s, {msg}"));
+        }
+        last_row = row;
+        let interrupted = STOP.load(Ordering::SeqCst);
+        if iteration % cfg.train.save_interval as u64 == 0 || iteration == stop_at || interrupted {
+            let snap = EnvSnapshot { task_state: task.save_state()?, obs: obs.clone(), priv_obs: priv_obs.clone(), ep_return: eps.ret.clone(), ep_len: eps.len.clone() };
+            let learner = algo.state()?;
+            let st = CheckpointState::new(iteration, env_steps, time_s, dims, &learner);
+            checkpoint::save(&dir.join("checkpoints"), &st, &learner, &snap)?;
+            last_saved = iteration;
+            prune(&dir, cfg.train.keep_checkpoints)?;
+        }
+        if cfg.train.plot_interval > 0 && iteration % cfg.train.plot_interval as u64 == 0 {
+            crate::plot::plot_run(&dir.join("metrics.csv"), &dir.join("plots"))?;
+        }
+        if interrupted {
+            bar.abandon_with_message("interrupted");
+            console::status(&format!("dextrain train: interrupted at iteration {iteration}; checkpoint written; continue with --resume {}", dir.display()));
+            break;
+        }
+    }
+    bar.finish();
+    time_base = time_base + started.elapsed().as_secs_f64();
+    crate::plot::plot_run(&dir.join("metrics.csv"), &dir.join("plots"))?;
+    let summary = json!({
+        "run": dir.display().to_string(),
+        "iterations": iteration,
+        "env_steps": env_steps,
+        "time_s": time_base,
+        "checkpoint": last_saved,
+        "env_backend": task.backend_name(),
+        "learner_device": device_name,
+        "last": columns.iter().zip(&last_row).map(|(c, v)| (c.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
+    });
+    console::result(&summary.to_string());
+    Ok(dir)
+}
+
+/// Removes all but the newest `keep` checkpoints (0 = keep all).
+fn prune(dir: &Path, keep: u32) -> Result<()> {
+    if keep == 0 {
+        return Ok(());
+    }
+    let all = checkpoint::list(dir)?;
+    let excess = all.len().saturating_sub(keep as usize);
+    for (_, p) in all.into_iter().take(excess) {
+        std::fs::remove_dir_all(&p).with_context(|| format!("cannot remove old checkpoint {}", p.display()))?;
+    }
+    Ok(())
+}
