@@ -115,9 +115,14 @@ fn wgpu_error_line(e: &wgpu::Error) -> String {
     }
 }
 
-/// Bytes in MiB, for messages.
-fn mib(bytes: u64) -> f64 {
-    bytes as f64 / (1u64 << 20) as f64
+/// Bytes in KiB, MiB or GiB, for messages.
+fn human(bytes: u64) -> String {
+    let b = bytes as f64;
+    match bytes {
+        0..0x10_0000 => format!("{:.1} KiB", b / 1024.0),
+        0x10_0000..0x4000_0000 => format!("{:.1} MiB", b / (1u64 << 20) as f64),
+        _ => format!("{:.1} GiB", b / (1u64 << 30) as f64),
+    }
 }
 
 impl GpuContext {
@@ -197,7 +202,7 @@ impl GpuContext {
         // scopes pop in the reverse order of their pushes
         let caught = [internal.pop(), validation.pop(), oom.pop()].map(pollster::block_on);
         match caught.into_iter().flatten().next() {
-            Some(e) => bail!("{}: wgpu {} on adapter {}", what(), wgpu_error_line(&e), self.info.name),
+            Some(e) => bail!("{} (adapter {}): wgpu {}", what(), self.info.name, wgpu_error_line(&e)),
             None => Ok(out),
         }
     }
@@ -223,10 +228,10 @@ impl GpuContext {
         let (limit, key) = binding.into_iter().chain([(l.max_buffer_size, "max_buffer_size")]).min_by_key(|(v, _)| *v).unwrap_or((l.max_buffer_size, "max_buffer_size"));
         ensure!(
             bytes <= limit,
-            "GPU buffer `{name}` needs {bytes} bytes ({:.1} MiB), but adapter {} allows {limit} bytes ({:.1} MiB, `{key}`)",
-            mib(bytes),
+            "GPU buffer `{name}` needs {bytes} bytes ({}), but adapter {} allows {limit} bytes ({}, `{key}`)",
+            human(bytes),
             self.info.name,
-            mib(limit)
+            human(limit)
         );
         Ok(())
     }

@@ -52,10 +52,11 @@ impl GpuTaskBatch {
         let out_floats = n * (spec.obs_dim + spec.priv_dim + OUT_MISC);
         let out_bytes = (out_floats * 4) as u64;
         // the task's largest buffers, checked before the env batch is built
-        ctx.check_buffer_size(TASK_OUT.name, out_bytes, BufferRole::Storage).with_context(|| format!("sim.num_envs = {n}: the task outputs"))?;
+        let file = cfg.source.display();
+        ctx.check_buffer_size(TASK_OUT.name, out_bytes, BufferRole::Storage).with_context(|| format!("{file}: key `sim.num_envs` = {n}: the task outputs"))?;
         let ref_bytes = (bank.as_ref().map_or(0, |b| b.frames.len()) * 4) as u64;
         ctx.check_buffer_size(REF_FRAMES.name, ref_bytes, BufferRole::Storage)
-            .with_context(|| format!("{}: key `task.reference.files`: the references", cfg.source.display()))?;
+            .with_context(|| format!("{file}: key `task.reference.files`: the references"))?;
         let tips_host = model.tips.clone();
         let env = GpuEnvBatch::new(ctx, model)?;
         let ctx = &env.ctx;
@@ -70,7 +71,7 @@ impl GpuTaskBatch {
         let ref_frames = ctx.create_binding_buffer(REF_FRAMES, ref_frames_host, none)?;
         let ref_info = ctx.create_binding_buffer(REF_INFO, ref_info_host, none)?;
         let ref_cfg = ctx.create_binding_buffer(REF_CFG, std::slice::from_ref(&rg), none)?;
-        let per_env = || format!("sim.num_envs = {n}");
+        let per_env = || format!("{file}: key `sim.num_envs` = {n}");
         let task_states = ctx.create_binding_buffer(TASK_STATES, &vec![TaskState::default(); n], none).with_context(per_env)?;
         let actions = ctx.create_binding_buffer(ACTIONS, &vec![0f32; n * spec.action_dim], none).with_context(per_env)?;
         let out = ctx.create_binding_buffer(TASK_OUT, &vec![0f32; out_floats], none).with_context(per_env)?;
