@@ -1,4 +1,6 @@
-//! CPU/GPU parity: the WGSL kernels and their CPU twins must compute the same thing.
+//! CPU/GPU parity: the WGSL kernels and their CPU twins must compute the same thing; and wgpu's
+//! errors (buffers beyond the device's limits, shaders that fail validation, errors outside any
+//! error scope) come back as one-line errors naming the buffer or shader, never as panics.
 //! Runs on any wgpu adapter, lavapipe included; without one it prints why (fails with REQUIRE_GPU=1).
 
 mod common;

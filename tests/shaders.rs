@@ -1,6 +1,8 @@
 //! Shader validation with naga (no GPU needed): every shader parses and validates as the module the
-//! GPU backend builds, each shader parses on its own with common.wgsl, and every Pod struct in
-//! src/env/layout.rs has exactly the size and field offsets of its WGSL twin.
+//! GPU backend builds, each shader parses on its own with common.wgsl, every Pod struct in
+//! src/env/layout.rs has exactly the size and field offsets of its WGSL twin, and the binding tables
+//! of src/env/gpu_bindings.rs name every WGSL binding (index, name, address space) and what each
+//! entry point uses.
 
 mod common;
 
