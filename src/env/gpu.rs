@@ -1,21 +1,42 @@
-//! `GpuEnvBatch`: the env batch on a wgpu device. The WGSL of `shaders/` (common + reset + physics,
-//! concatenated) runs one invocation per env; buffers, pipelines and bind groups are made once in
-//! `new`, so a step only uploads targets, dispatches and (on request) copies results back.
+//! The wgpu side of the simulator: `GpuContext` (adapter, device, queue, and the error handling of
+//! every wgpu call: error scopes, the uncaptured-error record, buffer-size checks, the pipeline,
+//! bind-group and readback helpers) and `GpuEnvBatch`, the env batch on a wgpu device. The WGSL of
+//! `shaders/` (common + reset + physics, concatenated) runs one invocation per env; buffers,
+//! pipelines and bind groups are made once in `new`, so a step only uploads targets, dispatches and
+//! (on request) copies results back.
+//!
+//! # Errors
+//!
+//! wgpu reports most errors to the device, not as return values, and panics on those nobody
+//! catches. Here every creation, upload, submission and readback runs inside out-of-memory,
+//! validation and internal error scopes ([`GpuContext::scoped`]), so its error comes back as an
+//! `Err` naming the shader, entry point or buffer. Errors outside any scope are recorded by the
+//! device's uncaptured-error handler (and the device-lost callback) and returned by the next
+//! readback, the synchronisation point ([`GpuContext::submit_and_read`]). Buffer sizes are checked
+//! against the device's limits before a buffer is made ([`GpuContext::check_buffer_size`]).
 
-use std::sync::mpsc;
+use std::sync::{Arc, Mutex, PoisonError, mpsc};
 
 use anyhow::{Context, Result, anyhow, bail, ensure};
 use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
+use super::gpu_bindings::{Binding, BindingSpace, EntryBindings, RESET_MAIN, SIM_GROUP, STEP_MAIN};
+use super::gpu_bindings::{COLLIDERS, GLOBALS, JOINTS, PARAMS, RESET_MASK, STATES, STATS, TARGETS};
 use super::gpu_layout::*;
 use super::{EnvBatch, EnvSpec, SimModel};
 
+/// shaders/common.wgsl: constants, structs, bindings 0–8, maths shared by every shader.
 pub const SHADER_COMMON: &str = include_str!("../../shaders/common.wgsl");
+/// shaders/reset.wgsl: `reset_main` and the per-env draws.
 pub const SHADER_RESET: &str = include_str!("../../shaders/reset.wgsl");
+/// shaders/physics.wgsl: `step_main`, one control step.
 pub const SHADER_PHYSICS: &str = include_str!("../../shaders/physics.wgsl");
+/// shaders/task.wgsl: the task layer's entry points and bindings 9–12.
 pub const SHADER_TASK: &str = include_str!("../../shaders/task.wgsl");
+/// shaders/reference.wgsl: the reference sampler and bindings 13–15.
 pub const SHADER_REFERENCE: &str = include_str!("../../shaders/reference.wgsl");
+/// shaders/ik.wgsl: the fingertip inverse kinematics.
 pub const SHADER_IK: &str = include_str!("../../shaders/ik.wgsl");
 /// Invocations per workgroup (keep in sync with `WORKGROUP_SIZE` in common.wgsl).
 pub const WORKGROUP_SIZE: u32 = 64;
@@ -31,24 +52,90 @@ pub fn task_shader_source() -> String {
     [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_REFERENCE, SHADER_IK, SHADER_TASK].join("\n")
 }
 
-/// A wgpu instance, adapter, device and queue.
+/// A wgpu instance, adapter, device and queue, with the record of the device's uncaptured errors.
 pub struct GpuContext {
+    /// The wgpu instance the adapter came from.
     pub instance: wgpu::Instance,
+    /// The chosen adapter.
     pub adapter: wgpu::Adapter,
+    /// The device opened on it (the adapter's features and the limits asked for).
     pub device: wgpu::Device,
+    /// The device's queue.
     pub queue: wgpu::Queue,
+    /// The adapter's name, backend and type.
     pub info: wgpu::AdapterInfo,
+    /// One line per error that reached the uncaptured-error handler or the device-lost callback
+    /// since the last [`GpuContext::check_uncaptured`].
+    uncaptured: Arc<Mutex<Vec<String>>>,
+}
+
+/// What a buffer is bound as, which decides the device limits on its size.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BufferRole {
+    /// `var<uniform>`: `max_uniform_buffer_binding_size` and `max_buffer_size`.
+    Uniform,
+    /// `var<storage>`: `max_storage_buffer_binding_size` and `max_buffer_size`.
+    Storage,
+    /// A host-mappable copy target of a readback: `max_buffer_size`.
+    Staging,
+}
+
+impl From<BindingSpace> for BufferRole {
+    fn from(space: BindingSpace) -> BufferRole {
+        match space {
+            BindingSpace::Uniform => BufferRole::Uniform,
+            BindingSpace::StorageRead | BindingSpace::StorageReadWrite => BufferRole::Storage,
+        }
+    }
+}
+
+/// One copy of a readback: the first `bytes` bytes of `src` into the start of `staging`
+/// (a `MAP_READ | COPY_DST` buffer), named `name` in errors.
+pub struct ReadbackCopy<'a> {
+    /// The buffer read (named in errors).
+    pub name: &'a str,
+    /// The device buffer copied from.
+    pub src: &'a wgpu::Buffer,
+    /// The host-mappable buffer copied to.
+    pub staging: &'a wgpu::Buffer,
+    /// Bytes copied, from offset 0 (a multiple of 4).
+    pub bytes: u64,
 }
 
 fn is_software(info: &wgpu::AdapterInfo) -> bool {
     info.device_type == wgpu::DeviceType::Cpu || info.name.to_lowercase().contains("llvmpipe")
 }
 
+/// A wgpu error on one line: its kind and description.
+fn wgpu_error_line(e: &wgpu::Error) -> String {
+    match e {
+        wgpu::Error::OutOfMemory { source } => format!("out of memory ({})", crate::config::one_line(&source.to_string())),
+        wgpu::Error::Validation { description, .. } => format!("validation error: {}", crate::config::one_line(description)),
+        wgpu::Error::Internal { description, .. } => format!("internal error: {}", crate::config::one_line(description)),
+    }
+}
+
+/// Bytes in KiB, MiB or GiB, for messages.
+fn human(bytes: u64) -> String {
+    let b = bytes as f64;
+    match bytes {
+        0..0x10_0000 => format!("{:.1} KiB", b / 1024.0),
+        0x10_0000..0x4000_0000 => format!("{:.1} MiB", b / (1u64 << 20) as f64),
+        _ => format!("{:.1} GiB", b / (1u64 << 30) as f64),
+    }
+}
+
 impl GpuContext {
     /// Picks an adapter: `name` = the first adapter whose name contains it (case-insensitive; Vulkan,
     /// Metal and DX12 before OpenGL); `None` = the first hardware adapter — a software adapter such as
-    /// lavapipe is only used when asked for by name.
+    /// lavapipe is only used when asked for by name. The device gets all of the adapter's limits.
     pub fn new(name: Option<&str>) -> Result<GpuContext> {
+        GpuContext::with_limits(name, |adapter_limits| adapter_limits)
+    }
+
+    /// [`GpuContext::new`], with the device's limits chosen by `limits` from the adapter's (lower
+    /// ones make a smaller device: tests of the limit checks, or a budget on a shared GPU).
+    pub fn with_limits(name: Option<&str>, limits: impl FnOnce(wgpu::Limits) -> wgpu::Limits) -> Result<GpuContext> {
         let mut desc = wgpu::InstanceDescriptor::new_without_display_handle_from_env();
         if std::env::var_os("WGPU_BACKEND").is_none() {
             // Vulkan, Metal, DX12: probing OpenGL (EGL) prints errors on headless machines, and its
@@ -79,16 +166,259 @@ impl GpuContext {
         let desc = wgpu::DeviceDescriptor {
             label: Some("dextrain"),
             required_features: chosen.features().difference(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS),
-            required_limits: chosen.limits(),
+            required_limits: limits(chosen.limits()),
             ..Default::default()
         };
         let (device, queue) = pollster::block_on(chosen.request_device(&desc))
             .with_context(|| format!("cannot open a device on adapter {}", info.name))?;
-        Ok(GpuContext { instance, adapter: chosen, device, queue, info })
+        // record the errors that no scope catches instead of panicking (wgpu's default); the next
+        // readback returns them. burn's wgpu runtime installs its own handler when it shares the
+        // device; our calls still return their errors through their scopes.
+        let uncaptured: Arc<Mutex<Vec<String>>> = Arc::default();
+        let record = uncaptured.clone();
+        device.on_uncaptured_error(Arc::new(move |e: wgpu::Error| {
+            record.lock().unwrap_or_else(PoisonError::into_inner).push(wgpu_error_line(&e));
+        }));
+        let record = uncaptured.clone();
+        device.set_device_lost_callback(move |reason, message| {
+            record.lock().unwrap_or_else(PoisonError::into_inner).push(format!("device lost ({reason:?}): {}", crate::config::one_line(&message)));
+        });
+        Ok(GpuContext { instance, adapter: chosen, device, queue, info, uncaptured })
     }
 
+    /// "ADAPTER (API, TYPE)".
     pub fn describe(&self) -> String {
         format!("{} ({:?}, {:?})", self.info.name, self.info.backend, self.info.device_type)
+    }
+
+    /// Runs `f` (wgpu calls, which report their errors to the device rather than return them) inside
+    /// out-of-memory, validation and internal error scopes; an error they caught comes back as an
+    /// `Err` of one line that starts with `what()` (the shader, entry point or buffer concerned).
+    pub fn scoped<T>(&self, what: impl FnOnce() -> String, f: impl FnOnce() -> T) -> Result<T> {
+        let oom = self.device.push_error_scope(wgpu::ErrorFilter::OutOfMemory);
+        let validation = self.device.push_error_scope(wgpu::ErrorFilter::Validation);
+        let internal = self.device.push_error_scope(wgpu::ErrorFilter::Internal);
+        let out = f();
+        // scopes pop in the reverse order of their pushes
+        let caught = [internal.pop(), validation.pop(), oom.pop()].map(pollster::block_on);
+        match caught.into_iter().flatten().next() {
+            Some(e) => bail!("{} (adapter {}): wgpu {}", what(), self.info.name, wgpu_error_line(&e)),
+            None => Ok(out),
+        }
+    }
+
+    /// Fails with the errors that reached the uncaptured-error handler or the device-lost callback
+    /// since the last check (and forgets them); `what` is the call that found them.
+    pub fn check_uncaptured(&self, what: &str) -> Result<()> {
+        let errors = std::mem::take(&mut *self.uncaptured.lock().unwrap_or_else(PoisonError::into_inner));
+        ensure!(errors.is_empty(), "{what}: GPU error on adapter {} since the last check: {}", self.info.name, errors.join("; "));
+        Ok(())
+    }
+
+    /// Fails (one line naming the buffer, its bytes, the limit and the adapter) when a buffer
+    /// `name` of `bytes` bytes, bound as `role`, exceeds the device's limits.
+    pub fn check_buffer_size(&self, name: &str, bytes: u64, role: BufferRole) -> Result<()> {
+        let l = self.device.limits();
+        let binding = match role {
+            BufferRole::Uniform => Some((l.max_uniform_buffer_binding_size, "max_uniform_buffer_binding_size")),
+            BufferRole::Storage => Some((l.max_storage_buffer_binding_size, "max_storage_buffer_binding_size")),
+            BufferRole::Staging => None,
+        };
+        // the tighter of the binding limit and the buffer limit
+        let (limit, key) = binding.into_iter().chain([(l.max_buffer_size, "max_buffer_size")]).min_by_key(|(v, _)| *v).unwrap_or((l.max_buffer_size, "max_buffer_size"));
+        ensure!(
+            bytes <= limit,
+            "GPU buffer `{name}` needs {bytes} bytes ({}), but adapter {} allows {limit} bytes ({}, `{key}`)",
+            human(bytes),
+            self.info.name,
+            human(limit)
+        );
+        Ok(())
+    }
+
+    /// Creates buffer `name` holding `contents` (padded to 16 bytes at least: zero-length bindings
+    /// are invalid), bound as `role`, with `usage`: the size is checked first, and wgpu's errors
+    /// (out of memory included) come back naming the buffer and its bytes.
+    pub fn create_buffer_with(&self, name: &str, contents: &[u8], role: BufferRole, usage: wgpu::BufferUsages) -> Result<wgpu::Buffer> {
+        let mut padded;
+        let contents = if contents.len() < 16 {
+            padded = contents.to_vec();
+            padded.resize(16, 0);
+            &padded[..]
+        } else {
+            contents
+        };
+        self.check_buffer_size(name, contents.len() as u64, role)?;
+        self.scoped(
+            || format!("creating GPU buffer `{name}` of {} bytes", contents.len()),
+            || self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(name), contents, usage }),
+        )
+    }
+
+    /// Creates the buffer of `binding` (labelled with its WGSL name) holding `data`, with the
+    /// usages of its address space plus `extra`; an empty `data` becomes one zeroed element.
+    pub fn create_binding_buffer<T: Pod>(&self, binding: Binding, data: &[T], extra: wgpu::BufferUsages) -> Result<wgpu::Buffer> {
+        let zeroed;
+        let bytes: &[u8] = if data.is_empty() {
+            zeroed = vec![0u8; std::mem::size_of::<T>()];
+            &zeroed
+        } else {
+            bytemuck::cast_slice(data)
+        };
+        self.create_buffer_with(binding.name, bytes, binding.space.into(), binding.space.usage() | extra)
+    }
+
+    /// Creates the host-mappable staging buffer `name` of `bytes` bytes that readbacks copy into.
+    pub fn create_staging_buffer(&self, name: &str, bytes: u64) -> Result<wgpu::Buffer> {
+        let size = bytes.max(16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        self.check_buffer_size(name, size, BufferRole::Staging)?;
+        self.scoped(
+            || format!("creating GPU staging buffer `{name}` of {size} bytes"),
+            || {
+                self.device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(name),
+                    size,
+                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            },
+        )
+    }
+
+    /// Compiles `source` as the shader module `shader` and makes one compute pipeline of each of
+    /// `entry_points`, in order (layouts derived from the shader). A module that does not compile,
+    /// or an entry point that is missing or that the driver rejects, is an error naming the shader
+    /// and the entry point.
+    pub fn compute_pipelines<const N: usize>(&self, shader: &str, source: &str, entry_points: [&str; N]) -> Result<[wgpu::ComputePipeline; N]> {
+        let module = self.scoped(
+            || format!("compiling shader `{shader}` (entry points {})", entry_points.join(", ")),
+            || self.device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(shader), source: wgpu::ShaderSource::Wgsl(source.into()) }),
+        )?;
+        let mut pipelines = Vec::with_capacity(N);
+        for entry_point in entry_points {
+            pipelines.push(self.scoped(
+                || format!("creating the compute pipeline of entry point `{entry_point}` of shader `{shader}`"),
+                || {
+                    self.device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                        label: Some(entry_point),
+                        layout: None,
+                        module: &module,
+                        entry_point: Some(entry_point),
+                        compilation_options: Default::default(),
+                        cache: None,
+                    })
+                },
+            )?);
+        }
+        pipelines.try_into().map_err(|p: Vec<_>| anyhow!("shader `{shader}`: {} pipelines for {N} entry points", p.len()))
+    }
+
+    /// The bind group of entry point `uses` on `pipeline`'s derived layout: for each binding the
+    /// entry point uses, the buffer that `buffers` (the module's buffers, by binding) gives for it.
+    pub fn bind_group(&self, pipeline: &wgpu::ComputePipeline, uses: &EntryBindings, buffers: &[(Binding, &wgpu::Buffer)]) -> Result<wgpu::BindGroup> {
+        let mut entries = Vec::with_capacity(uses.bindings.len());
+        for b in uses.bindings {
+            let (_, buffer) = buffers
+                .iter()
+                .find(|(have, _)| have == b)
+                .ok_or_else(|| anyhow!("bind group of entry point `{}`: no buffer for binding {} `{}`", uses.entry_point, b.index, b.name))?;
+            entries.push(wgpu::BindGroupEntry { binding: b.index, resource: buffer.as_entire_binding() });
+        }
+        self.scoped(
+            || format!("creating the bind group of entry point `{}`", uses.entry_point),
+            || {
+                self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some(uses.entry_point),
+                    layout: &pipeline.get_bind_group_layout(0),
+                    entries: &entries,
+                })
+            },
+        )
+    }
+
+    /// Writes `data` to the start of `buffer` (named `name` in errors) through the queue.
+    pub fn upload(&self, name: &str, buffer: &wgpu::Buffer, data: &[u8]) -> Result<()> {
+        ensure!(data.len() as u64 <= buffer.size(), "uploading {} bytes to GPU buffer `{name}` of {} bytes", data.len(), buffer.size());
+        self.scoped(|| format!("uploading {} bytes to GPU buffer `{name}`", data.len()), || self.queue.write_buffer(buffer, 0, data))
+    }
+
+    /// A command encoder with one compute pass that dispatches `passes` in order (pipeline, its
+    /// bind group 0), each over `workgroups` (x, y); wgpu orders dispatches that share buffers.
+    pub fn encode_passes(&self, passes: &[(&wgpu::ComputePipeline, &wgpu::BindGroup)], workgroups: (u32, u32)) -> wgpu::CommandEncoder {
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        {
+            let mut pass = enc.begin_compute_pass(&Default::default());
+            for (pipeline, group) in passes {
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, *group, &[]);
+                pass.dispatch_workgroups(workgroups.0, workgroups.1, 1);
+            }
+        }
+        enc
+    }
+
+    /// Submits `enc`; an error of its commands comes back naming `what`.
+    pub fn submit(&self, enc: wgpu::CommandEncoder, what: &str) -> Result<()> {
+        self.scoped(|| what.to_string(), || self.queue.submit([enc.finish()])).map(|_| ())
+    }
+
+    /// The synchronisation point of every readback: appends `copies` to `enc` (after whatever the
+    /// caller recorded), submits it, waits for the device, maps each staging buffer and hands its
+    /// first `bytes` bytes to `sink(copy index, bytes)`. Errors of the commands, the submission,
+    /// the wait or the mapping, and those recorded by the uncaptured-error handler since the last
+    /// check, come back naming `what`.
+    pub fn submit_and_read(&self, mut enc: wgpu::CommandEncoder, copies: &[ReadbackCopy], what: &str, mut sink: impl FnMut(usize, &[u8])) -> Result<()> {
+        self.check_uncaptured(what)?;
+        for c in copies {
+            ensure!(
+                c.bytes <= c.src.size() && c.bytes <= c.staging.size() && c.bytes % wgpu::COPY_BUFFER_ALIGNMENT == 0,
+                "{what}: cannot copy {} bytes of GPU buffer `{}` ({} bytes) through a staging buffer of {} bytes",
+                c.bytes,
+                c.name,
+                c.src.size(),
+                c.staging.size()
+            );
+        }
+        let receivers = self.scoped(
+            || format!("{what}: submitting"),
+            || {
+                for c in copies {
+                    enc.copy_buffer_to_buffer(c.src, 0, c.staging, 0, c.bytes);
+                }
+                self.queue.submit([enc.finish()]);
+                copies
+                    .iter()
+                    .map(|c| {
+                        let (tx, rx) = mpsc::channel();
+                        c.staging.slice(0..c.bytes).map_async(wgpu::MapMode::Read, move |r| {
+                            let _ = tx.send(r);
+                        });
+                        rx
+                    })
+                    .collect::<Vec<_>>()
+            },
+        )?;
+        let waited = self.device.poll(wgpu::PollType::wait_indefinitely());
+        // read (and unmap) every staging buffer that mapped, so that none stays mapped after an error
+        let mut first_error = None;
+        for (i, (c, rx)) in copies.iter().zip(receivers).enumerate() {
+            let mapped = match rx.recv() {
+                Ok(r) => r.map_err(|e| anyhow!("{what}: mapping the staging buffer of `{}` failed: {e}", c.name)),
+                Err(_) => Err(anyhow!("{what}: the map of the staging buffer of `{}` never completed", c.name)),
+            };
+            let read = mapped.and_then(|()| {
+                let view = c.staging.slice(0..c.bytes).get_mapped_range().map_err(|e| anyhow!("{what}: reading the staging buffer of `{}`: {e:?}", c.name));
+                let out = view.map(|v| sink(i, &v));
+                c.staging.unmap();
+                out
+            });
+            if let Err(e) = read {
+                first_error.get_or_insert(e);
+            }
+        }
+        waited.map_err(|e| anyhow!("{what}: waiting for adapter {}: {e}", self.info.name))?;
+        self.check_uncaptured(what)?;
+        first_error.map_or(Ok(()), Err)
     }
 }
 
@@ -97,14 +427,21 @@ impl GpuContext {
 pub struct GpuEnvBatch {
     pub(crate) ctx: GpuContext,
     pub(crate) model: SimModel,
-    /// Binding 0 (`Globals`) and 1 (`JointDesc`s).
+    /// [`GLOBALS`]: the model's constants.
     pub(crate) globals: wgpu::Buffer,
+    /// [`JOINTS`]: `[n_joints]` `JointDesc`.
     pub(crate) joints: wgpu::Buffer,
+    /// [`STATES`]: `[N]` `EnvState`.
     pub(crate) states: wgpu::Buffer,
+    /// [`PARAMS`]: `[N]` `EnvParams`.
     pub(crate) params: wgpu::Buffer,
+    /// [`TARGETS`]: `[N]` `Targets`.
     pub(crate) targets: wgpu::Buffer,
+    /// [`STATS`]: `[N]` `StepStats`.
     pub(crate) stats: wgpu::Buffer,
+    /// [`RESET_MASK`]: `[N]` u32.
     pub(crate) reset_mask: wgpu::Buffer,
+    /// Staging buffer of [`GpuEnvBatch::read`] (the size of the env states).
     readback: wgpu::Buffer,
     pub(crate) step_pipeline: wgpu::ComputePipeline,
     pub(crate) reset_pipeline: wgpu::ComputePipeline,
@@ -113,88 +450,39 @@ pub struct GpuEnvBatch {
     mask_host: Vec<u32>,
 }
 
-pub(crate) fn entry(binding: u32, buffer: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
-    wgpu::BindGroupEntry { binding, resource: buffer.as_entire_binding() }
-}
-
-pub(crate) fn storage<T: Pod>(device: &wgpu::Device, label: &str, data: &[T], extra: wgpu::BufferUsages) -> wgpu::Buffer {
-    // zero-length bindings are invalid: pad with one zeroed element
-    let bytes: Vec<u8> = if data.is_empty() { vec![0u8; std::mem::size_of::<T>().max(16)] } else { bytemuck::cast_slice(data).to_vec() };
-    device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-        label: Some(label),
-        contents: &bytes,
-        usage: wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC | extra,
-    })
-}
-
 impl GpuEnvBatch {
-    /// Uploads the model, builds the pipelines and starts episode 0 of every env.
+    /// Uploads the model, builds the pipelines and starts episode 0 of every env. A batch whose
+    /// buffers exceed the device's limits, and every wgpu error while building it, is an error.
     pub fn new(ctx: GpuContext, model: SimModel) -> Result<GpuEnvBatch> {
         let n = model.spec.num_envs;
-        let device = &ctx.device;
-        let limits = device.limits();
+        // the largest per-env buffer, checked before anything is allocated
         let state_bytes = (n * std::mem::size_of::<EnvState>()) as u64;
-        if state_bytes > limits.max_storage_buffer_binding_size as u64 || state_bytes > limits.max_buffer_size {
-            bail!(
-                "sim.num_envs = {n} needs {} MiB of env state, but adapter {} allows {} MiB per storage binding",
-                state_bytes >> 20,
-                ctx.info.name,
-                (limits.max_storage_buffer_binding_size as u64).min(limits.max_buffer_size) >> 20
-            );
-        }
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("dextrain physics"),
-            source: wgpu::ShaderSource::Wgsl(shader_source().into()),
-        });
-        let globals = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("globals"),
-            contents: bytemuck::bytes_of(&model.globals),
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        });
+        ctx.check_buffer_size(STATES.name, state_bytes, BufferRole::Storage).with_context(|| format!("sim.num_envs = {n}"))?;
         let none = wgpu::BufferUsages::empty();
-        let joints = storage(device, "joints", &model.joints, none);
-        let colliders = storage(device, "colliders", &model.colliders, none);
-        let states = storage(device, "states", &vec![EnvState::default(); n], none);
-        let params = storage(device, "params", &vec![<EnvParams as bytemuck::Zeroable>::zeroed(); n], none);
-        let targets = storage(device, "targets", &vec![Targets::default(); n], none);
-        let stats = storage(device, "stats", &vec![<StepStats as bytemuck::Zeroable>::zeroed(); n], none);
-        let reset_mask = storage(device, "reset_mask", &vec![0u32; n], none);
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size: state_bytes.max(16),
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let make = |entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: None,
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        let step_pipeline = make("step_main");
-        let reset_pipeline = make("reset_main");
-        let step_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("step"),
-            layout: &step_pipeline.get_bind_group_layout(0),
-            entries: &[
-                entry(0, &globals),
-                entry(1, &joints),
-                entry(2, &colliders),
-                entry(4, &states),
-                entry(5, &params),
-                entry(6, &targets),
-                entry(7, &stats),
-            ],
-        });
-        let reset_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("reset"),
-            layout: &reset_pipeline.get_bind_group_layout(0),
-            entries: &[entry(0, &globals), entry(1, &joints), entry(4, &states), entry(5, &params), entry(8, &reset_mask)],
-        });
+        let globals = ctx.create_binding_buffer(GLOBALS, std::slice::from_ref(&model.globals), none)?;
+        let joints = ctx.create_binding_buffer(JOINTS, &model.joints, none)?;
+        let colliders = ctx.create_binding_buffer(COLLIDERS, &model.colliders, none)?;
+        let per_env = || format!("sim.num_envs = {n}");
+        let states = ctx.create_binding_buffer(STATES, &vec![EnvState::default(); n], none).with_context(per_env)?;
+        let params = ctx.create_binding_buffer(PARAMS, &vec![<EnvParams as bytemuck::Zeroable>::zeroed(); n], none).with_context(per_env)?;
+        let targets = ctx.create_binding_buffer(TARGETS, &vec![Targets::default(); n], none).with_context(per_env)?;
+        let stats = ctx.create_binding_buffer(STATS, &vec![<StepStats as bytemuck::Zeroable>::zeroed(); n], none).with_context(per_env)?;
+        let reset_mask = ctx.create_binding_buffer(RESET_MASK, &vec![0u32; n], none).with_context(per_env)?;
+        let readback = ctx.create_staging_buffer("env readback", state_bytes).with_context(per_env)?;
+        let [step_pipeline, reset_pipeline] =
+            ctx.compute_pipelines(SIM_GROUP.shader, &shader_source(), [STEP_MAIN.entry_point, RESET_MAIN.entry_point])?;
+        let buffers = [
+            (GLOBALS, &globals),
+            (JOINTS, &joints),
+            (COLLIDERS, &colliders),
+            (STATES, &states),
+            (PARAMS, &params),
+            (TARGETS, &targets),
+            (STATS, &stats),
+            (RESET_MASK, &reset_mask),
+        ];
+        let step_group = ctx.bind_group(&step_pipeline, &STEP_MAIN, &buffers)?;
+        let reset_group = ctx.bind_group(&reset_pipeline, &RESET_MAIN, &buffers)?;
         let mut b = GpuEnvBatch {
             ctx,
             model,
@@ -216,6 +504,7 @@ impl GpuEnvBatch {
         Ok(b)
     }
 
+    /// The wgpu context the batch runs on.
     pub fn context(&self) -> &GpuContext {
         &self.ctx
     }
@@ -227,49 +516,30 @@ impl GpuEnvBatch {
         (x, wg.div_ceil(x))
     }
 
-    fn dispatch(&self, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup) {
-        let (x, y) = self.workgroups();
-        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = enc.begin_compute_pass(&Default::default());
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, group, &[]);
-            pass.dispatch_workgroups(x, y, 1);
-        }
-        self.ctx.queue.submit([enc.finish()]);
+    fn dispatch(&self, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, what: &str) -> Result<()> {
+        let enc = self.ctx.encode_passes(&[(pipeline, group)], self.workgroups());
+        self.ctx.submit(enc, what)
     }
 
     fn run_reset(&mut self) -> Result<()> {
-        self.ctx.queue.write_buffer(&self.reset_mask, 0, bytemuck::cast_slice(&self.mask_host));
-        self.dispatch(&self.reset_pipeline, &self.reset_group);
-        Ok(())
+        self.ctx.upload(RESET_MASK.name, &self.reset_mask, bytemuck::cast_slice(&self.mask_host))?;
+        self.dispatch(&self.reset_pipeline, &self.reset_group, "dispatching reset_main")
     }
 
     /// Overwrites the parameters (checkpoint restore).
     pub fn set_params(&mut self, params: &[EnvParams]) -> Result<()> {
         ensure!(params.len() == self.model.spec.num_envs, "{} parameter sets for {} envs", params.len(), self.model.spec.num_envs);
-        self.ctx.queue.write_buffer(&self.params, 0, bytemuck::cast_slice(params));
-        Ok(())
+        self.ctx.upload(PARAMS.name, &self.params, bytemuck::cast_slice(params))
     }
 
-    /// Copies `count` elements of `T` (at most the size of the env states) from `src` back to the host.
-    pub(crate) fn read<T: Pod>(&self, src: &wgpu::Buffer, count: usize) -> Result<Vec<T>> {
-        let size = (count * std::mem::size_of::<T>()) as u64;
-        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-        enc.copy_buffer_to_buffer(src, 0, &self.readback, 0, size);
-        self.ctx.queue.submit([enc.finish()]);
-        let slice = self.readback.slice(0..size);
-        let (tx, rx) = mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        self.ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU poll failed: {e}"))?;
-        rx.recv().context("GPU readback was dropped")?.map_err(|e| anyhow!("GPU readback failed: {e}"))?;
-        let out = {
-            let view = slice.get_mapped_range().map_err(|e| anyhow!("GPU readback failed: {e:?}"))?;
-            bytemuck::pod_collect_to_vec(&view)
-        };
-        self.readback.unmap();
+    /// Copies `count` elements of `T` (at most the size of the env states) from `src` (named
+    /// `name` in errors) back to the host.
+    pub(crate) fn read<T: Pod>(&self, src: &wgpu::Buffer, name: &str, count: usize) -> Result<Vec<T>> {
+        let bytes = (count * std::mem::size_of::<T>()) as u64;
+        let enc = self.ctx.device.create_command_encoder(&Default::default());
+        let mut out = Vec::new();
+        let copy = ReadbackCopy { name, src, staging: &self.readback, bytes };
+        self.ctx.submit_and_read(enc, &[copy], &format!("reading GPU buffer `{name}` back"), |_, b| out = bytemuck::pod_collect_to_vec(b))?;
         Ok(out)
     }
 }
@@ -298,32 +568,31 @@ impl EnvBatch for GpuEnvBatch {
 
     fn step(&mut self, targets: &[Targets]) -> Result<()> {
         ensure!(targets.len() == self.model.spec.num_envs, "{} targets for {} envs", targets.len(), self.model.spec.num_envs);
-        self.ctx.queue.write_buffer(&self.targets, 0, bytemuck::cast_slice(targets));
-        self.dispatch(&self.step_pipeline, &self.step_group);
-        Ok(())
+        self.ctx.upload(TARGETS.name, &self.targets, bytemuck::cast_slice(targets))?;
+        self.dispatch(&self.step_pipeline, &self.step_group, "dispatching step_main")
     }
 
     fn states(&mut self) -> Result<Vec<EnvState>> {
-        self.read(&self.states, self.model.spec.num_envs)
+        self.read(&self.states, STATES.name, self.model.spec.num_envs)
     }
 
     fn set_states(&mut self, states: &[EnvState]) -> Result<()> {
         ensure!(states.len() == self.model.spec.num_envs, "{} states for {} envs", states.len(), self.model.spec.num_envs);
-        self.ctx.queue.write_buffer(&self.states, 0, bytemuck::cast_slice(states));
-        Ok(())
+        self.ctx.upload(STATES.name, &self.states, bytemuck::cast_slice(states))
     }
 
     fn params(&mut self) -> Result<Vec<EnvParams>> {
-        self.read(&self.params, self.model.spec.num_envs)
+        self.read(&self.params, PARAMS.name, self.model.spec.num_envs)
     }
 
     fn stats(&mut self) -> Result<Vec<StepStats>> {
-        self.read(&self.stats, self.model.spec.num_envs)
+        self.read(&self.stats, STATS.name, self.model.spec.num_envs)
     }
 }
 
 /// One binding of a [`run_kernel`] dispatch (its bytes are uploaded as they are).
 pub enum KernelBinding<'a> {
+    /// `var<uniform>`.
     Uniform(&'a [u8]),
     /// `var<storage, read>`.
     Storage(&'a [u8]),
@@ -333,70 +602,42 @@ pub enum KernelBinding<'a> {
 
 /// Runs entry point `entry_point` of the WGSL module `source` once over `invocations` invocations
 /// (workgroups of [`WORKGROUP_SIZE`] along x; the kernel must ignore ids past the end), with
-/// `bindings` in group 0 (exactly those the entry point uses: the layout is derived from the shader).
+/// `bindings` in group 0 (exactly those the entry point uses: the layout is derived from the shader;
+/// test kernels put their own bindings from 16 up, beside those of `gpu_bindings`).
 /// Returns the contents of every `StorageRw` binding after the dispatch, in the order given.
 /// For tests that compare a shader function with its CPU twin.
 pub fn run_kernel(ctx: &GpuContext, source: &str, entry_point: &str, bindings: &[(u32, KernelBinding)], invocations: u32) -> Result<Vec<Vec<u8>>> {
-    let device = &ctx.device;
-    let module = device.create_shader_module(wgpu::ShaderModuleDescriptor { label: Some(entry_point), source: wgpu::ShaderSource::Wgsl(source.into()) });
-    let pipeline = device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-        label: Some(entry_point),
-        layout: None,
-        module: &module,
-        entry_point: Some(entry_point),
-        compilation_options: Default::default(),
-        cache: None,
-    });
-    let buffers: Vec<wgpu::Buffer> = bindings
-        .iter()
-        .map(|(b, k)| {
-            let (bytes, usage) = match k {
-                KernelBinding::Uniform(d) => (*d, wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST),
-                KernelBinding::Storage(d) | KernelBinding::StorageRw(d) => (*d, wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_SRC),
-            };
-            // zero-length bindings are invalid: pad to 16 bytes
-            let mut contents = bytes.to_vec();
-            contents.resize(contents.len().max(16), 0);
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(&format!("binding {b}")), contents: &contents, usage })
-        })
-        .collect();
-    let entries: Vec<wgpu::BindGroupEntry> = bindings.iter().zip(&buffers).map(|((b, _), buf)| entry(*b, buf)).collect();
-    let group = device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(entry_point), layout: &pipeline.get_bind_group_layout(0), entries: &entries });
-    let rw: Vec<usize> = bindings.iter().enumerate().filter(|(_, (_, k))| matches!(k, KernelBinding::StorageRw(_))).map(|(i, _)| i).collect();
-    let readbacks: Vec<wgpu::Buffer> = rw
-        .iter()
-        .map(|&i| device.create_buffer(&wgpu::BufferDescriptor { label: Some("kernel readback"), size: buffers[i].size(), usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST, mapped_at_creation: false }))
-        .collect();
-    let mut enc = device.create_command_encoder(&Default::default());
-    {
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&pipeline);
-        pass.set_bind_group(0, &group, &[]);
-        pass.dispatch_workgroups(invocations.div_ceil(WORKGROUP_SIZE).max(1), 1, 1);
-    }
-    for (&i, rb) in rw.iter().zip(&readbacks) {
-        enc.copy_buffer_to_buffer(&buffers[i], 0, rb, 0, buffers[i].size());
-    }
-    ctx.queue.submit([enc.finish()]);
-    let mut out = Vec::new();
-    for (&i, rb) in rw.iter().zip(&readbacks) {
-        let slice = rb.slice(..);
-        let (tx, rx) = mpsc::channel();
-        slice.map_async(wgpu::MapMode::Read, move |r| {
-            let _ = tx.send(r);
-        });
-        device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU poll failed: {e}"))?;
-        rx.recv().context("GPU readback was dropped")?.map_err(|e| anyhow!("GPU readback failed: {e}"))?;
-        let bytes = {
-            let view = slice.get_mapped_range().map_err(|e| anyhow!("GPU readback failed: {e:?}"))?;
-            let len = match &bindings[i].1 {
-                KernelBinding::StorageRw(d) => d.len(),
-                _ => 0,
-            };
-            view[..len].to_vec()
+    let [pipeline] = ctx.compute_pipelines(entry_point, source, [entry_point])?;
+    let mut buffers = Vec::with_capacity(bindings.len());
+    for (b, k) in bindings {
+        let (bytes, role) = match k {
+            KernelBinding::Uniform(d) => (*d, BindingSpace::Uniform),
+            KernelBinding::Storage(d) => (*d, BindingSpace::StorageRead),
+            KernelBinding::StorageRw(d) => (*d, BindingSpace::StorageReadWrite),
         };
-        rb.unmap();
-        out.push(bytes);
+        buffers.push(ctx.create_buffer_with(&format!("binding {b}"), bytes, role.into(), role.usage())?);
     }
+    let entries: Vec<wgpu::BindGroupEntry> =
+        bindings.iter().zip(&buffers).map(|((b, _), buf)| wgpu::BindGroupEntry { binding: *b, resource: buf.as_entire_binding() }).collect();
+    let group = ctx.scoped(
+        || format!("creating the bind group of entry point `{entry_point}`"),
+        || ctx.device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(entry_point), layout: &pipeline.get_bind_group_layout(0), entries: &entries }),
+    )?;
+    // the read-write bindings: (index into `bindings`, their byte count, a staging buffer)
+    let mut rw = Vec::new();
+    for (i, (b, k)) in bindings.iter().enumerate() {
+        if let KernelBinding::StorageRw(d) = k {
+            rw.push((i, d.len(), ctx.create_staging_buffer(&format!("binding {b} readback"), buffers[i].size())?));
+        }
+    }
+    let names: Vec<String> = rw.iter().map(|(i, _, _)| format!("binding {}", bindings[*i].0)).collect();
+    let copies: Vec<ReadbackCopy> = rw
+        .iter()
+        .zip(&names)
+        .map(|((i, _, staging), name)| ReadbackCopy { name, src: &buffers[*i], staging, bytes: buffers[*i].size() })
+        .collect();
+    let enc = ctx.encode_passes(&[(&pipeline, &group)], (invocations.div_ceil(WORKGROUP_SIZE).max(1), 1));
+    let mut out = vec![Vec::new(); rw.len()];
+    ctx.submit_and_read(enc, &copies, &format!("running kernel `{entry_point}`"), |k, bytes| out[k] = bytes[..rw[k].1].to_vec())?;
     Ok(out)
 }

@@ -25,6 +25,7 @@
 pub mod common;
 pub mod cpu;
 pub mod gpu;
+pub mod gpu_bindings;
 pub mod ik;
 pub mod gpu_layout;
 pub mod physics;

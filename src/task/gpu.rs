@@ -7,16 +7,15 @@
 //! output buffer (obs `[N, obs_dim]`, priv obs `[N, priv_dim]`, records `[N, OUT_MISC]`) to the
 //! readback buffer, and one map of it. Nothing is allocated on the device per step.
 
-use std::sync::mpsc;
-
-use anyhow::{Context, Result, anyhow, bail};
-use wgpu::util::DeviceExt;
+use anyhow::{Context, Result};
 
 use super::setup::{TaskSetup, task_setup};
 use super::spec::TaskSpec;
 use super::task::OUT_MISC;
 use super::{StepBatch, TaskBatch, check_actions, decode_snapshot, encode_snapshot};
-use crate::env::gpu::{GpuContext, GpuEnvBatch, entry, storage, task_shader_source};
+use crate::env::gpu::{BufferRole, GpuContext, GpuEnvBatch, ReadbackCopy, task_shader_source};
+use crate::env::gpu_bindings::{ACTIONS, GLOBALS, JOINTS, PARAMS, REF_CFG, REF_FRAMES, REF_INFO, RESET_MASK, STATES, STATS, TARGETS, TIPS};
+use crate::env::gpu_bindings::{TASK_ACT, TASK_CFG, TASK_GROUP, TASK_OBSERVE, TASK_OUT, TASK_REWARD, TASK_STATES};
 use crate::env::gpu_layout::*;
 use crate::env::{EnvBatch, SimModel};
 use crate::config::Config;
@@ -55,131 +54,57 @@ impl GpuTaskBatch {
         let n = spec.num_envs;
         let out_floats = n * (spec.obs_dim + spec.priv_dim + OUT_MISC);
         let out_bytes = (out_floats * 4) as u64;
-        let limits = ctx.device.limits();
-        if out_bytes > limits.max_storage_buffer_binding_size || out_bytes > limits.max_buffer_size {
-            bail!(
-                "sim.num_envs = {n} needs {} MiB of task outputs, but adapter {} allows {} MiB per storage binding",
-                out_bytes >> 20,
-                ctx.info.name,
-                limits.max_storage_buffer_binding_size.min(limits.max_buffer_size) >> 20
-            );
-        }
+        // the task's largest buffers, checked before the env batch is built
+        let file = cfg.source.display();
+        ctx.check_buffer_size(TASK_OUT.name, out_bytes, BufferRole::Storage).with_context(|| format!("{file}: key `sim.num_envs` = {n}: the task outputs"))?;
         let ref_bytes = (bank.as_ref().map_or(0, |b| b.frames.len()) * 4) as u64;
-        if ref_bytes > limits.max_storage_buffer_binding_size || ref_bytes > limits.max_buffer_size {
-            bail!(
-                "{}: key `task.reference.files`: the references need {} MiB on the device, but adapter {} allows {} MiB per storage binding",
-                cfg.source.display(),
-                ref_bytes >> 20,
-                ctx.info.name,
-                limits.max_storage_buffer_binding_size.min(limits.max_buffer_size) >> 20
-            );
-        }
+        ctx.check_buffer_size(REF_FRAMES.name, ref_bytes, BufferRole::Storage)
+            .with_context(|| format!("{file}: key `task.reference.files`: the references"))?;
         let tips_host = model.tips.clone();
         let env = GpuEnvBatch::new(ctx, model)?;
-        let device = &env.ctx.device;
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("dextrain task"),
-            source: wgpu::ShaderSource::Wgsl(task_shader_source().into()),
-        });
-        let task_cfg = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("task_cfg"),
-            contents: bytemuck::bytes_of(&tc),
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        });
+        let ctx = &env.ctx;
         let none = wgpu::BufferUsages::empty();
-        let tips = storage(device, "tips", &tips_host, none);
-        // the reference layer (bindings 13–15; one zeroed element each for the lift task)
+        let task_cfg = ctx.create_binding_buffer(TASK_CFG, std::slice::from_ref(&tc), none)?;
+        let tips = ctx.create_binding_buffer(TIPS, &tips_host, none)?;
+        // the reference layer (one zeroed element each for the lift task)
         let (ref_frames_host, ref_info_host) = match &bank {
-            Some(b) => (b.frames.clone(), b.info.clone()),
-            None => (Vec::new(), Vec::new()),
+            Some(b) => (b.frames.as_slice(), b.info.as_slice()),
+            None => (&[][..], &[][..]),
         };
-        let ref_frames = storage(device, "ref_frames", &ref_frames_host, none);
-        let ref_info = storage(device, "ref_info", &ref_info_host, none);
-        let ref_cfg = device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-            label: Some("ref_cfg"),
-            contents: bytemuck::bytes_of(&rg),
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-        });
-        let task_states = storage(device, "task_states", &vec![TaskState::default(); n], none);
-        let actions = storage(device, "actions", &vec![0f32; n * spec.action_dim], none);
-        let out = storage(device, "task_out", &vec![0f32; out_floats], none);
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("task readback"),
-            size: out_bytes,
-            usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let make = |name: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(name),
-                layout: None,
-                module: &module,
-                entry_point: Some(name),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        let act_pipeline = make("task_act");
-        let reward_pipeline = make("task_reward");
-        let observe_pipeline = make("task_observe");
+        let ref_frames = ctx.create_binding_buffer(REF_FRAMES, ref_frames_host, none)?;
+        let ref_info = ctx.create_binding_buffer(REF_INFO, ref_info_host, none)?;
+        let ref_cfg = ctx.create_binding_buffer(REF_CFG, std::slice::from_ref(&rg), none)?;
+        let per_env = || format!("{file}: key `sim.num_envs` = {n}");
+        let task_states = ctx.create_binding_buffer(TASK_STATES, &vec![TaskState::default(); n], none).with_context(per_env)?;
+        let actions = ctx.create_binding_buffer(ACTIONS, &vec![0f32; n * spec.action_dim], none).with_context(per_env)?;
+        let out = ctx.create_binding_buffer(TASK_OUT, &vec![0f32; out_floats], none).with_context(per_env)?;
+        let readback = ctx.create_staging_buffer("task readback", out_bytes).with_context(per_env)?;
+        let [act_pipeline, reward_pipeline, observe_pipeline] = ctx.compute_pipelines(
+            TASK_GROUP.shader,
+            &task_shader_source(),
+            [TASK_ACT.entry_point, TASK_REWARD.entry_point, TASK_OBSERVE.entry_point],
+        )?;
         // each bind group lists exactly the bindings its entry point uses (the layouts are derived)
-        let group = |pipeline: &wgpu::ComputePipeline, label: &str, entries: &[wgpu::BindGroupEntry]| {
-            device.create_bind_group(&wgpu::BindGroupDescriptor { label: Some(label), layout: &pipeline.get_bind_group_layout(0), entries })
-        };
-        let act_group = group(
-            &act_pipeline,
-            "task_act",
-            &[
-                entry(0, &env.globals),
-                entry(1, &env.joints),
-                entry(3, &tips),
-                entry(4, &env.states),
-                entry(6, &env.targets),
-                entry(9, &task_cfg),
-                entry(10, &task_states),
-                entry(11, &actions),
-                entry(13, &ref_frames),
-                entry(14, &ref_info),
-                entry(15, &ref_cfg),
-            ],
-        );
-        let reward_group = group(
-            &reward_pipeline,
-            "task_reward",
-            &[
-                entry(0, &env.globals),
-                entry(1, &env.joints),
-                entry(3, &tips),
-                entry(4, &env.states),
-                entry(5, &env.params),
-                entry(7, &env.stats),
-                entry(8, &env.reset_mask),
-                entry(9, &task_cfg),
-                entry(10, &task_states),
-                entry(12, &out),
-                entry(13, &ref_frames),
-                entry(14, &ref_info),
-                entry(15, &ref_cfg),
-            ],
-        );
-        let observe_group = group(
-            &observe_pipeline,
-            "task_observe",
-            &[
-                entry(0, &env.globals),
-                entry(1, &env.joints),
-                entry(3, &tips),
-                entry(4, &env.states),
-                entry(5, &env.params),
-                entry(8, &env.reset_mask),
-                entry(9, &task_cfg),
-                entry(10, &task_states),
-                entry(12, &out),
-                entry(13, &ref_frames),
-                entry(14, &ref_info),
-                entry(15, &ref_cfg),
-            ],
-        );
+        let buffers = [
+            (GLOBALS, &env.globals),
+            (JOINTS, &env.joints),
+            (TIPS, &tips),
+            (STATES, &env.states),
+            (PARAMS, &env.params),
+            (TARGETS, &env.targets),
+            (STATS, &env.stats),
+            (RESET_MASK, &env.reset_mask),
+            (TASK_CFG, &task_cfg),
+            (TASK_STATES, &task_states),
+            (ACTIONS, &actions),
+            (TASK_OUT, &out),
+            (REF_FRAMES, &ref_frames),
+            (REF_INFO, &ref_info),
+            (REF_CFG, &ref_cfg),
+        ];
+        let act_group = ctx.bind_group(&act_pipeline, &TASK_ACT, &buffers)?;
+        let reward_group = ctx.bind_group(&reward_pipeline, &TASK_REWARD, &buffers)?;
+        let observe_group = ctx.bind_group(&observe_pipeline, &TASK_OBSERVE, &buffers)?;
         let batch = StepBatch::new(&spec);
         let mut b = GpuTaskBatch {
             env,
@@ -212,7 +137,7 @@ impl GpuTaskBatch {
 
     /// Reads the per-env task states back (tests, recordings; not used by `step`).
     pub fn task_states(&mut self) -> Result<Vec<TaskState>> {
-        self.env.read(&self.task_states, self.spec.num_envs)
+        self.env.read(&self.task_states, TASK_STATES.name, self.spec.num_envs)
     }
 
     /// Copies the obs and priv obs sections of `self.host` into the batch.
@@ -244,7 +169,7 @@ impl TaskBatch for GpuTaskBatch {
     fn reset_all(&mut self) -> Result<&StepBatch> {
         // reset_mask = 2 everywhere: task_observe initialises every env's task state
         self.env.reset_all()?;
-        dispatch_and_read(&self.env, &[(&self.observe_pipeline, &self.observe_group)], &self.out, &self.readback, self.out_bytes, &mut self.host)?;
+        dispatch_and_read(&self.env, &[(&self.observe_pipeline, &self.observe_group)], &self.out, &self.readback, self.out_bytes, &mut self.host, "task reset_all")?;
         self.unpack_obs();
         self.batch.clear_misc();
         Ok(&self.batch)
@@ -252,7 +177,7 @@ impl TaskBatch for GpuTaskBatch {
 
     fn step(&mut self, actions: &[f32]) -> Result<&StepBatch> {
         check_actions(&self.spec, actions)?;
-        self.env.ctx.queue.write_buffer(&self.actions, 0, bytemuck::cast_slice(actions));
+        self.env.ctx.upload(ACTIONS.name, &self.actions, bytemuck::cast_slice(actions))?;
         let e = &self.env;
         let passes = [
             (&self.act_pipeline, &self.act_group),
@@ -261,7 +186,7 @@ impl TaskBatch for GpuTaskBatch {
             (&e.reset_pipeline, &e.reset_group),
             (&self.observe_pipeline, &self.observe_group),
         ];
-        dispatch_and_read(e, &passes, &self.out, &self.readback, self.out_bytes, &mut self.host)?;
+        dispatch_and_read(e, &passes, &self.out, &self.readback, self.out_bytes, &mut self.host, "task step")?;
         self.unpack_obs();
         let n = self.spec.num_envs;
         let base = n * (self.spec.obs_dim + self.spec.priv_dim);
@@ -293,13 +218,13 @@ impl TaskBatch for GpuTaskBatch {
         let (states, params, task) = decode_snapshot(state, self.spec.num_envs)?;
         self.env.set_states(&states)?;
         self.env.set_params(&params)?;
-        self.env.ctx.queue.write_buffer(&self.task_states, 0, bytemuck::cast_slice(&task));
-        Ok(())
+        self.env.ctx.upload(TASK_STATES.name, &self.task_states, bytemuck::cast_slice(&task))
     }
 }
 
 /// Records the given (pipeline, bind group) dispatches over all envs in one compute pass (wgpu
-/// orders dispatches that share buffers), copies `out` to `readback`, submits, and reads it into `host`.
+/// orders dispatches that share buffers), copies `out` (`out_bytes` bytes) to `readback`, submits,
+/// and reads it into `host`. `what` names the call in errors.
 fn dispatch_and_read(
     env: &GpuEnvBatch,
     passes: &[(&wgpu::ComputePipeline, &wgpu::BindGroup)],
@@ -307,38 +232,10 @@ fn dispatch_and_read(
     readback: &wgpu::Buffer,
     out_bytes: u64,
     host: &mut [f32],
+    what: &str,
 ) -> Result<()> {
-    let (x, y) = env.workgroups();
-    let ctx = &env.ctx;
-    let mut enc = ctx.device.create_command_encoder(&Default::default());
-    {
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        for (pipeline, group) in passes {
-            pass.set_pipeline(pipeline);
-            pass.set_bind_group(0, *group, &[]);
-            pass.dispatch_workgroups(x, y, 1);
-        }
-    }
-    enc.copy_buffer_to_buffer(out, 0, readback, 0, out_bytes);
-    ctx.queue.submit([enc.finish()]);
-    let slice = readback.slice(..);
-    let (tx, rx) = mpsc::channel();
-    slice.map_async(wgpu::MapMode::Read, move |r| {
-        let _ = tx.send(r);
-    });
-    ctx.device.poll(wgpu::PollType::wait_indefinitely()).map_err(|e| anyhow!("GPU poll failed: {e}"))?;
-    rx.recv().context("GPU readback was dropped")?.map_err(|e| anyhow!("GPU readback failed: {e}"))?;
-    {
-        let view = slice.get_mapped_range().map_err(|e| anyhow!("GPU readback failed: {e:?}"))?;
-        match bytemuck::try_cast_slice::<u8, f32>(&view) {
-            Ok(f) => host.copy_from_slice(f),
-            Err(_) => {
-                for (h, b) in host.iter_mut().zip(view.chunks_exact(4)) {
-                    *h = f32::from_ne_bytes([b[0], b[1], b[2], b[3]]);
-                }
-            }
-        }
-    }
-    readback.unmap();
-    Ok(())
+    let enc = env.ctx.encode_passes(passes, env.workgroups());
+    let copy = ReadbackCopy { name: TASK_OUT.name, src: out, staging: readback, bytes: out_bytes };
+    // host as bytes: any f32 slice is a valid byte slice, so no alignment question arises
+    env.ctx.submit_and_read(enc, &[copy], what, |_, bytes| bytemuck::cast_slice_mut::<f32, u8>(host).copy_from_slice(bytes))
 }

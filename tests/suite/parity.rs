@@ -1,4 +1,6 @@
-//! CPU/GPU parity: the WGSL kernels and their CPU twins must compute the same thing.
+//! CPU/GPU parity: the WGSL kernels and their CPU twins must compute the same thing; and wgpu's
+//! errors (buffers beyond the device's limits, shaders that fail validation, errors outside any
+//! error scope) come back as one-line errors naming the buffer or shader, never as panics.
 //! Runs on any wgpu adapter, lavapipe included; without one it prints why (fails with REQUIRE_GPU=1).
 
 
@@ -250,4 +252,110 @@ fn t_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     }
     // DESIGN §4: one evaluation agrees to about 1e-5 (values here are O(1); quat_error uses atan2)
     assert!(worst < 1e-5, "largest difference between shader and CPU twin: {worst}");
+}
+
+/// The adapter `gpu_context` picks, reopened with `max_storage_buffer_binding_size` lowered to
+/// `limit` bytes (None, and why printed, without an adapter).
+fn limited_context(test: &str, limit: u64) -> Option<dextrain::env::gpu::GpuContext> {
+    let probe = gpu_context(test)?;
+    let adapter = probe.info.name.clone();
+    drop(probe);
+    let ctx = dextrain::env::gpu::GpuContext::with_limits(Some(&adapter), |l| wgpu::Limits { max_storage_buffer_binding_size: limit, ..l })
+        .expect("a device with a lower storage-binding limit");
+    assert_eq!(ctx.device.limits().max_storage_buffer_binding_size, limit);
+    Some(ctx)
+}
+
+#[test]
+fn an_env_batch_beyond_the_storage_binding_limit_is_an_error_naming_the_buffer() {
+    use dextrain::env::SimModel;
+    use dextrain::env::gpu::GpuEnvBatch;
+    let test = "an_env_batch_beyond_the_storage_binding_limit_is_an_error_naming_the_buffer";
+    let limit = 1u64 << 16;
+    let Some(ctx) = limited_context(test, limit) else { return };
+    let n = 64;
+    let bytes = (n * std::mem::size_of::<EnvState>()) as u64;
+    assert!(bytes > limit, "the test needs a states buffer above the limit");
+    let err = GpuEnvBatch::new(ctx, SimModel::from_config(&base_config(n)).unwrap()).err().expect("64 envs exceed a 64 KiB storage binding");
+    let msg = format!("{err:#}");
+    for part in ["sim.num_envs = 64", "GPU buffer `states`", &format!("needs {bytes} bytes"), &format!("allows {limit} bytes"), "max_storage_buffer_binding_size"] {
+        assert!(msg.contains(part), "the error should say {part:?}: {msg}");
+    }
+    assert!(!msg.contains('\n'), "one line: {msg}");
+    // the same limit takes a batch that fits, and it runs
+    let Some(ctx) = limited_context(test, limit) else { return };
+    let fits = (limit as usize / std::mem::size_of::<EnvState>()).min(8);
+    let mut b = GpuEnvBatch::new(ctx, SimModel::from_config(&base_config(fits)).unwrap()).expect("a batch within the limit");
+    assert_eq!(b.states().unwrap().len(), fits);
+}
+
+#[test]
+fn a_task_batch_beyond_the_storage_binding_limit_is_an_error_naming_the_buffer() {
+    use dextrain::env::SimModel;
+    use dextrain::task::task::OUT_MISC;
+    use dextrain::task::{CpuTaskBatch, GpuTaskBatch, TaskBatch};
+    let limit = 1u64 << 14;
+    let Some(ctx) = limited_context("a_task_batch_beyond_the_storage_binding_limit_is_an_error_naming_the_buffer", limit) else { return };
+    let n = 64;
+    let c = base_config(n);
+    let spec = CpuTaskBatch::new(&c, SimModel::from_config(&c).unwrap()).expect("cpu task").spec().clone();
+    // obs [N, obs_dim], priv obs [N, priv_dim], records [N, OUT_MISC], f32
+    let bytes = (n * (spec.obs_dim + spec.priv_dim + OUT_MISC) * 4) as u64;
+    assert!(bytes > limit, "the test needs a task output above the limit");
+    let err = GpuTaskBatch::new(&c, ctx, SimModel::from_config(&c).unwrap()).err().expect("the task outputs exceed a 16 KiB storage binding");
+    let msg = format!("{err:#}");
+    for part in ["test.toml: key `sim.num_envs` = 64", "GPU buffer `task_out`", &format!("needs {bytes} bytes"), &format!("allows {limit} bytes")] {
+        assert!(msg.contains(part), "the error should say {part:?}: {msg}");
+    }
+    assert!(!msg.contains('\n'), "one line: {msg}");
+}
+
+#[test]
+fn a_shader_that_fails_validation_is_an_error_naming_the_shader_not_a_panic() {
+    use dextrain::env::gpu::{KernelBinding, run_kernel};
+    let Some(ctx) = gpu_context("a_shader_that_fails_validation_is_an_error_naming_the_shader_not_a_panic") else { return };
+    // a u32 array assigned an f32: WGSL has no implicit conversion
+    let broken = "@group(0) @binding(0) var<storage, read_write> t_out: array<u32>;\n\
+                  @compute @workgroup_size(64)\n\
+                  fn t_main(@builtin(global_invocation_id) gid: vec3<u32>) { t_out[gid.x] = 1.5f; }\n";
+    let err = ctx.compute_pipelines("broken kernel", broken, ["t_main"]).err().expect("the module must not compile");
+    let msg = format!("{err:#}");
+    for part in ["compiling shader `broken kernel`", "entry points t_main", "validation error", &ctx.info.name, "cannot convert"] {
+        assert!(msg.contains(part), "the error should say {part:?}: {msg}");
+    }
+    assert!(!msg.contains('\n'), "one line: {msg}");
+    // the same through run_kernel, whose shader is named after its entry point
+    let err = run_kernel(&ctx, broken, "t_main", &[(0, KernelBinding::StorageRw(&[0u8; 256]))], 64).err().expect("the module must not compile");
+    assert!(format!("{err:#}").contains("compiling shader `t_main`"), "{err:#}");
+    // a module that compiles but lacks the entry point: the pipeline's error names it
+    let fine = broken.replace("1.5f", "7u");
+    let err = ctx.compute_pipelines("fine kernel", &fine, ["t_main", "no_such_main"]).err().expect("no entry point no_such_main");
+    let msg = format!("{err:#}");
+    assert!(msg.contains("entry point `no_such_main` of shader `fine kernel`") && msg.contains("validation error"), "{msg}");
+    // and the device still works: the valid kernel runs and writes 7 everywhere
+    let out = run_kernel(&ctx, &fine, "t_main", &[(0, KernelBinding::StorageRw(&[0u8; 256]))], 64).expect("the valid kernel");
+    assert!(bytemuck::cast_slice::<u8, u32>(&out[0]).iter().all(|&v| v == 7));
+}
+
+#[test]
+fn an_error_outside_any_scope_is_returned_by_the_next_readback() {
+    let Some(ctx) = gpu_context("an_error_outside_any_scope_is_returned_by_the_next_readback") else { return };
+    let mut b = gpu_batch(&base_config(4), ctx);
+    let small = b.context().device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("small"),
+        size: 16,
+        usage: wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    // 32 bytes into a 16-byte buffer, outside any error scope: wgpu's default handler would panic
+    b.context().queue.write_buffer(&small, 0, &[0u8; 32]);
+    let err = b.states().expect_err("the recorded error comes back from the next readback");
+    let msg = format!("{err:#}");
+    for part in ["reading GPU buffer `states` back", "validation error", "since the last check"] {
+        assert!(msg.contains(part), "the error should say {part:?}: {msg}");
+    }
+    // it is reported once: the batch goes on working
+    let states = b.states().expect("the readback after the reported error");
+    assert_eq!(states.len(), 4);
+    assert!(states.iter().all(|s| s.episode == 0 && s.wrist_pos[2] > 0.0));
 }

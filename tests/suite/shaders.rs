@@ -1,6 +1,8 @@
 //! Shader validation with naga (no GPU needed): every shader parses and validates as the module the
-//! GPU backend builds, each shader parses on its own with common.wgsl, and every Pod struct in
-//! src/env/layout.rs has exactly the size and field offsets of its WGSL twin.
+//! GPU backend builds, each shader parses on its own with common.wgsl, every Pod struct in
+//! src/env/gpu_layout.rs has exactly the size and field offsets of its WGSL twin, and the binding tables
+//! of src/env/gpu_bindings.rs name every WGSL binding (index, name, address space) and what each
+//! entry point uses.
 
 
 use crate::common::validate;
@@ -264,4 +266,83 @@ fn reward_term_slots_agree_in_the_table_the_shader_and_the_config() {
             .unwrap_or_else(|| panic!("T_{name}: no task kind"));
         assert_eq!(reward_terms(kind).iter().position(|t| t.name == term), Some(*k), "T_{name}");
     }
+}
+
+/// Every `@group(g) @binding(k) var<space> name` of a WGSL module, sorted by (group, index), and
+/// the binding indices that each entry point uses (reads, writes or queries), sorted.
+fn wgsl_bindings(src: &str) -> (Vec<(u32, u32, String, dextrain::env::gpu_bindings::BindingSpace)>, Vec<(String, Vec<u32>)>) {
+    use dextrain::env::gpu_bindings::BindingSpace;
+    let module = validate(src);
+    let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
+        .validate(&module)
+        .unwrap_or_else(|e| panic!("WGSL validation error: {e:?}"));
+    let mut declared = Vec::new();
+    for (_, var) in module.global_variables.iter() {
+        let Some(rb) = &var.binding else { continue };
+        let name = var.name.clone().unwrap_or_default();
+        let space = match var.space {
+            naga::AddressSpace::Uniform => BindingSpace::Uniform,
+            naga::AddressSpace::Storage { access } if access.contains(naga::StorageAccess::STORE) => BindingSpace::StorageReadWrite,
+            naga::AddressSpace::Storage { .. } => BindingSpace::StorageRead,
+            other => panic!("binding {} `{name}` is in address space {other:?}, which no table describes", rb.binding),
+        };
+        declared.push((rb.group, rb.binding, name, space));
+    }
+    declared.sort_by_key(|d| (d.0, d.1));
+    let used = module
+        .entry_points
+        .iter()
+        .enumerate()
+        .map(|(i, ep)| {
+            let fi = info.get_entry_point(i);
+            let mut ix: Vec<u32> = module
+                .global_variables
+                .iter()
+                .filter(|(h, v)| v.binding.is_some() && !fi[*h].is_empty())
+                .filter_map(|(_, v)| v.binding.as_ref().map(|b| b.binding))
+                .collect();
+            ix.sort();
+            (ep.name.clone(), ix)
+        })
+        .collect();
+    (declared, used)
+}
+
+/// A binding table as (group 0, index, name, space), sorted by index.
+fn table(bindings: &[dextrain::env::gpu_bindings::Binding]) -> Vec<(u32, u32, String, dextrain::env::gpu_bindings::BindingSpace)> {
+    let mut t: Vec<_> = bindings.iter().map(|b| (0, b.index, b.name.to_string(), b.space)).collect();
+    t.sort_by_key(|d| d.1);
+    t
+}
+
+#[test]
+fn binding_tables_match_the_wgsl_globals() {
+    use dextrain::env::gpu_bindings::{BindingSpace, COLLIDERS, REF_CFG, REF_FRAMES, SIM_GROUP, TASK_GROUP};
+    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP)] {
+        let (declared, used) = wgsl_bindings(&src);
+        // every global of the module, by group, index, name and address space, is in the table and no other
+        assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu_bindings.rs (right)", group.shader);
+        // indices and names are unique, and indices from 16 up stay free for the test kernels
+        let mut ix: Vec<u32> = group.bindings.iter().map(|b| b.index).collect();
+        ix.sort();
+        ix.dedup();
+        assert_eq!(ix.len(), group.bindings.len(), "{}: an index appears twice", group.shader);
+        assert!(ix.iter().all(|&i| i < 16), "{}: {ix:?}", group.shader);
+        // each entry point's table lists exactly the globals it uses (its bind group binds these)
+        for ep in group.entry_points {
+            let (_, uses) = used.iter().find(|(n, _)| n == ep.entry_point).unwrap_or_else(|| panic!("{}: no entry point {}", group.shader, ep.entry_point));
+            let mut table_ix: Vec<u32> = ep.bindings.iter().map(|b| b.index).collect();
+            table_ix.sort();
+            assert_eq!(uses, &table_ix, "{}: entry point {} uses (left) vs its table (right)", group.shader, ep.entry_point);
+            assert!(ep.bindings.iter().all(|b| group.bindings.contains(b)), "{}: {} binds a binding the module lacks", group.shader, ep.entry_point);
+        }
+    }
+    // spot checks against the WGSL text: the reference bank at 13–15, the uniforms where the tables say
+    assert!(SHADER_REFERENCE.contains("@group(0) @binding(13) var<storage, read> ref_frames: array<f32>;"));
+    assert_eq!((REF_FRAMES.index, REF_CFG.index, REF_CFG.space), (13, 15, BindingSpace::Uniform));
+    // the comparison has teeth: a binding moved in the WGSL alone no longer matches the table
+    let moved = shader_source().replace("@group(0) @binding(2) var<storage, read> colliders", "@group(0) @binding(16) var<storage, read> colliders");
+    assert_ne!(moved, shader_source());
+    let (declared, _) = wgsl_bindings(&moved);
+    assert_ne!(declared, table(SIM_GROUP.bindings), "moving `{}` to binding 16 should break the match", COLLIDERS.name);
 }

@@ -1,0 +1,149 @@
+//! The binding table of the shaders: every `@group(0) @binding(k) var<space> name` that the WGSL of
+//! `shaders/` declares, as named constants, and the bindings each entry point uses.
+//!
+//! The Rust side builds every bind group from these constants (`gpu::bind_group`), never from bare
+//! indices; `tests/shaders.rs` checks them with naga against the WGSL (name, index, address space of
+//! every global, and the globals each entry point really uses), so a binding renamed or moved on one
+//! side only fails a test that needs no GPU instead of a pipeline at run time.
+//!
+//! Bindings 0–8 are the simulator's (common.wgsl), 9–12 the task layer's (task.wgsl), 13–15 the
+//! reference bank's (reference.wgsl). Indices from 16 up are free for the test kernels of
+//! `gpu::run_kernel` (the parity tests use 20 and up).
+
+/// Where a binding lives in WGSL: its address space and, for storage, its access mode.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BindingSpace {
+    /// `var<uniform>`.
+    Uniform,
+    /// `var<storage, read>`.
+    StorageRead,
+    /// `var<storage, read_write>`.
+    StorageReadWrite,
+}
+
+impl BindingSpace {
+    /// The buffer usages a buffer bound here needs (uploads and readbacks included).
+    pub fn usage(self) -> wgpu::BufferUsages {
+        match self {
+            BindingSpace::Uniform => wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            BindingSpace::StorageRead | BindingSpace::StorageReadWrite => {
+                wgpu::BufferUsages::STORAGE | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC
+            }
+        }
+    }
+}
+
+/// One `@group(0) @binding(index) var<space> name` of the shaders.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Binding {
+    /// The `@binding(k)` index in group 0.
+    pub index: u32,
+    /// The WGSL variable's name (also the label of the buffer bound to it).
+    pub name: &'static str,
+    /// The address space (and access) of the WGSL variable.
+    pub space: BindingSpace,
+}
+
+const fn binding(index: u32, name: &'static str, space: BindingSpace) -> Binding {
+    Binding { index, name, space }
+}
+
+use BindingSpace::{StorageRead, StorageReadWrite, Uniform};
+
+// ---- the simulator (common.wgsl; bound by gpu.rs) ----
+/// `Globals`: the model's constants.
+pub const GLOBALS: Binding = binding(0, "g", Uniform);
+/// `array<JointDesc>`: the hand's joints.
+pub const JOINTS: Binding = binding(1, "joints", StorageRead);
+/// `array<ColliderDesc>`: the hand's collision primitives.
+pub const COLLIDERS: Binding = binding(2, "colliders", StorageRead);
+/// `array<TipDesc>`: the fingertip frames (used by the task layer only).
+pub const TIPS: Binding = binding(3, "tips", StorageRead);
+/// `array<EnvState>` `[N]`.
+pub const STATES: Binding = binding(4, "states", StorageReadWrite);
+/// `array<EnvParams>` `[N]`.
+pub const PARAMS: Binding = binding(5, "params", StorageReadWrite);
+/// `array<Targets>` `[N]` (written by the task layer's `task_act`).
+pub const TARGETS: Binding = binding(6, "targets", StorageReadWrite);
+/// `array<StepStats>` `[N]`.
+pub const STATS: Binding = binding(7, "stats", StorageReadWrite);
+/// `array<u32>` `[N]`: reset request per env (0 none, 1 next episode, 2 episode 0).
+pub const RESET_MASK: Binding = binding(8, "reset_mask", StorageReadWrite);
+
+// ---- the task layer (task.wgsl; bound by task_gpu.rs) ----
+/// `TaskGlobals`: the task's constants.
+pub const TASK_CFG: Binding = binding(9, "tc", Uniform);
+/// `array<TaskState>` `[N]`.
+pub const TASK_STATES: Binding = binding(10, "task_states", StorageReadWrite);
+/// `array<f32>` `[N, action_dim]`.
+pub const ACTIONS: Binding = binding(11, "actions", StorageRead);
+/// `array<f32>`: obs `[N, obs_dim]`, priv obs `[N, priv_dim]`, records `[N, OUT_MISC]`.
+pub const TASK_OUT: Binding = binding(12, "task_out", StorageReadWrite);
+
+// ---- the reference bank (reference.wgsl; bound by task_gpu.rs) ----
+/// `array<f32>` `[Σ n_frames, stride]`: the reference frames.
+pub const REF_FRAMES: Binding = binding(13, "ref_frames", StorageRead);
+/// `array<RefInfo>` `[n_refs]`.
+pub const REF_INFO: Binding = binding(14, "ref_info", StorageRead);
+/// `RefGlobals`: the reference layer's constants.
+pub const REF_CFG: Binding = binding(15, "rg", Uniform);
+
+/// The bindings one entry point uses. Its bind group lists exactly these: pipelines derive their
+/// layout from the shader, which leaves out every global the entry point does not use.
+#[derive(Clone, Copy, Debug)]
+pub struct EntryBindings {
+    /// The `@compute` function's name.
+    pub entry_point: &'static str,
+    /// The globals it uses (reads, writes or queries), by index.
+    pub bindings: &'static [Binding],
+}
+
+/// One shader module the Rust side builds, with every binding it declares and the entry points
+/// it makes pipelines of.
+#[derive(Clone, Copy, Debug)]
+pub struct ShaderGroup {
+    /// The module's label (named in errors).
+    pub shader: &'static str,
+    /// Every `@group(0)` global the module declares, by index.
+    pub bindings: &'static [Binding],
+    /// The entry points the Rust side makes pipelines of.
+    pub entry_points: &'static [EntryBindings],
+}
+
+/// `step_main`: one control step of every env.
+pub const STEP_MAIN: EntryBindings =
+    EntryBindings { entry_point: "step_main", bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS] };
+/// `reset_main`: the resets that `reset_mask` asks for.
+pub const RESET_MAIN: EntryBindings = EntryBindings { entry_point: "reset_main", bindings: &[GLOBALS, JOINTS, STATES, PARAMS, RESET_MASK] };
+/// `task_act`: actions → targets.
+pub const TASK_ACT: EntryBindings = EntryBindings {
+    entry_point: "task_act",
+    bindings: &[GLOBALS, JOINTS, TIPS, STATES, TARGETS, TASK_CFG, TASK_STATES, ACTIONS, REF_FRAMES, REF_INFO, REF_CFG],
+};
+/// `task_reward`: rewards, terms, dones and reset requests.
+pub const TASK_REWARD: EntryBindings = EntryBindings {
+    entry_point: "task_reward",
+    bindings: &[GLOBALS, JOINTS, TIPS, STATES, PARAMS, STATS, RESET_MASK, TASK_CFG, TASK_STATES, TASK_OUT, REF_FRAMES, REF_INFO, REF_CFG],
+};
+/// `task_observe`: observations (and the task state of the envs just reset).
+pub const TASK_OBSERVE: EntryBindings = EntryBindings {
+    entry_point: "task_observe",
+    bindings: &[GLOBALS, JOINTS, TIPS, STATES, PARAMS, RESET_MASK, TASK_CFG, TASK_STATES, TASK_OUT, REF_FRAMES, REF_INFO, REF_CFG],
+};
+
+/// The simulator's module (`gpu::shader_source`: common + reset + physics).
+pub const SIM_GROUP: ShaderGroup = ShaderGroup {
+    shader: "dextrain physics",
+    bindings: &[GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK],
+    entry_points: &[STEP_MAIN, RESET_MAIN],
+};
+
+/// The task layer's module (`gpu::task_shader_source`: the simulator's, reference, ik and task).
+pub const TASK_GROUP: ShaderGroup = ShaderGroup {
+    shader: "dextrain task",
+    bindings: &[
+        GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, TASK_CFG, TASK_STATES, ACTIONS, TASK_OUT, REF_FRAMES,
+        REF_INFO, REF_CFG,
+    ],
+    entry_points: &[TASK_ACT, TASK_REWARD, TASK_OBSERVE],
+};
