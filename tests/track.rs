@@ -316,13 +316,6 @@ fn cpu_and_gpu_agree_on_every_reference_kind() {
         let spec = cpu.spec().clone();
         let a0 = cpu.reset_all().unwrap().clone();
         let b0 = gpu.reset_all().unwrap().clone();
-        // residual_task: with the reference's fingers straight (the open hand), a fingertip
-        // residual asks the IK for a point its singular Jacobian cannot reach along the finger;
-        // the damped steps then bifurcate between bending either way, and the two backends can
-        // pick different branches (0.04 rad apart). The IK's parity away from singularities is
-        // tests/ik.rs's; here residual_task's wrist residual runs on both backends and the
-        // fingertip components stay 0 (the IK is skipped, the targets are the reference's).
-        let ik = kind == "residual_task";
         let tol = 2e-4;
         let close = |x: &[f32], y: &[f32], floor: f32, what: &str, step: usize| {
             for (i, (u, v)) in x.iter().zip(y).enumerate() {
@@ -334,10 +327,9 @@ fn cpu_and_gpu_agree_on_every_reference_kind() {
         let mut rng = 12345u64;
         for step in 1..=16 {
             let actions: Vec<f32> = (0..spec.num_envs * spec.action_dim)
-                .map(|k| {
+                .map(|_| {
                     rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
-                    let a = ((rng >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0;
-                    if ik && k % spec.action_dim >= 6 { 0.0 } else { a }
+                    ((rng >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
                 })
                 .collect();
             let a = cpu.step(&actions).unwrap().clone();
