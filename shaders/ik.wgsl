@@ -59,6 +59,8 @@ var<private> ik_jac: array<vec3<f32>, IK_JAC_LEN>;
 // (J Jᵀ + Λ) y = ê − J b (the right-hand side before ik_cholesky)
 var<private> ik_err: array<vec3<f32>, MAX_TIPS>;
 var<private> ik_res: array<f32, MAX_TIPS>;
+// the residual's component from the tip toward its chain's first joint
+var<private> ik_shorten: array<f32, MAX_TIPS>;
 var<private> ik_y: array<vec3<f32>, MAX_TIPS>;
 // damping λₐ² per slot, preferred step bₖ per joint
 var<private> ik_lam2: array<f32, MAX_TIPS>;
@@ -214,6 +216,11 @@ fn ik_tip_jacobian(t: u32, a: u32, goal: vec3<f32>) -> vec3<f32> {
     let e = goal - x;
     let len = length(e);
     ik_err[a] = select(e, e * (IK_ERR_CLAMP / len), len > IK_ERR_CLAMP);
+    // sₐ = e · (o₀ − x) / |o₀ − x|: how far the target lies nearer to the chain's first joint o₀
+    // than the tip (> 0: the finger must get shorter)
+    let root = select(x, ik_chain_o[0], n > 0u);
+    let inward = root - x;
+    ik_shorten[a] = dot(e, inward) / max(length(inward), 1e-6);
     return e;
 }
 
@@ -319,13 +326,13 @@ fn ik_dls_step(n_active: u32) {
     }
 }
 
-// λₐ² = (damping · clamp(|eₐ| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1))² + IK_DAMPING_CURV · |eₐ|
+// λₐ² = (damping · clamp(|eₐ| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1))² + IK_DAMPING_CURV · |êₐ|
 fn ik_damping(n_active: u32, prm: IkParams) {
     for (var a = 0u; a < n_active; a++) {
         // λ = damping · clamp(|e| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1)
         let l = prm.damping * clamp(ik_res[a] / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1.0);
-        // λ² + C·|e|: the dropped Hessian term |e| · lever (see the twin)
-        ik_lam2[a] = l * l + IK_DAMPING_CURV * ik_res[a];
+        // λ² + C·|ê|: the dropped Hessian term |ê| · lever, ê the residual the step aims at
+        ik_lam2[a] = l * l + IK_DAMPING_CURV * min(ik_res[a], IK_ERR_CLAMP);
     }
 }
 
@@ -335,9 +342,12 @@ fn ik_bias(n_active: u32) {
     for (var k = 0u; k < n; k++) {
         ik_pref[k] = 0.0;
     }
-    // ρₖ = max over k's slots of min(|eₐ| / IK_DAMPING_DIST, 1), gathered in ik_pref
+    // ρₖ = max over k's slots of ρₐ, gathered in ik_pref
     for (var a = 0u; a < n_active; a++) {
-        let rho = min(ik_res[a] / IK_DAMPING_DIST, 1.0);
+        // wₐ = clamp(1 + 2 sₐ / |eₐ|, 0, 1): 1 unless the target lies beyond the tip
+        let toward = clamp(1.0 + 2.0 * ik_shorten[a] / max(ik_res[a], 1e-30), 0.0, 1.0);
+        // ρₐ = min(|eₐ| / IK_DAMPING_DIST, 1) · wₐ
+        let rho = min(ik_res[a] / IK_DAMPING_DIST, 1.0) * toward;
         for (var i = 0u; i < ik_lead_n[a]; i++) {
             let k = ik_lead[a * MAX_JOINTS + i];
             ik_pref[k] = max(ik_pref[k], rho);
@@ -406,8 +416,10 @@ fn ik_iterate(targets: array<vec3<f32>, MAX_TIPS>, mask: u32, n_active: u32, prm
     if (!finite) {
         return false;
     }
+    // the stop fades in: below 2·tol the step shrinks to 0 at tol, fade = (worst − tol) / tol
+    let fade = select(1.0, (worst - prm.tol) / prm.tol, worst < 2.0 * prm.tol);
     // scale Δq so that max |Δqₖ| ≤ max_step, keeping its direction
-    let scale = select(1.0, prm.max_step / dmax, dmax > prm.max_step);
+    let scale = select(1.0, prm.max_step / dmax, dmax > prm.max_step) * fade;
     for (var k = 0u; k < n; k++) {
         let jd = joints[k];
         if (ik_slots[k] != 0u && ik_lock[k] == 0u) {

@@ -33,12 +33,13 @@
 //!    least-squares compromise instead of being pulled back and forth by one tip after another;
 //! 4. a joint at a limit that Δq pushes further out is locked (its columns zeroed) and step 3
 //!    repeated (at most `IK_LOCK_ROUNDS` solves), so that it does not absorb the step;
-//! 5. Δq is scaled (direction kept) so that max |Δqₖ| ≤ `max_step`, each moved qₖ is clamped to its
+//! 5. Δq is scaled (direction kept) so that max |Δqₖ| ≤ `max_step`, and by (worst − tol) / tol
+//!    when the worst residual is below 2·`tol` (the stop fades in), each moved qₖ is clamped to its
 //!    limits (`lower`, `upper` of `JointDesc`; ±1e30 = unlimited), and every follower is recomputed
 //!    from its leader (`ik_apply_mimic`).
 //!
 //! **Damping** (`ik_damping`), per active tip from its own residual eₐ:
-//! λₐ² = (`damping` · clamp(|eₐ| / `IK_DAMPING_DIST`, `IK_DAMPING_FLOOR`, 1))² + `IK_DAMPING_CURV` · |eₐ|.
+//! λₐ² = (`damping` · clamp(|eₐ| / `IK_DAMPING_DIST`, `IK_DAMPING_FLOOR`, 1))² + `IK_DAMPING_CURV` · |êₐ|.
 //! The first term is full far from the target (bounded steps near singular, straight fingers) and
 //! shrinks as the tip arrives, so that directions the Jacobian barely sees (tri3's roll against
 //! its spreads) converge in a few iterations instead of hundreds. The second term is the part of
@@ -46,9 +47,10 @@
 //! swung by a joint curves toward it with curvature ≤ its lever arm, so where a residual cannot be
 //! removed (a target beyond a straight finger's reach) that term adds up to |e| · lever along
 //! directions JᵀJ barely sees. Without it the DLS step along them overshoots by up to
-//! |e| · lever / λ² (50× at a 1 mm residual) and the finger flips between bending either way from
-//! one iteration to the next, a chaotic orbit whose end differed by 0.04 rad between CPU and GPU;
-//! with λ² ≥ `IK_DAMPING_CURV` · |e| the step is a contraction there and the solve settles. A
+//! |ê| · lever / λ² (50× at a 1 mm residual; ê, at most `IK_ERR_CLAMP` long, is what the step
+//! aims at) and the finger flips between bending either way from one iteration to the next, a
+//! chaotic orbit whose end differed by 0.04 rad between CPU and GPU; with λ² ≥
+//! `IK_DAMPING_CURV` · |ê| the step is a contraction there and the solve settles. A
 //! reachable target loses nothing: the term vanishes with the residual (e_{t+1} ∝ e_t²).
 //! A tip with a zero residual gets no step from its own block.
 //!
@@ -58,18 +60,27 @@
 //! targets on either side of the finger's plane bend it opposite ways (a 0.9 rad jump for 0.1 mm).
 //! The preferred step bₖ = `IK_BIAS` · ρₖ · (midₖ − qₖ) pulls each limited joint toward the middle
 //! of its range, mid = (lower + upper) / 2, which for a finger's flexion joints (−0.2 .. 1.6 on
-//! dexhand16) is the flexion side; ρₖ = max over the active tips that k moves of
-//! clamp(|eₐ| / `IK_DAMPING_DIST`, 0, 1), so that b vanishes continuously with the residual (a
-//! tiny residual moves the joints a tiny amount, a zero one not at all). Through the solve only
-//! b's null-space part stays: from a straight finger, a curl that shortens it, after which J sees
-//! the residual along the finger and bends it the flexion way. Unlimited joints (±1e30, tri3's
-//! roll) and joints on no active chain get no bias. Cost: a target beyond a straight finger's
-//! reach is approached by a finger curled a little (0.7 mm more residual at 1 cm beyond reach);
-//! in exchange the straight default pose no longer falls into the wrong-way local minimum.
+//! dexhand16) is the flexion side; ρₖ = max over the active tips a that k moves of
+//! ρₐ = min(|eₐ| / `IK_DAMPING_DIST`, 1) · clamp(1 + 2 sₐ / |eₐ|, 0, 1), with
+//! sₐ = eₐ · (o₀ − xₐ) / |o₀ − xₐ| the part of the residual that points from the tip toward its
+//! chain's first joint o₀. ρ vanishes continuously with the residual (a tiny residual moves the
+//! joints a tiny amount, a zero one not at all; |eₐ| · clamp(…) → 0 as eₐ → 0); the second factor
+//! is 1 for targets sideways of the tip or nearer the root and 0 for targets more than 30° past
+//! sideways beyond the tip, so that a finger that reaches out for a target beyond its reach is
+//! left pointing straight at it instead of curled away from it.
+//! Through the solve only b's null-space part stays: from a straight finger, a curl that shortens
+//! it, after which J sees the residual along the finger and bends it the flexion way. Unlimited
+//! joints (±1e30, tri3's roll) and joints on no active chain get no bias. The straight default
+//! pose no longer falls into the wrong-way local minimum either.
 //!
-//! The solve is a continuous function of its inputs (no branch or acceptance test but the stop at
-//! `tol`), so the CPU and the GPU agree on it to rounding: tests/ik.rs sweeps targets through a
-//! straight finger's singular pose and bounds the joints' change per metre of target.
+//! The solve is a continuous function of its inputs (the stop at `tol` fades in, see step 5; only
+//! the joint-limit locks are decisions), so the CPU and the GPU agree on it to their rounding
+//! times its conditioning: a near-straight finger moves its tip by ~0.6 mm per rad along one
+//! direction of its joints, so solving the tip to `tol` turns the f32 rounding of the tips
+//! (~1e-8 m) into up to ~2e-5 rad along that direction (tests/ik.rs measures it; elsewhere the
+//! backends agree to ~1e-6). tests/ik.rs also sweeps targets through a straight finger's singular
+//! pose and bounds the joints' change per metre of target (23 rad/m measured, the old solver
+//! jumped 0.9 rad for 0.1 mm).
 //!
 //! Limits of a local method: from a seed far from the answer the solve can end in a local minimum,
 //! e.g. tri3's fingers when the continuous wrist roll must turn by more than about 1 rad;
@@ -137,8 +148,8 @@ pub const IK_MAX_STEP: f32 = 0.5;
 /// Default residual (m) at or below which every tip counts as reached and the solve stops: above
 /// the f32 noise of the kinematics (~3e-8 m), so converged solves stop early. CPU and GPU round the
 /// residual differently, so at the threshold one may take one more step than the other; that step
-/// moves the tips by less than `tol` and a joint by at most tol / 2λ_min = 5e-5 rad, along a
-/// direction the tips barely see.
+/// fades to nothing at the threshold (scaled by (worst − tol) / tol below 2·tol), where a whole
+/// step could move a joint by tol / 2λ_min = 5e-5 rad along a direction the tips barely see.
 pub const IK_TOL: f32 = 1e-7;
 
 /// Solver settings (WGSL `IkParams`).
@@ -206,6 +217,8 @@ pub struct IkScratch {
     /// multipliers yₐ of (J Jᵀ + Λ) y = ê − J b (the right-hand side before `ik_cholesky`).
     pub err: [Vec3; MAX_TIPS],
     pub res: [f32; MAX_TIPS],
+    /// The residual's component from the tip toward its chain's first joint (`ik_tip_jacobian`).
+    pub shorten: [f32; MAX_TIPS],
     pub y: [Vec3; MAX_TIPS],
     /// Damping λₐ² of each slot (`ik_damping`).
     pub lam2: [f32; MAX_TIPS],
@@ -239,6 +252,7 @@ impl Default for IkScratch {
             jac: [Vec3::ZERO; MAX_TIPS * MAX_JOINTS],
             err: [Vec3::ZERO; MAX_TIPS],
             res: [0.0; MAX_TIPS],
+            shorten: [0.0; MAX_TIPS],
             y: [Vec3::ZERO; MAX_TIPS],
             lam2: [0.0; MAX_TIPS],
             pref: [0.0; MAX_JOINTS],
@@ -395,7 +409,8 @@ pub fn ik_setup(m: &Model, mask: u32, s: &mut IkScratch) -> usize {
 
 /// Chain FK of fingertip `t` at `s.q` and its Jacobian columns in slot `a` of `s.jac` (unlocked
 /// actuated joints, see the module documentation; needs `ik_setup`); stores the residual, at most
-/// `IK_ERR_CLAMP` long, in `s.err[a]` and returns e = goal − x.
+/// `IK_ERR_CLAMP` long, in `s.err[a]` and its part toward the chain's first joint in
+/// `s.shorten[a]`, and returns e = goal − x.
 pub fn ik_tip_jacobian(m: &Model, t: usize, a: usize, goal: Vec3, s: &mut IkScratch) -> Vec3 {
     let n = s.chain_n[t] as usize;
     let q = s.q;
@@ -416,6 +431,11 @@ pub fn ik_tip_jacobian(m: &Model, t: usize, a: usize, goal: Vec3, s: &mut IkScra
     let e = goal - x;
     let len = e.length();
     s.err[a] = if len > IK_ERR_CLAMP { e * (IK_ERR_CLAMP / len) } else { e };
+    // sₐ = e · (o₀ − x) / |o₀ − x|: how far the target lies nearer to the chain's first joint o₀
+    // than the tip (> 0: the finger must get shorter)
+    let root = if n > 0 { s.chain_o[0] } else { x };
+    let inward = root - x;
+    s.shorten[a] = e.dot(inward) / inward.length().max(1e-6);
     e
 }
 
@@ -525,27 +545,32 @@ pub fn ik_dls_step(m: &Model, n_active: usize, s: &mut IkScratch) {
 }
 
 /// Damping of each active slot from its residual length `s.res[a]` into `s.lam2`:
-/// λₐ² = (`damping` · clamp(|eₐ| / `IK_DAMPING_DIST`, `IK_DAMPING_FLOOR`, 1))² + `IK_DAMPING_CURV` · |eₐ|.
+/// λₐ² = (`damping` · clamp(|eₐ| / `IK_DAMPING_DIST`, `IK_DAMPING_FLOOR`, 1))² + `IK_DAMPING_CURV` · |êₐ|.
 pub fn ik_damping(n_active: usize, prm: &IkParams, s: &mut IkScratch) {
     for a in 0..n_active {
         // λ = damping · clamp(|e| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1)
         let l = prm.damping * (s.res[a] / IK_DAMPING_DIST).clamp(IK_DAMPING_FLOOR, 1.0);
-        // λ² + C·|e|: the dropped Hessian term |e| · lever (module documentation)
-        s.lam2[a] = l * l + IK_DAMPING_CURV * s.res[a];
+        // λ² + C·|ê|: the dropped Hessian term |ê| · lever, ê the residual the step aims at
+        s.lam2[a] = l * l + IK_DAMPING_CURV * s.res[a].min(IK_ERR_CLAMP);
     }
 }
 
 /// The preferred step of every joint into `s.pref`: bₖ = `IK_BIAS` · ρₖ · (midₖ − qₖ) for an
 /// actuated joint on an active chain with finite limits, ρₖ = max over the active slots a that k
-/// drives of min(|eₐ| / `IK_DAMPING_DIST`, 1); 0 for every other joint.
+/// drives of ρₐ = min(|eₐ| / `IK_DAMPING_DIST`, 1) · clamp(1 + 2 sₐ / |eₐ|, 0, 1), sₐ =
+/// `s.shorten[a]`; 0 for every other joint.
 pub fn ik_bias(m: &Model, n_active: usize, s: &mut IkScratch) {
     let n = m.g.n_joints as usize;
     for k in 0..n {
         s.pref[k] = 0.0;
     }
-    // ρₖ = max over k's slots of min(|eₐ| / IK_DAMPING_DIST, 1), gathered in s.pref
+    // ρₖ = max over k's slots of ρₐ, gathered in s.pref
     for a in 0..n_active {
-        let rho = (s.res[a] / IK_DAMPING_DIST).min(1.0);
+        // wₐ = clamp(1 + 2 sₐ / |eₐ|, 0, 1): 1 unless the target lies beyond the tip, 0 from 30°
+        // past sideways on (sₐ / |eₐ| ≤ −½)
+        let toward = (1.0 + 2.0 * s.shorten[a] / s.res[a].max(1e-30)).clamp(0.0, 1.0);
+        // ρₐ = min(|eₐ| / IK_DAMPING_DIST, 1) · wₐ
+        let rho = (s.res[a] / IK_DAMPING_DIST).min(1.0) * toward;
         for i in 0..s.lead_n[a] as usize {
             let k = s.lead[a * MAX_JOINTS + i] as usize;
             s.pref[k] = s.pref[k].max(rho);
@@ -616,8 +641,12 @@ pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, n_active: us
     if !finite {
         return false;
     }
+    // the stop fades in: below 2·tol the step shrinks to 0 at tol (fade = (worst − tol) / tol),
+    // so a residual that one backend rounds to just above tol and the other to just below moves
+    // the joints by ~0 instead of by one whole step (up to tol / 2λ_min = 5e-5 rad)
+    let fade = if worst < 2.0 * prm.tol { (worst - prm.tol) / prm.tol } else { 1.0 };
     // scale Δq so that max |Δqₖ| ≤ max_step, keeping its direction
-    let scale = if dmax > prm.max_step { prm.max_step / dmax } else { 1.0 };
+    let scale = (if dmax > prm.max_step { prm.max_step / dmax } else { 1.0 }) * fade;
     for k in 0..n {
         let jd = &m.joints[k];
         if s.slots[k] != 0 && s.lock[k] == 0 {
