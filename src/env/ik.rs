@@ -47,11 +47,11 @@
 //! swung by a joint curves toward it with curvature ≤ its lever arm, so where a residual cannot be
 //! removed (a target beyond a straight finger's reach) that term adds up to |e| · lever along
 //! directions JᵀJ barely sees. Without it the DLS step along them overshoots by up to
-//! |ê| · lever / λ² (50× at a 1 mm residual; ê, at most `IK_ERR_CLAMP` long, is what the step
+//! |ê| · lever / λ² (12× at a 1 mm residual on a 5 cm lever; ê, at most `IK_ERR_CLAMP` long, is what the step
 //! aims at) and the finger flips between bending either way from one iteration to the next, a
 //! chaotic orbit whose end differed by 0.04 rad between CPU and GPU; with λ² ≥
 //! `IK_DAMPING_CURV` · |ê| the step is a contraction there and the solve settles. A
-//! reachable target loses nothing: the term vanishes with the residual (e_{t+1} ∝ e_t²).
+//! reachable target keeps its accuracy: the term vanishes with the residual.
 //! A tip with a zero residual gets no step from its own block.
 //!
 //! **Preferred flexion** (`ik_bias`): a straight finger cannot shorten to first order (J has no
@@ -70,8 +70,9 @@
 //! left pointing straight at it instead of curled away from it.
 //! Through the solve only b's null-space part stays: from a straight finger, a curl that shortens
 //! it, after which J sees the residual along the finger and bends it the flexion way. Unlimited
-//! joints (±1e30, tri3's roll) and joints on no active chain get no bias. The straight default
-//! pose no longer falls into the wrong-way local minimum either.
+//! joints (±1e30, tri3's roll) and joints on no active chain get no bias. From the straight
+//! default pose, dexhand16 now reaches 400 of 400 sampled reachable targets within 1 mm (399
+//! before: one finger bent the wrong way into two joint limits).
 //!
 //! The solve is a continuous function of its inputs (the stop at `tol` fades in, see step 5; only
 //! the joint-limit locks are decisions), so the CPU and the GPU agree on it to their rounding
