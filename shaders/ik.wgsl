@@ -6,13 +6,16 @@
 // 3×3 blocks in the lower block triangle of the stacked system, Jacobian entries.
 const IK_BLOCKS: u32 = 21u;
 const IK_JAC_LEN: u32 = 144u;
-// Defaults: iterations, damping λ (m), residual below which λ shrinks (m), smallest λ / damping,
-// rounds of locking joints at limits per iteration, largest residual one iteration aims to remove
-// (m), largest joint change per iteration (rad), residual tolerance (m).
+// Defaults: iterations, damping λ (m), residual below which λ and the preferred step shrink (m),
+// smallest λ / damping, curvature term of λ² (m), preferred step toward mid-range, rounds of
+// locking joints at limits per iteration, largest residual one iteration aims to remove (m),
+// largest joint change per iteration (rad), residual tolerance (m).
 const IK_ITERS: u32 = 24u;
 const IK_DAMPING: f32 = 0.02;
 const IK_DAMPING_DIST: f32 = 0.01;
 const IK_DAMPING_FLOOR: f32 = 0.05;
+const IK_DAMPING_CURV: f32 = 0.03;
+const IK_BIAS: f32 = 0.3;
 const IK_LOCK_ROUNDS: u32 = 2u;
 const IK_ERR_CLAMP: f32 = 0.02;
 const IK_MAX_STEP: f32 = 0.5;
@@ -52,9 +55,17 @@ var<private> ik_followers: u32;
 var<private> ik_lock: array<u32, MAX_JOINTS>;
 // [slot][joint]: column of actuated joint k for active slot a at a * MAX_JOINTS + k
 var<private> ik_jac: array<vec3<f32>, IK_JAC_LEN>;
+// residual (at most IK_ERR_CLAMP long) and its full length per slot; multipliers y of
+// (J Jᵀ + Λ) y = ê − J b (the right-hand side before ik_cholesky)
 var<private> ik_err: array<vec3<f32>, MAX_TIPS>;
+var<private> ik_res: array<f32, MAX_TIPS>;
+// the residual's component from the tip toward its chain's first joint
+var<private> ik_shorten: array<f32, MAX_TIPS>;
 var<private> ik_y: array<vec3<f32>, MAX_TIPS>;
-// lower block triangle of J Jᵀ + λ² I ((a, b), b ≤ a, at a(a+1)/2 + b), then of its block
+// damping λₐ² per slot, preferred step bₖ per joint
+var<private> ik_lam2: array<f32, MAX_TIPS>;
+var<private> ik_pref: array<f32, MAX_JOINTS>;
+// lower block triangle of J Jᵀ + Λ ((a, b), b ≤ a, at a(a+1)/2 + b), then of its block
 // Cholesky factor, with L_aa⁻¹ in the diagonal blocks
 var<private> ik_blk: array<mat3x3<f32>, IK_BLOCKS>;
 var<private> ik_dq: array<f32, MAX_JOINTS>;
@@ -205,6 +216,11 @@ fn ik_tip_jacobian(t: u32, a: u32, goal: vec3<f32>) -> vec3<f32> {
     let e = goal - x;
     let len = length(e);
     ik_err[a] = select(e, e * (IK_ERR_CLAMP / len), len > IK_ERR_CLAMP);
+    // sₐ = e · (o₀ − x) / |o₀ − x|: how far the target lies nearer to the chain's first joint o₀
+    // than the tip (> 0: the finger must get shorter)
+    let root = select(x, ik_chain_o[0], n > 0u);
+    let inward = root - x;
+    ik_shorten[a] = dot(e, inward) / max(length(inward), 1e-6);
     return e;
 }
 
@@ -230,13 +246,13 @@ fn ik_chol3_inv(a: mat3x3<f32>) -> mat3x3<f32> {
     return mat3x3<f32>(vec3<f32>(i00, i10, i20), vec3<f32>(0.0, i11, i21), vec3<f32>(0.0, 0.0, i22));
 }
 
-// block (a, b) of J Jᵀ + λ² I = Σₖ Jₐₖ Jᵦₖᵀ (+ λ² I for a = b), over slot a's joints
-fn ik_build_gram(n_active: u32, damping: f32) {
+// block (a, b) of J Jᵀ + Λ = Σₖ Jₐₖ Jᵦₖᵀ (+ λₐ² I for a = b), over slot a's joints
+fn ik_build_gram(n_active: u32) {
     for (var a = 0u; a < n_active; a++) {
         for (var b = 0u; b <= a; b++) {
             var sum = mat3x3<f32>(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
             if (a == b) {
-                let l2 = damping * damping;
+                let l2 = ik_lam2[a];
                 sum = mat3x3<f32>(vec3<f32>(l2, 0.0, 0.0), vec3<f32>(0.0, l2, 0.0), vec3<f32>(0.0, 0.0, l2));
             }
             // chains that share no joint leave their block zero
@@ -251,7 +267,7 @@ fn ik_build_gram(n_active: u32, damping: f32) {
     }
 }
 
-// (J Jᵀ + λ² I) y = e by block Cholesky, then L z = e and Lᵀ y = z
+// (J Jᵀ + Λ) y = r in place (r in ik_y on entry) by block Cholesky, then L z = r and Lᵀ y = z
 fn ik_cholesky(n_active: u32) {
     for (var i = 0u; i < n_active; i++) {
         for (var j = 0u; j <= i; j++) {
@@ -267,9 +283,9 @@ fn ik_cholesky(n_active: u32) {
             }
         }
     }
-    // L z = e: z_i = L_ii⁻¹ (e_i − Σ_{k<i} L_ik z_k)
+    // L z = r: z_i = L_ii⁻¹ (r_i − Σ_{k<i} L_ik z_k), z_k (k < i) already in ik_y
     for (var i = 0u; i < n_active; i++) {
-        var r = ik_err[i];
+        var r = ik_y[i];
         for (var k = 0u; k < i; k++) {
             r -= ik_blk[i * (i + 1u) / 2u + k] * ik_y[k];
         }
@@ -286,17 +302,65 @@ fn ik_cholesky(n_active: u32) {
     }
 }
 
-// Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e, Δqₖ = Σₐ Jₐₖ · yₐ
-fn ik_dls_step(n_active: u32, damping: f32) {
-    ik_build_gram(n_active, damping);
+// Δq = b + Jᵀ (J Jᵀ + Λ)⁻¹ (ê − J b), Δqₖ = bₖ + Σₐ Jₐₖ · yₐ
+fn ik_dls_step(n_active: u32) {
+    // r_a = ê_a − Σₖ Jₐₖ bₖ: the solve takes back what J sees of b
+    for (var a = 0u; a < n_active; a++) {
+        var r = ik_err[a];
+        for (var i = 0u; i < ik_lead_n[a]; i++) {
+            let k = ik_lead[a * MAX_JOINTS + i];
+            r -= ik_jac[a * MAX_JOINTS + k] * ik_pref[k];
+        }
+        ik_y[a] = r;
+    }
+    ik_build_gram(n_active);
     ik_cholesky(n_active);
     for (var k = 0u; k < g.n_joints; k++) {
-        ik_dq[k] = 0.0;
+        ik_dq[k] = ik_pref[k];
     }
     for (var a = 0u; a < n_active; a++) {
         for (var i = 0u; i < ik_lead_n[a]; i++) {
             let k = ik_lead[a * MAX_JOINTS + i];
             ik_dq[k] += dot(ik_jac[a * MAX_JOINTS + k], ik_y[a]);
+        }
+    }
+}
+
+// λₐ² = (damping · clamp(|eₐ| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1))² + IK_DAMPING_CURV · |êₐ|
+fn ik_damping(n_active: u32, prm: IkParams) {
+    for (var a = 0u; a < n_active; a++) {
+        // λ = damping · clamp(|e| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1)
+        let l = prm.damping * clamp(ik_res[a] / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1.0);
+        // λ² + C·|ê|: the dropped Hessian term |ê| · lever, ê the residual the step aims at
+        ik_lam2[a] = l * l + IK_DAMPING_CURV * min(ik_res[a], IK_ERR_CLAMP);
+    }
+}
+
+// bₖ = IK_BIAS · ρₖ · (midₖ − qₖ) for a limited joint on an active chain, else 0
+fn ik_bias(n_active: u32) {
+    let n = g.n_joints;
+    for (var k = 0u; k < n; k++) {
+        ik_pref[k] = 0.0;
+    }
+    // ρₖ = max over k's slots of ρₐ, gathered in ik_pref
+    for (var a = 0u; a < n_active; a++) {
+        // wₐ = clamp(1 + 2 sₐ / |eₐ|, 0, 1): 1 unless the target lies beyond the tip
+        let toward = clamp(1.0 + 2.0 * ik_shorten[a] / max(ik_res[a], 1e-30), 0.0, 1.0);
+        // ρₐ = min(|eₐ| / IK_DAMPING_DIST, 1) · wₐ
+        let rho = min(ik_res[a] / IK_DAMPING_DIST, 1.0) * toward;
+        for (var i = 0u; i < ik_lead_n[a]; i++) {
+            let k = ik_lead[a * MAX_JOINTS + i];
+            ik_pref[k] = max(ik_pref[k], rho);
+        }
+    }
+    for (var k = 0u; k < n; k++) {
+        let jd = joints[k];
+        // unlimited joints (±1e30) have no middle
+        if (jd.lower > -1e29 && jd.upper < 1e29) {
+            // bₖ = IK_BIAS · ρₖ · ((lower + upper) / 2 − qₖ)
+            ik_pref[k] = IK_BIAS * ik_pref[k] * (0.5 * (jd.lower + jd.upper) - ik_q[k]);
+        } else {
+            ik_pref[k] = 0.0;
         }
     }
 }
@@ -309,6 +373,7 @@ fn ik_iterate(targets: array<vec3<f32>, MAX_TIPS>, mask: u32, n_active: u32, prm
     for (var t = 0u; t < g.n_tips; t++) {
         if (((mask >> t) & 1u) != 0u) {
             let e = length(ik_tip_jacobian(t, a, targets[t]));
+            ik_res[a] = e;
             worst = max(worst, e);
             // NaN fails the comparison
             finite = finite && e < 1e30;
@@ -319,11 +384,11 @@ fn ik_iterate(targets: array<vec3<f32>, MAX_TIPS>, mask: u32, n_active: u32, prm
     if (!(worst > prm.tol) || !finite) {
         return false;
     }
-    // λ = damping · clamp(max |e| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1)
-    let damping = prm.damping * clamp(worst / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1.0);
+    ik_damping(n_active, prm);
+    ik_bias(n_active);
     var dmax = 0.0;
     for (var lr = 0u; lr < IK_LOCK_ROUNDS; lr++) {
-        ik_dls_step(n_active, damping);
+        ik_dls_step(n_active);
         // lock every joint at a limit that Δq pushes further out, zero its columns, solve again
         var locked = false;
         dmax = 0.0;
@@ -333,6 +398,7 @@ fn ik_iterate(targets: array<vec3<f32>, MAX_TIPS>, mask: u32, n_active: u32, prm
             if (ik_lock[k] == 0u && ((ik_q[k] <= jd.lower && d < 0.0) || (ik_q[k] >= jd.upper && d > 0.0))) {
                 ik_lock[k] = 1u;
                 locked = true;
+                ik_pref[k] = 0.0;
                 for (var b = 0u; b < n_active; b++) {
                     ik_jac[b * MAX_JOINTS + k] = vec3<f32>(0.0);
                 }
@@ -350,8 +416,10 @@ fn ik_iterate(targets: array<vec3<f32>, MAX_TIPS>, mask: u32, n_active: u32, prm
     if (!finite) {
         return false;
     }
+    // the stop fades in: below 2·tol the step shrinks to 0 at tol, fade = (worst − tol) / tol
+    let fade = select(1.0, (worst - prm.tol) / prm.tol, worst < 2.0 * prm.tol);
     // scale Δq so that max |Δqₖ| ≤ max_step, keeping its direction
-    let scale = select(1.0, prm.max_step / dmax, dmax > prm.max_step);
+    let scale = select(1.0, prm.max_step / dmax, dmax > prm.max_step) * fade;
     for (var k = 0u; k < n; k++) {
         let jd = joints[k];
         if (ik_slots[k] != 0u && ik_lock[k] == 0u) {

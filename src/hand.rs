@@ -193,7 +193,7 @@ pub struct Fingertip {
 
 /// A named frame of a URDF link that was merged into another link by a fixed joint.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Frame {
+pub struct LinkFrame {
     /// The URDF link name.
     pub name: String,
     /// Index into `HandModel::links` of the link it was merged into.
@@ -219,7 +219,7 @@ pub struct HandModel {
     pub fingertips: Vec<Fingertip>,
     /// URDF links merged away by fixed joints, in URDF document order (the links of `links` are
     /// not repeated here). Use [`HandModel::frame`] to resolve any URDF link name.
-    pub frames: Vec<Frame>,
+    pub frames: Vec<LinkFrame>,
 }
 
 impl HandModel {
@@ -656,11 +656,11 @@ impl Loader<'_> {
         let nl = body_of.len();
         let mut parts: Vec<Vec<MassPart>> = (0..nl).map(|_| Vec::new()).collect();
         let mut colliders: Vec<Collider> = Vec::new();
-        let mut frames: Vec<Frame> = Vec::new();
+        let mut frames: Vec<LinkFrame> = Vec::new();
         for (i, l) in robot.links.iter().enumerate() {
             let (li, lpose) = place[i].expect("every link is placed");
             if body_of[li] != i {
-                frames.push(Frame { name: l.name.clone(), link: li, pose: lpose.to_pose() });
+                frames.push(LinkFrame { name: l.name.clone(), link: li, pose: lpose.to_pose() });
             }
             let inr = &l.inertial;
             let ipose = lpose.mul(&urdf_pose(&inr.origin));

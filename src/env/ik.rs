@@ -22,27 +22,70 @@
 //!    follower (q_f = mult·q_k + offset): a leader that is not on the chain still moves the tip
 //!    through its follower; followers are never solved for;
 //! 2. if every |eₐ| ≤ `tol` (an exact zero included) the solve stops: nothing moves;
-//! 3. Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ ê (`ik_build_gram`, `ik_cholesky`, `ik_dls_step`), ê the residuals
-//!    shortened to at most `IK_ERR_CLAMP` each. J Jᵀ is the 3m × 3m matrix of 3×3 blocks
+//! 3. Δq = b + Jᵀ (J Jᵀ + Λ)⁻¹ (ê − J b) (`ik_build_gram`, `ik_cholesky`, `ik_dls_step`), ê the
+//!    residuals shortened to at most `IK_ERR_CLAMP` each, Λ = diag(λₐ² I) the damping of each slot
+//!    (`ik_damping`) and b the preferred step (`ik_bias`): the minimiser of
+//!    |J Δq − ê|²_Λ⁻¹ + |Δq − b|², i.e. DLS that is pulled toward b instead of toward 0, so that b
+//!    acts where J is blind (its visible part is taken back by the solve). J Jᵀ is the 3m × 3m matrix of 3×3 blocks
 //!    Σₖ Jₐₖ Jᵦₖᵀ, factored by block Cholesky: tips on independent chains (dexhand16's fingers) give a
 //!    block-diagonal matrix, i.e. one 3×3 DLS solve per tip; tips that share a joint (tri3's wrist
 //!    roll and its mimic-coupled spread) are solved together, so a shared joint takes the
 //!    least-squares compromise instead of being pulled back and forth by one tip after another;
 //! 4. a joint at a limit that Δq pushes further out is locked (its columns zeroed) and step 3
 //!    repeated (at most `IK_LOCK_ROUNDS` solves), so that it does not absorb the step;
-//! 5. Δq is scaled (direction kept) so that max |Δqₖ| ≤ `max_step`, each moved qₖ is clamped to its
+//! 5. Δq is scaled (direction kept) so that max |Δqₖ| ≤ `max_step`, and by (worst − tol) / tol
+//!    when the worst residual is below 2·`tol` (the stop fades in), each moved qₖ is clamped to its
 //!    limits (`lower`, `upper` of `JointDesc`; ±1e30 = unlimited), and every follower is recomputed
 //!    from its leader (`ik_apply_mimic`).
 //!
-//! The damping is λ = `damping` · clamp(max |eₐ| / `IK_DAMPING_DIST`, `IK_DAMPING_FLOOR`, 1):
-//! full λ far from the targets (bounded steps near singular, straight fingers), shrinking as the
-//! tips arrive, so that directions the Jacobian barely sees (tri3's roll against its spreads)
-//! converge in a few iterations instead of hundreds.
+//! **Damping** (`ik_damping`), per active tip from its own residual eₐ:
+//! λₐ² = (`damping` · clamp(|eₐ| / `IK_DAMPING_DIST`, `IK_DAMPING_FLOOR`, 1))² + `IK_DAMPING_CURV` · |êₐ|.
+//! The first term is full far from the target (bounded steps near singular, straight fingers) and
+//! shrinks as the tip arrives, so that directions the Jacobian barely sees (tri3's roll against
+//! its spreads) converge in a few iterations instead of hundreds. The second term is the part of
+//! the Hessian that Gauss–Newton drops: ½|x(q) − x*|² has Hessian JᵀJ − Σ eᵢ ∇²xᵢ, and a tip
+//! swung by a joint curves toward it with curvature ≤ its lever arm, so where a residual cannot be
+//! removed (a target beyond a straight finger's reach) that term adds up to |e| · lever along
+//! directions JᵀJ barely sees. Without it the DLS step along them overshoots by up to
+//! |ê| · lever / λ² (12× at a 1 mm residual on a 5 cm lever; ê, at most `IK_ERR_CLAMP` long, is what the step
+//! aims at) and the finger flips between bending either way from one iteration to the next, a
+//! chaotic orbit whose end differed by 0.04 rad between CPU and GPU; with λ² ≥
+//! `IK_DAMPING_CURV` · |ê| the step is a contraction there and the solve settles. A
+//! reachable target keeps its accuracy: the term vanishes with the residual.
+//! A tip with a zero residual gets no step from its own block.
+//!
+//! **Preferred flexion** (`ik_bias`): a straight finger cannot shorten to first order (J has no
+//! row along the finger), so a target nearer than its length leaves ê with no component J sees;
+//! a plain DLS step then bends it whichever way the rounding of the other components points, and
+//! targets on either side of the finger's plane bend it opposite ways (a 0.9 rad jump for 0.1 mm).
+//! The preferred step bₖ = `IK_BIAS` · ρₖ · (midₖ − qₖ) pulls each limited joint toward the middle
+//! of its range, mid = (lower + upper) / 2, which for a finger's flexion joints (−0.2 .. 1.6 on
+//! dexhand16) is the flexion side; ρₖ = max over the active tips a that k moves of
+//! ρₐ = min(|eₐ| / `IK_DAMPING_DIST`, 1) · clamp(1 + 2 sₐ / |eₐ|, 0, 1), with
+//! sₐ = eₐ · (o₀ − xₐ) / |o₀ − xₐ| the part of the residual that points from the tip toward its
+//! chain's first joint o₀. ρ vanishes continuously with the residual (a tiny residual moves the
+//! joints a tiny amount, a zero one not at all; |eₐ| · clamp(…) → 0 as eₐ → 0); the second factor
+//! is 1 for targets sideways of the tip or nearer the root and 0 for targets more than 30° past
+//! sideways beyond the tip, so that a finger that reaches out for a target beyond its reach is
+//! left pointing straight at it instead of curled away from it.
+//! Through the solve only b's null-space part stays: from a straight finger, a curl that shortens
+//! it, after which J sees the residual along the finger and bends it the flexion way. Unlimited
+//! joints (±1e30, tri3's roll) and joints on no active chain get no bias. From the straight
+//! default pose, dexhand16 now reaches 400 of 400 sampled reachable targets within 1 mm (399
+//! before: one finger bent the wrong way into two joint limits).
+//!
+//! The solve is a continuous function of its inputs (the stop at `tol` fades in, see step 5; only
+//! the joint-limit locks are decisions), so the CPU and the GPU agree on it to their rounding
+//! times its conditioning: a near-straight finger moves its tip by ~0.6 mm per rad along one
+//! direction of its joints, so solving the tip to `tol` turns the f32 rounding of the tips
+//! (~1e-8 m) into up to ~2e-5 rad along that direction (tests/ik.rs measures it; elsewhere the
+//! backends agree to ~1e-6). tests/ik.rs also sweeps targets through a straight finger's singular
+//! pose and bounds the joints' change per metre of target (23 rad/m measured, the old solver
+//! jumped 0.9 rad for 0.1 mm).
 //!
 //! Limits of a local method: from a seed far from the answer the solve can end in a local minimum,
-//! e.g. a straight finger that bent the wrong way into two joint limits (1 target in 400 from
-//! dexhand16's straight default pose, 1.7 mm), or tri3's fingers when the continuous wrist roll
-//! must turn by more than about 1 rad; tests/ik.rs measures this.
+//! e.g. tri3's fingers when the continuous wrist roll must turn by more than about 1 rad;
+//! tests/ik.rs measures this.
 //!
 //! Exactness: if every active target equals `ik_tip_positions(q_seed)`, every residual is exactly
 //! zero and `ik_solve` returns `q_seed` bit for bit (followers and out-of-limit entries included).
@@ -73,14 +116,25 @@ pub const IK_BLOCKS: usize = MAX_TIPS * (MAX_TIPS + 1) / 2;
 /// targets (99.75 % within 1 mm on dexhand16, all on tri3; tests/ik.rs); a seed near the answer,
 /// the task layer's case, stops after a few iterations (4–7 on average).
 pub const IK_ITERS: u32 = 24;
-/// Default damping λ (m) of `(J Jᵀ + λ² I)` far from the targets: small against the fingers' lever
+/// Default damping λ (m) of `(J Jᵀ + λ² I)` far from a target: small against the fingers' lever
 /// arms (3–15 cm) and large enough to bound the step near a straight finger (|Δq| ≤ |e| / 2λ).
 pub const IK_DAMPING: f32 = 0.02;
-/// Residual (m) below which the damping shrinks in proportion to the largest residual.
+/// Residual (m) below which a tip's damping shrinks in proportion to its residual, and below
+/// which its joints' preferred step shrinks likewise.
 pub const IK_DAMPING_DIST: f32 = 0.01;
 /// Smallest damping, as a fraction of `damping` (λ ≥ 1 mm keeps J Jᵀ + λ² I well conditioned in
 /// f32 and bounds a step taken at the noise floor).
 pub const IK_DAMPING_FLOOR: f32 = 0.05;
+/// Curvature term (m) of the damping, λₐ² += `IK_DAMPING_CURV` · |eₐ|: stands in for the
+/// Hessian term |e| · lever arm that Gauss–Newton drops, with a lever of 3 cm (a quarter of a
+/// dexhand16 finger; 0.1 slowed reachable solves from straight fingers, 0.02 left more
+/// sensitivity to rounding where targets are out of reach; see the module documentation).
+pub const IK_DAMPING_CURV: f32 = 0.03;
+/// Preferred step toward mid-range, as a fraction of (mid − q) per iteration at a full residual
+/// (≥ `IK_DAMPING_DIST`): enough to decide a straight finger's bend well above f32 noise and to
+/// lead straight dexhand16 fingers to every sampled reachable target; 0.1 left 2 in 300 targets
+/// off by more than 1 mm.
+pub const IK_BIAS: f32 = 0.3;
 /// Most DLS solves per iteration while locking joints at their limits (the last solve's step is
 /// taken even if it locked another joint; that joint then stays where it is).
 pub const IK_LOCK_ROUNDS: u32 = 2;
@@ -95,8 +149,8 @@ pub const IK_MAX_STEP: f32 = 0.5;
 /// Default residual (m) at or below which every tip counts as reached and the solve stops: above
 /// the f32 noise of the kinematics (~3e-8 m), so converged solves stop early. CPU and GPU round the
 /// residual differently, so at the threshold one may take one more step than the other; that step
-/// moves the tips by less than `tol` and a joint by at most tol / 2λ_min = 5e-5 rad, along a
-/// direction the tips barely see.
+/// fades to nothing at the threshold (scaled by (worst − tol) / tol below 2·tol), where a whole
+/// step could move a joint by tol / 2λ_min = 5e-5 rad along a direction the tips barely see.
 pub const IK_TOL: f32 = 1e-7;
 
 /// Solver settings (WGSL `IkParams`).
@@ -160,14 +214,21 @@ pub struct IkScratch {
     /// Jacobian `[slot][joint]`: column of actuated joint k for active slot a at
     /// `a * MAX_JOINTS + k` (zero off the slot's chain and for locked joints).
     pub jac: [Vec3; MAX_TIPS * MAX_JOINTS],
-    /// Residual eₐ of each slot (at most `IK_ERR_CLAMP` long), and the multipliers yₐ of
-    /// (J Jᵀ + λ² I) y = e.
+    /// Residual eₐ of each slot (at most `IK_ERR_CLAMP` long), its full length |eₐ|, and the
+    /// multipliers yₐ of (J Jᵀ + Λ) y = ê − J b (the right-hand side before `ik_cholesky`).
     pub err: [Vec3; MAX_TIPS],
+    pub res: [f32; MAX_TIPS],
+    /// The residual's component from the tip toward its chain's first joint (`ik_tip_jacobian`).
+    pub shorten: [f32; MAX_TIPS],
     pub y: [Vec3; MAX_TIPS],
-    /// Lower block triangle of J Jᵀ + λ² I (3×3 blocks, (a, b) with b ≤ a at a(a+1)/2 + b), then
+    /// Damping λₐ² of each slot (`ik_damping`).
+    pub lam2: [f32; MAX_TIPS],
+    /// Preferred step bₖ of each joint (`ik_bias`; zero off the active chains and when locked).
+    pub pref: [f32; MAX_JOINTS],
+    /// Lower block triangle of J Jᵀ + Λ (3×3 blocks, (a, b) with b ≤ a at a(a+1)/2 + b), then
     /// of its block Cholesky factor L, with L_aa⁻¹ in the diagonal blocks.
     pub blk: [Mat3; IK_BLOCKS],
-    /// The step Δq = Jᵀ y.
+    /// The step Δq = b + Jᵀ y.
     pub dq: [f32; MAX_JOINTS],
     /// The solver's joint vector.
     pub q: [f32; MAX_JOINTS],
@@ -191,7 +252,11 @@ impl Default for IkScratch {
             lock: [0; MAX_JOINTS],
             jac: [Vec3::ZERO; MAX_TIPS * MAX_JOINTS],
             err: [Vec3::ZERO; MAX_TIPS],
+            res: [0.0; MAX_TIPS],
+            shorten: [0.0; MAX_TIPS],
             y: [Vec3::ZERO; MAX_TIPS],
+            lam2: [0.0; MAX_TIPS],
+            pref: [0.0; MAX_JOINTS],
             blk: [Mat3::ZERO; IK_BLOCKS],
             dq: [0.0; MAX_JOINTS],
             q: [0.0; MAX_JOINTS],
@@ -345,7 +410,8 @@ pub fn ik_setup(m: &Model, mask: u32, s: &mut IkScratch) -> usize {
 
 /// Chain FK of fingertip `t` at `s.q` and its Jacobian columns in slot `a` of `s.jac` (unlocked
 /// actuated joints, see the module documentation; needs `ik_setup`); stores the residual, at most
-/// `IK_ERR_CLAMP` long, in `s.err[a]` and returns e = goal − x.
+/// `IK_ERR_CLAMP` long, in `s.err[a]` and its part toward the chain's first joint in
+/// `s.shorten[a]`, and returns e = goal − x.
 pub fn ik_tip_jacobian(m: &Model, t: usize, a: usize, goal: Vec3, s: &mut IkScratch) -> Vec3 {
     let n = s.chain_n[t] as usize;
     let q = s.q;
@@ -366,6 +432,11 @@ pub fn ik_tip_jacobian(m: &Model, t: usize, a: usize, goal: Vec3, s: &mut IkScra
     let e = goal - x;
     let len = e.length();
     s.err[a] = if len > IK_ERR_CLAMP { e * (IK_ERR_CLAMP / len) } else { e };
+    // sₐ = e · (o₀ − x) / |o₀ − x|: how far the target lies nearer to the chain's first joint o₀
+    // than the tip (> 0: the finger must get shorter)
+    let root = if n > 0 { s.chain_o[0] } else { x };
+    let inward = root - x;
+    s.shorten[a] = e.dot(inward) / inward.length().max(1e-6);
     e
 }
 
@@ -392,14 +463,14 @@ pub fn ik_chol3_inv(a: Mat3) -> Mat3 {
     Mat3::from_cols(Vec3::new(i00, i10, i20), Vec3::new(0.0, i11, i21), Vec3::new(0.0, 0.0, i22))
 }
 
-/// Lower block triangle of J Jᵀ + λ² I over `n_active` slots into `s.blk`: block (a, b) =
-/// Σₖ Jₐₖ Jᵦₖᵀ (+ λ² I for a = b), the sum over slot a's joints (Jᵦₖ = 0 off b's chain).
-pub fn ik_build_gram(n_active: usize, damping: f32, s: &mut IkScratch) {
+/// Lower block triangle of J Jᵀ + Λ over `n_active` slots into `s.blk`: block (a, b) =
+/// Σₖ Jₐₖ Jᵦₖᵀ (+ λₐ² I for a = b, `s.lam2`), the sum over slot a's joints (Jᵦₖ = 0 off b's chain).
+pub fn ik_build_gram(n_active: usize, s: &mut IkScratch) {
     for a in 0..n_active {
         for b in 0..=a {
             let mut sum = Mat3::ZERO;
             if a == b {
-                sum = Mat3::from_diagonal(Vec3::splat(damping * damping));
+                sum = Mat3::from_diagonal(Vec3::splat(s.lam2[a]));
             }
             // chains that share no joint leave their block zero
             if ((s.couple[a] >> b) & 1) != 0 {
@@ -413,9 +484,9 @@ pub fn ik_build_gram(n_active: usize, damping: f32, s: &mut IkScratch) {
     }
 }
 
-/// Solves (J Jᵀ + λ² I) y = e (`n_active` block rows) into `s.y` by block Cholesky (3×3 blocks):
-/// L_ij = (S_ij − Σ_{k<j} L_ik L_jkᵀ) L_jj⁻ᵀ, L_jj the Cholesky factor of S_jj − Σ_{k<j} L_jk L_jkᵀ;
-/// then L z = e and Lᵀ y = z.
+/// Solves (J Jᵀ + Λ) y = r (`n_active` block rows) in place, r in `s.y` on entry, y on return,
+/// by block Cholesky (3×3 blocks): L_ij = (S_ij − Σ_{k<j} L_ik L_jkᵀ) L_jj⁻ᵀ, L_jj the Cholesky
+/// factor of S_jj − Σ_{k<j} L_jk L_jkᵀ; then L z = r and Lᵀ y = z.
 pub fn ik_cholesky(n_active: usize, s: &mut IkScratch) {
     for i in 0..n_active {
         for j in 0..=i {
@@ -431,9 +502,9 @@ pub fn ik_cholesky(n_active: usize, s: &mut IkScratch) {
             }
         }
     }
-    // L z = e: z_i = L_ii⁻¹ (e_i − Σ_{k<i} L_ik z_k)
+    // L z = r: z_i = L_ii⁻¹ (r_i − Σ_{k<i} L_ik z_k), z_k (k < i) already in s.y
     for i in 0..n_active {
-        let mut r = s.err[i];
+        let mut r = s.y[i];
         for k in 0..i {
             r -= s.blk[i * (i + 1) / 2 + k] * s.y[k];
         }
@@ -450,17 +521,70 @@ pub fn ik_cholesky(n_active: usize, s: &mut IkScratch) {
     }
 }
 
-/// Δq = Jᵀ (J Jᵀ + λ² I)⁻¹ e into `s.dq` (Δqₖ = Σₐ Jₐₖ · yₐ).
-pub fn ik_dls_step(m: &Model, n_active: usize, damping: f32, s: &mut IkScratch) {
-    ik_build_gram(n_active, damping, s);
+/// Δq = b + Jᵀ (J Jᵀ + Λ)⁻¹ (ê − J b) into `s.dq` (Δqₖ = bₖ + Σₐ Jₐₖ · yₐ), b = `s.pref`.
+pub fn ik_dls_step(m: &Model, n_active: usize, s: &mut IkScratch) {
+    // r_a = ê_a − Σₖ Jₐₖ bₖ: the solve takes back what J sees of b
+    for a in 0..n_active {
+        let mut r = s.err[a];
+        for i in 0..s.lead_n[a] as usize {
+            let k = s.lead[a * MAX_JOINTS + i] as usize;
+            r -= s.jac[a * MAX_JOINTS + k] * s.pref[k];
+        }
+        s.y[a] = r;
+    }
+    ik_build_gram(n_active, s);
     ik_cholesky(n_active, s);
     for k in 0..m.g.n_joints as usize {
-        s.dq[k] = 0.0;
+        s.dq[k] = s.pref[k];
     }
     for a in 0..n_active {
         for i in 0..s.lead_n[a] as usize {
             let k = s.lead[a * MAX_JOINTS + i] as usize;
             s.dq[k] += s.jac[a * MAX_JOINTS + k].dot(s.y[a]);
+        }
+    }
+}
+
+/// Damping of each active slot from its residual length `s.res[a]` into `s.lam2`:
+/// λₐ² = (`damping` · clamp(|eₐ| / `IK_DAMPING_DIST`, `IK_DAMPING_FLOOR`, 1))² + `IK_DAMPING_CURV` · |êₐ|.
+pub fn ik_damping(n_active: usize, prm: &IkParams, s: &mut IkScratch) {
+    for a in 0..n_active {
+        // λ = damping · clamp(|e| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1)
+        let l = prm.damping * (s.res[a] / IK_DAMPING_DIST).clamp(IK_DAMPING_FLOOR, 1.0);
+        // λ² + C·|ê|: the dropped Hessian term |ê| · lever, ê the residual the step aims at
+        s.lam2[a] = l * l + IK_DAMPING_CURV * s.res[a].min(IK_ERR_CLAMP);
+    }
+}
+
+/// The preferred step of every joint into `s.pref`: bₖ = `IK_BIAS` · ρₖ · (midₖ − qₖ) for an
+/// actuated joint on an active chain with finite limits, ρₖ = max over the active slots a that k
+/// drives of ρₐ = min(|eₐ| / `IK_DAMPING_DIST`, 1) · clamp(1 + 2 sₐ / |eₐ|, 0, 1), sₐ =
+/// `s.shorten[a]`; 0 for every other joint.
+pub fn ik_bias(m: &Model, n_active: usize, s: &mut IkScratch) {
+    let n = m.g.n_joints as usize;
+    for k in 0..n {
+        s.pref[k] = 0.0;
+    }
+    // ρₖ = max over k's slots of ρₐ, gathered in s.pref
+    for a in 0..n_active {
+        // wₐ = clamp(1 + 2 sₐ / |eₐ|, 0, 1): 1 unless the target lies beyond the tip, 0 from 30°
+        // past sideways on (sₐ / |eₐ| ≤ −½)
+        let toward = (1.0 + 2.0 * s.shorten[a] / s.res[a].max(1e-30)).clamp(0.0, 1.0);
+        // ρₐ = min(|eₐ| / IK_DAMPING_DIST, 1) · wₐ
+        let rho = (s.res[a] / IK_DAMPING_DIST).min(1.0) * toward;
+        for i in 0..s.lead_n[a] as usize {
+            let k = s.lead[a * MAX_JOINTS + i] as usize;
+            s.pref[k] = s.pref[k].max(rho);
+        }
+    }
+    for k in 0..n {
+        let jd = &m.joints[k];
+        // unlimited joints (±1e30) have no middle
+        if jd.lower > -1e29 && jd.upper < 1e29 {
+            // bₖ = IK_BIAS · ρₖ · ((lower + upper) / 2 − qₖ)
+            s.pref[k] = IK_BIAS * s.pref[k] * (0.5 * (jd.lower + jd.upper) - s.q[k]);
+        } else {
+            s.pref[k] = 0.0;
         }
     }
 }
@@ -475,6 +599,7 @@ pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, n_active: us
     for t in 0..m.g.n_tips as usize {
         if ((mask >> t) & 1) != 0 {
             let e = ik_tip_jacobian(m, t, a, targets[t], s).length();
+            s.res[a] = e;
             worst = worst.max(e);
             // NaN fails the comparison
             finite = finite && e < 1e30;
@@ -485,11 +610,11 @@ pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, n_active: us
     if !(worst > prm.tol) || !finite {
         return false;
     }
-    // λ = damping · clamp(max |e| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1)
-    let damping = prm.damping * (worst / IK_DAMPING_DIST).clamp(IK_DAMPING_FLOOR, 1.0);
+    ik_damping(n_active, prm, s);
+    ik_bias(m, n_active, s);
     let mut dmax = 0.0f32;
     for _ in 0..IK_LOCK_ROUNDS {
-        ik_dls_step(m, n_active, damping, s);
+        ik_dls_step(m, n_active, s);
         // lock every joint at a limit that Δq pushes further out, zero its columns, solve again
         let mut locked = false;
         dmax = 0.0;
@@ -499,6 +624,7 @@ pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, n_active: us
             if s.lock[k] == 0 && ((s.q[k] <= jd.lower && d < 0.0) || (s.q[k] >= jd.upper && d > 0.0)) {
                 s.lock[k] = 1;
                 locked = true;
+                s.pref[k] = 0.0;
                 for b in 0..n_active {
                     s.jac[b * MAX_JOINTS + k] = Vec3::ZERO;
                 }
@@ -516,8 +642,12 @@ pub fn ik_iterate(m: &Model, targets: &[Vec3; MAX_TIPS], mask: u32, n_active: us
     if !finite {
         return false;
     }
+    // the stop fades in: below 2·tol the step shrinks to 0 at tol (fade = (worst − tol) / tol),
+    // so a residual that one backend rounds to just above tol and the other to just below moves
+    // the joints by ~0 instead of by one whole step (up to tol / 2λ_min = 5e-5 rad)
+    let fade = if worst < 2.0 * prm.tol { (worst - prm.tol) / prm.tol } else { 1.0 };
     // scale Δq so that max |Δqₖ| ≤ max_step, keeping its direction
-    let scale = if dmax > prm.max_step { prm.max_step / dmax } else { 1.0 };
+    let scale = (if dmax > prm.max_step { prm.max_step / dmax } else { 1.0 }) * fade;
     for k in 0..n {
         let jd = &m.joints[k];
         if s.slots[k] != 0 && s.lock[k] == 0 {

@@ -75,7 +75,7 @@ pub fn metric_columns(spec: &TaskSpec, learner: &[String]) -> Vec<String> {
     let mut c: Vec<String> = ["env_steps", "time_s", "fps", "time/collect_s", "time/learn_s", "reward/mean"].iter().map(|s| s.to_string()).collect();
     c.extend(spec.term_names.iter().map(|t| format!("reward/{t}")));
     c.extend(
-        ["episode/count", "episode/return", "episode/length", "episode/success_rate", "episode/lift_height", "episode/terminated_frac"]
+        ["episode/count", "episode/return", "episode/length", "episode/success_rate", "episode/lift_height", "episode/terminated_frac", "episode/bad_reset_frac"]
             .iter()
             .map(|s| s.to_string()),
     );
@@ -86,6 +86,12 @@ pub fn metric_columns(spec: &TaskSpec, learner: &[String]) -> Vec<String> {
     }
     c
 }
+
+/// A fraction of episodes ended by bad-state resets above which `train` warns: a healthy sim has
+/// none, so one in a hundred means exploding envs (too large a time step, gains or randomisation).
+pub const BAD_RESET_WARN_FRAC: f64 = 0.01;
+/// Iterations between two bad-reset warnings (the first comes at once).
+const BAD_RESET_WARN_EVERY: u64 = 50;
 
 /// What the algorithm needs to know of the run to build itself.
 pub struct RunContext {
@@ -111,6 +117,9 @@ struct RolloutSums {
     episodes: u64,
     successes: u64,
     terminated: u64,
+    /// Episodes that ended because the physics reset a bad state (NaN, speed or distance beyond
+    /// the sim's limits).
+    bad_resets: u64,
     ep_return: f64,
     ep_len: f64,
     lift: f64,
@@ -151,6 +160,7 @@ fn collect(task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, obs: &mut [f32], 
                 s.episodes += 1;
                 s.successes += b.success[i] as u64;
                 s.terminated += b.terminated[i] as u64;
+                s.bad_resets += b.bad_reset[i] as u64;
                 s.ep_return += eps.ret[i];
                 s.ep_len += eps.len[i];
                 s.lift += b.lift_height[i] as f64;
@@ -180,6 +190,7 @@ fn metric_row(s: &RolloutSums, learner: &[f64], env_steps: u64, time_s: f64, fps
         per_ep(s.successes as f64),
         per_ep(s.lift),
         per_ep(s.terminated as f64),
+        per_ep(s.bad_resets as f64),
     ]);
     row.extend_from_slice(learner);
     if tracking {
@@ -298,6 +309,7 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
     let started = Instant::now();
     let mut last_saved = iteration;
     let mut last_row = Vec::new();
+    let mut last_bad_warning: Option<u64> = None;
     while iteration < stop_at {
         let t0 = Instant::now();
         let sums = collect(task.as_mut(), algo.as_mut(), &mut obs, &mut priv_obs, &mut eps, steps)?;
@@ -318,6 +330,20 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
         bar.set_position(iteration);
         if (args.quiet || bar.is_hidden()) && (iteration % (total / 10).max(1) == 0 || iteration == stop_at) {
             console::status(&format!("iteration {iteration}/{total}: {env_steps} env steps, {time_s:.1} s, {msg}"));
+        }
+        if sums.episodes > 0 {
+            let frac = sums.bad_resets as f64 / sums.episodes as f64;
+            if frac > BAD_RESET_WARN_FRAC && last_bad_warning.is_none_or(|w| iteration >= w + BAD_RESET_WARN_EVERY) {
+                bar.suspend(|| {
+                    console::warn(&format!(
+                        "warning: iteration {iteration}: {:.1} % of the episodes that ended ({} of {}) were reset for a bad state (NaN, or speed or distance beyond the sim's limits); check sim.dt, the hand's gains and the randomisation ranges (column episode/bad_reset_frac)",
+                        100.0 * frac,
+                        sums.bad_resets,
+                        sums.episodes
+                    ))
+                });
+                last_bad_warning = Some(iteration);
+            }
         }
         last_row = row;
         let interrupted = STOP.load(Ordering::SeqCst);

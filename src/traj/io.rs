@@ -23,7 +23,7 @@ use serde::ser::{Serialize, SerializeMap, Serializer};
 
 use super::{MAX_DURATION_S, MAX_JOINT_RAD, MAX_KEYFRAMES, MAX_POSITION_M, QUAT_NORM_TOLERANCE, Trajectory, is_valid_name};
 use crate::geom::Pose;
-use crate::traj::Frame;
+use crate::traj::Keyframe;
 
 /// MCAP topic of the reference messages.
 pub const REFERENCE_TOPIC: &str = "/dextrain/reference";
@@ -668,7 +668,7 @@ fn assemble(source: &str, mut raws: Vec<RawFrame>) -> Result<Trajectory> {
                 ),
             ));
         }
-        frames.push(Frame { t: raw.t, wrist: raw.wrist, joints, fingertips, object: raw.object });
+        frames.push(Keyframe { t: raw.t, wrist: raw.wrist, joints, fingertips, object: raw.object });
     }
     Ok(Trajectory { joint_names, fingertip_names: tip_names.unwrap_or_default(), frames })
 }
@@ -825,7 +825,7 @@ fn raw_frame_from_json(v: &json::Value, loc: Loc) -> Result<RawFrame, String> {
 /// Serialises one frame as the JSON message (f32 values in their shortest exact form).
 struct MessageSer<'a> {
     traj: &'a Trajectory,
-    frame: &'a Frame,
+    frame: &'a Keyframe,
 }
 
 struct PoseSer<'a>(&'a Pose);

@@ -45,7 +45,7 @@ pub const MAX_JOINT_RAD: f64 = 100.0;
 
 /// One keyframe of a reference.
 #[derive(Clone, Debug, PartialEq)]
-pub struct Frame {
+pub struct Keyframe {
     /// Time (s) from the start of the reference.
     pub t: f64,
     /// Wrist (root link) pose in the world frame.
@@ -61,12 +61,12 @@ pub struct Frame {
 /// A reference trajectory.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Trajectory {
-    /// Names of the joints the frames give targets for, in `Frame::joints` order.
+    /// Names of the joints the frames give targets for, in `Keyframe::joints` order.
     pub joint_names: Vec<String>,
-    /// Names of the fingertips the frames give positions for, in `Frame::fingertips` order.
+    /// Names of the fingertips the frames give positions for, in `Keyframe::fingertips` order.
     pub fingertip_names: Vec<String>,
     /// Keyframes by strictly increasing time.
-    pub frames: Vec<Frame>,
+    pub frames: Vec<Keyframe>,
 }
 
 impl Trajectory {
@@ -177,10 +177,10 @@ impl Trajectory {
     /// positions, joints and fingertips are interpolated linearly and the wrist and object
     /// rotations by slerp along the shortest arc. The returned frame's `t` is always the `t` asked
     /// for. On a trajectory with no frames this is the identity wrist pose with zero joints.
-    pub fn sample(&self, t: f64) -> Frame {
+    pub fn sample(&self, t: f64) -> Keyframe {
         let n = self.frames.len();
         let Some(first) = self.frames.first() else {
-            return Frame {
+            return Keyframe {
                 t,
                 wrist: Pose::IDENTITY,
                 joints: vec![0.0; self.joint_names.len()],
@@ -191,16 +191,16 @@ impl Trajectory {
         // Index of the first keyframe strictly after t (NaN compares false: lands on 0).
         let i = self.frames.partition_point(|f| f.t <= t);
         if i == 0 {
-            return Frame { t, ..first.clone() };
+            return Keyframe { t, ..first.clone() };
         }
         let a = &self.frames[i - 1];
         if i == n || a.t == t {
-            return Frame { t, ..a.clone() };
+            return Keyframe { t, ..a.clone() };
         }
         let b = &self.frames[i];
         let s = ((t - a.t) / (b.t - a.t)) as f32;
         let lerp = |x: f32, y: f32| x + (y - x) * s;
-        Frame {
+        Keyframe {
             t,
             wrist: lerp_pose(&a.wrist, &b.wrist, s),
             joints: a.joints.iter().zip(&b.joints).map(|(&x, &y)| lerp(x, y)).collect(),

@@ -24,7 +24,7 @@
 use anyhow::{Result, bail};
 use glam::{Quat, Vec3};
 
-use super::{Frame, Trajectory};
+use super::{Keyframe, Trajectory};
 use crate::hand::HandModel;
 use crate::learn::rng::Rng;
 
@@ -143,7 +143,7 @@ pub fn perturb(clean: &Trajectory, hand: &HandModel, args: &PerturbArgs, seed: u
         for (j, m) in map.iter().enumerate() {
             joints[m.expect("checked")] = q[j];
         }
-        frames.push(Frame { t: f.t, wrist, joints, fingertips: Some(tips), object });
+        frames.push(Keyframe { t: f.t, wrist, joints, fingertips: Some(tips), object });
     }
     let out = Trajectory {
         joint_names: clean.joint_names.clone(),

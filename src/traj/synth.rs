@@ -21,7 +21,7 @@ use anyhow::{Context, Result, bail};
 use glam::{Quat, Vec3};
 
 use super::perturb::{PerturbArgs, perturb};
-use super::{Frame, Trajectory};
+use super::{Keyframe, Trajectory};
 use crate::config::Config;
 use crate::env::SimModel;
 use crate::geom::Pose;
@@ -159,7 +159,7 @@ pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
         .map(|(t, wrist, q, object)| {
             let links = hand.forward_kinematics(q);
             let tips = hand.fingertips.iter().map(|tp| wrist.transform_point(links[tp.link].transform_point(tp.pos))).collect();
-            Frame { t: *t, wrist: *wrist, joints: (*q).clone(), fingertips: Some(tips), object: Some(*object) }
+            Keyframe { t: *t, wrist: *wrist, joints: (*q).clone(), fingertips: Some(tips), object: Some(*object) }
         })
         .collect();
     let traj = Trajectory {

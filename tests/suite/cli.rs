@@ -212,3 +212,31 @@ fn train_finishes_with_its_checkpoint_when_stdout_and_stderr_are_closed() {
     let (_, rows) = dextrain::metrics::read_csv(&run.join("metrics.csv")).unwrap();
     assert_eq!(rows.len(), 3);
 }
+
+/// Exploding envs are not hidden: a run whose sim resets bad states (here: any speed above
+/// 2 mm/s counts as one) shows them in `episode/bad_reset_frac` and warns on stderr; the same run
+/// with the default limits has none and no warning.
+#[test]
+fn train_reports_bad_state_resets_in_its_metrics_and_warns() {
+    let tmp = tempfile::tempdir().unwrap();
+    let runs = tmp.path().to_str().unwrap();
+    let frac = |name: &str, extra: &[&str]| {
+        let mut args = vec!["train", "configs/lift_cube_cpu.toml", "--name", name, "--runs-dir", runs, "--quiet"];
+        for s in ["sim.backend=cpu", "train.device=cpu", "sim.num_envs=4", "task.episode_length=4", "train.iterations=2", "train.steps_per_env=8", "train.plot_interval=0", "policy.actor_hidden=[8]", "policy.critic_hidden=[8]"].iter().chain(extra) {
+            args.extend(["--set", s]);
+        }
+        let (ok, _, stderr) = dextrain(&args);
+        assert!(ok, "{stderr}");
+        let (cols, rows) = dextrain::metrics::read_csv(&tmp.path().join(name).join("metrics.csv")).unwrap();
+        let k = cols.iter().position(|c| c == "episode/bad_reset_frac").expect("a bad_reset_frac column");
+        (rows.iter().map(|r| r.1[k]).fold(0.0f64, f64::max), stderr)
+    };
+    let (healthy, stderr) = frac("healthy", &[]);
+    assert_eq!(healthy, 0.0);
+    assert!(!stderr.contains("bad state"), "{stderr}");
+    let (exploding, stderr) = frac("exploding", &["sim.max_speed=0.002"]);
+    assert!(exploding > 0.5, "bad_reset_frac {exploding}");
+    let warnings: Vec<&str> = stderr.lines().filter(|l| l.starts_with("warning:") && l.contains("bad state")).collect();
+    assert_eq!(warnings.len(), 1, "one warning in two iterations:\n{stderr}");
+    assert!(warnings[0].contains("episode/bad_reset_frac") && warnings[0].contains("sim.dt"), "{}", warnings[0]);
+}

@@ -296,8 +296,10 @@ fn tracking_reward_terms_match_hand_computed_values() {
 #[test]
 fn cpu_and_gpu_agree_on_every_reference_kind() {
     let Some(_) = gpu_context("cpu_and_gpu_agree_on_every_reference_kind") else { return };
-    for name in ["track", "track_free", "residual_joint", "residual_task"] {
-        let kind = name.trim_end_matches("_free");
+    // residual_task twice: with its fingertip IK, and with the fingertip actions at 0 (the wrist
+    // residual alone, which keeps the tight tolerances of the other kinds)
+    for name in ["track", "track_free", "residual_joint", "residual_task", "residual_task_wrist"] {
+        let kind = name.trim_end_matches("_free").trim_end_matches("_wrist");
         let mut c = track_config(kind, 8);
         if name == "track_free" {
             c.task.track.action = dextrain::config::TrackAction::Free;
@@ -322,14 +324,15 @@ fn cpu_and_gpu_agree_on_every_reference_kind() {
         let spec = cpu.spec().clone();
         let a0 = cpu.reset_all().unwrap().clone();
         let b0 = gpu.reset_all().unwrap().clone();
-        // residual_task: with the reference's fingers straight (the open hand), a fingertip
-        // residual asks the IK for a point its singular Jacobian cannot reach along the finger;
-        // the damped steps then bifurcate between bending either way, and the two backends can
-        // pick different branches (0.04 rad apart). The IK's parity away from singularities is
-        // tests/ik.rs's; here residual_task's wrist residual runs on both backends and the
-        // fingertip components stay 0 (the IK is skipped, the targets are the reference's).
-        let ik = kind == "residual_task";
-        let tol = 2e-4;
+        // residual_task runs its fingertip IK on both backends. At the reference's straight
+        // fingers (the open hand) a finger moves its tip by ~0.6 mm per rad along one direction of
+        // its joints, so the backends' f32 rounding of the tips (~1e-8 m) leaves their IK targets up
+        // to 3.1e-5 rad apart (measured here: step 13, env 5), and contact turns that into object
+        // rotations up to 3.1e-3 (relative, floor 0.1) apart in the observations. The IK is smooth
+        // and deterministic there (tests/ik.rs sweeps it on both backends); its tolerances here are
+        // about 3× what was measured; the other runs keep the tight ones.
+        let ik = name == "residual_task";
+        let (tol, q_tol) = if ik { (1e-2, 1e-4) } else { (2e-4, 1e-5) };
         let close = |x: &[f32], y: &[f32], floor: f32, what: &str, step: usize| {
             for (i, (u, v)) in x.iter().zip(y).enumerate() {
                 let d = (u - v).abs() / u.abs().max(v.abs()).max(floor);
@@ -343,14 +346,15 @@ fn cpu_and_gpu_agree_on_every_reference_kind() {
                 .map(|k| {
                     rng = rng.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
                     let a = ((rng >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0;
-                    if ik && k % spec.action_dim >= 6 { 0.0 } else { a }
+                    // residual_task's actions 6.. are the fingertip residuals
+                    if name == "residual_task_wrist" && k % spec.action_dim >= 6 { 0.0 } else { a }
                 })
                 .collect();
             let a = cpu.step(&actions).unwrap().clone();
             let b = gpu.step(&actions).unwrap().clone();
             for (e, (x, y)) in cpu.targets().unwrap().iter().zip(gpu.targets().unwrap()).enumerate() {
                 let d = x.q.iter().zip(&y.q).map(|(u, v)| (u - v).abs()).fold(0.0f32, f32::max);
-                assert!(d < 1e-5, "{name} step {step} env {e}: joint targets differ by {d} rad");
+                assert!(d < q_tol, "{name} step {step} env {e}: joint targets differ by {d} rad");
                 let w = (glam::Vec4::from_array(x.wrist_pos) - glam::Vec4::from_array(y.wrist_pos)).abs().max_element();
                 assert!(w < 1e-5, "{name} step {step} env {e}: wrist targets differ by {w} m");
             }

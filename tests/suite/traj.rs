@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 
 use dextrain::geom::Pose;
 use dextrain::traj::{
-    FORMAT_VERSION, Frame, REFERENCE_JSON_SCHEMA, REFERENCE_METADATA_NAME, REFERENCE_SCHEMA_NAME, REFERENCE_TOPIC,
+    FORMAT_VERSION, Keyframe, REFERENCE_JSON_SCHEMA, REFERENCE_METADATA_NAME, REFERENCE_SCHEMA_NAME, REFERENCE_TOPIC,
     Trajectory,
 };
 use glam::{Quat, Vec3};
@@ -65,7 +65,7 @@ fn awkward_trajectory(tips: bool, object: bool) -> Trajectory {
             joints[2] = 99.999_99; // near MAX_JOINT_RAD, the largest joint value a reference may hold
             joints[3] = f32::MIN_POSITIVE;
         }
-        frames.push(Frame {
+        frames.push(Keyframe {
             t,
             wrist: rng.pose(),
             joints,
@@ -181,7 +181,7 @@ fn assert_quat_close(a: Quat, b: Quat, tol: f32) {
 fn example_expected() -> Trajectory {
     let q45 = Quat::from_xyzw(0.0, 0.0, 0.38268343, 0.92387953);
     let q90 = Quat::from_xyzw(0.0, 0.0, 0.70710677, 0.70710677);
-    let f = |t: f64, x: f32, z: f32, rot: Quat, j: [f32; 2]| Frame {
+    let f = |t: f64, x: f32, z: f32, rot: Quat, j: [f32; 2]| Keyframe {
         t,
         wrist: Pose::new(Vec3::new(x, 0.0, z), rot),
         joints: j.to_vec(),
@@ -816,14 +816,14 @@ fn two_frame(rot0: Quat, rot1: Quat) -> Trajectory {
         joint_names: vec!["a".into(), "b".into()],
         fingertip_names: vec!["tip".into()],
         frames: vec![
-            Frame {
+            Keyframe {
                 t: 1.0,
                 wrist: Pose::new(Vec3::new(0.0, 0.0, 0.0), rot0),
                 joints: vec![0.0, -1.0],
                 fingertips: Some(vec![Vec3::new(1.0, 1.0, 1.0)]),
                 object: Some(Pose::new(Vec3::new(0.0, 0.0, 0.1), rot1)),
             },
-            Frame {
+            Keyframe {
                 t: 3.0,
                 wrist: Pose::new(Vec3::new(1.0, 2.0, -4.0), rot1),
                 joints: vec![1.0, 1.0],
@@ -886,12 +886,12 @@ fn sample_clamps_outside_the_range() {
     let traj = two_frame(Quat::IDENTITY, Quat::from_rotation_z(1.0));
     for t in [-5.0, 0.0, 0.999, f64::NEG_INFINITY, f64::NAN] {
         let f = traj.sample(t);
-        assert_eq!(Frame { t: 1.0, ..f }, traj.frames[0], "t {t}");
+        assert_eq!(Keyframe { t: 1.0, ..f }, traj.frames[0], "t {t}");
     }
     for t in [3.0, 3.5, 1e9, f64::INFINITY] {
         let f = traj.sample(t);
         assert_eq!(f.t, t);
-        assert_eq!(Frame { t: 3.0, ..f }, traj.frames[1], "t {t}");
+        assert_eq!(Keyframe { t: 3.0, ..f }, traj.frames[1], "t {t}");
     }
     let empty = Trajectory { joint_names: vec!["a".into()], ..Default::default() };
     let f = empty.sample(1.0);
