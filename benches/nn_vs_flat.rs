@@ -1,5 +1,12 @@
-//! SCRATCH (not committed): the PPO minibatch loop with the flat-tensor MLPs + hand-written Adam vs
-//! burn::nn::Linear + burn::optim::Adam, same data, same loss, timed in one process.
+//! The PPO update with dextrain's flat-tensor MLPs and hand-written Adam against burn's own
+//! `nn::Linear` modules and `optim::Adam`: the same data, losses, minibatches and learning rate,
+//! timed in one process, alternating (issue 12, item 4: keep the faster, write the figures down).
+//!
+//! `cargo bench --bench nn_vs_flat` (env `NB_ENVS`, default 4096 × 24 steps: the PPO benchmark's
+//! shape; `NB_REPS` timed repetitions after one warm-up, default 3; `RAYON_NUM_THREADS=1` for the
+//! one-thread figure of BENCHMARKS.md). Prints one JSON line with the medians.
+//! What burn's version leaves out that the flat one does (the global gradient-norm clip) favours
+//! burn's side, not ours.
 use std::time::Instant;
 
 use burn::module::{Module, Param};
@@ -13,13 +20,15 @@ use dextrain::learn::nets::{Activation, to_host, to_tensor};
 use dextrain::learn::ppo::{ActorCritic, Batch, Dims, ppo_losses};
 use dextrain::learn::rng::Rng;
 
+/// The actor-critic as burn modules: actor and critic MLPs of `Linear` layers and the log-std.
 #[derive(Module, Debug)]
-struct NnAc {
+struct NnActorCritic {
     actor: Vec<Linear>,
     log_std: Param<Tensor<2>>,
     critic: Vec<Linear>,
 }
 
+/// An MLP's forward pass: ELU between layers, none after the last.
 fn mlp(layers: &[Linear], x: Tensor<2>) -> Tensor<2> {
     let mut h = x;
     for (l, lin) in layers.iter().enumerate() {
@@ -31,6 +40,7 @@ fn mlp(layers: &[Linear], x: Tensor<2>) -> Tensor<2> {
     h
 }
 
+/// `Linear` layers input → hidden… → out.
 fn linears(input: usize, hidden: &[usize], out: usize, dev: &Device) -> Vec<Linear> {
     let mut w = vec![input];
     w.extend_from_slice(hidden);
@@ -38,9 +48,12 @@ fn linears(input: usize, hidden: &[usize], out: usize, dev: &Device) -> Vec<Line
     w.windows(2).map(|p| LinearConfig::new(p[0], p[1]).init(dev)).collect()
 }
 
-#[test]
+fn main() {
+    nn_vs_flat();
+}
+
 fn nn_vs_flat() {
-    let envs: usize = std::env::var("NB_ENVS").ok().and_then(|s| s.parse().ok()).unwrap_or(1024);
+    let envs: usize = std::env::var("NB_ENVS").ok().and_then(|s| s.parse().ok()).unwrap_or(4096);
     let steps = 24;
     let (o, p, a) = (96, 130, 22);
     let hidden = vec![512, 256, 128];
@@ -92,7 +105,7 @@ fn nn_vs_flat() {
     let mut net = ActorCritic::new(Dims { obs: o, priv_obs: p, act: a }, &pol, &dev, &mut r).unwrap();
     let mut adam = Adam::new(&net.shapes(), &dev);
     // nn
-    let mut nn = NnAc {
+    let mut nn = NnActorCritic {
         actor: linears(o, &hidden, a, &dev),
         log_std: Param::from_tensor(Tensor::zeros([1, a], &dev).require_grad()),
         critic: linears(p, &hidden, 1, &dev),
@@ -136,5 +149,9 @@ fn nn_vs_flat() {
     flat_ms.sort_by(f64::total_cmp);
     nn_ms.sort_by(f64::total_cmp);
     let (f, n) = (flat_ms[flat_ms.len() / 2], nn_ms[nn_ms.len() / 2]);
-    eprintln!("RESULT envs {envs} x {steps} steps, hidden {hidden:?}, 5 epochs x 4 minibatches: flat {f:.0} ms, burn nn+optim {n:.0} ms per update, ratio nn/flat {:.3}", n / f);
+    println!(
+        "{}",
+        serde_json::json!({"envs": envs, "steps": steps, "hidden": hidden, "epochs": cfg.epochs, "minibatches": cfg.minibatches,
+            "flat_update_ms": f, "burn_nn_update_ms": n, "burn_nn_over_flat": n / f, "reps": reps})
+    );
 }
