@@ -9,6 +9,7 @@ pub mod config;
 pub mod console;
 pub mod env;
 pub mod eval;
+pub mod export;
 pub mod geom;
 pub mod hand;
 pub mod learn;

@@ -5,6 +5,7 @@
 mod common;
 mod cli;
 mod config;
+mod contract;
 mod hand;
 mod ik;
 mod learn;
