@@ -61,6 +61,9 @@ enum Command {
     Train(dextrain::run::TrainArgs),
     /// Evaluate a run's checkpoint: deterministic episodes on fresh seeds, a JSON report in RUN/eval/.
     Eval(dextrain::eval::EvalArgs),
+    /// Export a run's policy for a robot: RUN/export/policy.onnx (normalisation baked in) and
+    /// policy.json (the contract: observation layout, action mapping, joints, timing), world.toml.
+    Export(dextrain::export::command::ExportArgs),
     /// Draw a run's learning curves (PNG) from its metrics.csv into RUN/plots/.
     Plot {
         /// The run directory (runs/NAME).
@@ -144,6 +147,11 @@ fn run(cli: Cli) -> Result<()> {
             let report = dextrain::eval::run(&args)?;
             console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
             console::status(&format!("dextrain eval: report written to {}", report.path.display()));
+            Ok(())
+        }
+        Command::Export(args) => {
+            let report = dextrain::export::command::run(&args)?;
+            console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
             Ok(())
         }
         Command::Plot { run } => {

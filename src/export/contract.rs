@@ -282,6 +282,14 @@ pub struct IkContract {
     pub damping: f32,
     pub max_step: f32,
     pub tol: f32,
+    /// The solver's fixed constants (`env::ik`): damping shrink distance (m) and floor (fraction),
+    /// curvature term (m), mid-range step fraction, lock rounds, per-iteration residual clamp (m).
+    pub damping_dist: f32,
+    pub damping_floor: f32,
+    pub damping_curvature: f32,
+    pub midrange_bias: f32,
+    pub lock_rounds: u32,
+    pub residual_clamp: f32,
     /// The algorithm.
     pub method: String,
 }
@@ -547,6 +555,12 @@ pub fn build(cfg: &Config, spec: &TaskSpec, tc: &TaskGlobals, model: &SimModel, 
                 damping: tc.ik.damping,
                 max_step: tc.ik.max_step,
                 tol: tc.ik.tol,
+                damping_dist: crate::env::ik::IK_DAMPING_DIST,
+                damping_floor: crate::env::ik::IK_DAMPING_FLOOR,
+                damping_curvature: crate::env::ik::IK_DAMPING_CURV,
+                midrange_bias: crate::env::ik::IK_BIAS,
+                lock_rounds: crate::env::ik::IK_LOCK_ROUNDS,
+                residual_clamp: crate::env::ik::IK_ERR_CLAMP,
                 method: "damped least squares over all fingertips together in the wrist frame, seeded at the reference's q̄, with joint-limit locking, \
                          residual-dependent damping and a small step toward each joint's mid-range (dextrain src/env/ik.rs)"
                     .into(),

@@ -6,6 +6,7 @@ mod common;
 mod cli;
 mod config;
 mod contract;
+mod export;
 mod hand;
 mod ik;
 mod learn;

@@ -1,0 +1,252 @@
+//! `dextrain export RUN [--checkpoint N] [--out DIR] [--verify]`: writes a run's policy as
+//! `policy.onnx` (the deterministic policy with its observation normalisation baked in) and its
+//! contract `policy.json`, plus `world.toml` (the run's config: the world `dextrain play` rebuilds;
+//! the policy side reads nothing from it), by default into `RUN/export/`.
+//!
+//! The files are written into a temporary directory beside the destination and renamed into place,
+//! so an export is never half-written; an existing destination is replaced only if it holds nothing
+//! but an export's files. `--verify` runs the exported model (tract) on observations recorded from
+//! real episodes of the task and compares it with the burn policy.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::{Context, Result, bail, ensure};
+use serde::Serialize;
+
+use super::contract::{self, CONTRACT_FILE, ContractSource, PolicyContract, Source, TensorIo};
+use super::onnx::{self, Dense, Mlp, Normalization, PolicyNet};
+use crate::checkpoint;
+use crate::config::Config;
+use crate::env::SimModel;
+use crate::learn::normalizer::Normalizer;
+use crate::learn::ppo::{Dims, Ppo};
+use crate::run_dir;
+use crate::task::{make_task_batch, task_setup};
+
+/// The ONNX file's name in an export directory.
+pub const ONNX_FILE: &str = "policy.onnx";
+/// The world file's name in an export directory (the run's resolved config).
+pub const WORLD_FILE: &str = "world.toml";
+/// Every file an export directory holds.
+pub const EXPORT_FILES: [&str; 3] = [ONNX_FILE, CONTRACT_FILE, WORLD_FILE];
+/// The largest difference `--verify` accepts between the ONNX model and the burn policy.
+pub const VERIFY_TOLERANCE: f64 = 1e-5;
+
+/// `dextrain export`.
+#[derive(clap::Args, Clone, Debug)]
+pub struct ExportArgs {
+    /// The run directory (runs/NAME).
+    pub run: PathBuf,
+    /// Which checkpoint: an iteration number or "latest".
+    #[arg(long, default_value = "latest")]
+    pub checkpoint: String,
+    /// Where to write the files (default: RUN/export).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Run the exported model (tract) on observations recorded from real episodes and compare it
+    /// with the burn policy; fails above 1e-5.
+    #[arg(long)]
+    pub verify: bool,
+}
+
+/// What `dextrain export` prints (one JSON line).
+#[derive(Clone, Debug, Serialize)]
+pub struct ExportReport {
+    /// The export directory.
+    pub dir: String,
+    /// The checkpoint exported.
+    pub checkpoint: String,
+    /// `--verify`: rows compared and the largest |ONNX − burn| over every action.
+    pub verified_rows: Option<usize>,
+    pub max_abs_diff: Option<f64>,
+}
+
+/// The normalisation x̂ = (x − μ) / (σ + ε) of a normaliser, or the identity when the policy does
+/// not normalise.
+fn normalization(n: &Normalizer, on: bool) -> Normalization {
+    let d = n.dim();
+    if !on || n.count <= 0.0 {
+        return Normalization { mean: vec![0.0; d], denom: vec![1.0; d] };
+    }
+    // σ = √(m2 / count), as the learner computes it
+    let denom = n.m2.iter().map(|&m2| ((m2 / n.count).sqrt() + n.eps) as f32).collect();
+    Normalization { mean: n.mean.iter().map(|&m| m as f32).collect(), denom }
+}
+
+/// An MLP's layers from flat parameters `[w0, b0, w1, b1, …]` with shapes `[in, out]`, `[1, out]`.
+fn mlp(values: &[Vec<f32>], shapes: &[[usize; 2]], activation: crate::config::Activation) -> Mlp {
+    let layers = values
+        .chunks(2)
+        .zip(shapes.chunks(2))
+        .map(|(v, s)| Dense { weight: v[0].clone(), bias: v[1].clone(), inputs: s[0][0], outputs: s[0][1] })
+        .collect();
+    Mlp { layers, activation }
+}
+
+/// A run's policy as the exporter sees it: the network description and the burn policy.
+struct Loaded {
+    net: PolicyNet,
+    ppo: Ppo,
+}
+
+/// Loads a PPO policy of `cfg`'s shape from a checkpoint.
+fn load(cfg: &Config, ckpt: &Path, dims: Dims) -> Result<Loaded> {
+    let device = burn::prelude::Device::flex();
+    let mut ppo = Ppo::new(dims, 1, 1, &cfg.ppo, &cfg.policy, device, cfg.seed as u64)?;
+    checkpoint::load_model(&ckpt.join("model.safetensors"), &mut ppo).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
+    let values = ppo.net.values()?;
+    let n_actor = ppo.net.actor_shapes.len();
+    let actor = mlp(&values[..n_actor], &ppo.net.actor_shapes, ppo.net.activation);
+    let net = PolicyNet::Mlp { obs_norm: normalization(&ppo.obs_norm, ppo.normalize), actor };
+    Ok(Loaded { net, ppo })
+}
+
+/// XXH64 (hex) of a checkpoint's manifest.
+fn manifest_hash(ckpt: &Path) -> Result<String> {
+    let p = ckpt.join(checkpoint::MANIFEST);
+    let bytes = std::fs::read(&p).with_context(|| format!("cannot read {}", p.display()))?;
+    Ok(contract::hex(checkpoint::xxh64(&bytes, 0)))
+}
+
+/// Runs `dextrain export`.
+pub fn run(args: &ExportArgs) -> Result<ExportReport> {
+    run_dir::check_run(&args.run)?;
+    let ckpt = checkpoint::find(&args.run, &args.checkpoint)?;
+    let state = checkpoint::read_state(&ckpt)?;
+    let cfg_path = args.run.join("config.toml");
+    let cfg = Config::load(&cfg_path)?;
+    let model = SimModel::from_config(&cfg)?;
+    let setup = task_setup(&cfg, &model)?;
+    let spec = &setup.spec;
+    ensure!(
+        (state.obs_dim, state.priv_dim, state.action_dim) == (spec.obs_dim, spec.priv_dim, spec.action_dim),
+        "{}: the checkpoint's sizes (obs {}, critic obs {}, actions {}) are not the task's of {} (obs {}, critic obs {}, actions {})",
+        ckpt.display(),
+        state.obs_dim,
+        state.priv_dim,
+        state.action_dim,
+        cfg_path.display(),
+        spec.obs_dim,
+        spec.priv_dim,
+        spec.action_dim
+    );
+    let loaded = load(&cfg, &ckpt, Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim })?;
+    let io = |name: &str, dims: Vec<serde_json::Value>, description: &str| TensorIo { name: name.into(), shape: dims, description: description.into() };
+    let batch = serde_json::Value::from("batch");
+    let inputs = vec![io("obs", vec![batch.clone(), spec.obs_dim.into()], "the observation, raw values in `observation`'s layout")];
+    let output = io("actions", vec![batch, spec.action_dim.into()], "the policy's mean action, before clipping and the action mapping");
+    let metadata = vec![
+        ("dextrain.format".to_string(), contract::CONTRACT_FORMAT.to_string()),
+        ("dextrain.version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+        ("dextrain.task".to_string(), spec.kind.to_string()),
+        ("dextrain.obs_dim".to_string(), spec.obs_dim.to_string()),
+        ("dextrain.action_dim".to_string(), spec.action_dim.to_string()),
+        ("dextrain.control_dt".to_string(), spec.control_dt.to_string()),
+        ("dextrain.hand".to_string(), model.hand.name.clone()),
+        ("dextrain.run".to_string(), args.run.display().to_string()),
+        ("dextrain.checkpoint".to_string(), state.iteration.to_string()),
+        ("dextrain.contract".to_string(), CONTRACT_FILE.to_string()),
+    ];
+    let bytes = onnx::to_onnx(&loaded.net, &metadata)?;
+    let src = ContractSource {
+        source: Source {
+            run: std::fs::canonicalize(&args.run).unwrap_or_else(|_| args.run.clone()).display().to_string(),
+            checkpoint: state.iteration,
+            checkpoint_xxh64: manifest_hash(&ckpt)?,
+            algorithm: "ppo".into(),
+            teacher: None,
+        },
+        model_file: ONNX_FILE,
+        model_bytes: &bytes,
+        inputs,
+        output,
+        obs_fields: spec.obs_layout.iter().map(|s| s.name.clone()).collect(),
+        priv_fields: None,
+        history: None,
+    };
+    let c = contract::build(&cfg, spec, &setup.tc, &model, src)?;
+    let out = args.out.clone().unwrap_or_else(|| args.run.join("export"));
+    let world = std::fs::read(&cfg_path).with_context(|| format!("cannot read {}", cfg_path.display()))?;
+    write_export(&out, &bytes, &c, &world)?;
+    let mut report = ExportReport { dir: out.display().to_string(), checkpoint: ckpt.display().to_string(), verified_rows: None, max_abs_diff: None };
+    if args.verify {
+        let (rows, diff) = verify(&cfg, &loaded, &bytes)?;
+        report.verified_rows = Some(rows);
+        report.max_abs_diff = Some(diff);
+        if diff.is_nan() || diff > VERIFY_TOLERANCE {
+            bail!("--verify: the exported model differs from the burn policy by {diff:e} (max abs over {rows} observations), above {VERIFY_TOLERANCE:e}");
+        }
+    }
+    Ok(report)
+}
+
+/// Writes the export files into `out` atomically: a temporary directory beside it, then renames.
+/// An existing `out` is replaced only if it holds nothing but [`EXPORT_FILES`].
+fn write_export(out: &Path, onnx_bytes: &[u8], c: &PolicyContract, world: &[u8]) -> Result<()> {
+    if out.exists() {
+        ensure!(out.is_dir(), "--out {}: exists and is not a directory", out.display());
+        for e in std::fs::read_dir(out).with_context(|| format!("cannot list {}", out.display()))? {
+            let name = e.with_context(|| format!("cannot list {}", out.display()))?.file_name().to_string_lossy().into_owned();
+            ensure!(
+                EXPORT_FILES.contains(&name.as_str()),
+                "--out {}: holds {name:?}, which an export does not write; refusing to replace it (expected a directory of {})",
+                out.display(),
+                EXPORT_FILES.join(", ")
+            );
+        }
+    }
+    let parent = out.parent().filter(|p| !p.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    std::fs::create_dir_all(parent).with_context(|| format!("cannot create {}", parent.display()))?;
+    let stem = out.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_else(|| "export".into());
+    let tmp = parent.join(format!(".{stem}.tmp-{}", std::process::id()));
+    if tmp.exists() {
+        std::fs::remove_dir_all(&tmp).with_context(|| format!("cannot remove {}", tmp.display()))?;
+    }
+    std::fs::create_dir(&tmp).with_context(|| format!("cannot create {}", tmp.display()))?;
+    let json = serde_json::to_string_pretty(c).context("cannot serialise policy.json")?;
+    for (name, data) in [(ONNX_FILE, onnx_bytes), (CONTRACT_FILE, json.as_bytes()), (WORLD_FILE, world)] {
+        let p = tmp.join(name);
+        std::fs::write(&p, data).with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    if out.exists() {
+        let old = parent.join(format!(".{stem}.old-{}", std::process::id()));
+        std::fs::rename(out, &old).with_context(|| format!("cannot move the old export {} aside", out.display()))?;
+        std::fs::rename(&tmp, out).with_context(|| format!("cannot rename {} to {}", tmp.display(), out.display()))?;
+        std::fs::remove_dir_all(&old).with_context(|| format!("cannot remove the old export {}", old.display()))?;
+    } else {
+        std::fs::rename(&tmp, out).with_context(|| format!("cannot rename {} to {}", tmp.display(), out.display()))?;
+    }
+    Ok(())
+}
+
+/// Observations rows recorded for `--verify`: at most this many.
+const VERIFY_ROWS: usize = 2048;
+
+/// Records observations from real episodes of the run's task (the burn policy acting, CPU
+/// backend, 16 envs, up to one episode each) and returns (rows, max |ONNX − burn|).
+fn verify(cfg: &Config, loaded: &Loaded, bytes: &[u8]) -> Result<(usize, f64)> {
+    let mut c = cfg.clone();
+    c.sim.backend = crate::config::BackendChoice::Cpu;
+    c.sim.num_envs = 16;
+    c.seed = c.seed.wrapping_add(1_000_003);
+    let model = SimModel::from_config(&c)?;
+    let mut task = make_task_batch(&c, model)?;
+    let spec = task.spec().clone();
+    let mut obs = task.reset_all()?.obs.clone();
+    let mut rows: Vec<f32> = Vec::new();
+    let mut burn: Vec<f32> = Vec::new();
+    for _ in 0..spec.episode_length {
+        let a = loaded.ppo.act_mean(&obs)?;
+        rows.extend_from_slice(&obs);
+        burn.extend_from_slice(&a);
+        if rows.len() / spec.obs_dim >= VERIFY_ROWS {
+            break;
+        }
+        obs = task.step(&a)?.obs.clone();
+    }
+    let n = rows.len() / spec.obs_dim;
+    let ours = onnx::run_onnx(bytes, &rows, &[], &[], n)?;
+    ensure!(ours.len() == burn.len(), "--verify: the ONNX model gave {} numbers for {} expected", ours.len(), burn.len());
+    let diff = ours.iter().zip(&burn).map(|(a, b)| (*a as f64 - *b as f64).abs()).fold(0.0f64, |m, d| if d.is_nan() { f64::NAN } else { m.max(d) });
+    Ok((n, diff))
+}
