@@ -102,7 +102,7 @@ fn nn_vs_flat() {
     // flat
     let pol = PolicyConfig { actor_hidden: hidden.clone(), critic_hidden: hidden.clone(), ..PolicyConfig::default() };
     let mut r = Rng::new(3, 3);
-    let mut net = ActorCritic::new(Dims { obs: o, priv_obs: p, act: a }, &pol, &dev, &mut r).unwrap();
+    let mut net = ActorCritic::new(Dims { obs: o, priv_obs: p, act: a }, &pol, &[], &dev, &mut r).unwrap();
     let mut adam = Adam::new(&net.shapes(), &dev);
     // nn
     let mut nn = NnActorCritic {
@@ -118,7 +118,7 @@ fn nn_vs_flat() {
         for idx in &idxs {
             let b = pick(idx);
             let params = net.params.clone();
-            let losses = ppo_losses(net.actor(&params, b.obs.clone()), net.log_std(&params), net.critic(&params, b.priv_obs.clone()), &b, &cfg);
+            let losses = ppo_losses(net.actor(&params, b.obs.clone(), b.priv_obs.clone()), net.log_std(&params), net.critic(&params, b.priv_obs.clone()), &b, &cfg);
             let s = to_host(Tensor::cat(vec![losses.kl.clone().inner(), losses.surrogate.clone().detach().inner()], 0)).unwrap();
             assert!(s[0].is_finite());
             let grads = losses.total.backward();

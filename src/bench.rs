@@ -219,7 +219,7 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
     let cfg = PpoConfig { learning_rate: 1e-3, epochs: o.epochs, minibatches: o.minibatches, ..PpoConfig::default() };
     let pol = PolicyConfig { actor_hidden: o.hidden.clone(), critic_hidden: o.hidden.clone(), ..PolicyConfig::default() };
     let dims = Dims { obs: o.obs, priv_obs: o.priv_obs, act: o.actions };
-    let mut ppo = Ppo::new(dims, o.envs, o.steps, &cfg, &pol, device, 0)?;
+    let mut ppo = Ppo::new(dims, o.envs, o.steps, &cfg, &pol, &[], device, 0)?;
     let mut rng = Rng::new(1, 1);
     let mut draw = |len: usize| -> Vec<f32> { (0..len).map(|_| rng.normal() as f32).collect() };
     let obs: Vec<(Vec<f32>, Vec<f32>)> = (0..2).map(|_| (draw(o.envs * o.obs), draw(o.envs * o.priv_obs))).collect();
@@ -264,7 +264,7 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
     let mut inf_ms = Vec::new();
     for _ in 0..10 {
         let t0 = Instant::now();
-        ppo.act_mean(&obs[0].0)?;
+        ppo.act_mean(&obs[0].0, &obs[0].1)?;
         inf_ms.push(1e3 * t0.elapsed().as_secs_f64());
     }
     let transitions = (o.envs * o.steps) as f64;

@@ -378,7 +378,8 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
         let (device, dn) = learner_device(&choice, task.gpu_context())?;
         device_name = dn;
         let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
-        let mut ppo = Ppo::new(dims, n, 1, &c.ppo, &c.policy, device, c.seed as u64)?;
+        let encoder_index = crate::learn::ppo::encoder_index(&c.policy, &spec)?;
+        let mut ppo = Ppo::new(dims, n, 1, &c.ppo, &c.policy, &encoder_index, device, c.seed as u64)?;
         checkpoint::load_model(&ckpt.join("model.safetensors"), &mut ppo).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
         term_names = spec.term_names.clone();
         term_sums.resize(term_names.len(), 0.0);
@@ -397,7 +398,8 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
             }
             _ => None,
         };
-        let mut obs = task.reset_all()?.obs.clone();
+        let first = task.reset_all()?;
+        let (mut obs, mut priv_obs) = (first.obs.clone(), first.priv_obs.clone());
         // the reference of each env's (only) episode, drawn at the reset
         let refs: Vec<String> = if !has_reference {
             vec![String::new(); n]
@@ -417,7 +419,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
         }
         let zeros = vec![0.0f32; n * spec.action_dim];
         while done.iter().any(|d| !d) {
-            let actions = if open_loop { zeros.clone() } else { ppo.act_mean(&obs)? };
+            let actions = if open_loop { zeros.clone() } else { ppo.act_mean(&obs, &priv_obs)? };
             let b = task.step(&actions)?;
             t += spec.control_dt as f64;
             let nt = term_names.len();
@@ -470,6 +472,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
             }
             let env0_running = !done[0];
             obs = b.obs.clone();
+            priv_obs = b.priv_obs.clone();
             if env0_running && let Some(w) = writer.as_mut() {
                 record_frame(w, &model, task.as_mut(), t)?;
             }

@@ -109,6 +109,37 @@ pub struct PolicyConfig {
     /// Start the actor's output layer at zero, so that the initial policy mean is 0: a residual
     /// policy then starts as the reference it corrects (residual RL's usual initialisation).
     pub zero_init_output: bool,
+    /// `[policy.encoder]`: a privileged encoder (DexRefine's teacher). Absent: none.
+    pub encoder: Option<EncoderConfig>,
+}
+
+/// `[policy.encoder]`: an MLP `μ(ê) → ẑ` over privileged inputs (critic-observation fields, each
+/// normalised as the critic sees it) whose output is concatenated with the actor's observation
+/// before the actor MLP: the actor's input is `[ŝ; ẑ]`. Trained by PPO with the rest.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct EncoderConfig {
+    /// The privileged inputs, by critic-observation field name (`dextrain check` lists them): e.g.
+    /// object physics `obj_mass`, `obj_friction`, `obj_scale`, the object's `obj_pos`, `obj_rot`,
+    /// `obj_vel`, `obj_angvel`, contacts `tip_contact`.
+    pub inputs: Vec<String>,
+    /// Hidden layer widths.
+    pub hidden: Vec<usize>,
+    /// Hidden activation.
+    pub activation: Activation,
+    /// Size of the latent ẑ.
+    pub latent: usize,
+}
+
+impl Default for EncoderConfig {
+    fn default() -> Self {
+        EncoderConfig {
+            inputs: ["obj_mass", "obj_friction", "obj_scale", "obj_pos", "obj_rot", "obj_vel", "obj_angvel", "tip_contact"].iter().map(|s| s.to_string()).collect(),
+            hidden: vec![128, 64],
+            activation: Activation::Relu,
+            latent: 16,
+        }
+    }
 }
 
 impl Default for TrainConfig {
@@ -156,6 +187,7 @@ impl Default for PolicyConfig {
             init_std: 1.0,
             obs_normalization: true,
             zero_init_output: false,
+            encoder: None,
         }
     }
 }
@@ -208,6 +240,18 @@ impl PolicyConfig {
                 return Err(c.err(key, format!("{layers:?}"), "a non-empty list of layer widths in [1, 65536]"));
             }
         }
-        c.in_range("policy.init_std", self.init_std, 1e-6, 100.0, "a standard deviation in (0, 100]")
+        c.in_range("policy.init_std", self.init_std, 1e-6, 100.0, "a standard deviation in (0, 100]")?;
+        if let Some(e) = &self.encoder {
+            if e.hidden.iter().any(|&w| w == 0 || w > 65536) {
+                return Err(c.err("policy.encoder.hidden", format!("{:?}", e.hidden), "a list of layer widths in [1, 65536]"));
+            }
+            if !(1..=4096).contains(&e.latent) {
+                return Err(c.err("policy.encoder.latent", e.latent, "an integer in [1, 4096]"));
+            }
+            if e.inputs.is_empty() {
+                return Err(c.err("policy.encoder.inputs", "[]", "a non-empty list of critic-observation field names"));
+            }
+        }
+        Ok(())
     }
 }

@@ -21,7 +21,7 @@ use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 
 pub use hand::{HandConfig, WristConfig};
-pub use learn::{Activation, LrSchedule, PolicyConfig, PpoConfig, TrainConfig};
+pub use learn::{Activation, EncoderConfig, LrSchedule, PolicyConfig, PpoConfig, TrainConfig};
 pub use sim::{BackendChoice, ContactConfig, ObjectConfig, RandomizationConfig, SimConfig, TableConfig};
 pub use task::{
     ActionConfig, FingerMode, HandPointsConfig, LiftConfig, ObsNoiseConfig, ReferenceConfig, ReferenceStart, ResidualConfig, TaskConfig, TaskKind,
@@ -255,7 +255,15 @@ impl Config {
         self.task.validate(&c)?;
         self.train.validate(&c)?;
         self.ppo.validate(&c, self.sim.num_envs as u64 * self.train.steps_per_env as u64)?;
-        self.policy.validate(&c)
+        self.policy.validate(&c)?;
+        if let Some(e) = &self.policy.encoder {
+            // the encoder's inputs are fields of this task's critic observation
+            let names = crate::task::spec::critic_field_names(self.task.kind, self.task.track.lookahead);
+            if let Some(bad) = e.inputs.iter().find(|n| !names.contains(n)) {
+                return Err(c.err("policy.encoder.inputs", bad, &format!("field names of the {} task's critic observation: {}", self.task.kind, names.join(", "))));
+            }
+        }
+        Ok(())
     }
 }
 

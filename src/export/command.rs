@@ -89,15 +89,23 @@ struct Loaded {
     ppo: Ppo,
 }
 
-/// Loads a PPO policy of `cfg`'s shape from a checkpoint.
-fn load(cfg: &Config, ckpt: &Path, dims: Dims) -> Result<Loaded> {
+/// Loads a PPO policy (with or without a privileged encoder) of `cfg`'s shape from a checkpoint.
+fn load(cfg: &Config, ckpt: &Path, dims: Dims, encoder_index: &[usize]) -> Result<Loaded> {
     let device = burn::prelude::Device::flex();
-    let mut ppo = Ppo::new(dims, 1, 1, &cfg.ppo, &cfg.policy, device, cfg.seed as u64)?;
+    let mut ppo = Ppo::new(dims, 1, 1, &cfg.ppo, &cfg.policy, encoder_index, device, cfg.seed as u64)?;
     checkpoint::load_model(&ckpt.join("model.safetensors"), &mut ppo).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
     let values = ppo.net.values()?;
     let n_actor = ppo.net.actor_shapes.len();
     let actor = mlp(&values[..n_actor], &ppo.net.actor_shapes, ppo.net.activation);
-    let net = PolicyNet::Mlp { obs_norm: normalization(&ppo.obs_norm, ppo.normalize), actor };
+    let obs_norm = normalization(&ppo.obs_norm, ppo.normalize);
+    let net = if ppo.net.encoder_shapes.is_empty() {
+        PolicyNet::Mlp { obs_norm, actor }
+    } else {
+        // parameters: actor…, log_std, critic…, encoder…
+        let start = n_actor + 1 + ppo.net.critic_shapes.len();
+        let encoder = mlp(&values[start..], &ppo.net.encoder_shapes, ppo.net.encoder_activation);
+        PolicyNet::Encoder { obs_norm, priv_norm: normalization(&ppo.priv_norm, ppo.normalize), priv_index: encoder_index.to_vec(), encoder, actor }
+    };
     Ok(Loaded { net, ppo })
 }
 
@@ -130,10 +138,15 @@ pub fn run(args: &ExportArgs) -> Result<ExportReport> {
         spec.priv_dim,
         spec.action_dim
     );
-    let loaded = load(&cfg, &ckpt, Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim })?;
+    let encoder_index = crate::learn::ppo::encoder_index(&cfg.policy, spec).with_context(|| cfg_path.display().to_string())?;
+    let loaded = load(&cfg, &ckpt, Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim }, &encoder_index)?;
+    let has_encoder = !encoder_index.is_empty();
     let io = |name: &str, dims: Vec<serde_json::Value>, description: &str| TensorIo { name: name.into(), shape: dims, description: description.into() };
     let batch = serde_json::Value::from("batch");
-    let inputs = vec![io("obs", vec![batch.clone(), spec.obs_dim.into()], "the observation, raw values in `observation`'s layout")];
+    let mut inputs = vec![io("obs", vec![batch.clone(), spec.obs_dim.into()], "the observation, raw values in `observation`'s layout")];
+    if has_encoder {
+        inputs.push(io("priv_obs", vec![batch.clone(), spec.priv_dim.into()], "the privileged (critic) observation, raw values in `privileged`'s layout: simulator state a robot does not have; the encoder reads the entries of policy.encoder.inputs"));
+    }
     let output = io("actions", vec![batch, spec.action_dim.into()], "the policy's mean action, before clipping and the action mapping");
     let metadata = vec![
         ("dextrain.format".to_string(), contract::CONTRACT_FORMAT.to_string()),
@@ -161,7 +174,7 @@ pub fn run(args: &ExportArgs) -> Result<ExportReport> {
         inputs,
         output,
         obs_fields: spec.obs_layout.iter().map(|s| s.name.clone()).collect(),
-        priv_fields: None,
+        priv_fields: has_encoder.then(|| spec.priv_layout.iter().map(|s| s.name.clone()).collect()),
         history: None,
     };
     let c = contract::build(&cfg, spec, &setup.tc, &model, src)?;
@@ -232,20 +245,26 @@ fn verify(cfg: &Config, loaded: &Loaded, bytes: &[u8]) -> Result<(usize, f64)> {
     let model = SimModel::from_config(&c)?;
     let mut task = make_task_batch(&c, model)?;
     let spec = task.spec().clone();
-    let mut obs = task.reset_all()?.obs.clone();
+    let first = task.reset_all()?;
+    let (mut obs, mut priv_obs) = (first.obs.clone(), first.priv_obs.clone());
     let mut rows: Vec<f32> = Vec::new();
+    let mut priv_rows: Vec<f32> = Vec::new();
     let mut burn: Vec<f32> = Vec::new();
     for _ in 0..spec.episode_length {
-        let a = loaded.ppo.act_mean(&obs)?;
+        let a = loaded.ppo.act_mean(&obs, &priv_obs)?;
         rows.extend_from_slice(&obs);
+        priv_rows.extend_from_slice(&priv_obs);
         burn.extend_from_slice(&a);
         if rows.len() / spec.obs_dim >= VERIFY_ROWS {
             break;
         }
-        obs = task.step(&a)?.obs.clone();
+        let b = task.step(&a)?;
+        obs = b.obs.clone();
+        priv_obs = b.priv_obs.clone();
     }
     let n = rows.len() / spec.obs_dim;
-    let ours = onnx::run_onnx(bytes, &rows, &[], &[], n)?;
+    let has_priv = matches!(loaded.net, PolicyNet::Encoder { .. });
+    let ours = onnx::run_onnx(bytes, &rows, if has_priv { &priv_rows } else { &[] }, &[], n)?;
     ensure!(ours.len() == burn.len(), "--verify: the ONNX model gave {} numbers for {} expected", ours.len(), burn.len());
     let diff = ours.iter().zip(&burn).map(|(a, b)| (*a as f64 - *b as f64).abs()).fold(0.0f64, |m, d| if d.is_nan() { f64::NAN } else { m.max(d) });
     Ok((n, diff))

@@ -20,7 +20,7 @@ pub fn stat_values(u: &UpdateStats) -> Vec<f64> {
 pub fn make(ctx: &RunContext) -> Result<Box<dyn Algorithm>> {
     let dims = Dims { obs: ctx.dims[0], priv_obs: ctx.dims[1], act: ctx.dims[2] };
     let steps = ctx.cfg.train.steps_per_env as usize;
-    let ppo = Ppo::new(dims, ctx.num_envs, steps, &ctx.cfg.ppo, &ctx.cfg.policy, ctx.device.clone(), ctx.cfg.seed as u64)?;
+    let ppo = Ppo::new(dims, ctx.num_envs, steps, &ctx.cfg.ppo, &ctx.cfg.policy, &ctx.encoder_index, ctx.device.clone(), ctx.cfg.seed as u64)?;
     Ok(Box::new(ppo))
 }
 

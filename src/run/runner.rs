@@ -103,6 +103,8 @@ pub struct RunContext {
     pub dims: [usize; 3],
     /// The learner device.
     pub device: burn::prelude::Device,
+    /// The critic-observation entries of the privileged encoder's inputs (empty: no encoder).
+    pub encoder_index: Vec<usize>,
 }
 
 /// Builds the algorithm of a run.
@@ -251,7 +253,8 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
     let (device, device_name) = learner_device(&choice, task.gpu_context())?;
     let n = spec.num_envs;
     let dims = [spec.obs_dim, spec.priv_dim, spec.action_dim];
-    let mut algo = make(&RunContext { cfg: cfg.clone(), num_envs: n, dims, device })?;
+    let encoder_index = crate::learn::ppo::encoder_index(&cfg.policy, &spec).with_context(|| cfg.source.display().to_string())?;
+    let mut algo = make(&RunContext { cfg: cfg.clone(), num_envs: n, dims, device, encoder_index })?;
     let steps = algo.steps_per_iteration();
     let columns = metric_columns(&spec, &algo.stat_columns());
     let (mut iteration, mut env_steps, mut time_base, mut obs, mut priv_obs, mut eps, mut metrics) = match &resume {

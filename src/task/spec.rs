@@ -252,6 +252,27 @@ pub fn obs_layout(kind: TaskKind, names: &LayoutNames, lookahead: u32) -> (Vec<O
     (actor, critic)
 }
 
+/// The names of the fields of `kind`'s critic observation (`lookahead`: `task.track.lookahead`).
+pub fn critic_field_names(kind: TaskKind, lookahead: u32) -> Vec<String> {
+    let none: [String; 0] = [];
+    let names = LayoutNames { joints: &none, actions: &none, tips: &none };
+    obs_layout(kind, &names, lookahead).1.into_iter().map(|s| s.name).collect()
+}
+
+/// The indices in a layout's vector of every entry of the named fields, field by field in the
+/// order given (e.g. the privileged encoder's inputs in the critic observation).
+pub fn field_indices(layout: &[ObsSlot], names: &[String]) -> Result<Vec<usize>, String> {
+    let mut out = Vec::new();
+    for n in names {
+        let s = layout.iter().find(|s| &s.name == n).ok_or_else(|| {
+            let have: Vec<&str> = layout.iter().map(|s| s.name.as_str()).collect();
+            format!("no observation field {n:?} (fields: {})", have.join(", "))
+        })?;
+        out.extend(s.offset..s.offset + s.size);
+    }
+    Ok(out)
+}
+
 /// The entry names of a layout, in order.
 pub fn entry_names(layout: &[ObsSlot]) -> Vec<String> {
     layout.iter().flat_map(|s| s.entries.iter().cloned()).collect()

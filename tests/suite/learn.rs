@@ -204,7 +204,7 @@ fn ppo_learns_a_tiny_steering_task_in_seconds() {
     let cfg = PpoConfig { learning_rate: 3e-3, ..PpoConfig::default() };
     let pol = PolicyConfig { actor_hidden: vec![32, 32], critic_hidden: vec![32, 32], init_std: 0.6, ..PolicyConfig::default() };
     let dims = Dims { obs: 2, priv_obs: 2, act: 2 };
-    let mut ppo = Ppo::new(dims, n, steps, &cfg, &pol, cpu(), 11).unwrap();
+    let mut ppo = Ppo::new(dims, n, steps, &cfg, &pol, &[], cpu(), 11).unwrap();
     let mut env = PointTask::new(n);
     let mut obs = env.obs();
     let no_term = vec![false; n];
@@ -248,7 +248,7 @@ fn the_wgpu_learner_matches_the_cpu_learner() {
     let priv_obs: Vec<f32> = (0..n * 4).map(|_| rng.normal() as f32).collect();
     let rewards: Vec<f32> = (0..n).map(|_| rng.normal() as f32).collect();
     let run = |device: Device| {
-        let mut ppo = Ppo::new(dims, n, steps, &cfg, &pol, device, 5).unwrap();
+        let mut ppo = Ppo::new(dims, n, steps, &cfg, &pol, &[], device, 5).unwrap();
         let mut actions = Vec::new();
         for _ in 0..steps {
             actions.push(ppo.act(&obs, &priv_obs).unwrap());
@@ -269,7 +269,7 @@ fn the_wgpu_learner_matches_the_cpu_learner() {
     assert!(worst < 1e-4, "parameters after one update differ by {worst}");
     assert!((s_cpu.value - s_gpu.value).abs() < 1e-3 * (1.0 + s_cpu.value.abs()), "{s_cpu:?} vs {s_gpu:?}");
     // the update did change the parameters
-    let fresh = Ppo::new(dims, n, steps, &cfg, &pol, cpu(), 5).unwrap().net.values().unwrap();
+    let fresh = Ppo::new(dims, n, steps, &cfg, &pol, &[], cpu(), 5).unwrap().net.values().unwrap();
     assert!(fresh.iter().flatten().zip(p_cpu.iter().flatten()).any(|(a, b)| a != b));
 }
 
@@ -284,10 +284,10 @@ fn zero_initialised_output_layer_starts_at_a_zero_mean_and_still_learns() {
     let obs: Vec<f32> = (0..n * 3).map(|_| 3.0 * rng.normal() as f32).collect();
     let plain = PolicyConfig { actor_hidden: vec![16], critic_hidden: vec![16], init_std: 0.3, ..PolicyConfig::default() };
     let zero = PolicyConfig { zero_init_output: true, ..plain.clone() };
-    let mean_of = |pol: &PolicyConfig| Ppo::new(dims, n, steps, &cfg, pol, cpu(), 5).unwrap().act_mean(&obs).unwrap();
+    let mean_of = |pol: &PolicyConfig| Ppo::new(dims, n, steps, &cfg, pol, &[], cpu(), 5).unwrap().act_mean(&obs, &obs).unwrap();
     assert!(mean_of(&plain).iter().any(|m| m.abs() > 1e-3), "torch's initialisation gives a non-zero mean");
     assert!(mean_of(&zero).iter().all(|&m| m == 0.0));
-    let mut ppo = Ppo::new(dims, n, steps, &cfg, &zero, cpu(), 5).unwrap();
+    let mut ppo = Ppo::new(dims, n, steps, &cfg, &zero, &[], cpu(), 5).unwrap();
     let rewards: Vec<f32> = (0..n).map(|i| if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
     for _ in 0..steps {
         let a = ppo.act(&obs, &obs).unwrap();
@@ -295,7 +295,7 @@ fn zero_initialised_output_layer_starts_at_a_zero_mean_and_still_learns() {
         ppo.process_step(&rewards, &vec![false; n], &vec![false; n]);
     }
     ppo.update(&obs).unwrap();
-    assert!(ppo.act_mean(&obs).unwrap().iter().any(|&m| m != 0.0), "the update moved the mean");
+    assert!(ppo.act_mean(&obs, &obs).unwrap().iter().any(|&m| m != 0.0), "the update moved the mean");
 }
 
 /// `Ppo::state` holds the whole learner: a fresh learner of another seed that loads it has the same
@@ -321,13 +321,13 @@ fn ppo_state_restores_a_learner_that_continues_exactly() {
         ppo.update(&obs).unwrap();
         actions
     };
-    let mut a = Ppo::new(dims, n, steps, &cfg, &pol, cpu(), 3).unwrap();
+    let mut a = Ppo::new(dims, n, steps, &cfg, &pol, &[], cpu(), 3).unwrap();
     rollout(&mut a, &mut env);
     rollout(&mut a, &mut env);
     let state = a.state().unwrap();
     assert!(state.u64("adam_step").unwrap() > 0, "the learner has taken Adam steps");
     assert!(state.file("optimizer").is_some() && state.file("model").is_some());
-    let mut b = Ppo::new(dims, n, steps, &cfg, &pol, cpu(), 99).unwrap();
+    let mut b = Ppo::new(dims, n, steps, &cfg, &pol, &[], cpu(), 99).unwrap();
     assert_ne!(b.state().unwrap(), state, "another seed gives another learner");
     b.load_state(&state).unwrap();
     assert_eq!(b.state().unwrap(), state, "the loaded learner's state is the saved one");

@@ -6,6 +6,7 @@ mod common;
 mod cli;
 mod config;
 mod contract;
+mod encoder;
 mod export;
 mod hand;
 mod ik;

@@ -37,6 +37,15 @@ pub const OPTIMIZER_FILE: &str = "optimizer";
 
 const LN_2PI: f64 = 1.837_877_066_409_345_3; // ln(2π)
 
+/// The critic-observation entries that `policy.encoder.inputs` name in the task `spec`, in order
+/// (empty without an encoder).
+pub fn encoder_index(policy: &PolicyConfig, spec: &crate::task::TaskSpec) -> Result<Vec<usize>> {
+    match &policy.encoder {
+        Some(e) => crate::task::spec::field_indices(&spec.priv_layout, &e.inputs).map_err(|m| anyhow::anyhow!("policy.encoder.inputs: {m}")),
+        None => Ok(Vec::new()),
+    }
+}
+
 /// Sizes of the learner's inputs and outputs.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Dims {
@@ -48,7 +57,9 @@ pub struct Dims {
     pub act: usize,
 }
 
-/// Actor and critic parameters: `[actor layers…, log_std, critic layers…]` (see `nets.rs`).
+/// Actor and critic parameters: `[actor layers…, log_std, critic layers…, encoder layers…]` (see
+/// `nets.rs`). With a privileged encoder the actor's input is `[ŝ; μ(ê)]`, ê the normalised critic
+/// observation's entries at `encoder_index`.
 pub struct ActorCritic {
     /// Input and output sizes.
     pub dims: Dims,
@@ -58,15 +69,31 @@ pub struct ActorCritic {
     pub actor_shapes: Vec<[usize; 2]>,
     /// Shapes of the critic's layers.
     pub critic_shapes: Vec<[usize; 2]>,
+    /// Shapes of the privileged encoder's layers (empty: no encoder).
+    pub encoder_shapes: Vec<[usize; 2]>,
+    /// The encoder's hidden activation.
+    pub encoder_activation: Activation,
+    /// The critic-observation entries the encoder reads, in order.
+    pub encoder_index: Vec<usize>,
     /// Autodiff leaves on the learner device.
     pub params: Vec<Tensor<2>>,
 }
 
 impl ActorCritic {
     /// Fresh networks (torch's Linear initialisation from `rng`, log σ = ln init_std).
-    pub fn new(dims: Dims, cfg: &PolicyConfig, device: &Device, rng: &mut Rng) -> Result<ActorCritic> {
+    /// `encoder_index`: the critic-observation entries of `policy.encoder`'s inputs (empty without
+    /// an encoder; `task::spec::field_indices`).
+    pub fn new(dims: Dims, cfg: &PolicyConfig, encoder_index: &[usize], device: &Device, rng: &mut Rng) -> Result<ActorCritic> {
         let activation = cfg.activation;
-        let actor_shapes = mlp_shapes(dims.obs, &cfg.actor_hidden, dims.act);
+        ensure!(cfg.encoder.is_some() != encoder_index.is_empty(), "policy.encoder: {} encoder inputs resolved for {} encoder", encoder_index.len(), if cfg.encoder.is_some() { "an" } else { "no" });
+        ensure!(encoder_index.iter().all(|&i| i < dims.priv_obs), "policy.encoder: an input index beyond the critic observation ({})", dims.priv_obs);
+        let latent = cfg.encoder.as_ref().map(|e| e.latent).unwrap_or(0);
+        let encoder_shapes = match &cfg.encoder {
+            Some(e) => mlp_shapes(encoder_index.len(), &e.hidden, e.latent),
+            None => Vec::new(),
+        };
+        let encoder_activation = cfg.encoder.as_ref().map(|e| e.activation).unwrap_or(activation);
+        let actor_shapes = mlp_shapes(dims.obs + latent, &cfg.actor_hidden, dims.act);
         let critic_shapes = mlp_shapes(dims.priv_obs, &cfg.critic_hidden, 1);
         let mut values = init_mlp(&actor_shapes, rng);
         if cfg.zero_init_output {
@@ -78,7 +105,9 @@ impl ActorCritic {
         }
         values.push(vec![cfg.init_std.ln(); dims.act]);
         values.extend(init_mlp(&critic_shapes, rng));
-        let mut ac = ActorCritic { dims, activation, actor_shapes, critic_shapes, params: Vec::new() };
+        // (drawn last: a policy without an encoder draws what it always drew)
+        values.extend(init_mlp(&encoder_shapes, rng));
+        let mut ac = ActorCritic { dims, activation, actor_shapes, critic_shapes, encoder_shapes, encoder_activation, encoder_index: encoder_index.to_vec(), params: Vec::new() };
         ac.set_values(values, device)?;
         Ok(ac)
     }
@@ -88,6 +117,7 @@ impl ActorCritic {
         let mut s = self.actor_shapes.clone();
         s.push([1, self.dims.act]);
         s.extend(self.critic_shapes.iter().copied());
+        s.extend(self.encoder_shapes.iter().copied());
         s
     }
 
@@ -97,6 +127,7 @@ impl ActorCritic {
         let mut n: Vec<String> = (0..self.actor_shapes.len()).map(|i| layer("actor", i)).collect();
         n.push("log_std".into());
         n.extend((0..self.critic_shapes.len()).map(|i| layer("critic", i)));
+        n.extend((0..self.encoder_shapes.len()).map(|i| layer("encoder", i)));
         n
     }
 
@@ -122,9 +153,30 @@ impl ActorCritic {
         self.actor_shapes.len()
     }
 
-    /// Policy mean: ŝ [B, O] → μ [B, A].
-    pub fn actor(&self, params: &[Tensor<2>], obs: Tensor<2>) -> Tensor<2> {
-        mlp_forward(&params[..self.n_actor()], obs, self.activation)
+    /// Policy mean: ŝ [B, O] (and, with an encoder, the normalised critic observation ĉ [B, P])
+    /// → μ [B, A].
+    pub fn actor(&self, params: &[Tensor<2>], obs: Tensor<2>, priv_obs: Tensor<2>) -> Tensor<2> {
+        let x = match self.latent(params, priv_obs) {
+            // [ŝ; ẑ] [B, O + L]
+            Some(z) => Tensor::cat(vec![obs, z], 1),
+            None => obs,
+        };
+        mlp_forward(&params[..self.n_actor()], x, self.activation)
+    }
+
+    /// The encoder's latent ẑ = μ(ê) [B, L] (ê = ĉ's entries at `encoder_index`), `None` without
+    /// an encoder.
+    pub fn latent(&self, params: &[Tensor<2>], priv_obs: Tensor<2>) -> Option<Tensor<2>> {
+        if self.encoder_shapes.is_empty() {
+            return None;
+        }
+        let device = priv_obs.device();
+        let idx: Vec<i64> = self.encoder_index.iter().map(|&i| i as i64).collect();
+        let n = idx.len();
+        let idx = Tensor::<1, Int>::from_data(TensorData::new(idx, [n]), &device);
+        let e = priv_obs.select(1, idx); // [B, E]
+        let start = self.n_actor() + 1 + self.critic_shapes.len();
+        Some(mlp_forward(&params[start..], e, self.encoder_activation))
     }
 
     /// log σ [1, A].
@@ -134,7 +186,8 @@ impl ActorCritic {
 
     /// Value: ĉ [B, P] → V [B, 1].
     pub fn critic(&self, params: &[Tensor<2>], priv_obs: Tensor<2>) -> Tensor<2> {
-        mlp_forward(&params[self.n_actor() + 1..], priv_obs, self.activation)
+        let start = self.n_actor() + 1;
+        mlp_forward(&params[start..start + self.critic_shapes.len()], priv_obs, self.activation)
     }
 
     /// The parameters without autodiff (for acting).
@@ -253,9 +306,11 @@ pub struct Ppo {
 
 impl Ppo {
     /// A fresh learner for `num_envs` envs and rollouts of `steps` env steps.
-    pub fn new(dims: Dims, num_envs: usize, steps: usize, cfg: &PpoConfig, policy: &PolicyConfig, device: Device, seed: u64) -> Result<Ppo> {
+    /// `encoder_index`: [`encoder_index`] of the task (empty without `policy.encoder`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(dims: Dims, num_envs: usize, steps: usize, cfg: &PpoConfig, policy: &PolicyConfig, encoder_index: &[usize], device: Device, seed: u64) -> Result<Ppo> {
         let mut rng = Rng::new(seed, 0x5050_4f21);
-        let net = ActorCritic::new(dims, policy, &device, &mut rng)?;
+        let net = ActorCritic::new(dims, policy, encoder_index, &device, &mut rng)?;
         let adam = Adam::new(&net.shapes(), &device);
         Ok(Ppo {
             cfg: cfg.clone(),
@@ -348,12 +403,15 @@ impl Ppo {
         x
     }
 
-    /// Deterministic action (the policy mean) for raw observations [N, O]; statistics unchanged.
-    pub fn act_mean(&self, obs: &[f32]) -> Result<Vec<f32>> {
+    /// Deterministic action (the policy mean) for raw observations `obs` [N, O] and `priv_obs`
+    /// [N, P] (read only by a privileged encoder); statistics unchanged.
+    pub fn act_mean(&self, obs: &[f32], priv_obs: &[f32]) -> Result<Vec<f32>> {
         let d = self.dims();
         let n = obs.len() / d.obs;
+        ensure!(obs.len() == n * d.obs && priv_obs.len() == n * d.priv_obs, "observation sizes do not match the learner");
         let x = to_tensor(self.normalized(&self.obs_norm, obs), [n, d.obs], &self.device);
-        to_host(self.net.actor(&self.net.inference_params(), x))
+        let p = to_tensor(self.normalized(&self.priv_norm, priv_obs), [n, d.priv_obs], &self.device);
+        to_host(self.net.actor(&self.net.inference_params(), x, p))
     }
 
     /// Samples actions [N, A] for raw observations `obs` [N, O] / `priv_obs` [N, P], updating the
@@ -370,7 +428,7 @@ impl Ppo {
         let obs_n = self.normalized(&self.obs_norm, obs);
         let priv_n = self.normalized(&self.priv_norm, priv_obs);
         let params = self.net.inference_params();
-        let mu = to_host(self.net.actor(&params, to_tensor(obs_n.clone(), [n, d.obs], &self.device)))?; // [N, A]
+        let mu = to_host(self.net.actor(&params, to_tensor(obs_n.clone(), [n, d.obs], &self.device), to_tensor(priv_n.clone(), [n, d.priv_obs], &self.device)))?; // [N, A]
         let values = to_host(self.net.critic(&params, to_tensor(priv_n.clone(), [n, d.priv_obs], &self.device)))?; // [N, 1]
         let log_std = to_host(self.net.log_std(&params))?; // [A]
         let sigma: Vec<f32> = log_std.iter().map(|l| l.exp()).collect();
@@ -473,7 +531,7 @@ impl Ppo {
                     old_values: pick(&all.old_values),
                 };
                 let params = &self.net.params;
-                let mu = self.net.actor(params, b.obs.clone());
+                let mu = self.net.actor(params, b.obs.clone(), b.priv_obs.clone());
                 let v = self.net.critic(params, b.priv_obs.clone());
                 let losses = ppo_losses(mu, self.net.log_std(params), v, &b, &self.cfg);
                 // one readback per minibatch: kl, surrogate, value, entropy
