@@ -6,7 +6,8 @@
 //! - `normalizer.rs`: empirical observation normalisation;
 //! - `rng.rs`: the host RNG (one `u64` of state, saved in checkpoints);
 //! - `device.rs`: choosing the learner device (`train.device`);
-//! - `state.rs`: a learner's checkpoint state (named tensors and exact scalars).
+//! - `state.rs`: a learner's checkpoint state (named tensors and exact scalars);
+//! - `gru.rs`: a GRU on flat tensors (the student's adaptation module; ONNX's GRU formulation).
 //!
 //! One folder per algorithm: `ppo/` (rollout storage, GAE, PPO). SAC (`sac/`: replay buffer, twin
 //! critics, targets) and distillation (`distill/`: GRU student, DAgger) go beside it; the loop that
@@ -14,6 +15,7 @@
 
 pub mod adam;
 pub mod device;
+pub mod gru;
 pub mod nets;
 pub mod normalizer;
 pub mod ppo;

@@ -343,3 +343,44 @@ fn ppo_state_restores_a_learner_that_continues_exactly() {
     let err = format!("{:#}", b.load_state(&partial).unwrap_err());
     assert!(err.contains("optimizer.safetensors"), "{err}");
 }
+
+/// The learner's GRU (flat tensors, burn) computes what the exported ONNX GRU computes: its last
+/// hidden state equals `export::onnx::forward`'s for the same weights (a student network whose
+/// head and actor pass the hidden state through), and gradients reach all four parameters.
+#[test]
+fn the_learners_gru_matches_the_exported_formulation() {
+    use dextrain::config::Activation;
+    use dextrain::export::onnx::{Dense, Gru, Mlp, Normalization, PolicyNet, forward};
+    use dextrain::learn::gru::{gru_forward, gru_shapes, init_gru};
+    let (d, hs, steps, b) = (3, 5, 7, 4);
+    let mut rng = Rng::new(9, 9);
+    let values = init_gru(d, hs, &mut rng);
+    let shapes = gru_shapes(d, hs);
+    assert_eq!(values.iter().map(Vec::len).collect::<Vec<_>>(), shapes.iter().map(|s| s[0] * s[1]).collect::<Vec<_>>());
+    let x: Vec<f32> = (0..b * steps * d).map(|_| 2.0 * rng.normal() as f32).collect();
+    let dev = cpu().autodiff();
+    let params: Vec<_> = values.iter().zip(&shapes).map(|(v, s)| to_tensor(v.clone(), *s, &dev).require_grad()).collect();
+    let h = gru_forward(&params, to_tensor(x.clone(), [b, steps * d], &dev), steps);
+    let ours = to_host(h.clone().inner()).unwrap();
+    // the same GRU in the exporter's reference: head = I, actor = [0 | I] over [obs; z]
+    let eye: Vec<f32> = (0..hs * hs).map(|k| if k / hs == k % hs { 1.0 } else { 0.0 }).collect();
+    let mut actor_w = vec![0.0f32; hs]; // the obs row (one obs component)
+    actor_w.extend(&eye);
+    let net = PolicyNet::Student {
+        obs_norm: Normalization { mean: vec![0.0], denom: vec![1.0] },
+        hist_norm: Normalization { mean: vec![0.0; d], denom: vec![1.0; d] },
+        gru: Gru { inputs: d, hidden: hs, w_ih: values[0].clone(), w_hh: values[1].clone(), b_ih: values[2].clone(), b_hh: values[3].clone() },
+        head: Dense { weight: eye, bias: vec![0.0; hs], inputs: hs, outputs: hs },
+        actor: Mlp { layers: vec![Dense { weight: actor_w, bias: vec![0.0; hs], inputs: 1 + hs, outputs: hs }], activation: Activation::Elu },
+        history_len: steps,
+    };
+    let want = forward(&net, &vec![0.3; b], &[], &x, b).unwrap();
+    let diff = ours.iter().zip(&want).map(|(a, w)| (a - w).abs()).fold(0.0f32, f32::max);
+    assert!(diff < 1e-5, "burn GRU vs the exporter's: {diff}");
+    assert!(ours.iter().any(|v| v.abs() > 1e-2), "a non-trivial hidden state");
+    let grads = h.sum().backward();
+    for (k, p) in params.iter().enumerate() {
+        let g = to_host(p.grad(&grads).expect("a gradient")).unwrap();
+        assert!(g.iter().all(|v| v.is_finite()) && g.iter().any(|v| *v != 0.0), "parameter {k}");
+    }
+}
