@@ -218,6 +218,9 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
     let ckpt = checkpoint::find(&args.run, &args.checkpoint)?;
     let state = checkpoint::read_state(&ckpt)?;
     let mut cfg = Config::load(&args.run.join("config.toml"))?;
+    if cfg.train.algorithm == crate::config::AlgorithmChoice::Distill {
+        bail!("{}: a distilled student (train.algorithm = \"distill\"); evaluating students is not built yet (evaluate its teacher, distill.teacher)", args.run.display());
+    }
     let seed = args.seed.unwrap_or(cfg.seed.wrapping_add(1_000_003));
     cfg.seed = seed;
     if let Some(b) = &args.backend {

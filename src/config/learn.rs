@@ -10,6 +10,9 @@ use super::{BackendChoice, Check};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrainConfig {
+    /// The learning algorithm: `"ppo"` (default) or `"distill"` (a student distilled from a
+    /// teacher run by online DAgger, `[distill]`).
+    pub algorithm: AlgorithmChoice,
     /// Learner device, chosen like `sim.backend`: `"auto"`, `"cpu"` (burn's flex backend), `"gpu"` or
     /// `"gpu:NAME"` (burn's wgpu backend; on the simulator's own device when the simulator is on the GPU).
     pub device: BackendChoice,
@@ -28,6 +31,148 @@ pub struct TrainConfig {
     /// The lift task only: a reference kind's episodes start at their reference's first frame
     /// (`task.reference.time_scale` spreads their ends).
     pub init_at_random_ep_len: bool,
+}
+
+/// `train.algorithm`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AlgorithmChoice {
+    /// PPO (`[ppo]`, `[policy]`).
+    Ppo,
+    /// Online DAgger from a teacher run (`[distill]`).
+    Distill,
+}
+
+/// `distill.dataset`: what a distillation update learns from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DatasetMode {
+    /// The iteration's rollout only, used for `epochs` and dropped (rsl_rl's `Distillation`).
+    Once,
+    /// The last `max_rollouts` rollouts together (classic DAgger's aggregation).
+    Aggregate,
+}
+
+/// `distill.actor`: the student's main actor (copied from the teacher's at the start).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StudentActor {
+    /// Trained by the action loss with the adaptation module.
+    Finetune,
+    /// Kept as the teacher's.
+    Frozen,
+}
+
+/// `[distill]`: a student that sees only what a robot measures, distilled by online DAgger from a
+/// frozen teacher run with a privileged encoder (DexRefine). The student is the teacher's main actor
+/// fed by an adaptation module `φ(x_{t−H+1:t}) → z` (a GRU over a window of the history fields,
+/// then a linear layer to the latent) instead of the encoder; the teacher labels every state the
+/// student visits with its action u and latent ẑ; loss `λ1‖û − u‖² + λ2‖z − ẑ‖²`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct DistillConfig {
+    /// The teacher's run directory (relative to the config file, or absolute).
+    pub teacher: String,
+    /// The teacher's checkpoint: `"latest"` or an iteration number.
+    pub checkpoint: String,
+    /// H: env steps in the history window.
+    pub history_len: u32,
+    /// x_t: the actor-observation fields each history step holds (proprioception by default).
+    pub history_fields: Vec<String>,
+    /// The actor-observation fields the student's actor may read (empty: all of them; the actor
+    /// observation holds no simulator-only field). The teacher's first-layer weights of the others
+    /// are dropped.
+    pub student_obs: Vec<String>,
+    /// The GRU's hidden size.
+    pub gru_hidden: usize,
+    /// λ1: weight of the action loss ‖û − u‖².
+    pub lambda_action: f32,
+    /// λ2: weight of the latent loss ‖z − ẑ‖².
+    pub lambda_latent: f32,
+    /// β at the first iteration: the probability that an env's episode is driven by the teacher
+    /// (drawn per env at each episode start). Default 1 → 0 over 20 iterations: the new student's
+    /// latent is noise, so the teacher first keeps the envs where grasps happen; then β → 0 makes it
+    /// DAgger on the student's own states (rsl_rl uses β = 0 throughout).
+    pub beta_start: f32,
+    /// β after `beta_iterations` (linear in between).
+    pub beta_end: f32,
+    /// Iterations over which β goes from `beta_start` to `beta_end`.
+    pub beta_iterations: u32,
+    /// `"once"` (default: each rollout used for `epochs` then dropped) or `"aggregate"`.
+    pub dataset: DatasetMode,
+    /// Rollouts kept with `dataset = "aggregate"`.
+    pub max_rollouts: u32,
+    /// `"finetune"` (default) or `"frozen"`.
+    pub actor: StudentActor,
+    /// Adam's learning rate.
+    pub learning_rate: f32,
+    /// Passes over the data per update, and minibatches per pass.
+    pub epochs: u32,
+    pub minibatches: u32,
+    /// Global gradient-norm clip.
+    pub max_grad_norm: f32,
+}
+
+impl Default for DistillConfig {
+    fn default() -> Self {
+        DistillConfig {
+            teacher: String::new(),
+            checkpoint: "latest".into(),
+            history_len: 30,
+            history_fields: vec!["q".into(), "prev_action".into()],
+            student_obs: Vec::new(),
+            gru_hidden: 64,
+            lambda_action: 0.1,
+            lambda_latent: 1.0,
+            beta_start: 1.0,
+            beta_end: 0.0,
+            beta_iterations: 20,
+            dataset: DatasetMode::Once,
+            max_rollouts: 4,
+            actor: StudentActor::Finetune,
+            learning_rate: 1e-3,
+            epochs: 5,
+            minibatches: 4,
+            max_grad_norm: 1.0,
+        }
+    }
+}
+
+impl DistillConfig {
+    /// Checks `[distill]`; `batch` = sim.num_envs × train.steps_per_env.
+    pub fn validate(&self, c: &Check, batch: u64) -> Result<()> {
+        if self.teacher.trim().is_empty() {
+            return Err(c.err("distill.teacher", "\"\"", "the teacher's run directory (train.algorithm = \"distill\" needs one)"));
+        }
+        if self.checkpoint != "latest" && self.checkpoint.parse::<u64>().is_err() {
+            return Err(c.err("distill.checkpoint", &self.checkpoint, "\"latest\" or an iteration number"));
+        }
+        if !(1..=1000).contains(&self.history_len) {
+            return Err(c.err("distill.history_len", self.history_len, "an integer in [1, 1000]"));
+        }
+        if self.history_fields.is_empty() {
+            return Err(c.err("distill.history_fields", "[]", "a non-empty list of actor-observation field names"));
+        }
+        if !(1..=4096).contains(&self.gru_hidden) {
+            return Err(c.err("distill.gru_hidden", self.gru_hidden, "an integer in [1, 4096]"));
+        }
+        c.non_neg("distill.lambda_action", self.lambda_action)?;
+        c.non_neg("distill.lambda_latent", self.lambda_latent)?;
+        c.in_range("distill.beta_start", self.beta_start, 0.0, 1.0, "a probability in [0, 1]")?;
+        c.in_range("distill.beta_end", self.beta_end, 0.0, 1.0, "a probability in [0, 1]")?;
+        if self.max_rollouts == 0 {
+            return Err(c.err("distill.max_rollouts", 0, "an integer >= 1"));
+        }
+        c.in_range("distill.learning_rate", self.learning_rate, 1e-9, 1.0, "a learning rate in (0, 1]")?;
+        c.in_range("distill.max_grad_norm", self.max_grad_norm, 1e-9, 1e9, "a gradient norm > 0")?;
+        if !(1..=1000).contains(&self.epochs) {
+            return Err(c.err("distill.epochs", self.epochs, "an integer in [1, 1000]"));
+        }
+        if self.minibatches == 0 || self.minibatches as u64 > batch {
+            return Err(c.err("distill.minibatches", self.minibatches, &format!("an integer in [1, sim.num_envs × train.steps_per_env = {batch}]")));
+        }
+        Ok(())
+    }
 }
 
 /// How PPO's learning rate changes between updates (`ppo.schedule`).
@@ -145,6 +290,7 @@ impl Default for EncoderConfig {
 impl Default for TrainConfig {
     fn default() -> Self {
         TrainConfig {
+            algorithm: AlgorithmChoice::Ppo,
             device: BackendChoice::Cpu,
             iterations: 100,
             steps_per_env: 32,

@@ -21,7 +21,7 @@ use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 
 pub use hand::{HandConfig, WristConfig};
-pub use learn::{Activation, EncoderConfig, LrSchedule, PolicyConfig, PpoConfig, TrainConfig};
+pub use learn::{Activation, AlgorithmChoice, DatasetMode, DistillConfig, EncoderConfig, LrSchedule, PolicyConfig, PpoConfig, StudentActor, TrainConfig};
 pub use sim::{BackendChoice, ContactConfig, ObjectConfig, RandomizationConfig, SimConfig, TableConfig};
 pub use task::{
     ActionConfig, FingerMode, HandPointsConfig, LiftConfig, ObsNoiseConfig, ReferenceConfig, ReferenceStart, ResidualConfig, TaskConfig, TaskKind,
@@ -56,6 +56,8 @@ pub struct Config {
     pub ppo: PpoConfig,
     /// Actor and critic networks.
     pub policy: PolicyConfig,
+    /// Teacher→student distillation (`train.algorithm = "distill"`).
+    pub distill: DistillConfig,
     /// Directory of the config file (paths in the config are relative to it); not part of the TOML.
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -79,6 +81,7 @@ impl Default for Config {
             train: TrainConfig::default(),
             ppo: PpoConfig::default(),
             policy: PolicyConfig::default(),
+            distill: DistillConfig::default(),
             base_dir: PathBuf::from("."),
             source: PathBuf::from("<default>"),
         }
@@ -256,6 +259,9 @@ impl Config {
         self.train.validate(&c)?;
         self.ppo.validate(&c, self.sim.num_envs as u64 * self.train.steps_per_env as u64)?;
         self.policy.validate(&c)?;
+        if self.train.algorithm == AlgorithmChoice::Distill {
+            self.distill.validate(&c, self.sim.num_envs as u64 * self.train.steps_per_env as u64)?;
+        }
         if let Some(e) = &self.policy.encoder {
             // the encoder's inputs are fields of this task's critic observation
             let names = crate::task::spec::critic_field_names(self.task.kind, self.task.track.lookahead);

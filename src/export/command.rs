@@ -123,6 +123,9 @@ pub fn run(args: &ExportArgs) -> Result<ExportReport> {
     let state = checkpoint::read_state(&ckpt)?;
     let cfg_path = args.run.join("config.toml");
     let cfg = Config::load(&cfg_path)?;
+    if cfg.train.algorithm == crate::config::AlgorithmChoice::Distill {
+        bail!("{}: a distilled student (train.algorithm = \"distill\"); exporting students from a run is not built yet (the ONNX writer supports their GRU network)", args.run.display());
+    }
     let model = SimModel::from_config(&cfg)?;
     let setup = task_setup(&cfg, &model)?;
     let spec = &setup.spec;

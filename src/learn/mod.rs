@@ -9,12 +9,13 @@
 //! - `state.rs`: a learner's checkpoint state (named tensors and exact scalars);
 //! - `gru.rs`: a GRU on flat tensors (the student's adaptation module; ONNX's GRU formulation).
 //!
-//! One folder per algorithm: `ppo/` (rollout storage, GAE, PPO). SAC (`sac/`: replay buffer, twin
-//! critics, targets) and distillation (`distill/`: GRU student, DAgger) go beside it; the loop that
-//! drives them is `run/`.
+//! One room per algorithm: `ppo/` (rollout storage, GAE, PPO), `distill.rs` (the GRU student and
+//! online DAgger from a teacher run); SAC (`sac/`) goes beside them; the loop that drives them is
+//! `run/`.
 
 pub mod adam;
 pub mod device;
+pub mod distill;
 pub mod gru;
 pub mod nets;
 pub mod normalizer;

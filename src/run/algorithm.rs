@@ -28,6 +28,8 @@ pub struct StepOutcome<'a> {
     pub obs: &'a [f32],
     /// Raw critic observations after the step [N, P].
     pub priv_obs: &'a [f32],
+    /// Envs whose episode ended with success [N].
+    pub success: &'a [bool],
 }
 
 /// A learning algorithm that the runner drives.

@@ -3,11 +3,13 @@
 //! - `runner.rs`: the env loop, logging, checkpoint cadence, Ctrl-C and resume, for any algorithm;
 //! - `algorithm.rs`: the [`Algorithm`] trait, the seam between the runner and a learner;
 //! - `on_policy.rs`: PPO's part (rollouts of `train.steps_per_env` steps, then an update);
+//! - `distill.rs`: online DAgger's part (the student and teacher act, then the student learns);
 //!
 //! An off-policy runner (SAC) and a distillation runner go beside `on_policy.rs`, implementing
 //! [`Algorithm`]; none copies the loop.
 
 pub mod algorithm;
+pub mod distill;
 pub mod on_policy;
 pub mod runner;
 
@@ -18,7 +20,16 @@ use anyhow::Result;
 pub use algorithm::{Algorithm, StepOutcome};
 pub use runner::TrainArgs;
 
-/// Runs (or resumes) a training run (PPO, the only algorithm so far); returns its directory.
+/// Runs (or resumes) a training run with the config's `train.algorithm`; returns its directory.
 pub fn train(args: &TrainArgs) -> Result<PathBuf> {
-    runner::run(args, on_policy::make)
+    // the algorithm is the config's (a resumed run's is in its config.toml)
+    let cfg = match (&args.resume, &args.config) {
+        (Some(dir), _) => crate::config::Config::load(&dir.join("config.toml"))?,
+        (None, Some(path)) => crate::config::Config::load_with_overrides(path, &args.sets)?,
+        (None, None) => anyhow::bail!("a config file or --resume is needed"),
+    };
+    match cfg.train.algorithm {
+        crate::config::AlgorithmChoice::Ppo => runner::run(args, on_policy::make),
+        crate::config::AlgorithmChoice::Distill => runner::run(args, distill::make),
+    }
 }

@@ -105,6 +105,8 @@ pub struct RunContext {
     pub device: burn::prelude::Device,
     /// The critic-observation entries of the privileged encoder's inputs (empty: no encoder).
     pub encoder_index: Vec<usize>,
+    /// The task's sizes and observation layouts.
+    pub spec: TaskSpec,
 }
 
 /// Builds the algorithm of a run.
@@ -146,7 +148,7 @@ fn collect(task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, obs: &mut [f32], 
     for _ in 0..steps {
         let actions = algo.act(obs, priv_obs)?;
         let b = task.step(&actions)?;
-        algo.observe(&StepOutcome { reward: &b.reward, terminated: &b.terminated, time_out: &b.time_out, obs: &b.obs, priv_obs: &b.priv_obs })?;
+        algo.observe(&StepOutcome { reward: &b.reward, terminated: &b.terminated, time_out: &b.time_out, obs: &b.obs, priv_obs: &b.priv_obs, success: &b.success })?;
         let n = b.reward.len();
         for i in 0..n {
             let r = b.reward[i] as f64;
@@ -235,6 +237,9 @@ fn setup(args: &TrainArgs) -> Result<(Config, PathBuf, Option<PathBuf>)> {
     let mut saved = cfg.clone();
     saved.hand.urdf = absolute(&cfg.resolve(&cfg.hand.urdf));
     saved.task.reference.files = cfg.task.reference.files.iter().map(|f| absolute(&cfg.resolve(f))).collect();
+    if !cfg.distill.teacher.is_empty() {
+        saved.distill.teacher = absolute(&cfg.resolve(&cfg.distill.teacher));
+    }
     std::fs::write(dir.join("config.toml"), saved.to_toml()?).with_context(|| format!("cannot write {}", dir.join("config.toml").display()))?;
     Ok((cfg, dir, None))
 }
@@ -254,7 +259,7 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
     let n = spec.num_envs;
     let dims = [spec.obs_dim, spec.priv_dim, spec.action_dim];
     let encoder_index = crate::learn::ppo::encoder_index(&cfg.policy, &spec).with_context(|| cfg.source.display().to_string())?;
-    let mut algo = make(&RunContext { cfg: cfg.clone(), num_envs: n, dims, device, encoder_index })?;
+    let mut algo = make(&RunContext { cfg: cfg.clone(), num_envs: n, dims, device, encoder_index, spec: spec.clone() })?;
     let steps = algo.steps_per_iteration();
     let columns = metric_columns(&spec, &algo.stat_columns());
     let (mut iteration, mut env_steps, mut time_base, mut obs, mut priv_obs, mut eps, mut metrics) = match &resume {

@@ -6,6 +6,7 @@ mod common;
 mod cli;
 mod config;
 mod contract;
+mod distill;
 mod encoder;
 mod export;
 mod hand;

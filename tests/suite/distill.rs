@@ -1,0 +1,200 @@
+//! Online DAgger (`train.algorithm = "distill"`): the student's history windows, its copy of the
+//! teacher's actor, one update lowering both losses, λ1 = 0 leaving the actor alone, an exact
+//! resume, and one-line errors for a missing teacher or one of another task.
+
+use std::path::{Path, PathBuf};
+
+use burn::prelude::*;
+use dextrain::config::{Config, DatasetMode};
+use dextrain::env::SimModel;
+use dextrain::learn::distill::Distill;
+use dextrain::learn::nets::{mlp_forward, to_host, to_tensor};
+use dextrain::task::{TaskBatch, make_task_batch};
+use dextrain::train::{TrainArgs, run as train};
+
+const CONFIG: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/lift_cube_cpu.toml");
+
+fn s(v: &[&str]) -> Vec<String> {
+    v.iter().map(|x| x.to_string()).collect()
+}
+
+const TINY: [&str; 9] = ["sim.backend=cpu", "train.device=cpu", "sim.num_envs=8", "task.episode_length=6", "train.steps_per_env=4", "train.plot_interval=0", "policy.actor_hidden=[16]", "policy.critic_hidden=[16]", "randomization.object_mass=[0.5, 1.5]"];
+
+/// A teacher with an encoder, trained 2 iterations into `runs/teacher`.
+fn teacher(runs: &Path) -> PathBuf {
+    let mut sets = s(&TINY);
+    sets.extend(s(&["train.iterations=2", "policy.encoder.inputs=[\"obj_mass\", \"obj_vel\", \"tip_contact\"]", "policy.encoder.hidden=[8]", "policy.encoder.latent=3"]));
+    train(&TrainArgs { config: Some(CONFIG.into()), sets, name: Some("teacher".into()), resume: None, force: false, runs_dir: runs.into(), stop_after: None, quiet: true }).unwrap()
+}
+
+fn student_sets(teacher: &Path, extra: &[&str]) -> Vec<String> {
+    let mut sets = s(&TINY);
+    sets.extend(s(&["train.algorithm=\"distill\"", "distill.history_len=4", "distill.gru_hidden=8", "distill.beta_iterations=2", "distill.epochs=10", "distill.minibatches=1"]));
+    sets.push(format!("distill.teacher=\"{}\"", teacher.display()));
+    sets.extend(s(extra));
+    sets
+}
+
+/// A distillation learner on a CPU task batch, and the batch.
+fn learner(teacher: &Path, extra: &[&str]) -> (Config, Distill, Box<dyn TaskBatch>) {
+    let cfg = Config::load_with_overrides(Path::new(CONFIG), &student_sets(teacher, extra)).unwrap();
+    let model = SimModel::from_config(&cfg).unwrap();
+    let task = make_task_batch(&cfg, model).unwrap();
+    let d = Distill::new(&cfg, task.spec(), 8, Device::flex().autodiff()).unwrap();
+    (cfg, d, task)
+}
+
+#[test]
+fn the_history_window_holds_the_last_h_steps_and_restarts_with_each_episode() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = teacher(tmp.path());
+    let (_, mut d, mut task) = learner(&t, &[]);
+    let spec = task.spec().clone();
+    let first = task.reset_all().unwrap().clone();
+    let (o, p, n) = (spec.obs_dim, spec.priv_dim, 8);
+    let (h, dd) = (d.student.history_len, d.student.step_dim);
+    assert_eq!((h, dd), (4, 16 + 22));
+    // observations whose first history entry (q of the first joint) is the step number
+    let q0 = d.hist_index[0];
+    let frame = |k: f32| {
+        let mut x = first.obs.clone();
+        for i in 0..n {
+            x[i * o + q0] = k;
+        }
+        x
+    };
+    let (tn, on) = (d.teacher.ppo.obs_norm.clone(), d.teacher.ppo.normalize);
+    // the teacher's normalisation of one value of that entry
+    let norm = |v: f32| {
+        let mut x = vec![0.0f32; o];
+        x[q0] = v;
+        if on {
+            tn.apply(&mut x);
+        }
+        x[q0]
+    };
+    let window = |d: &Distill, env: usize| (0..h).map(|r| d.history[(env * h + r) * dd]).collect::<Vec<f32>>();
+    d.act(&frame(0.0), &first.priv_obs).unwrap();
+    assert_eq!(window(&d, 3), vec![norm(0.0); 4], "episode start: the first frame repeated H times");
+    for k in 1..6 {
+        d.act(&frame(k as f32), &first.priv_obs).unwrap();
+        d.observe(&[0.0; 8], &[false; 8], &[false; 8], &[false; 8]);
+    }
+    assert_eq!(window(&d, 3), [2.0, 3.0, 4.0, 5.0].map(norm).to_vec(), "the last H steps, oldest first");
+    // env 0's episode ends: its next window is its new first frame repeated; env 1's shifts on
+    let mut term = [false; 8];
+    term[0] = true;
+    d.observe(&[1.0; 8], &term, &[false; 8], &[true; 8]);
+    d.act(&frame(9.0), &vec![0.0; n * p]).unwrap();
+    assert_eq!(window(&d, 0), vec![norm(9.0); 4]);
+    assert_eq!(window(&d, 1), [3.0, 4.0, 5.0, 9.0].map(norm).to_vec());
+}
+
+#[test]
+fn the_student_copies_the_teachers_actor_and_one_update_lowers_both_losses() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = teacher(tmp.path());
+    let (_, mut d, mut task) = learner(&t, &["distill.dataset=\"aggregate\"", "distill.max_rollouts=8"]);
+    let spec = task.spec().clone();
+    let b = task.reset_all().unwrap().clone();
+    // the student's actor fed the teacher's latent ẑ instead of z gives the teacher's actions
+    let (obs_n, priv_n) = {
+        let (mut o, mut p) = (b.obs.clone(), b.priv_obs.clone());
+        if d.teacher.ppo.normalize {
+            d.teacher.ppo.obs_norm.apply(&mut o);
+            d.teacher.ppo.priv_norm.apply(&mut p);
+        }
+        (o, p)
+    };
+    let dev = d.device.clone();
+    let tp = d.teacher.ppo.net.inference_params();
+    let c = to_tensor(priv_n.clone(), [8, spec.priv_dim], &dev);
+    let z_hat = d.teacher.ppo.net.latent(&tp, c).unwrap();
+    let x = Tensor::cat(vec![to_tensor(obs_n.clone(), [8, spec.obs_dim], &dev), z_hat], 1);
+    let sp: Vec<_> = d.student.params[d.student.n_adapt..].iter().map(|p| p.clone().inner()).collect();
+    let mine = to_host(mlp_forward(&sp, x, d.student.activation)).unwrap();
+    let teachers = d.teacher.ppo.act_mean(&b.obs, &b.priv_obs).unwrap();
+    assert_eq!(mine, teachers, "with ẑ the student's actor is the teacher's");
+    // one rollout, then two updates on that same data (aggregate keeps it): both losses drop
+    let mut obs = (b.obs.clone(), b.priv_obs.clone());
+    for _ in 0..4 {
+        let a = d.act(&obs.0, &obs.1).unwrap();
+        let st = task.step(&a).unwrap();
+        d.observe(&st.reward, &st.terminated, &st.time_out, &st.success);
+        obs = (st.obs.clone(), st.priv_obs.clone());
+    }
+    let before = d.update().unwrap();
+    let after = d.update().unwrap();
+    assert!(after[0] < before[0] && after[1] < before[1], "losses before {:?} after {:?}", &before[..2], &after[..2]);
+    assert_eq!(d.cfg.dataset, DatasetMode::Aggregate);
+}
+
+#[test]
+fn with_no_action_loss_only_the_adaptation_module_learns() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = teacher(tmp.path());
+    let (_, mut d, mut task) = learner(&t, &["distill.lambda_action=0"]);
+    let b = task.reset_all().unwrap().clone();
+    let before = d.student.values().unwrap();
+    let mut obs = (b.obs.clone(), b.priv_obs.clone());
+    for _ in 0..4 {
+        let a = d.act(&obs.0, &obs.1).unwrap();
+        let st = task.step(&a).unwrap();
+        d.observe(&st.reward, &st.terminated, &st.time_out, &st.success);
+        obs = (st.obs.clone(), st.priv_obs.clone());
+    }
+    d.update().unwrap();
+    let after = d.student.values().unwrap();
+    let k = d.student.n_adapt;
+    assert!(before[..k].iter().zip(&after[..k]).any(|(x, y)| x != y), "the GRU and head learn");
+    assert_eq!(before[k..], after[k..], "the actor is untouched bit for bit");
+}
+
+#[test]
+fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = teacher(tmp.path());
+    let args = |name: &str| TrainArgs {
+        config: Some(CONFIG.into()),
+        sets: student_sets(&t, &["train.iterations=4", "train.save_interval=2"]),
+        name: Some(name.into()),
+        resume: None,
+        force: false,
+        runs_dir: tmp.path().into(),
+        stop_after: None,
+        quiet: true,
+    };
+    let a = train(&args("a")).unwrap();
+    let mut b_args = args("b");
+    b_args.stop_after = Some(2);
+    let b = train(&b_args).unwrap();
+    train(&TrainArgs { config: None, sets: vec![], name: None, resume: Some(b.clone()), ..args("unused") }).unwrap();
+    let (cols, ra) = dextrain::metrics::read_csv(&a.join("metrics.csv")).unwrap();
+    let (_, rb) = dextrain::metrics::read_csv(&b.join("metrics.csv")).unwrap();
+    let clock = ["time_s", "fps", "time/collect_s", "time/learn_s"];
+    for (x, y) in ra.iter().zip(&rb) {
+        for (k, c) in cols.iter().enumerate() {
+            if !clock.contains(&c.as_str()) {
+                assert_eq!(x.1[k].to_bits(), y.1[k].to_bits(), "{c} at iteration {}", x.0);
+            }
+        }
+    }
+    let col = |name: &str| cols.iter().position(|c| c == name).unwrap_or_else(|| panic!("column {name}"));
+    let beta: Vec<f64> = ra.iter().map(|r| r.1[col("distill/beta")]).collect();
+    assert_eq!(beta, [1.0, 0.5, 0.0, 0.0]);
+    assert!(ra.iter().all(|r| r.1[col("loss/action")].is_finite() && r.1[col("loss/latent")].is_finite()));
+    let student = |d: &Path| std::fs::read(d.join("checkpoints/4/model.safetensors")).unwrap();
+    assert_eq!(student(&a), student(&b));
+    let text = String::from_utf8_lossy(&student(&a)).into_owned();
+    assert!(text.contains("teacher_manifest_xxh64") && text.contains(&t.display().to_string()), "the student names its teacher");
+    // a teacher that does not exist, and one of another task
+    let mut bad = args("c");
+    bad.sets.push(format!("distill.teacher=\"{}\"", tmp.path().join("nobody").display()));
+    let e = format!("{:#}", train(&bad).unwrap_err());
+    assert!(e.contains("distill.teacher") && e.contains("nobody") && !e.contains('\n'), "{e}");
+    let other = Config::load_with_overrides(Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/residual_task_cube.toml")), &student_sets(&t, &[])).unwrap();
+    let model = SimModel::from_config(&other).unwrap();
+    let task = make_task_batch(&other, model).unwrap();
+    let e = format!("{:#}", Distill::new(&other, task.spec(), 8, Device::flex().autodiff()).err().unwrap());
+    assert!(e.contains("residual_task_cube.toml") && e.contains("teacher") && e.contains("config.toml") && !e.contains('\n'), "{e}");
+}
