@@ -447,6 +447,10 @@ impl Distill {
             }
         }
         s.set_u64("rollouts", self.rollouts.len() as u64);
+        // the (frozen) normalisation every student input goes through: the teacher's
+        self.teacher.ppo.obs_norm.save("obs_norm", &mut s, STUDENT_FILE);
+        s.push_tensor(STUDENT_FILE, "obs_index", vec![self.obs_index.len()], TensorValues::F64(self.obs_index.iter().map(|&i| i as f64).collect()));
+        s.push_tensor(STUDENT_FILE, "hist_index", vec![self.hist_index.len()], TensorValues::F64(self.hist_index.iter().map(|&i| i as f64).collect()));
         self.adam.save(&self.student.names, &self.student.shapes, &mut s, OPTIMIZER_FILE)?;
         s.set_u64("distill_iteration", self.iteration);
         s.set_bits("rng_state", self.rng.state);
@@ -457,6 +461,8 @@ impl Distill {
             "teacher_manifest_xxh64": self.teacher.manifest_xxh64,
             "history_len": self.student.history_len,
             "latent": self.student.latent,
+            "activation": self.student.activation,
+            "obs_normalization": self.teacher.ppo.normalize,
         });
         s.set_info(STUDENT_FILE, info.to_string());
         Ok(s)

@@ -187,6 +187,15 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
     assert_eq!(student(&a), student(&b));
     let text = String::from_utf8_lossy(&student(&a)).into_owned();
     assert!(text.contains("teacher_manifest_xxh64") && text.contains(&t.display().to_string()), "the student names its teacher");
+    // the student exported: obs (its fields) and history inputs, verified against burn on real episodes
+    use dextrain::export::command::{ExportArgs, run as export};
+    let r = export(&ExportArgs { run: a.clone(), checkpoint: "latest".into(), out: None, verify: true }).unwrap();
+    assert!(r.max_abs_diff.unwrap() <= 1e-5, "{r:?}");
+    let c = dextrain::export::contract::PolicyContract::read(&a.join("export/policy.json")).unwrap();
+    assert_eq!(c.model.inputs.iter().map(|i| i.name.as_str()).collect::<Vec<_>>(), ["obs", "history"]);
+    let h = c.history.as_ref().unwrap();
+    assert_eq!((h.length, h.step.fields.iter().map(|f| f.name.as_str()).collect::<Vec<_>>()), (4, vec!["q", "prev_action"]));
+    assert_eq!(c.source.teacher.as_ref().unwrap().checkpoint, 2);
     // a teacher that does not exist, and one of another task
     let mut bad = args("c");
     bad.sets.push(format!("distill.teacher=\"{}\"", tmp.path().join("nobody").display()));
