@@ -62,6 +62,36 @@ pub enum Baseline {
     /// The policy switched off: the targets follow the (augmented) references, as `dextrain
     /// replay` drives them (reference kinds).
     OpenLoop,
+    /// A distilled student's teacher (the run and checkpoint its checkpoint names), acting on the
+    /// same seeds with its privileged observations: student and teacher side by side.
+    Teacher,
+}
+
+/// Who drives a set of eval episodes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Driver {
+    /// The run's policy (PPO, or a distilled student with its history windows).
+    Policy,
+    /// The policy switched off: the targets follow the references.
+    OpenLoop,
+    /// A student's teacher.
+    Teacher,
+}
+
+/// A deterministic policy that eval runs.
+enum Actor {
+    Ppo(Box<Ppo>),
+    Student(Box<crate::learn::distill::StudentPolicy>),
+}
+
+impl Actor {
+    /// Actions [N, A] for raw observations; `start[i]`: env i starts its episode at this step.
+    fn act(&mut self, obs: &[f32], priv_obs: &[f32], start: &[bool]) -> Result<Vec<f32>> {
+        match self {
+            Actor::Ppo(p) => p.act_mean(obs, priv_obs),
+            Actor::Student(s) => s.act_mean(obs, start),
+        }
+    }
 }
 
 /// Mean and standard deviation.
@@ -181,10 +211,14 @@ pub struct EvalReport {
     #[serde(flatten)]
     pub policy: Summary,
     /// `--baseline open-loop`: the same episodes (same seeds, references and augmentation) with
-    /// the policy switched off and the targets driven along the reference, as `dextrain replay`.
-    /// Left out of the JSON without `--baseline`.
+    /// the policy switched off and the targets driven along the reference, as `dextrain replay`;
+    /// `--baseline teacher`: the same episodes driven by a student's teacher. Left out of the JSON
+    /// without `--baseline`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub baseline: Option<Summary>,
+    /// What the baseline is: "open-loop", "teacher" (empty without `--baseline`).
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub baseline_kind: String,
     /// The report's path (not in the JSON).
     #[serde(skip)]
     pub path: PathBuf,
@@ -218,25 +252,36 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
     let ckpt = checkpoint::find(&args.run, &args.checkpoint)?;
     let state = checkpoint::read_state(&ckpt)?;
     let mut cfg = Config::load(&args.run.join("config.toml"))?;
-    if cfg.train.algorithm == crate::config::AlgorithmChoice::Distill {
-        bail!("{}: a distilled student (train.algorithm = \"distill\"); evaluating students is not built yet (evaluate its teacher, distill.teacher)", args.run.display());
-    }
     let seed = args.seed.unwrap_or(cfg.seed.wrapping_add(1_000_003));
     cfg.seed = seed;
     if let Some(b) = &args.backend {
         cfg.sim.backend = b.clone();
     }
     let baseline = match args.baseline {
-        None => false,
+        None => None,
         Some(Baseline::OpenLoop) => {
             if cfg.task.kind == TaskKind::Lift {
                 bail!("--baseline open-loop: the lift task has no reference to replay; expected a run of task.kind = track, residual_joint or residual_task");
             }
-            true
+            Some(Driver::OpenLoop)
+        }
+        Some(Baseline::Teacher) => {
+            if cfg.train.algorithm != crate::config::AlgorithmChoice::Distill {
+                bail!("--baseline teacher: {} is not a distilled student (train.algorithm = \"{}\"); expected a run of train.algorithm = \"distill\"", args.run.display(), serde_json::to_value(cfg.train.algorithm).ok().and_then(|v| v.as_str().map(String::from)).unwrap_or_default());
+            }
+            Some(Driver::Teacher)
         }
     };
-    let (policy, env_backend, device_name) = run_episodes(&cfg, &ckpt, args, false)?;
-    let base = if baseline { Some(run_episodes(&cfg, &ckpt, args, true)?.0) } else { None };
+    let (policy, env_backend, device_name) = run_episodes(&cfg, &ckpt, args, Driver::Policy)?;
+    let base = match baseline {
+        Some(d) => Some(run_episodes(&cfg, &ckpt, args, d)?.0),
+        None => None,
+    };
+    let suffix = match baseline {
+        Some(Driver::OpenLoop) => "_openloop",
+        Some(Driver::Teacher) => "_teacher",
+        _ => "",
+    };
     let mut report = EvalReport {
         run: args.run.display().to_string(),
         checkpoint: ckpt.display().to_string(),
@@ -248,11 +293,16 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
         learner_device: device_name,
         policy,
         baseline: base,
+        baseline_kind: match baseline {
+            Some(Driver::OpenLoop) => "open-loop".into(),
+            Some(Driver::Teacher) => "teacher".into(),
+            _ => String::new(),
+        },
         path: PathBuf::new(),
     };
     let dir = args.run.join("eval");
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create {}", dir.display()))?;
-    let stem = format!("eval_it{}_seed{}_n{}{}", state.iteration, seed, report.episodes, if baseline { "_openloop" } else { "" });
+    let stem = format!("eval_it{}_seed{}_n{}{suffix}", state.iteration, seed, report.episodes);
     let path = dir.join(format!("{stem}.json"));
     check_finite(&report, "eval report")?;
     let json = serde_json::to_string_pretty(&report).context("cannot serialise the eval report")?;
@@ -267,7 +317,7 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
 pub fn markdown(r: &EvalReport) -> String {
     let mut cols: Vec<(&str, &Summary)> = vec![("policy", &r.policy)];
     if let Some(b) = &r.baseline {
-        cols.push(("open-loop replay", b));
+        cols.push((if r.baseline_kind == "teacher" { "teacher" } else { "open-loop replay" }, b));
     }
     let ms = |m: &MeanStd, scale: f64, digits: usize| format!("{:.*} ± {:.*}", digits, m.mean * scale, digits, m.std * scale);
     // a row whose metric applies to no column (the tracking errors of lift) is left out
@@ -337,7 +387,8 @@ pub fn reference_names(paths: &[PathBuf]) -> Vec<String> {
 
 /// Every episode of an evaluation (the policy's, or with `open_loop` the baseline's), the env
 /// backend and the learner device.
-fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop: bool) -> Result<(Summary, String, String)> {
+fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: Driver) -> Result<(Summary, String, String)> {
+    let open_loop = driver == Driver::OpenLoop;
     let seed = cfg.seed;
     let episodes = args.episodes.max(1);
     let max_envs = args.max_envs.max(1);
@@ -381,9 +432,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
         let (device, dn) = learner_device(&choice, task.gpu_context())?;
         device_name = dn;
         let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
-        let encoder_index = crate::learn::ppo::encoder_index(&c.policy, &spec)?;
-        let mut ppo = Ppo::new(dims, n, 1, &c.ppo, &c.policy, &encoder_index, device, c.seed as u64)?;
-        checkpoint::load_model(&ckpt.join("model.safetensors"), &mut ppo).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
+        let mut actor = load_actor(&c, ckpt, &spec, dims, n, device, driver)?;
         term_names = spec.term_names.clone();
         term_sums.resize(term_names.len(), 0.0);
         // the fingertip forces are critic observations
@@ -421,8 +470,10 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
             record_frame(w, &model, task.as_mut(), t)?;
         }
         let zeros = vec![0.0f32; n * spec.action_dim];
+        let mut start = vec![true; n];
         while done.iter().any(|d| !d) {
-            let actions = if open_loop { zeros.clone() } else { ppo.act_mean(&obs, &priv_obs)? };
+            let actions = if open_loop { zeros.clone() } else { actor.act(&obs, &priv_obs, &start)? };
+            start.fill(false);
             let b = task.step(&actions)?;
             t += spec.control_dt as f64;
             let nt = term_names.len();
@@ -509,6 +560,27 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, open_loop
         per_episode: rows,
     };
     Ok((summary, env_backend, device_name))
+}
+
+/// The policy that drives `driver`'s episodes: the run's (PPO or a distilled student), or a
+/// student's teacher (its run and the checkpoint the student's checkpoint names).
+fn load_actor(c: &Config, ckpt: &std::path::Path, spec: &crate::task::TaskSpec, dims: Dims, n: usize, device: burn::prelude::Device, driver: Driver) -> Result<Actor> {
+    let is_student = c.train.algorithm == crate::config::AlgorithmChoice::Distill;
+    if is_student && driver == Driver::Policy {
+        return Ok(Actor::Student(Box::new(crate::learn::distill::StudentPolicy::load(ckpt, spec.obs_dim, &device)?)));
+    }
+    let (run_cfg, ckpt) = if driver == Driver::Teacher {
+        let s = crate::learn::distill::StudentPolicy::load(ckpt, spec.obs_dim, &device)?;
+        let run = std::path::PathBuf::from(&s.teacher.0);
+        let tc = checkpoint::find(&run, &s.teacher.1.to_string()).with_context(|| format!("the teacher of {}", ckpt.display()))?;
+        (Config::load(&run.join("config.toml"))?, tc)
+    } else {
+        (c.clone(), ckpt.to_path_buf())
+    };
+    let encoder_index = crate::learn::ppo::encoder_index(&run_cfg.policy, spec)?;
+    let mut ppo = Ppo::new(dims, n, 1, &run_cfg.ppo, &run_cfg.policy, &encoder_index, device, c.seed as u64)?;
+    checkpoint::load_model(&ckpt.join("model.safetensors"), &mut ppo).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
+    Ok(Actor::Ppo(Box::new(ppo)))
 }
 
 /// Writes env 0's current state as one recording frame.

@@ -19,6 +19,7 @@ use crate::checkpoint;
 use crate::config::Config;
 use crate::env::SimModel;
 use crate::learn::normalizer::Normalizer;
+use crate::learn::distill::StudentPolicy;
 use crate::learn::ppo::{Dims, Ppo};
 use crate::run_dir;
 use crate::task::{make_task_batch, task_setup};
@@ -278,76 +279,31 @@ fn metadata(spec: &crate::task::TaskSpec, model: &SimModel, args: &ExportArgs, i
     ]
 }
 
-/// A distilled student of a checkpoint: its network description and its burn twin.
-struct LoadedStudent {
-    net: PolicyNet,
-    student: crate::learn::distill::Student,
-    obs_index: Vec<usize>,
-    hist_index: Vec<usize>,
-    /// The teacher's normaliser (the student's inputs go through it), or `None` (no normalisation).
-    norm: Option<Normalizer>,
-    teacher: contract::TeacherRef,
-}
-
-/// Reads a student from its checkpoint's `model.safetensors` (every shape is in the file).
-fn load_student(ckpt: &Path, obs_dim: usize) -> Result<LoadedStudent> {
-    use crate::learn::distill::STUDENT_FILE;
-    let path = ckpt.join(format!("{STUDENT_FILE}.safetensors"));
-    let st = checkpoint::read_learner_file(&path, STUDENT_FILE)?;
-    let file = st.file(STUDENT_FILE).context("no student file")?;
-    let info: serde_json::Value = serde_json::from_str(file.info.as_deref().unwrap_or("{}")).with_context(|| format!("{}: its metadata is not JSON", path.display()))?;
-    ensure!(info["format"] == "dextrain.student.v1", "{}: not a distilled student's policy file (metadata format {})", path.display(), info["format"]);
-    let activation: crate::config::Activation = serde_json::from_value(info["activation"].clone()).with_context(|| format!("{}: metadata `activation`", path.display()))?;
-    let history_len = info["history_len"].as_u64().context("metadata `history_len`")? as usize;
-    let latent = info["latent"].as_u64().context("metadata `latent`")? as usize;
-    let shape = |name: &str| -> Result<[usize; 2]> {
-        let t = file.tensors.iter().find(|t| t.name == name).with_context(|| format!("{}: tensor `{name}` is missing", path.display()))?;
-        Ok([t.shape[0], t.shape.get(1).copied().unwrap_or(1)])
-    };
-    let idx = |name: &str| -> Result<Vec<usize>> { Ok(st.f64s(STUDENT_FILE, name, None)?.iter().map(|&x| x as usize).collect()) };
-    let (obs_index, hist_index) = (idx("obs_index")?, idx("hist_index")?);
-    let mut names: Vec<String> = if latent > 0 { ["gru.w_ih", "gru.w_hh", "gru.b_ih", "gru.b_hh", "head.weight", "head.bias"].iter().map(|s| s.to_string()).collect() } else { Vec::new() };
-    let n_adapt = names.len();
-    let mut k = 0;
-    while file.tensors.iter().any(|t| t.name == format!("actor.{k}.weight")) {
-        names.push(format!("actor.{k}.weight"));
-        names.push(format!("actor.{k}.bias"));
-        k += 1;
-    }
-    ensure!(k > 0, "{}: no actor layers", path.display());
-    let shapes: Vec<[usize; 2]> = names.iter().map(|n| shape(n)).collect::<Result<_>>()?;
-    let values: Vec<Vec<f32>> = names.iter().map(|n| st.f32s(STUDENT_FILE, n, None)).collect::<Result<_>>()?;
-    let normalize = info["obs_normalization"].as_bool().unwrap_or(true);
-    let norm = if normalize { Some(Normalizer::load("obs_norm", obs_dim, &st, STUDENT_FILE)?) } else { None };
-    let full = match &norm {
+/// The network description of a student read back from its checkpoint.
+fn student_net(s: &StudentPolicy, obs_dim: usize) -> Result<PolicyNet> {
+    let full = match &s.norm {
         Some(n) => normalization(n, true),
         None => Normalization { mean: vec![0.0; obs_dim], denom: vec![1.0; obs_dim] },
     };
     let pick = |idx: &[usize]| Normalization { mean: idx.iter().map(|&i| full.mean[i]).collect(), denom: idx.iter().map(|&i| full.denom[i]).collect() };
-    let actor = mlp(&values[n_adapt..], &shapes[n_adapt..], activation);
-    let d = hist_index.len();
-    let net = if latent > 0 {
-        let gru = onnx::Gru { inputs: d, hidden: shapes[1][0], w_ih: values[0].clone(), w_hh: values[1].clone(), b_ih: values[2].clone(), b_hh: values[3].clone() };
-        let head = Dense { weight: values[4].clone(), bias: values[5].clone(), inputs: shapes[4][0], outputs: shapes[4][1] };
-        PolicyNet::Student { obs_norm: pick(&obs_index), hist_norm: pick(&hist_index), gru, head, actor, history_len }
+    let st = &s.student;
+    let values = st.values()?;
+    let k = st.n_adapt;
+    let actor = mlp(&values[k..], &st.shapes[k..], st.activation);
+    Ok(if st.latent > 0 {
+        let gru = onnx::Gru { inputs: st.step_dim, hidden: st.shapes[1][0], w_ih: values[0].clone(), w_hh: values[1].clone(), b_ih: values[2].clone(), b_hh: values[3].clone() };
+        let head = Dense { weight: values[4].clone(), bias: values[5].clone(), inputs: st.shapes[4][0], outputs: st.shapes[4][1] };
+        PolicyNet::Student { obs_norm: pick(&s.obs_index), hist_norm: pick(&s.hist_index), gru, head, actor, history_len: st.history_len }
     } else {
-        PolicyNet::Mlp { obs_norm: pick(&obs_index), actor }
-    };
-    let device = burn::prelude::Device::flex();
-    let params = values.iter().zip(&shapes).map(|(v, s)| crate::learn::nets::to_tensor(v.clone(), *s, &device)).collect();
-    let student = crate::learn::distill::Student { params, shapes, names, n_adapt, activation, history_len, step_dim: d, latent, obs_dim: obs_index.len() };
-    let teacher = contract::TeacherRef {
-        run: info["teacher_run"].as_str().unwrap_or_default().to_string(),
-        checkpoint: info["teacher_checkpoint"].as_u64().unwrap_or(0),
-        checkpoint_xxh64: info["teacher_manifest_xxh64"].as_str().unwrap_or_default().to_string(),
-    };
-    Ok(LoadedStudent { net, student, obs_index, hist_index, norm, teacher })
+        PolicyNet::Mlp { obs_norm: pick(&s.obs_index), actor }
+    })
 }
 
 /// `dextrain export` of a distilled student: inputs `obs` (the student's fields) and `history`.
 fn export_student(args: &ExportArgs, cfg: &Config, cfg_path: &Path, ckpt: &Path, iteration: u64, model: &SimModel, setup: &crate::task::TaskSetup) -> Result<ExportReport> {
     let spec = &setup.spec;
-    let s = load_student(ckpt, spec.obs_dim)?;
+    let mut s = StudentPolicy::load(ckpt, spec.obs_dim, &burn::prelude::Device::flex())?;
+    let net = student_net(&s, spec.obs_dim)?;
     // the fields whose first entry the index lists, in the index's order
     let names_at = |idx: &[usize]| -> Vec<String> {
         let mut found: Vec<(usize, String)> = spec.obs_layout.iter().filter_map(|f| idx.iter().position(|&i| i == f.offset).map(|p| (p, f.name.clone()))).collect();
@@ -356,7 +312,7 @@ fn export_student(args: &ExportArgs, cfg: &Config, cfg_path: &Path, ckpt: &Path,
     };
     let obs_fields = names_at(&s.obs_index);
     let hist_fields = names_at(&s.hist_index);
-    let bytes = onnx::to_onnx(&s.net, &metadata(spec, model, args, iteration))?;
+    let bytes = onnx::to_onnx(&net, &metadata(spec, model, args, iteration))?;
     let batch = serde_json::Value::from("batch");
     let io = |name: &str, dims: Vec<serde_json::Value>, description: &str| TensorIo { name: name.into(), shape: dims, description: description.into() };
     let mut inputs = vec![io("obs", vec![batch.clone(), s.obs_index.len().into()], "the student's observation, raw values in `observation`'s layout")];
@@ -370,7 +326,7 @@ fn export_student(args: &ExportArgs, cfg: &Config, cfg_path: &Path, ckpt: &Path,
             checkpoint: iteration,
             checkpoint_xxh64: manifest_hash(ckpt)?,
             algorithm: "distill".into(),
-            teacher: Some(s.teacher.clone()),
+            teacher: Some(contract::TeacherRef { run: s.teacher.0.clone(), checkpoint: s.teacher.1, checkpoint_xxh64: s.teacher.2.clone() }),
         },
         model_file: ONNX_FILE,
         model_bytes: &bytes,
@@ -386,7 +342,7 @@ fn export_student(args: &ExportArgs, cfg: &Config, cfg_path: &Path, ckpt: &Path,
     write_export(&out, &bytes, &c, &world)?;
     let mut report = ExportReport { dir: out.display().to_string(), checkpoint: ckpt.display().to_string(), verified_rows: None, max_abs_diff: None };
     if args.verify {
-        let (rows, diff) = verify_student(cfg, &s, &bytes)?;
+        let (rows, diff) = verify_student(cfg, &mut s, &bytes)?;
         report.verified_rows = Some(rows);
         report.max_abs_diff = Some(diff);
         if diff.is_nan() || diff > VERIFY_TOLERANCE {
@@ -398,8 +354,7 @@ fn export_student(args: &ExportArgs, cfg: &Config, cfg_path: &Path, ckpt: &Path,
 
 /// `--verify` for a student: real episodes driven by the burn student (its history windows kept
 /// as the contract says), then the ONNX model on the same raw inputs.
-fn verify_student(cfg: &Config, s: &LoadedStudent, bytes: &[u8]) -> Result<(usize, f64)> {
-    use crate::learn::nets::{to_host, to_tensor};
+fn verify_student(cfg: &Config, s: &mut StudentPolicy, bytes: &[u8]) -> Result<(usize, f64)> {
     let mut c = cfg.clone();
     c.sim.backend = crate::config::BackendChoice::Cpu;
     c.sim.num_envs = 16;
@@ -408,47 +363,15 @@ fn verify_student(cfg: &Config, s: &LoadedStudent, bytes: &[u8]) -> Result<(usiz
     let mut task = make_task_batch(&c, model)?;
     let spec = task.spec().clone();
     let (n, o) = (16, spec.obs_dim);
-    let (h, d) = (s.student.history_len, s.hist_index.len());
     let mut obs = task.reset_all()?.obs.clone();
     let mut start = vec![true; n];
-    let mut window = vec![0.0f32; n * h * d]; // raw [N, H, D]
-    let device = burn::prelude::Device::flex();
     let (mut obs_rows, mut hist_rows, mut burn) = (Vec::new(), Vec::new(), Vec::new());
     for _ in 0..spec.episode_length {
-        for i in 0..n {
-            let x: Vec<f32> = s.hist_index.iter().map(|&k| obs[i * o + k]).collect();
-            let w = &mut window[i * h * d..(i + 1) * h * d];
-            if start[i] {
-                for row in w.chunks_mut(d) {
-                    row.copy_from_slice(&x);
-                }
-                start[i] = false;
-            } else {
-                w.copy_within(d.., 0);
-                w[(h - 1) * d..].copy_from_slice(&x);
-            }
-        }
-        let mut obs_n = obs.clone();
-        if let Some(nm) = &s.norm {
-            nm.apply(&mut obs_n);
-        }
-        let obs_s: Vec<f32> = obs.chunks(o).flat_map(|r| s.obs_index.iter().map(move |&k| r[k])).collect();
-        let obs_s_n: Vec<f32> = obs_n.chunks(o).flat_map(|r| s.obs_index.iter().map(move |&k| r[k])).collect();
-        // the normalised window: each step normalised like the observation's entries
-        let mut hist_n = window.clone();
-        if let Some(nm) = &s.norm {
-            for (j, v) in hist_n.iter_mut().enumerate() {
-                let k = s.hist_index[j % d];
-                let std = (nm.m2[k] / nm.count).sqrt();
-                *v = ((*v as f64 - nm.mean[k]) / (std + nm.eps)) as f32;
-            }
-        }
-        let (_, u) = s.student.forward(&s.student.params, to_tensor(obs_s_n, [n, s.obs_index.len()], &device), to_tensor(hist_n, [n, h * d], &device));
-        let a = to_host(u)?;
-        obs_rows.extend_from_slice(&obs_s);
-        hist_rows.extend_from_slice(&window);
+        let a = s.act_mean(&obs, &start)?;
+        obs_rows.extend(s.student_obs(&obs, o));
+        hist_rows.extend_from_slice(&s.window);
         burn.extend_from_slice(&a);
-        if obs_rows.len() / s.obs_index.len() >= VERIFY_ROWS {
+        if burn.len() / spec.action_dim >= VERIFY_ROWS {
             break;
         }
         let b = task.step(&a)?;

@@ -491,3 +491,106 @@ impl Distill {
         Ok(())
     }
 }
+
+/// A distilled student read back from a checkpoint, acting deterministically with its own history
+/// windows (what `eval` and `export --verify` run): every shape comes from the file.
+pub struct StudentPolicy {
+    /// The network (inference tensors).
+    pub student: Student,
+    /// Indices in the actor observation of the student's inputs and of one history step.
+    pub obs_index: Vec<usize>,
+    pub hist_index: Vec<usize>,
+    /// The teacher's normaliser that every student input goes through (`None`: no normalisation).
+    pub norm: Option<crate::learn::normalizer::Normalizer>,
+    /// The teacher: run, checkpoint iteration, XXH64 of its manifest.
+    pub teacher: (String, u64, String),
+    /// Raw history windows `[N, H, D]`, oldest first, and which envs start an episode next.
+    pub window: Vec<f32>,
+    start: Vec<bool>,
+}
+
+impl StudentPolicy {
+    /// Reads the student of checkpoint `ckpt` (`model.safetensors`) for an actor observation of
+    /// `obs_dim` numbers.
+    pub fn load(ckpt: &std::path::Path, obs_dim: usize, device: &Device) -> Result<StudentPolicy> {
+        let path = ckpt.join(format!("{STUDENT_FILE}.safetensors"));
+        let st = crate::checkpoint::read_learner_file(&path, STUDENT_FILE)?;
+        let file = st.file(STUDENT_FILE).context("no student file")?;
+        let info: serde_json::Value = serde_json::from_str(file.info.as_deref().unwrap_or("{}")).with_context(|| format!("{}: its metadata is not JSON", path.display()))?;
+        ensure!(info["format"] == "dextrain.student.v1", "{}: not a distilled student's policy file (metadata format {})", path.display(), info["format"]);
+        let activation: crate::config::Activation = serde_json::from_value(info["activation"].clone()).with_context(|| format!("{}: metadata `activation`", path.display()))?;
+        let history_len = info["history_len"].as_u64().with_context(|| format!("{}: metadata `history_len`", path.display()))? as usize;
+        let latent = info["latent"].as_u64().with_context(|| format!("{}: metadata `latent`", path.display()))? as usize;
+        let shape = |name: &str| -> Result<[usize; 2]> {
+            let t = file.tensors.iter().find(|t| t.name == name).with_context(|| format!("{}: tensor `{name}` is missing", path.display()))?;
+            Ok([t.shape[0], t.shape.get(1).copied().unwrap_or(1)])
+        };
+        let idx = |name: &str| -> Result<Vec<usize>> { Ok(st.f64s(STUDENT_FILE, name, None)?.iter().map(|&x| x as usize).collect()) };
+        let (obs_index, hist_index) = (idx("obs_index")?, idx("hist_index")?);
+        ensure!(obs_index.iter().chain(&hist_index).all(|&i| i < obs_dim), "{}: input indices beyond the task's observation ({obs_dim} numbers)", path.display());
+        let mut names: Vec<String> = if latent > 0 { ["gru.w_ih", "gru.w_hh", "gru.b_ih", "gru.b_hh", "head.weight", "head.bias"].iter().map(|s| s.to_string()).collect() } else { Vec::new() };
+        let n_adapt = names.len();
+        let mut k = 0;
+        while file.tensors.iter().any(|t| t.name == format!("actor.{k}.weight")) {
+            names.push(format!("actor.{k}.weight"));
+            names.push(format!("actor.{k}.bias"));
+            k += 1;
+        }
+        ensure!(k > 0, "{}: no actor layers", path.display());
+        let shapes: Vec<[usize; 2]> = names.iter().map(|n| shape(n)).collect::<Result<_>>()?;
+        let params = names.iter().zip(&shapes).map(|(n, s)| Ok(to_tensor(st.f32s(STUDENT_FILE, n, Some(s[0] * s[1]))?, *s, device))).collect::<Result<_>>()?;
+        let norm = if info["obs_normalization"].as_bool().unwrap_or(true) { Some(crate::learn::normalizer::Normalizer::load("obs_norm", obs_dim, &st, STUDENT_FILE)?) } else { None };
+        let d = hist_index.len();
+        let student = Student { params, shapes, names, n_adapt, activation, history_len, step_dim: d, latent, obs_dim: obs_index.len() };
+        let teacher = (
+            info["teacher_run"].as_str().unwrap_or_default().to_string(),
+            info["teacher_checkpoint"].as_u64().unwrap_or(0),
+            info["teacher_manifest_xxh64"].as_str().unwrap_or_default().to_string(),
+        );
+        Ok(StudentPolicy { student, obs_index, hist_index, norm, teacher, window: Vec::new(), start: Vec::new() })
+    }
+
+    /// The student's fields of raw observations [N, O] → [N, O_s].
+    pub fn student_obs(&self, obs: &[f32], obs_dim: usize) -> Vec<f32> {
+        obs.chunks(obs_dim).flat_map(|r| self.obs_index.iter().map(move |&k| r[k])).collect()
+    }
+
+    /// Deterministic actions [N, A] for raw observations `obs` [N, O]; `episode_start[i]`: env i
+    /// starts an episode at this step (its window restarts). The windows shift by one step.
+    pub fn act_mean(&mut self, obs: &[f32], episode_start: &[bool]) -> Result<Vec<f32>> {
+        let n = episode_start.len();
+        let o = obs.len() / n.max(1);
+        let (h, d) = (self.student.history_len, self.student.step_dim);
+        if self.window.len() != n * h * d {
+            self.window = vec![0.0; n * h * d];
+            self.start = vec![true; n];
+        }
+        for i in 0..n {
+            let x: Vec<f32> = self.hist_index.iter().map(|&k| obs[i * o + k]).collect();
+            let w = &mut self.window[i * h * d..(i + 1) * h * d];
+            if episode_start[i] || self.start[i] {
+                for row in w.chunks_mut(d) {
+                    row.copy_from_slice(&x);
+                }
+                self.start[i] = false;
+            } else {
+                w.copy_within(d.., 0);
+                w[(h - 1) * d..].copy_from_slice(&x);
+            }
+        }
+        let mut obs_n = obs.to_vec();
+        let mut hist_n = self.window.clone();
+        if let Some(nm) = &self.norm {
+            nm.apply(&mut obs_n);
+            // each step's entries normalised like the observation's entries they come from
+            for (j, v) in hist_n.iter_mut().enumerate() {
+                let k = self.hist_index[j % d];
+                *v = ((*v as f64 - nm.mean[k]) / ((nm.m2[k] / nm.count).sqrt() + nm.eps)) as f32;
+            }
+        }
+        let obs_s = self.student_obs(&obs_n, o);
+        let device = self.student.params[0].device();
+        let (_, u) = self.student.forward(&self.student.params, to_tensor(obs_s, [n, self.student.obs_dim], &device), to_tensor(hist_n, [n, h * d], &device));
+        to_host(u)
+    }
+}

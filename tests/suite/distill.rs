@@ -196,6 +196,21 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
     let h = c.history.as_ref().unwrap();
     assert_eq!((h.length, h.step.fields.iter().map(|f| f.name.as_str()).collect::<Vec<_>>()), (4, vec!["q", "prev_action"]));
     assert_eq!(c.source.teacher.as_ref().unwrap().checkpoint, 2);
+    // eval of the student beside its teacher on the same seeds: the teacher's side is exactly what
+    // evaluating the teacher run itself gives
+    use dextrain::eval::{Baseline, EvalArgs, run as eval};
+    let e = |run: &Path, baseline: Option<Baseline>| EvalArgs { run: run.into(), checkpoint: "latest".into(), episodes: 4, max_envs: 4, seed: Some(77), record: None, backend: None, baseline };
+    let r = eval(&e(&a, Some(Baseline::Teacher))).unwrap();
+    assert_eq!(r.baseline_kind, "teacher");
+    assert_eq!(r.policy.per_episode.len(), 4);
+    let teacher_alone = eval(&e(&t, None)).unwrap();
+    let returns = |s: &dextrain::eval::Summary| s.per_episode.iter().map(|e| e.ret.to_bits()).collect::<Vec<_>>();
+    assert_eq!(returns(r.baseline.as_ref().unwrap()), returns(&teacher_alone.policy));
+    assert!(r.path.to_string_lossy().ends_with("_teacher.json"));
+    let md = std::fs::read_to_string(r.path.with_extension("md")).unwrap();
+    assert!(md.contains("teacher"), "{md}");
+    let err = format!("{:#}", eval(&e(&t, Some(Baseline::Teacher))).unwrap_err());
+    assert!(err.contains("not a distilled student") && !err.contains('\n'), "{err}");
     // a teacher that does not exist, and one of another task
     let mut bad = args("c");
     bad.sets.push(format!("distill.teacher=\"{}\"", tmp.path().join("nobody").display()));

@@ -531,6 +531,7 @@ fn report(task: &str, tracking: bool, baseline: bool) -> dextrain::eval::EvalRep
         learner_device: "cpu".into(),
         policy: summary(tracking),
         baseline: baseline.then(|| summary(tracking)),
+        baseline_kind: if baseline { "open-loop".into() } else { String::new() },
         path: PathBuf::new(),
     }
 }
