@@ -773,4 +773,6 @@ fn task_observe(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
     put_priv(k, p.obj_inertia.w);
     put_priv(k + 1u, p.obj_friction);
     put_priv(k + 2u, p.obj_scale);
+    put_priv(k + 3u, p.restitution);
+    put_priv(k + 4u, p.added_gravity);
 }

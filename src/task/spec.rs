@@ -144,7 +144,7 @@ use Repeat::{Once, PerAction, PerJoint, PerTip};
 /// critic also sees, without noise), then the critic's privileged extras. The reference block
 /// (`per_reference_frame`) is written once per reference frame `ref0 … refK`, each relative to the
 /// env's (actor: noisy) state.
-pub const OBS_FIELDS: [ObsField; 27] = [
+pub const OBS_FIELDS: [ObsField; 29] = [
     field("q", PerJoint, Scalar, "rad", "joint", Kinds::All, "joint_pos"),
     field("qd", PerJoint, Scalar, "rad/s", "joint", Kinds::All, "joint_vel"),
     field("prev_action", PerAction, Scalar, "action in [-1, 1]", "action", Kinds::All, ""),
@@ -172,6 +172,8 @@ pub const OBS_FIELDS: [ObsField; 27] = [
     critic("obj_mass", Once, Scalar, "kg", "drawn parameter"),
     critic("obj_friction", Once, Scalar, "coefficient", "drawn parameter"),
     critic("obj_scale", Once, Scalar, "scale", "drawn parameter"),
+    critic("obj_restitution", Once, Scalar, "coefficient in [0, 1]", "drawn parameter"),
+    critic("added_gravity", Once, Scalar, "m/s² (added to gravity's magnitude, pulling the object down)", "drawn parameter"),
 ];
 
 /// One field of a built layout: where it sits in the observation vector.

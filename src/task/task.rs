@@ -677,4 +677,6 @@ pub fn task_observe(env: u32, st: &mut EnvState, p: &EnvParams, ts: &mut TaskSta
     put_priv(&mut o, k, p.obj_inertia[3]);
     put_priv(&mut o, k + 1, p.obj_friction);
     put_priv(&mut o, k + 2, p.obj_scale);
+    put_priv(&mut o, k + 3, p.restitution);
+    put_priv(&mut o, k + 4, p.added_gravity);
 }

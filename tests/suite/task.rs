@@ -387,7 +387,9 @@ fn observations_match_the_state_and_noise_has_the_configured_std() {
     assert_eq!(spec.action_names.len(), spec.action_dim);
     assert_eq!(spec.action_dim, 6 + nj);
     assert_eq!(spec.obs_dim, 3 * nj + 26 + 3 * nt);
-    assert_eq!(spec.priv_dim, spec.obs_dim + 15 + 2 * nt);
+    // + object and wrist velocities (12), mass, friction, scale, restitution, added gravity (5),
+    // per-tip contact flags and forces
+    assert_eq!(spec.priv_dim, spec.obs_dim + 17 + 2 * nt);
     assert_eq!(spec.term_names, LIFT_TERMS.iter().map(|t| t.name).collect::<Vec<_>>());
     assert_eq!(spec.priv_names[..spec.obs_dim], spec.obs_names[..]);
     let mut uniq = spec.priv_names.clone();
@@ -451,6 +453,8 @@ fn observations_match_the_state_and_noise_has_the_configured_std() {
         assert_eq!(pt("obj_mass"), params[i].obj_inertia[3]);
         assert_eq!(pt("obj_friction"), params[i].obj_friction);
         assert_eq!(pt("obj_scale"), params[i].obj_scale);
+        assert_eq!(pt("obj_restitution"), params[i].restitution);
+        assert_eq!(pt("added_gravity"), params[i].added_gravity);
     }
     // the twin's fingertip helper agrees with hand_link_poses (same kinematics)
     let mut s = dextrain::env::physics::Scratch::default();
@@ -615,6 +619,8 @@ fn each_observation_field_lands_at_its_offset_on_both_backends() {
                 close("obj_mass", &[p.obj_inertia[3]]);
                 close("obj_friction", &[p.obj_friction]);
                 close("obj_scale", &[p.obj_scale]);
+                close("obj_restitution", &[p.restitution]);
+                close("added_gravity", &[p.added_gravity]);
                 assert!(at("tip_contact").iter().all(|&v| v == 0.0 || v == 1.0), "{what}: tip_contact");
                 let contact = at("tip_contact").to_vec();
                 for (t, f) in at("tip_force").iter().enumerate() {
