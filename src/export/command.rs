@@ -177,11 +177,7 @@ pub fn run(args: &ExportArgs) -> Result<ExportReport> {
     let mut report = ExportReport { dir: out.display().to_string(), checkpoint: ckpt.display().to_string(), verified_rows: None, max_abs_diff: None };
     if args.verify {
         let (rows, diff) = verify(&cfg, &loaded, &bytes)?;
-        report.verified_rows = Some(rows);
-        report.max_abs_diff = Some(diff);
-        if diff.is_nan() || diff > VERIFY_TOLERANCE {
-            bail!("--verify: the exported model differs from the burn policy by {diff:e} (max abs over {rows} observations), above {VERIFY_TOLERANCE:e}");
-        }
+        check_verified(&mut report, rows, diff)?;
     }
     Ok(report)
 }
@@ -225,18 +221,38 @@ fn write_export(out: &Path, onnx_bytes: &[u8], c: &PolicyContract, world: &[u8])
     Ok(())
 }
 
+/// The task batch `--verify` records episodes on: CPU backend, 16 envs, eval's seed offset.
+fn verify_task(cfg: &Config) -> Result<Box<dyn crate::task::TaskBatch>> {
+    let mut c = cfg.clone();
+    c.sim.backend = crate::config::BackendChoice::Cpu;
+    c.sim.num_envs = 16;
+    c.seed = c.seed.wrapping_add(1_000_003);
+    let model = SimModel::from_config(&c)?;
+    make_task_batch(&c, model)
+}
+
+/// max |a − b| (NaN if any difference is NaN).
+fn max_abs_diff(a: &[f32], b: &[f32]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| (*x as f64 - *y as f64).abs()).fold(0.0f64, |m, d| if d.is_nan() || m.is_nan() { f64::NAN } else { m.max(d) })
+}
+
+/// Records `--verify`'s result in the report; an error above [`VERIFY_TOLERANCE`].
+fn check_verified(report: &mut ExportReport, rows: usize, diff: f64) -> Result<()> {
+    report.verified_rows = Some(rows);
+    report.max_abs_diff = Some(diff);
+    if diff.is_nan() || diff > VERIFY_TOLERANCE {
+        bail!("--verify: the exported model differs from the burn policy by {diff:e} (max abs over {rows} observations), above {VERIFY_TOLERANCE:e}");
+    }
+    Ok(())
+}
+
 /// Observations rows recorded for `--verify`: at most this many.
 const VERIFY_ROWS: usize = 2048;
 
 /// Records observations from real episodes of the run's task (the burn policy acting, CPU
 /// backend, 16 envs, up to one episode each) and returns (rows, max |ONNX − burn|).
 fn verify(cfg: &Config, loaded: &Loaded, bytes: &[u8]) -> Result<(usize, f64)> {
-    let mut c = cfg.clone();
-    c.sim.backend = crate::config::BackendChoice::Cpu;
-    c.sim.num_envs = 16;
-    c.seed = c.seed.wrapping_add(1_000_003);
-    let model = SimModel::from_config(&c)?;
-    let mut task = make_task_batch(&c, model)?;
+    let mut task = verify_task(cfg)?;
     let spec = task.spec().clone();
     let first = task.reset_all()?;
     let (mut obs, mut priv_obs) = (first.obs.clone(), first.priv_obs.clone());
@@ -259,7 +275,7 @@ fn verify(cfg: &Config, loaded: &Loaded, bytes: &[u8]) -> Result<(usize, f64)> {
     let has_priv = matches!(loaded.net, PolicyNet::Encoder { .. });
     let ours = onnx::run_onnx(bytes, &rows, if has_priv { &priv_rows } else { &[] }, &[], n)?;
     ensure!(ours.len() == burn.len(), "--verify: the ONNX model gave {} numbers for {} expected", ours.len(), burn.len());
-    let diff = ours.iter().zip(&burn).map(|(a, b)| (*a as f64 - *b as f64).abs()).fold(0.0f64, |m, d| if d.is_nan() { f64::NAN } else { m.max(d) });
+    let diff = max_abs_diff(&ours, &burn);
     Ok((n, diff))
 }
 
@@ -343,11 +359,7 @@ fn export_student(args: &ExportArgs, cfg: &Config, cfg_path: &Path, ckpt: &Path,
     let mut report = ExportReport { dir: out.display().to_string(), checkpoint: ckpt.display().to_string(), verified_rows: None, max_abs_diff: None };
     if args.verify {
         let (rows, diff) = verify_student(cfg, &mut s, &bytes)?;
-        report.verified_rows = Some(rows);
-        report.max_abs_diff = Some(diff);
-        if diff.is_nan() || diff > VERIFY_TOLERANCE {
-            bail!("--verify: the exported model differs from the burn policy by {diff:e} (max abs over {rows} observations), above {VERIFY_TOLERANCE:e}");
-        }
+        check_verified(&mut report, rows, diff)?;
     }
     Ok(report)
 }
@@ -355,12 +367,7 @@ fn export_student(args: &ExportArgs, cfg: &Config, cfg_path: &Path, ckpt: &Path,
 /// `--verify` for a student: real episodes driven by the burn student (its history windows kept
 /// as the contract says), then the ONNX model on the same raw inputs.
 fn verify_student(cfg: &Config, s: &mut StudentPolicy, bytes: &[u8]) -> Result<(usize, f64)> {
-    let mut c = cfg.clone();
-    c.sim.backend = crate::config::BackendChoice::Cpu;
-    c.sim.num_envs = 16;
-    c.seed = c.seed.wrapping_add(1_000_003);
-    let model = SimModel::from_config(&c)?;
-    let mut task = make_task_batch(&c, model)?;
+    let mut task = verify_task(cfg)?;
     let spec = task.spec().clone();
     let (n, o) = (16, spec.obs_dim);
     let mut obs = task.reset_all()?.obs.clone();
@@ -384,6 +391,6 @@ fn verify_student(cfg: &Config, s: &mut StudentPolicy, bytes: &[u8]) -> Result<(
     let hist: &[f32] = if s.student.latent > 0 { &hist_rows } else { &[] };
     let ours = onnx::run_onnx(bytes, &obs_rows, &[], hist, rows)?;
     ensure!(ours.len() == burn.len(), "--verify: the ONNX model gave {} numbers for {} expected", ours.len(), burn.len());
-    let diff = ours.iter().zip(&burn).map(|(a, b)| (*a as f64 - *b as f64).abs()).fold(0.0f64, |m, d| if d.is_nan() { f64::NAN } else { m.max(d) });
+    let diff = max_abs_diff(&ours, &burn);
     Ok((rows, diff))
 }
