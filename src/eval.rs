@@ -184,6 +184,11 @@ pub struct Summary {
     /// whose force exceeds `task.hand.contact_force` (the threshold of the task's contact flags), 0
     /// when none does (as replay's).
     pub mean_fingertip_force_n: f64,
+    /// A distilled student's episodes: ‖z − ẑ‖, the distance between the student's latent and its
+    /// teacher's on the same states, mean over each episode's steps, then mean ± std over
+    /// episodes (left out otherwise).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub latent_error: Option<MeanStd>,
     /// Every episode, in env order.
     pub per_episode: Vec<EpisodeRow>,
 }
@@ -334,6 +339,7 @@ pub fn markdown(r: &EvalReport) -> String {
         ("episode peak penetration (mm)", Box::new(move |s: &Summary| Some(ms(&s.episode_peak_penetration_mm, 1.0, 2)))),
         ("frames with penetration > 1 mm", Box::new(|s: &Summary| Some(format!("{:.1} %", 100.0 * s.frac_frames_penetration_over_1mm)))),
         ("mean fingertip force (N)", Box::new(|s: &Summary| Some(format!("{:.2}", s.mean_fingertip_force_n)))),
+        ("latent error ‖z − ẑ‖", Box::new(move |s: &Summary| s.latent_error.as_ref().map(|m| ms(m, 1.0, 4)))),
     ];
     let mut out = format!(
         "# Evaluation of {} ({}, iteration {}, seed {}, {} episodes)\n\n| metric | {} |\n|---|{}\n",
@@ -404,6 +410,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: D
     let mut force_n = 0u64;
     let mut term_sums: Vec<f64> = Vec::new();
     let mut term_names: Vec<String> = Vec::new();
+    let mut latent_err: Vec<f64> = Vec::new();
     let mut env_backend = String::new();
     let mut device_name = String::new();
     // the reference kinds measure the object against a reference; lift has none
@@ -432,7 +439,16 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: D
         let (device, dn) = learner_device(&choice, task.gpu_context())?;
         device_name = dn;
         let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
-        let mut actor = load_actor(&c, ckpt, &spec, dims, n, device, driver)?;
+        let mut actor = load_actor(&c, ckpt, &spec, dims, n, device.clone(), driver)?;
+        // a student's episodes: its teacher too, for the latent error ‖z − ẑ‖ on the same states
+        let teacher = match (&actor, driver) {
+            (Actor::Student(s), Driver::Policy) if s.student.latent > 0 => match load_actor(&c, ckpt, &spec, dims, n, device, Driver::Teacher)? {
+                Actor::Ppo(p) => Some(p),
+                Actor::Student(_) => None,
+            },
+            _ => None,
+        };
+        let mut latent_sum = vec![0.0f64; n];
         term_names = spec.term_names.clone();
         term_sums.resize(term_names.len(), 0.0);
         // the fingertip forces are critic observations
@@ -474,6 +490,24 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: D
         while done.iter().any(|d| !d) {
             let actions = if open_loop { zeros.clone() } else { actor.act(&obs, &priv_obs, &start)? };
             start.fill(false);
+            if let (Some(t), Actor::Student(s)) = (&teacher, &actor) {
+                // ẑ = μ(ĉ) of the teacher on the critic observation, normalised as it trained
+                let mut p = priv_obs.clone();
+                if t.normalize {
+                    t.priv_norm.apply(&mut p);
+                }
+                let pt = crate::learn::nets::to_tensor(p, [n, spec.priv_dim], &t.device);
+                if let Some(zh) = t.net.latent(&t.net.inference_params(), pt) {
+                    let zh = crate::learn::nets::to_host(zh)?;
+                    let l = s.student.latent;
+                    for i in 0..n {
+                        if !done[i] {
+                            let e: f64 = (0..l).map(|k| ((s.last_latent[i * l + k] - zh[i * l + k]) as f64).powi(2)).sum();
+                            latent_sum[i] += e.sqrt();
+                        }
+                    }
+                }
+            }
             let b = task.step(&actions)?;
             t += spec.control_dt as f64;
             let nt = term_names.len();
@@ -508,6 +542,9 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: D
                 if b.done(i) {
                     done[i] = true;
                     let l = len[i].max(1) as f64;
+                    if teacher.is_some() {
+                        latent_err.push(latent_sum[i] / l);
+                    }
                     rows.push(EpisodeRow {
                         ret: ret[i],
                         length: len[i],
@@ -557,6 +594,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: D
         episode_peak_penetration_mm: mean_std(&episode_peak_pen),
         frac_frames_penetration_over_1mm: frames_over as f64 / total_frames,
         mean_fingertip_force_n: if force_n > 0 { force_sum / force_n as f64 } else { 0.0 },
+        latent_error: (!latent_err.is_empty()).then(|| mean_std(&latent_err)),
         per_episode: rows,
     };
     Ok((summary, env_backend, device_name))

@@ -506,6 +506,8 @@ pub struct StudentPolicy {
     pub teacher: (String, u64, String),
     /// Raw history windows `[N, H, D]`, oldest first, and which envs start an episode next.
     pub window: Vec<f32>,
+    /// The latent z [N, L] of the last `act_mean` (empty without a latent).
+    pub last_latent: Vec<f32>,
     start: Vec<bool>,
 }
 
@@ -547,7 +549,7 @@ impl StudentPolicy {
             info["teacher_checkpoint"].as_u64().unwrap_or(0),
             info["teacher_manifest_xxh64"].as_str().unwrap_or_default().to_string(),
         );
-        Ok(StudentPolicy { student, obs_index, hist_index, norm, teacher, window: Vec::new(), start: Vec::new() })
+        Ok(StudentPolicy { student, obs_index, hist_index, norm, teacher, window: Vec::new(), last_latent: Vec::new(), start: Vec::new() })
     }
 
     /// The student's fields of raw observations [N, O] → [N, O_s].
@@ -590,7 +592,11 @@ impl StudentPolicy {
         }
         let obs_s = self.student_obs(&obs_n, o);
         let device = self.student.params[0].device();
-        let (_, u) = self.student.forward(&self.student.params, to_tensor(obs_s, [n, self.student.obs_dim], &device), to_tensor(hist_n, [n, h * d], &device));
+        let (z, u) = self.student.forward(&self.student.params, to_tensor(obs_s, [n, self.student.obs_dim], &device), to_tensor(hist_n, [n, h * d], &device));
+        self.last_latent = match z {
+            Some(z) => to_host(z)?,
+            None => Vec::new(),
+        };
         to_host(u)
     }
 }

@@ -202,13 +202,17 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
     let e = |run: &Path, baseline: Option<Baseline>| EvalArgs { run: run.into(), checkpoint: "latest".into(), episodes: 4, max_envs: 4, seed: Some(77), record: None, backend: None, baseline };
     let r = eval(&e(&a, Some(Baseline::Teacher))).unwrap();
     assert_eq!(r.baseline_kind, "teacher");
+    // the student's latent against its teacher's on the same states: measured, and only for it
+    let le = r.policy.latent_error.as_ref().expect("a latent error for the student");
+    assert!(le.mean.is_finite() && le.mean > 0.0, "{le:?}");
+    assert!(r.baseline.as_ref().unwrap().latent_error.is_none());
     assert_eq!(r.policy.per_episode.len(), 4);
     let teacher_alone = eval(&e(&t, None)).unwrap();
     let returns = |s: &dextrain::eval::Summary| s.per_episode.iter().map(|e| e.ret.to_bits()).collect::<Vec<_>>();
     assert_eq!(returns(r.baseline.as_ref().unwrap()), returns(&teacher_alone.policy));
     assert!(r.path.to_string_lossy().ends_with("_teacher.json"));
     let md = std::fs::read_to_string(r.path.with_extension("md")).unwrap();
-    assert!(md.contains("teacher"), "{md}");
+    assert!(md.contains("teacher") && md.contains("latent error"), "{md}");
     let err = format!("{:#}", eval(&e(&t, Some(Baseline::Teacher))).unwrap_err());
     assert!(err.contains("not a distilled student") && !err.contains('\n'), "{err}");
     // a teacher that does not exist, and one of another task

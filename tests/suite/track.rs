@@ -505,6 +505,7 @@ fn summary(tracking: bool) -> dextrain::eval::Summary {
         episode_peak_penetration_mm: ms(1.5),
         frac_frames_penetration_over_1mm: 0.1,
         mean_fingertip_force_n: 2.0,
+        latent_error: None,
         per_episode: vec![EpisodeRow {
             ret: 10.0,
             length: 100,
