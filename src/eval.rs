@@ -441,10 +441,15 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: D
         let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
         let mut actor = load_actor(&c, ckpt, &spec, dims, n, device.clone(), driver)?;
         // a student's episodes: its teacher too, for the latent error ‖z − ẑ‖ on the same states
+        // (a student whose teacher run is gone is still evaluated, without the latent error)
         let teacher = match (&actor, driver) {
-            (Actor::Student(s), Driver::Policy) if s.student.latent > 0 => match load_actor(&c, ckpt, &spec, dims, n, device, Driver::Teacher)? {
-                Actor::Ppo(p) => Some(p),
-                Actor::Student(_) => None,
+            (Actor::Student(s), Driver::Policy) if s.student.latent > 0 => match load_actor(&c, ckpt, &spec, dims, n, device, Driver::Teacher) {
+                Ok(Actor::Ppo(p)) => Some(p),
+                Ok(Actor::Student(_)) => None,
+                Err(e) => {
+                    crate::console::warn(&format!("warning: no latent error: cannot load the student's teacher: {}", crate::config::one_line(&format!("{e:#}"))));
+                    None
+                }
             },
             _ => None,
         };
