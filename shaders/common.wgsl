@@ -154,7 +154,8 @@ struct StepStats {
     contacts: u32,
     contacts_ho: u32,
     bad_reset: u32,
-    _pad: u32,
+    // bit l: hand link l pushed on the object in a substep of the step
+    link_contact: u32,
 }
 
 // Hamilton product a ⊗ b.

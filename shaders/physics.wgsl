@@ -22,6 +22,7 @@ var<private> max_pen_ho: f32;
 var<private> max_pen: f32;
 var<private> n_contacts: u32;
 var<private> n_contacts_ho: u32;
+var<private> link_contact: u32;
 
 struct Contact {
     depth: f32,
@@ -488,6 +489,9 @@ fn contacts_and_forces(h: f32) {
             if (tip != NO_JOINT) {
                 tip_force[tip] += dot(cf.force, c.normal);
             }
+            if (dot(cf.force, c.normal) > 0.0) {
+                link_contact |= 1u << l;
+            }
         } else {
             st.anchor_ho[ci] = vec4<f32>(0.0);
         }
@@ -723,6 +727,7 @@ fn env_step(env: u32) -> StepStats {
     out.max_pen = max_pen;
     out.contacts = n_contacts;
     out.contacts_ho = n_contacts_ho;
+    out.link_contact = link_contact;
     out.bad_reset = 0u;
     if (!state_is_sane()) {
         let episode = st.episode + 1u;

@@ -92,7 +92,8 @@ struct TaskState {
     done: u32,
     // ‖δ‖² of the last residual (residual kinds)
     res_sq: f32,
-    _pad1: u32,
+    // StepStats.link_contact of the last step (0 after a reset)
+    link_contact: u32,
     _pad2: u32,
     // the reference this episode follows (reference kinds)
     cursor: RefCursor,
@@ -422,6 +423,7 @@ fn task_reward(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
     // lifted height of the centre above its rest height (m)
     let h = obj.z - ts.rest_pos.z;
     var other = false;
+    ts.link_contact = sts.link_contact;
     for (var i = 0u; i < g.n_tips; i++) {
         ts.tip_force[i] = sts.tip_force[i];
         if (i != tc.thumb && sts.tip_force[i] > tc.contact_force) {
@@ -768,6 +770,10 @@ fn task_observe(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
     }
     for (var t = 0u; t < g.n_tips; t++) {
         put_priv(k, ts.tip_force[t]);
+        k++;
+    }
+    for (var l = 0u; l < g.n_links; l++) {
+        put_priv(k, f32((ts.link_contact >> l) & 1u));
         k++;
     }
     put_priv(k, p.obj_inertia.w);

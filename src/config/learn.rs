@@ -265,8 +265,10 @@ pub struct PolicyConfig {
 #[serde(deny_unknown_fields, default)]
 pub struct EncoderConfig {
     /// The privileged inputs, by critic-observation field name (`dextrain check` lists them): e.g.
-    /// object physics `obj_mass`, `obj_friction`, `obj_scale`, the object's `obj_pos`, `obj_rot`,
-    /// `obj_vel`, `obj_angvel`, contacts `tip_contact`.
+    /// object physics `obj_mass`, `obj_friction`, `obj_restitution`, `obj_scale`, the object's
+    /// `obj_pos`, `obj_rot`, `obj_vel`, `obj_angvel`, contacts `link_contact` (per hand link) or
+    /// `tip_contact` / `tip_force` (per fingertip), `added_gravity`. Default: DexRefine's set,
+    /// every one of those but the fingertip contacts.
     pub inputs: Vec<String>,
     /// Hidden layer widths.
     pub hidden: Vec<usize>,
@@ -279,7 +281,7 @@ pub struct EncoderConfig {
 impl Default for EncoderConfig {
     fn default() -> Self {
         EncoderConfig {
-            inputs: ["obj_mass", "obj_friction", "obj_scale", "obj_pos", "obj_rot", "obj_vel", "obj_angvel", "tip_contact"].iter().map(|s| s.to_string()).collect(),
+            inputs: ["obj_mass", "obj_friction", "obj_restitution", "obj_scale", "obj_pos", "obj_rot", "obj_vel", "obj_angvel", "link_contact", "added_gravity"].iter().map(|s| s.to_string()).collect(),
             hidden: vec![128, 64],
             activation: Activation::Relu,
             latent: 16,

@@ -218,7 +218,9 @@ pub struct StepStats {
     pub contacts_ho: u32,
     /// 1 if the env was reset during this step because its state was non-finite or exploded.
     pub bad_reset: u32,
-    pub _pad: u32,
+    /// Bit l set: a collision shape of hand link l pushed on the object (normal force > 0) in at
+    /// least one physics substep of the env step.
+    pub link_contact: u32,
 }
 
 impl Default for EnvState {
@@ -354,7 +356,9 @@ pub struct TaskState {
     pub done: u32,
     /// ‖δ‖² of the last residual (residual kinds).
     pub res_sq: f32,
-    pub _pad: [u32; 2],
+    /// `StepStats::link_contact` of the last step (0 after a reset).
+    pub link_contact: u32,
+    pub _pad: u32,
     /// The reference this episode follows (reference kinds).
     pub cursor: crate::env::reference::RefCursor,
     /// residual_task: the EMA-smoothed output ũ and the integrated residual Δa (`n_res` used).

@@ -64,6 +64,8 @@ pub struct Scratch {
     pub max_pen: f32,
     pub contacts: u32,
     pub contacts_ho: u32,
+    /// Bit l: a collider of link l pushed on the object (Fn > 0) in a substep.
+    pub link_contact: u32,
 }
 
 impl Default for Scratch {
@@ -85,6 +87,7 @@ impl Default for Scratch {
             max_pen: 0.0,
             contacts: 0,
             contacts_ho: 0,
+            link_contact: 0,
         }
     }
 }
@@ -570,6 +573,9 @@ pub fn contacts_and_forces(st: &mut EnvState, p: &EnvParams, m: &Model, s: &mut 
             if tip != NO_JOINT {
                 s.tip_force[tip as usize] += f.dot(c.normal);
             }
+            if f.dot(c.normal) > 0.0 {
+                s.link_contact |= 1 << l;
+            }
         } else {
             st.anchor_ho[ci] = [0.0; 4];
         }
@@ -813,6 +819,7 @@ pub fn env_step(env: u32, st: &mut EnvState, p: &mut EnvParams, t: &Targets, m: 
     stats.max_pen = s.max_pen;
     stats.contacts = s.contacts;
     stats.contacts_ho = s.contacts_ho;
+    stats.link_contact = s.link_contact;
     stats.bad_reset = 0;
     if !state_is_sane(st, g) {
         let episode = st.episode + 1;

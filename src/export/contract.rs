@@ -393,7 +393,7 @@ pub fn computed(name: &str) -> Option<&'static str> {
         "obj_scale" => "the object's size scale drawn for the episode",
         "obj_restitution" => "the object's restitution drawn for the episode",
         "added_gravity" => "the extra gravity drawn for the episode (m/s²)",
-        "link_contact" => "1 if the hand link touches the object with a force above the contact threshold during the step, else 0",
+        "link_contact" => "1 if a collision shape of the hand link pushed on the object (normal force > 0) in any physics substep of the step, else 0; one per link of the URDF after fixed joints are merged",
         _ => return None,
     })
 }

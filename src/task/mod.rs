@@ -59,10 +59,12 @@
 //! hash (seed, env, episode, [`PURPOSE_OBS_NOISE`], step · 4096 + 2 · entry + {0, 1}), so both
 //! backends draw the same numbers.
 //!
-//! **Critic observations** (`priv_dim` = `obs_dim` + 15 + 2·T): the clean actor observations, then
-//! `obj_vel.x/y/z`, `obj_angvel.x/y/z`, `wrist_vel.x/y/z`, `wrist_angvel.x/y/z`, `tip_contact.<tip>`
-//! (1 when its force > contact_force), `tip_force.<tip>` (N, the step's average), `obj_mass`,
-//! `obj_friction`, `obj_scale` (the env's drawn parameters).
+//! **Critic observations** (`priv_dim` = `obs_dim` + 17 + 2·T + L for L hand links): the clean
+//! actor observations, then `obj_vel.x/y/z`, `obj_angvel.x/y/z`, `wrist_vel.x/y/z`,
+//! `wrist_angvel.x/y/z`, `tip_contact.<tip>` (1 when its force > contact_force), `tip_force.<tip>`
+//! (N, the step's average), `link_contact.<link>` (1 when a collider of the link pushed on the
+//! object in a substep: `StepStats::link_contact`), `obj_mass`, `obj_friction`, `obj_scale`,
+//! `obj_restitution`, `added_gravity` (the env's drawn parameters).
 //!
 //! # Where things are
 //!

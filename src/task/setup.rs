@@ -134,7 +134,8 @@ pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<TaskSetup> {
         action_names.extend(es.actuated.iter().map(|&j| format!("q.{}", joint_names[j])));
     }
     let actuated_names: Vec<String> = es.actuated.iter().map(|&j| joint_names[j].clone()).collect();
-    let names = LayoutNames { joints: &actuated_names, actions: &action_names, tips };
+    let link_names: Vec<String> = model.hand.links.iter().map(|l| l.name.clone()).collect();
+    let names = LayoutNames { joints: &actuated_names, actions: &action_names, tips, links: &link_names };
     let (obs_layout, priv_layout) = obs_layout(t.kind, &names, t.track.lookahead);
     let obs_names = entry_names(&obs_layout);
     let priv_names = entry_names(&priv_layout);

@@ -23,6 +23,8 @@ pub enum Repeat {
     PerAction,
     /// Once per fingertip (`tip_pos.<tip>`).
     PerTip,
+    /// Once per hand link, after fixed joints are merged (`link_contact.<link>`).
+    PerLink,
 }
 
 /// The components of one repetition of a field.
@@ -138,13 +140,13 @@ const fn critic(name: &'static str, repeat: Repeat, components: Components, unit
 }
 
 use Components::{Quat, Scalar, Xyz};
-use Repeat::{Once, PerAction, PerJoint, PerTip};
+use Repeat::{Once, PerAction, PerJoint, PerLink, PerTip};
 
 /// Every observation field, in the order the twins write them: the actor's fields (which the
 /// critic also sees, without noise), then the critic's privileged extras. The reference block
 /// (`per_reference_frame`) is written once per reference frame `ref0 … refK`, each relative to the
 /// env's (actor: noisy) state.
-pub const OBS_FIELDS: [ObsField; 29] = [
+pub const OBS_FIELDS: [ObsField; 30] = [
     field("q", PerJoint, Scalar, "rad", "joint", Kinds::All, "joint_pos"),
     field("qd", PerJoint, Scalar, "rad/s", "joint", Kinds::All, "joint_vel"),
     field("prev_action", PerAction, Scalar, "action in [-1, 1]", "action", Kinds::All, ""),
@@ -169,6 +171,7 @@ pub const OBS_FIELDS: [ObsField; 29] = [
     critic("wrist_angvel", Once, Xyz, "rad/s", "world"),
     critic("tip_contact", PerTip, Scalar, "0 or 1 (force > task.hand.contact_force)", "fingertip"),
     critic("tip_force", PerTip, Scalar, "N (the step's mean normal force)", "fingertip"),
+    critic("link_contact", PerLink, Scalar, "0 or 1 (pushed on the object during the step)", "hand link"),
     critic("obj_mass", Once, Scalar, "kg", "drawn parameter"),
     critic("obj_friction", Once, Scalar, "coefficient", "drawn parameter"),
     critic("obj_scale", Once, Scalar, "scale", "drawn parameter"),
@@ -199,6 +202,8 @@ pub struct LayoutNames<'a> {
     pub actions: &'a [String],
     /// Fingertip names.
     pub tips: &'a [String],
+    /// Hand link names (after fixed joints are merged), in the model's link order.
+    pub links: &'a [String],
 }
 
 /// The actor and critic layouts of `kind` for a hand (`lookahead`: `task.track.lookahead`). The
@@ -212,6 +217,7 @@ pub fn obs_layout(kind: TaskKind, names: &LayoutNames, lookahead: u32) -> (Vec<O
             Repeat::PerJoint => names.joints.iter().map(String::as_str).collect(),
             Repeat::PerAction => names.actions.iter().map(String::as_str).collect(),
             Repeat::PerTip => names.tips.iter().map(String::as_str).collect(),
+            Repeat::PerLink => names.links.iter().map(String::as_str).collect(),
         };
         let name = format!("{prefix}{}", f.name);
         let mut entries = Vec::new();
@@ -257,7 +263,7 @@ pub fn obs_layout(kind: TaskKind, names: &LayoutNames, lookahead: u32) -> (Vec<O
 /// The names of the fields of `kind`'s critic observation (`lookahead`: `task.track.lookahead`).
 pub fn critic_field_names(kind: TaskKind, lookahead: u32) -> Vec<String> {
     let none: [String; 0] = [];
-    let names = LayoutNames { joints: &none, actions: &none, tips: &none };
+    let names = LayoutNames { joints: &none, actions: &none, tips: &none, links: &none };
     obs_layout(kind, &names, lookahead).1.into_iter().map(|s| s.name).collect()
 }
 

@@ -340,6 +340,7 @@ pub fn task_reward(st: &EnvState, p: &EnvParams, stats: &StepStats, ts: &mut Tas
     // lifted height of the centre above its rest height (m)
     let h = obj.z - ts.rest_pos[2];
     let mut other = false;
+    ts.link_contact = stats.link_contact;
     for i in 0..m.g.n_tips as usize {
         ts.tip_force[i] = stats.tip_force[i];
         if i as u32 != tc.thumb && stats.tip_force[i] > tc.contact_force {
@@ -672,6 +673,10 @@ pub fn task_observe(env: u32, st: &mut EnvState, p: &EnvParams, ts: &mut TaskSta
     }
     for t in 0..m.g.n_tips as usize {
         put_priv(&mut o, k, ts.tip_force[t]);
+        k += 1;
+    }
+    for l in 0..m.g.n_links {
+        put_priv(&mut o, k, ((ts.link_contact >> l) & 1) as f32);
         k += 1;
     }
     put_priv(&mut o, k, p.obj_inertia[3]);

@@ -84,7 +84,7 @@ fn pod_structs_match_their_wgsl_twins() {
         obj_contact_c, hand_table_c, _pad));
     check(&m, "Targets", size_of::<Targets>(), rust_fields!(Targets; wrist_pos, wrist_rot, q));
     check(&m, "StepStats", size_of::<StepStats>(), rust_fields!(StepStats; tip_force, max_pen_ho, max_pen, contacts,
-        contacts_ho, bad_reset, _pad));
+        contacts_ho, bad_reset, link_contact));
     let m = validate(&task_shader_source());
     check(&m, "TaskGlobals", size_of::<TaskGlobals>(), rust_fields!(TaskGlobals; wrist_pos_min, wrist_pos_max, palm_offset,
         weights, actuated, n_actuated, n_act, obs_dim, priv_dim, episode_length, finger_mode, thumb, _pad0, wrist_pos_scale,
@@ -97,7 +97,7 @@ fn pod_structs_match_their_wgsl_twins() {
         res_scale_tips, res_clamp_wrist_pos, res_clamp_wrist_rot, res_clamp_tips, control_dt, rw_obj_pos, rw_obj_rot,
         rw_tips, rw_wrist_pos, rw_wrist_rot, _pad3, ik));
     check(&m, "TaskState", size_of::<TaskState>(), rust_fields!(TaskState; targets, rest_pos, prev_action, tip_force,
-        act_rate, act_mag, done, res_sq, _pad, cursor, res_ema, res_delta));
+        act_rate, act_mag, done, res_sq, link_contact, _pad, cursor, res_ema, res_delta));
     // the reference layer (reference.wgsl, src/env/reference.rs)
     use dextrain::env::reference::{RefCursor, RefFrame, RefGlobals, RefInfo};
     check(&m, "RefInfo", size_of::<RefInfo>(), rust_fields!(RefInfo; obj0_pos, obj0_rot, bbox_min, bbox_max, first_frame, n_frames, first_segment_steps, flags));

@@ -388,8 +388,8 @@ fn observations_match_the_state_and_noise_has_the_configured_std() {
     assert_eq!(spec.action_dim, 6 + nj);
     assert_eq!(spec.obs_dim, 3 * nj + 26 + 3 * nt);
     // + object and wrist velocities (12), mass, friction, scale, restitution, added gravity (5),
-    // per-tip contact flags and forces
-    assert_eq!(spec.priv_dim, spec.obs_dim + 17 + 2 * nt);
+    // per-tip contact flags and forces, per-link contact flags
+    assert_eq!(spec.priv_dim, spec.obs_dim + 17 + 2 * nt + model.hand.links.len());
     assert_eq!(spec.term_names, LIFT_TERMS.iter().map(|t| t.name).collect::<Vec<_>>());
     assert_eq!(spec.priv_names[..spec.obs_dim], spec.obs_names[..]);
     let mut uniq = spec.priv_names.clone();
@@ -443,6 +443,14 @@ fn observations_match_the_state_and_noise_has_the_configured_std() {
             }
             let k = es.tip_names.iter().position(|n| *n == tip.name).unwrap();
             assert_eq!(pt(&format!("tip_force.{}", tip.name)), stats[i].tip_force[k]);
+            // a fingertip that pushed on the object over the step: its link pushed in some substep
+            if stats[i].tip_force[k] > 0.0 {
+                assert_eq!(pt(&format!("link_contact.{}", model.hand.links[tip.link].name)), 1.0, "{}: tip force without link contact", tip.name);
+            }
+        }
+        // one flag per link: bit l of the step's statistics
+        for (l, link) in model.hand.links.iter().enumerate() {
+            assert_eq!(pt(&format!("link_contact.{}", link.name)), ((stats[i].link_contact >> l) & 1) as f32, "link {}", link.name);
         }
         let rot = glam::Quat::from_array(st.wrist_rot);
         let palm = Vec3::from_slice(&st.wrist_pos[..3]) + rot * Vec3::from(c.task.hand.palm_offset);
@@ -640,5 +648,53 @@ fn each_observation_field_lands_at_its_offset_on_both_backends() {
                 }
             }
         }
+    }
+}
+
+/// `link_contact` (critic): replaying a grasp (residual_joint, zero residual) on both backends,
+/// every fingertip that pushed on the object during a step has its link flagged, flags are 0 or
+/// 1, and the replay does grasp (the implication is checked on real contacts).
+#[test]
+fn link_contact_flags_the_links_that_push_on_the_object() {
+    use dextrain::config::TaskKind;
+    let mut c = Config::load(std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml"))).expect("config");
+    c.sim.backend = "cpu".parse().unwrap();
+    c.sim.num_envs = 2;
+    c.task.kind = TaskKind::ResidualJoint;
+    c.task.rewards = TaskKind::ResidualJoint.default_rewards();
+    c.task.reference.files = vec!["refs/grasp_lift.mcap".into()];
+    c.validate().unwrap();
+    let model = SimModel::from_config(&c).unwrap();
+    let mut backends: Vec<(String, Box<dyn TaskBatch>)> = vec![("cpu".into(), Box::new(CpuTaskBatch::new(&c, model.clone()).unwrap()))];
+    if let Some(ctx) = gpu_context("link_contact_flags_the_links_that_push_on_the_object") {
+        backends.push(("gpu".into(), Box::new(GpuTaskBatch::new(&c, ctx, model.clone()).unwrap())));
+    }
+    for (backend, mut task) in backends {
+        let spec = task.spec().clone();
+        let slot = spec.priv_layout.iter().find(|s| s.name == "link_contact").expect("link_contact field");
+        assert_eq!(slot.size, model.hand.links.len(), "{backend}: one flag per link");
+        let tips = spec.priv_layout.iter().find(|s| s.name == "tip_force").unwrap();
+        task.reset_all().unwrap();
+        let zeros = vec![0.0; spec.num_envs * spec.action_dim];
+        let mut pushing_steps = 0;
+        for _ in 0..spec.episode_length.min(150) {
+            let b = task.step(&zeros).unwrap().clone();
+            for e in 0..spec.num_envs {
+                if b.done(e) {
+                    continue;
+                }
+                let p = &b.priv_obs[e * spec.priv_dim..(e + 1) * spec.priv_dim];
+                let flags = &p[slot.offset..slot.offset + slot.size];
+                assert!(flags.iter().all(|&f| f == 0.0 || f == 1.0), "{backend}: flags {flags:?}");
+                for (k, tip) in model.spec.tip_names.iter().enumerate() {
+                    if p[tips.offset + k] > 0.0 {
+                        pushing_steps += 1;
+                        let t = model.hand.fingertips.iter().find(|t| &t.name == tip).unwrap();
+                        assert_eq!(flags[t.link], 1.0, "{backend}: {tip} pushed on the object but its link is not flagged");
+                    }
+                }
+            }
+        }
+        assert!(pushing_steps > 0, "{backend}: the replay never grasped");
     }
 }
