@@ -20,6 +20,7 @@ use crate::checkpoint;
 use crate::config::{Config, TaskKind};
 use crate::env::reset::reset_params;
 use crate::task::{decode_snapshot, make_task_batch, reference_paths};
+use crate::env::gpu_layout::Targets;
 use crate::env::{SimModel, contact_records, hand_link_poses};
 use crate::geom::Pose;
 use crate::learn::device::learner_device;
@@ -69,7 +70,7 @@ pub enum Baseline {
 
 /// Who drives a set of eval episodes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Driver {
+pub(crate) enum Driver {
     /// The run's policy (PPO, or a distilled student with its history windows).
     Policy,
     /// The policy switched off: the targets follow the references.
@@ -78,18 +79,40 @@ enum Driver {
     Teacher,
 }
 
+/// Where the evaluated policy comes from.
+#[derive(Clone, Copy, Debug)]
+pub(crate) enum PolicySource<'a> {
+    /// A run's checkpoint directory (`dextrain eval`).
+    Checkpoint(&'a std::path::Path),
+    /// An export's `policy.json` (`dextrain play`): the ONNX model and the contract's action
+    /// mapping, nothing of the checkpoint.
+    Export(&'a std::path::Path),
+}
+
 /// A deterministic policy that eval runs.
 enum Actor {
     Ppo(Box<Ppo>),
     Student(Box<crate::learn::distill::StudentPolicy>),
+    /// An exported policy with its own action mapping (`dextrain play`).
+    Exported(Box<crate::export::controller::Controller>),
 }
 
 impl Actor {
-    /// Actions [N, A] for raw observations; `start[i]`: env i starts its episode at this step.
-    fn act(&mut self, obs: &[f32], priv_obs: &[f32], start: &[bool]) -> Result<Vec<f32>> {
+    /// Actions [N, A] for raw observations; `start[i]`: env i starts its episode at this step. An
+    /// exported policy also gives the targets (its own action mapping), which the task then steps
+    /// toward instead of mapping the actions itself.
+    fn act(&mut self, obs: &[f32], priv_obs: &[f32], start: &[bool], task: &mut dyn crate::task::TaskBatch) -> Result<(Vec<f32>, Option<Vec<Targets>>)> {
         match self {
-            Actor::Ppo(p) => p.act_mean(obs, priv_obs),
-            Actor::Student(s) => s.act_mean(obs, start),
+            Actor::Ppo(p) => Ok((p.act_mean(obs, priv_obs)?, None)),
+            Actor::Student(s) => Ok((s.act_mean(obs, start)?, None)),
+            Actor::Exported(c) => {
+                // the reference the deployment follows: each env's first frame (for envs that
+                // start) and its frame at the end of this step
+                let first = if start.iter().any(|&s| s) { task.reference_frames(0)? } else { None };
+                let next = task.reference_frames(1)?;
+                let (a, t) = c.act(obs, priv_obs, start, first.as_deref(), next.as_deref())?;
+                Ok((a, Some(t)))
+            }
         }
     }
 }
@@ -277,9 +300,9 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
             Some(Driver::Teacher)
         }
     };
-    let (policy, env_backend, device_name) = run_episodes(&cfg, &ckpt, args, Driver::Policy)?;
+    let (policy, env_backend, device_name) = run_episodes(&cfg, PolicySource::Checkpoint(&ckpt), args, Driver::Policy)?;
     let base = match baseline {
-        Some(d) => Some(run_episodes(&cfg, &ckpt, args, d)?.0),
+        Some(d) => Some(run_episodes(&cfg, PolicySource::Checkpoint(&ckpt), args, d)?.0),
         None => None,
     };
     let suffix = match baseline {
@@ -391,9 +414,9 @@ pub fn reference_names(paths: &[PathBuf]) -> Vec<String> {
     if unique { names } else { paths.iter().map(|p| p.display().to_string()).collect() }
 }
 
-/// Every episode of an evaluation (the policy's, or with `open_loop` the baseline's), the env
-/// backend and the learner device.
-fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: Driver) -> Result<(Summary, String, String)> {
+/// Every episode of an evaluation (the policy's, or a baseline's), the env backend and the
+/// learner device.
+pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, driver: Driver) -> Result<(Summary, String, String)> {
     let open_loop = driver == Driver::OpenLoop;
     let seed = cfg.seed;
     let episodes = args.episodes.max(1);
@@ -439,13 +462,21 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: D
         let (device, dn) = learner_device(&choice, task.gpu_context())?;
         device_name = dn;
         let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
-        let mut actor = load_actor(&c, ckpt, &spec, dims, n, device.clone(), driver)?;
+        let mut actor = match source {
+            PolicySource::Checkpoint(ckpt) => load_actor(&c, ckpt, &spec, dims, n, device.clone(), driver)?,
+            PolicySource::Export(contract) => {
+                let urdf_path = c.resolve(&c.hand.urdf);
+                let urdf = std::fs::read(&urdf_path).with_context(|| format!("cannot read the hand URDF {}", urdf_path.display()))?;
+                device_name = "onnx (tract, cpu)".into();
+                Actor::Exported(Box::new(crate::export::controller::Controller::load(contract, &urdf, &spec, &model, n)?))
+            }
+        };
         // a student's episodes: its teacher too, for the latent error ‖z − ẑ‖ on the same states
         // (a student whose teacher run is gone is still evaluated, without the latent error)
         let teacher = match (&actor, driver) {
-            (Actor::Student(s), Driver::Policy) if s.student.latent > 0 => match load_actor(&c, ckpt, &spec, dims, n, device, Driver::Teacher) {
+            (Actor::Student(s), Driver::Policy) if s.student.latent > 0 => match load_actor(&c, checkpoint_of(source)?, &spec, dims, n, device, Driver::Teacher) {
                 Ok(Actor::Ppo(p)) => Some(p),
-                Ok(Actor::Student(_)) => None,
+                Ok(Actor::Student(_) | Actor::Exported(_)) => None,
                 Err(e) => {
                     crate::console::warn(&format!("warning: no latent error: cannot load the student's teacher: {}", crate::config::one_line(&format!("{e:#}"))));
                     None
@@ -465,7 +496,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: D
                     hand: model.hand.clone(),
                     object: c.object.shape.scaled(reset_params(g, 0, 0).obj_scale),
                     dt: spec.control_dt,
-                    info: serde_json::json!({"run": args.run.display().to_string(), "checkpoint": ckpt.display().to_string(), "seed": c.seed}),
+                    info: serde_json::json!({"run": args.run.display().to_string(), "checkpoint": source.describe(), "seed": c.seed}),
                 };
                 Some(RolloutWriter::create(path, &meta)?)
             }
@@ -493,8 +524,7 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: D
         let zeros = vec![0.0f32; n * spec.action_dim];
         let mut start = vec![true; n];
         while done.iter().any(|d| !d) {
-            let actions = if open_loop { zeros.clone() } else { actor.act(&obs, &priv_obs, &start)? };
-            start.fill(false);
+            let (actions, targets) = if open_loop { (zeros.clone(), None) } else { actor.act(&obs, &priv_obs, &start, task.as_mut())? };
             if let (Some(t), Actor::Student(s)) = (&teacher, &actor) {
                 // ẑ = μ(ĉ) of the teacher on the critic observation, normalised as it trained
                 let mut p = priv_obs.clone();
@@ -513,7 +543,14 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: D
                     }
                 }
             }
-            let b = task.step(&actions)?;
+            let b = match &targets {
+                Some(tg) => task.step_with_targets(&actions, tg)?,
+                None => task.step(&actions)?,
+            };
+            // an env whose episode ended starts its next one (not counted) at the next step
+            for (i, s) in start.iter_mut().enumerate() {
+                *s = b.done(i);
+            }
             t += spec.control_dt as f64;
             let nt = term_names.len();
             let pd = spec.priv_dim;
@@ -603,6 +640,23 @@ fn run_episodes(cfg: &Config, ckpt: &std::path::Path, args: &EvalArgs, driver: D
         per_episode: rows,
     };
     Ok((summary, env_backend, device_name))
+}
+
+/// The checkpoint directory of a source that has one.
+fn checkpoint_of<'a>(source: PolicySource<'a>) -> Result<&'a std::path::Path> {
+    match source {
+        PolicySource::Checkpoint(c) => Ok(c),
+        PolicySource::Export(p) => bail!("{}: an exported policy has no checkpoint to load", p.display()),
+    }
+}
+
+impl PolicySource<'_> {
+    /// The checkpoint directory or the contract's path.
+    pub(crate) fn describe(&self) -> String {
+        match self {
+            PolicySource::Checkpoint(p) | PolicySource::Export(p) => p.display().to_string(),
+        }
+    }
 }
 
 /// The policy that drives `driver`'s episodes: the run's (PPO or a distilled student), or a

@@ -64,6 +64,9 @@ enum Command {
     /// Export a run's policy for a robot: RUN/export/policy.onnx (normalisation baked in) and
     /// policy.json (the contract: observation layout, action mapping, joints, timing), world.toml.
     Export(dextrain::export::command::ExportArgs),
+    /// Drive the simulator from an export alone (policy.json, policy.onnx, world.toml): eval's
+    /// episodes and JSON report, the exported model and the contract's action mapping acting.
+    Play(dextrain::export::play::PlayArgs),
     /// Draw a run's learning curves (PNG) from its metrics.csv into RUN/plots/.
     Plot {
         /// The run directory (runs/NAME).
@@ -151,6 +154,11 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Export(args) => {
             let report = dextrain::export::command::run(&args)?;
+            console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
+            Ok(())
+        }
+        Command::Play(args) => {
+            let report = dextrain::export::play::run(&args)?;
             console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
             Ok(())
         }

@@ -313,6 +313,8 @@ pub enum ActionMapping {
         wrist_rot_limit: f32,
         /// Finger targets: absolute or delta.
         finger_mode: FingerMode,
+        /// The targets at episode start (the previous targets of the first step).
+        start: StartTargets,
         /// Delta mode: change per step at |a| = 1 (rad).
         finger_delta_scale: f32,
         /// The formulas, in order.
@@ -350,6 +352,17 @@ pub enum ActionMapping {
     },
 }
 
+/// The targets a `direct` mapping starts each episode from.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum StartTargets {
+    /// The initial wrist pose (`hand.init_wrist_pos/rot`) and each joint's `default`.
+    Initial,
+    /// The reference's first frame: its wrist pose and joint positions (track with free actions
+    /// and `task.track.start = "reference"`).
+    ReferenceFirstFrame,
+}
+
 /// What the caller knows of the run that the task and hand do not say.
 pub struct ContractSource<'a> {
     pub source: Source,
@@ -381,7 +394,7 @@ pub fn computed(name: &str) -> Option<&'static str> {
         "goal" => "the lift goal: the object's rest position at episode start raised by the success height (m, world)",
         "obj_rel" => "object centre minus the palm point (wrist_pos + R_wrist · palm_offset), world frame (m)",
         "phase" => "policy steps since episode start / the reference's length in policy steps, clamped to [0, 1]",
-        "residual" => "residual_task's integrated residual Δa divided component-wise by its clamp (wrist pos, wrist rot, fingertips)",
+        "residual" => "residual_task's integrated residual Δa divided component-wise by max(clamp, 1e-9) (clamps: wrist pos, wrist rot, fingertips); 0 at episode start",
         "obj_vel" => "object linear velocity, world frame (m/s)",
         "obj_angvel" => "object angular velocity, world frame (rad/s)",
         "wrist_vel" => "wrist linear velocity, world frame (m/s)",
@@ -527,8 +540,9 @@ pub fn build(cfg: &Config, spec: &TaskSpec, tc: &TaskGlobals, model: &SimModel, 
             .into(),
     });
     let action_mapping = match spec.kind {
-        TaskKind::Lift => direct(tc),
-        TaskKind::Track if tc.track_action == 0 => direct(tc),
+        TaskKind::Lift => direct(tc, StartTargets::Initial),
+        // task_init: a reference kind that starts at the reference starts its targets there too
+        TaskKind::Track if tc.track_action == 0 => direct(tc, if tc.start_mode == 0 { StartTargets::ReferenceFirstFrame } else { StartTargets::Initial }),
         TaskKind::Track | TaskKind::ResidualJoint => ActionMapping::ResidualJoint {
             joint_alpha: tc.res_alpha,
             wrist_pos_alpha: tc.res_wrist_pos_alpha,
@@ -632,7 +646,7 @@ pub fn build(cfg: &Config, spec: &TaskSpec, tc: &TaskGlobals, model: &SimModel, 
 }
 
 /// The mapping of lift (and track with free actions).
-fn direct(tc: &TaskGlobals) -> ActionMapping {
+fn direct(tc: &TaskGlobals, start: StartTargets) -> ActionMapping {
     let finger_mode = if tc.finger_mode == 0 { FingerMode::Absolute } else { FingerMode::Delta };
     ActionMapping::Direct {
         wrist_pos_scale: tc.wrist_pos_scale,
@@ -641,9 +655,10 @@ fn direct(tc: &TaskGlobals) -> ActionMapping {
         wrist_rot_scale: tc.wrist_rot_scale,
         wrist_rot_limit: tc.wrist_rot_limit,
         finger_mode,
+        start,
         finger_delta_scale: tc.finger_delta_scale,
         formulas: vec![
-            "a = clip(actions, -1, 1); at episode start the targets are the initial wrist pose (hand.init_wrist_pos/rot) and each joint's default".into(),
+            "a = clip(actions, -1, 1); at episode start the targets are `start`: initial = the initial wrist pose (hand.init_wrist_pos/rot) and each joint's default, reference_first_frame = the reference's first frame (wrist pose and joints)".into(),
             "wrist position target p* = clamp(p*_prev + wrist_pos_scale · a[0..3], wrist_pos_min, wrist_pos_max) (component-wise)".into(),
             "wrist orientation target R* = exp(wrist_rot_scale · a[3..6]) ⊗ R*_prev (world-frame rotation vector), then, if its angle from the initial orientation R0 exceeds wrist_rot_limit, R* = exp(e · wrist_rot_limit / |e|) ⊗ R0 with e the rotation vector of R* ⊗ R0⁻¹".into(),
             "finger_mode absolute: q*_j = lower_j + (a[6 + j] + 1) / 2 · (upper_j − lower_j) (continuous joints: default_j + π · a[6 + j])".into(),

@@ -494,47 +494,92 @@ pub fn read_metadata(bytes: &[u8]) -> Result<Vec<(String, String)>> {
     Ok(m.metadata_props.into_iter().map(|e| (e.key, e.value)).collect())
 }
 
+/// An ONNX policy prepared by tract for one batch size: inputs `obs`, `priv_obs`, `history` as
+/// the model declares them.
+pub struct OnnxRunner {
+    plan: std::sync::Arc<TypedRunnableModel>,
+    /// The model's inputs in order: name and shape `[batch, …]`.
+    inputs: Vec<(String, Vec<usize>)>,
+    batch: usize,
+}
+
+/// Errors of tract in one line.
+fn tract_error(what: &str, e: impl std::fmt::Display) -> anyhow::Error {
+    anyhow!("{what}: {}", crate::config::one_line(&e.to_string()))
+}
+
+impl OnnxRunner {
+    /// Prepares ONNX bytes for `batch` rows; `per_row(name)`: the numbers per row of an input
+    /// (`history`: H · D, the step size D read from the model's declared shape).
+    pub fn new(bytes: &[u8], batch: usize, per_row: impl Fn(&str) -> Result<usize>) -> Result<OnnxRunner> {
+        ensure!(batch > 0, "an ONNX batch of 0 rows");
+        let proto = pb::ModelProto::decode(bytes).map_err(|e| anyhow!("not an ONNX model: {e}"))?;
+        let graph = proto.graph.as_ref().context("not an ONNX model: no graph")?;
+        let mut model = tract_onnx::onnx().model_for_read(&mut &bytes[..]).map_err(|e| tract_error("cannot load the ONNX model", format!("{e:#}")))?;
+        let mut inputs = Vec::new();
+        for (k, input) in graph.input.iter().enumerate() {
+            ensure!(matches!(input.name.as_str(), "obs" | "priv_obs" | "history"), "the ONNX model has an input {:?}; expected obs, priv_obs or history", input.name);
+            let per = per_row(&input.name)?;
+            let shape: Vec<usize> = if input.name == "history" {
+                // [batch, H, D]: D from the declared shape
+                let d = match input.r#type.as_ref().and_then(|t| t.value.as_ref()) {
+                    Some(pb::type_proto::Value::TensorType(t)) => t.shape.as_ref().and_then(|s| s.dim.get(2)).and_then(|d| match d.value {
+                        Some(pb::tensor_shape_proto::dimension::Value::DimValue(v)) => Some(v as usize),
+                        _ => None,
+                    }),
+                    None => None,
+                }
+                .context("input \"history\": no step size in the model")?;
+                ensure!(d > 0 && per % d == 0, "input \"history\": {per} values per row, not a multiple of its step size {d}");
+                vec![batch, per / d, d]
+            } else {
+                vec![batch, per]
+            };
+            model = model.with_input_fact(k, f32::fact(&shape).into()).map_err(|e| anyhow!("input {:?}: {e}", input.name))?;
+            inputs.push((input.name.clone(), shape));
+        }
+        let plan = model.into_optimized().and_then(|m| m.into_runnable()).map_err(|e| tract_error("cannot prepare the ONNX model", format!("{e:#}")))?;
+        Ok(OnnxRunner { plan, inputs, batch })
+    }
+
+    /// The model's input names, in order.
+    pub fn input_names(&self) -> Vec<&str> {
+        self.inputs.iter().map(|(n, _)| n.as_str()).collect()
+    }
+
+    /// Runs the model on raw row-major inputs (`priv_obs`/`history` ignored when the model has no
+    /// such input); returns the output `[batch, A]`.
+    pub fn run(&self, obs: &[f32], priv_obs: &[f32], history: &[f32]) -> Result<Vec<f32>> {
+        let mut tensors: TVec<TValue> = tvec!();
+        for (name, shape) in &self.inputs {
+            let data = match name.as_str() {
+                "obs" => obs,
+                "priv_obs" => priv_obs,
+                _ => history,
+            };
+            let want: usize = shape.iter().product();
+            ensure!(data.len() == want, "input {name:?}: {} values, expected {want} ({} rows of {:?})", data.len(), self.batch, &shape[1..]);
+            let t = Tensor::from_shape(shape, data).map_err(|e| anyhow!("input {name:?}: {e}"))?;
+            tensors.push(t.into());
+        }
+        let out = self.plan.run(tensors).map_err(|e| tract_error("cannot run the ONNX model", format!("{e:#}")))?;
+        let y = out[0].to_plain_array_view::<f32>().map_err(|e| anyhow!("the ONNX model's output: {e}"))?;
+        Ok(y.iter().copied().collect())
+    }
+}
+
 /// Runs ONNX bytes with tract on raw inputs (row-major; `priv_obs`/`history` empty when the model
 /// has no such input) and returns the output [batch, A].
 pub fn run_onnx(bytes: &[u8], obs: &[f32], priv_obs: &[f32], history: &[f32], batch: usize) -> Result<Vec<f32>> {
     ensure!(batch > 0, "run_onnx: batch 0");
-    let proto = pb::ModelProto::decode(bytes).map_err(|e| anyhow!("not an ONNX model: {e}"))?;
-    let graph = proto.graph.as_ref().context("not an ONNX model: no graph")?;
-    let mut tensors: TVec<TValue> = tvec!();
-    let mut model = tract_onnx::onnx().model_for_read(&mut &bytes[..]).map_err(|e| anyhow!("cannot load the ONNX model: {}", crate::config::one_line(&format!("{e:#}"))))?;
-    for (k, input) in graph.input.iter().enumerate() {
-        let data = match input.name.as_str() {
+    let per_row = |name: &str| -> Result<usize> {
+        let data = match name {
             "obs" => obs,
             "priv_obs" => priv_obs,
-            "history" => history,
-            other => bail!("the ONNX model has an input {other:?}; expected obs, priv_obs or history"),
+            _ => history,
         };
-        ensure!(!data.is_empty() && data.len() % batch == 0, "input {:?}: {} values for a batch of {batch}", input.name, data.len());
-        let per = data.len() / batch;
-        let shape: Vec<usize> = if input.name == "history" {
-            // [batch, H, D]: D from the declared shape
-            let d = match input.r#type.as_ref().and_then(|t| t.value.as_ref()) {
-                Some(pb::type_proto::Value::TensorType(t)) => t.shape.as_ref().and_then(|s| s.dim.get(2)).and_then(|d| match d.value {
-                    Some(pb::tensor_shape_proto::dimension::Value::DimValue(v)) => Some(v as usize),
-                    _ => None,
-                }),
-                None => None,
-            }
-            .context("input \"history\": no step size in the model")?;
-            ensure!(d > 0 && per % d == 0, "input \"history\": {per} values per row, not a multiple of its step size {d}");
-            vec![batch, per / d, d]
-        } else {
-            vec![batch, per]
-        };
-        model = model.with_input_fact(k, f32::fact(&shape).into()).map_err(|e| anyhow!("input {:?}: {e}", input.name))?;
-        let t = Tensor::from_shape(&shape, data).map_err(|e| anyhow!("input {:?}: {e}", input.name))?;
-        tensors.push(t.into());
-    }
-    let plan = model
-        .into_optimized()
-        .and_then(|m| m.into_runnable())
-        .map_err(|e| anyhow!("cannot prepare the ONNX model: {}", crate::config::one_line(&format!("{e:#}"))))?;
-    let out = plan.run(tensors).map_err(|e| anyhow!("cannot run the ONNX model: {}", crate::config::one_line(&format!("{e:#}"))))?;
-    let y = out[0].to_plain_array_view::<f32>().map_err(|e| anyhow!("the ONNX model's output: {e}"))?;
-    Ok(y.iter().copied().collect())
+        ensure!(!data.is_empty() && data.len() % batch == 0, "input {name:?}: {} values for a batch of {batch}", data.len());
+        Ok(data.len() / batch)
+    };
+    OnnxRunner::new(bytes, batch, per_row)?.run(obs, priv_obs, history)
 }

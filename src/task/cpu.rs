@@ -7,7 +7,7 @@ use rayon::prelude::*;
 use super::setup::{TaskSetup, ref_model, task_setup};
 use super::spec::TaskSpec;
 use super::task::*;
-use super::{StepBatch, TaskBatch, check_actions, decode_snapshot, encode_snapshot};
+use super::{StepBatch, TaskBatch, check_actions, check_targets, decode_snapshot, encode_snapshot};
 use crate::config::Config;
 use crate::env::cpu::CpuEnvBatch;
 use crate::env::gpu_layout::*;
@@ -125,6 +125,44 @@ impl TaskBatch for CpuTaskBatch {
     }
 
     fn step(&mut self, actions: &[f32]) -> Result<&StepBatch> {
+        self.step_inner(actions, None)
+    }
+
+    fn step_with_targets(&mut self, actions: &[f32], targets: &[Targets]) -> Result<&StepBatch> {
+        check_targets(&self.spec, targets)?;
+        self.step_inner(actions, Some(targets))
+    }
+
+    fn reference_frames(&mut self, k: u32) -> Result<Option<Vec<RefFrame>>> {
+        let states = self.env.states_ref();
+        Ok(self.bank.is_some().then(|| (0..self.spec.num_envs).filter_map(|i| self.reference_frame(i, states[i].step, k)).collect()))
+    }
+
+    fn targets(&mut self) -> Result<Vec<Targets>> {
+        Ok(self.task.iter().map(|t| t.targets).collect())
+    }
+
+    fn reference_now(&mut self, env: usize) -> Result<Option<RefFrame>> {
+        let step = self.env.states_ref()[env].step;
+        Ok(self.reference_frame(env, step, 0))
+    }
+
+    fn save_state(&mut self) -> Result<Vec<u8>> {
+        Ok(encode_snapshot(self.env.states_ref(), self.env.params_ref(), &self.task))
+    }
+
+    fn load_state(&mut self, state: &[u8]) -> Result<()> {
+        let (states, params, task) = decode_snapshot(state, self.spec.num_envs)?;
+        self.env.set_states(&states)?;
+        self.env.set_params(&params)?;
+        self.task.copy_from_slice(&task);
+        Ok(())
+    }
+}
+
+impl CpuTaskBatch {
+    /// One step (see [`TaskBatch::step`]); `given`: targets that replace the mapped ones.
+    fn step_inner(&mut self, actions: &[f32], given: Option<&[Targets]>) -> Result<&StepBatch> {
         check_actions(&self.spec, actions)?;
         let na = self.spec.action_dim;
         {
@@ -139,6 +177,12 @@ impl TaskBatch for CpuTaskBatch {
                 .zip(actions.par_chunks(na))
                 .enumerate()
                 .for_each(|(i, ((ts, t), a))| *t = task_act(a, &states[i], ts, &m, tc, &r));
+        }
+        if let Some(given) = given {
+            self.targets.copy_from_slice(given);
+            for (ts, t) in self.task.iter_mut().zip(given) {
+                ts.targets = *t;
+            }
         }
         self.env.step(&self.targets)?;
         {
@@ -163,26 +207,5 @@ impl TaskBatch for CpuTaskBatch {
         self.observe();
         self.batch.fill_misc(&self.misc);
         Ok(&self.batch)
-    }
-
-    fn targets(&mut self) -> Result<Vec<Targets>> {
-        Ok(self.task.iter().map(|t| t.targets).collect())
-    }
-
-    fn reference_now(&mut self, env: usize) -> Result<Option<RefFrame>> {
-        let step = self.env.states_ref()[env].step;
-        Ok(self.reference_frame(env, step, 0))
-    }
-
-    fn save_state(&mut self) -> Result<Vec<u8>> {
-        Ok(encode_snapshot(self.env.states_ref(), self.env.params_ref(), &self.task))
-    }
-
-    fn load_state(&mut self, state: &[u8]) -> Result<()> {
-        let (states, params, task) = decode_snapshot(state, self.spec.num_envs)?;
-        self.env.set_states(&states)?;
-        self.env.set_params(&params)?;
-        self.task.copy_from_slice(&task);
-        Ok(())
     }
 }

@@ -12,7 +12,7 @@ use anyhow::{Context, Result};
 use super::setup::{TaskSetup, task_setup};
 use super::spec::TaskSpec;
 use super::task::OUT_MISC;
-use super::{StepBatch, TaskBatch, check_actions, decode_snapshot, encode_snapshot};
+use super::{StepBatch, TaskBatch, check_actions, check_targets, decode_snapshot, encode_snapshot};
 use crate::env::gpu::{BufferRole, GpuContext, GpuEnvBatch, ReadbackCopy, task_shader_source};
 use crate::env::gpu_bindings::{ACTIONS, GLOBALS, JOINTS, PARAMS, REF_CFG, REF_FRAMES, REF_INFO, RESET_MASK, STATES, STATS, TARGETS, TIPS};
 use crate::env::gpu_bindings::{TASK_ACT, TASK_CFG, TASK_GROUP, TASK_OBSERVE, TASK_OUT, TASK_REWARD, TASK_STATES};
@@ -192,6 +192,45 @@ impl TaskBatch for GpuTaskBatch {
         let base = n * (self.spec.obs_dim + self.spec.priv_dim);
         self.batch.fill_misc(&self.host[base..base + n * OUT_MISC]);
         Ok(&self.batch)
+    }
+
+    fn step_with_targets(&mut self, actions: &[f32], targets: &[Targets]) -> Result<&StepBatch> {
+        check_actions(&self.spec, actions)?;
+        check_targets(&self.spec, targets)?;
+        self.env.ctx.upload(ACTIONS.name, &self.actions, bytemuck::cast_slice(actions))?;
+        let e = &self.env;
+        // task_act records the actions; then the controller's targets replace the mapped ones in the
+        // task states and in the buffer the physics reads (uploads land before the next submit)
+        e.ctx.submit(e.ctx.encode_passes(&[(&self.act_pipeline, &self.act_group)], e.workgroups()), "task act")?;
+        let mut ts = self.task_states()?;
+        for (t, g) in ts.iter_mut().zip(targets) {
+            t.targets = *g;
+        }
+        let e = &self.env;
+        e.ctx.upload(TASK_STATES.name, &self.task_states, bytemuck::cast_slice(&ts))?;
+        e.ctx.upload(TARGETS.name, &e.targets, bytemuck::cast_slice(targets))?;
+        let passes = [
+            (&e.step_pipeline, &e.step_group),
+            (&self.reward_pipeline, &self.reward_group),
+            (&e.reset_pipeline, &e.reset_group),
+            (&self.observe_pipeline, &self.observe_group),
+        ];
+        dispatch_and_read(e, &passes, &self.out, &self.readback, self.out_bytes, &mut self.host, "task step")?;
+        self.unpack_obs();
+        let n = self.spec.num_envs;
+        let base = n * (self.spec.obs_dim + self.spec.priv_dim);
+        self.batch.fill_misc(&self.host[base..base + n * OUT_MISC]);
+        Ok(&self.batch)
+    }
+
+    fn reference_frames(&mut self, k: u32) -> Result<Option<Vec<crate::env::reference::RefFrame>>> {
+        if self.bank.is_none() {
+            return Ok(None);
+        }
+        // the shader's sampler, run on the host (its CPU twin) with each env's cursor and step
+        let (ts, states) = (self.task_states()?, self.env.states()?);
+        let r = crate::task::ref_model(&self.env.model, self.bank.as_ref(), &self.rg);
+        Ok(Some(ts.iter().zip(&states).map(|(t, s)| crate::env::reference::ref_sample(&r, &t.cursor, s.step, k)).collect()))
     }
 
     fn targets(&mut self) -> Result<Vec<Targets>> {

@@ -200,6 +200,15 @@ pub trait TaskBatch: Send {
     /// targets, steps the physics, computes reward terms / terminations / time-outs on the post-step
     /// state, resets the done envs (next episode), then observes every env.
     fn step(&mut self, actions: &[f32]) -> Result<&StepBatch>;
+    /// As [`TaskBatch::step`], but the physics steps toward `targets` (`[N]`) instead of the
+    /// targets the task maps the actions to: a controller outside the simulator (`dextrain play`)
+    /// applies the action mapping itself. The task still records the actions as `step` does (the
+    /// previous action, the action terms, residual_task's smoothed and integrated residual), and
+    /// `targets` become the envs' current targets.
+    fn step_with_targets(&mut self, actions: &[f32], targets: &[Targets]) -> Result<&StepBatch>;
+    /// Reference kinds: every env's (augmented) reference `k` control steps after its current
+    /// env step (`k = 1`: the frame the action mapping adds to); `None` for the lift task.
+    fn reference_frames(&mut self, k: u32) -> Result<Option<Vec<RefFrame>>>;
     /// The wrist and joint targets of every env's last step (for an env that was just reset: the
     /// default targets its next step starts from).
     fn targets(&mut self) -> Result<Vec<Targets>>;
@@ -249,6 +258,16 @@ pub fn make_task_batch(cfg: &Config, model: SimModel) -> Result<Box<dyn TaskBatc
         Some(ctx) => Ok(Box::new(GpuTaskBatch::new(cfg, ctx, model)?)),
         None => Ok(Box::new(CpuTaskBatch::new(cfg, model)?)),
     }
+}
+
+/// Checks that a controller gives one target per env, with finite values.
+pub(crate) fn check_targets(spec: &TaskSpec, targets: &[Targets]) -> Result<()> {
+    ensure!(targets.len() == spec.num_envs, "{} targets for {} envs", targets.len(), spec.num_envs);
+    for (i, t) in targets.iter().enumerate() {
+        let finite = t.wrist_pos.iter().chain(&t.wrist_rot).chain(&t.q).all(|v| v.is_finite());
+        ensure!(finite, "the targets of env {i} are not finite");
+    }
+    Ok(())
 }
 
 /// Checks the length and finiteness of a step's actions.

@@ -196,6 +196,8 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
     let h = c.history.as_ref().unwrap();
     assert_eq!((h.length, h.step.fields.iter().map(|f| f.name.as_str()).collect::<Vec<_>>()), (4, vec!["q", "prev_action"]));
     assert_eq!(c.source.teacher.as_ref().unwrap().checkpoint, 2);
+    // played from the export alone (its history window kept by the controller): eval's episodes
+    crate::play::play_equals_eval(&a, "student");
     // eval of the student beside its teacher on the same seeds: the teacher's side is exactly what
     // evaluating the teacher run itself gives
     use dextrain::eval::{Baseline, EvalArgs, run as eval};

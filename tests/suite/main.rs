@@ -16,6 +16,7 @@ mod metrics;
 mod parity;
 mod perturb;
 mod physics;
+mod play;
 mod record;
 mod reference;
 mod shaders;
