@@ -21,7 +21,7 @@ struct TaskGlobals {
     episode_length: u32,
     finger_mode: u32,
     thumb: u32,
-    _pad0: u32,
+    obj_delay_min: u32,
     wrist_pos_scale: f32,
     wrist_rot_scale: f32,
     wrist_rot_limit: f32,
@@ -37,7 +37,7 @@ struct TaskGlobals {
     noise_hand_pos: f32,
     noise_object_pos: f32,
     noise_object_rot: f32,
-    _pad1: f32,
+    obj_delay_max: u32,
     kind: u32,
     n_terms: u32,
     start_mode: u32,
@@ -100,6 +100,14 @@ struct TaskState {
     // residual_task: the EMA-smoothed output ũ and the integrated residual Δa [n_res]
     res_ema: array<f32, 24>,
     res_delta: array<f32, 24>,
+    // the object poses of the last OBJ_HIST observations (slot step % OBJ_HIST) and this
+    // episode's latency (control steps) of the actor's object pose
+    obj_hist_pos: array<vec4<f32>, 8>,
+    obj_hist_rot: array<vec4<f32>, 8>,
+    obj_delay: u32,
+    _pad3a: u32,
+    _pad3b: u32,
+    _pad3c: u32,
 }
 
 // the task layer (shaders/task.wgsl, src/env/task_gpu.rs)
@@ -112,6 +120,10 @@ struct TaskState {
 
 
 const PURPOSE_OBS_NOISE: u32 = 3u;
+// RNG purpose of the object-pose latency draw (reference.wgsl uses 4)
+const PURPOSE_OBJ_DELAY: u32 = 5u;
+// slots of TaskState's object-pose ring
+const OBJ_HIST: u32 = 8u;
 // noise draw k of obs entry i at env step s: key = s * OBS_KEY_STRIDE + 2 i + k (k = 0, 1)
 const OBS_KEY_STRIDE: u32 = 4096u;
 const MAX_ACTIONS: u32 = 32u;
@@ -558,6 +570,29 @@ fn tip_position(t: u32) -> vec3<f32> {
 
 // the task state of an env that was just reset: default targets, no previous action, rest position;
 // reference kinds begin the episode's reference and may place hand and object on it (see the twin)
+// This episode's latency (control steps) of the actor's object pose: uniform in
+// [obj_delay_min, obj_delay_max].
+fn obj_delay_draw(env: u32, episode: u32) -> u32 {
+    let span = tc.obj_delay_max - tc.obj_delay_min;
+    let u = rand_uniform(g.seed, env, episode, PURPOSE_OBJ_DELAY, 0u);
+    return tc.obj_delay_min + min(u32(u * f32(span + 1u)), span);
+}
+
+// Records the object pose of this observation in the ring (every slot after an episode start)
+// and returns the slot of the pose obj_delay steps earlier.
+fn obj_delay_slot(ts: ptr<function, TaskState>, step: u32, started: bool, pos: vec4<f32>, rot: vec4<f32>) -> u32 {
+    if (started) {
+        for (var k = 0u; k < OBJ_HIST; k++) {
+            (*ts).obj_hist_pos[k] = pos;
+            (*ts).obj_hist_rot[k] = rot;
+        }
+    } else {
+        (*ts).obj_hist_pos[step % OBJ_HIST] = pos;
+        (*ts).obj_hist_rot[step % OBJ_HIST] = rot;
+    }
+    return (step + OBJ_HIST - (*ts).obj_delay) % OBJ_HIST;
+}
+
 fn task_init(env: u32, s: ptr<function, EnvState>) -> TaskState {
     var ts: TaskState;
     ts.targets.wrist_pos = g.init_wrist_pos;
@@ -592,6 +627,7 @@ fn task_init(env: u32, s: ptr<function, EnvState>) -> TaskState {
         }
     }
     ts.rest_pos = vec4<f32>((*s).obj_pos.xyz, 0.0);
+    ts.obj_delay = obj_delay_draw(env, (*s).episode);
     return ts;
 }
 
@@ -656,14 +692,17 @@ fn task_observe(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
     var s0 = states[env];
     let p = params[env];
     var ts = task_states[env];
-    if (reset_mask[env] != 0u || ts.done != 0u) {
+    let started = reset_mask[env] != 0u || ts.done != 0u;
+    if (started) {
         ts = task_init(env, &s0);
-        task_states[env] = ts;
         if (tc.kind != KIND_LIFT) {
             states[env] = s0;
         }
     }
     st = s0;
+    // the actor's object pose: the one obj_delay observations ago
+    let dslot = obj_delay_slot(&ts, st.step, started, st.obj_pos, st.obj_rot);
+    task_states[env] = ts;
     hand_kinematics();
     ob_env = env;
     ob_episode = st.episode;
@@ -709,16 +748,18 @@ fn task_observe(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
         ns_tips[t] = tn;
     }
     let op = st.obj_pos.xyz;
-    var on = op;
+    let dp = ts.obj_hist_pos[dslot].xyz;
+    var on = dp;
     for (var c = 0u; c < 3u; c++) {
-        on[c] = noisy(k, op[c], tc.noise_object_pos);
+        on[c] = noisy(k, dp[c], tc.noise_object_pos);
         put_obs(k, op[c], on[c]);
         k++;
     }
     let oq = st.obj_rot;
-    var qn = oq;
+    let dq = ts.obj_hist_rot[dslot];
+    var qn = dq;
     for (var c = 0u; c < 4u; c++) {
-        qn[c] = noisy(k + c, oq[c], tc.noise_object_rot);
+        qn[c] = noisy(k + c, dq[c], tc.noise_object_rot);
     }
     if (tc.noise_object_rot > 0.0) {
         qn = quat_normalize(qn);

@@ -160,7 +160,8 @@ pub struct ActionConfig {
     pub wrist_rot_limit: f32,
 }
 
-/// `[task.obs_noise]`: noise standard deviations (0 = none).
+/// `[task.obs_noise]`: what the actor's sensors add to the state: noise standard deviations (0 =
+/// none) and the latency of the object pose.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ObsNoiseConfig {
@@ -174,6 +175,12 @@ pub struct ObsNoiseConfig {
     pub object_pos: f32,
     /// Object orientation (each quaternion component, renormalised).
     pub object_rot: f32,
+    /// Latency of the object pose the actor sees, as a vision tracker's, in control steps: each
+    /// episode draws k uniformly from [min, max]; the actor's `obj_pos` / `obj_rot` (and what is
+    /// computed from them: lift's `obj_rel`, the reference block's object errors) are the pose of k
+    /// steps earlier (the episode's first pose before that), with the noise on top; the critic
+    /// sees the current pose. [0, 0] = none; at most [`crate::env::gpu_layout::MAX_OBJ_DELAY`].
+    pub object_delay: [u32; 2],
 }
 
 /// `[task.hand]`: points and thresholds on the hand that every task kind uses.
@@ -373,7 +380,7 @@ impl Default for ActionConfig {
 
 impl Default for ObsNoiseConfig {
     fn default() -> Self {
-        ObsNoiseConfig { joint_pos: 0.0, joint_vel: 0.0, hand_pos: 0.0, object_pos: 0.0, object_rot: 0.0 }
+        ObsNoiseConfig { joint_pos: 0.0, joint_vel: 0.0, hand_pos: 0.0, object_pos: 0.0, object_rot: 0.0, object_delay: [0, 0] }
     }
 }
 
@@ -521,6 +528,11 @@ impl ObsNoiseConfig {
             ("task.obs_noise.object_rot", self.object_rot),
         ] {
             c.non_neg(key, v)?;
+        }
+        let [lo, hi] = self.object_delay;
+        let max = crate::env::gpu_layout::MAX_OBJ_DELAY;
+        if lo > hi || hi > max {
+            return Err(c.err("task.obs_noise.object_delay", format!("[{lo}, {hi}]"), &format!("[min, max] control steps with min <= max <= {max}")));
         }
         Ok(())
     }

@@ -266,7 +266,9 @@ pub struct TaskGlobals {
     pub finger_mode: u32,
     /// Fingertip index of the thumb.
     pub thumb: u32,
-    pub _pad0: u32,
+    /// `task.obs_noise.object_delay`: the least and the largest latency (control steps) of the
+    /// actor's object pose.
+    pub obj_delay_min: u32,
     pub wrist_pos_scale: f32,
     pub wrist_rot_scale: f32,
     pub wrist_rot_limit: f32,
@@ -283,7 +285,7 @@ pub struct TaskGlobals {
     pub noise_hand_pos: f32,
     pub noise_object_pos: f32,
     pub noise_object_rot: f32,
-    pub _pad1: f32,
+    pub obj_delay_max: u32,
     /// `KIND_LIFT`, `KIND_TRACK`, `KIND_RESIDUAL_JOINT` or `KIND_RESIDUAL_TASK` (env::task).
     pub kind: u32,
     /// Number of reward terms of the kind (≤ `MAX_TERMS`).
@@ -364,7 +366,18 @@ pub struct TaskState {
     /// residual_task: the EMA-smoothed output ũ and the integrated residual Δa (`n_res` used).
     pub res_ema: [f32; MAX_RES],
     pub res_delta: [f32; MAX_RES],
+    /// The object poses of the last [`OBJ_HIST`] observations (position xyz_, quaternion xyzw),
+    /// slot `step % OBJ_HIST`, and this episode's latency (control steps) of the actor's view.
+    pub obj_hist_pos: [[f32; 4]; OBJ_HIST],
+    pub obj_hist_rot: [[f32; 4]; OBJ_HIST],
+    pub obj_delay: u32,
+    pub _pad3: [u32; 3],
 }
+
+/// Slots of the object-pose ring of [`TaskState`]; the largest latency is one less.
+pub const OBJ_HIST: usize = 8;
+/// The largest `task.obs_noise.object_delay` (control steps).
+pub const MAX_OBJ_DELAY: u32 = OBJ_HIST as u32 - 1;
 
 /// Most residual components of residual_task: 6 wrist + 3 per fingertip.
 pub const MAX_RES: usize = 6 + 3 * MAX_TIPS;

@@ -232,6 +232,10 @@ pub struct FieldContract {
     pub entries: Vec<String>,
     /// Standard deviation of the Gaussian noise training added (the robot gives its measurement).
     pub training_noise_std: f32,
+    /// The latency training gave the value, in control steps ([min, max], drawn per episode;
+    /// `task.obs_noise.object_delay` on the object pose and what is computed from it): a robot's
+    /// measurement as old as this is what the policy learned from.
+    pub training_delay_steps: [u32; 2],
 }
 
 /// An input vector's layout.
@@ -441,6 +445,12 @@ fn training_noise(cfg: &Config, slot: &ObsSlot, actor: bool) -> f32 {
     }
 }
 
+/// The latency training gave a field: the object pose's, on the actor's fields computed from it.
+fn training_delay(cfg: &Config, slot: &ObsSlot, actor: bool) -> [u32; 2] {
+    let from_object_pose = matches!(slot.field.name, "obj_pos" | "obj_rot" | "obj_rel");
+    if actor && slot.field.audience == Audience::Actor && from_object_pose { cfg.task.obs_noise.object_delay } else { [0, 0] }
+}
+
 /// The contract's view of one layout slot.
 fn field_contract(cfg: &Config, slot: &ObsSlot, offset: usize, actor: bool) -> Result<FieldContract> {
     let computed = if slot.field.per_reference_frame { computed_reference(slot.field.name) } else { computed(slot.field.name) };
@@ -454,6 +464,7 @@ fn field_contract(cfg: &Config, slot: &ObsSlot, offset: usize, actor: bool) -> R
         computed: computed.to_string(),
         entries: slot.entries.clone(),
         training_noise_std: training_noise(cfg, slot, actor),
+        training_delay_steps: training_delay(cfg, slot, actor),
     })
 }
 

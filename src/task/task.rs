@@ -16,6 +16,8 @@ use crate::hand::{MAX_JOINTS, MAX_TIPS};
 
 /// RNG purpose of the observation noise (keep in sync with task.wgsl; reset.rs uses 1 and 2).
 pub const PURPOSE_OBS_NOISE: u32 = 3;
+/// RNG purpose of the object-pose latency draw (reference.rs uses 4).
+pub const PURPOSE_OBJ_DELAY: u32 = 5;
 /// Noise draws of one env step: draw k of obs entry i at step s has key s · OBS_KEY_STRIDE + 2i + k.
 pub const OBS_KEY_STRIDE: u32 = 4096;
 /// Task kinds (`TaskGlobals::kind`; keep in sync with task.wgsl).
@@ -465,6 +467,28 @@ pub fn tip_position(m: &Model, s: &Scratch, t: usize) -> Vec3 {
     s.link_pos[l] + quat_rotate(s.link_rot[l], v3(tip.pos))
 }
 
+/// This episode's latency (control steps) of the actor's object pose: uniform in
+/// [obj_delay_min, obj_delay_max].
+pub fn obj_delay_draw(seed: u32, env: u32, episode: u32, tc: &TaskGlobals) -> u32 {
+    let span = tc.obj_delay_max - tc.obj_delay_min;
+    let u = rand_uniform(seed, env, episode, PURPOSE_OBJ_DELAY, 0);
+    tc.obj_delay_min + ((u * (span + 1) as f32) as u32).min(span)
+}
+
+/// Records the object pose of this observation in the ring (every slot after an episode start)
+/// and returns the slot of the pose `obj_delay` steps earlier.
+pub fn obj_delay_slot(ts: &mut TaskState, step: u32, started: bool, pos: [f32; 4], rot: [f32; 4]) -> usize {
+    let n = OBJ_HIST as u32;
+    if started {
+        ts.obj_hist_pos = [pos; OBJ_HIST];
+        ts.obj_hist_rot = [rot; OBJ_HIST];
+    } else {
+        ts.obj_hist_pos[(step % n) as usize] = pos;
+        ts.obj_hist_rot[(step % n) as usize] = rot;
+    }
+    ((step + n - ts.obj_delay) % n) as usize
+}
+
 /// The task state of an env that was just reset: default targets, no previous action, the rest
 /// position of the object. Reference kinds also begin the episode's reference ([`ref_begin`]) and,
 /// with `task.track.start = "reference"`, place the hand at the reference's first frame at rest
@@ -504,6 +528,7 @@ pub fn task_init(env: u32, st: &mut EnvState, m: &Model, tc: &TaskGlobals, r: &R
         }
     }
     ts.rest_pos = [st.obj_pos[0], st.obj_pos[1], st.obj_pos[2], 0.0];
+    ts.obj_delay = obj_delay_draw(m.g.seed, env, st.episode, tc);
     ts
 }
 
@@ -573,10 +598,13 @@ pub struct NoisyState {
 /// actor row `obs` and critic row `privo`.
 #[allow(clippy::too_many_arguments)]
 pub fn task_observe(env: u32, st: &mut EnvState, p: &EnvParams, ts: &mut TaskState, reset_req: u32, m: &Model, tc: &TaskGlobals, r: &RefModel, obs: &mut [f32], privo: &mut [f32]) {
-    if reset_req != 0 || ts.done != 0 {
+    let started = reset_req != 0 || ts.done != 0;
+    if started {
         *ts = task_init(env, st, m, tc, r);
     }
     let st: &EnvState = st;
+    // the actor's object pose: the one obj_delay observations ago
+    let dslot = obj_delay_slot(ts, st.step, started, st.obj_pos, st.obj_rot);
     let mut s = Scratch::default();
     hand_kinematics(st, m, &mut s);
     let mut o = ObsOut { seed: m.g.seed, env, episode: st.episode, step: st.step, obs, privo };
@@ -621,16 +649,18 @@ pub fn task_observe(env: u32, st: &mut EnvState, p: &EnvParams, ts: &mut TaskSta
         ns.tips[t] = tn;
     }
     let op = v3(st.obj_pos);
-    let mut on = op;
+    let dp = v3(ts.obj_hist_pos[dslot]);
+    let mut on = dp;
     for c in 0..3 {
-        on[c] = noisy(&o, k, op[c], tc.noise_object_pos);
+        on[c] = noisy(&o, k, dp[c], tc.noise_object_pos);
         put_obs(&mut o, k, op[c], on[c]);
         k += 1;
     }
     let oq = Vec4::from_array(st.obj_rot);
-    let mut qn = oq;
+    let dq = Vec4::from_array(ts.obj_hist_rot[dslot]);
+    let mut qn = dq;
     for c in 0..4 {
-        qn[c] = noisy(&o, k + c as u32, oq[c], tc.noise_object_rot);
+        qn[c] = noisy(&o, k + c as u32, dq[c], tc.noise_object_rot);
     }
     if tc.noise_object_rot > 0.0 {
         qn = quat_normalize(qn);

@@ -87,17 +87,18 @@ fn pod_structs_match_their_wgsl_twins() {
         contacts_ho, bad_reset, link_contact));
     let m = validate(&task_shader_source());
     check(&m, "TaskGlobals", size_of::<TaskGlobals>(), rust_fields!(TaskGlobals; wrist_pos_min, wrist_pos_max, palm_offset,
-        weights, actuated, n_actuated, n_act, obs_dim, priv_dim, episode_length, finger_mode, thumb, _pad0, wrist_pos_scale,
+        weights, actuated, n_actuated, n_act, obs_dim, priv_dim, episode_length, finger_mode, thumb, obj_delay_min, wrist_pos_scale,
         wrist_rot_scale, wrist_rot_limit, finger_delta_scale, reach_alpha, success_height, contact_force, drop_height,
         table_half_extent, max_hand_distance, noise_joint_pos, noise_joint_vel, noise_hand_pos, noise_object_pos,
-        noise_object_rot, _pad1, kind, n_terms, start_mode, lookahead, lookahead_stride, n_res, open_loop, track_action,
+        noise_object_rot, obj_delay_max, kind, n_terms, start_mode, lookahead, lookahead_stride, n_res, open_loop, track_action,
         beta_joint, beta_wrist_pos, beta_wrist_rot, alpha_joint, alpha_wrist_pos, alpha_wrist_rot, alpha_object_pos,
         alpha_object_rot, success_pos_tol, success_rot_tol, max_object_error, res_alpha, res_wrist_pos_alpha,
         res_wrist_rot_alpha, res_obj_pos_coef, res_obj_rot_coef, res_ema, res_scale_wrist_pos, res_scale_wrist_rot,
         res_scale_tips, res_clamp_wrist_pos, res_clamp_wrist_rot, res_clamp_tips, control_dt, rw_obj_pos, rw_obj_rot,
         rw_tips, rw_wrist_pos, rw_wrist_rot, _pad3, ik));
     check(&m, "TaskState", size_of::<TaskState>(), rust_fields!(TaskState; targets, rest_pos, prev_action, tip_force,
-        act_rate, act_mag, done, res_sq, link_contact, _pad, cursor, res_ema, res_delta));
+        act_rate, act_mag, done, res_sq, link_contact, _pad, cursor, res_ema, res_delta, obj_hist_pos, obj_hist_rot,
+        obj_delay, _pad3));
     // the reference layer (reference.wgsl, src/env/reference.rs)
     use dextrain::env::reference::{RefCursor, RefFrame, RefGlobals, RefInfo};
     check(&m, "RefInfo", size_of::<RefInfo>(), rust_fields!(RefInfo; obj0_pos, obj0_rot, bbox_min, bbox_max, first_frame, n_frames, first_segment_steps, flags));
@@ -129,6 +130,8 @@ fn shader_constants_match_rust() {
     use dextrain::task::task;
     for (name, v) in [
         ("PURPOSE_OBS_NOISE", task::PURPOSE_OBS_NOISE as usize),
+        ("PURPOSE_OBJ_DELAY", task::PURPOSE_OBJ_DELAY as usize),
+        ("OBJ_HIST", dextrain::env::gpu_layout::OBJ_HIST),
         ("OBS_KEY_STRIDE", task::OBS_KEY_STRIDE as usize),
         ("MAX_ACTIONS", MAX_ACTIONS),
         ("MAX_TERMS", task::MAX_TERMS),

@@ -67,6 +67,8 @@ fn cpu_and_gpu_agree_over_random_actions_with_resets_and_noise() {
     c.object.yaw_noise = 0.5;
     let nz = &mut c.task.obs_noise;
     (nz.joint_pos, nz.joint_vel, nz.hand_pos, nz.object_pos, nz.object_rot) = (0.01, 0.1, 0.005, 0.005, 0.02);
+    // a vision tracker's latency, drawn per episode: both backends draw the same and delay alike
+    nz.object_delay = [0, 4];
     let mut cpu = cpu_task(&c);
     let mut gpu = GpuTaskBatch::new(&c, ctx, SimModel::from_config(&c).unwrap()).expect("gpu task");
     assert!(gpu.gpu_context().is_some() && cpu.gpu_context().is_none());
@@ -697,4 +699,62 @@ fn link_contact_flags_the_links_that_push_on_the_object() {
         }
         assert!(pushing_steps > 0, "{backend}: the replay never grasped");
     }
+}
+
+/// `task.obs_noise.object_delay`: the actor sees the object pose of k control steps earlier (the
+/// episode's first pose before that) while the critic sees the current one — on both backends,
+/// with k fixed at 3; and with a range, every episode's k lies in it and the range is used.
+#[test]
+fn the_actors_object_pose_lags_by_the_drawn_latency_on_both_backends() {
+    let mut c = task_config(4);
+    c.task.episode_length = 12;
+    c.task.obs_noise.object_delay = [3, 3];
+    let model = SimModel::from_config(&c).unwrap();
+    let mut backends: Vec<(String, Box<dyn TaskBatch>)> = vec![("cpu".into(), Box::new(CpuTaskBatch::new(&c, model.clone()).unwrap()))];
+    if let Some(ctx) = gpu_context("the_actors_object_pose_lags_by_the_drawn_latency_on_both_backends") {
+        backends.push(("gpu".into(), Box::new(GpuTaskBatch::new(&c, ctx, model.clone()).unwrap())));
+    }
+    for (backend, mut task) in backends {
+        let spec = task.spec().clone();
+        let (od, pd, n) = (spec.obs_dim, spec.priv_dim, spec.num_envs);
+        let slot = |name: &str| spec.obs_layout.iter().find(|s| s.name == name).unwrap().offset;
+        let (p, q) = (slot("obj_pos"), slot("obj_rot"));
+        let pose = |rows: &[f32], dim: usize, i: usize| rows[i * dim + p..i * dim + q + 4].to_vec();
+        let first = task.reset_all().unwrap().clone();
+        // the critic's (current) poses of every step, and the actor's
+        let mut critic = vec![(0..n).map(|i| pose(&first.priv_obs, pd, i)).collect::<Vec<_>>()];
+        let mut actor = vec![(0..n).map(|i| pose(&first.obs, od, i)).collect::<Vec<_>>()];
+        let actions = random_actions(n, spec.action_dim, 3);
+        for _ in 0..10 {
+            let b = task.step(&actions).unwrap().clone();
+            critic.push((0..n).map(|i| pose(&b.priv_obs, pd, i)).collect());
+            actor.push((0..n).map(|i| pose(&b.obs, od, i)).collect());
+        }
+        let mut moved = false;
+        for t in 0..critic.len() {
+            for i in 0..n {
+                let want = &critic[t.saturating_sub(3)][i];
+                assert_eq!(&actor[t][i], want, "{backend}: env {i} step {t}: the actor's object pose is not the critic's of 3 steps earlier");
+                moved |= critic[t][i] != critic[0][i];
+            }
+        }
+        assert!(moved, "{backend}: the object never moved, the lag is not observable");
+    }
+    // a range: each episode draws its own latency in it
+    let cfg = |lo: u32, hi: u32| {
+        let mut c = task_config(64);
+        c.task.obs_noise.object_delay = [lo, hi];
+        c
+    };
+    let mut task = cpu_task(&cfg(1, 5));
+    task.reset_all().unwrap();
+    let delays: Vec<u32> = task.task_states().iter().map(|t| t.obj_delay).collect();
+    assert!(delays.iter().all(|&d| (1..=5).contains(&d)), "{delays:?}");
+    assert!(delays.contains(&1) && delays.contains(&5), "the range's ends are drawn: {delays:?}");
+    // beyond the ring: a one-line error naming the key
+    let mut c = cfg(0, 9);
+    let e = format!("{:#}", c.validate().unwrap_err());
+    assert!(e.contains("task.obs_noise.object_delay") && e.contains("7") && !e.contains('\n'), "{e}");
+    c.task.obs_noise.object_delay = [3, 2];
+    assert!(c.validate().is_err());
 }
