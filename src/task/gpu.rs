@@ -6,6 +6,9 @@
 //! `task_act` → `step_main` → `task_reward` → `reset_main` → `task_observe`, then a copy of the
 //! output buffer (obs `[N, obs_dim]`, priv obs `[N, priv_dim]`, records `[N, OUT_MISC]`) to the
 //! readback buffer, and one map of it. Nothing is allocated on the device per step.
+//! `step_with_targets` (an outside controller's targets: `dextrain play`) submits `task_act` alone,
+//! reads the task states back, writes the given targets into them and into the targets buffer,
+//! then runs the rest of the step.
 
 use anyhow::{Context, Result};
 
@@ -140,6 +143,28 @@ impl GpuTaskBatch {
         self.env.read(&self.task_states, TASK_STATES.name, self.spec.num_envs)
     }
 
+    /// One step's kernels over the uploaded actions (`task_act` first when `act`; without it the
+    /// targets are already in place), then the readback into the batch.
+    fn run_step(&mut self, act: bool) -> Result<&StepBatch> {
+        let e = &self.env;
+        let mut passes = Vec::with_capacity(5);
+        if act {
+            passes.push((&self.act_pipeline, &self.act_group));
+        }
+        passes.extend([
+            (&e.step_pipeline, &e.step_group),
+            (&self.reward_pipeline, &self.reward_group),
+            (&e.reset_pipeline, &e.reset_group),
+            (&self.observe_pipeline, &self.observe_group),
+        ]);
+        dispatch_and_read(e, &passes, &self.out, &self.readback, self.out_bytes, &mut self.host, "task step")?;
+        self.unpack_obs();
+        let n = self.spec.num_envs;
+        let base = n * (self.spec.obs_dim + self.spec.priv_dim);
+        self.batch.fill_misc(&self.host[base..base + n * OUT_MISC]);
+        Ok(&self.batch)
+    }
+
     /// Copies the obs and priv obs sections of `self.host` into the batch.
     fn unpack_obs(&mut self) {
         let n = self.spec.num_envs;
@@ -178,20 +203,7 @@ impl TaskBatch for GpuTaskBatch {
     fn step(&mut self, actions: &[f32]) -> Result<&StepBatch> {
         check_actions(&self.spec, actions)?;
         self.env.ctx.upload(ACTIONS.name, &self.actions, bytemuck::cast_slice(actions))?;
-        let e = &self.env;
-        let passes = [
-            (&self.act_pipeline, &self.act_group),
-            (&e.step_pipeline, &e.step_group),
-            (&self.reward_pipeline, &self.reward_group),
-            (&e.reset_pipeline, &e.reset_group),
-            (&self.observe_pipeline, &self.observe_group),
-        ];
-        dispatch_and_read(e, &passes, &self.out, &self.readback, self.out_bytes, &mut self.host, "task step")?;
-        self.unpack_obs();
-        let n = self.spec.num_envs;
-        let base = n * (self.spec.obs_dim + self.spec.priv_dim);
-        self.batch.fill_misc(&self.host[base..base + n * OUT_MISC]);
-        Ok(&self.batch)
+        self.run_step(true)
     }
 
     fn step_with_targets(&mut self, actions: &[f32], targets: &[Targets]) -> Result<&StepBatch> {
@@ -209,18 +221,7 @@ impl TaskBatch for GpuTaskBatch {
         let e = &self.env;
         e.ctx.upload(TASK_STATES.name, &self.task_states, bytemuck::cast_slice(&ts))?;
         e.ctx.upload(TARGETS.name, &e.targets, bytemuck::cast_slice(targets))?;
-        let passes = [
-            (&e.step_pipeline, &e.step_group),
-            (&self.reward_pipeline, &self.reward_group),
-            (&e.reset_pipeline, &e.reset_group),
-            (&self.observe_pipeline, &self.observe_group),
-        ];
-        dispatch_and_read(e, &passes, &self.out, &self.readback, self.out_bytes, &mut self.host, "task step")?;
-        self.unpack_obs();
-        let n = self.spec.num_envs;
-        let base = n * (self.spec.obs_dim + self.spec.priv_dim);
-        self.batch.fill_misc(&self.host[base..base + n * OUT_MISC]);
-        Ok(&self.batch)
+        self.run_step(false)
     }
 
     fn reference_frames(&mut self, k: u32) -> Result<Option<Vec<crate::env::reference::RefFrame>>> {
