@@ -32,12 +32,14 @@ pub fn gru_forward(params: &[Tensor<2>], x: Tensor<2>, steps: usize) -> Tensor<2
     let [d, h3] = w_ih.dims();
     let hs = h3 / 3;
     let b = x.dims()[0];
-    let mut h = Tensor::<2>::zeros([b, hs], &x.device());
+    // every step's input projection in one matmul: [B·T, D] · [D, 3H] + b_i → [B, T·3H] (row-major
+    // [B, T, 3H]); the recurrence below is left with h U only
+    let gi_all = (x.reshape([b * steps, d]).matmul(w_ih.clone()) + b_ih.clone()).reshape([b, steps * h3]);
+    let mut h = Tensor::<2>::zeros([b, hs], &gi_all.device());
     for t in 0..steps {
-        let xt = x.clone().slice([0..b, t * d..(t + 1) * d]); // [B, D]
-        let gi = xt.matmul(w_ih.clone()) + b_ih.clone(); // [B, 3H]: x W + b_i
-        let gh = h.clone().matmul(w_hh.clone()) + b_hh.clone(); // [B, 3H]: h U + b_h
         let block = |g: &Tensor<2>, k: usize| g.clone().slice([0..b, k * hs..(k + 1) * hs]);
+        let gi = gi_all.clone().slice([0..b, t * h3..(t + 1) * h3]); // [B, 3H]: x_t W + b_i
+        let gh = h.clone().matmul(w_hh.clone()) + b_hh.clone(); // [B, 3H]: h U + b_h
         let z = sigmoid(block(&gi, 0) + block(&gh, 0));
         let r = sigmoid(block(&gi, 1) + block(&gh, 1));
         // linear_before_reset: r multiplies (h U_n + b_hn)

@@ -1,6 +1,7 @@
 //! Online DAgger (`train.algorithm = "distill"`): the student's history windows, its copy of the
 //! teacher's actor, one update lowering both losses, λ1 = 0 leaving the actor alone, an exact
-//! resume, and one-line errors for a missing teacher or one of another task.
+//! resume, one-line errors for a missing teacher or one of another task, and the wgpu learner
+//! distilling as the CPU one does.
 
 use std::path::{Path, PathBuf};
 
@@ -227,4 +228,45 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
     let task = make_task_batch(&other, model).unwrap();
     let e = format!("{:#}", Distill::new(&other, task.spec(), 8, Device::flex().autodiff()).err().unwrap());
     assert!(e.contains("residual_task_cube.toml") && e.contains("teacher") && e.contains("config.toml") && !e.contains('\n'), "{e}");
+}
+
+/// Distillation on burn's wgpu learner (lavapipe in CI) acts and updates as on the CPU learner: the
+/// same teacher labels, the same executed actions, the same losses and updated student to float
+/// rounding.
+#[test]
+fn the_wgpu_learner_distills_as_the_cpu_learner_does() {
+    let Some(ctx) = crate::common::gpu_context("the_wgpu_learner_distills_as_the_cpu_learner_does") else { return };
+    let choice = dextrain::config::BackendChoice::Gpu(Some(ctx.info.name.clone()));
+    let (gpu_dev, name) = dextrain::learn::device::learner_device(&choice, Some(&ctx)).expect("burn wgpu on the test adapter");
+    assert!(name.starts_with("gpu (burn wgpu"), "{name}");
+    let tmp = tempfile::tempdir().unwrap();
+    let t = teacher(tmp.path());
+    // β = 0.5: some envs driven by the teacher, some by the student
+    let (cfg, mut cpu, mut task) = learner(&t, &["distill.beta_start=0.5", "distill.epochs=2"]);
+    let mut gpu = Distill::new(&cfg, task.spec(), 8, gpu_dev).unwrap();
+    assert_eq!(cpu.teacher_drives, gpu.teacher_drives);
+    assert!(cpu.teacher_drives.iter().any(|&d| d) && cpu.teacher_drives.iter().any(|&d| !d), "{:?}", cpu.teacher_drives);
+    let b = task.reset_all().unwrap().clone();
+    let mut obs = (b.obs.clone(), b.priv_obs.clone());
+    for _ in 0..4 {
+        let a = cpu.act(&obs.0, &obs.1).unwrap();
+        let g = gpu.act(&obs.0, &obs.1).unwrap();
+        for (x, y) in a.iter().zip(&g) {
+            assert!((x - y).abs() < 1e-4, "executed actions differ: {x} vs {y}");
+        }
+        let st = task.step(&a).unwrap();
+        cpu.observe(&st.reward, &st.terminated, &st.time_out, &st.success);
+        gpu.observe(&st.reward, &st.terminated, &st.time_out, &st.success);
+        obs = (st.obs.clone(), st.priv_obs.clone());
+    }
+    let fresh = cpu.student.values().unwrap();
+    let (s_cpu, s_gpu) = (cpu.update().unwrap(), gpu.update().unwrap());
+    for k in 0..2 {
+        assert!((s_cpu[k] - s_gpu[k]).abs() < 1e-3 * (1e-3 + s_cpu[k].abs()), "loss {k}: {} vs {}", s_cpu[k], s_gpu[k]);
+    }
+    let (p_cpu, p_gpu) = (cpu.student.values().unwrap(), gpu.student.values().unwrap());
+    let worst = p_cpu.iter().flatten().zip(p_gpu.iter().flatten()).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+    assert!(worst < 1e-4, "students after one update differ by {worst}");
+    let moved = fresh.iter().flatten().zip(p_cpu.iter().flatten()).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
+    assert!(moved > 1e-4, "the update moved the student ({moved})");
 }
