@@ -80,30 +80,37 @@ pub(crate) enum Driver {
 }
 
 /// Where the evaluated policy comes from.
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Copy)]
 pub(crate) enum PolicySource<'a> {
     /// A run's checkpoint directory (`dextrain eval`).
     Checkpoint(&'a std::path::Path),
     /// An export's `policy.json` (`dextrain play`): the ONNX model and the contract's action
     /// mapping, nothing of the checkpoint.
     Export(&'a std::path::Path),
+    /// A distillation run's student as it is now and its frozen teacher, both in memory (the run's
+    /// side-by-side evaluation, `distill.eval_interval`): `Driver::Policy` runs the student,
+    /// `Driver::Teacher` the teacher.
+    Distilling { student: &'a crate::learn::distill::StudentPolicy, teacher: &'a Ppo },
 }
 
 /// A deterministic policy that eval runs.
-enum Actor {
+enum Actor<'a> {
     Ppo(Box<Ppo>),
+    /// A policy that someone else owns (a distillation run's teacher).
+    Borrowed(&'a Ppo),
     Student(Box<crate::learn::distill::StudentPolicy>),
     /// An exported policy with its own action mapping (`dextrain play`).
     Exported(Box<crate::export::controller::Controller>),
 }
 
-impl Actor {
+impl Actor<'_> {
     /// Actions [N, A] for raw observations; `start[i]`: env i starts its episode at this step. An
     /// exported policy also gives the targets (its own action mapping), which the task then steps
     /// toward instead of mapping the actions itself.
     fn act(&mut self, obs: &[f32], priv_obs: &[f32], start: &[bool], task: &mut dyn crate::task::TaskBatch) -> Result<(Vec<f32>, Option<Vec<Targets>>)> {
         match self {
             Actor::Ppo(p) => Ok((p.act_mean(obs, priv_obs)?, None)),
+            Actor::Borrowed(p) => Ok((p.act_mean(obs, priv_obs)?, None)),
             Actor::Student(s) => Ok((s.act_mean(obs, start)?, None)),
             Actor::Exported(c) => {
                 // the reference the deployment follows: each env's first frame (for envs that
@@ -458,12 +465,25 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
         let mut task = make_task_batch(&c, model.clone())?;
         let spec = task.spec().clone();
         env_backend = task.backend_name();
-        let choice = c.train.device.clone();
-        let (device, dn) = learner_device(&choice, task.gpu_context())?;
-        device_name = dn;
         let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
+        // the learner device: where a checkpoint's policy is loaded (the other sources bring theirs)
+        let device = match source {
+            PolicySource::Checkpoint(_) => {
+                let (device, dn) = learner_device(&c.train.device, task.gpu_context())?;
+                device_name = dn;
+                Some(device)
+            }
+            _ => None,
+        };
         let mut actor = match source {
-            PolicySource::Checkpoint(ckpt) => load_actor(&c, ckpt, &spec, dims, n, device.clone(), driver)?,
+            PolicySource::Checkpoint(ckpt) => load_actor(&c, ckpt, &spec, dims, n, device.clone().context("no learner device")?, driver)?,
+            PolicySource::Distilling { student, teacher } => {
+                device_name = "the distillation run's learner".into();
+                match driver {
+                    Driver::Teacher => Actor::Borrowed(teacher),
+                    _ => Actor::Student(Box::new(student.clone())),
+                }
+            }
             PolicySource::Export(contract) => {
                 let urdf_path = c.resolve(&c.hand.urdf);
                 let urdf = std::fs::read(&urdf_path).with_context(|| format!("cannot read the hand URDF {}", urdf_path.display()))?;
@@ -473,16 +493,20 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
         };
         // a student's episodes: its teacher too, for the latent error ‖z − ẑ‖ on the same states
         // (a student whose teacher run is gone is still evaluated, without the latent error)
-        let teacher = match (&actor, driver) {
-            (Actor::Student(s), Driver::Policy) if s.student.latent > 0 => match load_actor(&c, checkpoint_of(source)?, &spec, dims, n, device, Driver::Teacher) {
+        let loaded_teacher = match (&actor, driver, source, device) {
+            (Actor::Student(s), Driver::Policy, PolicySource::Checkpoint(ckpt), Some(device)) if s.student.latent > 0 => match load_actor(&c, ckpt, &spec, dims, n, device, Driver::Teacher) {
                 Ok(Actor::Ppo(p)) => Some(p),
-                Ok(Actor::Student(_) | Actor::Exported(_)) => None,
+                Ok(Actor::Borrowed(_) | Actor::Student(_) | Actor::Exported(_)) => None,
                 Err(e) => {
                     crate::console::warn(&format!("warning: no latent error: cannot load the student's teacher: {}", crate::config::one_line(&format!("{e:#}"))));
                     None
                 }
             },
             _ => None,
+        };
+        let teacher: Option<&Ppo> = match (source, &actor, driver) {
+            (PolicySource::Distilling { teacher, .. }, Actor::Student(s), Driver::Policy) if s.student.latent > 0 => Some(teacher),
+            _ => loaded_teacher.as_deref(),
         };
         let mut latent_sum = vec![0.0f64; n];
         term_names = spec.term_names.clone();
@@ -642,26 +666,19 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
     Ok((summary, env_backend, device_name))
 }
 
-/// The checkpoint directory of a source that has one.
-fn checkpoint_of<'a>(source: PolicySource<'a>) -> Result<&'a std::path::Path> {
-    match source {
-        PolicySource::Checkpoint(c) => Ok(c),
-        PolicySource::Export(p) => bail!("{}: an exported policy has no checkpoint to load", p.display()),
-    }
-}
-
 impl PolicySource<'_> {
     /// The checkpoint directory or the contract's path.
     pub(crate) fn describe(&self) -> String {
         match self {
             PolicySource::Checkpoint(p) | PolicySource::Export(p) => p.display().to_string(),
+            PolicySource::Distilling { student, .. } => format!("a distillation run's student (teacher {} at iteration {})", student.teacher.0, student.teacher.1),
         }
     }
 }
 
 /// The policy that drives `driver`'s episodes: the run's (PPO or a distilled student), or a
 /// student's teacher (its run and the checkpoint the student's checkpoint names).
-fn load_actor(c: &Config, ckpt: &std::path::Path, spec: &crate::task::TaskSpec, dims: Dims, n: usize, device: burn::prelude::Device, driver: Driver) -> Result<Actor> {
+fn load_actor(c: &Config, ckpt: &std::path::Path, spec: &crate::task::TaskSpec, dims: Dims, n: usize, device: burn::prelude::Device, driver: Driver) -> Result<Actor<'static>> {
     let is_student = c.train.algorithm == crate::config::AlgorithmChoice::Distill;
     if is_student && driver == Driver::Policy {
         return Ok(Actor::Student(Box::new(crate::learn::distill::StudentPolicy::load(ckpt, spec.obs_dim, &device)?)));

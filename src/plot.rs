@@ -17,9 +17,11 @@
 //! | entropy          | `loss/entropy`, `entropy`, `policy/entropy`                  |
 //! | policy std       | `policy/std`                                                 |
 //! | fps              | `fps`                                                        |
+//! | student vs teacher | `distill/eval_student_success`, `distill/eval_teacher_success` (sparse) |
 //!
 //! x is the iteration, or the env steps when the CSV has an `env_steps` column. Non-finite values (and
-//! non-positive ones on a log axis) are skipped: a line breaks around them. Text uses DejaVu Sans,
+//! non-positive ones on a log axis) are skipped: a line breaks around them, but in a sparse panel
+//! (columns written every few iterations, `nan` between) it joins the finite points. Text uses DejaVu Sans,
 //! embedded from assets/ (licence: assets/DejaVuSans-LICENSE.txt), registered with plotters' `ab_glyph`
 //! font table, so no system font is needed.
 
@@ -123,6 +125,8 @@ struct Panel {
     legend: bool,
     /// prefix stripped from legend labels
     strip: &'static str,
+    /// the columns hold a value every few rows (`nan` between): join the finite points
+    sparse: bool,
 }
 
 impl Panel {
@@ -144,6 +148,7 @@ fn panels(columns: &[String]) -> Vec<Panel> {
         log_y: false,
         legend: names.len() > 1 && find(names).len() > 1,
         strip: "",
+        sparse: false,
     };
     let all = vec![
         single("mean reward", &["reward/mean"]),
@@ -156,27 +161,36 @@ fn panels(columns: &[String]) -> Vec<Panel> {
             log_y: false,
             legend: true,
             strip: "reward/",
+            sparse: false,
         },
-        Panel { title: "losses", columns: group("loss/", "loss/entropy"), log_y: false, legend: true, strip: "loss/" },
-        Panel { title: "learning rate", columns: find(&["lr"]), log_y: true, legend: false, strip: "" },
+        Panel { title: "losses", columns: group("loss/", "loss/entropy"), log_y: false, legend: true, strip: "loss/", sparse: false },
+        Panel { title: "learning rate", columns: find(&["lr"]), log_y: true, legend: false, strip: "", sparse: false },
         single("KL", &["kl"]),
         single("entropy", &["loss/entropy", "entropy", "policy/entropy"]),
         single("policy std", &["policy/std"]),
         single("fps", &["fps"]),
+        Panel {
+            title: "student vs teacher, same episodes",
+            columns: find(&["distill/eval_student_success", "distill/eval_teacher_success"]),
+            log_y: false,
+            legend: true,
+            strip: "distill/eval_",
+            sparse: true,
+        },
     ];
     all.into_iter().filter(|p| !p.columns.is_empty()).collect()
 }
 
 /// Splits a series into runs of drawable points (finite x and y; y > 0 on a log axis), y mapped to
-/// log10 on a log axis.
-fn segments(xs: &[f64], ys: &[f64], log_y: bool) -> Vec<Vec<(f64, f64)>> {
+/// log10 on a log axis; `sparse`: one run of all the drawable points.
+fn segments(xs: &[f64], ys: &[f64], log_y: bool, sparse: bool) -> Vec<Vec<(f64, f64)>> {
     let mut out: Vec<Vec<(f64, f64)>> = Vec::new();
     let mut cur = Vec::new();
     for (&x, &y) in xs.iter().zip(ys) {
         let y = if log_y { if y > 0.0 { y.log10() } else { f64::NAN } } else { y };
         if x.is_finite() && y.is_finite() {
             cur.push((x, y));
-        } else if !cur.is_empty() {
+        } else if !cur.is_empty() && !sparse {
             out.push(std::mem::take(&mut cur));
         }
     }
@@ -223,7 +237,7 @@ fn draw_panel(
     xs: &[f64],
     series: &[(String, Vec<f64>)],
 ) -> std::result::Result<(), DrawingAreaErrorKind<<BitMapBackend<'static> as DrawingBackend>::ErrorType>> {
-    let segs: Vec<Vec<Vec<(f64, f64)>>> = series.iter().map(|(_, ys)| segments(xs, ys, panel.log_y)).collect();
+    let segs: Vec<Vec<Vec<(f64, f64)>>> = series.iter().map(|(_, ys)| segments(xs, ys, panel.log_y, panel.sparse)).collect();
     let points = || segs.iter().flatten().flatten();
     let x_range = padded_range(points().map(|p| p.0));
     let y_range = padded_range(points().map(|p| p.1));

@@ -111,6 +111,13 @@ pub struct DistillConfig {
     pub minibatches: u32,
     /// Global gradient-norm clip.
     pub max_grad_norm: f32,
+    /// Every this many iterations (0: never), the student as it is and its teacher each drive the
+    /// same `eval_episodes` episodes (eval's seeds: the run's seed + 1000003; the policy means, eval's
+    /// rules) and metrics.csv gets both results side by side (`distill/eval_*`; `nan` in the rows
+    /// between). The frozen teacher's episodes are run once and reused.
+    pub eval_interval: u32,
+    /// Episodes of that side-by-side evaluation (one env each).
+    pub eval_episodes: u32,
 }
 
 impl Default for DistillConfig {
@@ -134,6 +141,8 @@ impl Default for DistillConfig {
             epochs: 5,
             minibatches: 4,
             max_grad_norm: 1.0,
+            eval_interval: 25,
+            eval_episodes: 32,
         }
     }
 }
@@ -170,6 +179,9 @@ impl DistillConfig {
         }
         if self.minibatches == 0 || self.minibatches as u64 > batch {
             return Err(c.err("distill.minibatches", self.minibatches, &format!("an integer in [1, sim.num_envs × train.steps_per_env = {batch}]")));
+        }
+        if !(1..=65536).contains(&self.eval_episodes) {
+            return Err(c.err("distill.eval_episodes", self.eval_episodes, "an integer in [1, 65536]"));
         }
         Ok(())
     }

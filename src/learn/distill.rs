@@ -104,6 +104,7 @@ pub fn load_teacher(cfg: &Config, spec: &TaskSpec, device: &Device) -> Result<Te
 
 /// The student network: `[gru (4), head weight [Hg, L], head bias [1, L], actor layers…]` (no GRU
 /// and head when the teacher has no latent).
+#[derive(Clone)]
 pub struct Student {
     /// Autodiff leaves on the learner device.
     pub params: Vec<Tensor<2>>,
@@ -494,6 +495,7 @@ impl Distill {
 
 /// A distilled student read back from a checkpoint, acting deterministically with its own history
 /// windows (what `eval` and `export --verify` run): every shape comes from the file.
+#[derive(Clone)]
 pub struct StudentPolicy {
     /// The network (inference tensors).
     pub student: Student,
@@ -550,6 +552,25 @@ impl StudentPolicy {
             info["teacher_manifest_xxh64"].as_str().unwrap_or_default().to_string(),
         );
         Ok(StudentPolicy { student, obs_index, hist_index, norm, teacher, window: Vec::new(), last_latent: Vec::new(), start: Vec::new() })
+    }
+
+    /// The student of a distillation learner as it is now (inference copies of its parameters), for
+    /// the run's side-by-side evaluation: it acts exactly as [`StudentPolicy::load`] of a checkpoint
+    /// written now would.
+    pub fn of_learner(d: &Distill) -> StudentPolicy {
+        let mut student = d.student.clone();
+        student.params = d.student.params.iter().map(|p| p.clone().inner()).collect();
+        let t = &d.teacher;
+        StudentPolicy {
+            student,
+            obs_index: d.obs_index.clone(),
+            hist_index: d.hist_index.clone(),
+            norm: t.ppo.normalize.then(|| t.ppo.obs_norm.clone()),
+            teacher: (t.run.display().to_string(), t.iteration, t.manifest_xxh64.clone()),
+            window: Vec::new(),
+            last_latent: Vec::new(),
+            start: Vec::new(),
+        }
     }
 
     /// The student's fields of raw observations [N, O] → [N, O_s].

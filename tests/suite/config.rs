@@ -129,6 +129,7 @@ fn task_and_learner_keys_are_checked_with_one_line_errors() {
         ("[policy]\nactivation = \"gelu\"\n", "policy.activation", "elu"),
         ("[train]\ndevice = \"tpu\"\n", "train.device", "gpu:ADAPTER_NAME"),
         ("[train]\nsteps_per_env = 0\n", "train.steps_per_env", "[1, 100000]"),
+        ("[train]\nalgorithm = \"distill\"\n[distill]\nteacher = \"t\"\neval_episodes = 0\n", "distill.eval_episodes", "[1, 65536]"),
     ] {
         let e = format!("{:#}", Config::from_toml_str(text, p).unwrap_err());
         assert!(e.contains("run.toml") && e.contains(key) && e.contains(hint) && !e.contains('\n'), "{text}: {e}");

@@ -157,7 +157,7 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
     let t = teacher(tmp.path());
     let args = |name: &str| TrainArgs {
         config: Some(CONFIG.into()),
-        sets: student_sets(&t, &["train.iterations=4", "train.save_interval=2"]),
+        sets: student_sets(&t, &["train.iterations=4", "train.save_interval=2", "distill.eval_interval=2", "distill.eval_episodes=4"]),
         name: Some(name.into()),
         resume: None,
         force: false,
@@ -184,6 +184,12 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
     let beta: Vec<f64> = ra.iter().map(|r| r.1[col("distill/beta")]).collect();
     assert_eq!(beta, [1.0, 0.5, 0.0, 0.0]);
     assert!(ra.iter().all(|r| r.1[col("loss/action")].is_finite() && r.1[col("loss/latent")].is_finite()));
+    // the side-by-side evaluation every 2 iterations (resumed above bit for bit, the teacher's
+    // episodes run again after the resume), nan between
+    let evals = dextrain::run::distill::EVAL_COLUMNS;
+    for r in &ra {
+        assert!(evals.iter().all(|c| r.1[col(c)].is_finite() == (r.0 % 2 == 0)), "iteration {}: {:?}", r.0, evals.map(|c| r.1[col(c)]));
+    }
     let student = |d: &Path| std::fs::read(d.join("checkpoints/4/model.safetensors")).unwrap();
     assert_eq!(student(&a), student(&b));
     let text = String::from_utf8_lossy(&student(&a)).into_owned();
@@ -216,6 +222,13 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
     assert!(r.path.to_string_lossy().ends_with("_teacher.json"));
     let md = std::fs::read_to_string(r.path.with_extension("md")).unwrap();
     assert!(md.contains("teacher") && md.contains("latent error"), "{md}");
+    // the run's side-by-side row at iteration 4 is `dextrain eval --baseline teacher` of checkpoint 4
+    // on eval's default seeds: the same episodes, bit for bit
+    let r4 = eval(&EvalArgs { seed: None, ..e(&a, Some(Baseline::Teacher)) }).unwrap();
+    let (b4, row) = (r4.baseline.as_ref().unwrap(), &ra[3].1);
+    let got = evals.map(|c| row[col(c)].to_bits());
+    let want = [r4.policy.success_rate, b4.success_rate, r4.policy.episode_return.mean, b4.episode_return.mean, r4.policy.latent_error.as_ref().unwrap().mean].map(f64::to_bits);
+    assert_eq!(got, want, "the run's row {:?} vs eval's", evals.map(|c| row[col(c)]));
     let err = format!("{:#}", eval(&e(&t, Some(Baseline::Teacher))).unwrap_err());
     assert!(err.contains("not a distilled student") && !err.contains('\n'), "{err}");
     // a teacher that does not exist, and one of another task
