@@ -53,6 +53,18 @@ pub enum DatasetMode {
     Aggregate,
 }
 
+/// `distill.adaptation`: the student's adaptation module φ(x_{t−H+1:t}) → z.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AdaptationModule {
+    /// A GRU over the window, its last hidden state through a linear layer (DexRefine).
+    Gru,
+    /// A temporal convolution (HORA / RMA): each step embedded by two ReLU layers to
+    /// `tcn_channels`, then 1-D convolutions over time (`tcn_layers`, ReLU after each), the result
+    /// flattened through a linear layer.
+    Tcn,
+}
+
 /// `distill.actor`: the student's main actor (copied from the teacher's at the start).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
@@ -83,8 +95,15 @@ pub struct DistillConfig {
     /// observation holds no simulator-only field). The teacher's first-layer weights of the others
     /// are dropped.
     pub student_obs: Vec<String>,
+    /// The adaptation module: `"gru"` (default, DexRefine) or `"tcn"` (HORA's temporal convolution).
+    pub adaptation: AdaptationModule,
     /// The GRU's hidden size.
     pub gru_hidden: usize,
+    /// The TCN's channels (the step embedding's width and every convolution's).
+    pub tcn_channels: usize,
+    /// The TCN's convolutions over time, in order: `[kernel, stride]` each (HORA's for H = 30:
+    /// [[9, 2], [5, 1], [5, 1]], which leave 3 steps of the 30).
+    pub tcn_layers: Vec<[u32; 2]>,
     /// λ1: weight of the action loss ‖û − u‖².
     pub lambda_action: f32,
     /// λ2: weight of the latent loss ‖z − ẑ‖².
@@ -128,7 +147,10 @@ impl Default for DistillConfig {
             history_len: 30,
             history_fields: vec!["q".into(), "prev_action".into()],
             student_obs: Vec::new(),
+            adaptation: AdaptationModule::Gru,
             gru_hidden: 64,
+            tcn_channels: 32,
+            tcn_layers: vec![[9, 2], [5, 1], [5, 1]],
             lambda_action: 0.1,
             lambda_latent: 1.0,
             beta_start: 1.0,
@@ -148,6 +170,17 @@ impl Default for DistillConfig {
 }
 
 impl DistillConfig {
+    /// The steps the TCN's convolutions leave of the history window (None: a kernel longer than
+    /// its input): T' = ⌊(T − k) / s⌋ + 1 per layer.
+    pub fn tcn_steps_out(&self) -> Option<usize> {
+        crate::learn::tcn::steps_out(self.history_len as usize, &self.tcn_convs())
+    }
+
+    /// `tcn_layers` as (kernel, stride) pairs.
+    pub fn tcn_convs(&self) -> Vec<(usize, usize)> {
+        self.tcn_layers.iter().map(|&[k, s]| (k as usize, s as usize)).collect()
+    }
+
     /// Checks `[distill]`; `batch` = sim.num_envs × train.steps_per_env.
     pub fn validate(&self, c: &Check, batch: u64) -> Result<()> {
         if self.teacher.trim().is_empty() {
@@ -164,6 +197,18 @@ impl DistillConfig {
         }
         if !(1..=4096).contains(&self.gru_hidden) {
             return Err(c.err("distill.gru_hidden", self.gru_hidden, "an integer in [1, 4096]"));
+        }
+        if self.adaptation == AdaptationModule::Tcn {
+            if !(1..=4096).contains(&self.tcn_channels) {
+                return Err(c.err("distill.tcn_channels", self.tcn_channels, "an integer in [1, 4096]"));
+            }
+            let shown = format!("{:?}", self.tcn_layers);
+            if self.tcn_layers.is_empty() || self.tcn_layers.iter().any(|&[k, s]| k == 0 || s == 0) {
+                return Err(c.err("distill.tcn_layers", &shown, "a non-empty list of [kernel, stride] pairs, each >= 1"));
+            }
+            if self.tcn_steps_out().is_none() {
+                return Err(c.err("distill.tcn_layers", &shown, &format!("convolutions that fit in distill.history_len = {} steps (each kernel at most the steps left by the layers before it)", self.history_len)));
+            }
         }
         c.non_neg("distill.lambda_action", self.lambda_action)?;
         c.non_neg("distill.lambda_latent", self.lambda_latent)?;

@@ -21,7 +21,7 @@ use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 
 pub use hand::{HandConfig, WristConfig};
-pub use learn::{Activation, AlgorithmChoice, DatasetMode, DistillConfig, EncoderConfig, LrSchedule, PolicyConfig, PpoConfig, StudentActor, TrainConfig};
+pub use learn::{Activation, AdaptationModule, AlgorithmChoice, DatasetMode, DistillConfig, EncoderConfig, LrSchedule, PolicyConfig, PpoConfig, StudentActor, TrainConfig};
 pub use sim::{BackendChoice, ContactConfig, ObjectConfig, RandomizationConfig, SimConfig, TableConfig};
 pub use task::{
     ActionConfig, FingerMode, HandPointsConfig, LiftConfig, ObsNoiseConfig, ReferenceConfig, ReferenceStart, ResidualConfig, TaskConfig, TaskKind,

@@ -19,7 +19,7 @@ use crate::checkpoint;
 use crate::config::Config;
 use crate::env::SimModel;
 use crate::learn::normalizer::Normalizer;
-use crate::learn::distill::StudentPolicy;
+use crate::learn::distill::{Adaptation, StudentPolicy};
 use crate::learn::ppo::{Dims, Ppo};
 use crate::run_dir;
 use crate::task::{make_task_batch, task_setup};
@@ -306,10 +306,28 @@ fn student_net(s: &StudentPolicy, obs_dim: usize) -> Result<PolicyNet> {
     let values = st.values()?;
     let k = st.n_adapt;
     let actor = mlp(&values[k..], &st.shapes[k..], st.activation);
+    let dense = |i: usize| Dense { weight: values[i].clone(), bias: values[i + 1].clone(), inputs: st.shapes[i][0], outputs: st.shapes[i][1] };
     Ok(if st.latent > 0 {
-        let gru = onnx::Gru { inputs: st.step_dim, hidden: st.shapes[1][0], w_ih: values[0].clone(), w_hh: values[1].clone(), b_ih: values[2].clone(), b_hh: values[3].clone() };
-        let head = Dense { weight: values[4].clone(), bias: values[5].clone(), inputs: st.shapes[4][0], outputs: st.shapes[4][1] };
-        PolicyNet::Student { obs_norm: pick(&s.obs_index), hist_norm: pick(&s.hist_index), gru, head, actor, history_len: st.history_len }
+        let adapt = match &st.adaptation {
+            Adaptation::Gru => onnx::Adaptation::Gru(onnx::Gru { inputs: st.step_dim, hidden: st.shapes[1][0], w_ih: values[0].clone(), w_hh: values[1].clone(), b_ih: values[2].clone(), b_hh: values[3].clone() }),
+            Adaptation::Tcn { convs } => {
+                let e = crate::learn::tcn::EMBED_LAYERS;
+                let embed = (0..e).map(|j| dense(2 * j)).collect();
+                let convs = convs
+                    .iter()
+                    .enumerate()
+                    .map(|(j, &(kernel, stride))| {
+                        let i = 2 * (e + j);
+                        // weight [K·C_in, C_out]
+                        let (rows, outputs) = (st.shapes[i][0], st.shapes[i][1]);
+                        onnx::Conv1d { inputs: rows / kernel, outputs, kernel, stride, weight: values[i].clone(), bias: values[i + 1].clone() }
+                    })
+                    .collect();
+                onnx::Adaptation::Tcn(onnx::Tcn { embed, convs })
+            }
+        };
+        let head = dense(k - 2);
+        PolicyNet::Student { obs_norm: pick(&s.obs_index), hist_norm: pick(&s.hist_index), adapt, head, actor, history_len: st.history_len }
     } else {
         PolicyNet::Mlp { obs_norm: pick(&s.obs_index), actor }
     })

@@ -12,8 +12,10 @@
 //! - `Mlp`: obs [B, O] → Sub μ → Div d → (Gemm → act)* → Gemm → actions [B, A];
 //! - `Encoder`: also priv_obs [B, P] → Sub → Div → Gather(axis 1, the encoder's inputs) → encoder
 //!   MLP → z [B, L]; Concat(x̂, z) → actor;
-//! - `Student`: history [B, H, D] → Sub → Div (per component) → Transpose [H, B, D] → GRU → Y_h
-//!   [1, B, Hg] → Squeeze → Gemm (head) → z; Concat(x̂, z) → actor.
+//! - `Student`: history [B, H, D] → Sub → Div (per component) → φ → Gemm (head) → z; Concat(x̂, z)
+//!   → actor. φ is a GRU (Transpose [H, B, D] → GRU → Y_h [1, B, Hg] → Squeeze) or a temporal
+//!   convolution (per step (MatMul → Add → Relu)×2 → Transpose [B, C, H] → (Conv → Relu)* →
+//!   Transpose [B, T', C] → Flatten [B, T'·C], time-major as `learn::tcn` computes it).
 //!
 //! The GRU is ONNX's `GRU` op (one node, `linear_before_reset = 1`, PyTorch's formulation), not an
 //! unrolled cell: one node that runtimes fuse and that reads as what it is, with H·3 fewer nodes.
@@ -72,6 +74,37 @@ pub struct Gru {
     pub b_hh: Vec<f32>,
 }
 
+/// A 1-D convolution over time (no padding, no dilation), ReLU after it in a [`Tcn`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Conv1d {
+    /// Input and output channels, kernel length K and stride S.
+    pub inputs: usize,
+    pub outputs: usize,
+    pub kernel: usize,
+    pub stride: usize,
+    /// `[K·C_in, C_out]` row-major, row k·C_in + c (ONNX's W[o, c, k] is `weight[(k·C_in + c)·C_out + o]`).
+    pub weight: Vec<f32>,
+    /// `[C_out]`.
+    pub bias: Vec<f32>,
+}
+
+/// A temporal-convolution adaptation module (`learn::tcn`): each step through the `embed` layers
+/// (ReLU after each), then the convolutions (ReLU after each), flattened time-major [T'·C].
+#[derive(Clone, Debug, PartialEq)]
+pub struct Tcn {
+    pub embed: Vec<Dense>,
+    pub convs: Vec<Conv1d>,
+}
+
+/// A student's adaptation module φ over its history window.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Adaptation {
+    /// φ = the GRU's last hidden state.
+    Gru(Gru),
+    /// φ = the TCN's flattened output.
+    Tcn(Tcn),
+}
+
 /// A deterministic policy network (the Gaussian policy's mean).
 #[derive(Clone, Debug, PartialEq)]
 pub enum PolicyNet {
@@ -80,8 +113,8 @@ pub enum PolicyNet {
     /// A teacher with a privileged encoder: z = encoder(norm_p(priv_obs)[priv_index]),
     /// actions = actor([norm(obs); z]).
     Encoder { obs_norm: Normalization, priv_norm: Normalization, priv_index: Vec<usize>, encoder: Mlp, actor: Mlp },
-    /// A student: z = head(GRU(norm_h(history))), actions = actor([norm(obs); z]).
-    Student { obs_norm: Normalization, hist_norm: Normalization, gru: Gru, head: Dense, actor: Mlp, history_len: usize },
+    /// A student: z = head(φ(norm_h(history))), actions = actor([norm(obs); z]).
+    Student { obs_norm: Normalization, hist_norm: Normalization, adapt: Adaptation, head: Dense, actor: Mlp, history_len: usize },
 }
 
 /// Input sizes of a network: (obs, priv_obs or 0, history steps × step size or (0, 0)).
@@ -131,6 +164,44 @@ fn check_norm(n: &Normalization, what: &str) -> Result<()> {
     Ok(())
 }
 
+/// Checks a GRU over steps of `d` numbers; returns its output size (hidden).
+fn check_gru(gru: &Gru, d: usize) -> Result<usize> {
+    let h = gru.hidden;
+    ensure!(gru.inputs == d, "gru: {} inputs; expected {d} (the history step size)", gru.inputs);
+    ensure!(h > 0, "gru: hidden size 0");
+    ensure!(gru.w_ih.len() == d * 3 * h, "gru: w_ih has {} values; expected {d} × {} = {}", gru.w_ih.len(), 3 * h, d * 3 * h);
+    ensure!(gru.w_hh.len() == h * 3 * h, "gru: w_hh has {} values; expected {h} × {} = {}", gru.w_hh.len(), 3 * h, h * 3 * h);
+    ensure!(gru.b_ih.len() == 3 * h && gru.b_hh.len() == 3 * h, "gru: biases have {} and {} values; expected {} each", gru.b_ih.len(), gru.b_hh.len(), 3 * h);
+    ensure!(gru.w_ih.iter().chain(&gru.w_hh).chain(&gru.b_ih).chain(&gru.b_hh).all(|x| x.is_finite()), "gru: a weight or bias is not finite");
+    Ok(h)
+}
+
+/// Checks a TCN over `steps` steps of `d` numbers; returns its output size T'·C.
+fn check_tcn(tcn: &Tcn, d: usize, steps: usize) -> Result<usize> {
+    ensure!(!tcn.embed.is_empty(), "tcn: no embedding layers");
+    let mut width = d;
+    for (k, l) in tcn.embed.iter().enumerate() {
+        let name = format!("tcn embedding layer {k}");
+        check_dense(l, &name)?;
+        ensure!(l.inputs == width, "{name}: {} inputs; expected {width}", l.inputs);
+        width = l.outputs;
+    }
+    ensure!(!tcn.convs.is_empty(), "tcn: no convolutions");
+    let mut t = steps;
+    for (k, c) in tcn.convs.iter().enumerate() {
+        let name = format!("tcn convolution {k}");
+        ensure!(c.inputs == width, "{name}: {} input channels; expected {width}", c.inputs);
+        ensure!(c.outputs > 0 && c.kernel > 0 && c.stride > 0, "{name}: {} channels, kernel {}, stride {}; expected positive sizes", c.outputs, c.kernel, c.stride);
+        ensure!(c.kernel <= t, "{name}: kernel {} over {t} steps; expected a kernel at most the steps left", c.kernel);
+        ensure!(c.weight.len() == c.kernel * c.inputs * c.outputs, "{name}: weight has {} values; expected {} × {} × {}", c.weight.len(), c.kernel, c.inputs, c.outputs);
+        ensure!(c.bias.len() == c.outputs, "{name}: bias has {} values; expected {}", c.bias.len(), c.outputs);
+        ensure!(c.weight.iter().chain(&c.bias).all(|x| x.is_finite()), "{name}: a weight or bias is not finite");
+        t = (t - c.kernel) / c.stride + 1;
+        width = c.outputs;
+    }
+    Ok(t * width)
+}
+
 /// Checks a network's sizes: one-line errors naming the part and the expected sizes.
 pub fn check(net: &PolicyNet) -> Result<()> {
     match net {
@@ -149,18 +220,16 @@ pub fn check(net: &PolicyNet) -> Result<()> {
             let latent = encoder.layers.last().map(|l| l.outputs).unwrap_or(0);
             check_mlp(actor, obs_norm.mean.len() + latent, "actor")
         }
-        PolicyNet::Student { obs_norm, hist_norm, gru, head, actor, history_len } => {
+        PolicyNet::Student { obs_norm, hist_norm, adapt, head, actor, history_len } => {
             check_norm(obs_norm, "obs normalisation")?;
             check_norm(hist_norm, "history normalisation")?;
             ensure!(*history_len > 0, "student: history length 0; expected at least 1");
-            let (d, h) = (gru.inputs, gru.hidden);
-            ensure!(d == hist_norm.mean.len(), "gru: {d} inputs; expected {} (the history step size)", hist_norm.mean.len());
-            ensure!(h > 0, "gru: hidden size 0");
-            ensure!(gru.w_ih.len() == d * 3 * h, "gru: w_ih has {} values; expected {d} × {} = {}", gru.w_ih.len(), 3 * h, d * 3 * h);
-            ensure!(gru.w_hh.len() == h * 3 * h, "gru: w_hh has {} values; expected {h} × {} = {}", gru.w_hh.len(), 3 * h, h * 3 * h);
-            ensure!(gru.b_ih.len() == 3 * h && gru.b_hh.len() == 3 * h, "gru: biases have {} and {} values; expected {} each", gru.b_ih.len(), gru.b_hh.len(), 3 * h);
+            let f = match adapt {
+                Adaptation::Gru(gru) => check_gru(gru, hist_norm.mean.len())?,
+                Adaptation::Tcn(tcn) => check_tcn(tcn, hist_norm.mean.len(), *history_len)?,
+            };
             check_dense(head, "head")?;
-            ensure!(head.inputs == h, "head: {} inputs; expected {h} (the GRU's hidden size)", head.inputs);
+            ensure!(head.inputs == f, "head: {} inputs; expected {f} (the adaptation module's outputs)", head.inputs);
             check_mlp(actor, obs_norm.mean.len() + head.outputs, "actor")
         }
     }
@@ -261,6 +330,43 @@ fn gru_forward(g: &Gru, hist: &[f32], b: usize, steps: usize) -> Vec<f32> {
     h
 }
 
+/// The TCN's flattened output [B, T'·C] (time-major) over a normalised history [B, H, D].
+fn tcn_forward(t: &Tcn, hist: &[f32], b: usize, steps: usize) -> Vec<f32> {
+    // every step embedded: [B·H, D] → [B·H, C], ReLU after each layer
+    let mut e = hist.to_vec();
+    for l in &t.embed {
+        e = dense(l, &e, b * steps);
+        activate(Activation::Relu, &mut e);
+    }
+    let mut width = t.embed.last().map(|l| l.outputs).unwrap_or(0);
+    let mut len = steps;
+    for c in &t.convs {
+        let out_len = (len - c.kernel) / c.stride + 1;
+        let mut y = vec![0.0f32; b * out_len * c.outputs];
+        for r in 0..b {
+            for to in 0..out_len {
+                let out = &mut y[(r * out_len + to) * c.outputs..(r * out_len + to + 1) * c.outputs];
+                out.copy_from_slice(&c.bias);
+                // y[t', o] = b[o] + Σ_k Σ_c x[t'·S + k, c] W[k·C_in + c, o]
+                for k in 0..c.kernel {
+                    for ch in 0..c.inputs {
+                        let x = e[(r * len + to * c.stride + k) * width + ch];
+                        let w = &c.weight[(k * c.inputs + ch) * c.outputs..(k * c.inputs + ch + 1) * c.outputs];
+                        for (o, wo) in out.iter_mut().zip(w) {
+                            *o += x * wo;
+                        }
+                    }
+                }
+            }
+        }
+        activate(Activation::Relu, &mut y);
+        e = y;
+        len = out_len;
+        width = c.outputs;
+    }
+    e
+}
+
 /// The network's actions [B, A] for raw inputs (row-major): `obs` [B, O], `priv_obs` [B, P]
 /// (Encoder), `history` [B, H, D] (Student); the reference for every other implementation.
 pub fn forward(net: &PolicyNet, obs: &[f32], priv_obs: &[f32], history: &[f32], batch: usize) -> Result<Vec<f32>> {
@@ -278,9 +384,13 @@ pub fn forward(net: &PolicyNet, obs: &[f32], priv_obs: &[f32], history: &[f32], 
             let l = z.len() / batch.max(1);
             mlp_forward(actor, &concat(&normalize(obs_norm, obs), o, &z, l, batch), batch)
         }
-        PolicyNet::Student { obs_norm, hist_norm, gru, head, actor, history_len } => {
-            let h = gru_forward(gru, &normalize(hist_norm, history), batch, *history_len);
-            let z = dense(head, &h, batch);
+        PolicyNet::Student { obs_norm, hist_norm, adapt, head, actor, history_len } => {
+            let hn = normalize(hist_norm, history);
+            let f = match adapt {
+                Adaptation::Gru(gru) => gru_forward(gru, &hn, batch, *history_len),
+                Adaptation::Tcn(tcn) => tcn_forward(tcn, &hn, batch, *history_len),
+            };
+            let z = dense(head, &f, batch);
             mlp_forward(actor, &concat(&normalize(obs_norm, obs), o, &z, head.outputs, batch), batch)
         }
     })
@@ -364,6 +474,64 @@ impl Graph {
         self.node("Gemm", &[x, &w, &b], &format!("{prefix}_out"), vec![])
     }
 
+    /// A GRU over a normalised history [B, H, D]; returns its last hidden state [B, Hg].
+    fn gru(&mut self, h: &str, gru: &Gru) -> String {
+        // [B, H, D] → [H, B, D]: ONNX GRU's layout 0 is sequence first
+        let seq = self.node("Transpose", &[h], "history_seq", vec![attr_ints("perm", vec![1, 0, 2])]);
+        let hs = gru.hidden;
+        let w = self.f32s("gru_w", &[1, 3 * hs, gru.inputs], &gates_rows(&gru.w_ih, gru.inputs, hs));
+        let r = self.f32s("gru_r", &[1, 3 * hs, hs], &gates_rows(&gru.w_hh, hs, hs));
+        let b: Vec<f32> = gru.b_ih.iter().chain(&gru.b_hh).copied().collect();
+        let b = self.f32s("gru_b", &[1, 6 * hs], &b);
+        self.nodes.push(pb::NodeProto {
+            name: "gru".into(),
+            op_type: "GRU".into(),
+            // X, W, R, B; no sequence lengths, h₀ = 0
+            input: vec![seq, w, r, b],
+            output: vec!["gru_y".into(), "gru_h".into()],
+            attribute: vec![attr_int("hidden_size", hs as i64), attr_int("linear_before_reset", 1)],
+            ..Default::default()
+        });
+        // Y_h [1, B, Hg] → [B, Hg]
+        let axes = self.i64s("gru_h_axes", &[1], &[0]);
+        self.node("Squeeze", &["gru_h", &axes], "gru_last", vec![])
+    }
+
+    /// A TCN over a normalised history [B, H, D]; returns its flattened output [B, T'·C]
+    /// (time-major).
+    fn tcn(&mut self, h: &str, tcn: &Tcn) -> String {
+        // every step embedded: [B, H, D] · [D, C] + b, ReLU (MatMul broadcasts over B and H)
+        let mut e = h.to_string();
+        for (k, l) in tcn.embed.iter().enumerate() {
+            let w = self.f32s(&format!("tcn_embed_{k}_weight"), &[l.inputs, l.outputs], &l.weight);
+            let b = self.f32s(&format!("tcn_embed_{k}_bias"), &[l.outputs], &l.bias);
+            let m = self.node("MatMul", &[&e, &w], &format!("tcn_embed_{k}_matmul"), vec![]);
+            let a = self.node("Add", &[&m, &b], &format!("tcn_embed_{k}_out"), vec![]);
+            e = self.node("Relu", &[&a], &format!("tcn_embed_{k}_act"), vec![]);
+        }
+        // [B, H, C] → [B, C, H]: Conv's channels-first layout
+        let mut y = self.node("Transpose", &[&e], "tcn_channels_first", vec![attr_ints("perm", vec![0, 2, 1])]);
+        for (k, c) in tcn.convs.iter().enumerate() {
+            // W[o, c, k] = weight[(k·C_in + c)·C_out + o]
+            let mut w = vec![0.0f32; c.outputs * c.inputs * c.kernel];
+            for o in 0..c.outputs {
+                for ch in 0..c.inputs {
+                    for kk in 0..c.kernel {
+                        w[(o * c.inputs + ch) * c.kernel + kk] = c.weight[(kk * c.inputs + ch) * c.outputs + o];
+                    }
+                }
+            }
+            let w = self.f32s(&format!("tcn_conv_{k}_weight"), &[c.outputs, c.inputs, c.kernel], &w);
+            let b = self.f32s(&format!("tcn_conv_{k}_bias"), &[c.outputs], &c.bias);
+            let attrs = vec![attr_ints("kernel_shape", vec![c.kernel as i64]), attr_ints("strides", vec![c.stride as i64])];
+            let conv = self.node("Conv", &[&y, &w, &b], &format!("tcn_conv_{k}_out"), attrs);
+            y = self.node("Relu", &[&conv], &format!("tcn_conv_{k}_act"), vec![]);
+        }
+        // [B, C, T'] → [B, T', C] → [B, T'·C]: time-major like the learner's
+        let t = self.node("Transpose", &[&y], "tcn_time_major", vec![attr_ints("perm", vec![0, 2, 1])]);
+        self.node("Flatten", &[&t], "tcn_out", vec![attr_int("axis", 1)])
+    }
+
     /// An MLP; the last layer's output is named `output`.
     fn mlp(&mut self, x: &str, m: &Mlp, prefix: &str, output: &str) -> String {
         let mut h = x.to_string();
@@ -438,30 +606,15 @@ pub fn to_onnx(net: &PolicyNet, metadata: &[(String, String)]) -> Result<Vec<u8>
             let xz = g.node("Concat", &[&x, &z], "actor_input", vec![attr_int("axis", 1)]);
             g.mlp(&xz, actor, "actor", "actions");
         }
-        PolicyNet::Student { obs_norm, hist_norm, gru, head, actor, history_len: _ } => {
+        PolicyNet::Student { obs_norm, hist_norm, adapt, head, actor, history_len: _ } => {
             inputs.push(value_info("history", &[hl, hd]));
             let x = g.normalize("obs", obs_norm, "obs");
             let h = g.normalize("history", hist_norm, "history");
-            // [B, H, D] → [H, B, D]: ONNX GRU's layout 0 is sequence first
-            let seq = g.node("Transpose", &[&h], "history_seq", vec![attr_ints("perm", vec![1, 0, 2])]);
-            let hs = gru.hidden;
-            let w = g.f32s("gru_w", &[1, 3 * hs, gru.inputs], &gates_rows(&gru.w_ih, gru.inputs, hs));
-            let r = g.f32s("gru_r", &[1, 3 * hs, hs], &gates_rows(&gru.w_hh, hs, hs));
-            let b: Vec<f32> = gru.b_ih.iter().chain(&gru.b_hh).copied().collect();
-            let b = g.f32s("gru_b", &[1, 6 * hs], &b);
-            g.nodes.push(pb::NodeProto {
-                name: "gru".into(),
-                op_type: "GRU".into(),
-                // X, W, R, B; no sequence lengths, h₀ = 0
-                input: vec![seq, w, r, b],
-                output: vec!["gru_y".into(), "gru_h".into()],
-                attribute: vec![attr_int("hidden_size", hs as i64), attr_int("linear_before_reset", 1)],
-                ..Default::default()
-            });
-            // Y_h [1, B, Hg] → [B, Hg]
-            let axes = g.i64s("gru_h_axes", &[1], &[0]);
-            let hl = g.node("Squeeze", &["gru_h", &axes], "gru_last", vec![]);
-            let z = g.dense(&hl, head, "head");
+            let f = match adapt {
+                Adaptation::Gru(gru) => g.gru(&h, gru),
+                Adaptation::Tcn(tcn) => g.tcn(&h, tcn),
+            };
+            let z = g.dense(&f, head, "head");
             let z = g.node("Identity", &[&z], "latent", vec![]);
             let xz = g.node("Concat", &[&x, &z], "actor_input", vec![attr_int("axis", 1)]);
             g.mlp(&xz, actor, "actor", "actions");

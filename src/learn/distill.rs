@@ -26,11 +26,12 @@ use burn::tensor::{Int, TensorData};
 
 use super::adam::Adam;
 use super::gru::{gru_forward, gru_shapes, init_gru};
+use super::tcn::{init_tcn, tcn_forward, tcn_names, tcn_shapes};
 use super::nets::{mlp_forward, to_host, to_tensor};
 use super::ppo::{Dims, Ppo, encoder_index};
 use super::rng::Rng;
 use super::state::{LearnerState, TensorValues};
-use crate::config::{Config, DatasetMode, StudentActor};
+use crate::config::{AdaptationModule, Config, DatasetMode, StudentActor};
 use crate::task::TaskSpec;
 use crate::task::spec::{ObsSlot, field_indices};
 
@@ -50,6 +51,9 @@ pub const STAT_COLUMNS: [&str; 9] = [
     "grad_norm",
     "lr",
 ];
+
+/// Checkpoint names of the GRU's parameters.
+const GRU_NAMES: [&str; 4] = ["gru.w_ih", "gru.w_hh", "gru.b_ih", "gru.b_hh"];
 
 /// The frozen teacher.
 pub struct Teacher {
@@ -102,8 +106,29 @@ pub fn load_teacher(cfg: &Config, spec: &TaskSpec, device: &Device) -> Result<Te
     Ok(Teacher { ppo, run, checkpoint: ckpt, iteration: state.iteration, manifest_xxh64: format!("{:016x}", crate::checkpoint::xxh64(&manifest, 0)), latent })
 }
 
-/// The student network: `[gru (4), head weight [Hg, L], head bias [1, L], actor layers…]` (no GRU
-/// and head when the teacher has no latent).
+/// The student's adaptation module φ, beyond its parameters' shapes.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Adaptation {
+    /// A GRU (`gru.rs`): φ = its last hidden state.
+    Gru,
+    /// A temporal convolution (`tcn.rs`) with these convolutions (kernel, stride): φ = the flattened
+    /// output.
+    Tcn { convs: Vec<(usize, usize)> },
+}
+
+impl Adaptation {
+    /// The name checkpoints and exports give it (`distill.adaptation`'s value).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Adaptation::Gru => "gru",
+            Adaptation::Tcn { .. } => "tcn",
+        }
+    }
+}
+
+/// The student network: `[φ's parameters (GRU: 4; TCN: 4 + 2 per convolution), head weight [F, L],
+/// head bias [1, L], actor layers…]` (F: φ's output size; no φ and head when the teacher has no
+/// latent).
 #[derive(Clone)]
 pub struct Student {
     /// Autodiff leaves on the learner device.
@@ -111,8 +136,10 @@ pub struct Student {
     /// Their shapes and checkpoint names.
     pub shapes: Vec<[usize; 2]>,
     pub names: Vec<String>,
-    /// Parameters before the actor's (GRU and head).
+    /// Parameters before the actor's (φ and the head).
     pub n_adapt: usize,
+    /// φ's kind.
+    pub adaptation: Adaptation,
     /// The actor's hidden activation.
     pub activation: crate::config::Activation,
     /// History steps H and numbers per step D; latent size L; student obs size.
@@ -129,8 +156,12 @@ impl Student {
         if self.latent == 0 {
             return (None, mlp_forward(&params[self.n_adapt..], obs, self.activation));
         }
-        let h = gru_forward(&params[..4], hist, self.history_len); // [B, Hg]
-        let z = h.matmul(params[4].clone()) + params[5].clone(); // [B, L]
+        let k = self.n_adapt;
+        let f = match &self.adaptation {
+            Adaptation::Gru => gru_forward(&params[..k - 2], hist, self.history_len), // [B, Hg]
+            Adaptation::Tcn { convs } => tcn_forward(&params[..k - 2], hist, self.history_len, convs), // [B, T'·C]
+        };
+        let z = f.matmul(params[k - 2].clone()) + params[k - 1].clone(); // [B, L]: z = φ W_h + b_h
         let x = Tensor::cat(vec![obs, z.clone()], 1); // [B, O_s + L]
         (Some(z), mlp_forward(&params[self.n_adapt..], x, self.activation))
     }
@@ -201,16 +232,25 @@ impl Distill {
         let mut shapes: Vec<[usize; 2]> = Vec::new();
         let mut names: Vec<String> = Vec::new();
         let mut rng = Rng::new(cfg.seed as u64, 0xD157_1111);
+        let adaptation = match d.adaptation {
+            AdaptationModule::Gru => Adaptation::Gru,
+            AdaptationModule::Tcn => Adaptation::Tcn { convs: d.tcn_convs() },
+        };
         if l > 0 {
-            let g = init_gru(dd, d.gru_hidden, &mut rng);
-            for ((v, s), n) in g.into_iter().zip(gru_shapes(dd, d.gru_hidden)).zip(["gru.w_ih", "gru.w_hh", "gru.b_ih", "gru.b_hh"]) {
-                values.push(v);
-                shapes.push(s);
-                names.push(n.into());
-            }
-            // the head: torch Linear initialisation U(±1/√Hg)
-            let bound = 1.0 / (d.gru_hidden as f64).sqrt();
-            for (s, n) in [([d.gru_hidden, l], "head.weight"), ([1, l], "head.bias")] {
+            // φ's parameters, and its output size F (the head's input)
+            let (phi, phi_shapes, phi_names, f) = match &adaptation {
+                Adaptation::Gru => (init_gru(dd, d.gru_hidden, &mut rng), gru_shapes(dd, d.gru_hidden), GRU_NAMES.map(String::from).to_vec(), d.gru_hidden),
+                Adaptation::Tcn { convs } => {
+                    let t = d.tcn_steps_out().ok_or_else(|| anyhow!("{file}: key `distill.tcn_layers`: the convolutions do not fit in distill.history_len = {h} steps"))?;
+                    (init_tcn(dd, d.tcn_channels, convs, &mut rng), tcn_shapes(dd, d.tcn_channels, convs), tcn_names(convs.len()), t * d.tcn_channels)
+                }
+            };
+            values.extend(phi);
+            shapes.extend(phi_shapes);
+            names.extend(phi_names);
+            // the head: torch Linear initialisation U(±1/√F)
+            let bound = 1.0 / (f as f64).sqrt();
+            for (s, n) in [([f, l], "head.weight"), ([1, l], "head.bias")] {
                 values.push((0..s[0] * s[1]).map(|_| ((2.0 * rng.uniform() - 1.0) * bound) as f32).collect());
                 shapes.push(s);
                 names.push(n.into());
@@ -232,7 +272,7 @@ impl Distill {
             names.push(name);
         }
         let params = values.into_iter().zip(&shapes).map(|(v, s)| to_tensor(v, *s, &device).autodiff().require_grad()).collect();
-        let student = Student { params, shapes: shapes.clone(), names, n_adapt, activation: t.activation, history_len: h, step_dim: dd, latent: l, obs_dim: obs_index.len() };
+        let student = Student { params, shapes: shapes.clone(), names, n_adapt, adaptation, activation: t.activation, history_len: h, step_dim: dd, latent: l, obs_dim: obs_index.len() };
         let adam = Adam::new(&shapes, &device);
         let mut teacher_drives = vec![false; num_envs];
         for x in &mut teacher_drives {
@@ -462,6 +502,11 @@ impl Distill {
             "teacher_manifest_xxh64": self.teacher.manifest_xxh64,
             "history_len": self.student.history_len,
             "latent": self.student.latent,
+            "adaptation": self.student.adaptation.name(),
+            "tcn_layers": match &self.student.adaptation {
+                Adaptation::Tcn { convs } => serde_json::json!(convs.iter().map(|&(k, s)| [k, s]).collect::<Vec<_>>()),
+                Adaptation::Gru => serde_json::Value::Null,
+            },
             "activation": self.student.activation,
             "obs_normalization": self.teacher.ppo.normalize,
         });
@@ -532,7 +577,24 @@ impl StudentPolicy {
         let idx = |name: &str| -> Result<Vec<usize>> { Ok(st.f64s(STUDENT_FILE, name, None)?.iter().map(|&x| x as usize).collect()) };
         let (obs_index, hist_index) = (idx("obs_index")?, idx("hist_index")?);
         ensure!(obs_index.iter().chain(&hist_index).all(|&i| i < obs_dim), "{}: input indices beyond the task's observation ({obs_dim} numbers)", path.display());
-        let mut names: Vec<String> = if latent > 0 { ["gru.w_ih", "gru.w_hh", "gru.b_ih", "gru.b_hh", "head.weight", "head.bias"].iter().map(|s| s.to_string()).collect() } else { Vec::new() };
+        // φ: a GRU unless the metadata names a TCN (students written before the TCN have no key)
+        let adaptation = match info["adaptation"].as_str().unwrap_or("gru") {
+            "gru" => Adaptation::Gru,
+            "tcn" => {
+                let convs: Vec<(usize, usize)> = serde_json::from_value::<Vec<[usize; 2]>>(info["tcn_layers"].clone()).with_context(|| format!("{}: metadata `tcn_layers`: expected [[kernel, stride], …]", path.display()))?.into_iter().map(|[k, s]| (k, s)).collect();
+                ensure!(crate::learn::tcn::steps_out(history_len, &convs).is_some(), "{}: metadata `tcn_layers` {convs:?} do not fit in history_len {history_len}", path.display());
+                Adaptation::Tcn { convs }
+            }
+            other => bail!("{}: metadata `adaptation` = {other:?}; expected \"gru\" or \"tcn\"", path.display()),
+        };
+        let mut names: Vec<String> = match (&adaptation, latent > 0) {
+            (_, false) => Vec::new(),
+            (Adaptation::Gru, true) => GRU_NAMES.map(String::from).to_vec(),
+            (Adaptation::Tcn { convs }, true) => tcn_names(convs.len()),
+        };
+        if latent > 0 {
+            names.extend(["head.weight".to_string(), "head.bias".to_string()]);
+        }
         let n_adapt = names.len();
         let mut k = 0;
         while file.tensors.iter().any(|t| t.name == format!("actor.{k}.weight")) {
@@ -545,7 +607,7 @@ impl StudentPolicy {
         let params = names.iter().zip(&shapes).map(|(n, s)| Ok(to_tensor(st.f32s(STUDENT_FILE, n, Some(s[0] * s[1]))?, *s, device))).collect::<Result<_>>()?;
         let norm = if info["obs_normalization"].as_bool().unwrap_or(true) { Some(crate::learn::normalizer::Normalizer::load("obs_norm", obs_dim, &st, STUDENT_FILE)?) } else { None };
         let d = hist_index.len();
-        let student = Student { params, shapes, names, n_adapt, activation, history_len, step_dim: d, latent, obs_dim: obs_index.len() };
+        let student = Student { params, shapes, names, n_adapt, adaptation, activation, history_len, step_dim: d, latent, obs_dim: obs_index.len() };
         let teacher = (
             info["teacher_run"].as_str().unwrap_or_default().to_string(),
             info["teacher_checkpoint"].as_u64().unwrap_or(0),

@@ -8,6 +8,7 @@
 //! - `device.rs`: choosing the learner device (`train.device`);
 //! - `state.rs`: a learner's checkpoint state (named tensors and exact scalars);
 //! - `gru.rs`: a GRU on flat tensors (the student's adaptation module; ONNX's GRU formulation).
+//! - `tcn.rs`: a temporal convolution on flat tensors (the student's other adaptation module; ONNX's Conv).
 //!
 //! One room per algorithm: `ppo/` (rollout storage, GAE, PPO), `distill.rs` (the GRU student and
 //! online DAgger from a teacher run); SAC (`sac/`) goes beside them; the loop that drives them is
@@ -22,3 +23,4 @@ pub mod normalizer;
 pub mod ppo;
 pub mod rng;
 pub mod state;
+pub mod tcn;

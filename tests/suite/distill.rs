@@ -283,3 +283,43 @@ fn the_wgpu_learner_distills_as_the_cpu_learner_does() {
     let moved = fresh.iter().flatten().zip(p_cpu.iter().flatten()).map(|(x, y)| (x - y).abs()).fold(0.0f32, f32::max);
     assert!(moved > 1e-4, "the update moved the student ({moved})");
 }
+
+/// The temporal-convolution student (`distill.adaptation = "tcn"`): one DAgger update lowers both
+/// losses; a run's checkpoint holds the TCN, its export (Conv nodes) matches burn on real
+/// episodes and plays as eval does; convolutions longer than the window are a one-line error.
+#[test]
+fn a_tcn_student_learns_exports_and_plays() {
+    let tmp = tempfile::tempdir().unwrap();
+    let t = teacher(tmp.path());
+    // H = 4: a kernel of 2 at stride 2 leaves 2 steps, a kernel of 2 at stride 1 one step
+    let tcn = ["distill.adaptation=\"tcn\"", "distill.tcn_channels=6", "distill.tcn_layers=[[2, 2], [2, 1]]"];
+    let mut extra = tcn.to_vec();
+    extra.extend(["distill.dataset=\"aggregate\"", "distill.max_rollouts=8"]);
+    let (_, mut d, mut task) = learner(&t, &extra);
+    assert!(d.student.names.iter().any(|n| n == "tcn.conv.1.weight") && !d.student.names.iter().any(|n| n.starts_with("gru")), "{:?}", d.student.names);
+    let b = task.reset_all().unwrap().clone();
+    let mut obs = (b.obs.clone(), b.priv_obs.clone());
+    for _ in 0..4 {
+        let a = d.act(&obs.0, &obs.1).unwrap();
+        let st = task.step(&a).unwrap();
+        d.observe(&st.reward, &st.terminated, &st.time_out, &st.success);
+        obs = (st.obs.clone(), st.priv_obs.clone());
+    }
+    let before = d.update().unwrap();
+    let after = d.update().unwrap();
+    assert!(after[0] < before[0] && after[1] < before[1], "losses before {:?} after {:?}", &before[..2], &after[..2]);
+    let mut sets = student_sets(&t, &tcn);
+    sets.push("train.iterations=2".into());
+    let run = train(&TrainArgs { config: Some(CONFIG.into()), sets, name: Some("tcn".into()), resume: None, force: false, runs_dir: tmp.path().into(), stop_after: None, quiet: true }).unwrap();
+    // read back from the checkpoint: the TCN with its convolutions, and the same parameters
+    let back = dextrain::learn::distill::StudentPolicy::load(&run.join("checkpoints/2"), task.spec().obs_dim, &Device::flex()).unwrap();
+    assert_eq!(back.student.adaptation, dextrain::learn::distill::Adaptation::Tcn { convs: vec![(2, 2), (2, 1)] });
+    assert_eq!(back.student.names.iter().filter(|n| n.starts_with("tcn.")).count(), 8);
+    use dextrain::export::command::{ExportArgs, run as export};
+    let r = export(&ExportArgs { run: run.clone(), checkpoint: "latest".into(), out: None, verify: true }).unwrap();
+    assert!(r.max_abs_diff.unwrap() <= 1e-5, "{r:?}");
+    crate::play::play_equals_eval(&run, "tcn student");
+    let long = Config::load_with_overrides(Path::new(CONFIG), &student_sets(&t, &["distill.adaptation=\"tcn\"", "distill.tcn_layers=[[3, 1], [3, 1]]"]));
+    let e = format!("{:#}", long.unwrap_err());
+    assert!(e.contains("distill.tcn_layers") && e.contains("history_len = 4") && !e.contains('\n'), "{e}");
+}

@@ -6,7 +6,7 @@
 use std::process::Command;
 
 use dextrain::config::Activation;
-use dextrain::export::onnx::{Dense, Gru, Mlp, Normalization, PolicyNet, check, forward, read_metadata, run_onnx, to_onnx};
+use dextrain::export::onnx::{Adaptation, Conv1d, Dense, Gru, Mlp, Normalization, PolicyNet, Tcn, check, forward, read_metadata, run_onnx, to_onnx};
 use dextrain::learn::rng::Rng;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
@@ -43,12 +43,24 @@ fn nets() -> Vec<(&'static str, PolicyNet, usize, (usize, usize))> {
     let student = PolicyNet::Student {
         obs_norm: norm(&mut rng, o),
         hist_norm: norm(&mut rng, d),
-        gru: Gru { inputs: d, hidden: hs, w_ih: draw(&mut rng, d * 3 * hs, 0.4), w_hh: draw(&mut rng, hs * 3 * hs, 0.4), b_ih: draw(&mut rng, 3 * hs, 0.2), b_hh: draw(&mut rng, 3 * hs, 0.2) },
+        adapt: Adaptation::Gru(Gru { inputs: d, hidden: hs, w_ih: draw(&mut rng, d * 3 * hs, 0.4), w_hh: draw(&mut rng, hs * 3 * hs, 0.4), b_ih: draw(&mut rng, 3 * hs, 0.2), b_hh: draw(&mut rng, 3 * hs, 0.2) }),
         head: dense(&mut rng, hs, l),
         actor: mlp(&mut rng, &[o + l, 10, a], Activation::Elu),
         history_len: h,
     };
-    vec![("mlp", mlp_net, 0, (0, 0)), ("encoder", encoder, p, (0, 0)), ("student", student, 0, (h, d))]
+    // a temporal convolution over 9 steps: kernels 3 (stride 2) → 4 steps, then 2 (stride 1) → 3
+    // steps of 6 channels; the first convolution maps 5 channels to 6, so a transposed weight cannot pass
+    let (th, c0, c1, c2) = (9, 5, 6, 6);
+    let conv = |rng: &mut Rng, i: usize, o: usize, kernel: usize, stride: usize| Conv1d { inputs: i, outputs: o, kernel, stride, weight: draw(rng, kernel * i * o, 0.5), bias: draw(rng, o, 0.2) };
+    let tcn = PolicyNet::Student {
+        obs_norm: norm(&mut rng, o),
+        hist_norm: norm(&mut rng, d),
+        adapt: Adaptation::Tcn(Tcn { embed: vec![dense(&mut rng, d, c0), dense(&mut rng, c0, c0)], convs: vec![conv(&mut rng, c0, c1, 3, 2), conv(&mut rng, c1, c2, 2, 1)] }),
+        head: dense(&mut rng, 3 * c2, l),
+        actor: mlp(&mut rng, &[o + l, 10, a], Activation::Elu),
+        history_len: th,
+    };
+    vec![("mlp", mlp_net, 0, (0, 0)), ("encoder", encoder, p, (0, 0)), ("student", student, 0, (h, d)), ("tcn_student", tcn, 0, (th, d))]
 }
 
 fn max_diff(a: &[f32], b: &[f32]) -> f64 {
@@ -137,7 +149,7 @@ fn a_gru_worked_by_hand() {
     let net = PolicyNet::Student {
         obs_norm: Normalization { mean: vec![0.0], denom: vec![1.0] },
         hist_norm: Normalization { mean: vec![1.0], denom: vec![2.0] },
-        gru,
+        adapt: Adaptation::Gru(gru),
         head: one(1.0),
         // actions = 0 · obs + 1 · z
         actor: Mlp { layers: vec![Dense { weight: vec![0.0, 1.0], bias: vec![0.0], inputs: 2, outputs: 1 }], activation: Activation::Elu },

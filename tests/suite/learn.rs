@@ -350,7 +350,7 @@ fn ppo_state_restores_a_learner_that_continues_exactly() {
 #[test]
 fn the_learners_gru_matches_the_exported_formulation() {
     use dextrain::config::Activation;
-    use dextrain::export::onnx::{Dense, Gru, Mlp, Normalization, PolicyNet, forward};
+    use dextrain::export::onnx::{Adaptation, Dense, Gru, Mlp, Normalization, PolicyNet, forward};
     use dextrain::learn::gru::{gru_forward, gru_shapes, init_gru};
     let (d, hs, steps, b) = (3, 5, 7, 4);
     let mut rng = Rng::new(9, 9);
@@ -369,7 +369,7 @@ fn the_learners_gru_matches_the_exported_formulation() {
     let net = PolicyNet::Student {
         obs_norm: Normalization { mean: vec![0.0], denom: vec![1.0] },
         hist_norm: Normalization { mean: vec![0.0; d], denom: vec![1.0; d] },
-        gru: Gru { inputs: d, hidden: hs, w_ih: values[0].clone(), w_hh: values[1].clone(), b_ih: values[2].clone(), b_hh: values[3].clone() },
+        adapt: Adaptation::Gru(Gru { inputs: d, hidden: hs, w_ih: values[0].clone(), w_hh: values[1].clone(), b_ih: values[2].clone(), b_hh: values[3].clone() }),
         head: Dense { weight: eye, bias: vec![0.0; hs], inputs: hs, outputs: hs },
         actor: Mlp { layers: vec![Dense { weight: actor_w, bias: vec![0.0; hs], inputs: 1 + hs, outputs: hs }], activation: Activation::Elu },
         history_len: steps,
@@ -379,6 +379,56 @@ fn the_learners_gru_matches_the_exported_formulation() {
     assert!(diff < 1e-5, "burn GRU vs the exporter's: {diff}");
     assert!(ours.iter().any(|v| v.abs() > 1e-2), "a non-trivial hidden state");
     let grads = h.sum().backward();
+    for (k, p) in params.iter().enumerate() {
+        let g = to_host(p.grad(&grads).expect("a gradient")).unwrap();
+        assert!(g.iter().all(|v| v.is_finite()) && g.iter().any(|v| *v != 0.0), "parameter {k}");
+    }
+}
+
+/// The learner's temporal convolution (`learn::tcn`, flat tensors, windows by slicing) gives what
+/// `export::onnx::forward` computes for the same weights (its direct sum over kernel steps and
+/// channels, the reference the ONNX Conv graph is checked against), and gradients reach every
+/// parameter.
+#[test]
+fn the_learners_tcn_matches_the_exported_formulation() {
+    use dextrain::config::Activation;
+    use dextrain::export::onnx::{Adaptation, Conv1d, Dense, Mlp, Normalization, PolicyNet, Tcn, forward};
+    use dextrain::learn::tcn::{init_tcn, steps_out, tcn_forward, tcn_names, tcn_shapes};
+    let (d, c, steps, b) = (3, 4, 11, 4);
+    let convs = [(3, 2), (2, 1)];
+    // T' = ⌊(11 − 3)/2⌋ + 1 = 5, then 5 − 2 + 1 = 4
+    assert_eq!(steps_out(steps, &convs), Some(4));
+    assert_eq!(steps_out(steps, &[(12, 1)]), None);
+    let f = 4 * c;
+    let mut rng = Rng::new(9, 10);
+    let values = init_tcn(d, c, &convs, &mut rng);
+    let shapes = tcn_shapes(d, c, &convs);
+    assert_eq!(tcn_names(convs.len()).len(), shapes.len());
+    assert_eq!(values.iter().map(Vec::len).collect::<Vec<_>>(), shapes.iter().map(|s| s[0] * s[1]).collect::<Vec<_>>());
+    let x: Vec<f32> = (0..b * steps * d).map(|_| 2.0 * rng.normal() as f32).collect();
+    let dev = cpu().autodiff();
+    let params: Vec<_> = values.iter().zip(&shapes).map(|(v, s)| to_tensor(v.clone(), *s, &dev).require_grad()).collect();
+    let y = tcn_forward(&params, to_tensor(x.clone(), [b, steps * d], &dev), steps, &convs);
+    assert_eq!(y.dims(), [b, f]);
+    let ours = to_host(y.clone().inner()).unwrap();
+    let eye: Vec<f32> = (0..f * f).map(|k| if k / f == k % f { 1.0 } else { 0.0 }).collect();
+    let mut actor_w = vec![0.0f32; f];
+    actor_w.extend(&eye);
+    let dense = |i: usize| Dense { weight: values[i].clone(), bias: values[i + 1].clone(), inputs: shapes[i][0], outputs: shapes[i][1] };
+    let conv = |i: usize, (kernel, stride): (usize, usize)| Conv1d { inputs: c, outputs: c, kernel, stride, weight: values[i].clone(), bias: values[i + 1].clone() };
+    let net = PolicyNet::Student {
+        obs_norm: Normalization { mean: vec![0.0], denom: vec![1.0] },
+        hist_norm: Normalization { mean: vec![0.0; d], denom: vec![1.0; d] },
+        adapt: Adaptation::Tcn(Tcn { embed: vec![dense(0), dense(2)], convs: vec![conv(4, convs[0]), conv(6, convs[1])] }),
+        head: Dense { weight: eye, bias: vec![0.0; f], inputs: f, outputs: f },
+        actor: Mlp { layers: vec![Dense { weight: actor_w, bias: vec![0.0; f], inputs: 1 + f, outputs: f }], activation: Activation::Elu },
+        history_len: steps,
+    };
+    let want = forward(&net, &vec![0.3; b], &[], &x, b).unwrap();
+    let diff = ours.iter().zip(&want).map(|(a, w)| (a - w).abs()).fold(0.0f32, f32::max);
+    assert!(diff < 1e-5, "burn TCN vs the exporter's: {diff}");
+    assert!(ours.iter().filter(|v| **v > 1e-3).count() > f, "a non-trivial output: {ours:?}");
+    let grads = y.sum().backward();
     for (k, p) in params.iter().enumerate() {
         let g = to_host(p.grad(&grads).expect("a gradient")).unwrap();
         assert!(g.iter().all(|v| v.is_finite()) && g.iter().any(|v| *v != 0.0), "parameter {k}");
