@@ -45,6 +45,21 @@ fn learner(teacher: &Path, extra: &[&str]) -> (Config, Distill, Box<dyn TaskBatc
     (cfg, d, task)
 }
 
+/// Steps the batch 4 times from `first` with the learner acting, then updates twice on that same
+/// data (`dataset = "aggregate"` keeps it) and checks that both losses drop.
+fn two_updates_lower_both_losses(d: &mut Distill, task: &mut dyn TaskBatch, first: &dextrain::task::StepBatch) {
+    let mut obs = (first.obs.clone(), first.priv_obs.clone());
+    for _ in 0..4 {
+        let a = d.act(&obs.0, &obs.1).unwrap();
+        let st = task.step(&a).unwrap();
+        d.observe(&st.reward, &st.terminated, &st.time_out, &st.success);
+        obs = (st.obs.clone(), st.priv_obs.clone());
+    }
+    let before = d.update().unwrap();
+    let after = d.update().unwrap();
+    assert!(after[0] < before[0] && after[1] < before[1], "losses before {:?} after {:?}", &before[..2], &after[..2]);
+}
+
 #[test]
 fn the_history_window_holds_the_last_h_steps_and_restarts_with_each_episode() {
     let tmp = tempfile::tempdir().unwrap();
@@ -117,16 +132,7 @@ fn the_student_copies_the_teachers_actor_and_one_update_lowers_both_losses() {
     let teachers = d.teacher.ppo.act_mean(&b.obs, &b.priv_obs).unwrap();
     assert_eq!(mine, teachers, "with ẑ the student's actor is the teacher's");
     // one rollout, then two updates on that same data (aggregate keeps it): both losses drop
-    let mut obs = (b.obs.clone(), b.priv_obs.clone());
-    for _ in 0..4 {
-        let a = d.act(&obs.0, &obs.1).unwrap();
-        let st = task.step(&a).unwrap();
-        d.observe(&st.reward, &st.terminated, &st.time_out, &st.success);
-        obs = (st.obs.clone(), st.priv_obs.clone());
-    }
-    let before = d.update().unwrap();
-    let after = d.update().unwrap();
-    assert!(after[0] < before[0] && after[1] < before[1], "losses before {:?} after {:?}", &before[..2], &after[..2]);
+    two_updates_lower_both_losses(&mut d, task.as_mut(), &b);
     assert_eq!(d.cfg.dataset, DatasetMode::Aggregate);
 }
 
@@ -298,16 +304,7 @@ fn a_tcn_student_learns_exports_and_plays() {
     let (_, mut d, mut task) = learner(&t, &extra);
     assert!(d.student.names.iter().any(|n| n == "tcn.conv.1.weight") && !d.student.names.iter().any(|n| n.starts_with("gru")), "{:?}", d.student.names);
     let b = task.reset_all().unwrap().clone();
-    let mut obs = (b.obs.clone(), b.priv_obs.clone());
-    for _ in 0..4 {
-        let a = d.act(&obs.0, &obs.1).unwrap();
-        let st = task.step(&a).unwrap();
-        d.observe(&st.reward, &st.terminated, &st.time_out, &st.success);
-        obs = (st.obs.clone(), st.priv_obs.clone());
-    }
-    let before = d.update().unwrap();
-    let after = d.update().unwrap();
-    assert!(after[0] < before[0] && after[1] < before[1], "losses before {:?} after {:?}", &before[..2], &after[..2]);
+    two_updates_lower_both_losses(&mut d, task.as_mut(), &b);
     let mut sets = student_sets(&t, &tcn);
     sets.push("train.iterations=2".into());
     let run = train(&TrainArgs { config: Some(CONFIG.into()), sets, name: Some("tcn".into()), resume: None, force: false, runs_dir: tmp.path().into(), stop_after: None, quiet: true }).unwrap();
