@@ -74,13 +74,14 @@ fn normalization(n: &Normalizer, on: bool) -> Normalization {
     Normalization { mean: n.mean.iter().map(|&m| m as f32).collect(), denom }
 }
 
+/// The layer whose flat parameters `[w, b]` (shapes `[in, out]`, `[1, out]`) start `values`.
+fn dense(values: &[Vec<f32>], shapes: &[[usize; 2]]) -> Dense {
+    Dense { weight: values[0].clone(), bias: values[1].clone(), inputs: shapes[0][0], outputs: shapes[0][1] }
+}
+
 /// An MLP's layers from flat parameters `[w0, b0, w1, b1, …]` with shapes `[in, out]`, `[1, out]`.
 fn mlp(values: &[Vec<f32>], shapes: &[[usize; 2]], activation: crate::config::Activation) -> Mlp {
-    let layers = values
-        .chunks(2)
-        .zip(shapes.chunks(2))
-        .map(|(v, s)| Dense { weight: v[0].clone(), bias: v[1].clone(), inputs: s[0][0], outputs: s[0][1] })
-        .collect();
+    let layers = values.chunks(2).zip(shapes.chunks(2)).map(|(v, s)| dense(v, s)).collect();
     Mlp { layers, activation }
 }
 
@@ -306,13 +307,13 @@ fn student_net(s: &StudentPolicy, obs_dim: usize) -> Result<PolicyNet> {
     let values = st.values()?;
     let k = st.n_adapt;
     let actor = mlp(&values[k..], &st.shapes[k..], st.activation);
-    let dense = |i: usize| Dense { weight: values[i].clone(), bias: values[i + 1].clone(), inputs: st.shapes[i][0], outputs: st.shapes[i][1] };
+    let layer = |i: usize| dense(&values[i..], &st.shapes[i..]);
     Ok(if st.latent > 0 {
         let adapt = match &st.adaptation {
             Adaptation::Gru => onnx::Adaptation::Gru(onnx::Gru { inputs: st.step_dim, hidden: st.shapes[1][0], w_ih: values[0].clone(), w_hh: values[1].clone(), b_ih: values[2].clone(), b_hh: values[3].clone() }),
             Adaptation::Tcn { convs } => {
                 let e = crate::learn::tcn::EMBED_LAYERS;
-                let embed = (0..e).map(|j| dense(2 * j)).collect();
+                let embed = (0..e).map(|j| layer(2 * j)).collect();
                 let convs = convs
                     .iter()
                     .enumerate()
@@ -326,7 +327,7 @@ fn student_net(s: &StudentPolicy, obs_dim: usize) -> Result<PolicyNet> {
                 onnx::Adaptation::Tcn(onnx::Tcn { embed, convs })
             }
         };
-        let head = dense(k - 2);
+        let head = layer(k - 2);
         PolicyNet::Student { obs_norm: pick(&s.obs_index), hist_norm: pick(&s.hist_index), adapt, head, actor, history_len: st.history_len }
     } else {
         PolicyNet::Mlp { obs_norm: pick(&s.obs_index), actor }

@@ -146,16 +146,21 @@ fn check_dense(d: &Dense, what: &str) -> Result<()> {
     Ok(())
 }
 
-fn check_mlp(m: &Mlp, inputs: usize, what: &str) -> Result<()> {
-    ensure!(!m.layers.is_empty(), "{what}: no layers");
+/// Checks a chain of layers over `inputs` numbers; returns its output size.
+fn check_layers(layers: &[Dense], inputs: usize, what: &str) -> Result<usize> {
+    ensure!(!layers.is_empty(), "{what}: no layers");
     let mut width = inputs;
-    for (k, l) in m.layers.iter().enumerate() {
+    for (k, l) in layers.iter().enumerate() {
         let name = format!("{what} layer {k}");
         check_dense(l, &name)?;
         ensure!(l.inputs == width, "{name}: {} inputs; expected {width} (the previous layer's outputs)", l.inputs);
         width = l.outputs;
     }
-    Ok(())
+    Ok(width)
+}
+
+fn check_mlp(m: &Mlp, inputs: usize, what: &str) -> Result<()> {
+    check_layers(&m.layers, inputs, what).map(|_| ())
 }
 
 fn check_norm(n: &Normalization, what: &str) -> Result<()> {
@@ -178,14 +183,7 @@ fn check_gru(gru: &Gru, d: usize) -> Result<usize> {
 
 /// Checks a TCN over `steps` steps of `d` numbers; returns its output size T'·C.
 fn check_tcn(tcn: &Tcn, d: usize, steps: usize) -> Result<usize> {
-    ensure!(!tcn.embed.is_empty(), "tcn: no embedding layers");
-    let mut width = d;
-    for (k, l) in tcn.embed.iter().enumerate() {
-        let name = format!("tcn embedding layer {k}");
-        check_dense(l, &name)?;
-        ensure!(l.inputs == width, "{name}: {} inputs; expected {width}", l.inputs);
-        width = l.outputs;
-    }
+    let mut width = check_layers(&tcn.embed, d, "tcn embedding")?;
     ensure!(!tcn.convs.is_empty(), "tcn: no convolutions");
     let mut t = steps;
     for (k, c) in tcn.convs.iter().enumerate() {

@@ -254,10 +254,7 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
 /// rounding.
 #[test]
 fn the_wgpu_learner_distills_as_the_cpu_learner_does() {
-    let Some(ctx) = crate::common::gpu_context("the_wgpu_learner_distills_as_the_cpu_learner_does") else { return };
-    let choice = dextrain::config::BackendChoice::Gpu(Some(ctx.info.name.clone()));
-    let (gpu_dev, name) = dextrain::learn::device::learner_device(&choice, Some(&ctx)).expect("burn wgpu on the test adapter");
-    assert!(name.starts_with("gpu (burn wgpu"), "{name}");
+    let Some((_ctx, gpu_dev)) = crate::common::wgpu_learner("the_wgpu_learner_distills_as_the_cpu_learner_does") else { return };
     let tmp = tempfile::tempdir().unwrap();
     let t = teacher(tmp.path());
     // β = 0.5: some envs driven by the teacher, some by the student

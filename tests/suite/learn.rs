@@ -231,14 +231,30 @@ fn ppo_learns_a_tiny_steering_task_in_seconds() {
     assert!(last > -0.45, "PPO did not learn to steer: {last}");
 }
 
+/// A student network in the exporter's description whose actions are its adaptation module's output
+/// φ [B, F] (F = `features`): no normalisation, head = I, actor = [0 | I] over [obs (1 number); z].
+fn pass_through_student(adapt: dextrain::export::onnx::Adaptation, step_dim: usize, features: usize, steps: usize) -> dextrain::export::onnx::PolicyNet {
+    use dextrain::config::Activation;
+    use dextrain::export::onnx::{Dense, Mlp, Normalization, PolicyNet};
+    let f = features;
+    let eye: Vec<f32> = (0..f * f).map(|k| if k / f == k % f { 1.0 } else { 0.0 }).collect();
+    let mut actor_w = vec![0.0f32; f]; // the obs row (one obs component)
+    actor_w.extend(&eye);
+    PolicyNet::Student {
+        obs_norm: Normalization { mean: vec![0.0], denom: vec![1.0] },
+        hist_norm: Normalization { mean: vec![0.0; step_dim], denom: vec![1.0; step_dim] },
+        adapt,
+        head: Dense { weight: eye, bias: vec![0.0; f], inputs: f, outputs: f },
+        actor: Mlp { layers: vec![Dense { weight: actor_w, bias: vec![0.0; f], inputs: 1 + f, outputs: f }], activation: Activation::Elu },
+        history_len: steps,
+    }
+}
+
 /// The same small PPO iteration on burn's wgpu backend (on the simulator's kind of device, e.g.
 /// lavapipe) and on the CPU backend: the updated parameters agree to float rounding.
 #[test]
 fn the_wgpu_learner_matches_the_cpu_learner() {
-    let Some(ctx) = crate::common::gpu_context("the_wgpu_learner_matches_the_cpu_learner") else { return };
-    let choice = dextrain::config::BackendChoice::Gpu(Some(ctx.info.name.clone()));
-    let (gpu, name) = dextrain::learn::device::learner_device(&choice, Some(&ctx)).expect("burn wgpu on the test adapter");
-    assert!(name.starts_with("gpu (burn wgpu"), "{name}");
+    let Some((_ctx, gpu)) = crate::common::wgpu_learner("the_wgpu_learner_matches_the_cpu_learner") else { return };
     let (n, steps) = (16, 4);
     let cfg = PpoConfig { minibatches: 2, epochs: 2, ..PpoConfig::default() };
     let pol = PolicyConfig { actor_hidden: vec![16], critic_hidden: vec![16], ..PolicyConfig::default() };
@@ -349,8 +365,7 @@ fn ppo_state_restores_a_learner_that_continues_exactly() {
 /// head and actor pass the hidden state through), and gradients reach all four parameters.
 #[test]
 fn the_learners_gru_matches_the_exported_formulation() {
-    use dextrain::config::Activation;
-    use dextrain::export::onnx::{Adaptation, Dense, Gru, Mlp, Normalization, PolicyNet, forward};
+    use dextrain::export::onnx::{Adaptation, Gru, forward};
     use dextrain::learn::gru::{gru_forward, gru_shapes, init_gru};
     let (d, hs, steps, b) = (3, 5, 7, 4);
     let mut rng = Rng::new(9, 9);
@@ -362,18 +377,8 @@ fn the_learners_gru_matches_the_exported_formulation() {
     let params: Vec<_> = values.iter().zip(&shapes).map(|(v, s)| to_tensor(v.clone(), *s, &dev).require_grad()).collect();
     let h = gru_forward(&params, to_tensor(x.clone(), [b, steps * d], &dev), steps);
     let ours = to_host(h.clone().inner()).unwrap();
-    // the same GRU in the exporter's reference: head = I, actor = [0 | I] over [obs; z]
-    let eye: Vec<f32> = (0..hs * hs).map(|k| if k / hs == k % hs { 1.0 } else { 0.0 }).collect();
-    let mut actor_w = vec![0.0f32; hs]; // the obs row (one obs component)
-    actor_w.extend(&eye);
-    let net = PolicyNet::Student {
-        obs_norm: Normalization { mean: vec![0.0], denom: vec![1.0] },
-        hist_norm: Normalization { mean: vec![0.0; d], denom: vec![1.0; d] },
-        adapt: Adaptation::Gru(Gru { inputs: d, hidden: hs, w_ih: values[0].clone(), w_hh: values[1].clone(), b_ih: values[2].clone(), b_hh: values[3].clone() }),
-        head: Dense { weight: eye, bias: vec![0.0; hs], inputs: hs, outputs: hs },
-        actor: Mlp { layers: vec![Dense { weight: actor_w, bias: vec![0.0; hs], inputs: 1 + hs, outputs: hs }], activation: Activation::Elu },
-        history_len: steps,
-    };
+    // the same GRU in the exporter's reference
+    let net = pass_through_student(Adaptation::Gru(Gru { inputs: d, hidden: hs, w_ih: values[0].clone(), w_hh: values[1].clone(), b_ih: values[2].clone(), b_hh: values[3].clone() }), d, hs, steps);
     let want = forward(&net, &vec![0.3; b], &[], &x, b).unwrap();
     let diff = ours.iter().zip(&want).map(|(a, w)| (a - w).abs()).fold(0.0f32, f32::max);
     assert!(diff < 1e-5, "burn GRU vs the exporter's: {diff}");
@@ -391,8 +396,7 @@ fn the_learners_gru_matches_the_exported_formulation() {
 /// parameter.
 #[test]
 fn the_learners_tcn_matches_the_exported_formulation() {
-    use dextrain::config::Activation;
-    use dextrain::export::onnx::{Adaptation, Conv1d, Dense, Mlp, Normalization, PolicyNet, Tcn, forward};
+    use dextrain::export::onnx::{Adaptation, Conv1d, Dense, Tcn, forward};
     use dextrain::learn::tcn::{init_tcn, steps_out, tcn_forward, tcn_names, tcn_shapes};
     let (d, c, steps, b) = (3, 4, 11, 4);
     let convs = [(3, 2), (2, 1)];
@@ -411,19 +415,9 @@ fn the_learners_tcn_matches_the_exported_formulation() {
     let y = tcn_forward(&params, to_tensor(x.clone(), [b, steps * d], &dev), steps, &convs);
     assert_eq!(y.dims(), [b, f]);
     let ours = to_host(y.clone().inner()).unwrap();
-    let eye: Vec<f32> = (0..f * f).map(|k| if k / f == k % f { 1.0 } else { 0.0 }).collect();
-    let mut actor_w = vec![0.0f32; f];
-    actor_w.extend(&eye);
     let dense = |i: usize| Dense { weight: values[i].clone(), bias: values[i + 1].clone(), inputs: shapes[i][0], outputs: shapes[i][1] };
     let conv = |i: usize, (kernel, stride): (usize, usize)| Conv1d { inputs: c, outputs: c, kernel, stride, weight: values[i].clone(), bias: values[i + 1].clone() };
-    let net = PolicyNet::Student {
-        obs_norm: Normalization { mean: vec![0.0], denom: vec![1.0] },
-        hist_norm: Normalization { mean: vec![0.0; d], denom: vec![1.0; d] },
-        adapt: Adaptation::Tcn(Tcn { embed: vec![dense(0), dense(2)], convs: vec![conv(4, convs[0]), conv(6, convs[1])] }),
-        head: Dense { weight: eye, bias: vec![0.0; f], inputs: f, outputs: f },
-        actor: Mlp { layers: vec![Dense { weight: actor_w, bias: vec![0.0; f], inputs: 1 + f, outputs: f }], activation: Activation::Elu },
-        history_len: steps,
-    };
+    let net = pass_through_student(Adaptation::Tcn(Tcn { embed: vec![dense(0), dense(2)], convs: vec![conv(4, convs[0]), conv(6, convs[1])] }), d, f, steps);
     let want = forward(&net, &vec![0.3; b], &[], &x, b).unwrap();
     let diff = ours.iter().zip(&want).map(|(a, w)| (a - w).abs()).fold(0.0f32, f32::max);
     assert!(diff < 1e-5, "burn TCN vs the exporter's: {diff}");

@@ -64,3 +64,13 @@ pub fn validate(src: &str) -> naga::Module {
         .unwrap_or_else(|e| panic!("WGSL validation error: {e:?}"));
     module
 }
+
+/// burn's wgpu learner device on the test adapter, with the context it runs on (keep it alive
+/// beside the device); None as [`gpu_context`] when there is no adapter.
+pub fn wgpu_learner(test: &str) -> Option<(GpuContext, burn::prelude::Device)> {
+    let ctx = gpu_context(test)?;
+    let choice = dextrain::config::BackendChoice::Gpu(Some(ctx.info.name.clone()));
+    let (device, name) = dextrain::learn::device::learner_device(&choice, Some(&ctx)).expect("burn wgpu on the test adapter");
+    assert!(name.starts_with("gpu (burn wgpu"), "{name}");
+    Some((ctx, device))
+}
