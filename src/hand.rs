@@ -45,6 +45,7 @@ use std::path::{Path, PathBuf};
 use anyhow::Result;
 use glam::{DMat3, DQuat, DVec3, Quat, Vec3};
 
+pub use crate::config::hand::{FingertipSpec, JointLimitOverride, LinkTip};
 use crate::config::{MAX_QUOTED_CHARS, clip, clip_quoted};
 use crate::geom::Pose;
 
@@ -83,27 +84,88 @@ pub const MAX_MIMIC_MULTIPLIER: f64 = 100.0;
 /// Largest |component| of a mesh `scale` (1000 turns kilometres into metres).
 pub const MAX_MESH_SCALE: f64 = 1e3;
 
-/// What to do with a `<mesh>` collision element, which the simulator cannot represent.
+/// What to do with a `<mesh>` collision element, which the simulator cannot represent: fit a
+/// primitive to it (`mesh::fit`: the smallest of that kind, by volume, that contains every vertex,
+/// in the mesh's principal axes or whatever frame is tighter; STL or OBJ files are read).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum MeshApprox {
     /// A mesh collision is an error that names the link (the default).
     #[default]
     Error,
-    /// Replace the mesh by the box bounding its vertices (STL or OBJ files are read).
+    /// The smallest oriented box around the mesh.
     Box,
-    /// Replace the mesh by a capsule along the longest axis of its bounding box.
+    /// The smallest capsule around the mesh, or the smallest sphere where that is tighter.
     Capsule,
 }
 
-/// Options of the URDF loader.
+/// A fit whose primitive has more than this many times the volume of the mesh's convex hull is
+/// reported as poor (a warning of `dextrain check`).
+pub const POOR_FIT_VOLUME_RATIO: f32 = 2.0;
+/// A fit whose primitive sticks out of the mesh's convex hull by more than this (m) is reported as
+/// poor.
+pub const POOR_FIT_GAP_M: f32 = 0.010;
+
+/// What one `<mesh>` collision became (`mesh_approx`), and how much bigger than the mesh it is.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshFitReport {
+    /// The URDF link that holds the mesh.
+    pub link: String,
+    /// The mesh file read.
+    pub mesh: PathBuf,
+    /// The fitted primitive.
+    pub shape: ColliderShape,
+    /// Volume of the mesh's convex hull (m³).
+    pub hull_volume: f32,
+    /// Primitive volume over hull volume (≥ 1).
+    pub volume_ratio: f32,
+    /// The axis-aligned primitive of the same kind (what the loader made before), over hull volume.
+    pub aligned_volume_ratio: f32,
+    /// Largest distance (m) from a point of the primitive's surface to the mesh's convex hull.
+    pub max_gap: f32,
+}
+
+impl MeshFitReport {
+    /// True where the primitive is much bigger than the mesh ([`POOR_FIT_VOLUME_RATIO`],
+    /// [`POOR_FIT_GAP_M`]).
+    pub fn is_poor(&self) -> bool {
+        self.volume_ratio > POOR_FIT_VOLUME_RATIO || self.max_gap > POOR_FIT_GAP_M
+    }
+
+    /// One line: link, mesh file, primitive and sizes (mm), volume ratios and the largest gap.
+    pub fn describe(&self) -> String {
+        let mm = |v: f32| format!("{:.1}", v * 1e3);
+        let shape = match self.shape {
+            ColliderShape::Sphere { radius } => format!("sphere r {} mm", mm(radius)),
+            ColliderShape::Capsule { radius, half_length } => format!("capsule r {} mm, length {} mm", mm(radius), mm(2.0 * half_length)),
+            ColliderShape::Box { half_extents: h } => format!("box {} × {} × {} mm", mm(2.0 * h.x), mm(2.0 * h.y), mm(2.0 * h.z)),
+        };
+        let file = self.mesh.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default();
+        format!(
+            "link '{}': mesh {file} -> {shape}: {:.2}× the convex hull's volume (axis-aligned: {:.2}×), sticks out up to {} mm",
+            self.link,
+            self.volume_ratio,
+            self.aligned_volume_ratio,
+            mm(self.max_gap)
+        )
+    }
+}
+
+/// Options of the URDF loader (built from `[hand]`; errors about them name the config keys).
 #[derive(Clone, Debug, Default)]
 pub struct HandLoadOptions {
-    /// Names of the fingertip frames (links, possibly merged by fixed joints). Empty: every link whose
-    /// name ends in `tip` (case-insensitive), in URDF order.
-    pub fingertips: Vec<String>,
+    /// The fingertips (`hand.fingertips`): frame names (links, possibly merged by fixed joints) or
+    /// points on links. Empty: every link whose name contains `tip` (case-insensitive), only the
+    /// most distal one per finger chain, in URDF order (see [`HandModel::finger_chains`]).
+    pub fingertips: Vec<FingertipSpec>,
     /// Opt-in approximation of mesh collision geometry.
     pub mesh_approx: MeshApprox,
+    /// Effort limits (N·m) that replace the URDF's (`hand.effort`); a joint it names need not have
+    /// a valid URDF `effort`.
+    pub effort: Option<JointLimitOverride>,
+    /// Velocity limits (rad/s) that replace the URDF's (`hand.velocity`); a joint it names need not
+    /// have a valid URDF `velocity`.
+    pub velocity: Option<JointLimitOverride>,
 }
 
 /// A mimic relation: `q = multiplier * q[leader] + offset`.
@@ -220,6 +282,12 @@ pub struct HandModel {
     /// URDF links merged away by fixed joints, in URDF document order (the links of `links` are
     /// not repeated here). Use [`HandModel::frame`] to resolve any URDF link name.
     pub frames: Vec<LinkFrame>,
+    /// Problems that do not stop the hand from loading (one line each, naming the URDF): the
+    /// number of fingertips differs from the number of finger chains. The config-based callers
+    /// print them once.
+    pub warnings: Vec<String>,
+    /// What each `<mesh>` collision became (`mesh_approx`), in URDF order.
+    pub mesh_fits: Vec<MeshFitReport>,
 }
 
 impl HandModel {
@@ -283,7 +351,15 @@ impl HandModel {
             .filter(|p| p.name == "link")
             .filter_map(|p| p.attr("name").map(str::to_string))
             .collect();
-        let loader = Loader { file, source, opts, inertial_links };
+        // joints with a <limit> element (urdf-rs reads a missing one as all zeros)
+        let limit_joints = elems
+            .iter()
+            .filter(|e| e.name == "limit")
+            .filter_map(|e| e.parent.map(|p| &elems[p]))
+            .filter(|p| p.name == "joint")
+            .filter_map(|p| p.attr("name").map(str::to_string))
+            .collect();
+        let loader = Loader { file, source, opts, inertial_links, limit_joints, mesh_fits: Default::default() };
         loader.build(&robot).map_err(one_line_error)
     }
 
@@ -342,6 +418,33 @@ impl HandModel {
     /// [`HandModel::forward_kinematics`].
     pub fn fingertip_positions(&self, link_poses: &[Pose]) -> Vec<Vec3> {
         self.fingertips.iter().map(|t| link_poses[t.link].transform_point(t.pos)).collect()
+    }
+
+    /// The finger chains, one per finger, as the index (into `links`) of the link that ends it: a
+    /// finger is a path of movable joints that ends at a link no movable joint leaves (a leaf of
+    /// the movable-joint tree, the root excluded), so a joint chain shared by several fingers
+    /// above the point where they branch (Shadow's wrist WRJ2/WRJ1, SCHUNK SVH's `j5` that carries
+    /// the ring and little fingers) is part of each and counts as none. In link order.
+    pub fn finger_chains(&self) -> Vec<usize> {
+        let mut has_child = vec![false; self.links.len()];
+        for j in &self.joints {
+            has_child[j.parent_link] = true;
+        }
+        (1..self.links.len()).filter(|&l| !has_child[l]).collect()
+    }
+
+    /// Whether link `a` is link `b` or one of the links it hangs from.
+    pub fn is_ancestor_or_same(&self, a: usize, b: usize) -> bool {
+        let mut l = b;
+        loop {
+            if l == a {
+                return true;
+            }
+            if l == 0 {
+                return false;
+            }
+            l = self.joints[l - 1].parent_link;
+        }
     }
 }
 
@@ -416,6 +519,11 @@ fn check_origin(owner: &str, what: &str, p: &urdf_rs::Pose) -> R<()> {
     Ok(())
 }
 
+/// A name as a TOML key: bare where it can be (`joint_0`), quoted otherwise (`"joint_0.0"`).
+fn toml_key(name: &str) -> String {
+    if !name.is_empty() && name.chars().all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-') { name.to_string() } else { format!("{name:?}") }
+}
+
 fn is_movable(j: &urdf_rs::Joint) -> bool {
     matches!(j.joint_type, urdf_rs::JointType::Revolute | urdf_rs::JointType::Continuous)
 }
@@ -465,6 +573,10 @@ struct Loader<'a> {
     opts: &'a HandLoadOptions,
     /// Names of the links that have an `<inertial>` element.
     inertial_links: std::collections::HashSet<String>,
+    /// Names of the joints that have a `<limit>` element.
+    limit_joints: std::collections::HashSet<String>,
+    /// What each `<mesh>` collision became, in the order the colliders are read.
+    mesh_fits: std::cell::RefCell<Vec<MeshFitReport>>,
 }
 
 impl Loader<'_> {
@@ -535,6 +647,18 @@ impl Loader<'_> {
             parent_joint[c] = Some(ji);
             children[p].push(ji);
             ends.push((p, c));
+        }
+
+        // joints named by hand.effort / hand.velocity tables are movable joints of this hand
+        for (what, limit) in [("effort", &self.opts.effort), ("velocity", &self.opts.velocity)] {
+            let Some(JointLimitOverride::PerJoint(m)) = limit else { continue };
+            if let Some(bad) = m.keys().find(|k| !robot.joints.iter().any(|j| &j.name == *k && is_movable(j))) {
+                let names: Vec<&str> = robot.joints.iter().filter(|j| is_movable(j)).map(|j| j.name.as_str()).collect();
+                return Err(format!(
+                    "key `hand.{what}.{bad}`: {f} has no movable joint '{bad}'; expected the name of one of its revolute or continuous joints ({})",
+                    names.join(", ")
+                ));
+            }
         }
 
         let roots: Vec<usize> = (0..n).filter(|&i| parent_joint[i].is_none()).collect();
@@ -714,8 +838,18 @@ impl Loader<'_> {
             colliders,
             fingertips: Vec::new(),
             frames,
+            warnings: Vec::new(),
+            mesh_fits: self.mesh_fits.take(),
         };
-        model.fingertips = self.fingertips(robot, &model)?;
+        (model.fingertips, model.warnings) = self.fingertips(robot, &model)?;
+        for fit in model.mesh_fits.iter().filter(|m| m.is_poor()) {
+            model.warnings.push(format!(
+                "{}: poor mesh fit: {} (more than {POOR_FIT_VOLUME_RATIO}× or {} mm); split the mesh into convex pieces or give the link primitive collision shapes",
+                self.file,
+                fit.describe(),
+                POOR_FIT_GAP_M * 1e3
+            ));
+        }
         Ok(model)
     }
 
@@ -821,6 +955,13 @@ impl Loader<'_> {
         }
         let lim = &j.limit;
         let continuous = j.joint_type == urdf_rs::JointType::Continuous;
+        if !continuous && !self.limit_joints.contains(name.as_str()) {
+            // urdf-rs reads a missing <limit> as lower = upper = 0: a locked joint. The config can
+            // give effort and velocity, not position limits.
+            return Err(format!(
+                "joint '{name}' in {f} is revolute but has no <limit>; expected <limit lower upper effort velocity> on a revolute joint (hand.effort and hand.velocity in the config replace effort and velocity only; position limits come from the URDF)"
+            ));
+        }
         let (lower, upper) = if continuous {
             (f32::NEG_INFINITY, f32::INFINITY)
         } else {
@@ -846,20 +987,44 @@ impl Loader<'_> {
             }
             (lim.lower as f32, lim.upper as f32)
         };
-        for (what, v, unit, max) in [("effort", lim.effort, "N·m", MAX_EFFORT_NM), ("velocity", lim.velocity, "rad/s", MAX_VELOCITY_RAD_S)] {
-            if !(v.is_finite() && v > 0.0) {
+        // effort and velocity: the config's override where it names this joint, else the URDF's
+        let mut limits = [0.0f32; 2];
+        for (k, (what, urdf, over, unit, max)) in [
+            ("effort", lim.effort, &self.opts.effort, "N·m", MAX_EFFORT_NM),
+            ("velocity", lim.velocity, &self.opts.velocity, "rad/s", MAX_VELOCITY_RAD_S),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            if let Some(v) = over.as_ref().and_then(|o| o.get(name)) {
+                let v = f64::from(v);
+                if !(v.is_finite() && v > 0.0 && v <= max) {
+                    return Err(format!(
+                        "joint '{name}' in {f}: hand.{what} gives it {what} limit {}; expected a positive finite limit of at most {max} {unit}",
+                        fnum(v)
+                    ));
+                }
+                limits[k] = v as f32;
+                continue;
+            }
+            let fix = format!(
+                "or set hand.{what} = <{unit}> (all joints) or hand.{what}.{} = <{unit}> in the config",
+                toml_key(name)
+            );
+            if !(urdf.is_finite() && urdf > 0.0) {
                 return Err(format!(
-                    "joint '{name}' in {f} has {what} limit {}{}; expected a positive finite <limit {what}> ({unit}) on a movable joint",
-                    fnum(v),
-                    if v == 0.0 { " (a missing <limit> or attribute reads as 0)" } else { "" }
+                    "joint '{name}' in {f} has {what} limit {}{}; expected a positive finite <limit {what}> ({unit}) on a movable joint, {fix}",
+                    fnum(urdf),
+                    if urdf == 0.0 { " (a missing <limit> or attribute reads as 0)" } else { "" }
                 ));
             }
-            if v > max {
+            if urdf > max {
                 return Err(format!(
-                    "joint '{name}' in {f} has {what} limit {}; expected a <limit {what}> of at most {max} {unit}",
-                    fnum(v)
+                    "joint '{name}' in {f} has {what} limit {}; expected a <limit {what}> of at most {max} {unit}, {fix}",
+                    fnum(urdf)
                 ));
             }
+            limits[k] = urdf as f32;
         }
         let (damping, friction) = j.dynamics.as_ref().map_or((0.0, 0.0), |d| (d.damping, d.friction));
         for (what, v) in [("damping", damping), ("friction", friction)] {
@@ -877,8 +1042,8 @@ impl Loader<'_> {
             axis: axis.normalize().as_vec3(),
             lower,
             upper,
-            effort: lim.effort as f32,
-            velocity: lim.velocity as f32,
+            effort: limits[0],
+            velocity: limits[1],
             damping: damping as f32,
             friction: friction as f32,
             mimic: None,
@@ -930,7 +1095,7 @@ impl Loader<'_> {
             urdf_rs::Geometry::Mesh { filename, scale } => match self.opts.mesh_approx {
                 MeshApprox::Error => {
                     return Err(format!(
-                        "link '{name}' in {f} has a <mesh> {what} ('{filename}'); expected sphere, box, cylinder or capsule collision geometry (or opt in to a bounding-box approximation with mesh_approx = box or capsule)"
+                        "link '{name}' in {f} has a <mesh> {what} ('{filename}'); expected sphere, box, cylinder or capsule collision geometry (or opt in to a fitted primitive with hand.mesh_approx = \"capsule\" or \"box\")"
                     ));
                 }
                 approx => self.mesh_collider(name, filename, scale.as_ref(), approx, pose)?,
@@ -996,12 +1161,12 @@ impl Loader<'_> {
         if verts.is_empty() {
             return Err(format!("link '{link}' in {f}: mesh {} has no vertices; expected a non-empty mesh", path.display()));
         }
+        let scaled: Vec<DVec3> = verts.iter().map(|v| *v * scale).collect();
         let mut lo = DVec3::splat(f64::INFINITY);
         let mut hi = DVec3::splat(f64::NEG_INFINITY);
-        for v in &verts {
-            let v = *v * scale;
-            lo = lo.min(v);
-            hi = hi.max(v);
+        for v in &scaled {
+            lo = lo.min(*v);
+            hi = hi.max(*v);
         }
         let centre = (lo + hi) * 0.5;
         let half = (hi - lo) * 0.5;
@@ -1013,127 +1178,127 @@ impl Loader<'_> {
                 hi
             ));
         }
-        match approx {
-            MeshApprox::Capsule => {
-                // longest axis (ties prefer z, then x)
-                let (rot, long, r) = if half.z >= half.x && half.z >= half.y {
-                    (DQuat::IDENTITY, half.z, half.x.max(half.y))
-                } else if half.x >= half.y {
-                    (DQuat::from_rotation_y(std::f64::consts::FRAC_PI_2), half.x, half.y.max(half.z))
-                } else {
-                    (DQuat::from_rotation_x(-std::f64::consts::FRAC_PI_2), half.y, half.x.max(half.z))
-                };
-                if r <= 0.0 {
+        let kinds: &[PrimitiveKind] = match approx {
+            MeshApprox::Box => &[PrimitiveKind::Box],
+            _ => &[PrimitiveKind::Capsule, PrimitiveKind::Sphere],
+        };
+        let fit = fit_tightest(&scaled, kinds).map_err(|e| format!("link '{link}' in {f}: mesh {}: {e}", path.display()))?;
+        let aligned = axis_aligned(&scaled, fit.kind()).map_err(|e| format!("link '{link}' in {f}: mesh {}: {e}", path.display()))?;
+        let shape = match fit.shape {
+            FittedShape::Sphere { radius } => ColliderShape::Sphere { radius: radius as f32 },
+            FittedShape::Capsule { radius, half_length } => ColliderShape::Capsule { radius: radius as f32, half_length: half_length as f32 },
+            FittedShape::Box { half_extents } => ColliderShape::Box { half_extents: half_extents.as_vec3() },
+        };
+        self.mesh_fits.borrow_mut().push(MeshFitReport {
+            link: link.to_string(),
+            mesh: path.clone(),
+            shape,
+            hull_volume: fit.hull_volume as f32,
+            volume_ratio: fit.volume_ratio() as f32,
+            aligned_volume_ratio: aligned.volume_ratio() as f32,
+            max_gap: fit.max_gap as f32,
+        });
+        Ok((pose.mul(&DPose { pos: fit.centre, rot: fit.rot }), shape))
+    }
+
+    fn fingertips(&self, robot: &urdf_rs::Robot, model: &HandModel) -> R<(Vec<Fingertip>, Vec<String>)> {
+        let f = &self.file;
+        let detect = self.opts.fingertips.is_empty();
+        let mut tips: Vec<Fingertip> = Vec::new();
+        if detect {
+            let mut found = Vec::new();
+            for l in robot.links.iter().filter(|l| l.name.to_ascii_lowercase().contains("tip")) {
+                let (link, pose) = model.frame(&l.name).expect("every URDF link resolves to a frame");
+                found.push(Fingertip { name: l.name.clone(), link, pos: pose.pos });
+            }
+            // several on one finger chain (`tip` and `tip_head` frames of one finger): the most
+            // distal one, i.e. none lies on a link below it, or farther from the origin of the same
+            // link (the joint); among equally far ones on one link, the first in URDF order
+            const SAME: f32 = 1e-9;
+            let distal = |i: usize| {
+                let a = &found[i];
+                !found.iter().enumerate().any(|(k, b)| {
+                    if b.link != a.link {
+                        model.is_ancestor_or_same(a.link, b.link)
+                    } else {
+                        let (da, db) = (a.pos.length(), b.pos.length());
+                        db > da + SAME || (k < i && (db - da).abs() <= SAME)
+                    }
+                })
+            };
+            tips = (0..found.len()).filter(|&i| distal(i)).map(|i| found[i].clone()).collect();
+        } else {
+            for (i, spec) in self.opts.fingertips.iter().enumerate() {
+                let name = spec.name();
+                if self.opts.fingertips[..i].iter().any(|o| o.name() == name) {
                     return Err(format!(
-                        "link '{link}' in {f}: mesh {} is flat or a line (bounding box half extents {} {} {}); expected a solid for a capsule",
-                        path.display(),
-                        half.x,
-                        half.y,
-                        half.z
+                        "fingertip '{name}' in {f} is named twice (hand.fingertips[{i}]); expected distinct fingertip names (two tips on one link need distinct `name`s)"
                     ));
                 }
-                let shape = ColliderShape::Capsule { radius: r as f32, half_length: (long - r).max(0.0) as f32 };
-                Ok((pose.mul(&DPose { pos: centre, rot }), shape))
+                let tip = match spec {
+                    FingertipSpec::Frame(frame) => {
+                        let Some((link, pose)) = model.frame(frame) else {
+                            return Err(format!(
+                                "fingertip '{frame}' does not exist in {f}; expected the name of a link (frame) of the hand"
+                            ));
+                        };
+                        Fingertip { name: name.to_string(), link, pos: pose.pos }
+                    }
+                    FingertipSpec::Link(t) => {
+                        let Some((link, pose)) = model.frame(&t.link) else {
+                            return Err(format!(
+                                "fingertip '{name}' (hand.fingertips[{i}]) is on link '{}', which does not exist in {f}; expected the name of a link (frame) of the hand",
+                                t.link
+                            ));
+                        };
+                        let offset = Vec3::from_array(t.offset);
+                        if !offset.is_finite() || offset.abs().max_element() as f64 > MAX_LENGTH_M {
+                            return Err(format!(
+                                "fingertip '{name}' (hand.fingertips[{i}]) in {f} has offset {offset}; expected a finite offset within ±{MAX_LENGTH_M} m in the frame of link '{}'",
+                                t.link
+                            ));
+                        }
+                        // the frame's pose in its rigid link ∘ the offset in the frame
+                        Fingertip { name: name.to_string(), link, pos: pose.transform_point(offset) }
+                    }
+                };
+                tips.push(tip);
             }
-            _ => Ok((pose.mul(&DPose { pos: centre, rot: DQuat::IDENTITY }), ColliderShape::Box { half_extents: half.as_vec3() })),
         }
-    }
-
-    fn fingertips(&self, robot: &urdf_rs::Robot, model: &HandModel) -> R<Vec<Fingertip>> {
-        let f = &self.file;
-        let names: Vec<String> = if self.opts.fingertips.is_empty() {
-            robot.links.iter().filter(|l| l.name.to_ascii_lowercase().ends_with("tip")).map(|l| l.name.clone()).collect()
-        } else {
-            self.opts.fingertips.clone()
-        };
-        if names.len() > MAX_TIPS {
+        let names = |v: &mut dyn Iterator<Item = &str>| v.map(|n| format!("'{n}'")).collect::<Vec<_>>().join(", ");
+        let tip_names = names(&mut tips.iter().map(|t| t.name.as_str()));
+        if tips.len() > MAX_TIPS {
             return Err(format!(
-                "{f} has {} fingertip frames ({}); expected at most {MAX_TIPS} (MAX_TIPS); name fewer in the fingertips option",
-                names.len(),
-                names.join(", ")
+                "{f} has {} fingertip frames ({tip_names}); expected at most {MAX_TIPS} (MAX_TIPS); name fewer in hand.fingertips",
+                tips.len(),
             ));
         }
-        let mut tips = Vec::with_capacity(names.len());
-        for (i, name) in names.iter().enumerate() {
-            if names[..i].contains(name) {
-                return Err(format!("fingertip '{name}' in {f} is named twice; expected distinct fingertip frames"));
-            }
-            let Some((link, pose)) = model.frame(name) else {
-                return Err(format!(
-                    "fingertip '{name}' does not exist in {f}; expected the name of a link (frame) of the hand"
-                ));
-            };
-            tips.push(Fingertip { name: name.clone(), link, pos: pose.pos });
-        }
-        Ok(tips)
-    }
-}
-
-/// Vertices of a binary or ASCII STL file.
-fn parse_stl(b: &[u8]) -> R<Vec<DVec3>> {
-    if b.len() >= 84 {
-        let n = u32::from_le_bytes([b[80], b[81], b[82], b[83]]) as u64;
-        if 84 + 50 * n == b.len() as u64 {
-            let f = |o: usize| f32::from_le_bytes([b[o], b[o + 1], b[o + 2], b[o + 3]]) as f64;
-            let mut v = Vec::with_capacity(3 * n as usize);
-            for t in 0..n as usize {
-                let base = 84 + 50 * t + 12; // skip the normal
-                for k in 0..3 {
-                    let o = base + 12 * k;
-                    v.push(DVec3::new(f(o), f(o + 4), f(o + 8)));
+        let chains = model.finger_chains();
+        let mut warnings = Vec::new();
+        if tips.is_empty() || tips.len() != chains.len() {
+            let found = if detect {
+                if tips.is_empty() {
+                    "no link name contains \"tip\", so no fingertips were found".to_string()
+                } else {
+                    format!("{} fingertips were found by name (links containing \"tip\": {tip_names})", tips.len())
                 }
-            }
-            return check_vertices(v);
+            } else {
+                format!("hand.fingertips names {} fingertips ({tip_names})", tips.len())
+            };
+            let has = match chains.len() {
+                0 => "no finger chains (no movable joints)".to_string(),
+                n => format!("{n} finger chains (ending at links {})", names(&mut chains.iter().map(|&l| model.links[l].name.as_str()))),
+            };
+            warnings.push(format!(
+                "{f}: {found}, but the hand has {has}; name one fingertip per finger with hand.fingertips = [\"<frame>\", ...] or {{ link = \"<link>\", offset = [x, y, z] }} entries (offset in m, in the link's frame)"
+            ));
         }
+        Ok((tips, warnings))
     }
-    let text = std::str::from_utf8(b).ok().filter(|t| t.trim_start().starts_with("solid")).ok_or_else(|| {
-        "neither a binary STL (84-byte header, 50 bytes per triangle) nor an ASCII STL (starting with 'solid')".to_string()
-    })?;
-    let mut v = Vec::new();
-    let mut it = text.split_whitespace();
-    while let Some(tok) = it.next() {
-        if tok.eq_ignore_ascii_case("vertex") {
-            let mut c = [0.0; 3];
-            for x in &mut c {
-                *x = it
-                    .next()
-                    .and_then(|s| s.parse::<f64>().ok())
-                    .ok_or_else(|| "an ASCII STL 'vertex' line needs three numbers".to_string())?;
-            }
-            v.push(DVec3::from_array(c));
-        }
-    }
-    check_vertices(v)
 }
 
-/// Vertices (`v x y z` lines) of an OBJ file.
-fn parse_obj(b: &[u8]) -> R<Vec<DVec3>> {
-    let text = String::from_utf8_lossy(b);
-    let mut v = Vec::new();
-    for (ln, line) in text.lines().enumerate() {
-        let mut it = line.split_whitespace();
-        if it.next() != Some("v") {
-            continue;
-        }
-        let mut c = [0.0; 3];
-        for x in &mut c {
-            *x = it
-                .next()
-                .and_then(|s| s.parse::<f64>().ok())
-                .ok_or_else(|| format!("OBJ line {}: a 'v' line needs three numbers", ln + 1))?;
-        }
-        v.push(DVec3::from_array(c));
-    }
-    check_vertices(v)
-}
-
-fn check_vertices(v: Vec<DVec3>) -> R<Vec<DVec3>> {
-    if v.iter().all(|p| p.is_finite()) {
-        Ok(v)
-    } else {
-        Err("a vertex has a non-finite coordinate".to_string())
-    }
-}
+use crate::mesh::fit::{FittedShape, PrimitiveKind, axis_aligned, fit_tightest};
+use crate::mesh::read::{parse_obj, parse_stl};
 
 // ---------------------------------------------------------------------------------------------
 // The pre-scan: a light, non-recursive reading of the XML's elements and attributes, run before

@@ -13,6 +13,7 @@ pub mod export;
 pub mod geom;
 pub mod hand;
 pub mod learn;
+pub mod mesh;
 pub mod metrics;
 pub mod plot;
 pub mod record;

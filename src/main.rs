@@ -111,6 +111,13 @@ fn run(cli: Cli) -> Result<()> {
                 task.priv_dim,
                 task.action_dim
             ));
+            // what each mesh collision became (poor fits are also warnings, printed by from_config)
+            if !model.hand.mesh_fits.is_empty() {
+                console::status(&format!("mesh collision shapes ({}, hand.mesh_approx = {:?}):", model.hand.mesh_fits.len(), cfg.hand.mesh_approx));
+                for fit in &model.hand.mesh_fits {
+                    console::status(&format!("  {}{}", fit.describe(), if fit.is_poor() { "  [poor fit]" } else { "" }));
+                }
+            }
             // what the policy sees: the actor's and the critic's observation layouts
             console::status(dextrain::task::spec::layout_table(&task.obs_layout, "actor observation").trim_end());
             console::status(dextrain::task::spec::layout_table(&task.priv_layout, "critic observation").trim_end());

@@ -2,12 +2,14 @@
 //! wrist's PD controller (DESIGN §4).
 
 use std::collections::BTreeMap;
+use std::fmt;
 
 use anyhow::Result;
-use serde::{Deserialize, Serialize};
+use serde::de::{self, MapAccess, Visitor, value::MapAccessDeserializer};
+use serde::{Deserialize, Deserializer, Serialize};
 
 use super::Check;
-use crate::hand::MeshApprox;
+use crate::hand::{MAX_EFFORT_NM, MAX_LENGTH_M, MAX_VELOCITY_RAD_S, MeshApprox};
 
 /// `[hand]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -15,8 +17,12 @@ use crate::hand::MeshApprox;
 pub struct HandConfig {
     /// URDF of the hand, relative to the config file's directory.
     pub urdf: String,
-    /// Fingertip frame names; empty = every link whose name ends in "tip".
-    pub fingertips: Vec<String>,
+    /// The fingertips, in the order the task uses them: each a frame name (`"link_3.0_tip"`, a
+    /// URDF link, possibly merged by a fixed joint; the tip is its origin) or a point on a link
+    /// (`{ link = "fingertip", offset = [0.0, -0.05, 0.015], name = "index_pad" }`). Empty = every
+    /// URDF link whose name contains "tip" (case-insensitive), the most distal one per finger
+    /// chain; a warning when their number differs from the number of finger chains.
+    pub fingertips: Vec<FingertipSpec>,
     /// What to do with mesh collision geometry: "error", "box" or "capsule" (bounding-box approximations).
     pub mesh_approx: MeshApprox,
     /// Position gain of every finger joint servo (N·m/rad).
@@ -33,6 +39,133 @@ pub struct HandConfig {
     pub friction: f32,
     /// Initial joint positions (joint name -> rad); joints not named start at 0 clamped into their limits.
     pub init_joints: BTreeMap<String, f32>,
+    /// Effort limits (N·m) that replace the URDF's: one number for every movable joint, or a table
+    /// joint name -> N·m (the joints not named keep the URDF's). None (the default): the URDF's,
+    /// where a missing or zero `effort` is an error.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub effort: Option<JointLimitOverride>,
+    /// Velocity limits (rad/s) that replace the URDF's: one number for every movable joint, or a
+    /// table joint name -> rad/s (the joints not named keep the URDF's). None (the default): the
+    /// URDF's, where a missing or zero `velocity` is an error.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub velocity: Option<JointLimitOverride>,
+}
+
+/// One entry of `hand.fingertips`: a frame name, or a point on a link. Written as a string or as
+/// a table `{ link, offset, name }` (deserialised by hand: serde's untagged enums answer a typo
+/// with "data did not match any variant", naming neither the key nor what is expected).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum FingertipSpec {
+    /// The origin of a URDF link (frame), possibly one merged into its parent by a fixed joint; the
+    /// tip is named after the frame.
+    Frame(String),
+    /// A point on a link, in that link's frame: `{ link = "...", offset = [x, y, z], name = "..." }`.
+    Link(LinkTip),
+}
+
+/// A fingertip at a point on a link: `{ link = "...", offset = [x, y, z], name = "..." }`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LinkTip {
+    /// The URDF link the tip is on (a link merged by a fixed joint resolves to the link it was
+    /// merged into, its fixed-joint origins composed with `offset`).
+    pub link: String,
+    /// Position of the tip in the link's frame (m); [0, 0, 0] = the link's origin.
+    #[serde(default)]
+    pub offset: [f32; 3],
+    /// The tip's name (observations, `task.hand.thumb`, references); default the link's name. Two
+    /// tips on one link need distinct names.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+}
+
+impl FingertipSpec {
+    /// The tip's name: the frame's, or the table's `name` (default its link's).
+    pub fn name(&self) -> &str {
+        match self {
+            FingertipSpec::Frame(f) => f,
+            FingertipSpec::Link(t) => t.name.as_deref().unwrap_or(&t.link),
+        }
+    }
+}
+
+impl From<&str> for FingertipSpec {
+    fn from(frame: &str) -> Self {
+        FingertipSpec::Frame(frame.to_string())
+    }
+}
+
+impl From<String> for FingertipSpec {
+    fn from(frame: String) -> Self {
+        FingertipSpec::Frame(frame)
+    }
+}
+
+impl<'de> Deserialize<'de> for FingertipSpec {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = FingertipSpec;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a fingertip frame name (a string) or a table { link = \"<link>\", offset = [x, y, z], name = \"<tip>\" } (offset and name optional)")
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> std::result::Result<FingertipSpec, E> {
+                Ok(FingertipSpec::Frame(v.to_string()))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> std::result::Result<FingertipSpec, A::Error> {
+                // the table's own errors (an unknown key, a missing `link`) keep serde's words
+                LinkTip::deserialize(MapAccessDeserializer::new(map)).map(FingertipSpec::Link)
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+/// `hand.effort` / `hand.velocity`: limits that replace the URDF's. Written as a number or a
+/// table (deserialised by hand, for the reason given at [`FingertipSpec`]).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum JointLimitOverride {
+    /// One limit for every movable joint (mimic followers included).
+    All(f32),
+    /// Limits by joint name; the joints not named keep the URDF's.
+    PerJoint(BTreeMap<String, f32>),
+}
+
+impl JointLimitOverride {
+    /// The limit this override gives `joint`, if any.
+    pub fn get(&self, joint: &str) -> Option<f32> {
+        match self {
+            JointLimitOverride::All(v) => Some(*v),
+            JointLimitOverride::PerJoint(m) => m.get(joint).copied(),
+        }
+    }
+}
+
+impl<'de> Deserialize<'de> for JointLimitOverride {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct V;
+        impl<'de> Visitor<'de> for V {
+            type Value = JointLimitOverride;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("one limit for every movable joint (a number) or a table of limits by joint name ({ joint = number, ... })")
+            }
+            fn visit_f64<E: de::Error>(self, v: f64) -> std::result::Result<JointLimitOverride, E> {
+                Ok(JointLimitOverride::All(v as f32))
+            }
+            fn visit_i64<E: de::Error>(self, v: i64) -> std::result::Result<JointLimitOverride, E> {
+                Ok(JointLimitOverride::All(v as f32))
+            }
+            fn visit_u64<E: de::Error>(self, v: u64) -> std::result::Result<JointLimitOverride, E> {
+                Ok(JointLimitOverride::All(v as f32))
+            }
+            fn visit_map<A: MapAccess<'de>>(self, map: A) -> std::result::Result<JointLimitOverride, A::Error> {
+                BTreeMap::<String, f32>::deserialize(MapAccessDeserializer::new(map)).map(JointLimitOverride::PerJoint)
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 /// `[wrist]`
@@ -74,6 +207,8 @@ impl Default for HandConfig {
             joint_kd: BTreeMap::new(),
             friction: 1.0,
             init_joints: BTreeMap::new(),
+            effort: None,
+            velocity: None,
         }
     }
 }
@@ -113,6 +248,47 @@ impl HandConfig {
         c.non_neg("hand.friction", self.friction)?;
         for (k, v) in &self.init_joints {
             c.finite(&format!("hand.init_joints.{k}"), *v)?;
+        }
+        for (i, tip) in self.fingertips.iter().enumerate() {
+            let key = format!("hand.fingertips[{i}]");
+            match tip {
+                FingertipSpec::Frame(f) if f.trim().is_empty() => {
+                    return Err(c.err(&key, "\"\"", "a fingertip frame name or a table { link = \"<link>\", offset = [x, y, z] }"));
+                }
+                FingertipSpec::Frame(_) => {}
+                FingertipSpec::Link(t) => {
+                    if t.link.trim().is_empty() {
+                        return Err(c.err(&format!("{key}.link"), "\"\"", "the name of a link of the hand"));
+                    }
+                    for (k, v) in t.offset.iter().enumerate() {
+                        let m = MAX_LENGTH_M as f32;
+                        c.in_range(&format!("{key}.offset[{k}]"), *v, -m, m, &format!("a finite offset within ±{m} m (the link's frame)"))?;
+                    }
+                    if t.name.as_deref().is_some_and(|n| n.trim().is_empty()) {
+                        return Err(c.err(&format!("{key}.name"), "\"\"", "a non-empty fingertip name (leave it out for the link's name)"));
+                    }
+                }
+            }
+            if let Some(j) = self.fingertips[..i].iter().position(|o| o.name() == tip.name()) {
+                return Err(c.err(
+                    &key,
+                    format!("{:?}", tip.name()),
+                    &format!("a fingertip name distinct from hand.fingertips[{j}]'s (two tips on one link need distinct `name`s)"),
+                ));
+            }
+        }
+        for (what, limit, unit, max) in [("effort", &self.effort, "N·m", MAX_EFFORT_NM), ("velocity", &self.velocity, "rad/s", MAX_VELOCITY_RAD_S)] {
+            let allowed = format!("a limit in (0, {max}] {unit}");
+            let check = |key: &str, v: f32| if v.is_finite() && v > 0.0 && f64::from(v) <= max { Ok(()) } else { Err(c.err(key, v, &allowed)) };
+            match limit {
+                None => {}
+                Some(JointLimitOverride::All(v)) => check(&format!("hand.{what}"), *v)?,
+                Some(JointLimitOverride::PerJoint(m)) => {
+                    for (k, v) in m {
+                        check(&format!("hand.{what}.{k}"), *v)?;
+                    }
+                }
+            }
         }
         Ok(())
     }

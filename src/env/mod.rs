@@ -86,8 +86,23 @@ impl SimModel {
     /// Loads the config's hand and builds the model.
     pub fn from_config(cfg: &Config) -> Result<SimModel> {
         let path = cfg.resolve(&cfg.hand.urdf);
-        let opts = crate::hand::HandLoadOptions { fingertips: cfg.hand.fingertips.clone(), mesh_approx: cfg.hand.mesh_approx };
+        let opts = crate::hand::HandLoadOptions {
+            fingertips: cfg.hand.fingertips.clone(),
+            mesh_approx: cfg.hand.mesh_approx,
+            effort: cfg.hand.effort.clone(),
+            velocity: cfg.hand.velocity.clone(),
+        };
         let hand = HandModel::from_urdf_file(&path, &opts)?;
+        // the hand's warnings, once per process (a run builds its model more than once)
+        static WARNED: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
+        if let Ok(mut warned) = WARNED.lock() {
+            for w in &hand.warnings {
+                if !warned.contains(w) {
+                    crate::console::warn(&format!("warning: {w}"));
+                    warned.push(w.clone());
+                }
+            }
+        }
         SimModel::new(cfg, hand)
     }
 

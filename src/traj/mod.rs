@@ -20,6 +20,7 @@ use crate::geom::Pose;
 pub mod bank;
 pub mod io;
 pub mod perturb;
+pub mod grasp;
 pub mod synth;
 
 pub use io::{FORMAT_VERSION, REFERENCE_JSON_SCHEMA, REFERENCE_METADATA_NAME, REFERENCE_SCHEMA_NAME, REFERENCE_TOPIC};

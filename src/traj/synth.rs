@@ -9,17 +9,28 @@
 //! 4. `→ + lift`: the wrist rises by `lift` metres; the object reference rises with it;
 //! 5. `→ + hold`: hold at the top.
 //!
-//! The grasp posture: for our dexhand16 a tuned pinch (thumb against three fingers, targets past the
-//! object so the servos squeeze at their effort limit); for any other hand every actuated joint goes
-//! `close` of the way from its lower to its upper limit (URDF flexion positive toward the palm).
-//! The wrist is placed so that the centre of the fingertips' bounding box, in the grasp posture, sits
-//! at the object's centre: the closing fingers stall on the object's sides and squeeze it.
+//! The grasp (`--grasp`, [`GraspChoice`]):
+//! - `posture` (the default): for our dexhand16 a tuned pinch (thumb against three fingers, targets
+//!   past the object so the servos squeeze at their effort limit); for any other hand every actuated
+//!   joint goes `close` of the way from its lower to its upper limit (URDF flexion positive toward
+//!   the palm). The wrist is placed so that the centre of the fingertips' bounding box, in the grasp
+//!   posture, sits at the object's centre: the closing fingers stall on the object's sides.
+//! - `antipodal`: planned from the hand's own kinematics by [`super::grasp::plan_grasp`] (the thumb
+//!   and the other fingertips on opposite faces, reached by the fingertip IK, the closing motion
+//!   moving the fingertips through their contact points), the same way for every hand. The wrist
+//!   descends onto the grasp pose from `HOVER_M` above it in the pre-grasp posture (the last
+//!   `DESCENT_FRACTION` of the approach), and the closing phase passes through the plan's closing
+//!   postures. Status: it lifts dexhand16, Shadow and LEAP_Hand_Sim; not yet Allegro, LEAP (dex-urdf),
+//!   Inspire, Ability or SCHUNK SVH (BENCHMARKS.md, "Real hands").
+//!
+//! Mimic followers are `multiplier × leader + offset` in every keyframe (the open one included).
 
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use glam::{Quat, Vec3};
 
+use super::grasp::{plan_grasp, with_mimic};
 use super::perturb::{PerturbArgs, perturb};
 use super::{Keyframe, Trajectory};
 use crate::config::Config;
@@ -49,9 +60,14 @@ pub struct SynthArgs {
     /// Seconds of the final hold.
     #[arg(long, default_value_t = 1.0)]
     pub hold: f32,
-    /// For hands other than dexhand16: fraction of each actuated joint's range the grasp closes to.
+    /// For hands other than dexhand16 under `--grasp posture`: fraction of each actuated joint's
+    /// range the grasp closes to.
     #[arg(long, default_value_t = 0.6)]
     pub close_fraction: f32,
+    /// How the grasp is made: `posture` (a closing posture, see the module docs) or `antipodal`
+    /// (planned on the object's faces by the fingertip IK).
+    #[arg(long, value_enum, default_value_t = GraspChoice::Posture)]
+    pub grasp: GraspChoice,
     /// Number of references to write. Above 1, `--out` is a directory that receives
     /// `ref_000.mcap`, `ref_001.mcap`, …, each perturbed with its own draws (see `traj::perturb`).
     #[arg(long, default_value_t = 1)]
@@ -64,10 +80,25 @@ pub struct SynthArgs {
     pub perturb: PerturbArgs,
 }
 
+/// How `traj synth` makes its grasp (see the module documentation).
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum GraspChoice {
+    /// Close every joint to a posture (dexhand16's tuned pinch, or a fraction of each range).
+    #[default]
+    Posture,
+    /// Thumb and fingertips on opposite faces of the object, reached by the fingertip IK.
+    Antipodal,
+}
+
+/// Height (m) above the grasp pose from which the `antipodal` grasp descends onto the object.
+pub const HOVER_M: f32 = 0.05;
+/// Fraction of the approach phase the `antipodal` grasp spends descending onto the grasp pose.
+pub const DESCENT_FRACTION: f64 = 0.4;
+
 impl SynthArgs {
     /// The defaults for a config file.
     pub fn defaults(config: PathBuf, out: PathBuf) -> SynthArgs {
-        SynthArgs { config, out, lift: 0.15, approach: 1.0, close: 0.8, lift_time: 1.5, hold: 1.0, close_fraction: 0.6, count: 1, seed: 0, perturb: PerturbArgs::default() }
+        SynthArgs { config, out, lift: 0.15, approach: 1.0, close: 0.8, lift_time: 1.5, hold: 1.0, close_fraction: 0.6, grasp: GraspChoice::Posture, count: 1, seed: 0, perturb: PerturbArgs::default() }
     }
 }
 
@@ -95,12 +126,7 @@ pub fn grasp_posture(model: &SimModel, close_fraction: f32) -> Vec<f32> {
             q[j] = jd.lower + close_fraction * (jd.upper - jd.lower);
         }
     }
-    for (j, jt) in hand.joints.iter().enumerate() {
-        if let Some(m) = jt.mimic {
-            q[j] = m.multiplier * q[m.leader] + m.offset;
-        }
-    }
-    q
+    with_mimic(hand, q)
 }
 
 /// The wrist pose (initial orientation) that puts the centre of the fingertips' bounding box, in the
@@ -133,12 +159,10 @@ pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
     }
     let g = &model.globals;
     let wrist0 = Pose::new(Vec3::from_slice(&g.init_wrist_pos[..3]), Quat::from_array(g.init_wrist_rot));
-    let open: Vec<f32> = model.joints.iter().map(|j| j.default_q).collect();
-    let closed = grasp_posture(&model, args.close_fraction);
+    // the open hand: every joint at its default, followers from their leaders
+    let open = with_mimic(hand, model.joints.iter().map(|j| j.default_q).collect());
     let obj = Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]);
     let obj_rot = Quat::from_rotation_z(g.obj_init[2]);
-    let grasp = grasp_wrist_pose(&model, &closed);
-    let lifted = Pose::new(grasp.pos + Vec3::Z * args.lift, grasp.rot);
     let t1 = args.approach as f64;
     let t2 = t1 + args.close as f64;
     let t3 = t2 + 0.3;
@@ -146,20 +170,36 @@ pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
     let t5 = t4 + args.hold as f64;
     let obj_up = Pose::new(obj + Vec3::Z * args.lift, obj_rot);
     let obj_rest = Pose::new(obj, obj_rot);
-    let keys = [
-        (0.0, wrist0, &open, obj_rest),
-        (t1, grasp, &open, obj_rest),
-        (t2, grasp, &closed, obj_rest),
-        (t3, grasp, &closed, obj_rest),
-        (t4, lifted, &closed, obj_up),
-        (t5, lifted, &closed, obj_up),
-    ];
+    let (grasp, approach, closing): (Pose, Vec<(f64, Pose, Vec<f32>)>, Vec<Vec<f32>>) = match args.grasp {
+        GraspChoice::Posture => {
+            let closed = grasp_posture(&model, args.close_fraction);
+            (grasp_wrist_pose(&model, &closed), vec![], vec![closed])
+        }
+        GraspChoice::Antipodal => {
+            let plan = plan_grasp(&model, cfg.object.shape, &cfg.task.hand.thumb)
+                .map_err(|e| anyhow::anyhow!("{}: cannot plan the grasp: {e:#}", args.config.display()))?;
+            let hover = Pose::new(plan.wrist.pos + Vec3::Z * HOVER_M, plan.wrist.rot);
+            let pre = plan.closing[0].clone();
+            (plan.wrist, vec![(t1 * (1.0 - DESCENT_FRACTION), hover, pre.clone()), (t1, plan.wrist, pre)], plan.closing[1..].to_vec())
+        }
+    };
+    let closed = closing.last().expect("a closed posture").clone();
+    let lifted = Pose::new(grasp.pos + Vec3::Z * args.lift, grasp.rot);
+    let mut keys = vec![(0.0, wrist0, open.clone(), obj_rest)];
+    if approach.is_empty() {
+        keys.push((t1, grasp, open.clone(), obj_rest));
+    }
+    keys.extend(approach.into_iter().map(|(t, w, q)| (t, w, q, obj_rest)));
+    // the closing motion (one posture, or the planned steps through the contact points)
+    let n = closing.len();
+    keys.extend(closing.into_iter().enumerate().map(|(k, q)| (t1 + (t2 - t1) * (k + 1) as f64 / n as f64, grasp, q, obj_rest)));
+    keys.extend([(t3, grasp, closed.clone(), obj_rest), (t4, lifted, closed.clone(), obj_up), (t5, lifted, closed, obj_up)]);
     let frames = keys
         .iter()
         .map(|(t, wrist, q, object)| {
             let links = hand.forward_kinematics(q);
             let tips = hand.fingertips.iter().map(|tp| wrist.transform_point(links[tp.link].transform_point(tp.pos))).collect();
-            Keyframe { t: *t, wrist: *wrist, joints: (*q).clone(), fingertips: Some(tips), object: Some(*object) }
+            Keyframe { t: *t, wrist: *wrist, joints: q.clone(), fingertips: Some(tips), object: Some(*object) }
         })
         .collect();
     let traj = Trajectory {

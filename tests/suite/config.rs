@@ -239,3 +239,87 @@ fn keys_moved_out_of_task_lift_still_load() {
     let e = format!("{:#}", Config::from_toml_str("[task.lift]\ncontact_force = 0.2\n[task.hand]\ncontact_force = 0.3\n", p).unwrap_err());
     assert!(e.contains("run.toml") && e.contains("task.lift.contact_force") && e.contains("task.hand.contact_force") && !e.contains('\n'), "{e}");
 }
+
+/// `hand.fingertips` entries are frame names or `{ link, offset, name }` tables; `hand.effort` and
+/// `hand.velocity` are one number or a table by joint name. Both round-trip through the TOML.
+#[test]
+fn fingertip_tables_and_joint_limits_parse_and_round_trip() {
+    use dextrain::config::hand::{FingertipSpec, JointLimitOverride, LinkTip};
+    let p = Path::new("run.toml");
+    let text = "[hand]\nfingertips = [\"th_tip\", { link = \"if_dist\", offset = [0.01, 0, -0.002] }, { link = \"mf_dist\", name = \"mf_pad\" }]\neffort = 0.7\n[hand.velocity]\nif_j0 = 3\n\"joint_1.0\" = 2.5\n";
+    let c = Config::from_toml_str(text, p).unwrap();
+    assert_eq!(
+        c.hand.fingertips,
+        vec![
+            FingertipSpec::Frame("th_tip".into()),
+            FingertipSpec::Link(LinkTip { link: "if_dist".into(), offset: [0.01, 0.0, -0.002], name: None }),
+            FingertipSpec::Link(LinkTip { link: "mf_dist".into(), offset: [0.0; 3], name: Some("mf_pad".into()) }),
+        ]
+    );
+    assert_eq!(c.hand.fingertips.iter().map(|t| t.name()).collect::<Vec<_>>(), ["th_tip", "if_dist", "mf_pad"]);
+    assert_eq!(c.hand.effort, Some(JointLimitOverride::All(0.7)));
+    assert_eq!(c.hand.velocity, Some(JointLimitOverride::PerJoint([("if_j0".to_string(), 3.0), ("joint_1.0".to_string(), 2.5)].into())));
+    let again = Config::from_toml_str(&c.to_toml().unwrap(), p).unwrap();
+    assert_eq!(again.hand, c.hand);
+    // the defaults: no tips named (detection), the URDF's limits (and nothing written for them)
+    let d = Config::from_toml_str("", p).unwrap();
+    assert!(d.hand.fingertips.is_empty() && d.hand.effort.is_none() && d.hand.velocity.is_none());
+    assert!(!d.to_toml().unwrap().contains("effort"), "{}", d.to_toml().unwrap());
+    assert_eq!(Config::from_toml_str(&d.to_toml().unwrap(), p).unwrap().hand, d.hand);
+}
+
+/// A typo in a fingertip table, a wrong type, a negative limit or a bad offset is a one-line error
+/// naming the file, the key and what is expected.
+#[test]
+fn fingertip_and_limit_errors_name_the_key() {
+    let p = Path::new("run.toml");
+    for (text, key, hint) in [
+        ("[hand]\nfingertips = [\"th_tip\", { lnk = \"if_dist\" }]\n", "hand.fingertips[1]", "unknown field \"lnk\", expected one of \"link\", \"offset\", \"name\""),
+        ("[hand]\nfingertips = [{ link = \"if_dist\", ofset = [0, 0, 0] }]\n", "hand.fingertips[0]", "\"offset\""),
+        ("[hand]\nfingertips = [{ offset = [0, 0, 0.01] }]\n", "hand.fingertips[0]", "missing field \"link\""),
+        ("[hand]\nfingertips = [\"a\", 3]\n", "hand.fingertips[1]", "a fingertip frame name (a string) or a table { link ="),
+        ("[hand]\nfingertips = [{ link = \"a\", offset = [0, 0] }]\n", "hand.fingertips[0].offset", "3"),
+        ("[hand]\nfingertips = [{ link = \"a\", offset = [0, 0, 20] }]\n", "hand.fingertips[0].offset[2]", "within ±10 m"),
+        ("[hand]\nfingertips = [{ link = \"a\", offset = [0, nan, 0] }]\n", "hand.fingertips[0].offset[1]", "finite"),
+        ("[hand]\nfingertips = [\"\"]\n", "hand.fingertips[0]", "frame name"),
+        ("[hand]\nfingertips = [{ link = \"\" }]\n", "hand.fingertips[0].link", "link"),
+        ("[hand]\nfingertips = [{ link = \"a\", name = \"\" }]\n", "hand.fingertips[0].name", "non-empty"),
+        ("[hand]\nfingertips = [{ link = \"a\" }, { link = \"a\", offset = [0.01, 0, 0] }]\n", "hand.fingertips[1]", "distinct `name`s"),
+        ("[hand]\nfingertips = [\"a\", { link = \"b\", name = \"a\" }]\n", "hand.fingertips[1]", "hand.fingertips[0]"),
+        ("[hand]\neffort = -1\n", "hand.effort", "(0, 100000] N·m"),
+        ("[hand]\neffort = 0\n", "hand.effort", "(0, 100000] N·m"),
+        ("[hand]\neffort = 1e30\n", "hand.effort", "(0, 100000] N·m"),
+        ("[hand]\nvelocity = 0.0\n", "hand.velocity", "(0, 10000] rad/s"),
+        ("[hand]\neffort = { if_j0 = 1, if_j1 = -0.5 }\n", "hand.effort.if_j1", "(0, 100000] N·m"),
+        ("[hand.velocity]\nif_j0 = nan\n", "hand.velocity.if_j0", "rad/s"),
+        ("[hand]\neffort = \"strong\"\n", "hand.effort", "one limit for every movable joint (a number) or a table of limits by joint name"),
+        ("[hand]\nvelocity = [1, 2]\n", "hand.velocity", "a number"),
+        ("[hand]\neffort = { if_j0 = \"x\" }\n", "hand.effort.if_j0", "f32"),
+    ] {
+        let e = format!("{:#}", Config::from_toml_str(text, p).unwrap_err());
+        // the key path may go on into the table (`hand.fingertips[1].lnk`)
+        assert!(e.contains("run.toml") && e.contains(&format!("`{key}")) && e.contains(hint) && !e.contains('\n'), "{text}: {e}");
+    }
+    // a joint the hand does not have: named when the hand loads, with the URDF
+    let cfg = Config::from_toml_str("[hand]\nurdf = \"hands/dexhand16.urdf\"\neffort = { if_j0 = 1, if_j9 = 1 }\n", Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/x.toml"))).unwrap();
+    let e = format!("{:#}", dextrain::env::SimModel::from_config(&cfg).unwrap_err());
+    assert!(e.contains("`hand.effort.if_j9`") && e.contains("dexhand16.urdf") && e.contains("if_j0") && !e.contains('\n'), "{e}");
+}
+
+/// `dextrain check` prints the hand's warnings (here: one tip named for a four-finger hand) once,
+/// on stderr, and still succeeds.
+#[test]
+fn check_prints_the_hand_warnings_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("one_tip.toml");
+    let urdf = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/hands/dexhand16.urdf");
+    std::fs::write(&f, format!("[hand]\nurdf = \"{urdf}\"\nfingertips = [\"th_tip\"]\n")).unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_dextrain")).args(["check", f.to_str().unwrap()]).output().unwrap();
+    let err = String::from_utf8(out.stderr).unwrap();
+    assert!(out.status.success(), "{err}");
+    let warnings: Vec<&str> = err.lines().filter(|l| l.starts_with("warning:")).collect();
+    assert_eq!(warnings.len(), 1, "{err}");
+    for needle in ["dexhand16.urdf", "1 fingertips ('th_tip')", "4 finger chains", "hand.fingertips = ["] {
+        assert!(warnings[0].contains(needle), "{needle:?} not in {}", warnings[0]);
+    }
+}

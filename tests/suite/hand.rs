@@ -36,18 +36,6 @@ fn assert_rot(a: Quat, b: Quat, tol: f32, what: &str) {
     assert!(a.dot(b).abs() >= 1.0 - tol, "{what}: got {a}, expected {b}");
 }
 
-#[track_caller]
-fn assert_shape(a: ColliderShape, b: ColliderShape) {
-    let ok = match (a, b) {
-        (ColliderShape::Sphere { radius: r1 }, ColliderShape::Sphere { radius: r2 }) => (r1 - r2).abs() < 1e-7,
-        (ColliderShape::Capsule { radius: r1, half_length: h1 }, ColliderShape::Capsule { radius: r2, half_length: h2 }) => {
-            (r1 - r2).abs() < 1e-7 && (h1 - h2).abs() < 1e-7
-        }
-        (ColliderShape::Box { half_extents: e1 }, ColliderShape::Box { half_extents: e2 }) => (e1 - e2).abs().max_element() < 1e-7,
-        _ => false,
-    };
-    assert!(ok, "shape {a:?}, expected {b:?}");
-}
 
 fn tip_in_wrist(h: &HandModel, name: &str, q: &[f32]) -> Vec3 {
     let poses = h.forward_kinematics(q);
@@ -266,7 +254,7 @@ fn fingertip_option_and_default_suffix() {
     assert_vec(h.fingertips[0].pos, Vec3::new(0.0423, 0.0, 0.0), 1e-7, "th_tip pos");
     assert_eq!(h.fingertips[1].link, h.link_index("if_dist").unwrap());
     assert_eq!(h.fingertips[1].pos, Vec3::ZERO);
-    // default: every link ending in "tip", case-insensitive, in document order
+    // default: every link whose name contains "tip", case-insensitive, in document order
     let text = robot(&[PALM.into(), link("b_ThumbTIP"), link("a"), link("a_tip"), rev("j_b", "palm", "b_ThumbTIP"), rev("j_a", "palm", "a"), joint("a_fix", "fixed", "a", "a_tip", "")]);
     let h = load_str(&text, "suffix.urdf", &HandLoadOptions::default()).unwrap();
     let names: Vec<&str> = h.fingertips.iter().map(|t| t.name.as_str()).collect();
@@ -524,41 +512,51 @@ fn mesh_collision_is_an_error_without_opt_in() {
     assert!(msg.starts_with("link 'finger' in /robots/mesh_hand.urdf"), "{msg}");
 }
 
+/// The fitted collider of link 1 (`finger`, whose mesh sits at z = 0.1 in the link) contains every
+/// mesh vertex (given in the mesh frame, scaled) and is no bigger than the axis-aligned primitive of
+/// its kind; the mesh report says so. Returns the collider's shape.
+fn assert_fit_contains(h: &HandModel, mesh_verts: &[Vec3], file: &str, what: &str) -> ColliderShape {
+    let c = h.colliders.iter().find(|c| c.link == 1).unwrap();
+    for v in mesh_verts {
+        let p = c.pose.inverse().transform_point(*v + Vec3::new(0.0, 0.0, 0.1));
+        let outside = match c.shape {
+            ColliderShape::Sphere { radius } => p.length() - radius,
+            ColliderShape::Capsule { radius, half_length } => (p - Vec3::new(0.0, 0.0, p.z.clamp(-half_length, half_length))).length() - radius,
+            ColliderShape::Box { half_extents } => (p.abs() - half_extents).max_element(),
+        };
+        assert!(outside < 1e-6, "{what}: vertex {v} is {outside} m outside {:?}", c.shape);
+    }
+    assert_eq!(h.mesh_fits.len(), 1, "{what}");
+    let r = &h.mesh_fits[0];
+    assert_eq!(r.link, "finger", "{what}");
+    assert_eq!(r.mesh.file_name().unwrap().to_string_lossy(), file, "{what}");
+    assert_eq!(r.shape, c.shape, "{what}");
+    assert!(r.volume_ratio >= 1.0 - 1e-4 && r.volume_ratio <= r.aligned_volume_ratio * (1.0 + 1e-5), "{what}: {r:?}");
+    assert!(r.max_gap >= 0.0 && r.hull_volume > 0.0, "{what}: {r:?}");
+    c.shape
+}
+
 #[test]
 fn mesh_opt_in_binary_stl_box_and_capsule() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::create_dir(dir.path().join("meshes")).unwrap();
-    // vertices span x [-0.01, 0.03], y [0, 0.02], z [-0.005, 0.005]; scale x by 2
-    let stl = binary_stl(&[
+    let tris = [
         [[-0.01, 0.0, -0.005], [0.03, 0.0, 0.0], [0.0, 0.02, 0.005]],
         [[0.0, 0.01, 0.0], [0.01, 0.005, 0.001], [0.02, 0.015, -0.002]],
-    ]);
-    std::fs::write(dir.path().join("meshes/finger.STL"), stl).unwrap();
+    ];
+    std::fs::write(dir.path().join("meshes/finger.STL"), binary_stl(&tris)).unwrap();
     let urdf = dir.path().join("hand.urdf");
     std::fs::write(&urdf, mesh_hand("meshes/finger.STL", r#"scale="2 1 1""#)).unwrap();
-
+    // scaled by 2 along x
+    let verts: Vec<Vec3> = tris.iter().flatten().map(|v| Vec3::new(2.0 * v[0], v[1], v[2])).collect();
     let h = HandModel::from_urdf_file(&urdf, &opts(MeshApprox::Box)).unwrap();
-    let c = h.colliders.iter().find(|c| c.link == 1).unwrap();
-    // bbox x [-0.02, 0.06], y [0, 0.02], z [-0.005, 0.005]
-    match c.shape {
-        ColliderShape::Box { half_extents } => assert_vec(half_extents, Vec3::new(0.04, 0.01, 0.005), 1e-7, "half extents"),
-        s => panic!("expected a box, got {s:?}"),
-    }
-    assert_vec(c.pose.pos, Vec3::new(0.02, 0.01, 0.1), 1e-7, "box centre (mesh origin at z = 0.1)");
-    assert_rot(c.pose.rot, Quat::IDENTITY, 1e-7, "box rotation");
-
+    assert!(matches!(assert_fit_contains(&h, &verts, "finger.STL", "box"), ColliderShape::Box { .. }));
     let h = HandModel::from_urdf_file(&urdf, &opts(MeshApprox::Capsule)).unwrap();
-    let c = h.colliders.iter().find(|c| c.link == 1).unwrap();
-    // longest axis x: radius = max(0.01, 0.005), half length = 0.04 - 0.01
-    match c.shape {
-        ColliderShape::Capsule { radius, half_length } => {
-            assert_close(radius, 0.01, 1e-7, "radius");
-            assert_close(half_length, 0.03, 1e-7, "half length");
-        }
-        s => panic!("expected a capsule, got {s:?}"),
-    }
-    assert_vec(c.pose.pos, Vec3::new(0.02, 0.01, 0.1), 1e-7, "capsule centre");
-    assert_vec(c.pose.rot * Vec3::Z, Vec3::X, 1e-6, "capsule axis along x");
+    assert!(matches!(assert_fit_contains(&h, &verts, "finger.STL", "capsule"), ColliderShape::Capsule { .. } | ColliderShape::Sphere { .. }));
+    // a mesh that is flat is an error naming the link and the file
+    std::fs::write(dir.path().join("meshes/finger.STL"), binary_stl(&tris[..1])).unwrap();
+    let msg = format!("{:#}", HandModel::from_urdf_file(&urdf, &opts(MeshApprox::Capsule)).unwrap_err());
+    check_msg(&msg, "hand.urdf", &["link 'finger'", "finger.STL", "flat"]);
 }
 
 #[test]
@@ -567,31 +565,28 @@ fn mesh_opt_in_obj_via_package_and_ascii_stl_via_file_url() {
     let pkg = dir.path().join("my_hand");
     std::fs::create_dir_all(pkg.join("urdf")).unwrap();
     std::fs::create_dir_all(pkg.join("meshes")).unwrap();
-    // OBJ: y [-0.05, 0.05], x [-0.01, 0.01], z [0, 0.02]; faces, normals and comments are ignored
-    let obj = "# a finger\nv -0.01 -0.05 0.0\nv 0.01 0.05 0.02\nv 0.0 0.0 0.01 1.0\nvn 0 0 1\nvt 0.5 0.5\nf 1 2 3\n";
+    // OBJ: a tetrahedron, long along y; faces, normals and comments are ignored
+    let obj = "# a finger\nv -0.01 -0.05 0.0\nv 0.01 0.05 0.02\nv 0.0 0.0 0.03 1.0\nv 0.01 -0.05 0.0\nvn 0 0 1\nvt 0.5 0.5\nf 1 2 3\n";
+    let verts = [Vec3::new(-0.01, -0.05, 0.0), Vec3::new(0.01, 0.05, 0.02), Vec3::new(0.0, 0.0, 0.03), Vec3::new(0.01, -0.05, 0.0)];
     std::fs::write(pkg.join("meshes/finger.obj"), obj).unwrap();
     let urdf = pkg.join("urdf/hand.urdf");
     std::fs::write(&urdf, mesh_hand("package://my_hand/meshes/finger.obj", "")).unwrap();
     let h = HandModel::from_urdf_file(&urdf, &opts(MeshApprox::Capsule)).unwrap();
-    let c = h.colliders.iter().find(|c| c.link == 1).unwrap();
-    assert_shape(c.shape, ColliderShape::Capsule { radius: 0.01, half_length: 0.04 });
-    assert_vec(c.pose.pos, Vec3::new(0.0, 0.0, 0.11), 1e-7, "capsule centre");
-    assert_vec(c.pose.rot * Vec3::Z, Vec3::Y, 1e-6, "capsule axis along y");
+    if let ColliderShape::Capsule { .. } = assert_fit_contains(&h, &verts, "finger.obj", "obj capsule") {
+        let c = h.colliders.iter().find(|c| c.link == 1).unwrap();
+        assert!((c.pose.rot * Vec3::Z).y.abs() > 0.9, "the capsule lies along the mesh's long axis (y)");
+    }
     let h = HandModel::from_urdf_file(&urdf, &opts(MeshApprox::Box)).unwrap();
-    let c = h.colliders.iter().find(|c| c.link == 1).unwrap();
-    assert_shape(c.shape, ColliderShape::Box { half_extents: Vec3::new(0.01, 0.05, 0.01) });
+    assert_fit_contains(&h, &verts, "finger.obj", "obj box");
 
     // ASCII STL by absolute file:// URL, half size via scale
-    let stl = "solid cube\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 0.04 0.02 0\n   vertex 0 0 0.1\n  endloop\n endfacet\nendsolid cube\n";
+    let stl = "solid cube\n facet normal 0 0 1\n  outer loop\n   vertex 0 0 0\n   vertex 0.04 0.02 0\n   vertex 0 0 0.1\n  endloop\n endfacet\n facet normal 1 0 0\n  outer loop\n   vertex 0 0.03 0.02\n   vertex 0.04 0.02 0\n   vertex 0 0 0.1\n  endloop\n endfacet\nendsolid cube\n";
+    let verts: Vec<Vec3> = [[0.0, 0.0, 0.0], [0.04, 0.02, 0.0], [0.0, 0.0, 0.1], [0.0, 0.03, 0.02]].iter().map(|v| Vec3::from_array(*v) * 0.5).collect();
     let abs = dir.path().join("abs.stl");
     std::fs::write(&abs, stl).unwrap();
     let text = mesh_hand(&format!("file://{}", abs.display()), r#"scale="0.5 0.5 0.5""#);
     let h = load_str(&text, "/elsewhere/hand.urdf", &opts(MeshApprox::Capsule)).unwrap();
-    let c = h.colliders.iter().find(|c| c.link == 1).unwrap();
-    // bbox x [0, 0.02], y [0, 0.01], z [0, 0.05]: along z, radius 0.01, half length 0.015
-    assert_shape(c.shape, ColliderShape::Capsule { radius: 0.01, half_length: 0.015 });
-    assert_vec(c.pose.pos, Vec3::new(0.01, 0.005, 0.125), 1e-7, "capsule centre");
-    assert_rot(c.pose.rot, Quat::IDENTITY, 1e-7, "capsule along z");
+    assert_fit_contains(&h, &verts, "abs.stl", "ascii stl capsule");
 }
 
 #[test]
@@ -680,7 +675,7 @@ fn error_limits() {
     expect_err(&lim(r#"<limit lower="1" upper="-1" effort="1" velocity="1"/>"#), "limits_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "lower limit 1 > upper limit -1"]);
     expect_err(&lim(r#"<limit lower="-1" upper="1" effort="0" velocity="1"/>"#), "effort_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "effort"]);
     expect_err(&lim(r#"<limit lower="-1" upper="1" effort="1" velocity="-2"/>"#), "velocity_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "velocity"]);
-    expect_err(&lim(""), "nolimit_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "effort"]);
+    expect_err(&lim(""), "nolimit_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "no <limit>"]);
     expect_err(&lim(r#"<limit lower="-1" upper="nan" effort="1" velocity="1"/>"#), "nan_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "non-finite"]);
     // URDF 1.2: omitted limits are infinite, which a revolute joint cannot have
     let text = lim(r#"<limit effort="1" velocity="1"/>"#).replace("<robot ", "<robot version=\"1.2\" ");
@@ -689,7 +684,7 @@ fn error_limits() {
 
 #[test]
 fn error_too_many() {
-    // 25 movable joints in a chain
+    // MAX_JOINTS + 1 movable joints in a chain
     let mut parts = vec![PALM.to_string()];
     let mut parent = "palm".to_string();
     for i in 0..=MAX_JOINTS {
@@ -698,16 +693,20 @@ fn error_too_many() {
         parts.push(rev(&format!("j{i}"), &parent, &name));
         parent = name;
     }
-    expect_err(&robot(&parts), "long_hand.urdf", &HandLoadOptions::default(), &["25 movable", "joint 'j24'", "at most 24"]);
-    // 33 colliders
+    let (n, last, most) = (format!("{} movable", MAX_JOINTS + 1), format!("joint 'j{MAX_JOINTS}'"), format!("at most {MAX_JOINTS}"));
+    expect_err(&robot(&parts), "long_hand.urdf", &HandLoadOptions::default(), &[&n, &last, &most]);
+    // MAX_COLLIDERS + 1 colliders
     let col = r#"<collision><geometry><sphere radius="0.01"/></geometry></collision>"#.repeat(MAX_COLLIDERS + 1);
     let text = robot(&[format!(r#"<link name="palm">{col}</link>"#)]);
-    expect_err(&text, "spiky_hand.urdf", &HandLoadOptions::default(), &["33 collision shapes", "link 'palm'", "at most 32"]);
-    // 7 fingertips
+    let (n, most) = (format!("{} collision shapes", MAX_COLLIDERS + 1), format!("at most {MAX_COLLIDERS}"));
+    expect_err(&text, "spiky_hand.urdf", &HandLoadOptions::default(), &[&n, "link 'palm'", &most]);
+    // 7 fingertips, one per finger
     let mut parts = vec![PALM.to_string()];
     for i in 0..=MAX_TIPS {
+        parts.push(link(&format!("f{i}")));
+        parts.push(rev(&format!("j{i}"), "palm", &format!("f{i}")));
         parts.push(format!(r#"<link name="f{i}_tip"/>"#));
-        parts.push(joint(&format!("t{i}"), "fixed", "palm", &format!("f{i}_tip"), ""));
+        parts.push(joint(&format!("t{i}"), "fixed", &format!("f{i}"), &format!("f{i}_tip"), ""));
     }
     expect_err(&robot(&parts), "octopus_hand.urdf", &HandLoadOptions::default(), &["7 fingertip frames", "f6_tip", "at most 6"]);
 }
@@ -917,4 +916,322 @@ fn malformed_urdf_errors_name_the_element_and_stay_short() {
     let text = robot(&[PALM.into(), link("a"), rev("ja", "palm", "a"), rev("jx", "a", &ghost)]);
     let msg = expect_err(&text, "ghost.urdf", &o, &["joint 'jx'", "unknown child link", "…"]);
     assert!(msg.len() < 400, "{} characters: {msg}", msg.len());
+}
+
+// ------------------------------------------------------------------------------------------------
+// fingertips and limits from the config (issue "Real hands … out of the box", item 3)
+
+/// ../shared/hands (the real hands), or None with the reason printed.
+fn shared_hands(test: &str) -> Option<PathBuf> {
+    let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/hands");
+    if shared.is_dir() {
+        Some(shared)
+    } else {
+        eprintln!("{test}: SKIPPED, {} does not exist (the real hands are not part of the project)", shared.display());
+        None
+    }
+}
+
+fn tip_names(h: &HandModel) -> Vec<&str> {
+    h.fingertips.iter().map(|t| t.name.as_str()).collect()
+}
+
+fn chain_ends(h: &HandModel) -> Vec<&str> {
+    h.finger_chains().iter().map(|&l| h.links[l].name.as_str()).collect()
+}
+
+/// A shared hand's config with `hand.fingertips` removed (and `sets` applied), built into a
+/// model; a hand whose URDF has more colliders than MAX_COLLIDERS (LEAP's 71) is loaded from its
+/// URDF text with every collision but the first removed (the tips only need the joint tree).
+fn load_shared_without_tips(config: &Path, sets: &[&str]) -> HandModel {
+    let sets: Vec<String> = sets.iter().map(|s| s.to_string()).chain(["hand.fingertips=[]".to_string()]).collect();
+    let cfg = dextrain::config::Config::load_with_overrides(config, &sets).unwrap_or_else(|e| panic!("{}: {e:#}", config.display()));
+    match dextrain::env::SimModel::from_config(&cfg) {
+        Ok(m) => m.hand,
+        Err(e) if format!("{e:#}").contains("collision shapes") => {
+            let path = cfg.resolve(&cfg.hand.urdf);
+            let text = std::fs::read_to_string(&path).unwrap();
+            let mut out = String::new();
+            let mut rest = text.as_str();
+            let mut kept = 0;
+            while let Some(i) = rest.find("<collision") {
+                let end = rest[i..].find("</collision>").map(|k| i + k + "</collision>".len()).unwrap();
+                out.push_str(&rest[..i]);
+                if kept == 0 {
+                    out.push_str(&rest[i..end]);
+                }
+                kept += 1;
+                rest = &rest[end..];
+            }
+            out.push_str(rest);
+            let opts = HandLoadOptions { mesh_approx: cfg.hand.mesh_approx, effort: cfg.hand.effort.clone(), velocity: cfg.hand.velocity.clone(), ..Default::default() };
+            HandModel::from_urdf_str(&out, &path, &opts).unwrap_or_else(|e| panic!("{}: {e:#}", path.display()))
+        }
+        Err(e) => panic!("{}: {e:#}", config.display()),
+    }
+}
+
+/// The hand's warnings about its fingertips (not those about poor mesh fits).
+fn tip_warnings(h: &HandModel) -> Vec<&String> {
+    h.warnings.iter().filter(|w| !w.contains("poor mesh fit")).collect()
+}
+
+/// Finding: default detection took the links whose name ENDS in "tip", and found 2 of
+/// LEAP_Hand_Sim's 4 tips (`fingertip_2`, `fingertip_3` were missed) without a word.
+#[test]
+fn leap_sim_default_detection_finds_all_four_tips() {
+    let Some(shared) = shared_hands("leap_sim_default_detection_finds_all_four_tips") else { return };
+    let h = HandModel::from_urdf_file(&shared.join("leap_sim/robot_palmbox.urdf"), &opts(MeshApprox::Box)).unwrap();
+    assert_eq!(tip_names(&h), ["fingertip", "fingertip_2", "fingertip_3", "thumb_fingertip"]);
+    assert_eq!(chain_ends(&h), ["fingertip", "fingertip_2", "fingertip_3", "thumb_fingertip"]);
+    assert!(tip_warnings(&h).is_empty(), "{:?}", h.warnings);
+    // the tips are the distal links' origins
+    for t in &h.fingertips {
+        assert_eq!(h.links[t.link].name, t.name);
+        assert_eq!(t.pos, Vec3::ZERO);
+    }
+}
+
+/// Every real hand, its config's `hand.fingertips` removed: detection finds one tip per finger
+/// (checked by hand against each URDF's tree), in URDF order, and says nothing. Finger chains end
+/// at the links no movable joint leaves: Shadow's wrist (WRJ2, WRJ1) above the palm and SCHUNK
+/// SVH's `j5` (which carries the ring and little fingers) are not fingers of their own.
+#[test]
+fn every_real_hand_detects_one_tip_per_finger_chain() {
+    let Some(shared) = shared_hands("every_real_hand_detects_one_tip_per_finger_chain") else { return };
+    let limits = ["hand.effort=0.7", "hand.velocity=3.14"];
+    let cases: [(&str, &[&str], &[&str], &[&str]); 8] = [
+        ("ability", &[], &["thumb_tip", "index_tip", "middle_tip", "ring_tip", "pinky_tip"], &["thumb_L2", "index_L2", "middle_L2", "ring_L2", "pinky_L2"]),
+        ("allegro", &[], &["link_3.0_tip", "link_7.0_tip", "link_11.0_tip", "link_15.0_tip"], &["link_3.0", "link_7.0", "link_11.0", "link_15.0"]),
+        // the ROS Allegro has effort="0" velocity="0" on every joint: the config gives them
+        ("allegro_simlab", &limits, &["link_3.0_tip", "link_7.0_tip", "link_11.0_tip", "link_15.0_tip"], &["link_3.0", "link_7.0", "link_11.0", "link_15.0"]),
+        ("inspire", &[], &["thumb_tip", "index_tip", "middle_tip", "ring_tip", "pinky_tip"], &["thumb_distal", "index_intermediate", "middle_intermediate", "ring_intermediate", "pinky_intermediate"]),
+        // `fingertip` (the distal link) and `index_tip_head` (a frame on it) lie on one finger:
+        // the farther one from the distal joint is kept
+        ("leap", &[], &["thumb_tip_head", "index_tip_head", "middle_tip_head", "ring_tip_head"], &["fingertip", "fingertip_2", "fingertip_3", "thumb_fingertip"]),
+        ("leap_sim", &[], &["fingertip", "fingertip_2", "fingertip_3", "thumb_fingertip"], &["fingertip", "fingertip_2", "fingertip_3", "thumb_fingertip"]),
+        ("schunk_svh", &[], &["thtip", "fftip", "mftip", "rftip", "lftip"], &["right_hand_c", "right_hand_r", "right_hand_q", "right_hand_t", "right_hand_s"]),
+        ("shadow", &[], &["fftip", "mftip", "rftip", "lftip", "thtip"], &["ffdistal", "mfdistal", "rfdistal", "lfdistal", "thdistal"]),
+    ];
+    for (dir, sets, tips, chains) in cases {
+        let h = load_shared_without_tips(&shared.join(dir).join("config.toml"), sets);
+        assert_eq!(tip_names(&h), tips, "{dir}");
+        assert_eq!(chain_ends(&h), chains, "{dir}");
+        assert!(tip_warnings(&h).is_empty(), "{dir}: {:?}", h.warnings);
+        // every tip on a finger of its own: its link lies on exactly one chain, a different one each
+        let mut covered: Vec<usize> = h
+            .fingertips
+            .iter()
+            .map(|t| {
+                let on: Vec<usize> = h.finger_chains().into_iter().filter(|&c| h.is_ancestor_or_same(t.link, c)).collect();
+                assert_eq!(on.len(), 1, "{dir}: {} lies on chains {on:?}", t.name);
+                on[0]
+            })
+            .collect();
+        covered.sort();
+        assert_eq!(covered, h.finger_chains(), "{dir}");
+    }
+    // LEAP's tip_head frames sit beyond the distal links' origins
+    let h = load_shared_without_tips(&shared.join("leap/config.toml"), &[]);
+    assert!(h.fingertips.iter().all(|t| t.pos.length() > 0.01), "{:?}", h.fingertips);
+}
+
+/// Detection keeps the most distal "tip" per finger; fewer tips than finger chains is a warning
+/// that names the URDF, the tips, the chains and how to name them. The explicit list warns too.
+#[test]
+fn detection_keeps_the_most_distal_tip_and_warns_about_missing_fingers() {
+    let frame = |name: &str, parent: &str, x: f32| {
+        format!(
+            r#"<link name="{name}"/><joint name="{name}_fix" type="fixed"><parent link="{parent}"/><child link="{name}"/><origin xyz="{x} 0 0"/></joint>"#
+        )
+    };
+    let text = robot(&[
+        PALM.into(),
+        frame("palm_tip_marker", "palm", 0.01),
+        link("a1"),
+        link("a2"),
+        rev("ja1", "palm", "a1"),
+        rev("ja2", "a1", "a2"),
+        frame("a_mid_TIP", "a1", 0.02),
+        frame("a_tip", "a2", 0.03),
+        frame("a_tip_head", "a_tip", 0.01),
+        frame("a_tip_side", "a2", 0.02),
+        link("b_fingertip"),
+        rev("jb", "palm", "b_fingertip"),
+        frame("b_pad", "b_fingertip", 0.01),
+        link("c1"),
+        rev("jc", "palm", "c1"),
+    ]);
+    let h = load_str(&text, "/robots/three_fingers.urdf", &HandLoadOptions::default()).unwrap();
+    assert_eq!(tip_names(&h), ["a_tip_head", "b_fingertip"]);
+    assert_eq!(h.fingertips[0].link, h.link_index("a2").unwrap());
+    assert_vec(h.fingertips[0].pos, Vec3::new(0.04, 0.0, 0.0), 1e-7, "a_tip_head in a2");
+    assert_eq!(chain_ends(&h), ["a2", "b_fingertip", "c1"]);
+    assert_eq!(h.warnings.len(), 1, "{:?}", h.warnings);
+    let w = &h.warnings[0];
+    for needle in ["three_fingers.urdf", "2 fingertips", "'a_tip_head', 'b_fingertip'", "3 finger chains", "'c1'", "hand.fingertips = [", "{ link = ", "offset = [x, y, z]"] {
+        assert!(w.contains(needle), "warning does not contain {needle:?}: {w}");
+    }
+    assert!(!w.contains('\n'), "{w}");
+    // one tip per finger: no warning
+    let with_c = text.replace("</robot>", &format!("{}</robot>", frame("c_tip", "c1", 0.02)));
+    let h = load_str(&with_c, "three_tips.urdf", &HandLoadOptions::default()).unwrap();
+    assert_eq!(tip_names(&h), ["a_tip_head", "b_fingertip", "c_tip"]);
+    assert!(tip_warnings(&h).is_empty(), "{:?}", h.warnings);
+    // two equally far frames on one link: the first in URDF order
+    let twins = with_c.replace("</robot>", &format!("{}</robot>", frame("c_tip_twin", "c1", 0.02)));
+    assert_eq!(tip_names(&load_str(&twins, "twins.urdf", &HandLoadOptions::default()).unwrap()), ["a_tip_head", "b_fingertip", "c_tip"]);
+    // no tip at all
+    let none = robot(&[PALM.into(), link("a1"), rev("ja1", "palm", "a1")]);
+    let h = load_str(&none, "tipless.urdf", &HandLoadOptions::default()).unwrap();
+    assert!(h.fingertips.is_empty());
+    assert!(h.warnings.len() == 1 && h.warnings[0].contains("tipless.urdf") && h.warnings[0].contains("no link name contains"), "{:?}", h.warnings);
+    // an explicit list with another count than the chains warns, naming the list
+    let o = HandLoadOptions { fingertips: vec!["a_tip".into()], ..Default::default() };
+    let h = load_str(&text, "named.urdf", &o).unwrap();
+    assert!(h.warnings.len() == 1 && h.warnings[0].contains("hand.fingertips names 1 fingertips ('a_tip')") && h.warnings[0].contains("3 finger chains"), "{:?}", h.warnings);
+    // the shipped hands: one tip per finger (tri3's continuous wrist roll is above the branching)
+    for (file, n) in [("dexhand16.urdf", 4), ("tri3_mimic.urdf", 3)] {
+        let h = load_hand(file);
+        assert_eq!((h.fingertips.len(), h.finger_chains().len()), (n, n), "{file}");
+        assert!(tip_warnings(&h).is_empty(), "{file}: {:?}", h.warnings);
+    }
+}
+
+/// `{ link, offset, name }` tips: the point `offset` in the link's frame (a link merged by a fixed
+/// joint composes its fixed-joint origins), moving with the link; mixed with frame names.
+#[test]
+fn link_offset_fingertips_move_with_their_link() {
+    let spec = |link: &str, offset: [f32; 3], name: Option<&str>| FingertipSpec::Link(LinkTip { link: link.into(), offset, name: name.map(String::from) });
+    let o = HandLoadOptions {
+        fingertips: vec![
+            "th_tip".into(),
+            spec("if_dist", [0.01, 0.002, -0.003], None),
+            spec("if_dist", [0.03, 0.0, 0.008], Some("if_pad")),
+            spec("mf_tip", [0.005, 0.0, 0.001], Some("mf_nail")),
+        ],
+        ..Default::default()
+    };
+    let h = HandModel::from_urdf_file(&hand_path("dexhand16.urdf"), &o).unwrap();
+    assert_eq!(tip_names(&h), ["th_tip", "if_dist", "if_pad", "mf_nail"]);
+    let if_dist = h.link_index("if_dist").unwrap();
+    assert_eq!((h.fingertips[1].link, h.fingertips[2].link), (if_dist, if_dist));
+    assert_vec(h.fingertips[1].pos, Vec3::new(0.01, 0.002, -0.003), 1e-7, "if_dist + offset");
+    // mf_tip is merged into mf_dist at x = 0.0387 (no rotation)
+    assert_eq!(h.fingertips[3].link, h.link_index("mf_dist").unwrap());
+    assert_vec(h.fingertips[3].pos, Vec3::new(0.0387 + 0.005, 0.0, 0.001), 1e-7, "mf_tip ∘ offset");
+    // forward kinematics: the tip is the link's pose applied to the offset, at any joint angles
+    for q in [vec![0.0; h.joints.len()], q_with(&h, &[("if_j0", 0.3), ("if_j1", 0.5), ("if_j3", 1.2), ("mf_j2", 0.9)])] {
+        let poses = h.forward_kinematics(&q);
+        let tips = h.fingertip_positions(&poses);
+        assert_vec(tips[1], poses[if_dist].transform_point(Vec3::new(0.01, 0.002, -0.003)), 1e-6, "if_dist tip");
+        assert_vec(tips[2], poses[if_dist].transform_point(Vec3::new(0.03, 0.0, 0.008)), 1e-6, "if_pad");
+        let mf_tip = poses[h.link_index("mf_dist").unwrap()].mul(&h.frame("mf_tip").unwrap().1);
+        assert_vec(tips[3], mf_tip.transform_point(Vec3::new(0.005, 0.0, 0.001)), 1e-6, "mf_nail");
+    }
+    // at q = 0 the index points along +x from (0.055, 0.045, 0): the distal joint at
+    // 0.055 + 0.0164 + 0.054 + 0.0384; flexing if_j3 by pi/2 about +y turns the offset's x into -z
+    let x3 = 0.055 + 0.0164 + 0.054 + 0.0384;
+    assert_vec(tip_in_wrist(&h, "if_pad", &vec![0.0; h.joints.len()]), Vec3::new(x3 + 0.03, 0.045, 0.008), 1e-6, "if_pad at q = 0");
+    assert_vec(tip_in_wrist(&h, "if_pad", &q_with(&h, &[("if_j3", FRAC_PI_2)])), Vec3::new(x3 + 0.008, 0.045, -0.03), 1e-6, "if_pad with if_j3 = pi/2");
+    // errors: a link that does not exist, two tips with one name, an offset out of bounds
+    let path = hand_path("dexhand16.urdf");
+    let err = |tips: Vec<FingertipSpec>| format!("{:#}", HandModel::from_urdf_file(&path, &HandLoadOptions { fingertips: tips, ..Default::default() }).unwrap_err());
+    check_msg(&err(vec!["if_tip".into(), spec("if_distal", [0.0; 3], None)]), "dexhand16.urdf", &["link 'if_distal'", "hand.fingertips[1]", "does not exist"]);
+    check_msg(&err(vec![spec("if_dist", [0.0; 3], None), spec("if_dist", [0.01, 0.0, 0.0], None)]), "dexhand16.urdf", &["'if_dist'", "named twice", "hand.fingertips[1]", "`name`"]);
+    check_msg(&err(vec![spec("if_dist", [0.0, f32::NAN, 0.0], None)]), "dexhand16.urdf", &["hand.fingertips[0]", "offset", "link 'if_dist'"]);
+    check_msg(&err(vec![spec("if_dist", [0.0, 0.0, 1e3], None)]), "dexhand16.urdf", &["hand.fingertips[0]", "offset", "within"]);
+}
+
+/// Finding: the ROS Allegro URDF has `effort="0" velocity="0"` on every joint and could not be
+/// loaded at all. The config's limits replace the URDF's; without them the error says how to fix
+/// it.
+#[test]
+fn ros_allegro_loads_with_limits_from_the_config() {
+    let Some(shared) = shared_hands("ros_allegro_loads_with_limits_from_the_config") else { return };
+    let config = shared.join("allegro_simlab/config.toml");
+    let load = |sets: &[&str]| {
+        let sets: Vec<String> = sets.iter().map(|s| s.to_string()).collect();
+        let cfg = dextrain::config::Config::load_with_overrides(&config, &sets).unwrap_or_else(|e| panic!("{e:#}"));
+        dextrain::env::SimModel::from_config(&cfg).map(|m| m.hand)
+    };
+    let err = |sets: &[&str]| format!("{:#}", load(sets).unwrap_err());
+    // the first joint's effort; then, effort given, its velocity
+    let e = err(&[]);
+    check_msg(&e, "allegro_hand_description_right.urdf", &["joint 'joint_0.0'", "effort limit 0", "hand.effort = <N·m> (all joints)", "hand.effort.\"joint_0.0\" = <N·m>"]);
+    let e = err(&["hand.effort=0.7"]);
+    check_msg(&e, "allegro_hand_description_right.urdf", &["joint 'joint_0.0'", "velocity limit 0", "hand.velocity = <rad/s>"]);
+    let h = load(&["hand.effort=0.7", "hand.velocity=3.14"]).unwrap();
+    assert_eq!(h.joints.len(), 16);
+    assert!(h.joints.iter().all(|j| j.effort == 0.7 && j.velocity == 3.14), "{:?}", h.joints.iter().map(|j| (j.effort, j.velocity)).collect::<Vec<_>>());
+    // position limits still come from the URDF
+    assert_eq!((h.joints[0].lower, h.joints[0].upper), (-0.47, 0.47));
+    // per joint: a table that covers every joint loads; one that misses a joint names it
+    let names: Vec<String> = h.joints.iter().map(|j| j.name.clone()).collect();
+    let table = |skip: &str, base: f32| {
+        let entries: Vec<String> = names.iter().enumerate().filter(|(_, n)| n.as_str() != skip).map(|(i, n)| format!("\"{n}\" = {}", base + 0.01 * i as f32)).collect();
+        format!("{{ {} }}", entries.join(", "))
+    };
+    let h = load(&[&format!("hand.effort={}", table("", 0.5)), &format!("hand.velocity={}", table("", 2.0))]).unwrap();
+    for (i, j) in h.joints.iter().enumerate() {
+        assert_close(j.effort, 0.5 + 0.01 * i as f32, 1e-6, &j.name);
+        assert_close(j.velocity, 2.0 + 0.01 * i as f32, 1e-6, &j.name);
+    }
+    let e = err(&[&format!("hand.effort={}", table("joint_9.0", 0.5)), "hand.velocity=3"]);
+    check_msg(&e, "allegro_hand_description_right.urdf", &["joint 'joint_9.0'", "effort limit 0", "hand.effort.\"joint_9.0\""]);
+    let e = err(&["hand.effort=1", &format!("hand.velocity={}", table("joint_15.0", 2.0))]);
+    check_msg(&e, "allegro_hand_description_right.urdf", &["joint 'joint_15.0'", "velocity limit 0", "hand.velocity.\"joint_15.0\""]);
+    // a table key that is no movable joint of the hand
+    let e = err(&["hand.effort={ \"joint_0.0\" = 1, joint_3_tip = 1 }", "hand.velocity=3"]);
+    check_msg(&e, "allegro_hand_description_right.urdf", &["key `hand.effort.joint_3_tip`", "no movable joint 'joint_3_tip'", "joint_0.0"]);
+    let e = err(&["hand.effort=1", "hand.velocity={ \"joint_3.0_tip\" = 1 }"]);
+    check_msg(&e, "allegro_hand_description_right.urdf", &["key `hand.velocity.joint_3.0_tip`", "no movable joint"]);
+}
+
+/// The config's limits replace the URDF's where it names a joint (the others keep theirs); a
+/// revolute joint without `<limit>` has no position limits, which the config cannot give: still
+/// an error. A continuous joint needs none and loads with the config's effort and velocity.
+#[test]
+fn limit_overrides_replace_the_urdf_values_but_not_missing_position_limits() {
+    let path = hand_path("dexhand16.urdf");
+    let with = |effort: Option<JointLimitOverride>, velocity: Option<JointLimitOverride>| {
+        HandModel::from_urdf_file(&path, &HandLoadOptions { effort, velocity, ..Default::default() })
+    };
+    let urdf = load_hand("dexhand16.urdf");
+    let h = with(Some(JointLimitOverride::All(2.5)), None).unwrap();
+    for (a, b) in h.joints.iter().zip(&urdf.joints) {
+        assert_eq!((a.effort, a.velocity, a.lower, a.upper), (2.5, b.velocity, b.lower, b.upper), "{}", a.name);
+    }
+    let per = |pairs: &[(&str, f32)]| Some(JointLimitOverride::PerJoint(pairs.iter().map(|(k, v)| (k.to_string(), *v)).collect()));
+    let h = with(per(&[("if_j0", 1.5)]), per(&[("th_j3", 9.0), ("mf_j1", 1.0)])).unwrap();
+    for (a, b) in h.joints.iter().zip(&urdf.joints) {
+        let effort = if a.name == "if_j0" { 1.5 } else { b.effort };
+        let velocity = match a.name.as_str() {
+            "th_j3" => 9.0,
+            "mf_j1" => 1.0,
+            _ => b.velocity,
+        };
+        assert_eq!((a.effort, a.velocity), (effort, velocity), "{}", a.name);
+    }
+    // the loader checks the values itself (a caller need not come through the config)
+    check_msg(&format!("{:#}", with(Some(JointLimitOverride::All(-1.0)), None).unwrap_err()), "dexhand16.urdf", &["hand.effort", "-1", "positive"]);
+    check_msg(&format!("{:#}", with(None, per(&[("if_j2", f32::INFINITY)])).unwrap_err()), "dexhand16.urdf", &["joint 'if_j2'", "hand.velocity", "inf"]);
+    check_msg(&format!("{:#}", with(per(&[("if_j9", 1.0)]), None).unwrap_err()), "dexhand16.urdf", &["key `hand.effort.if_j9`", "no movable joint 'if_j9'", "if_j0"]);
+    // no <limit> on a revolute joint: an error with or without the config's limits
+    let nolimit = |ty: &str| robot(&[PALM.into(), link("a"), format!(r#"<joint name="flex" type="{ty}"><parent link="palm"/><child link="a"/><axis xyz="0 1 0"/></joint>"#)]);
+    let all = HandLoadOptions { effort: Some(JointLimitOverride::All(1.0)), velocity: Some(JointLimitOverride::All(2.0)), ..Default::default() };
+    expect_err(&nolimit("revolute"), "nolimit_hand.urdf", &all, &["joint 'flex'", "revolute but has no <limit>", "position limits"]);
+    // a continuous joint without <limit>: an error that says how to fix it, then loads with it
+    expect_err(&nolimit("continuous"), "spin_hand.urdf", &HandLoadOptions::default(), &["joint 'flex'", "effort limit 0", "hand.effort = <N·m>", "hand.effort.flex = <N·m>"]);
+    let h = load_str(&nolimit("continuous"), "spin_hand.urdf", &all).unwrap();
+    assert_eq!((h.joints[0].effort, h.joints[0].velocity, h.joints[0].continuous), (1.0, 2.0, true));
+    // the URDF's own bounds still hold where the config says nothing
+    let huge = robot(&[PALM.into(), link("a"), joint("ja", "revolute", "palm", "a", "").replace(r#"effort="1""#, r#"effort="1e30""#)]);
+    expect_err(&huge, "huge_hand.urdf", &HandLoadOptions::default(), &["joint 'ja'", "effort limit 1e30", "hand.effort.ja"]);
+    load_str(&huge, "huge_hand.urdf", &HandLoadOptions { effort: per(&[("ja", 5.0)]), ..Default::default() }).expect("the config's effort replaces the URDF's 1e30");
+    // the shared broken/no_limit.urdf (joint_5.0's <limit> removed) stays an error with the limits given
+    let Some(shared) = shared_hands("limit_overrides_replace_the_urdf_values_but_not_missing_position_limits") else { return };
+    let cfg = dextrain::config::Config::load_with_overrides(&shared.join("broken/no_limit.toml"), &["hand.effort=1".into(), "hand.velocity=3".into()]).unwrap();
+    let e = format!("{:#}", dextrain::env::SimModel::from_config(&cfg).unwrap_err());
+    check_msg(&e, "no_limit.urdf", &["joint 'joint_5.0'", "no <limit>"]);
 }

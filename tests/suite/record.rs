@@ -61,6 +61,8 @@ fn small_hand() -> HandModel {
         ],
         fingertips: vec![Fingertip { name: "finger_tip".to_string(), link: 1, pos: Vec3::new(0.0, 0.0, 0.05) }],
         frames: Vec::new(),
+        warnings: Vec::new(),
+        mesh_fits: Vec::new(),
     }
 }
 

@@ -1,0 +1,19 @@
+//! Meshes as collision geometry: reading them, their convex hull, and tight primitive fits.
+//!
+//! General (not hand-specific): the URDF loader fits a primitive to each `<mesh>` collision
+//! (`mesh_approx`), and objects made from meshes can do the same.
+//!
+//! - [`read`]: the vertices of STL (binary and ASCII) and OBJ files.
+//! - [`hull`]: the 3D convex hull of a point cloud (quickhull with conflict lists on exact
+//!   orientation predicates), its volume, area, principal axes of its surface and the distance
+//!   from a point to it.
+//! - [`fit`]: the smallest sphere, capsule or oriented box that contains every vertex, searched
+//!   over the hull's principal frame, the mesh's own axes and rotations between them; with how
+//!   much bigger it is than the mesh (volume against the hull's, and the largest gap between the
+//!   primitive's surface and the hull).
+//!
+//! Units are those of the vertices (metres in dextrain); nothing here scales or moves a mesh.
+
+pub mod fit;
+pub mod hull;
+pub mod read;

