@@ -414,6 +414,16 @@ impl HandModel {
         poses
     }
 
+    /// `q` (one entry per joint) with every mimic follower set to `multiplier × leader + offset`.
+    pub fn with_mimic(&self, mut q: Vec<f32>) -> Vec<f32> {
+        for (j, jt) in self.joints.iter().enumerate() {
+            if let Some(m) = jt.mimic {
+                q[j] = m.multiplier * q[m.leader] + m.offset;
+            }
+        }
+        q
+    }
+
     /// Fingertip positions in the wrist frame, in `fingertips` order, for link poses from
     /// [`HandModel::forward_kinematics`].
     pub fn fingertip_positions(&self, link_poses: &[Pose]) -> Vec<Vec3> {
@@ -1182,8 +1192,11 @@ impl Loader<'_> {
             MeshApprox::Box => &[PrimitiveKind::Box],
             _ => &[PrimitiveKind::Capsule, PrimitiveKind::Sphere],
         };
-        let fit = fit_tightest(&scaled, kinds).map_err(|e| format!("link '{link}' in {f}: mesh {}: {e}", path.display()))?;
-        let aligned = axis_aligned(&scaled, fit.kind()).map_err(|e| format!("link '{link}' in {f}: mesh {}: {e}", path.display()))?;
+        // one hull serves the fit and the axis-aligned primitive it is compared with
+        let mesh_err = |e: String| format!("link '{link}' in {f}: mesh {}: {e}", path.display());
+        let hull = convex_hull(&scaled).map_err(mesh_err)?;
+        let fit = fit_tightest_with_hull(&scaled, &hull, kinds).map_err(mesh_err)?;
+        let aligned = axis_aligned_with_hull(&scaled, &hull, fit.kind());
         let shape = match fit.shape {
             FittedShape::Sphere { radius } => ColliderShape::Sphere { radius: radius as f32 },
             FittedShape::Capsule { radius, half_length } => ColliderShape::Capsule { radius: radius as f32, half_length: half_length as f32 },
@@ -1297,7 +1310,8 @@ impl Loader<'_> {
     }
 }
 
-use crate::mesh::fit::{FittedShape, PrimitiveKind, axis_aligned, fit_tightest};
+use crate::mesh::fit::{FittedShape, PrimitiveKind, axis_aligned_with_hull, fit_tightest_with_hull};
+use crate::mesh::hull::convex_hull;
 use crate::mesh::read::{parse_obj, parse_stl};
 
 // ---------------------------------------------------------------------------------------------

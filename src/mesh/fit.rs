@@ -254,10 +254,14 @@ pub fn fit_tightest(vertices: &[DVec3], kinds: &[PrimitiveKind]) -> Result<Primi
     if kinds.is_empty() {
         return Err("no primitive kinds to fit; expected at least one of sphere, capsule, box".to_string());
     }
-    let hull = convex_hull(vertices)?;
+    fit_tightest_with_hull(vertices, &convex_hull(vertices)?, kinds)
+}
+
+/// [`fit_tightest`] with the convex hull of `vertices` already computed (`convex_hull(vertices)`).
+pub fn fit_tightest_with_hull(vertices: &[DVec3], hull: &ConvexHull, kinds: &[PrimitiveKind]) -> Result<PrimitiveFit, String> {
     let mut best: Option<PrimitiveFit> = None;
     for &k in kinds {
-        let f = fit_with_hull(vertices, &hull, k);
+        let f = fit_with_hull(vertices, hull, k);
         best = Some(match best {
             None => f,
             Some(b) => {

@@ -21,8 +21,9 @@
 //! 4. **Postures.** `pre`: the fingertips `PRE_CLEARANCE_M` outside their contact points (along the
 //!    face normal), so that the hand descends around the object without touching it; `grasp`: the
 //!    fingertips on the contact points; `squeeze`: `SQUEEZE_M` past them, into the object, so that
-//!    the closing fingers stall on its surface and the servos press through the contact points.
-//!    Mimic followers are `multiplier × leader + offset` in every posture, the open one included.
+//!    the closing fingers stall on its surface and the servos press through the contact points;
+//!    the closing motion steps from `pre` to `squeeze`, each step seeded from the nearer of the two.
+//!    Mimic followers are `multiplier × leader + offset` in every posture.
 
 use anyhow::{Result, bail};
 use glam::{Quat, Vec3};
@@ -44,9 +45,6 @@ pub const SPREAD_FRACTION: f32 = 0.7;
 pub const WRIST_ROUNDS: usize = 40;
 /// Iterations of each IK solve.
 pub const IK_ITERS: u32 = 100;
-/// Measure the targets from the fingertip colliders' surfaces (see `tip_pad`) instead of from the
-/// fingertip frames.
-pub const PAD_TIPS: bool = false;
 /// Postures of the closing motion, `pre` and `squeeze` included.
 pub const CLOSING_STEPS: usize = 5;
 
@@ -56,16 +54,11 @@ pub const CLOSING_STEPS: usize = 5;
 pub struct GraspPlan {
     /// The wrist (root link) pose at the object, in the world.
     pub wrist: Pose,
-    /// The open hand: every joint at its default, followers from their leaders.
-    pub open: Vec<f32>,
-    /// Fingertips `PRE_CLEARANCE_M` outside their contact points.
-    pub pre: Vec<f32>,
     /// Fingertips on their contact points (as far as the hand reaches).
     pub grasp: Vec<f32>,
-    /// Fingertips `SQUEEZE_M` past their contact points.
-    pub squeeze: Vec<f32>,
     /// The closing motion: postures with the fingertips at `CLOSING_STEPS` evenly spaced offsets
-    /// along the face normals from `pre` to `squeeze` (both included), so that interpolated
+    /// along the face normals, from `PRE_CLEARANCE_M` outside their contact points (the pre-grasp
+    /// posture) to `SQUEEZE_M` past them (the squeezing posture), so that interpolated
     /// keyframes move every fingertip nearly straight through its contact point.
     pub closing: Vec<Vec<f32>>,
     /// Contact points (world), in fingertip order.
@@ -100,16 +93,6 @@ pub fn thumb_index(hand: &HandModel, named: &str, mid_tips: &[Vec3]) -> Result<u
     Ok((0..n).max_by(|&a, &b| apart(a).total_cmp(&apart(b))).unwrap_or(0))
 }
 
-/// `q` with every mimic follower set to `multiplier × leader + offset`.
-pub fn with_mimic(hand: &HandModel, mut q: Vec<f32>) -> Vec<f32> {
-    for (j, jt) in hand.joints.iter().enumerate() {
-        if let Some(m) = jt.mimic {
-            q[j] = m.multiplier * q[m.leader] + m.offset;
-        }
-    }
-    q
-}
-
 /// The object's footprint for the grasp: centre (world), yaw, half width along its local x and y
 /// (equal for a round object), half height, and whether it is round (sphere, capsule, cylinder).
 struct Footprint {
@@ -135,19 +118,9 @@ fn footprint(model: &SimModel, shape: ObjectShape) -> Footprint {
 /// Links that no single finger moves alone: the root and every link that lies on the chains of two
 /// or more fingertips (a wrist or palm link), or on none. Their colliders must stay above the object.
 fn palm_links(hand: &HandModel) -> Vec<bool> {
-    let n = hand.links.len();
-    let mut fingers_through = vec![0usize; n];
-    for tip in &hand.fingertips {
-        let mut l = tip.link;
-        loop {
-            fingers_through[l] += 1;
-            if l == 0 {
-                break;
-            }
-            l = hand.joints[l - 1].parent_link;
-        }
-    }
-    (0..n).map(|l| l == 0 || fingers_through[l] != 1).collect()
+    (0..hand.links.len())
+        .map(|l| l == 0 || hand.fingertips.iter().filter(|t| hand.is_ancestor_or_same(l, t.link)).count() != 1)
+        .collect()
 }
 
 /// Lowest world z of the palm-like links' colliders above the object's footprint (a disc of
@@ -203,9 +176,7 @@ pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str) -> Result<G
         a[..q.len()].copy_from_slice(q);
         a
     };
-    let open = with_mimic(hand, model.joints.iter().map(|j| j.default_q).collect());
-    let mid = with_mimic(
-        hand,
+    let mid = hand.with_mimic(
         model
             .joints
             .iter()
@@ -276,13 +247,10 @@ pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str) -> Result<G
     let top = obj.centre.z + obj.half_height;
     let footprint_radius = if obj.round { obj.half[0] } else { Vec3::new(obj.half[0], obj.half[1], 0.0).length() };
     let mask = (1u32 << nt) - 1;
-    // a fingertip frame inside its collider (a sphere's centre) touches the face `pad` before the
-    // frame reaches it: every target is measured from the collider's surface
-    let pads: Vec<f32> = (0..nt).map(|i| if PAD_TIPS { tip_pad(hand, i) } else { 0.0 }).collect();
     let solve = |wrist: &Pose, seed: &[f32], offset: f32| -> Vec<f32> {
         let mut targets = [Vec3::ZERO; MAX_TIPS];
         for i in 0..nt {
-            targets[i] = wrist.inverse().transform_point(contacts[i] + normals[i] * (pads[i] + offset));
+            targets[i] = wrist.inverse().transform_point(contacts[i] + normals[i] * offset);
         }
         ik_solve(&m, &to_arr(seed), &targets, mask, &prm)[..nj].to_vec()
     };
@@ -297,7 +265,7 @@ pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str) -> Result<G
     for _ in 0..WRIST_ROUNDS {
         q = solve(&wrist, &q, 0.0);
         let tips = tips_world(&wrist, &q);
-        let mean_err = (0..nt).map(|i| contacts[i] + normals[i] * pads[i] - tips[i]).sum::<Vec3>() / nt as f32;
+        let mean_err = (0..nt).map(|i| contacts[i] - tips[i]).sum::<Vec3>() / nt as f32;
         wrist.pos += mean_err;
         let lift = top + PALM_CLEARANCE_M - palm_bottom(hand, &palm, &wrist, &q, centre, footprint_radius);
         if lift > 0.0 {
@@ -306,8 +274,8 @@ pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str) -> Result<G
     }
     let grasp = solve(&wrist, &q, 0.0);
     let tips = tips_world(&wrist, &grasp);
-    let reach_error = (0..nt).map(|i| (tips[i] - contacts[i] - normals[i] * pads[i]).length()).collect();
-    // 4. the postures around it, each seeded from its neighbour toward the grasp
+    let reach_error = (0..nt).map(|i| (tips[i] - contacts[i]).length()).collect();
+    // 4. the closing motion, seeded from the pre-grasp and squeezing postures (solved from the grasp)
     let pre = solve(&wrist, &grasp, PRE_CLEARANCE_M);
     let squeeze = solve(&wrist, &grasp, -SQUEEZE_M);
     let closing = (0..CLOSING_STEPS)
@@ -317,28 +285,7 @@ pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str) -> Result<G
             solve(&wrist, if offset > 0.0 { &pre } else { &squeeze }, offset)
         })
         .collect();
-    Ok(GraspPlan { wrist, open, pre, grasp, squeeze, closing, contacts, normals, thumb: th, reach_error })
-}
-
-/// How far inside its link's collision shapes fingertip `i`'s frame lies (m): the largest
-/// `radius − distance to the core` over the link's spheres and capsules (a box: its smallest half
-/// extent less the distance from its centre), 0 when the frame is on or outside every surface.
-fn tip_pad(hand: &HandModel, i: usize) -> f32 {
-    let tip = &hand.fingertips[i];
-    let mut pad = 0.0f32;
-    for c in hand.colliders.iter().filter(|c| c.link == tip.link) {
-        let local = c.pose.inverse().transform_point(tip.pos);
-        let inside = match c.shape {
-            ColliderShape::Sphere { radius } => radius - local.length(),
-            ColliderShape::Capsule { radius, half_length } => {
-                let core = Vec3::new(0.0, 0.0, local.z.clamp(-half_length, half_length));
-                radius - (local - core).length()
-            }
-            ColliderShape::Box { half_extents } => half_extents.min_element() - local.length(),
-        };
-        pad = pad.max(inside);
-    }
-    pad
+    Ok(GraspPlan { wrist, grasp, closing, contacts, normals, thumb: th, reach_error })
 }
 
 /// An angle wrapped into (−π, π].

@@ -30,7 +30,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use glam::{Quat, Vec3};
 
-use super::grasp::{plan_grasp, with_mimic};
+use super::grasp::plan_grasp;
 use super::perturb::{PerturbArgs, perturb};
 use super::{Keyframe, Trajectory};
 use crate::config::Config;
@@ -126,7 +126,7 @@ pub fn grasp_posture(model: &SimModel, close_fraction: f32) -> Vec<f32> {
             q[j] = jd.lower + close_fraction * (jd.upper - jd.lower);
         }
     }
-    with_mimic(hand, q)
+    hand.with_mimic(q)
 }
 
 /// The wrist pose (initial orientation) that puts the centre of the fingertips' bounding box, in the
@@ -160,7 +160,7 @@ pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
     let g = &model.globals;
     let wrist0 = Pose::new(Vec3::from_slice(&g.init_wrist_pos[..3]), Quat::from_array(g.init_wrist_rot));
     // the open hand: every joint at its default, followers from their leaders
-    let open = with_mimic(hand, model.joints.iter().map(|j| j.default_q).collect());
+    let open = hand.with_mimic(model.joints.iter().map(|j| j.default_q).collect());
     let obj = Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]);
     let obj_rot = Quat::from_rotation_z(g.obj_init[2]);
     let t1 = args.approach as f64;
