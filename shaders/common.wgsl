@@ -3,9 +3,8 @@
 // (functions, same names, same order, same arithmetic).
 // Quaternions are vec4<f32> (x, y, z, w).
 
-const MAX_JOINTS: u32 = 24u;
-const MAX_LINKS: u32 = 25u;
-const MAX_COLLIDERS: u32 = 32u;
+const MAX_JOINTS: u32 = 32u;
+const MAX_LINKS: u32 = 33u;
 const MAX_TIPS: u32 = 6u;
 const MAX_OBJ_PTS: u32 = 16u;
 const PROJ_ITERS: u32 = 4u;
@@ -33,7 +32,7 @@ struct Globals {
     decimation: u32,
     seed: u32,
     hand_table: u32,
-    _pad0: u32,
+    n_springs: u32,
     dt: f32,
     gravity: f32,
     contact_k: f32,
@@ -109,11 +108,8 @@ struct EnvState {
     obj_rot: vec4<f32>,
     obj_vel: vec4<f32>,
     obj_angvel: vec4<f32>,
-    anchor_ho: array<vec4<f32>, 32>,
-    anchor_ht: array<vec4<f32>, 32>,
-    anchor_ot: array<vec4<f32>, 16>,
-    q: array<f32, 24>,
-    qd: array<f32, 24>,
+    q: array<f32, MAX_JOINTS>,
+    qd: array<f32, MAX_JOINTS>,
     time: f32,
     episode: u32,
     step: u32,
@@ -144,7 +140,7 @@ struct EnvParams {
 struct Targets {
     wrist_pos: vec4<f32>,
     wrist_rot: vec4<f32>,
-    q: array<f32, 24>,
+    q: array<f32, MAX_JOINTS>,
 }
 
 struct StepStats {
@@ -154,8 +150,13 @@ struct StepStats {
     contacts: u32,
     contacts_ho: u32,
     bad_reset: u32,
-    // bit l: hand link l pushed on the object in a substep of the step
-    link_contact: u32,
+    // bit l % 32 of word l / 32: hand link l pushed on the object in a substep of the step
+    link_contact: array<u32, 2>,
+    // 1 if a hand collider touches the table at the end of the step
+    table_contact: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
 // Hamilton product a ⊗ b.
@@ -239,6 +240,10 @@ fn rand_uniform(seed: u32, env: u32, episode: u32, purpose: u32, k: u32) -> f32 
 @group(0) @binding(7) var<storage, read_write> stats: array<StepStats>;
 // reset request per env: 0 none, 1 next episode, 2 episode 0 (written by the task layer's task_reward)
 @group(0) @binding(8) var<storage, read_write> reset_mask: array<u32>;
+// contact springs [N, g.n_springs]: tangential spring (xyz, world), w = 1 while in contact; env e's
+// slots from e * g.n_springs: hand collider c vs object at c, vs table at n_colliders + c, object
+// support point k vs table at 2 n_colliders + k (twin: gpu_layout.rs spring_slot)
+@group(0) @binding(16) var<storage, read_write> springs: array<vec4<f32>>;
 const WORKGROUP_SIZE: u32 = 64u;
 
 // Env index of an invocation of a (possibly 2-D) dispatch.

@@ -5,7 +5,8 @@
 
 // 3×3 blocks in the lower block triangle of the stacked system, Jacobian entries.
 const IK_BLOCKS: u32 = 21u;
-const IK_JAC_LEN: u32 = 144u;
+// MAX_TIPS × MAX_JOINTS
+const IK_JAC_LEN: u32 = 192u;
 // Defaults: iterations, damping λ (m), residual below which λ and the preferred step shrink (m),
 // smallest λ / damping, curvature term of λ² (m), preferred step toward mid-range, rounds of
 // locking joints at limits per iteration, largest residual one iteration aims to remove (m),

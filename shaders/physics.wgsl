@@ -6,12 +6,12 @@
 var<private> st: EnvState;
 var<private> prm: EnvParams;
 var<private> tg: Targets;
-var<private> link_pos: array<vec3<f32>, 25>;
-var<private> link_rot: array<vec4<f32>, 25>;
-var<private> link_v: array<vec3<f32>, 25>;
-var<private> link_w: array<vec3<f32>, 25>;
-var<private> joint_axis: array<vec3<f32>, 24>;
-var<private> tau: array<f32, 24>;
+var<private> link_pos: array<vec3<f32>, MAX_LINKS>;
+var<private> link_rot: array<vec4<f32>, MAX_LINKS>;
+var<private> link_v: array<vec3<f32>, MAX_LINKS>;
+var<private> link_w: array<vec3<f32>, MAX_LINKS>;
+var<private> joint_axis: array<vec3<f32>, MAX_JOINTS>;
+var<private> tau: array<f32, MAX_JOINTS>;
 var<private> wrist_f: vec3<f32>;
 var<private> wrist_t: vec3<f32>;
 var<private> obj_f: vec3<f32>;
@@ -22,7 +22,9 @@ var<private> max_pen_ho: f32;
 var<private> max_pen: f32;
 var<private> n_contacts: u32;
 var<private> n_contacts_ho: u32;
-var<private> link_contact: u32;
+var<private> link_contact: array<u32, 2>;
+// index of this env's first contact spring in `springs`
+var<private> spring_base: u32;
 
 struct Contact {
     depth: f32,
@@ -472,8 +474,8 @@ fn contacts_and_forces(h: f32) {
         if (c.depth > 0.0) {
             let vh = link_point_velocity(l, c.point);
             let vo = ovel + cross(ow, c.point - opos);
-            let cf = contact_force(c, vh - vo, st.anchor_ho[ci].xyz, k, kt, prm.obj_contact_c, mu_ho, h);
-            st.anchor_ho[ci] = vec4<f32>(cf.spring, 1.0);
+            let cf = contact_force(c, vh - vo, springs[spring_base + ci].xyz, k, kt, prm.obj_contact_c, mu_ho, h);
+            springs[spring_base + ci] = vec4<f32>(cf.spring, 1.0);
             apply_hand_force(l, c.point, cf.force);
             // the normal damper acts only while the contact pushes (Fn > 0)
             let a = select(0.0, k * h + prm.obj_contact_c, dot(cf.force, c.normal) > 0.0);
@@ -490,23 +492,23 @@ fn contacts_and_forces(h: f32) {
                 tip_force[tip] += dot(cf.force, c.normal);
             }
             if (dot(cf.force, c.normal) > 0.0) {
-                link_contact |= 1u << l;
+                link_contact[l / 32u] |= 1u << (l % 32u);
             }
         } else {
-            st.anchor_ho[ci] = vec4<f32>(0.0);
+            springs[spring_base + ci] = vec4<f32>(0.0);
         }
         // hand–table
         if (g.hand_table != 0u) {
             let c2 = collide_hand_table(ci);
             if (c2.depth > 0.0) {
                 let vh = link_point_velocity(l, c2.point);
-                let cf = contact_force(c2, vh, st.anchor_ht[ci].xyz, k, kt, prm.hand_table_c, mu_ht, h);
-                st.anchor_ht[ci] = vec4<f32>(cf.spring, 1.0);
+                let cf = contact_force(c2, vh, springs[spring_base + g.n_colliders + ci].xyz, k, kt, prm.hand_table_c, mu_ht, h);
+                springs[spring_base + g.n_colliders + ci] = vec4<f32>(cf.spring, 1.0);
                 apply_hand_force(l, c2.point, cf.force);
                 n_contacts += 1u;
                 max_pen = max(max_pen, c2.depth);
             } else {
-                st.anchor_ht[ci] = vec4<f32>(0.0);
+                springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
             }
         }
     }
@@ -515,8 +517,8 @@ fn contacts_and_forces(h: f32) {
         let c = collide_object_table(kp);
         if (c.depth > 0.0) {
             let vo = ovel + cross(ow, c.point - opos);
-            let cf = contact_force(c, vo, st.anchor_ot[kp].xyz, k, kt, prm.obj_contact_c, mu_ot, h);
-            st.anchor_ot[kp] = vec4<f32>(cf.spring, 1.0);
+            let cf = contact_force(c, vo, springs[spring_base + 2u * g.n_colliders + kp].xyz, k, kt, prm.obj_contact_c, mu_ot, h);
+            springs[spring_base + 2u * g.n_colliders + kp] = vec4<f32>(cf.spring, 1.0);
             let a = select(0.0, k * h + prm.obj_contact_c, dot(cf.force, c.normal) > 0.0);
             apply_object_force(c.point, cf.force, c.normal, a, cf.tdamp);
             let tor = torsion_torque(c.normal, ow, dot(cf.force, c.normal), mu_ot, g.torsion_radius);
@@ -524,7 +526,7 @@ fn contacts_and_forces(h: f32) {
             n_contacts += 1u;
             max_pen = max(max_pen, c.depth);
         } else {
-            st.anchor_ot[kp] = vec4<f32>(0.0);
+            springs[spring_base + 2u * g.n_colliders + kp] = vec4<f32>(0.0);
         }
     }
 }
@@ -728,12 +730,19 @@ fn env_step(env: u32) -> StepStats {
     out.contacts = n_contacts;
     out.contacts_ho = n_contacts_ho;
     out.link_contact = link_contact;
+    out.table_contact = 0u;
+    for (var ci = 0u; ci < g.n_colliders; ci++) {
+        if (springs[spring_base + g.n_colliders + ci].w > 0.0) {
+            out.table_contact = 1u;
+        }
+    }
     out.bad_reset = 0u;
     if (!state_is_sane()) {
         let episode = st.episode + 1u;
         let bad = st.bad_resets + 1u;
         prm = reset_params(env, episode);
         st = reset_state(prm, env, episode, bad);
+        clear_springs(env);
         out.bad_reset = 1u;
     }
     return out;
@@ -748,6 +757,7 @@ fn step_main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgro
     st = states[env];
     prm = params[env];
     tg = targets[env];
+    spring_base = env * g.n_springs;
     let out = env_step(env);
     states[env] = st;
     params[env] = prm;

@@ -15,7 +15,7 @@ const REF_KEY_WRIST_POS: u32 = 6u;
 const REF_KEY_WRIST_ROT: u32 = 9u;
 const REF_KEY_JOINT: u32 = 16u;
 const REF_KEY_NOISE: u32 = 64u;
-const REF_KEY_STRIDE: u32 = 64u;
+const REF_KEY_STRIDE: u32 = 128u;
 
 const CUR_WRIST: u32 = 1u;
 const CUR_JOINT: u32 = 2u;
@@ -95,7 +95,7 @@ struct RefFrame {
     obj_pos: vec4<f32>,
     obj_rot: vec4<f32>,
     tips: array<vec4<f32>, 6>,
-    q: array<f32, 24>,
+    q: array<f32, MAX_JOINTS>,
     grasp: f32,
     ended: u32,
     _pad0: u32,
@@ -202,18 +202,21 @@ fn ref_raw(c: RefCursor, n: u32) -> RefFrame {
     let info = ref_info[c.ref_id];
     let last = info.n_frames - 1u;
     let x = f32(n) * c.speed;
-    if (x >= f32(last)) {
-        var f = ref_read(ref_record(info, last));
-        f.ended = 1u;
-        return f;
+    // one record read for the end and one place that reads (a shader inlines every call: fewer
+    // copies of ref_read compile much faster on LLVM drivers such as lavapipe)
+    let ended = x >= f32(last);
+    var i0 = last;
+    var s = 0.0;
+    if (!ended) {
+        i0 = u32(floor(x));
+        s = x - f32(i0);
     }
-    let i0 = u32(floor(x));
-    let s = x - f32(i0);
-    let a = ref_read(ref_record(info, i0));
-    if (s == 0.0) {
-        return a;
+    var f = ref_read(ref_record(info, i0));
+    if (s != 0.0) {
+        f = ref_lerp(f, ref_read(ref_record(info, i0 + 1u)), s);
     }
-    return ref_lerp(a, ref_read(ref_record(info, i0 + 1u)), s);
+    f.ended = select(0u, 1u, ended);
+    return f;
 }
 
 // offset + noise of joint j at env step n; a mimic follower gets mult × its leader's
@@ -408,14 +411,14 @@ fn ref_sample(c: RefCursor, step: u32, k: u32) -> RefFrame {
     return f;
 }
 
-// the object's first pose in the episode's augmented reference: D · mirror(T_obj,ref(0))
-fn ref_object_start(c: RefCursor) -> RefPose {
-    let info = ref_info[c.ref_id];
-    var p = info.obj0_pos.xyz;
-    var q = info.obj0_rot;
+// an object pose of the reference's records (p, q) carried through the episode's augmentation: D ·
+// mirror(p, q) (the reference's hand perturbation and re-interpolation leave the object alone)
+fn ref_object_augmented(c: RefCursor, pos: vec3<f32>, rot: vec4<f32>) -> RefPose {
+    var p = pos;
+    var q = rot;
     if ((c.flags & CUR_MIRROR) != 0u) {
-        // 2·y0 − y0 = y0 exactly: as ref_mirror does it
-        p.y = 2.0 * info.obj0_pos.y - p.y;
+        // p.y → 2·y0 − p.y, as ref_mirror does it
+        p.y = 2.0 * ref_info[c.ref_id].obj0_pos.y - p.y;
         q = ref_mirror_quat(q);
     }
     if ((c.flags & CUR_TRANSFORM) != 0u) {
@@ -424,4 +427,18 @@ fn ref_object_start(c: RefCursor) -> RefPose {
         q = quat_normalize(quat_mul(dr, q));
     }
     return RefPose(p, q);
+}
+
+// the object's first pose in the episode's augmented reference: D · mirror(T_obj,ref(0))
+fn ref_object_start(c: RefCursor) -> RefPose {
+    let info = ref_info[c.ref_id];
+    return ref_object_augmented(c, info.obj0_pos.xyz, info.obj0_rot);
+}
+
+// the object's final pose in the episode's augmented reference: the object that
+// ref_sample gives from the last frame on (the last record's), without building the whole frame
+fn ref_object_end(c: RefCursor) -> RefPose {
+    let info = ref_info[c.ref_id];
+    let b = ref_record(info, info.n_frames - 1u);
+    return ref_object_augmented(c, ref_vec3(b + rg.off_obj_pos), ref_vec4(b + rg.off_obj_rot));
 }

@@ -98,6 +98,14 @@ fn reset_state(p: EnvParams, env: u32, episode: u32, bad_resets: u32) -> EnvStat
     return s;
 }
 
+// Zeroes env `env`'s contact springs (no contact, no stretched spring).
+fn clear_springs(env: u32) {
+    let base = env * g.n_springs;
+    for (var i = 0u; i < g.n_springs; i++) {
+        springs[base + i] = vec4<f32>(0.0);
+    }
+}
+
 @compute @workgroup_size(64)
 fn reset_main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
     let env = env_index(gid, nwg);
@@ -116,4 +124,5 @@ fn reset_main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
     let p = reset_params(env, episode);
     params[env] = p;
     states[env] = reset_state(p, env, episode, old.bad_resets);
+    clear_springs(env);
 }

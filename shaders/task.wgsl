@@ -13,7 +13,8 @@ struct TaskGlobals {
     wrist_pos_max: vec4<f32>,
     palm_offset: vec4<f32>,
     weights: array<vec4<f32>, 2>,
-    actuated: array<vec4<u32>, 6>,
+    // joint index of each actuated joint, 4 per vec4: MAX_JOINTS / 4 vec4s
+    actuated: array<vec4<u32>, MAX_JOINTS / 4u>,
     n_actuated: u32,
     n_act: u32,
     obs_dim: u32,
@@ -85,7 +86,7 @@ struct TaskGlobals {
 struct TaskState {
     targets: Targets,
     rest_pos: vec4<f32>,
-    prev_action: array<f32, 32>,
+    prev_action: array<f32, MAX_ACTIONS>,
     tip_force: array<f32, 6>,
     act_rate: f32,
     act_mag: f32,
@@ -93,8 +94,7 @@ struct TaskState {
     // ‖δ‖² of the last residual (residual kinds)
     res_sq: f32,
     // StepStats.link_contact of the last step (0 after a reset)
-    link_contact: u32,
-    _pad2: u32,
+    link_contact: array<u32, 2>,
     // the reference this episode follows (reference kinds)
     cursor: RefCursor,
     // residual_task: the EMA-smoothed output ũ and the integrated residual Δa [n_res]
@@ -126,7 +126,7 @@ const PURPOSE_OBJ_DELAY: u32 = 5u;
 const OBJ_HIST: u32 = 8u;
 // noise draw k of obs entry i at env step s: key = s * OBS_KEY_STRIDE + 2 i + k (k = 0, 1)
 const OBS_KEY_STRIDE: u32 = 4096u;
-const MAX_ACTIONS: u32 = 32u;
+const MAX_ACTIONS: u32 = 40u;
 const KIND_LIFT: u32 = 0u;
 const KIND_TRACK: u32 = 1u;
 const KIND_RESIDUAL_JOINT: u32 = 2u;
@@ -171,8 +171,6 @@ const OUT_OBJ_POS_ERR: u32 = 14u;
 const OUT_OBJ_ROT_ERR: u32 = 15u;
 const OUT_BAD_RESET: u32 = 16u;
 const OUT_MISC: u32 = 17u;
-// the env step ref_sample clamps to the reference's last frame
-const REF_END_STEP: u32 = 1073741824u;
 
 // ---- per-invocation observation cursor (the twin's ObsOut) ----
 var<private> ob_env: u32;
@@ -228,7 +226,7 @@ fn nominal_targets(f: RefFrame) -> Targets {
 
 // residual kinds (and track with action "reference"): targets from the nominal frame f and the
 // clipped actions a (see the twin)
-fn residual_targets(a: array<f32, 32>, f: RefFrame, ts: ptr<function, TaskState>) -> Targets {
+fn residual_targets(a: array<f32, MAX_ACTIONS>, f: RefFrame, ts: ptr<function, TaskState>) -> Targets {
     var t = nominal_targets(f);
     var sq = 0.0;
     if (tc.kind != KIND_RESIDUAL_TASK) {
@@ -292,7 +290,7 @@ fn task_act(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgrou
     }
     var ts = task_states[env];
     let base = env * tc.n_act;
-    var a: array<f32, 32>;
+    var a: array<f32, MAX_ACTIONS>;
     var rate = 0.0;
     var mag = 0.0;
     for (var i = 0u; i < tc.n_act; i++) {
@@ -376,7 +374,7 @@ fn residual_joint_terms(ts: TaskState, f: RefFrame, e: vec2<f32>, fin: bool) -> 
 
 // residual_task's raw reward terms (slots T_RESIDUAL_TASK_*; DexRefine): the object, fingertip and
 // wrist tracking exponentials, contact, and the joint velocity, torque, work and table penalties
-fn residual_task_terms(s: EnvState, p: EnvParams, ts: TaskState, f: RefFrame, e: vec2<f32>, contact: bool) -> array<f32, 8> {
+fn residual_task_terms(s: EnvState, p: EnvParams, ts: TaskState, f: RefFrame, e: vec2<f32>, contact: bool, table: bool) -> array<f32, 8> {
     var raw: array<f32, 8>;
     let e_wp = length(s.wrist_pos.xyz - f.wrist_pos.xyz);
     let e_wr = length(quat_error(f.wrist_rot, s.wrist_rot));
@@ -410,12 +408,6 @@ fn residual_task_terms(s: EnvState, p: EnvParams, ts: TaskState, f: RefFrame, e:
     raw[T_RESIDUAL_TASK_VELOCITY] = vel;
     raw[T_RESIDUAL_TASK_TORQUE] = torque;
     raw[T_RESIDUAL_TASK_WORK] = work;
-    var table = false;
-    for (var c = 0u; c < g.n_colliders; c++) {
-        if (s.anchor_ht[c].w > 0.0) {
-            table = true;
-        }
-    }
     raw[T_RESIDUAL_TASK_TABLE_COLLISION] = select(0.0, 1.0, table);
     return raw;
 }
@@ -470,18 +462,18 @@ fn task_reward(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
         }
     } else {
         let f = ref_sample(ts.cursor, s.step, 0u);
-        let fin_ref = ref_sample(ts.cursor, REF_END_STEP, 0u);
+        let fin_ref = ref_object_end(ts.cursor);
         // the object's error against its reference now (m, rad) and against the final pose
         err = vec2<f32>(length(obj - f.obj_pos.xyz), length(quat_error(f.obj_rot, s.obj_rot)));
-        let fin_p = length(obj - fin_ref.obj_pos.xyz);
-        let fin_r = length(quat_error(fin_ref.obj_rot, s.obj_rot));
+        let fin_p = length(obj - fin_ref.pos);
+        let fin_r = length(quat_error(fin_ref.rot, s.obj_rot));
         let fin = fin_p <= tc.success_pos_tol && fin_r <= tc.success_rot_tol;
         if (tc.kind == KIND_TRACK) {
             raw = track_terms(s, ts, f, err, fin, thumb && other, h);
         } else if (tc.kind == KIND_RESIDUAL_JOINT) {
             raw = residual_joint_terms(ts, f, err, fin);
         } else {
-            raw = residual_task_terms(s, params[env], ts, f, err, thumb && other);
+            raw = residual_task_terms(s, params[env], ts, f, err, thumb && other, sts.table_contact != 0u);
         }
         success = select(0.0, 1.0, fin);
         terminated = terminated || (tc.max_object_error > 0.0 && err.x > tc.max_object_error);
@@ -814,7 +806,7 @@ fn task_observe(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
         k++;
     }
     for (var l = 0u; l < g.n_links; l++) {
-        put_priv(k, f32((ts.link_contact >> l) & 1u));
+        put_priv(k, f32((ts.link_contact[l / 32u] >> (l % 32u)) & 1u));
         k++;
     }
     put_priv(k, p.obj_inertia.w);

@@ -532,7 +532,7 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
         let refs: Vec<String> = if !has_reference {
             vec![String::new(); n]
         } else {
-            let (_, _, ts) = decode_snapshot(&task.save_state()?, n)?;
+            let (_, ts) = decode_snapshot(&task.save_state()?, n, model.globals.n_springs as usize)?;
             ts.iter().map(|t| ref_names.get(t.cursor.ref_id as usize).cloned().unwrap_or_default()).collect()
         };
         let mut done = vec![false; n];
@@ -704,6 +704,7 @@ fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::t
     let env = task.env();
     let states = env.states()?;
     let params = env.params()?;
+    let springs = env.springs()?;
     let s = &states[0];
     let nj = model.joints.len();
     w.write_frame(&RolloutFrame {
@@ -714,7 +715,7 @@ fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::t
         wrist: Pose::from_arrays(s.wrist_pos, s.wrist_rot),
         object: Pose::from_arrays(s.obj_pos, s.obj_rot),
         links: hand_link_poses(model, s),
-        contacts: contact_records(model, s, &params[0]),
+        contacts: contact_records(model, s, &springs[..model.globals.n_springs as usize], &params[0]),
         object_ref,
     })
 }

@@ -50,10 +50,16 @@ use crate::config::{MAX_QUOTED_CHARS, clip, clip_quoted};
 use crate::geom::Pose;
 
 /// Most movable joints (actuated + mimic followers) a hand may have (keep in sync with
-/// shaders/common.wgsl `MAX_JOINTS`).
-pub const MAX_JOINTS: usize = 24;
-/// Most collision shapes a hand may have (keep in sync with shaders/common.wgsl `MAX_COLLIDERS`).
-pub const MAX_COLLIDERS: usize = 32;
+/// shaders/common.wgsl `MAX_JOINTS`): Shadow's 24 with room to spare. It sizes the joint arrays of
+/// the per-env structs (`EnvState::q`, `Targets::q`, the reference frames) and the shaders' private
+/// arrays; its cost on the 16-joint hand is measured in BENCHMARKS.md.
+pub const MAX_JOINTS: usize = 32;
+/// Most collision shapes a hand may have: LEAP's 71 with room to spare. Nothing is sized by it:
+/// an env's contact springs take `2 · colliders + object support points` slots of a buffer sized
+/// from the hand at run time (`gpu_layout::spring_slot`), and the physics loops over the hand's own
+/// colliders. It bounds the cost of a step (every collider is tested against the object each
+/// substep).
+pub const MAX_COLLIDERS: usize = 256;
 /// Most fingertip frames (keep in sync with shaders/common.wgsl `MAX_TIPS`).
 pub const MAX_TIPS: usize = 6;
 

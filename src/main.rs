@@ -25,6 +25,10 @@ enum Command {
     Check {
         /// The TOML config file.
         config: PathBuf,
+        /// Override a config value, as `train --set` does: `--set hand.urdf="/path/to/hand.urdf"`
+        /// (repeatable).
+        #[arg(long = "set", value_name = "KEY=VALUE")]
+        sets: Vec<String>,
     },
     /// Measure env-step throughput on the contact-rich benchmark scene (or, with --ppo, the PPO
     /// update of the peer rsl_rl benchmark); prints one JSON line.
@@ -93,8 +97,8 @@ fn load_config(path: &Path) -> Result<Config> {
 
 fn run(cli: Cli) -> Result<()> {
     match cli.command {
-        Command::Check { config } => {
-            let cfg = load_config(&config)?;
+        Command::Check { config, sets } => {
+            let cfg = Config::load_with_overrides(&config, &sets)?;
             // the hand must load too
             let model = SimModel::from_config(&cfg)?;
             let task = dextrain::task::task_setup(&cfg, &model)?.spec;

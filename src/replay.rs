@@ -191,7 +191,16 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
     let backend;
     // the per-frame observation shared by both modes: states, params, each env's deepest penetration
     // and fingertip forces at this frame
-    let mut observe = |k: usize, states: &[EnvState], params: &[crate::env::EnvParams], pen: &[f32], tips: &[Vec<f32>], tg: &Targets, writer: &mut Option<RolloutWriter>| -> Result<()> {
+    // `springs0`: env 0's contact springs, read only for a recording
+    let mut observe = |k: usize,
+                       states: &[EnvState],
+                       params: &[crate::env::EnvParams],
+                       springs0: &dyn Fn() -> Result<Vec<[f32; 4]>>,
+                       pen: &[f32],
+                       tips: &[Vec<f32>],
+                       tg: &Targets,
+                       writer: &mut Option<RolloutWriter>|
+     -> Result<()> {
         let t = (k as f64) * ctrl_dt;
         let r = traj.sample(t);
         for i in 0..n {
@@ -230,7 +239,7 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
                 wrist: Pose::from_arrays(s.wrist_pos, s.wrist_rot),
                 object: Pose::from_arrays(s.obj_pos, s.obj_rot),
                 links: hand_link_poses(&model, s),
-                contacts: contact_records(&model, s, &params[0]),
+                contacts: contact_records(&model, s, &springs0()?, &params[0]),
                 object_ref: r.object,
             })?;
         }
@@ -240,6 +249,9 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
         backend = "kinematic (cpu)".to_string();
         let params: Vec<_> = (0..n as u32).map(|i| reset_params(&g, i, 0)).collect();
         let bases: Vec<EnvState> = (0..n).map(|i| reset_state(&g, &model.joints, &params[i], i as u32, 0, 0)).collect();
+        // a kinematic state has no contact history: every spring is relaxed
+        let relaxed = vec![[0.0f32; 4]; model.globals.n_springs as usize];
+        let relaxed_springs = || Ok(relaxed.clone());
         for k in 0..frames {
             let t = k as f64 * ctrl_dt;
             let tg = targets_at(&model, traj, &map, t);
@@ -248,7 +260,7 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
             let mut pen = vec![0.0f32; n];
             let mut tips = vec![vec![0.0f32; model.tips.len()]; n];
             for i in 0..n {
-                for c in contact_records(&model, &states[i], &params[i]) {
+                for c in contact_records(&model, &states[i], &relaxed, &params[i]) {
                     if c.kind == ContactKind::HandObject {
                         pen[i] = pen[i].max(c.depth);
                         let tip = model.colliders[c.index as usize].tip;
@@ -258,7 +270,7 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
                     }
                 }
             }
-            observe(k, &states, &params, &pen, &tips, &tg, &mut writer)?;
+            observe(k, &states, &params, &relaxed_springs, &pen, &tips, &tg, &mut writer)?;
         }
     } else {
         let mut env: Box<dyn EnvBatch> = make_env_batch(cfg, model.clone())?;
@@ -269,7 +281,10 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
         let mut params = env.params()?;
         let zero = vec![0.0f32; n];
         let no_tips = vec![vec![0.0f32; model.tips.len()]; n];
-        observe(0, &start, &params, &zero, &no_tips, &t0, &mut writer)?;
+        let per_env = model.globals.n_springs as usize;
+        let env0_springs = |env: &mut Box<dyn EnvBatch>| -> Result<Vec<[f32; 4]>> { Ok(env.springs()?[..per_env].to_vec()) };
+        let springs = env0_springs(&mut env)?;
+        observe(0, &start, &params, &|| Ok(springs.clone()), &zero, &no_tips, &t0, &mut writer)?;
         for k in 1..frames {
             let tg = targets_at(&model, traj, &map, k as f64 * ctrl_dt);
             env.step(&vec![tg; n])?;
@@ -282,7 +297,8 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
             bad += resets;
             let pen: Vec<f32> = stats.iter().map(|s| s.max_pen_ho).collect();
             let tips: Vec<Vec<f32>> = stats.iter().map(|s| s.tip_force[..model.tips.len()].to_vec()).collect();
-            observe(k, &states, &params, &pen, &tips, &tg, &mut writer)?;
+            let springs = if writer.is_some() { env0_springs(&mut env)? } else { Vec::new() };
+            observe(k, &states, &params, &|| Ok(springs.clone()), &pen, &tips, &tg, &mut writer)?;
         }
     }
     if let Some(w) = writer {

@@ -5,12 +5,14 @@ use rayon::prelude::*;
 
 use super::gpu_layout::*;
 use super::physics::env_step;
-use super::reset::{reset_params, reset_state};
+use super::reset::{clear_springs, reset_params, reset_state};
 use super::{EnvBatch, EnvSpec, SimModel};
 
 pub struct CpuEnvBatch {
     model: SimModel,
     states: Vec<EnvState>,
+    /// `[N, n_springs]` contact springs (see `gpu_layout::spring_slot`).
+    springs: Vec<[f32; 4]>,
     params: Vec<EnvParams>,
     stats: Vec<StepStats>,
 }
@@ -19,9 +21,11 @@ impl CpuEnvBatch {
     /// Makes the batch with every env at the start of episode 0.
     pub fn new(model: SimModel) -> CpuEnvBatch {
         let n = model.spec.num_envs;
+        let per_env = model.globals.n_springs as usize;
         let mut b = CpuEnvBatch {
             model,
             states: vec![EnvState::default(); n],
+            springs: vec![[0.0; 4]; n * per_env],
             params: vec![bytemuck::Zeroable::zeroed(); n],
             stats: vec![bytemuck::Zeroable::zeroed(); n],
         };
@@ -36,6 +40,11 @@ impl CpuEnvBatch {
     /// The current states, borrowed (the task layer reads them without a copy).
     pub fn states_ref(&self) -> &[EnvState] {
         &self.states
+    }
+
+    /// The contact springs `[N, n_springs]`, borrowed.
+    pub fn springs_ref(&self) -> &[[f32; 4]] {
+        &self.springs
     }
 
     /// The model, the states (mutable: the task layer places a reference task's hand and object at
@@ -65,14 +74,21 @@ impl CpuEnvBatch {
     fn reset_where(&mut self, episode_of: impl Fn(usize) -> Option<u32> + Sync) {
         let g = &self.model.globals;
         let joints = &self.model.joints;
-        self.states.par_iter_mut().zip(self.params.par_iter_mut()).enumerate().for_each(|(i, (st, p))| {
-            let next = st.episode + 1;
-            if let Some(ep) = episode_of(i) {
-                let ep = if ep == u32::MAX { next } else { ep };
-                *p = reset_params(g, i as u32, ep);
-                *st = reset_state(g, joints, p, i as u32, ep, st.bad_resets);
-            }
-        });
+        let per_env = g.n_springs as usize;
+        self.states
+            .par_iter_mut()
+            .zip(self.params.par_iter_mut())
+            .zip(self.springs.par_chunks_mut(per_env.max(1)))
+            .enumerate()
+            .for_each(|(i, ((st, p), springs))| {
+                let next = st.episode + 1;
+                if let Some(ep) = episode_of(i) {
+                    let ep = if ep == u32::MAX { next } else { ep };
+                    *p = reset_params(g, i as u32, ep);
+                    *st = reset_state(g, joints, p, i as u32, ep, st.bad_resets);
+                    clear_springs(springs);
+                }
+            });
     }
 }
 
@@ -99,13 +115,15 @@ impl EnvBatch for CpuEnvBatch {
     fn step(&mut self, targets: &[Targets]) -> Result<()> {
         ensure!(targets.len() == self.states.len(), "{} targets for {} envs", targets.len(), self.states.len());
         let m = self.model.view();
+        let per_env = self.model.globals.n_springs as usize;
         self.states
             .par_iter_mut()
+            .zip(self.springs.par_chunks_mut(per_env.max(1)))
             .zip(self.params.par_iter_mut())
             .zip(self.stats.par_iter_mut())
             .zip(targets.par_iter())
             .enumerate()
-            .for_each(|(i, (((st, p), stats), t))| env_step(i as u32, st, p, t, &m, stats));
+            .for_each(|(i, ((((st, springs), p), stats), t))| env_step(i as u32, st, springs, p, t, &m, stats));
         Ok(())
     }
 
@@ -116,6 +134,16 @@ impl EnvBatch for CpuEnvBatch {
     fn set_states(&mut self, states: &[EnvState]) -> Result<()> {
         ensure!(states.len() == self.states.len(), "{} states for {} envs", states.len(), self.states.len());
         self.states.copy_from_slice(states);
+        Ok(())
+    }
+
+    fn springs(&mut self) -> Result<Vec<[f32; 4]>> {
+        Ok(self.springs.clone())
+    }
+
+    fn set_springs(&mut self, springs: &[[f32; 4]]) -> Result<()> {
+        ensure!(springs.len() == self.springs.len(), "{} contact springs for {} (N × n_springs)", springs.len(), self.springs.len());
+        self.springs.copy_from_slice(springs);
         Ok(())
     }
 

@@ -21,7 +21,7 @@ use anyhow::{Context, Result, anyhow, bail, ensure};
 use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
-use super::gpu_bindings::{Binding, BindingSpace, EntryBindings, RESET_MAIN, SIM_GROUP, STEP_MAIN};
+use super::gpu_bindings::{Binding, BindingSpace, EntryBindings, RESET_MAIN, SIM_GROUP, SPRINGS, STEP_MAIN};
 use super::gpu_bindings::{COLLIDERS, GLOBALS, JOINTS, PARAMS, RESET_MASK, STATES, STATS, TARGETS};
 use super::gpu_layout::*;
 use super::{EnvBatch, EnvSpec, SimModel};
@@ -441,7 +441,10 @@ pub struct GpuEnvBatch {
     pub(crate) stats: wgpu::Buffer,
     /// [`RESET_MASK`]: `[N]` u32.
     pub(crate) reset_mask: wgpu::Buffer,
-    /// Staging buffer of [`GpuEnvBatch::read`] (the size of the env states).
+    /// [`SPRINGS`]: `[N, n_springs]` `vec4<f32>`.
+    pub(crate) springs: wgpu::Buffer,
+    /// Staging buffer of [`GpuEnvBatch::read`] (the size of the env states or of the springs,
+    /// whichever is larger).
     readback: wgpu::Buffer,
     pub(crate) step_pipeline: wgpu::ComputePipeline,
     pub(crate) reset_pipeline: wgpu::ComputePipeline,
@@ -458,6 +461,10 @@ impl GpuEnvBatch {
         // the largest per-env buffer, checked before anything is allocated
         let state_bytes = (n * std::mem::size_of::<EnvState>()) as u64;
         ctx.check_buffer_size(STATES.name, state_bytes, BufferRole::Storage).with_context(|| format!("sim.num_envs = {n}"))?;
+        let n_springs = n * model.globals.n_springs as usize;
+        let spring_bytes = (n_springs * 16) as u64;
+        ctx.check_buffer_size(SPRINGS.name, spring_bytes, BufferRole::Storage)
+            .with_context(|| format!("sim.num_envs = {n} × {} contact springs per env", model.globals.n_springs))?;
         let none = wgpu::BufferUsages::empty();
         let globals = ctx.create_binding_buffer(GLOBALS, std::slice::from_ref(&model.globals), none)?;
         let joints = ctx.create_binding_buffer(JOINTS, &model.joints, none)?;
@@ -468,7 +475,10 @@ impl GpuEnvBatch {
         let targets = ctx.create_binding_buffer(TARGETS, &vec![Targets::default(); n], none).with_context(per_env)?;
         let stats = ctx.create_binding_buffer(STATS, &vec![<StepStats as bytemuck::Zeroable>::zeroed(); n], none).with_context(per_env)?;
         let reset_mask = ctx.create_binding_buffer(RESET_MASK, &vec![0u32; n], none).with_context(per_env)?;
-        let readback = ctx.create_staging_buffer("env readback", state_bytes).with_context(per_env)?;
+        let springs = ctx.create_binding_buffer(SPRINGS, &vec![[0.0f32; 4]; n_springs.max(1)], none).with_context(per_env)?;
+        // the largest per-env readback: env states, contact springs or the task layer's states
+        let task_bytes = (n * std::mem::size_of::<TaskState>()) as u64;
+        let readback = ctx.create_staging_buffer("env readback", state_bytes.max(spring_bytes).max(task_bytes)).with_context(per_env)?;
         let [step_pipeline, reset_pipeline] =
             ctx.compute_pipelines(SIM_GROUP.shader, &shader_source(), [STEP_MAIN.entry_point, RESET_MAIN.entry_point])?;
         let buffers = [
@@ -480,6 +490,7 @@ impl GpuEnvBatch {
             (TARGETS, &targets),
             (STATS, &stats),
             (RESET_MASK, &reset_mask),
+            (SPRINGS, &springs),
         ];
         let step_group = ctx.bind_group(&step_pipeline, &STEP_MAIN, &buffers)?;
         let reset_group = ctx.bind_group(&reset_pipeline, &RESET_MAIN, &buffers)?;
@@ -493,6 +504,7 @@ impl GpuEnvBatch {
             targets,
             stats,
             reset_mask,
+            springs,
             readback,
             step_pipeline,
             reset_pipeline,
@@ -532,13 +544,20 @@ impl GpuEnvBatch {
         self.ctx.upload(PARAMS.name, &self.params, bytemuck::cast_slice(params))
     }
 
-    /// Copies `count` elements of `T` (at most the size of the env states) from `src` (named
-    /// `name` in errors) back to the host.
+    /// Copies `count` elements of `T` from `src` (named `name` in errors) back to the host, through
+    /// the batch's staging buffer or, for a larger read, a staging buffer made for it.
     pub(crate) fn read<T: Pod>(&self, src: &wgpu::Buffer, name: &str, count: usize) -> Result<Vec<T>> {
         let bytes = (count * std::mem::size_of::<T>()) as u64;
         let enc = self.ctx.device.create_command_encoder(&Default::default());
         let mut out = Vec::new();
-        let copy = ReadbackCopy { name, src, staging: &self.readback, bytes };
+        let larger;
+        let staging = if bytes <= self.readback.size() {
+            &self.readback
+        } else {
+            larger = self.ctx.create_staging_buffer(name, bytes)?;
+            &larger
+        };
+        let copy = ReadbackCopy { name, src, staging, bytes };
         self.ctx.submit_and_read(enc, &[copy], &format!("reading GPU buffer `{name}` back"), |_, b| out = bytemuck::pod_collect_to_vec(b))?;
         Ok(out)
     }
@@ -579,6 +598,16 @@ impl EnvBatch for GpuEnvBatch {
     fn set_states(&mut self, states: &[EnvState]) -> Result<()> {
         ensure!(states.len() == self.model.spec.num_envs, "{} states for {} envs", states.len(), self.model.spec.num_envs);
         self.ctx.upload(STATES.name, &self.states, bytemuck::cast_slice(states))
+    }
+
+    fn springs(&mut self) -> Result<Vec<[f32; 4]>> {
+        self.read(&self.springs, SPRINGS.name, self.model.spec.num_envs * self.model.globals.n_springs as usize)
+    }
+
+    fn set_springs(&mut self, springs: &[[f32; 4]]) -> Result<()> {
+        let want = self.model.spec.num_envs * self.model.globals.n_springs as usize;
+        ensure!(springs.len() == want, "{} contact springs for {want} (N × n_springs)", springs.len());
+        self.ctx.upload(SPRINGS.name, &self.springs, bytemuck::cast_slice(springs))
     }
 
     fn params(&mut self) -> Result<Vec<EnvParams>> {

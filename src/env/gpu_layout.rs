@@ -7,7 +7,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::hand::{MAX_COLLIDERS, MAX_JOINTS, MAX_TIPS};
+use crate::hand::{MAX_JOINTS, MAX_TIPS};
 
 /// Most support points of an object against the table (keep in sync with `MAX_OBJ_PTS`).
 pub const MAX_OBJ_PTS: usize = 16;
@@ -47,7 +47,9 @@ pub struct Globals {
     pub decimation: u32,
     pub seed: u32,
     pub hand_table: u32,
-    pub _pad0: u32,
+    /// Contact springs per env in the springs buffer: `2 · n_colliders + n_obj_pts` (see
+    /// [`spring_slot`]).
+    pub n_springs: u32,
     /// Physics step (s).
     pub dt: f32,
     /// Gravity magnitude (m/s², acting along −z).
@@ -149,12 +151,6 @@ pub struct EnvState {
     pub obj_rot: [f32; 4],
     pub obj_vel: [f32; 4],
     pub obj_angvel: [f32; 4],
-    /// Tangential spring of each hand–object contact (xyz, world); w = 1 while in contact.
-    pub anchor_ho: [[f32; 4]; MAX_COLLIDERS],
-    /// Same for hand–table contacts.
-    pub anchor_ht: [[f32; 4]; MAX_COLLIDERS],
-    /// Same for object–table contacts, one per object support point.
-    pub anchor_ot: [[f32; 4]; MAX_OBJ_PTS],
     /// Joint positions (rad) and velocities (rad/s), followers included.
     pub q: [f32; MAX_JOINTS],
     pub qd: [f32; MAX_JOINTS],
@@ -166,6 +162,31 @@ pub struct EnvState {
     pub step: u32,
     /// Resets caused by non-finite or exploding state since the batch was made.
     pub bad_resets: u32,
+}
+
+/// The contact springs of the envs live outside [`EnvState`], in one buffer `[N, n_springs]` of
+/// `[f32; 4]` (WGSL `springs: array<vec4<f32>>`), so that an env's memory grows with its hand's
+/// colliders instead of with a compile-time maximum. Each entry is the tangential spring of one
+/// contact pair (xyz, world) and w = 1 while the pair is in contact. Slots of env `e`, relative to
+/// `e · n_springs`: hand collider `c` against the object at `c`, against the table at
+/// `n_colliders + c`, object support point `k` against the table at `2 · n_colliders + k`.
+pub mod spring_slot {
+    /// Slot of hand collider `c`'s contact with the object.
+    pub const fn hand_object(c: u32) -> u32 {
+        c
+    }
+    /// Slot of hand collider `c`'s contact with the table.
+    pub const fn hand_table(n_colliders: u32, c: u32) -> u32 {
+        n_colliders + c
+    }
+    /// Slot of object support point `k`'s contact with the table.
+    pub const fn object_table(n_colliders: u32, k: u32) -> u32 {
+        2 * n_colliders + k
+    }
+    /// Springs per env.
+    pub const fn per_env(n_colliders: u32, n_obj_pts: u32) -> u32 {
+        2 * n_colliders + n_obj_pts
+    }
 }
 
 /// Per-env physical parameters drawn at reset (WGSL `EnvParams`).
@@ -218,9 +239,12 @@ pub struct StepStats {
     pub contacts_ho: u32,
     /// 1 if the env was reset during this step because its state was non-finite or exploded.
     pub bad_reset: u32,
-    /// Bit l set: a collision shape of hand link l pushed on the object (normal force > 0) in at
-    /// least one physics substep of the env step.
-    pub link_contact: u32,
+    /// Bit l % 32 of word l / 32 set: a collision shape of hand link l pushed on the object
+    /// (normal force > 0) in at least one physics substep of the env step.
+    pub link_contact: [u32; 2],
+    /// 1 if a hand collider touches the table at the end of the env step.
+    pub table_contact: u32,
+    pub _pad: [u32; 3],
 }
 
 impl Default for EnvState {
@@ -236,8 +260,8 @@ impl Default for Targets {
 }
 
 /// Most actions (6 wrist + actuated joints) a `TaskState` holds (keep in sync with task.wgsl
-/// `MAX_ACTIONS`).
-pub const MAX_ACTIONS: usize = 32;
+/// `MAX_ACTIONS`): 6 + `MAX_JOINTS`, rounded up to a multiple of 4 (WGSL struct padding).
+pub const MAX_ACTIONS: usize = (6 + MAX_JOINTS).div_ceil(4) * 4;
 
 /// Run-wide constants of the task layer (WGSL `TaskGlobals`, a uniform; built by `env::task` from
 /// `[task]` of the config and the hand).
@@ -359,8 +383,7 @@ pub struct TaskState {
     /// ‖δ‖² of the last residual (residual kinds).
     pub res_sq: f32,
     /// `StepStats::link_contact` of the last step (0 after a reset).
-    pub link_contact: u32,
-    pub _pad: u32,
+    pub link_contact: [u32; 2],
     /// The reference this episode follows (reference kinds).
     pub cursor: crate::env::reference::RefCursor,
     /// residual_task: the EMA-smoothed output ũ and the integrated residual Δa (`n_res` used).

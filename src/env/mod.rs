@@ -66,6 +66,10 @@ pub trait EnvBatch: Send {
     fn step(&mut self, targets: &[Targets]) -> Result<()>;
     fn states(&mut self) -> Result<Vec<EnvState>>;
     fn set_states(&mut self, states: &[EnvState]) -> Result<()>;
+    /// The contact springs of every env, `[N, n_springs]` (`gpu_layout::spring_slot`).
+    fn springs(&mut self) -> Result<Vec<[f32; 4]>>;
+    /// Overwrites the contact springs (`[N, n_springs]`; checkpoint restore).
+    fn set_springs(&mut self, springs: &[[f32; 4]]) -> Result<()>;
     fn params(&mut self) -> Result<Vec<EnvParams>>;
     /// What happened in each env during the last step.
     fn stats(&mut self) -> Result<Vec<StepStats>>;
@@ -254,7 +258,7 @@ impl SimModel {
             decimation: cfg.sim.decimation,
             seed: cfg.seed,
             hand_table: cfg.table.hand_collision as u32,
-            _pad0: 0,
+            n_springs: gpu_layout::spring_slot::per_env(colliders.len() as u32, physics::object_num_support(shape.code())),
             dt: cfg.sim.dt,
             gravity: 9.81,
             contact_k: cfg.contact.stiffness,
@@ -348,7 +352,9 @@ pub fn hand_link_poses(model: &SimModel, st: &EnvState) -> Vec<crate::geom::Pose
 
 /// Every contact of a state, with the force the next substep would apply (for recordings and
 /// kinematic replay; evaluated on the host with the CPU twin's narrow phase and force law).
-pub fn contact_records(model: &SimModel, st: &EnvState, p: &EnvParams) -> Vec<crate::record::ContactRecord> {
+/// `springs` are the env's `[n_springs]` contact springs.
+pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p: &EnvParams) -> Vec<crate::record::ContactRecord> {
+    use gpu_layout::spring_slot;
     use crate::record::{ContactKind, ContactRecord};
     let m = model.view();
     let g = &model.globals;
@@ -367,7 +373,7 @@ pub fn contact_records(model: &SimModel, st: &EnvState, p: &EnvParams) -> Vec<cr
         if c.depth > 0.0 {
             let vrel = physics::link_point_velocity(&s, l, c.point) - (ovel + ow.cross(c.point - opos));
             let mu = 0.5 * (p.hand_friction + p.obj_friction);
-            let (f, _, _) = physics::contact_force(&c, vrel, v3(st.anchor_ho[ci]), g.contact_k, g.contact_kt, p.obj_contact_c, mu, h);
+            let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::hand_object(ci as u32) as usize]), g.contact_k, g.contact_kt, p.obj_contact_c, mu, h);
             push(ContactKind::HandObject, ci, &c, f);
         }
         if g.hand_table != 0 {
@@ -375,7 +381,7 @@ pub fn contact_records(model: &SimModel, st: &EnvState, p: &EnvParams) -> Vec<cr
             if c.depth > 0.0 {
                 let mu = 0.5 * (p.hand_friction + p.table_friction);
                 let vrel = physics::link_point_velocity(&s, l, c.point);
-                let (f, _, _) = physics::contact_force(&c, vrel, v3(st.anchor_ht[ci]), g.contact_k, g.contact_kt, p.hand_table_c, mu, h);
+                let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::hand_table(g.n_colliders, ci as u32) as usize]), g.contact_k, g.contact_kt, p.hand_table_c, mu, h);
                 push(ContactKind::HandTable, ci, &c, f);
             }
         }
@@ -385,7 +391,7 @@ pub fn contact_records(model: &SimModel, st: &EnvState, p: &EnvParams) -> Vec<cr
         if c.depth > 0.0 {
             let mu = 0.5 * (p.obj_friction + p.table_friction);
             let vrel = ovel + ow.cross(c.point - opos);
-            let (f, _, _) = physics::contact_force(&c, vrel, v3(st.anchor_ot[k as usize]), g.contact_k, g.contact_kt, p.obj_contact_c, mu, h);
+            let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::object_table(g.n_colliders, k) as usize]), g.contact_k, g.contact_kt, p.obj_contact_c, mu, h);
             push(ContactKind::ObjectTable, k as usize, &c, f);
         }
     }

@@ -20,7 +20,7 @@ use glam::{Vec3, Vec4};
 
 use super::common::*;
 use super::gpu_layout::*;
-use super::reset::{reset_params, reset_state};
+use super::reset::{clear_springs, reset_params, reset_state};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 
 /// Most links: the root plus one per movable joint.
@@ -64,8 +64,8 @@ pub struct Scratch {
     pub max_pen: f32,
     pub contacts: u32,
     pub contacts_ho: u32,
-    /// Bit l: a collider of link l pushed on the object (Fn > 0) in a substep.
-    pub link_contact: u32,
+    /// Bit l % 32 of word l / 32: a collider of link l pushed on the object (Fn > 0) in a substep.
+    pub link_contact: [u32; 2],
 }
 
 impl Default for Scratch {
@@ -87,7 +87,7 @@ impl Default for Scratch {
             max_pen: 0.0,
             contacts: 0,
             contacts_ho: 0,
-            link_contact: 0,
+            link_contact: [0; 2],
         }
     }
 }
@@ -538,8 +538,9 @@ pub fn apply_object_force(st: &EnvState, s: &mut Scratch, x: Vec3, f: Vec3, n: V
     }
 }
 
-/// Evaluates every contact of the substep: forces on hand and object, springs, statistics.
-pub fn contacts_and_forces(st: &mut EnvState, p: &EnvParams, m: &Model, s: &mut Scratch, h: f32) {
+/// Evaluates every contact of the substep: forces on hand and object, springs (`springs`: this
+/// env's `[n_springs]` slots, see [`spring_slot`]), statistics.
+pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvParams, m: &Model, s: &mut Scratch, h: f32) {
     let g = m.g;
     let k = g.contact_k;
     let kt = g.contact_kt;
@@ -549,15 +550,17 @@ pub fn contacts_and_forces(st: &mut EnvState, p: &EnvParams, m: &Model, s: &mut 
     let mu_ho = 0.5 * (p.hand_friction + p.obj_friction);
     let mu_ht = 0.5 * (p.hand_friction + p.table_friction);
     let mu_ot = 0.5 * (p.obj_friction + p.table_friction);
+    let n_c = g.n_colliders;
     for ci in 0..g.n_colliders as usize {
+        let (sho, sht) = (spring_slot::hand_object(ci as u32) as usize, spring_slot::hand_table(n_c, ci as u32) as usize);
         let l = m.colliders[ci].link as usize;
         // hand–object
         let c = collide_hand_object(st, p, m, s, ci);
         if c.depth > 0.0 {
             let vh = link_point_velocity(s, l, c.point);
             let vo = ovel + ow.cross(c.point - opos);
-            let (f, spring, b) = contact_force(&c, vh - vo, v3(st.anchor_ho[ci]), k, kt, p.obj_contact_c, mu_ho, h);
-            st.anchor_ho[ci] = [spring.x, spring.y, spring.z, 1.0];
+            let (f, spring, b) = contact_force(&c, vh - vo, v3(springs[sho]), k, kt, p.obj_contact_c, mu_ho, h);
+            springs[sho] = [spring.x, spring.y, spring.z, 1.0];
             apply_hand_force(m, s, l, c.point, f);
             // the normal damper acts only while the contact pushes (Fn > 0)
             let a = if f.dot(c.normal) > 0.0 { k * h + p.obj_contact_c } else { 0.0 };
@@ -574,34 +577,34 @@ pub fn contacts_and_forces(st: &mut EnvState, p: &EnvParams, m: &Model, s: &mut 
                 s.tip_force[tip as usize] += f.dot(c.normal);
             }
             if f.dot(c.normal) > 0.0 {
-                s.link_contact |= 1 << l;
+                s.link_contact[l / 32] |= 1 << (l % 32);
             }
         } else {
-            st.anchor_ho[ci] = [0.0; 4];
+            springs[sho] = [0.0; 4];
         }
         // hand–table
         if g.hand_table != 0 {
             let c = collide_hand_table(m, s, ci);
             if c.depth > 0.0 {
                 let vh = link_point_velocity(s, l, c.point);
-                let (f, spring, _) = contact_force(&c, vh, v3(st.anchor_ht[ci]), k, kt, p.hand_table_c, mu_ht, h);
-                st.anchor_ht[ci] = [spring.x, spring.y, spring.z, 1.0];
+                let (f, spring, _) = contact_force(&c, vh, v3(springs[sht]), k, kt, p.hand_table_c, mu_ht, h);
+                springs[sht] = [spring.x, spring.y, spring.z, 1.0];
                 apply_hand_force(m, s, l, c.point, f);
                 s.contacts += 1;
                 s.max_pen = s.max_pen.max(c.depth);
             } else {
-                st.anchor_ht[ci] = [0.0; 4];
+                springs[sht] = [0.0; 4];
             }
         }
     }
     // object–table
     for kp in 0..g.n_obj_pts {
-        let ki = kp as usize;
+        let ki = spring_slot::object_table(n_c, kp) as usize;
         let c = collide_object_table(st, p, m, kp);
         if c.depth > 0.0 {
             let vo = ovel + ow.cross(c.point - opos);
-            let (f, spring, b) = contact_force(&c, vo, v3(st.anchor_ot[ki]), k, kt, p.obj_contact_c, mu_ot, h);
-            st.anchor_ot[ki] = [spring.x, spring.y, spring.z, 1.0];
+            let (f, spring, b) = contact_force(&c, vo, v3(springs[ki]), k, kt, p.obj_contact_c, mu_ot, h);
+            springs[ki] = [spring.x, spring.y, spring.z, 1.0];
             let a = if f.dot(c.normal) > 0.0 { k * h + p.obj_contact_c } else { 0.0 };
             apply_object_force(st, s, c.point, f, c.normal, a, b);
             let (tq, br) = torsion_torque(c.normal, ow, f.dot(c.normal), mu_ot, g.torsion_radius);
@@ -609,7 +612,7 @@ pub fn contacts_and_forces(st: &mut EnvState, p: &EnvParams, m: &Model, s: &mut 
             s.contacts += 1;
             s.max_pen = s.max_pen.max(c.depth);
         } else {
-            st.anchor_ot[ki] = [0.0; 4];
+            springs[ki] = [0.0; 4];
         }
     }
 }
@@ -769,7 +772,7 @@ pub fn integrate_object(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch
 }
 
 /// One substep of length h.
-pub fn substep(st: &mut EnvState, p: &EnvParams, t: &Targets, m: &Model, s: &mut Scratch, h: f32) {
+pub fn substep(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvParams, t: &Targets, m: &Model, s: &mut Scratch, h: f32) {
     hand_kinematics(st, m, s);
     s.tau = [0.0; MAX_JOINTS];
     s.wrist_f = Vec3::ZERO;
@@ -777,7 +780,7 @@ pub fn substep(st: &mut EnvState, p: &EnvParams, t: &Targets, m: &Model, s: &mut
     s.obj_f = Vec3::ZERO;
     s.obj_t = Vec3::ZERO;
     s.obj_d = [0.0; 36];
-    contacts_and_forces(st, p, m, s, h);
+    contacts_and_forces(st, springs, p, m, s, h);
     integrate_hand(st, p, t, m, s, h);
     integrate_object(st, p, m, s, h);
 }
@@ -801,14 +804,15 @@ pub fn state_is_sane(st: &EnvState, g: &Globals) -> bool {
     ok
 }
 
-/// One env step of env `env`: decimation × substeps, statistics, and a reset if the state went bad.
-pub fn env_step(env: u32, st: &mut EnvState, p: &mut EnvParams, t: &Targets, m: &Model, stats: &mut StepStats) {
+/// One env step of env `env` (`springs`: its `[n_springs]` contact springs): decimation ×
+/// substeps, statistics, and a reset if the state went bad.
+pub fn env_step(env: u32, st: &mut EnvState, springs: &mut [[f32; 4]], p: &mut EnvParams, t: &Targets, m: &Model, stats: &mut StepStats) {
     let g = m.g;
     let mut s = Scratch::default();
     let h = g.dt / g.substeps as f32;
     let n_sub = g.decimation * g.substeps;
     for _ in 0..n_sub {
-        substep(st, p, t, m, &mut s, h);
+        substep(st, springs, p, t, m, &mut s, h);
     }
     st.time += g.dt * g.decimation as f32;
     st.step += 1;
@@ -820,12 +824,19 @@ pub fn env_step(env: u32, st: &mut EnvState, p: &mut EnvParams, t: &Targets, m: 
     stats.contacts = s.contacts;
     stats.contacts_ho = s.contacts_ho;
     stats.link_contact = s.link_contact;
+    stats.table_contact = 0;
+    for ci in 0..g.n_colliders {
+        if springs[spring_slot::hand_table(g.n_colliders, ci) as usize][3] > 0.0 {
+            stats.table_contact = 1;
+        }
+    }
     stats.bad_reset = 0;
     if !state_is_sane(st, g) {
         let episode = st.episode + 1;
         let bad = st.bad_resets + 1;
         *p = reset_params(g, env, episode);
         *st = reset_state(g, m.joints, p, env, episode, bad);
+        clear_springs(springs);
         stats.bad_reset = 1;
     }
 }

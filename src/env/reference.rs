@@ -94,7 +94,7 @@ pub const REF_KEY_JOINT: u32 = 16;
 /// Per-frame noise: component `c` (0–2 wrist xyz, 3 + j joint j) of env step `n` uses keys
 /// `REF_KEY_NOISE + n · REF_KEY_STRIDE + 2c + {0, 1}` (Box–Muller), wrapping in u32.
 pub const REF_KEY_NOISE: u32 = 64;
-pub const REF_KEY_STRIDE: u32 = 64;
+pub const REF_KEY_STRIDE: u32 = 128;
 
 /// [`RefCursor::flags`] bits (keep in sync with reference.wgsl): wrist offsets or noise on.
 pub const CUR_WRIST: u32 = 1;
@@ -356,18 +356,20 @@ pub fn ref_raw(r: &RefModel, c: &RefCursor, n: u32) -> RefFrame {
     let info = &r.info[c.ref_id as usize];
     let last = info.n_frames - 1;
     let x = n as f32 * c.speed;
-    if x >= last as f32 {
-        let mut f = ref_read(r, ref_record(r, info, last));
-        f.ended = 1;
-        return f;
+    // the shader's shape: one place that reads the first record (its twin inlines every call)
+    let ended = x >= last as f32;
+    let (i0, s) = if ended {
+        (last, 0.0)
+    } else {
+        let i0 = x.floor() as u32;
+        (i0, x - i0 as f32)
+    };
+    let mut f = ref_read(r, ref_record(r, info, i0));
+    if s != 0.0 {
+        f = ref_lerp(r, &f, &ref_read(r, ref_record(r, info, i0 + 1)), s);
     }
-    let i0 = x.floor() as u32;
-    let s = x - i0 as f32;
-    let a = ref_read(r, ref_record(r, info, i0));
-    if s == 0.0 {
-        return a;
-    }
-    ref_lerp(r, &a, &ref_read(r, ref_record(r, info, i0 + 1)), s)
+    f.ended = u32::from(ended);
+    f
 }
 
 /// Offset + noise of joint `j` at env step `n`; a mimic follower gets `mult ×` its leader's.
@@ -565,16 +567,13 @@ pub fn ref_sample(r: &RefModel, c: &RefCursor, step: u32, k: u32) -> RefFrame {
     f
 }
 
-/// The object's first pose in the episode's augmented reference, D · mirror(T_obj,ref(0)) (with
-/// `reground`: the env's object pose at the reset, up to rounding). Without `reground` the task
-/// places the object here at the reset.
-pub fn ref_object_start(r: &RefModel, c: &RefCursor) -> (Vec3, Vec4) {
-    let info = &r.info[c.ref_id as usize];
-    let mut p = v3(info.obj0_pos);
-    let mut q = v4(info.obj0_rot);
+/// An object pose of the reference's records carried through the episode's augmentation, D ·
+/// mirror(p, q) (the hand perturbation and the re-interpolation leave the object alone).
+pub fn ref_object_augmented(r: &RefModel, c: &RefCursor, pos: Vec3, rot: Vec4) -> (Vec3, Vec4) {
+    let (mut p, mut q) = (pos, rot);
     if c.flags & CUR_MIRROR != 0 {
-        // 2·y0 − y0 = y0 exactly: as ref_mirror does it
-        p.y = 2.0 * info.obj0_pos[1] - p.y;
+        // p.y → 2·y0 − p.y, as ref_mirror does it
+        p.y = 2.0 * r.info[c.ref_id as usize].obj0_pos[1] - p.y;
         q = ref_mirror_quat(q);
     }
     if c.flags & CUR_TRANSFORM != 0 {
@@ -583,4 +582,20 @@ pub fn ref_object_start(r: &RefModel, c: &RefCursor) -> (Vec3, Vec4) {
         q = quat_normalize(quat_mul(dr, q));
     }
     (p, q)
+}
+
+/// The object's first pose in the episode's augmented reference, D · mirror(T_obj,ref(0)) (with
+/// `reground`: the env's object pose at the reset, up to rounding). Without `reground` the task
+/// places the object here at the reset.
+pub fn ref_object_start(r: &RefModel, c: &RefCursor) -> (Vec3, Vec4) {
+    let info = &r.info[c.ref_id as usize];
+    ref_object_augmented(r, c, v3(info.obj0_pos), v4(info.obj0_rot))
+}
+
+/// The object's final pose in the episode's augmented reference: the object of the last record,
+/// as `ref_sample` gives it from the last frame on, without building the whole frame.
+pub fn ref_object_end(r: &RefModel, c: &RefCursor) -> (Vec3, Vec4) {
+    let info = &r.info[c.ref_id as usize];
+    let b = ref_record(r, info, info.n_frames - 1);
+    ref_object_augmented(r, c, ref_vec3(r, b + r.rg.off_obj_pos), ref_vec4(r, b + r.rg.off_obj_rot))
 }

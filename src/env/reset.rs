@@ -114,3 +114,8 @@ impl EnvParams {
         bytemuck::Zeroable::zeroed()
     }
 }
+
+/// Zeroes an env's contact springs (`[n_springs]`: no contact, no stretched spring).
+pub fn clear_springs(springs: &mut [[f32; 4]]) {
+    springs.fill([0.0; 4]);
+}

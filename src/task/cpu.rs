@@ -148,13 +148,14 @@ impl TaskBatch for CpuTaskBatch {
     }
 
     fn save_state(&mut self) -> Result<Vec<u8>> {
-        Ok(encode_snapshot(self.env.states_ref(), self.env.params_ref(), &self.task))
+        Ok(encode_snapshot(self.env.states_ref(), self.env.springs_ref(), self.env.params_ref(), &self.task))
     }
 
     fn load_state(&mut self, state: &[u8]) -> Result<()> {
-        let (states, params, task) = decode_snapshot(state, self.spec.num_envs)?;
-        self.env.set_states(&states)?;
-        self.env.set_params(&params)?;
+        let (env, task) = decode_snapshot(state, self.spec.num_envs, self.env.model().globals.n_springs as usize)?;
+        self.env.set_states(&env.states)?;
+        self.env.set_springs(&env.springs)?;
+        self.env.set_params(&env.params)?;
         self.task.copy_from_slice(&task);
         Ok(())
     }

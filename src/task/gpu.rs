@@ -17,7 +17,7 @@ use super::spec::TaskSpec;
 use super::task::OUT_MISC;
 use super::{StepBatch, TaskBatch, check_actions, check_targets, decode_snapshot, encode_snapshot};
 use crate::env::gpu::{BufferRole, GpuContext, GpuEnvBatch, ReadbackCopy, task_shader_source};
-use crate::env::gpu_bindings::{ACTIONS, GLOBALS, JOINTS, PARAMS, REF_CFG, REF_FRAMES, REF_INFO, RESET_MASK, STATES, STATS, TARGETS, TIPS};
+use crate::env::gpu_bindings::{ACTIONS, GLOBALS, JOINTS, PARAMS, REF_CFG, REF_FRAMES, REF_INFO, RESET_MASK, SPRINGS, STATES, STATS, TARGETS, TIPS};
 use crate::env::gpu_bindings::{TASK_ACT, TASK_CFG, TASK_GROUP, TASK_OBSERVE, TASK_OUT, TASK_REWARD, TASK_STATES};
 use crate::env::gpu_layout::*;
 use crate::env::{EnvBatch, SimModel};
@@ -97,6 +97,7 @@ impl GpuTaskBatch {
             (TARGETS, &env.targets),
             (STATS, &env.stats),
             (RESET_MASK, &env.reset_mask),
+            (SPRINGS, &env.springs),
             (TASK_CFG, &task_cfg),
             (TASK_STATES, &task_states),
             (ACTIONS, &actions),
@@ -250,14 +251,15 @@ impl TaskBatch for GpuTaskBatch {
     }
 
     fn save_state(&mut self) -> Result<Vec<u8>> {
-        let (states, params) = (self.env.states()?, self.env.params()?);
-        Ok(encode_snapshot(&states, &params, &self.task_states()?))
+        let (states, springs, params) = (self.env.states()?, self.env.springs()?, self.env.params()?);
+        Ok(encode_snapshot(&states, &springs, &params, &self.task_states()?))
     }
 
     fn load_state(&mut self, state: &[u8]) -> Result<()> {
-        let (states, params, task) = decode_snapshot(state, self.spec.num_envs)?;
-        self.env.set_states(&states)?;
-        self.env.set_params(&params)?;
+        let (env, task) = decode_snapshot(state, self.spec.num_envs, self.env.model.globals.n_springs as usize)?;
+        self.env.set_states(&env.states)?;
+        self.env.set_springs(&env.springs)?;
+        self.env.set_params(&env.params)?;
         self.env.ctx.upload(TASK_STATES.name, &self.task_states, bytemuck::cast_slice(&task))
     }
 }

@@ -222,33 +222,53 @@ pub trait TaskBatch: Send {
     fn load_state(&mut self, state: &[u8]) -> Result<()>;
 }
 
-const SNAPSHOT_MAGIC: &[u8; 8] = b"DXTASK01";
+const SNAPSHOT_MAGIC: &[u8; 8] = b"DXTASK02";
+/// Header of a snapshot: the magic, then N, the three struct sizes and the springs per env (u32 LE).
+const SNAPSHOT_HEADER: usize = 8 + 5 * 4;
 
-/// Serialises a task batch's state: magic, N and the struct sizes (u32 LE), then the env states,
-/// parameters and task states as their Pod bytes.
-pub(crate) fn encode_snapshot(states: &[EnvState], params: &[EnvParams], task: &[TaskState]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(24 + std::mem::size_of_val(states) + std::mem::size_of_val(params) + std::mem::size_of_val(task));
+/// The env batch's part of a snapshot: what [`encode_snapshot`] writes next to the task states.
+pub(crate) struct EnvSnapshot {
+    pub states: Vec<EnvState>,
+    /// `[N, springs_per_env]` contact springs.
+    pub springs: Vec<[f32; 4]>,
+    pub params: Vec<EnvParams>,
+}
+
+/// Serialises a task batch's state: the header (magic, N, the struct sizes, the contact springs
+/// per env), then the env states, contact springs, parameters and task states as their Pod bytes.
+pub(crate) fn encode_snapshot(states: &[EnvState], springs: &[[f32; 4]], params: &[EnvParams], task: &[TaskState]) -> Vec<u8> {
+    let body = std::mem::size_of_val(states) + std::mem::size_of_val(springs) + std::mem::size_of_val(params) + std::mem::size_of_val(task);
+    let mut out = Vec::with_capacity(SNAPSHOT_HEADER + body);
     out.extend_from_slice(SNAPSHOT_MAGIC);
-    for v in [states.len(), std::mem::size_of::<EnvState>(), std::mem::size_of::<EnvParams>(), std::mem::size_of::<TaskState>()] {
+    let per_env = springs.len().checked_div(states.len()).unwrap_or(0);
+    for v in [states.len(), std::mem::size_of::<EnvState>(), std::mem::size_of::<EnvParams>(), std::mem::size_of::<TaskState>(), per_env] {
         out.extend_from_slice(&(v as u32).to_le_bytes());
     }
     out.extend_from_slice(bytemuck::cast_slice(states));
+    out.extend_from_slice(bytemuck::cast_slice(springs));
     out.extend_from_slice(bytemuck::cast_slice(params));
     out.extend_from_slice(bytemuck::cast_slice(task));
     out
 }
 
-/// The inverse of [`encode_snapshot`] for a batch of `n` envs.
-pub(crate) fn decode_snapshot(bytes: &[u8], n: usize) -> Result<(Vec<EnvState>, Vec<EnvParams>, Vec<TaskState>)> {
-    ensure!(bytes.len() >= 24 && &bytes[..8] == SNAPSHOT_MAGIC, "not a dextrain task snapshot");
+/// The inverse of [`encode_snapshot`] for a batch of `n` envs with `springs_per_env` contact
+/// springs each.
+pub(crate) fn decode_snapshot(bytes: &[u8], n: usize, springs_per_env: usize) -> Result<(EnvSnapshot, Vec<TaskState>)> {
+    ensure!(bytes.len() >= SNAPSHOT_HEADER && &bytes[..8] == SNAPSHOT_MAGIC, "not a dextrain task snapshot of this version (DXTASK02)");
     let word = |i: usize| u32::from_le_bytes([bytes[8 + 4 * i], bytes[9 + 4 * i], bytes[10 + 4 * i], bytes[11 + 4 * i]]) as usize;
     let sizes = [std::mem::size_of::<EnvState>(), std::mem::size_of::<EnvParams>(), std::mem::size_of::<TaskState>()];
     ensure!(word(0) == n, "the snapshot holds {} envs, this batch has {n} (sim.num_envs)", word(0));
     ensure!([word(1), word(2), word(3)] == sizes, "the snapshot's state layout {:?} differs from this build's {sizes:?}", [word(1), word(2), word(3)]);
-    let (a, b, c) = (n * sizes[0], n * sizes[1], n * sizes[2]);
-    ensure!(bytes.len() == 24 + a + b + c, "the snapshot is {} bytes, expected {}", bytes.len(), 24 + a + b + c);
-    let body = &bytes[24..];
-    Ok((bytemuck::pod_collect_to_vec(&body[..a]), bytemuck::pod_collect_to_vec(&body[a..a + b]), bytemuck::pod_collect_to_vec(&body[a + b..])))
+    ensure!(word(4) == springs_per_env, "the snapshot has {} contact springs per env, this hand and object have {springs_per_env}", word(4));
+    let (a, sp, b, c) = (n * sizes[0], n * springs_per_env * 16, n * sizes[1], n * sizes[2]);
+    ensure!(bytes.len() == SNAPSHOT_HEADER + a + sp + b + c, "the snapshot is {} bytes, expected {}", bytes.len(), SNAPSHOT_HEADER + a + sp + b + c);
+    let body = &bytes[SNAPSHOT_HEADER..];
+    let env = EnvSnapshot {
+        states: bytemuck::pod_collect_to_vec(&body[..a]),
+        springs: bytemuck::pod_collect_to_vec(&body[a..a + sp]),
+        params: bytemuck::pod_collect_to_vec(&body[a + sp..a + sp + b]),
+    };
+    Ok((env, bytemuck::pod_collect_to_vec(&body[a + sp + b..])))
 }
 
 /// Builds the task on the backend the config asks for (`cfg.backend()`, the rules of

@@ -11,7 +11,7 @@ use crate::env::common::{quat_error, quat_from_axis_angle, quat_mul, quat_normal
 use crate::env::gpu_layout::*;
 use crate::env::ik::{IkScratch, ik_solve, ik_tip_positions};
 use crate::env::physics::{Model, Scratch, hand_kinematics, v3};
-use crate::env::reference::{RefFrame, RefModel, ref_begin, ref_object_start, ref_sample};
+use crate::env::reference::{RefFrame, RefModel, ref_begin, ref_object_end, ref_object_start, ref_sample};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 
 /// RNG purpose of the observation noise (keep in sync with task.wgsl; reset.rs uses 1 and 2).
@@ -71,8 +71,6 @@ pub const OUT_OBJ_POS_ERR: usize = 14;
 pub const OUT_OBJ_ROT_ERR: usize = 15;
 pub const OUT_BAD_RESET: usize = 16;
 pub const OUT_MISC: usize = 17;
-/// The env step that `ref_sample` clamps to the reference's last frame (its final pose).
-pub const REF_END_STEP: u32 = 1 << 30;
 
 
 /// The observation cursor of one env (the shader's `ob_*` / `pr_base` private variables): where
@@ -287,7 +285,8 @@ pub fn residual_joint_terms(ts: &TaskState, f: &RefFrame, e: Vec2, fin: bool, tc
 /// and wrist tracking exponentials, contact, and the joint velocity, torque, work and table
 /// penalties (arguments as [`track_terms`]).
 #[allow(clippy::too_many_arguments)]
-pub fn residual_task_terms(st: &EnvState, p: &EnvParams, ts: &TaskState, f: &RefFrame, e: Vec2, contact: bool, m: &Model, tc: &TaskGlobals) -> [f32; MAX_TERMS] {
+/// `table`: a hand collider touches the table (`StepStats::table_contact`).
+pub fn residual_task_terms(st: &EnvState, p: &EnvParams, ts: &TaskState, f: &RefFrame, e: Vec2, contact: bool, table: bool, m: &Model, tc: &TaskGlobals) -> [f32; MAX_TERMS] {
     let mut raw = [0.0f32; MAX_TERMS];
     let e_wp = (v3(st.wrist_pos) - v3(f.wrist_pos)).length();
     let e_wr = quat_error(Vec4::from_array(f.wrist_rot), Vec4::from_array(st.wrist_rot)).length();
@@ -321,12 +320,6 @@ pub fn residual_task_terms(st: &EnvState, p: &EnvParams, ts: &TaskState, f: &Ref
     raw[T_RESIDUAL_TASK_VELOCITY] = vel;
     raw[T_RESIDUAL_TASK_TORQUE] = torque;
     raw[T_RESIDUAL_TASK_WORK] = work;
-    let mut table = false;
-    for c in 0..m.g.n_colliders as usize {
-        if st.anchor_ht[c][3] > 0.0 {
-            table = true;
-        }
-    }
     raw[T_RESIDUAL_TASK_TABLE_COLLISION] = if table { 1.0 } else { 0.0 };
     raw
 }
@@ -377,19 +370,19 @@ pub fn task_reward(st: &EnvState, p: &EnvParams, stats: &StepStats, ts: &mut Tas
         }
     } else {
         let f = ref_sample(r, &ts.cursor, st.step, 0);
-        let fin_ref = ref_sample(r, &ts.cursor, REF_END_STEP, 0);
+        let (fin_pos, fin_rot) = ref_object_end(r, &ts.cursor);
         let orot = Vec4::from_array(st.obj_rot);
         // the object's error against its reference now (m, rad) and against the final pose
         err = Vec2::new((obj - v3(f.obj_pos)).length(), quat_error(Vec4::from_array(f.obj_rot), orot).length());
-        let fin_p = (obj - v3(fin_ref.obj_pos)).length();
-        let fin_r = quat_error(Vec4::from_array(fin_ref.obj_rot), orot).length();
+        let fin_p = (obj - fin_pos).length();
+        let fin_r = quat_error(fin_rot, orot).length();
         let fin = fin_p <= tc.success_pos_tol && fin_r <= tc.success_rot_tol;
         raw = if tc.kind == KIND_TRACK {
             track_terms(st, ts, &f, err, fin, thumb && other, h, tc)
         } else if tc.kind == KIND_RESIDUAL_JOINT {
             residual_joint_terms(ts, &f, err, fin, tc)
         } else {
-            residual_task_terms(st, p, ts, &f, err, thumb && other, m, tc)
+            residual_task_terms(st, p, ts, &f, err, thumb && other, stats.table_contact != 0, m, tc)
         };
         success = if fin { 1.0 } else { 0.0 };
         terminated = terminated || (tc.max_object_error > 0.0 && err.x > tc.max_object_error);
@@ -706,7 +699,7 @@ pub fn task_observe(env: u32, st: &mut EnvState, p: &EnvParams, ts: &mut TaskSta
         k += 1;
     }
     for l in 0..m.g.n_links {
-        put_priv(&mut o, k, ((ts.link_contact >> l) & 1) as f32);
+        put_priv(&mut o, k, ((ts.link_contact[l as usize / 32] >> (l % 32)) & 1) as f32);
         k += 1;
     }
     put_priv(&mut o, k, p.obj_inertia[3]);

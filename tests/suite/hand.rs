@@ -856,6 +856,10 @@ fn real_and_shipped_hands_still_load() {
         "leap_sim/config.toml",
         "schunk_svh/config.toml",
         "shadow/config.toml",
+        // more colliders than the old maximum of 32: LEAP's 71, the unmodified Shadow's 45 (and 24 joints)
+        "leap/config.toml",
+        "broken/box_leap.toml",
+        "broken/orig_shadow.toml",
         "broken/box_ability.toml",
         "broken/box_allegro.toml",
         "broken/box_inspire.toml",
@@ -870,8 +874,8 @@ fn real_and_shipped_hands_still_load() {
         let model = dextrain::env::SimModel::from_config(&cfg).unwrap_or_else(|e| panic!("{}: {e:#}", c.display()));
         assert!(model.hand.total_mass() > 0.0 && !model.hand.joints.is_empty(), "{}", c.display());
     }
-    // the two real hands refused before, still for their own reasons (not the new bounds)
-    for (c, why) in [("allegro_simlab/config.toml", "effort limit 0"), ("leap/config.toml", "71 collision shapes")] {
+    // the real hand refused before, still for its own reason (not the new bounds)
+    for (c, why) in [("allegro_simlab/config.toml", "effort limit 0")] {
         let cfg = dextrain::config::Config::load(&shared.join(c)).unwrap();
         let e = format!("{:#}", dextrain::env::SimModel::from_config(&cfg).unwrap_err());
         assert!(e.contains(why), "{c}: {e}");
@@ -940,35 +944,11 @@ fn chain_ends(h: &HandModel) -> Vec<&str> {
     h.finger_chains().iter().map(|&l| h.links[l].name.as_str()).collect()
 }
 
-/// A shared hand's config with `hand.fingertips` removed (and `sets` applied), built into a
-/// model; a hand whose URDF has more colliders than MAX_COLLIDERS (LEAP's 71) is loaded from its
-/// URDF text with every collision but the first removed (the tips only need the joint tree).
+/// A shared hand's config with `hand.fingertips` removed (and `sets` applied), built into a model.
 fn load_shared_without_tips(config: &Path, sets: &[&str]) -> HandModel {
     let sets: Vec<String> = sets.iter().map(|s| s.to_string()).chain(["hand.fingertips=[]".to_string()]).collect();
     let cfg = dextrain::config::Config::load_with_overrides(config, &sets).unwrap_or_else(|e| panic!("{}: {e:#}", config.display()));
-    match dextrain::env::SimModel::from_config(&cfg) {
-        Ok(m) => m.hand,
-        Err(e) if format!("{e:#}").contains("collision shapes") => {
-            let path = cfg.resolve(&cfg.hand.urdf);
-            let text = std::fs::read_to_string(&path).unwrap();
-            let mut out = String::new();
-            let mut rest = text.as_str();
-            let mut kept = 0;
-            while let Some(i) = rest.find("<collision") {
-                let end = rest[i..].find("</collision>").map(|k| i + k + "</collision>".len()).unwrap();
-                out.push_str(&rest[..i]);
-                if kept == 0 {
-                    out.push_str(&rest[i..end]);
-                }
-                kept += 1;
-                rest = &rest[end..];
-            }
-            out.push_str(rest);
-            let opts = HandLoadOptions { mesh_approx: cfg.hand.mesh_approx, effort: cfg.hand.effort.clone(), velocity: cfg.hand.velocity.clone(), ..Default::default() };
-            HandModel::from_urdf_str(&out, &path, &opts).unwrap_or_else(|e| panic!("{}: {e:#}", path.display()))
-        }
-        Err(e) => panic!("{}: {e:#}", config.display()),
-    }
+    dextrain::env::SimModel::from_config(&cfg).unwrap_or_else(|e| panic!("{}: {e:#}", config.display())).hand
 }
 
 /// The hand's warnings about its fingertips (not those about poor mesh fits).

@@ -433,7 +433,7 @@ struct IkOut {
 
 const PARITY_KERNEL: &str = r#"
 struct IkCase {
-    seed: array<f32, 24>,
+    seed: array<f32, MAX_JOINTS>,
     targets: array<vec4<f32>, 6>,
     mask: u32,
     mode: u32,
@@ -442,7 +442,7 @@ struct IkCase {
     prm: IkParams,
 }
 struct IkOut {
-    q: array<f32, 24>,
+    q: array<f32, MAX_JOINTS>,
     tips: array<vec4<f32>, 6>,
 }
 @group(0) @binding(20) var<storage, read> t_cases: array<IkCase>;

@@ -69,7 +69,7 @@ fn check(m: &naga::Module, name: &str, size: usize, fields: Vec<(&str, usize)>) 
 fn pod_structs_match_their_wgsl_twins() {
     let m = validate(&shader_source());
     check(&m, "Globals", size_of::<Globals>(), rust_fields!(Globals; init_wrist_pos, init_wrist_rot, obj_size, obj_init, rnd,
-        n_envs, n_joints, n_colliders, n_tips, n_links, obj_shape, n_obj_pts, substeps, decimation, seed, hand_table, _pad0,
+        n_envs, n_joints, n_colliders, n_tips, n_links, obj_shape, n_obj_pts, substeps, decimation, seed, hand_table, n_springs,
         dt, gravity, contact_k, contact_kt, hand_eff_mass, hand_friction, obj_mass, obj_friction, table_friction, yaw_noise,
         hand_mass, hand_inertia, wrist_added_mass, wrist_added_inertia, wrist_kp_lin, wrist_kd_lin, wrist_force_limit,
         wrist_kp_rot, wrist_kd_rot, wrist_torque_limit, max_speed, max_distance, torsion_radius, _pad2));
@@ -78,13 +78,13 @@ fn pod_structs_match_their_wgsl_twins() {
     check(&m, "ColliderDesc", size_of::<ColliderDesc>(), rust_fields!(ColliderDesc; pos, rot, size, link, shape, tip, _pad));
     check(&m, "TipDesc", size_of::<TipDesc>(), rust_fields!(TipDesc; pos, link, _pad));
     check(&m, "EnvState", size_of::<EnvState>(), rust_fields!(EnvState; wrist_pos, wrist_rot, wrist_vel, wrist_angvel,
-        obj_pos, obj_rot, obj_vel, obj_angvel, anchor_ho, anchor_ht, anchor_ot, q, qd, time, episode, step, bad_resets));
+        obj_pos, obj_rot, obj_vel, obj_angvel, q, qd, time, episode, step, bad_resets));
     check(&m, "EnvParams", size_of::<EnvParams>(), rust_fields!(EnvParams; obj_size, obj_inertia, obj_friction, restitution,
         obj_scale, table_friction, hand_friction, hand_mass_scale, limit_scale, kp_scale, kd_scale, added_gravity,
         obj_contact_c, hand_table_c, _pad));
     check(&m, "Targets", size_of::<Targets>(), rust_fields!(Targets; wrist_pos, wrist_rot, q));
     check(&m, "StepStats", size_of::<StepStats>(), rust_fields!(StepStats; tip_force, max_pen_ho, max_pen, contacts,
-        contacts_ho, bad_reset, link_contact));
+        contacts_ho, bad_reset, link_contact, table_contact, _pad));
     let m = validate(&task_shader_source());
     check(&m, "TaskGlobals", size_of::<TaskGlobals>(), rust_fields!(TaskGlobals; wrist_pos_min, wrist_pos_max, palm_offset,
         weights, actuated, n_actuated, n_act, obs_dim, priv_dim, episode_length, finger_mode, thumb, obj_delay_min, wrist_pos_scale,
@@ -97,7 +97,7 @@ fn pod_structs_match_their_wgsl_twins() {
         res_scale_tips, res_clamp_wrist_pos, res_clamp_wrist_rot, res_clamp_tips, control_dt, rw_obj_pos, rw_obj_rot,
         rw_tips, rw_wrist_pos, rw_wrist_rot, _pad3, ik));
     check(&m, "TaskState", size_of::<TaskState>(), rust_fields!(TaskState; targets, rest_pos, prev_action, tip_force,
-        act_rate, act_mag, done, res_sq, link_contact, _pad, cursor, res_ema, res_delta, obj_hist_pos, obj_hist_rot,
+        act_rate, act_mag, done, res_sq, link_contact, cursor, res_ema, res_delta, obj_hist_pos, obj_hist_rot,
         obj_delay, _pad3));
     // the reference layer (reference.wgsl, src/env/reference.rs)
     use dextrain::env::reference::{RefCursor, RefFrame, RefGlobals, RefInfo};
@@ -119,7 +119,6 @@ fn shader_constants_match_rust() {
     let src = shader_source();
     for (name, v) in [
         ("MAX_JOINTS", dextrain::hand::MAX_JOINTS),
-        ("MAX_COLLIDERS", dextrain::hand::MAX_COLLIDERS),
         ("MAX_TIPS", dextrain::hand::MAX_TIPS),
         ("MAX_OBJ_PTS", MAX_OBJ_PTS),
         ("MAX_LINKS", dextrain::env::physics::MAX_LINKS),
@@ -139,7 +138,6 @@ fn shader_constants_match_rust() {
         ("KIND_TRACK", task::KIND_TRACK as usize),
         ("KIND_RESIDUAL_JOINT", task::KIND_RESIDUAL_JOINT as usize),
         ("KIND_RESIDUAL_TASK", task::KIND_RESIDUAL_TASK as usize),
-        ("REF_END_STEP", task::REF_END_STEP as usize),
         ("OUT_REWARD", task::OUT_REWARD),
         ("OUT_TERMS", task::OUT_TERMS),
         ("OUT_TERMINATED", task::OUT_TERMINATED),
@@ -325,12 +323,12 @@ fn binding_tables_match_the_wgsl_globals() {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other
         assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu_bindings.rs (right)", group.shader);
-        // indices and names are unique, and indices from 16 up stay free for the test kernels
+        // indices and names are unique, and indices from 17 up stay free for the test kernels
         let mut ix: Vec<u32> = group.bindings.iter().map(|b| b.index).collect();
         ix.sort();
         ix.dedup();
         assert_eq!(ix.len(), group.bindings.len(), "{}: an index appears twice", group.shader);
-        assert!(ix.iter().all(|&i| i < 16), "{}: {ix:?}", group.shader);
+        assert!(ix.iter().all(|&i| i < 17), "{}: {ix:?}", group.shader);
         // each entry point's table lists exactly the globals it uses (its bind group binds these)
         for ep in group.entry_points {
             let (_, uses) = used.iter().find(|(n, _)| n == ep.entry_point).unwrap_or_else(|| panic!("{}: no entry point {}", group.shader, ep.entry_point));
@@ -344,8 +342,8 @@ fn binding_tables_match_the_wgsl_globals() {
     assert!(SHADER_REFERENCE.contains("@group(0) @binding(13) var<storage, read> ref_frames: array<f32>;"));
     assert_eq!((REF_FRAMES.index, REF_CFG.index, REF_CFG.space), (13, 15, BindingSpace::Uniform));
     // the comparison has teeth: a binding moved in the WGSL alone no longer matches the table
-    let moved = shader_source().replace("@group(0) @binding(2) var<storage, read> colliders", "@group(0) @binding(16) var<storage, read> colliders");
+    let moved = shader_source().replace("@group(0) @binding(2) var<storage, read> colliders", "@group(0) @binding(17) var<storage, read> colliders");
     assert_ne!(moved, shader_source());
     let (declared, _) = wgsl_bindings(&moved);
-    assert_ne!(declared, table(SIM_GROUP.bindings), "moving `{}` to binding 16 should break the match", COLLIDERS.name);
+    assert_ne!(declared, table(SIM_GROUP.bindings), "moving `{}` to binding 17 should break the match", COLLIDERS.name);
 }

@@ -452,7 +452,7 @@ fn observations_match_the_state_and_noise_has_the_configured_std() {
         }
         // one flag per link: bit l of the step's statistics
         for (l, link) in model.hand.links.iter().enumerate() {
-            assert_eq!(pt(&format!("link_contact.{}", link.name)), ((stats[i].link_contact >> l) & 1) as f32, "link {}", link.name);
+            assert_eq!(pt(&format!("link_contact.{}", link.name)), ((stats[i].link_contact[l / 32] >> (l % 32)) & 1) as f32, "link {}", link.name);
         }
         let rot = glam::Quat::from_array(st.wrist_rot);
         let palm = Vec3::from_slice(&st.wrist_pos[..3]) + rot * Vec3::from(c.task.hand.palm_offset);
