@@ -349,22 +349,20 @@ impl HandModel {
                 clip(&e.to_string(), 2 * MAX_QUOTED_CHARS)
             ))
         })?;
+        // the names of the <parent> elements that hold a <child> element
+        let holders = |child: &str, parent: &str| {
+            elems
+                .iter()
+                .filter(|e| e.name == child)
+                .filter_map(|e| e.parent.map(|p| &elems[p]))
+                .filter(|p| p.name == parent)
+                .filter_map(|p| p.attr("name").map(str::to_string))
+                .collect()
+        };
         // links with an <inertial> element (the others are massless frames)
-        let inertial_links = elems
-            .iter()
-            .filter(|e| e.name == "inertial")
-            .filter_map(|e| e.parent.map(|p| &elems[p]))
-            .filter(|p| p.name == "link")
-            .filter_map(|p| p.attr("name").map(str::to_string))
-            .collect();
+        let inertial_links = holders("inertial", "link");
         // joints with a <limit> element (urdf-rs reads a missing one as all zeros)
-        let limit_joints = elems
-            .iter()
-            .filter(|e| e.name == "limit")
-            .filter_map(|e| e.parent.map(|p| &elems[p]))
-            .filter(|p| p.name == "joint")
-            .filter_map(|p| p.attr("name").map(str::to_string))
-            .collect();
+        let limit_joints = holders("limit", "joint");
         let loader = Loader { file, source, opts, inertial_links, limit_joints, mesh_fits: Default::default() };
         loader.build(&robot).map_err(one_line_error)
     }
