@@ -410,6 +410,65 @@ fn apply_hand_force(l: u32, x: vec3<f32>, f: vec3<f32>) {
     }
 }
 
+// Largest h²·k·w and h·c·w of a hand contact (physics.rs: SAFE_STIFFNESS, SAFE_DAMPING).
+const SAFE_STIFFNESS: f32 = 1.0;
+const SAFE_DAMPING: f32 = 0.5;
+
+// Upper bound of the hand's mobility (1/kg) at world point x on link l (physics.rs: hand_mobility):
+// w = 1/m_w + |x − p_w|²/I_w + Σ_L |J_L|²/I_L,  J_L = Σ_{k in chain, leader(k) = L} mult_k · a_k × (x − p_k).
+fn hand_mobility(l: u32, x: vec3<f32>) -> f32 {
+    let mass = g.hand_mass * prm.hand_mass_scale + g.wrist_added_mass;
+    let inertia = g.hand_inertia * prm.hand_mass_scale + g.wrist_added_inertia;
+    let r0 = x - link_pos[0];
+    var w = 1.0 / mass + dot(r0, r0) / inertia;
+    var link = l;
+    while (link > 0u) {
+        let j = link - 1u;
+        var lj = j;
+        if (joints[j].mimic_leader != NO_JOINT) {
+            lj = joints[j].mimic_leader;
+        }
+        // J_L over the whole chain, counted once: at the chain joint nearest the tip that L moves
+        var first = true;
+        var jac = vec3<f32>(0.0);
+        var k_link = l;
+        while (k_link > 0u) {
+            let k = k_link - 1u;
+            var lk = k;
+            var mult = 1.0;
+            if (joints[k].mimic_leader != NO_JOINT) {
+                lk = joints[k].mimic_leader;
+                mult = joints[k].mimic_mult;
+            }
+            if (lk == lj) {
+                if (k_link > link) {
+                    first = false;
+                }
+                jac += cross(joint_axis[k], x - link_pos[k_link]) * mult;
+            }
+            k_link = joints[k].parent_link;
+        }
+        if (first) {
+            w += dot(jac, jac) / (joints[lj].armature + joints[lj].link_inertia * prm.hand_mass_scale);
+        }
+        link = joints[j].parent_link;
+    }
+    return w;
+}
+
+struct ContactGains {
+    k: f32,
+    kt: f32,
+    c: f32,
+}
+
+// physics.rs: hand_contact_gains. h²·k·w ≤ SAFE_STIFFNESS, h·c·w ≤ SAFE_DAMPING.
+fn hand_contact_gains(k: f32, kt: f32, c: f32, w: f32, h: f32) -> ContactGains {
+    let k_max = SAFE_STIFFNESS / (h * h * w);
+    let c_max = SAFE_DAMPING / (h * w);
+    return ContactGains(min(k, k_max), min(kt, k_max), min(c, c_max));
+}
+
 fn apply_hand_torque(l: u32, tq: vec3<f32>) {
     wrist_t += tq;
     var link = l;
@@ -474,11 +533,12 @@ fn contacts_and_forces(h: f32) {
         if (c.depth > 0.0) {
             let vh = link_point_velocity(l, c.point);
             let vo = ovel + cross(ow, c.point - opos);
-            let cf = contact_force(c, vh - vo, springs[spring_base + ci].xyz, k, kt, prm.obj_contact_c, mu_ho, h);
+            let gn = hand_contact_gains(k, kt, prm.obj_contact_c, hand_mobility(l, c.point), h);
+            let cf = contact_force(c, vh - vo, springs[spring_base + ci].xyz, gn.k, gn.kt, gn.c, mu_ho, h);
             springs[spring_base + ci] = vec4<f32>(cf.spring, 1.0);
             apply_hand_force(l, c.point, cf.force);
             // the normal damper acts only while the contact pushes (Fn > 0)
-            let a = select(0.0, k * h + prm.obj_contact_c, dot(cf.force, c.normal) > 0.0);
+            let a = select(0.0, gn.k * h + gn.c, dot(cf.force, c.normal) > 0.0);
             apply_object_force(c.point, -cf.force, c.normal, a, cf.tdamp);
             let tor = torsion_torque(c.normal, link_w[l] - ow, dot(cf.force, c.normal), mu_ho, g.torsion_radius);
             apply_hand_torque(l, tor.torque);
@@ -502,7 +562,8 @@ fn contacts_and_forces(h: f32) {
             let c2 = collide_hand_table(ci);
             if (c2.depth > 0.0) {
                 let vh = link_point_velocity(l, c2.point);
-                let cf = contact_force(c2, vh, springs[spring_base + g.n_colliders + ci].xyz, k, kt, prm.hand_table_c, mu_ht, h);
+                let gt = hand_contact_gains(k, kt, prm.hand_table_c, hand_mobility(l, c2.point), h);
+                let cf = contact_force(c2, vh, springs[spring_base + g.n_colliders + ci].xyz, gt.k, gt.kt, gt.c, mu_ht, h);
                 springs[spring_base + g.n_colliders + ci] = vec4<f32>(cf.spring, 1.0);
                 apply_hand_force(l, c2.point, cf.force);
                 n_contacts += 1u;

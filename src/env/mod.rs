@@ -373,7 +373,8 @@ pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p:
         if c.depth > 0.0 {
             let vrel = physics::link_point_velocity(&s, l, c.point) - (ovel + ow.cross(c.point - opos));
             let mu = 0.5 * (p.hand_friction + p.obj_friction);
-            let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::hand_object(ci as u32) as usize]), g.contact_k, g.contact_kt, p.obj_contact_c, mu, h);
+            let (k, kt, damp) = physics::hand_contact_gains(g.contact_k, g.contact_kt, p.obj_contact_c, physics::hand_mobility(p, &m, &s, l, c.point), h);
+            let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::hand_object(ci as u32) as usize]), k, kt, damp, mu, h);
             push(ContactKind::HandObject, ci, &c, f);
         }
         if g.hand_table != 0 {
@@ -381,7 +382,8 @@ pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p:
             if c.depth > 0.0 {
                 let mu = 0.5 * (p.hand_friction + p.table_friction);
                 let vrel = physics::link_point_velocity(&s, l, c.point);
-                let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::hand_table(g.n_colliders, ci as u32) as usize]), g.contact_k, g.contact_kt, p.hand_table_c, mu, h);
+                let (k, kt, damp) = physics::hand_contact_gains(g.contact_k, g.contact_kt, p.hand_table_c, physics::hand_mobility(p, &m, &s, l, c.point), h);
+                let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::hand_table(g.n_colliders, ci as u32) as usize]), k, kt, damp, mu, h);
                 push(ContactKind::HandTable, ci, &c, f);
             }
         }

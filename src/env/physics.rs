@@ -8,7 +8,12 @@
 //!    projection), hand–table (lowest point of each collider), object–table (object support points).
 //!    Normal force `Fn = max(k·depth − c·vn, 0)`; friction from a tangential spring anchored per contact
 //!    pair, `Ft = −kt·s − ct·vt`, sliding (s rescaled) when `|Ft| > μ·Fn`, so a held object does not creep.
-//! 3. Contact forces on hand links push the joints of their chain (τ = Jᵀ F) and the wrist.
+//! 3. Contact forces on hand links push the joints of their chain (τ = Jᵀ F) and the wrist. The hand
+//!    is integrated explicitly in its contacts, so a contact on a light chain (small link inertias and
+//!    armature: the fingertip's mobility w, 1/kg, is large) would ring at the substep rate; its
+//!    stiffnesses and damping are capped by `hand_contact_gains` so that h²·k·w ≤ `SAFE_STIFFNESS`
+//!    and h·c·w ≤ `SAFE_DAMPING` (like MuJoCo's safe solref, which keeps a contact's time constant
+//!    above twice the step). On hands with heavier chains the caps do not bind.
 //! 4. Hand: finger joints are independent 1-DoF servos (PD with effort limit, damping, Coulomb friction,
 //!    armature + link inertia about the axis at q = 0), integrated semi-implicitly; mimic followers
 //!    follow their leader; the wrist is a free body pulled by a force/torque-limited PD toward its
@@ -29,6 +34,11 @@ pub const MAX_LINKS: usize = MAX_JOINTS + 1;
 pub const PROJ_ITERS: usize = 4;
 /// Spin rate (rad/s) below which torsional friction acts as a damper instead of a constant torque.
 pub const TORSION_EPS: f32 = 0.05;
+/// Largest h²·k·w of a hand contact (ω·h ≤ 1 for the contact's natural frequency ω = √(k·w)).
+pub const SAFE_STIFFNESS: f32 = 1.0;
+/// Largest h·c·w of a hand contact (the explicit damper removes at most half the relative velocity
+/// in one substep, so it never reverses it).
+pub const SAFE_DAMPING: f32 = 0.5;
 
 /// Read-only description of the run shared by all envs (the shader's bindings 0–3).
 #[derive(Clone, Copy)]
@@ -484,6 +494,58 @@ pub fn apply_hand_force(m: &Model, s: &mut Scratch, l: usize, x: Vec3, f: Vec3) 
     }
 }
 
+/// Upper bound of the hand's mobility (1/kg: velocity change per unit impulse, in any direction) at
+/// world point `x` on link `l`, as `integrate_hand` moves the hand: the wrist's translation and
+/// rotation, and each independent joint coordinate of the chain (a leader moves its followers,
+/// `q_f = mult·q_L`, with the leader's inertia):
+/// w = 1/m_w + |x − p_w|²/I_w + Σ_L |J_L|²/I_L,  J_L = Σ_{k in chain, leader(k) = L} mult_k · a_k × (x − p_k).
+pub fn hand_mobility(p: &EnvParams, m: &Model, s: &Scratch, l: usize, x: Vec3) -> f32 {
+    let g = m.g;
+    let mass = g.hand_mass * p.hand_mass_scale + g.wrist_added_mass;
+    let inertia = g.hand_inertia * p.hand_mass_scale + g.wrist_added_inertia;
+    let mut w = 1.0 / mass + (x - s.link_pos[0]).length_squared() / inertia;
+    // the coordinate that moves chain joint j, and its multiplier
+    let lead = |j: usize| -> (usize, f32) {
+        let jd = &m.joints[j];
+        if jd.mimic_leader != NO_JOINT { (jd.mimic_leader as usize, jd.mimic_mult) } else { (j, 1.0) }
+    };
+    let mut link = l;
+    while link > 0 {
+        let j = link - 1;
+        let (lj, _) = lead(j);
+        // J_L over the whole chain, counted once: at the chain joint nearest the tip that L moves
+        let mut first = true;
+        let mut jac = Vec3::ZERO;
+        let mut k_link = l;
+        while k_link > 0 {
+            let k = k_link - 1;
+            let (lk, mult) = lead(k);
+            if lk == lj {
+                if k_link > link {
+                    first = false;
+                }
+                jac += s.joint_axis[k].cross(x - s.link_pos[k_link]) * mult;
+            }
+            k_link = m.joints[k].parent_link as usize;
+        }
+        if first {
+            let ld = &m.joints[lj];
+            w += jac.length_squared() / (ld.armature + ld.link_inertia * p.hand_mass_scale);
+        }
+        link = m.joints[j].parent_link as usize;
+    }
+    w
+}
+
+/// The normal stiffness, tangential stiffness and damping of a hand contact of mobility `w` (see
+/// `hand_mobility`), capped for the explicit hand integration: h²·k·w ≤ `SAFE_STIFFNESS`,
+/// h·c·w ≤ `SAFE_DAMPING`. Returns (k, kt, c).
+pub fn hand_contact_gains(k: f32, kt: f32, c: f32, w: f32, h: f32) -> (f32, f32, f32) {
+    let k_max = SAFE_STIFFNESS / (h * h * w);
+    let c_max = SAFE_DAMPING / (h * w);
+    (k.min(k_max), kt.min(k_max), c.min(c_max))
+}
+
 /// Applies a torque on hand link `l`: τ_j += aⱼ·T up the chain, and on the wrist.
 pub fn apply_hand_torque(m: &Model, s: &mut Scratch, l: usize, tq: Vec3) {
     s.wrist_t += tq;
@@ -559,11 +621,12 @@ pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvP
         if c.depth > 0.0 {
             let vh = link_point_velocity(s, l, c.point);
             let vo = ovel + ow.cross(c.point - opos);
-            let (f, spring, b) = contact_force(&c, vh - vo, v3(springs[sho]), k, kt, p.obj_contact_c, mu_ho, h);
+            let (kc, ktc, cc) = hand_contact_gains(k, kt, p.obj_contact_c, hand_mobility(p, m, s, l, c.point), h);
+            let (f, spring, b) = contact_force(&c, vh - vo, v3(springs[sho]), kc, ktc, cc, mu_ho, h);
             springs[sho] = [spring.x, spring.y, spring.z, 1.0];
             apply_hand_force(m, s, l, c.point, f);
             // the normal damper acts only while the contact pushes (Fn > 0)
-            let a = if f.dot(c.normal) > 0.0 { k * h + p.obj_contact_c } else { 0.0 };
+            let a = if f.dot(c.normal) > 0.0 { kc * h + cc } else { 0.0 };
             apply_object_force(st, s, c.point, -f, c.normal, a, b);
             let (tq, br) = torsion_torque(c.normal, s.link_w[l] - ow, f.dot(c.normal), mu_ho, g.torsion_radius);
             apply_hand_torque(m, s, l, tq);
@@ -587,7 +650,8 @@ pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvP
             let c = collide_hand_table(m, s, ci);
             if c.depth > 0.0 {
                 let vh = link_point_velocity(s, l, c.point);
-                let (f, spring, _) = contact_force(&c, vh, v3(springs[sht]), k, kt, p.hand_table_c, mu_ht, h);
+                let (kc, ktc, cc) = hand_contact_gains(k, kt, p.hand_table_c, hand_mobility(p, m, s, l, c.point), h);
+                let (f, spring, _) = contact_force(&c, vh, v3(springs[sht]), kc, ktc, cc, mu_ht, h);
                 springs[sht] = [spring.x, spring.y, spring.z, 1.0];
                 apply_hand_force(m, s, l, c.point, f);
                 s.contacts += 1;
