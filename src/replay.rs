@@ -41,6 +41,10 @@ pub struct ReplayArgs {
     /// Backend: cpu, gpu, gpu:NAME or auto (overrides the config).
     #[arg(long)]
     pub backend: Option<crate::config::BackendChoice>,
+    /// Override a config value, as `train --set` does: `--set hand.urdf="/path/to/hand.urdf"`
+    /// (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub sets: Vec<String>,
 }
 
 /// The one-line JSON report of a replay. Each metric name means the same as in the eval report
@@ -330,7 +334,7 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
 
 /// `dextrain replay`.
 pub fn run(args: &ReplayArgs) -> Result<()> {
-    let mut cfg = Config::load(&args.config)?;
+    let mut cfg = Config::load_with_overrides(&args.config, &args.sets)?;
     cfg.sim.num_envs = args.envs;
     if let Some(b) = &args.backend {
         cfg.sim.backend = b.clone();

@@ -1,35 +1,47 @@
 //! The antipodal grasp of `dextrain traj synth`, planned from the hand's own kinematics (no table of
 //! joint values per hand): the thumb's fingertip and the other fingertips are placed on opposite
 //! sides of the object and reached by the fingertip IK of `env::ik` (the residual task's solver).
+//! A [`GraspVariant`] fixes the choices below; `traj synth` tries [`GRASP_VARIANTS`] in order and
+//! keeps the first whose reference lifts the cube in simulation.
 //!
 //! The plan, for the config's hand, object and initial wrist orientation:
+//! 0. **Pad points.** The IK moves each fingertip's pad point ([`pad_points`]): the tip frame, or
+//!    the far end of its link's collision geometry when that reaches farther out from the joint (a
+//!    tip frame at the distal joint).
 //! 1. **Opposition.** In the mid-range posture (every actuated joint at the middle of its limits, the
-//!    posture the IK prefers), the direction from the other fingertips' centroid to the thumb's
-//!    fingertip, turned into the world by the wrist's initial orientation and projected on the
-//!    table, is the hand's opposition axis. The wrist turns about the vertical by the smallest angle
-//!    that aligns it with a face normal of the object (a box's ±x or ±y; any direction for a round
-//!    one): the thumb goes on that face, the fingers on the opposite one.
-//! 2. **Contact points** at the object's mid height: the thumb at the centre of its face; each other
+//!    posture the IK prefers), the variant's opposition axis ([`Opposition`]: from the other
+//!    fingertips' centroid to the thumb, or along the fingertips' closing motion), turned into the
+//!    world by the wrist's initial orientation and projected on the table. The wrist turns about
+//!    the vertical by the smallest angle that aligns it with a face normal of the object (a box's
+//!    ±x or ±y; any direction for a round one): the thumb goes on that face, the fingers on the
+//!    opposite one.
+//! 2. **Contact points** at the variant's height: the thumb at the centre of its face; each other
 //!    finger on the opposite face, spread along the face as the fingers are spread in the mid-range
-//!    posture, squeezed to fit within 70 % of the face's half width (on a round object, around the
-//!    circle at the same arc length).
+//!    posture, squeezed to fit within `SPREAD_FRACTION` of the face's half width (on a round object,
+//!    around the circle at the same arc length).
 //! 3. **Wrist and joints together.** The wrist position and the joints are solved in turns
-//!    (`WRIST_ROUNDS` rounds): the IK solves the joints for the contact points with the wrist fixed,
-//!    then the wrist moves by the mean remaining fingertip error (a translation moves every tip
-//!    alike), and then up, if needed, until every collider of the palm-like links (those that no
-//!    single finger moves alone) is `PALM_CLEARANCE_M` above the object's top.
-//! 4. **Postures.** `pre`: the fingertips `PRE_CLEARANCE_M` outside their contact points (along the
-//!    face normal), so that the hand descends around the object without touching it; `grasp`: the
-//!    fingertips on the contact points; `squeeze`: `SQUEEZE_M` past them, into the object, so that
-//!    the closing fingers stall on its surface and the servos press through the contact points;
-//!    the closing motion steps from `pre` to `squeeze`, each step seeded from the nearer of the two.
-//!    Mimic followers are `multiplier × leader + offset` in every posture.
+//!    (`WRIST_ROUNDS` rounds): the IK solves the joints for the contact points with the wrist fixed;
+//!    a fingertip that stays more than `REACH_TOLERANCE_M` from its contact point (an underactuated
+//!    finger moves its tip along a curve) takes the nearest point of its face region instead (within
+//!    `SPREAD_FRACTION` of the half width and `HEIGHT_FRACTION` of the half height); then the wrist
+//!    moves by the mean remaining fingertip error (a translation moves every tip alike), and then
+//!    up, if needed, until every collider of the palm-like links (those that no single finger moves
+//!    alone) is the variant's palm clearance above the object's top.
+//! 4. **Postures.** `pre`: the fingertips outside their contact points (along the face normal) by
+//!    the least of `PRE_CLEARANCES_M` from which the hand descends `HOVER_M` onto the grasp pose
+//!    without touching the object (collision-checked against the colliders); `grasp`: the
+//!    fingertips on the contact points; `squeeze`: the variant's squeeze past them, into the
+//!    object, so that the closing fingers stall on its surface and the servos press through the
+//!    contact points; the closing motion steps from `pre` to `squeeze`, each step seeded from the
+//!    nearer of the two. Mimic followers are `multiplier × leader + offset` in every posture.
 
 use anyhow::{Result, bail};
 use glam::{Quat, Vec3};
 
-use crate::env::SimModel;
 use crate::env::ik::{IkParams, ik_solve, ik_tip_positions};
+use crate::env::physics::{Scratch, collide_hand_object, hand_kinematics};
+use crate::env::reset::reset_params;
+use crate::env::{EnvState, SimModel};
 use crate::geom::{ObjectShape, Pose};
 use crate::hand::{ColliderShape, HandModel, MAX_JOINTS, MAX_TIPS};
 
@@ -37,16 +49,73 @@ use crate::hand::{ColliderShape, HandModel, MAX_JOINTS, MAX_TIPS};
 pub const PRE_CLEARANCE_M: f32 = 0.02;
 /// Fingertips past their contact points, into the object, in the squeezing posture (m).
 pub const SQUEEZE_M: f32 = 0.015;
-/// Least height of the palm-like links' colliders above the object's top (m).
+/// Least height of the palm-like links' colliders above the object's top (m) in the first variants.
 pub const PALM_CLEARANCE_M: f32 = 0.005;
 /// Fraction of a face's half width that the fingers' contact points may spread over.
 pub const SPREAD_FRACTION: f32 = 0.7;
 /// Rounds of (IK for the joints, move the wrist) in step 3.
 pub const WRIST_ROUNDS: usize = 40;
+/// A fingertip farther than this (m) from its contact point after the IK cannot reach it (an
+/// underactuated finger moves its tip along a curve): its contact point moves to the point of its
+/// face region nearest to where the tip got.
+pub const REACH_TOLERANCE_M: f32 = 0.002;
+/// Fraction of the object's half height about its centre that contact points may move within.
+pub const HEIGHT_FRACTION: f32 = 0.6;
+/// Height (m) above the grasp pose from which the wrist descends onto it in the pre-grasp posture.
+pub const HOVER_M: f32 = 0.05;
+/// Pre-grasp clearances (m) tried in turn until the hand descends onto the grasp pose without
+/// touching the object; the last is kept if none does.
+pub const PRE_CLEARANCES_M: [f32; 5] = [PRE_CLEARANCE_M, 0.03, 0.04, 0.05, 0.06];
 /// Iterations of each IK solve.
 pub const IK_ITERS: u32 = 100;
 /// Postures of the closing motion, `pre` and `squeeze` included.
 pub const CLOSING_STEPS: usize = 5;
+
+/// Which way the thumb opposes the fingers, in the hand's frame; the wrist turns about the vertical
+/// to align it with a face normal of the object.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Opposition {
+    /// From the other fingertips' centroid to the thumb's fingertip in the mid-range posture (the
+    /// fingers press sideways, as a pinch between thumb and index does).
+    ThumbToFingers,
+    /// Along the fingertips' closing motion (the mid-range posture flexed by a tenth of each range):
+    /// the fingers press with their pads as they curl (a hand whose fingers only curl, as Ability's,
+    /// Inspire's and SCHUNK SVH's coupled fingers do).
+    FingerClosing,
+}
+
+/// The choices a grasp plan is made with; `traj synth` tries [`GRASP_VARIANTS`] in order.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GraspVariant {
+    /// The opposition axis.
+    pub opposition: Opposition,
+    /// Height of the contact points above the object's centre, as a fraction of its half height.
+    pub height: f32,
+    /// How far past the contact points (m), into the object, the squeezing posture reaches.
+    pub squeeze: f32,
+    /// Least height (m) of the palm-like links' colliders above the object's top (0: the palm may
+    /// rest on it).
+    pub palm_clearance: f32,
+}
+
+/// The variants `traj synth --grasp antipodal` tries in order, the same for every hand: the first
+/// whose reference lifts the cube in simulation is kept. The palm clear of the object's top, then
+/// resting on it (a hand whose fingers are short for the object); within each, contact points at
+/// mid height, above and below it, each with a shallow and a deep squeeze, each with both
+/// oppositions.
+pub const GRASP_VARIANTS: [GraspVariant; 24] = {
+    const O: [Opposition; 2] = [Opposition::ThumbToFingers, Opposition::FingerClosing];
+    const HEIGHT: [f32; 3] = [0.0, 0.3, -0.3];
+    const SQUEEZE: [f32; 2] = [SQUEEZE_M, 2.0 * SQUEEZE_M];
+    const PALM: [f32; 2] = [PALM_CLEARANCE_M, 0.0];
+    let mut v = [GraspVariant { opposition: Opposition::ThumbToFingers, height: 0.0, squeeze: SQUEEZE_M, palm_clearance: PALM_CLEARANCE_M }; 24];
+    let mut i = 0;
+    while i < 24 {
+        v[i] = GraspVariant { opposition: O[i % 2], squeeze: SQUEEZE[(i / 2) % 2], height: HEIGHT[(i / 4) % 3], palm_clearance: PALM[i / 12] };
+        i += 1;
+    }
+    v
+};
 
 /// A planned grasp: the wrist pose at the object and the joint postures (HandModel joint order,
 /// followers included).
@@ -69,6 +138,9 @@ pub struct GraspPlan {
     pub thumb: usize,
     /// Distance (m) from each fingertip in `grasp` to its contact point.
     pub reach_error: Vec<f32>,
+    /// Distance (m) of the fingertips outside their contact points in the pre-grasp posture (one of
+    /// `PRE_CLEARANCES_M`).
+    pub pre_clearance: f32,
 }
 
 /// The thumb among the hand's fingertips: `named` if given, else the first fingertip whose name
@@ -157,9 +229,48 @@ fn palm_bottom(hand: &HandModel, palm: &[bool], wrist: &Pose, q: &[f32], centre:
     lo
 }
 
+/// The point of each fingertip's link that the plan puts on its contact point, in the link frame:
+/// the fingertip itself, unless its link's collision geometry reaches farther out from the link's
+/// joint (a tip frame at the distal joint, as LEAP_Hand_Sim's link origins are): then the centre of
+/// the geometry's far end (a capsule's far cap centre, a sphere's centre, a box's far face pulled in
+/// by its smallest half extent), so that the finger's pad, not its knuckle, meets the object.
+pub fn pad_points(hand: &HandModel) -> Vec<Vec3> {
+    hand.fingertips
+        .iter()
+        .map(|tip| {
+            let cols: Vec<_> = hand.colliders.iter().filter(|c| c.link == tip.link).collect();
+            if cols.is_empty() {
+                return tip.pos;
+            }
+            // outward: from the joint (the link origin) toward the geometry's centre
+            let centre = cols.iter().map(|c| c.pose.pos).sum::<Vec3>() / cols.len() as f32;
+            if centre.length() < 1e-3 {
+                return tip.pos;
+            }
+            let u = centre.normalize();
+            let far_end = |c: &crate::hand::Collider| -> Vec3 {
+                match c.shape {
+                    ColliderShape::Sphere { .. } => c.pose.pos,
+                    ColliderShape::Capsule { half_length, .. } => {
+                        let axis = c.pose.rot * Vec3::Z;
+                        c.pose.pos + axis * (half_length * axis.dot(u).signum())
+                    }
+                    ColliderShape::Box { half_extents: h } => {
+                        // support along u, Σ_k |u·e_k| h_k, less the smallest half extent
+                        let ub = c.pose.rot.inverse() * u;
+                        let support = ub.x.abs() * h.x + ub.y.abs() * h.y + ub.z.abs() * h.z;
+                        c.pose.pos + u * (support - h.min_element()).max(0.0)
+                    }
+                }
+            };
+            cols.iter().map(|c| far_end(c)).fold(tip.pos, |best, p| if p.dot(u) > best.dot(u) { p } else { best })
+        })
+        .collect()
+}
+
 /// Plans the grasp of the config's object by the model's hand (see the module documentation).
 /// `thumb`: the thumb's fingertip name ("" = detect).
-pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str) -> Result<GraspPlan> {
+pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str, variant: &GraspVariant) -> Result<GraspPlan> {
     let hand = &model.hand;
     let nt = hand.fingertips.len();
     if nt < 2 {
@@ -168,7 +279,12 @@ pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str) -> Result<G
             hand.source.display()
         );
     }
-    let m = model.view();
+    // the IK moves each fingertip's pad point (see `pad_points`)
+    let mut pads = model.clone();
+    for (td, p) in pads.tips.iter_mut().zip(pad_points(hand)) {
+        td.pos = [p.x, p.y, p.z, 0.0];
+    }
+    let m = pads.view();
     let nj = model.joints.len();
     let prm = IkParams { iters: IK_ITERS, ..IkParams::default() };
     let to_arr = |q: &[f32]| {
@@ -191,12 +307,23 @@ pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str) -> Result<G
     // 1. opposition axis, and the wrist's turn about the vertical that aligns it with a face normal
     let obj = footprint(model, shape);
     let rot0 = Quat::from_array(model.globals.init_wrist_rot);
-    let opp = rot0 * (mid_tips[th] - finger_centroid);
+    let opp = match variant.opposition {
+        Opposition::ThumbToFingers => rot0 * (mid_tips[th] - finger_centroid),
+        Opposition::FingerClosing => {
+            // the fingertips' motion when every joint flexes by a tenth of its range
+            let flexed = hand.with_mimic(
+                model.joints.iter().zip(&mid).map(|(j, q)| if j.lower > -1e29 && j.upper < 1e29 { q + 0.1 * (j.upper - j.lower) } else { *q }).collect(),
+            );
+            let flexed_tips = ik_tip_positions(&m, &to_arr(&flexed), &mut Default::default());
+            rot0 * fingers.iter().map(|&i| flexed_tips[i] - mid_tips[i]).sum::<Vec3>()
+        }
+    };
     let opp_h = Vec3::new(opp.x, opp.y, 0.0);
     if opp_h.length() < 1e-4 {
         bail!(
-            "{}: in the initial wrist orientation the thumb is straight above or below the other fingertips; expected an orientation (wrist.init_rpy) in which the thumb opposes the fingers across the object",
-            hand.source.display()
+            "{}: in the initial wrist orientation the opposition axis ({:?}) is vertical; expected an orientation (wrist.init_rpy) in which the thumb opposes the fingers across the object",
+            hand.source.display(),
+            variant.opposition
         );
     }
     let opp_angle = opp_h.y.atan2(opp_h.x);
@@ -212,14 +339,15 @@ pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str) -> Result<G
             .min_by(|x, y| wrap(x.0 - opp_angle).abs().total_cmp(&wrap(y.0 - opp_angle).abs()))
             .expect("four faces")
     };
+    let sq = variant.squeeze;
     let turn = Quat::from_rotation_z(wrap(normal_angle - opp_angle));
     let rot = (turn * rot0).normalize();
     let n = Vec3::new(normal_angle.cos(), normal_angle.sin(), 0.0); // toward the thumb's face
     let t = Vec3::Z.cross(n); // along the faces
     let (half_n, half_t) = (obj.half[face], obj.half[1 - face]);
 
-    // 2. contact points at mid height: thumb on +n, fingers on −n spread along t
-    let z = obj.centre.z;
+    // 2. contact points at the variant's height: thumb on +n, fingers on −n spread along t
+    let z = obj.centre.z + variant.height * obj.half_height;
     let centre = Vec3::new(obj.centre.x, obj.centre.y, z);
     let spread: Vec<f32> = fingers.iter().map(|&i| (rot * (mid_tips[i] - finger_centroid)).dot(t)).collect();
     let widest = spread.iter().fold(0.0f32, |a, s| a.max(s.abs()));
@@ -247,7 +375,7 @@ pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str) -> Result<G
     let top = obj.centre.z + obj.half_height;
     let footprint_radius = if obj.round { obj.half[0] } else { Vec3::new(obj.half[0], obj.half[1], 0.0).length() };
     let mask = (1u32 << nt) - 1;
-    let solve = |wrist: &Pose, seed: &[f32], offset: f32| -> Vec<f32> {
+    let solve = |wrist: &Pose, seed: &[f32], contacts: &[Vec3], normals: &[Vec3], offset: f32| -> Vec<f32> {
         let mut targets = [Vec3::ZERO; MAX_TIPS];
         for i in 0..nt {
             targets[i] = wrist.inverse().transform_point(contacts[i] + normals[i] * offset);
@@ -257,35 +385,97 @@ pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str) -> Result<G
     let tips_world = |wrist: &Pose, q: &[f32]| -> Vec<Vec3> {
         ik_tip_positions(&m, &to_arr(q), &mut Default::default())[..nt].iter().map(|p| wrist.transform_point(*p)).collect()
     };
+    // the face region of tip i: its face (box) or its half of the side (round), within
+    // SPREAD_FRACTION of the face's half width and HEIGHT_FRACTION of the half height
+    let z_band = HEIGHT_FRACTION * obj.half_height;
+    let on_face = |i: usize, p: Vec3| -> (Vec3, Vec3) {
+        let z = p.z.clamp(obj.centre.z - z_band, obj.centre.z + z_band);
+        let side = if i == th { n } else { -n };
+        if obj.round {
+            // radial direction, within 60° of the side's normal
+            let d = Vec3::new(p.x - centre.x, p.y - centre.y, 0.0);
+            let a = if d.length() > 1e-6 { wrap(d.y.atan2(d.x) - side.y.atan2(side.x)) } else { 0.0 };
+            let dir = Quat::from_rotation_z(a.clamp(-std::f32::consts::FRAC_PI_3, std::f32::consts::FRAC_PI_3)) * side;
+            (Vec3::new(centre.x, centre.y, z) + dir * half_n, dir)
+        } else {
+            let along = (p - centre).dot(t).clamp(-SPREAD_FRACTION * half_t, SPREAD_FRACTION * half_t);
+            (Vec3::new(centre.x, centre.y, z) + side * half_n + t * along, side)
+        }
+    };
     // start: the mid-range fingertips' centre at the contact points' centre
     let contact_centre = contacts.iter().sum::<Vec3>() / nt as f32;
     let tip_centre = mid_tips.iter().sum::<Vec3>() / nt as f32;
     let mut wrist = Pose::new(contact_centre - rot * tip_centre, rot);
     let mut q = mid.clone();
     for _ in 0..WRIST_ROUNDS {
-        q = solve(&wrist, &q, 0.0);
+        q = solve(&wrist, &q, &contacts, &normals, 0.0);
         let tips = tips_world(&wrist, &q);
+        // a tip that cannot reach its contact point takes the nearest point of its face region
+        for i in 0..nt {
+            if (tips[i] - contacts[i]).length() > REACH_TOLERANCE_M {
+                (contacts[i], normals[i]) = on_face(i, tips[i]);
+            }
+        }
         let mean_err = (0..nt).map(|i| contacts[i] - tips[i]).sum::<Vec3>() / nt as f32;
         wrist.pos += mean_err;
-        let lift = top + PALM_CLEARANCE_M - palm_bottom(hand, &palm, &wrist, &q, centre, footprint_radius);
+        let lift = top + variant.palm_clearance - palm_bottom(hand, &palm, &wrist, &q, centre, footprint_radius);
         if lift > 0.0 {
             wrist.pos.z += lift;
         }
     }
-    let grasp = solve(&wrist, &q, 0.0);
+    let grasp = solve(&wrist, &q, &contacts, &normals, 0.0);
     let tips = tips_world(&wrist, &grasp);
     let reach_error = (0..nt).map(|i| (tips[i] - contacts[i]).length()).collect();
-    // 4. the closing motion, seeded from the pre-grasp and squeezing postures (solved from the grasp)
-    let pre = solve(&wrist, &grasp, PRE_CLEARANCE_M);
-    let squeeze = solve(&wrist, &grasp, -SQUEEZE_M);
+    // 4. the pre-grasp posture: the least clearance from which the hand descends from HOVER_M above
+    //    onto the grasp pose without touching the object
+    let descent_clear = |q: &[f32]| {
+        (0..=DESCENT_CHECKS).all(|k| {
+            let w = Pose::new(wrist.pos + Vec3::Z * (HOVER_M * k as f32 / DESCENT_CHECKS as f32), wrist.rot);
+            hand_object_depth(model, &w, q) <= 0.0
+        })
+    };
+    let mut pre_clearance = PRE_CLEARANCES_M[PRE_CLEARANCES_M.len() - 1];
+    for c in PRE_CLEARANCES_M {
+        if descent_clear(&solve(&wrist, &grasp, &contacts, &normals, c)) {
+            pre_clearance = c;
+            break;
+        }
+    }
+    // the closing motion, seeded from the pre-grasp and squeezing postures (solved from the grasp)
+    let pre = solve(&wrist, &grasp, &contacts, &normals, pre_clearance);
+    let squeeze = solve(&wrist, &grasp, &contacts, &normals, -sq);
     let closing = (0..CLOSING_STEPS)
         .map(|k| {
             let a = k as f32 / (CLOSING_STEPS - 1) as f32;
-            let offset = PRE_CLEARANCE_M + a * (-SQUEEZE_M - PRE_CLEARANCE_M);
-            solve(&wrist, if offset > 0.0 { &pre } else { &squeeze }, offset)
+            let offset = pre_clearance + a * (-sq - pre_clearance);
+            solve(&wrist, if offset > 0.0 { &pre } else { &squeeze }, &contacts, &normals, offset)
         })
         .collect();
-    Ok(GraspPlan { wrist, grasp, closing, contacts, normals, thumb: th, reach_error })
+    Ok(GraspPlan { wrist, grasp, closing, contacts, normals, thumb: th, reach_error, pre_clearance })
+}
+
+/// Wrist poses checked along the descent onto the grasp pose (besides the grasp pose itself).
+const DESCENT_CHECKS: usize = 10;
+
+/// The deepest overlap (m; ≤ 0 when none) of the hand's colliders, at wrist pose `wrist` with the
+/// joints `q` (followers included), with the object at rest at its nominal place and size.
+pub fn hand_object_depth(model: &SimModel, wrist: &Pose, q: &[f32]) -> f32 {
+    collider_depths(model, wrist, q).into_iter().fold(-1.0, f32::max)
+}
+
+/// Per collider, its overlap (m; ≤ 0 when none) with the object, as `hand_object_depth`.
+pub fn collider_depths(model: &SimModel, wrist: &Pose, q: &[f32]) -> Vec<f32> {
+    let g = &model.globals;
+    let m = model.view();
+    let mut p = reset_params(g, 0, 0);
+    p.obj_size = g.obj_size;
+    let mut st = EnvState { wrist_pos: [wrist.pos.x, wrist.pos.y, wrist.pos.z, 0.0], wrist_rot: wrist.rot.to_array(), ..Default::default() };
+    st.q[..q.len()].copy_from_slice(q);
+    st.obj_pos = [g.obj_init[0], g.obj_init[1], g.obj_init[3], 0.0];
+    st.obj_rot = Quat::from_rotation_z(g.obj_init[2]).to_array();
+    let mut s = Scratch::default();
+    hand_kinematics(&st, &m, &mut s);
+    (0..model.colliders.len()).map(|ci| collide_hand_object(&st, &p, &m, &s, ci).depth).collect()
 }
 
 /// An angle wrapped into (−π, π].

@@ -10,18 +10,22 @@
 //! 5. `→ + hold`: hold at the top.
 //!
 //! The grasp (`--grasp`, [`GraspChoice`]):
-//! - `posture` (the default): for our dexhand16 a tuned pinch (thumb against three fingers, targets
-//!   past the object so the servos squeeze at their effort limit); for any other hand every actuated
-//!   joint goes `close` of the way from its lower to its upper limit (URDF flexion positive toward
-//!   the palm). The wrist is placed so that the centre of the fingertips' bounding box, in the grasp
+//! - `antipodal` (the default): planned from the hand's own kinematics by
+//!   [`super::grasp::plan_grasp`] (the thumb and the other fingertips on opposite faces, reached by
+//!   the fingertip IK, the closing motion moving the fingertips through their contact points), the
+//!   same way for every hand. The wrist descends onto the grasp pose from `HOVER_M` above it in the
+//!   pre-grasp posture (the last `DESCENT_FRACTION` of the approach), and the closing phase passes
+//!   through the plan's closing postures. The variants of [`super::grasp::GRASP_VARIANTS`] are
+//!   tried in order, each reference replayed under the config's physics (one env, nominal object
+//!   place, no randomisation; about 0.3 s each); the first that lifts the cube
+//!   `VERIFY_LIFT_FRACTION` of `--lift` with less than `VERIFY_PEAK_PENETRATION_MM` is written
+//!   (else the best, with a warning). It lifts every hand of `../shared/hands/` (BENCHMARKS.md,
+//!   "Real hands").
+//! - `posture`: for our dexhand16 a tuned pinch (thumb against three fingers, targets past the
+//!   object so the servos squeeze at their effort limit); for any other hand every actuated joint
+//!   goes `close` of the way from its lower to its upper limit (URDF flexion positive toward the
+//!   palm). The wrist is placed so that the centre of the fingertips' bounding box, in the grasp
 //!   posture, sits at the object's centre: the closing fingers stall on the object's sides.
-//! - `antipodal`: planned from the hand's own kinematics by [`super::grasp::plan_grasp`] (the thumb
-//!   and the other fingertips on opposite faces, reached by the fingertip IK, the closing motion
-//!   moving the fingertips through their contact points), the same way for every hand. The wrist
-//!   descends onto the grasp pose from `HOVER_M` above it in the pre-grasp posture (the last
-//!   `DESCENT_FRACTION` of the approach), and the closing phase passes through the plan's closing
-//!   postures. Status: it lifts dexhand16, Shadow and LEAP_Hand_Sim; not yet Allegro, LEAP (dex-urdf),
-//!   Inspire, Ability or SCHUNK SVH (BENCHMARKS.md, "Real hands").
 //!
 //! Mimic followers are `multiplier × leader + offset` in every keyframe (the open one included).
 
@@ -30,7 +34,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use glam::{Quat, Vec3};
 
-use super::grasp::plan_grasp;
+use super::grasp::{GRASP_VARIANTS, HOVER_M, plan_grasp};
 use super::perturb::{PerturbArgs, perturb};
 use super::{Keyframe, Trajectory};
 use crate::config::Config;
@@ -64,9 +68,9 @@ pub struct SynthArgs {
     /// range the grasp closes to.
     #[arg(long, default_value_t = 0.6)]
     pub close_fraction: f32,
-    /// How the grasp is made: `posture` (a closing posture, see the module docs) or `antipodal`
-    /// (planned on the object's faces by the fingertip IK).
-    #[arg(long, value_enum, default_value_t = GraspChoice::Posture)]
+    /// How the grasp is made: `antipodal` (planned on the object's faces by the fingertip IK and
+    /// checked in simulation) or `posture` (a closing posture, see the module docs).
+    #[arg(long, value_enum, default_value_t = GraspChoice::Antipodal)]
     pub grasp: GraspChoice,
     /// Number of references to write. Above 1, `--out` is a directory that receives
     /// `ref_000.mcap`, `ref_001.mcap`, …, each perturbed with its own draws (see `traj::perturb`).
@@ -75,6 +79,10 @@ pub struct SynthArgs {
     /// Seed of the perturbations.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
+    /// Override a config value, as `train --set` does: `--set hand.urdf="/path/to/hand.urdf"`
+    /// (repeatable).
+    #[arg(long = "set", value_name = "KEY=VALUE")]
+    pub sets: Vec<String>,
     /// Retargeting-like errors on the hand part (the object part stays clean).
     #[command(flatten)]
     pub perturb: PerturbArgs,
@@ -83,22 +91,25 @@ pub struct SynthArgs {
 /// How `traj synth` makes its grasp (see the module documentation).
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum GraspChoice {
-    /// Close every joint to a posture (dexhand16's tuned pinch, or a fraction of each range).
-    #[default]
-    Posture,
     /// Thumb and fingertips on opposite faces of the object, reached by the fingertip IK.
+    #[default]
     Antipodal,
+    /// Close every joint to a posture (dexhand16's tuned pinch, or a fraction of each range).
+    Posture,
 }
 
-/// Height (m) above the grasp pose from which the `antipodal` grasp descends onto the object.
-pub const HOVER_M: f32 = 0.05;
 /// Fraction of the approach phase the `antipodal` grasp spends descending onto the grasp pose.
 pub const DESCENT_FRACTION: f64 = 0.4;
 
 impl SynthArgs {
-    /// The defaults for a config file.
+    /// The defaults for a config file (those of the command line).
     pub fn defaults(config: PathBuf, out: PathBuf) -> SynthArgs {
-        SynthArgs { config, out, lift: 0.15, approach: 1.0, close: 0.8, lift_time: 1.5, hold: 1.0, close_fraction: 0.6, grasp: GraspChoice::Posture, count: 1, seed: 0, perturb: PerturbArgs::default() }
+        SynthArgs { config, out, lift: 0.15, approach: 1.0, close: 0.8, lift_time: 1.5, hold: 1.0, close_fraction: 0.6, grasp: GraspChoice::Antipodal, count: 1, seed: 0, sets: vec![], perturb: PerturbArgs::default() }
+    }
+
+    /// The defaults with `--grasp posture`.
+    pub fn posture(config: PathBuf, out: PathBuf) -> SynthArgs {
+        SynthArgs { grasp: GraspChoice::Posture, ..SynthArgs::defaults(config, out) }
     }
 }
 
@@ -142,6 +153,12 @@ pub fn grasp_wrist_pose(model: &SimModel, q: &[f32]) -> Pose {
     Pose::new(obj - 0.5 * (lo + hi), rot)
 }
 
+/// Lift (fraction of `--lift`) the cube must reach when `traj synth --grasp antipodal` replays a
+/// variant's reference, for that variant to be kept.
+pub const VERIFY_LIFT_FRACTION: f32 = 0.6;
+/// Peak penetration (mm) a kept variant's replay must stay under.
+pub const VERIFY_PEAK_PENETRATION_MM: f64 = 3.0;
+
 /// Builds the scripted reference for a config.
 pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
     for (name, v) in [("--approach", args.approach), ("--close", args.close), ("--lift-time", args.lift_time), ("--hold", args.hold)] {
@@ -157,6 +174,94 @@ pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
     if hand.fingertips.is_empty() {
         bail!("{}: the hand has no fingertip frames; synth places the wrist from them", hand.source.display());
     }
+    match args.grasp {
+        GraspChoice::Posture => {
+            let closed = grasp_posture(&model, args.close_fraction);
+            script(&model, args, grasp_wrist_pose(&model, &closed), vec![], vec![closed])
+        }
+        GraspChoice::Antipodal => antipodal(cfg, args, &model),
+    }
+}
+
+/// The `antipodal` reference: the first of [`GRASP_VARIANTS`] whose reference, replayed under the
+/// config's physics (one env, the object at its nominal place, no randomisation), lifts the cube
+/// `VERIFY_LIFT_FRACTION` of `--lift` with less than `VERIFY_PEAK_PENETRATION_MM`; if none does,
+/// the one that lifted it highest, with a warning.
+fn antipodal(cfg: &Config, args: &SynthArgs, model: &SimModel) -> Result<Trajectory> {
+    let hand = &model.hand;
+    let mut verify = cfg.clone();
+    verify.sim.num_envs = 1;
+    verify.sim.backend = crate::config::BackendChoice::Cpu;
+    verify.object.xy_noise = [0.0, 0.0];
+    verify.object.yaw_noise = 0.0;
+    verify.randomization = Default::default();
+    let mut first_err = None;
+    let mut best: Option<(f64, Trajectory, String)> = None;
+    for (k, variant) in GRASP_VARIANTS.iter().enumerate() {
+        let plan = match plan_grasp(model, cfg.object.shape, &cfg.task.hand.thumb, variant) {
+            Ok(plan) => plan,
+            Err(e) => {
+                first_err.get_or_insert(e);
+                continue;
+            }
+        };
+        let hover = Pose::new(plan.wrist.pos + Vec3::Z * HOVER_M, plan.wrist.rot);
+        let pre = plan.closing[0].clone();
+        let t1 = args.approach as f64;
+        let approach = vec![(t1 * (1.0 - DESCENT_FRACTION), hover, pre.clone()), (t1, plan.wrist, pre)];
+        let traj = script(model, args, plan.wrist, approach, plan.closing[1..].to_vec())?;
+        // where the object sits in the wrist frame at the grasp: what `task.hand.palm_offset` names
+        let g = &model.globals;
+        let held = plan.wrist.inverse().transform_point(Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]));
+        let errs: Vec<String> = hand.fingertips.iter().zip(&plan.reach_error).map(|(t, e)| format!("{} {:.1}", t.name, e * 1e3)).collect();
+        let about = format!(
+            "variant {}/{} ({:?}, contacts at {:+.1} of the half height, squeeze {:.0} mm, palm {:.0} mm above the object), thumb '{}', fingertip distance from its contact point (mm): {}; object centre in the wrist frame at the grasp: [{:.3}, {:.3}, {:.3}] m (task.hand.palm_offset)",
+            k + 1,
+            GRASP_VARIANTS.len(),
+            variant.opposition,
+            variant.height,
+            variant.squeeze * 1e3,
+            variant.palm_clearance * 1e3,
+            hand.fingertips[plan.thumb].name,
+            errs.join(", "),
+            held.x,
+            held.y,
+            held.z
+        );
+        if args.lift == 0.0 {
+            crate::console::status(&format!("antipodal grasp: {about}"));
+            return Ok(traj);
+        }
+        let report = crate::replay::replay(&verify, &traj, false, None).with_context(|| format!("{}: replaying grasp variant {}", args.config.display(), k + 1))?;
+        let lift = report.object_lift_m;
+        let pen = report.peak_penetration_mm;
+        if lift >= (VERIFY_LIFT_FRACTION * args.lift) as f64 && pen < VERIFY_PEAK_PENETRATION_MM {
+            crate::console::status(&format!("antipodal grasp: {about}; in simulation it lifts the cube {:.3} m, peak penetration {pen:.2} mm", lift));
+            return Ok(traj);
+        }
+        if best.as_ref().is_none_or(|(l, _, _)| lift > *l) {
+            best = Some((lift, traj, format!("{about}; in simulation it lifts the cube {lift:.3} m, peak penetration {pen:.2} mm")));
+        }
+    }
+    match best {
+        Some((_, traj, about)) => {
+            crate::console::warn(&format!(
+                "warning: {}: no grasp variant lifted the cube {:.3} m with less than {} mm penetration in simulation; writing the best: {about}",
+                args.config.display(),
+                VERIFY_LIFT_FRACTION * args.lift,
+                VERIFY_PEAK_PENETRATION_MM
+            ));
+            Ok(traj)
+        }
+        None => Err(anyhow::anyhow!("{}: cannot plan the grasp: {:#}", args.config.display(), first_err.expect("a variant's error"))),
+    }
+}
+
+/// The keyframes of the script (module documentation) for a grasp: the wrist pose at the object,
+/// the approach keyframes after the start (empty: straight to the grasp pose, hand open), and the
+/// closing postures (the last one is held through the lift).
+fn script(model: &SimModel, args: &SynthArgs, grasp: Pose, approach: Vec<(f64, Pose, Vec<f32>)>, closing: Vec<Vec<f32>>) -> Result<Trajectory> {
+    let hand = &model.hand;
     let g = &model.globals;
     let wrist0 = Pose::new(Vec3::from_slice(&g.init_wrist_pos[..3]), Quat::from_array(g.init_wrist_rot));
     // the open hand: every joint at its default, followers from their leaders
@@ -170,19 +275,6 @@ pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
     let t5 = t4 + args.hold as f64;
     let obj_up = Pose::new(obj + Vec3::Z * args.lift, obj_rot);
     let obj_rest = Pose::new(obj, obj_rot);
-    let (grasp, approach, closing): (Pose, Vec<(f64, Pose, Vec<f32>)>, Vec<Vec<f32>>) = match args.grasp {
-        GraspChoice::Posture => {
-            let closed = grasp_posture(&model, args.close_fraction);
-            (grasp_wrist_pose(&model, &closed), vec![], vec![closed])
-        }
-        GraspChoice::Antipodal => {
-            let plan = plan_grasp(&model, cfg.object.shape, &cfg.task.hand.thumb)
-                .map_err(|e| anyhow::anyhow!("{}: cannot plan the grasp: {e:#}", args.config.display()))?;
-            let hover = Pose::new(plan.wrist.pos + Vec3::Z * HOVER_M, plan.wrist.rot);
-            let pre = plan.closing[0].clone();
-            (plan.wrist, vec![(t1 * (1.0 - DESCENT_FRACTION), hover, pre.clone()), (t1, plan.wrist, pre)], plan.closing[1..].to_vec())
-        }
-    };
     let closed = closing.last().expect("a closed posture").clone();
     let lifted = Pose::new(grasp.pos + Vec3::Z * args.lift, grasp.rot);
     let mut keys = vec![(0.0, wrist0, open.clone(), obj_rest)];
@@ -227,7 +319,7 @@ pub fn synth_set(cfg: &Config, args: &SynthArgs) -> Result<Vec<Trajectory>> {
 
 /// `dextrain traj synth`.
 pub fn run(args: &SynthArgs) -> Result<()> {
-    let cfg = Config::load(&args.config)?;
+    let cfg = Config::load_with_overrides(&args.config, &args.sets)?;
     let set = synth_set(&cfg, args)?;
     if args.count == 1 {
         set[0].save(&args.out)?;

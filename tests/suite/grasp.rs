@@ -6,8 +6,9 @@ use std::path::{Path, PathBuf};
 
 use dextrain::config::Config;
 use dextrain::env::SimModel;
-use dextrain::traj::grasp::{PRE_CLEARANCE_M, SQUEEZE_M, plan_grasp};
+use dextrain::traj::grasp::{GRASP_VARIANTS, HEIGHT_FRACTION, HOVER_M, PRE_CLEARANCES_M, hand_object_depth, pad_points, plan_grasp};
 use dextrain::traj::synth::{GraspChoice, SynthArgs, synth};
+use dextrain::geom::Pose;
 use glam::Vec3;
 
 fn shared_hands() -> Option<PathBuf> {
@@ -74,7 +75,8 @@ fn antipodal_plan_puts_thumb_and_fingers_on_opposite_faces_within_reach() {
     }
     for (name, c) in &configs {
         let model = SimModel::from_config(c).unwrap();
-        let plan = plan_grasp(&model, c.object.shape, &c.task.hand.thumb).unwrap();
+        let variant = &GRASP_VARIANTS[0];
+        let plan = plan_grasp(&model, c.object.shape, &c.task.hand.thumb, variant).unwrap();
         let th = plan.thumb;
         let centre = Vec3::new(c.object.init_xy[0], c.object.init_xy[1], c.object.shape.rest_height());
         let half = 0.025;
@@ -85,7 +87,8 @@ fn antipodal_plan_puts_thumb_and_fingers_on_opposite_faces_within_reach() {
             if i != th {
                 assert!((n.dot(plan.normals[th]) + 1.0).abs() < 1e-5, "{name}: finger {i} is not opposite the thumb");
             }
-            assert!((p.z - centre.z).abs() < 1e-5, "{name}: contacts at mid height");
+            // within the height band about mid height (a tip that cannot reach mid height moves)
+            assert!((p.z - centre.z).abs() <= HEIGHT_FRACTION * half + 1e-5, "{name}: contact {i} at height {}", p.z);
         }
         // the IK reaches an antipodal pair: the thumb and at least one finger on their contact points
         eprintln!("{name}: reach errors (mm) {:?}", plan.reach_error.iter().map(|e| e * 1e3).collect::<Vec<_>>());
@@ -94,35 +97,86 @@ fn antipodal_plan_puts_thumb_and_fingers_on_opposite_faces_within_reach() {
             assert!(plan.reach_error[th] < 5e-3, "{name}: the thumb misses its contact point by {:.1} mm", plan.reach_error[th] * 1e3);
             assert!((0..plan.contacts.len()).any(|i| i != th && plan.reach_error[i] < 3e-3), "{name}: no finger reaches its contact point");
         }
-        // the closing motion goes from outside the faces to inside them, monotonically
+        // the closing motion goes from outside the faces to inside them, monotonically (measured at
+        // the pad points the IK moves)
         let hand = &model.hand;
+        let pads = pad_points(hand);
         let depth = |q: &[f32], i: usize| {
             let links = hand.forward_kinematics(q);
-            let tip = plan.wrist.transform_point(links[hand.fingertips[i].link].transform_point(hand.fingertips[i].pos));
+            let tip = plan.wrist.transform_point(links[hand.fingertips[i].link].transform_point(pads[i]));
             (tip - plan.contacts[i]).dot(plan.normals[i])
         };
         let first = &plan.closing[0];
         let last = plan.closing.last().unwrap();
         for i in 0..hand.fingertips.len() {
             if plan.reach_error[i] < 1e-3 {
-                assert!((depth(first, i) - PRE_CLEARANCE_M).abs() < 2e-3, "{name}: tip {i} pre-grasp depth {}", depth(first, i));
+                // outside its face, at most the pre-grasp clearance out (the IK may stop short of a wide one)
+                let d = depth(first, i);
+                assert!(d > 0.5 * PRE_CLEARANCES_M[0] && d < plan.pre_clearance + 2e-3, "{name}: tip {i} pre-grasp depth {d} (clearance {})", plan.pre_clearance);
                 // past the contact point, into the object (as far as the joint limits let it)
-                assert!(depth(last, i) < -0.1 * SQUEEZE_M, "{name}: tip {i} squeezes only to {}", depth(last, i));
+                assert!(depth(last, i) < -0.1 * variant.squeeze, "{name}: tip {i} squeezes only to {}", depth(last, i));
             }
+        }
+        // the hand descends onto the grasp pose in the pre-grasp posture without touching the
+        // object, unless even the widest clearance does not keep it clear
+        let clear = (0..=5).all(|k| hand_object_depth(&model, &Pose::new(plan.wrist.pos + Vec3::Z * (HOVER_M * k as f32 / 5.0), plan.wrist.rot), first) <= 0.0);
+        assert!(clear || plan.pre_clearance == PRE_CLEARANCES_M[PRE_CLEARANCES_M.len() - 1], "{name}: the descent at {} m clearance touches the object", plan.pre_clearance);
+        if plan.pre_clearance > PRE_CLEARANCES_M[0] {
+            // a smaller clearance was tried and touched
+            eprintln!("{name}: pre-grasp clearance {} m", plan.pre_clearance);
         }
     }
 }
 
+/// A tip frame at the distal joint (LEAP_Hand_Sim's `fingertip` links are their joints' frames):
+/// the plan moves the far end of the link's geometry instead; a tip frame at the end of its finger
+/// (dex-urdf's Allegro) is kept.
 #[test]
-fn antipodal_grasp_lifts_the_cube_with_dexhand16_and_shadow() {
+fn pad_points_are_the_far_end_of_a_fingertip_links_geometry() {
+    let Some(dir) = shared_hands() else {
+        eprintln!("pad_points_are_the_far_end_of_a_fingertip_links_geometry: ../shared/hands does not exist; not run");
+        return;
+    };
+    let leap_sim = SimModel::from_config(&config(&dir.join("leap_sim/config.toml"))).unwrap();
+    for (t, p) in leap_sim.hand.fingertips.iter().zip(pad_points(&leap_sim.hand)) {
+        assert_eq!(t.pos, Vec3::ZERO, "{}", t.name);
+        // beyond every collider centre of the link, and inside the link's geometry bounds
+        let cols: Vec<_> = leap_sim.hand.colliders.iter().filter(|c| c.link == t.link).collect();
+        assert!(!cols.is_empty());
+        assert!(cols.iter().all(|c| p.length() > c.pose.pos.length()), "{}: pad {p}", t.name);
+        assert!(p.length() > 0.03 && p.length() < 0.08, "{}: pad {p} ({} m from the joint)", t.name, p.length());
+    }
+    let allegro = SimModel::from_config(&config(&dir.join("allegro/config.toml"))).unwrap();
+    for (t, p) in allegro.hand.fingertips.iter().zip(pad_points(&allegro.hand)) {
+        assert!((p - t.pos).length() < 2e-3, "{}: pad {p} vs tip {}", t.name, t.pos);
+    }
+}
+
+/// The goal of issue 14: `traj synth`'s default (antipodal) grasp, planned the same way for every
+/// hand, lifts the cube ≥ 8 cm with < 3 mm peak penetration on every hand of `../shared/hands/`
+/// (and dexhand16), replayed here independently of synth's own check.
+#[test]
+fn antipodal_grasp_lifts_the_cube_with_every_hand() {
     let mut configs = vec![("dexhand16".to_string(), config(&Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/grasp_lift.toml")))];
     match shared_hands() {
-        Some(dir) => configs.push(("shadow".to_string(), config(&dir.join("shadow/config.toml")))),
-        None => eprintln!("antipodal_grasp_lifts_the_cube_with_dexhand16_and_shadow: ../shared/hands does not exist; dexhand16 only"),
+        Some(dir) => {
+            for h in ["allegro", "leap", "leap_sim", "inspire", "ability", "schunk_svh", "shadow"] {
+                configs.push((h.to_string(), config(&dir.join(h).join("config.toml"))));
+            }
+            configs.push(("shadow (unmodified)".to_string(), config(&dir.join("shadow/config_orig.toml"))));
+            // the ROS Allegro: effort="0" velocity="0" in the URDF, the limits from the config
+            let sets = ["hand.effort=0.7".to_string(), "hand.velocity=3.14".to_string()];
+            let mut c = Config::load_with_overrides(&dir.join("allegro_simlab/config.toml"), &sets).unwrap();
+            c.sim.backend = "cpu".parse().unwrap();
+            c.sim.num_envs = 1;
+            configs.push(("allegro_simlab".to_string(), c));
+        }
+        None => eprintln!("antipodal_grasp_lifts_the_cube_with_every_hand: ../shared/hands does not exist; dexhand16 only"),
     }
     for (name, c) in &configs {
-        let traj = synth(c, &args(GraspChoice::Antipodal)).unwrap();
+        let traj = synth(c, &args(GraspChoice::Antipodal)).unwrap_or_else(|e| panic!("{name}: {e:#}"));
         let r = dextrain::replay::replay(c, &traj, false, None).unwrap();
+        eprintln!("{name}: lift {:.3} m, peak penetration {:.2} mm", r.object_lift_m, r.peak_penetration_mm);
         assert!(r.object_lift_m > 0.08, "{name}: lifted {:.3} m", r.object_lift_m);
         assert!(r.peak_penetration_mm < 3.0, "{name}: peak penetration {:.2} mm", r.peak_penetration_mm);
         assert_eq!(r.bad_resets, 0, "{name}");

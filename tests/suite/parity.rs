@@ -251,7 +251,7 @@ fn scripted_grasp_and_lift_has_the_same_outcome_on_both_backends() {
     drop(ctx);
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml");
     let mut cfg = dextrain::config::Config::load(std::path::Path::new(path)).unwrap();
-    let traj = dextrain::traj::synth::synth(&cfg, &dextrain::traj::synth::SynthArgs::defaults(path.into(), "unused.mcap".into())).unwrap();
+    let traj = dextrain::traj::synth::synth(&cfg, &dextrain::traj::synth::SynthArgs::posture(path.into(), "unused.mcap".into())).unwrap();
     cfg.sim.backend = "cpu".parse().unwrap();
     let cpu = dextrain::replay::replay(&cfg, &traj, false, None).unwrap();
     cfg.sim.backend = format!("gpu:{adapter}").parse().unwrap();

@@ -26,7 +26,7 @@ fn shipped_errors() -> PerturbArgs {
 fn zero_errors_give_the_clean_reference_resampled() {
     let cfg = grasp_config();
     let model = SimModel::from_config(&cfg).unwrap();
-    let clean = synth(&cfg, &SynthArgs::defaults("x".into(), "y".into())).unwrap();
+    let clean = synth(&cfg, &SynthArgs::posture("x".into(), "y".into())).unwrap();
     let p = perturb(&clean, &model.hand, &PerturbArgs::default(), 3, 5).unwrap();
     assert!(p.frames.len() > 100, "30 Hz keyframes over 4.6 s");
     for f in &p.frames {
@@ -56,7 +56,7 @@ fn each_error_stays_within_its_bound_and_the_object_is_untouched() {
     let cfg = grasp_config();
     let model = SimModel::from_config(&cfg).unwrap();
     let hand = &model.hand;
-    let clean = synth(&cfg, &SynthArgs::defaults("x".into(), "y".into())).unwrap();
+    let clean = synth(&cfg, &SynthArgs::posture("x".into(), "y".into())).unwrap();
     // constant offsets only: every frame differs from the clean one by the same bounded amount
     let offsets = PerturbArgs { wrist_offset: 0.03, wrist_rot_offset: 0.2, joint_offset: 0.1, ..Default::default() };
     let mut moved = 0;
@@ -111,7 +111,7 @@ fn each_error_stays_within_its_bound_and_the_object_is_untouched() {
 #[test]
 fn datasets_are_deterministic_in_seed_and_index() {
     let cfg = grasp_config();
-    let mut args = SynthArgs::defaults("x".into(), "y".into());
+    let mut args = SynthArgs::posture("x".into(), "y".into());
     args.count = 3;
     args.seed = 4;
     args.perturb = shipped_errors();
@@ -136,7 +136,7 @@ fn datasets_are_deterministic_in_seed_and_index() {
 #[test]
 fn perturbed_references_make_open_loop_replay_fail_often() {
     let cfg = grasp_config();
-    let mut args = SynthArgs::defaults("x".into(), "y".into());
+    let mut args = SynthArgs::posture("x".into(), "y".into());
     let clean = synth(&cfg, &args).unwrap();
     let r = replay(&cfg, &clean, false, None).unwrap();
     let clean_err = r.terminal_object_pos_err_m.unwrap();
@@ -156,7 +156,7 @@ fn perturbed_references_make_open_loop_replay_fail_often() {
 fn shipped_perturbed_references_are_what_synth_writes() {
     let cfg = grasp_config();
     let dir = PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/refs/perturbed"));
-    let mut args = SynthArgs::defaults("x".into(), dir.clone());
+    let mut args = SynthArgs::posture("x".into(), dir.clone());
     args.count = 16;
     args.seed = 1;
     args.perturb = shipped_errors();

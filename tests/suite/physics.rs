@@ -173,7 +173,7 @@ fn grasp_lift_replay() -> dextrain::replay::ReplayReport {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml");
     let mut cfg = dextrain::config::Config::load(std::path::Path::new(path)).unwrap();
     cfg.sim.backend = "cpu".parse().unwrap();
-    let traj = synth(&cfg, &SynthArgs::defaults(path.into(), "unused.mcap".into())).unwrap();
+    let traj = synth(&cfg, &SynthArgs::posture(path.into(), "unused.mcap".into())).unwrap();
     dextrain::replay::replay(&cfg, &traj, false, None).unwrap()
 }
 
@@ -202,7 +202,7 @@ fn kinematic_replay_measures_the_penetration_that_physics_prevents() {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml");
     let mut cfg = dextrain::config::Config::load(std::path::Path::new(path)).unwrap();
     cfg.sim.backend = "cpu".parse().unwrap();
-    let traj = synth(&cfg, &SynthArgs::defaults(path.into(), "unused.mcap".into())).unwrap();
+    let traj = synth(&cfg, &SynthArgs::posture(path.into(), "unused.mcap".into())).unwrap();
     let k = dextrain::replay::replay(&cfg, &traj, true, None).unwrap();
     // the scripted grasp closes past the object: set kinematically, the fingers sink into it
     assert!(k.peak_penetration_mm > 10.0, "kinematic penetration {:.2} mm", k.peak_penetration_mm);

@@ -51,7 +51,7 @@ fn thumb(m: &SimModel) -> usize {
 }
 
 fn synth_ref(c: &Config, approach: f32, lift: f32) -> Trajectory {
-    let mut a = SynthArgs::defaults(PathBuf::from("test.toml"), PathBuf::from("unused.mcap"));
+    let mut a = SynthArgs::posture(PathBuf::from("test.toml"), PathBuf::from("unused.mcap"));
     a.approach = approach;
     a.lift = lift;
     synth(c, &a).expect("synth")
