@@ -87,7 +87,7 @@ struct TaskState {
     targets: Targets,
     rest_pos: vec4<f32>,
     prev_action: array<f32, MAX_ACTIONS>,
-    tip_force: array<f32, 6>,
+    tip_force: array<f32, MAX_TIPS>,
     act_rate: f32,
     act_mag: f32,
     done: u32,
@@ -98,8 +98,8 @@ struct TaskState {
     // the reference this episode follows (reference kinds)
     cursor: RefCursor,
     // residual_task: the EMA-smoothed output ũ and the integrated residual Δa [n_res]
-    res_ema: array<f32, 24>,
-    res_delta: array<f32, 24>,
+    res_ema: array<f32, MAX_RES>,
+    res_delta: array<f32, MAX_RES>,
     // the object poses of the last OBJ_HIST observations (slot step % OBJ_HIST) and this
     // episode's latency (control steps) of the actor's object pose
     obj_hist_pos: array<vec4<f32>, 8>,
@@ -127,6 +127,8 @@ const OBJ_HIST: u32 = 8u;
 // noise draw k of obs entry i at env step s: key = s * OBS_KEY_STRIDE + 2 i + k (k = 0, 1)
 const OBS_KEY_STRIDE: u32 = 4096u;
 const MAX_ACTIONS: u32 = 40u;
+// residual_task's residual: wrist (6) + 3 per fingertip (layout.rs MAX_RES)
+const MAX_RES: u32 = 6u + 3u * MAX_TIPS;
 const KIND_LIFT: u32 = 0u;
 const KIND_TRACK: u32 = 1u;
 const KIND_RESIDUAL_JOINT: u32 = 2u;
