@@ -65,7 +65,7 @@ pub struct TrainArgs {
 
 static STOP: AtomicBool = AtomicBool::new(false);
 
-extern "C" fn on_sigint(_: libc::c_int) {
+extern "C" fn on_stop_signal(_: libc::c_int) {
     STOP.store(true, Ordering::SeqCst);
 }
 
@@ -302,8 +302,10 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
         dims[2],
         algo.name()
     ));
+    // Ctrl-C, and `kill` / `timeout` / a job scheduler's SIGTERM: finish the iteration, checkpoint, stop
     unsafe {
-        libc::signal(libc::SIGINT, on_sigint as *const () as libc::sighandler_t);
+        libc::signal(libc::SIGINT, on_stop_signal as *const () as libc::sighandler_t);
+        libc::signal(libc::SIGTERM, on_stop_signal as *const () as libc::sighandler_t);
     }
     let bar = ProgressBar::new(total);
     bar.set_position(iteration);

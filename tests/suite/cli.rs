@@ -241,3 +241,40 @@ fn train_reports_bad_state_resets_in_its_metrics_and_warns() {
     assert_eq!(warnings.len(), 1, "one warning in two iterations:\n{stderr}");
     assert!(warnings[0].contains("episode/bad_reset_frac") && warnings[0].contains("sim.dt"), "{}", warnings[0]);
 }
+
+/// A run stopped by SIGTERM (`kill`, `timeout`, a job scheduler), as by Ctrl-C, finishes its
+/// iteration, writes a checkpoint there and exits cleanly; nothing since the last periodic
+/// checkpoint is lost.
+#[test]
+fn sigterm_stops_a_training_run_with_a_checkpoint() {
+    let dir = tempfile::tempdir().unwrap();
+    let runs = dir.path().to_str().unwrap();
+    let sets = [
+        "sim.backend=cpu", "train.device=cpu", "sim.num_envs=8", "task.episode_length=5", "train.iterations=100000",
+        "train.steps_per_env=4", "train.save_interval=100000", "train.plot_interval=0", "policy.actor_hidden=[16]", "policy.critic_hidden=[16]",
+    ];
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_dextrain"));
+    cmd.args(["train", "configs/lift_cube_cpu.toml", "--runs-dir", runs, "--name", "term", "--quiet"]).current_dir(ROOT);
+    for s in sets {
+        cmd.args(["--set", s]);
+    }
+    let child = cmd.stdout(std::process::Stdio::piped()).stderr(std::process::Stdio::piped()).spawn().unwrap();
+    let metrics = dir.path().join("term/metrics.csv");
+    let t0 = std::time::Instant::now();
+    // a few iterations in (header + 3 rows), then SIGTERM
+    while std::fs::read_to_string(&metrics).map(|s| s.lines().count()).unwrap_or(0) < 4 {
+        assert!(t0.elapsed().as_secs() < 120, "the run wrote no metrics");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    }
+    unsafe {
+        libc::kill(child.id() as libc::pid_t, libc::SIGTERM);
+    }
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("interrupted at iteration"), "{err}");
+    let last: u64 = std::fs::read_to_string(&metrics).unwrap().lines().last().unwrap().split(',').next().unwrap().parse().unwrap();
+    assert!(last >= 3 && last < 100000);
+    // the checkpoint of the last logged iteration (the periodic interval was never reached)
+    assert!(dir.path().join(format!("term/checkpoints/{last}")).is_dir(), "no checkpoint at iteration {last}");
+}
