@@ -45,9 +45,10 @@ use crate::env::{EnvState, SimModel};
 use crate::geom::{ObjectShape, Pose};
 use crate::hand::{ColliderShape, HandModel, MAX_JOINTS, MAX_TIPS};
 
-/// Fingertips outside their contact points in the pre-grasp posture (m).
+/// Fingertips outside their contact points in the pre-grasp posture (m), the first clearance tried.
 pub const PRE_CLEARANCE_M: f32 = 0.02;
-/// Fingertips past their contact points, into the object, in the squeezing posture (m).
+/// Fingertips past their contact points, into the object, in the squeezing posture (m), the
+/// shallower of the variants' two squeezes.
 pub const SQUEEZE_M: f32 = 0.015;
 /// Least height of the palm-like links' colliders above the object's top (m) in the first variants.
 pub const PALM_CLEARANCE_M: f32 = 0.005;
@@ -126,8 +127,8 @@ pub struct GraspPlan {
     /// Fingertips on their contact points (as far as the hand reaches).
     pub grasp: Vec<f32>,
     /// The closing motion: postures with the fingertips at `CLOSING_STEPS` evenly spaced offsets
-    /// along the face normals, from `PRE_CLEARANCE_M` outside their contact points (the pre-grasp
-    /// posture) to `SQUEEZE_M` past them (the squeezing posture), so that interpolated
+    /// along the face normals, from `pre_clearance` outside their contact points (the pre-grasp
+    /// posture) to the variant's squeeze past them (the squeezing posture), so that interpolated
     /// keyframes move every fingertip nearly straight through its contact point.
     pub closing: Vec<Vec<f32>>,
     /// Contact points (world), in fingertip order.
