@@ -420,8 +420,26 @@ fn hand_mobility(l: u32, x: vec3<f32>) -> f32 {
     let mass = g.hand_mass * prm.hand_mass_scale + g.wrist_added_mass;
     let inertia = g.hand_inertia * prm.hand_mass_scale + g.wrist_added_inertia;
     let r0 = x - link_pos[0];
-    var w = 1.0 / mass + dot(r0, r0) / inertia;
+    let w0 = 1.0 / mass + dot(r0, r0) / inertia;
+    // no follower on the chain (the common case): every joint is its own coordinate, J_j = a_j × r
+    var w = w0;
     var link = l;
+    var coupled = false;
+    while (link > 0u) {
+        let j = link - 1u;
+        if (joints[j].mimic_leader != NO_JOINT) {
+            coupled = true;
+            break;
+        }
+        let jr = cross(joint_axis[j], x - link_pos[link]);
+        w += dot(jr, jr) / (joints[j].armature + joints[j].link_inertia * prm.hand_mass_scale);
+        link = joints[j].parent_link;
+    }
+    if (!coupled) {
+        return w;
+    }
+    w = w0;
+    link = l;
     while (link > 0u) {
         let j = link - 1u;
         var lj = j;

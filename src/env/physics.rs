@@ -503,7 +503,25 @@ pub fn hand_mobility(p: &EnvParams, m: &Model, s: &Scratch, l: usize, x: Vec3) -
     let g = m.g;
     let mass = g.hand_mass * p.hand_mass_scale + g.wrist_added_mass;
     let inertia = g.hand_inertia * p.hand_mass_scale + g.wrist_added_inertia;
-    let mut w = 1.0 / mass + (x - s.link_pos[0]).length_squared() / inertia;
+    let w0 = 1.0 / mass + (x - s.link_pos[0]).length_squared() / inertia;
+    // no follower on the chain (the common case): every joint is its own coordinate, J_j = a_j × r
+    let mut w = w0;
+    let mut link = l;
+    let mut coupled = false;
+    while link > 0 {
+        let j = link - 1;
+        let jd = &m.joints[j];
+        if jd.mimic_leader != NO_JOINT {
+            coupled = true;
+            break;
+        }
+        w += s.joint_axis[j].cross(x - s.link_pos[link]).length_squared() / (jd.armature + jd.link_inertia * p.hand_mass_scale);
+        link = jd.parent_link as usize;
+    }
+    if !coupled {
+        return w;
+    }
+    let mut w = w0;
     // the coordinate that moves chain joint j, and its multiplier
     let lead = |j: usize| -> (usize, f32) {
         let jd = &m.joints[j];

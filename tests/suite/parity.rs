@@ -131,6 +131,23 @@ fn one_contact_rich_physics_step_agrees_for_a_hand_with_71_colliders() {
     contact_rich_step_agrees(c, ctx);
 }
 
+/// A hand with mimic joints (the tri3 test hand: each finger's distal joint follows its middle
+/// one): the contacts' stiffness and damping, capped to the hand's mobility through the coupled
+/// coordinates, agree on both backends.
+#[test]
+fn one_contact_rich_physics_step_agrees_for_a_hand_with_mimic_joints() {
+    let test = "one_contact_rich_physics_step_agrees_for_a_hand_with_mimic_joints";
+    let Some(ctx) = gpu_context(test) else { return };
+    let mut c = dextrain::config::Config::load(&std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/grasp_lift.toml")).unwrap();
+    c.hand.urdf = "hands/tri3_mimic.urdf".into();
+    c.hand.fingertips.clear();
+    c.sim.num_envs = 16;
+    c.sim.backend = "cpu".parse().unwrap();
+    let model = dextrain::env::SimModel::from_config(&c).unwrap();
+    assert!(model.hand.joints.iter().any(|j| j.mimic.is_some()), "tri3_mimic has mimic joints");
+    contact_rich_step_agrees(c, ctx);
+}
+
 /// Drives the CPU batch of `c` into the bench grasp of its hand (0.9 s of approach), gives both
 /// backends that state (contact springs included), steps one physics step and compares.
 fn contact_rich_step_agrees(c: dextrain::config::Config, ctx: dextrain::env::gpu::GpuContext) {
