@@ -155,7 +155,12 @@ struct Acc {
 
 /// Replays `traj` for `cfg` (with `cfg.sim.num_envs` envs) and returns the report.
 pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Path>) -> Result<ReplayReport> {
-    let model = SimModel::from_config(cfg)?;
+    replay_with_model(cfg, &SimModel::from_config(cfg)?, traj, kinematic, out)
+}
+
+/// [`replay`] with the model of `cfg` already built (`SimModel::from_config(cfg)`), for callers
+/// that replay many references under one config.
+pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kinematic: bool, out: Option<&Path>) -> Result<ReplayReport> {
     let map = traj.joint_map(&model.spec.joint_names)?;
     let g = model.globals;
     let n = cfg.sim.num_envs;

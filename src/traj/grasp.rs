@@ -461,11 +461,6 @@ const DESCENT_CHECKS: usize = 10;
 /// The deepest overlap (m; ≤ 0 when none) of the hand's colliders, at wrist pose `wrist` with the
 /// joints `q` (followers included), with the object at rest at its nominal place and size.
 pub fn hand_object_depth(model: &SimModel, wrist: &Pose, q: &[f32]) -> f32 {
-    collider_depths(model, wrist, q).into_iter().fold(-1.0, f32::max)
-}
-
-/// Per collider, its overlap (m; ≤ 0 when none) with the object, as `hand_object_depth`.
-pub fn collider_depths(model: &SimModel, wrist: &Pose, q: &[f32]) -> Vec<f32> {
     let g = &model.globals;
     let m = model.view();
     let mut p = reset_params(g, 0, 0);
@@ -476,7 +471,7 @@ pub fn collider_depths(model: &SimModel, wrist: &Pose, q: &[f32]) -> Vec<f32> {
     st.obj_rot = Quat::from_rotation_z(g.obj_init[2]).to_array();
     let mut s = Scratch::default();
     hand_kinematics(&st, &m, &mut s);
-    (0..model.colliders.len()).map(|ci| collide_hand_object(&st, &p, &m, &s, ci).depth).collect()
+    (0..model.colliders.len()).map(|ci| collide_hand_object(&st, &p, &m, &s, ci).depth).fold(-1.0, f32::max)
 }
 
 /// An angle wrapped into (−π, π].
