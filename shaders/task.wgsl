@@ -117,6 +117,9 @@ struct TaskState {
 @group(0) @binding(11) var<storage, read> actions: array<f32>;
 // obs [N, obs_dim], then priv obs [N, priv_dim], then per-env reward/terms/flags [N, OUT_MISC]
 @group(0) @binding(12) var<storage, read_write> task_out: array<f32>;
+// task_observe_final's output: the final obs [N, obs_dim], then the final priv obs [N, priv_dim]
+// (one element while the final observations are off)
+@group(0) @binding(17) var<storage, read_write> final_out: array<f32>;
 
 
 const PURPOSE_OBS_NOISE: u32 = 3u;
@@ -180,6 +183,8 @@ var<private> ob_episode: u32;
 var<private> ob_step: u32;
 var<private> ob_base: u32;
 var<private> pr_base: u32;
+// the rows go to final_out (task_observe_final) instead of task_out
+var<private> ob_final: bool;
 
 fn actuated_joint(i: u32) -> u32 {
     return tc.actuated[i / 4u][i % 4u];
@@ -539,8 +544,13 @@ fn noisy(k: u32, v: f32, sigma: f32) -> f32 {
 
 // actor obs entry k (noisy) and the same entry of the critic obs (clean)
 fn put_obs(k: u32, clean: f32, noisy_v: f32) {
-    task_out[ob_base + k] = noisy_v;
-    task_out[pr_base + k] = clean;
+    if (ob_final) {
+        final_out[ob_base + k] = noisy_v;
+        final_out[pr_base + k] = clean;
+    } else {
+        task_out[ob_base + k] = noisy_v;
+        task_out[pr_base + k] = clean;
+    }
 }
 
 // actor entries k, k+1, k+2 (noisy) and the same critic entries (clean); returns k + 3
@@ -553,7 +563,11 @@ fn put_obs3(k: u32, clean: vec3<f32>, noisy_v: vec3<f32>) -> u32 {
 
 // critic-only entry k (k >= obs_dim)
 fn put_priv(k: u32, v: f32) {
-    task_out[pr_base + k] = v;
+    if (ob_final) {
+        final_out[pr_base + k] = v;
+    } else {
+        task_out[pr_base + k] = v;
+    }
 }
 
 // world position of fingertip t (after hand_kinematics)
@@ -684,7 +698,6 @@ fn task_observe(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
         return;
     }
     var s0 = states[env];
-    let p = params[env];
     var ts = task_states[env];
     let started = reset_mask[env] != 0u || ts.done != 0u;
     if (started) {
@@ -697,12 +710,38 @@ fn task_observe(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_work
     // the actor's object pose: the one obj_delay observations ago
     let dslot = obj_delay_slot(&ts, st.step, started, st.obj_pos, st.obj_rot);
     task_states[env] = ts;
+    write_observation(env, ts, dslot, false, env * tc.obs_dim, g.n_envs * tc.obs_dim + env * tc.priv_dim);
+}
+
+// The observations of every env whose episode ends in this step (reset_mask ≠ 0), of the state it
+// ended in: dispatched after task_reward and before the resets, it writes final_out and changes no
+// state (its task state is a copy).
+// An env that the physics already reset for a bad state has no reset request and is not observed
+// (it terminated: a learner does not bootstrap from it).
+@compute @workgroup_size(64)
+fn task_observe_final(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let env = env_index(gid, nwg);
+    if (env >= g.n_envs || reset_mask[env] == 0u) {
+        return;
+    }
+    st = states[env];
+    var ts = task_states[env];
+    let dslot = obj_delay_slot(&ts, st.step, false, st.obj_pos, st.obj_rot);
+    write_observation(env, ts, dslot, true, env * tc.obs_dim, g.n_envs * tc.obs_dim + env * tc.priv_dim);
+}
+
+// Writes env's actor row at [obs_base..] and critic row at [priv_base..] of task_out (or of
+// final_out when `to_final`) from the state in `st` (private), its task state `ts` and the
+// delayed object pose's slot `dslot`.
+fn write_observation(env: u32, ts: TaskState, dslot: u32, to_final: bool, obs_base: u32, priv_base: u32) {
+    let p = params[env];
     hand_kinematics();
     ob_env = env;
     ob_episode = st.episode;
     ob_step = st.step;
-    ob_base = env * tc.obs_dim;
-    pr_base = g.n_envs * tc.obs_dim + env * tc.priv_dim;
+    ob_final = to_final;
+    ob_base = obs_base;
+    pr_base = priv_base;
     var k = 0u;
     for (var i = 0u; i < tc.n_actuated; i++) {
         let v = st.q[actuated_joint(i)];

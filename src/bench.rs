@@ -289,3 +289,92 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
         "last_losses": {"surrogate": u.surrogate, "value": u.value, "entropy": u.entropy, "kl": u.kl, "lr": u.lr},
     }))
 }
+
+/// Shapes of the SAC update benchmark (the peer `skrl_sac_update_bench.py`'s defaults).
+#[derive(Clone, Debug)]
+pub struct SacBenchOptions {
+    /// Envs of the replay buffer.
+    pub envs: usize,
+    /// Transitions kept per env.
+    pub memory: usize,
+    pub obs: usize,
+    pub priv_obs: usize,
+    pub actions: usize,
+    pub hidden: Vec<usize>,
+    /// Transitions per gradient step.
+    pub batch: usize,
+    /// Gradient steps per timed update.
+    pub gradient_steps: usize,
+    pub warmup: usize,
+    pub iters: usize,
+}
+
+impl Default for SacBenchOptions {
+    fn default() -> Self {
+        SacBenchOptions { envs: 4096, memory: 64, obs: 96, priv_obs: 130, actions: 22, hidden: vec![512, 256, 128], batch: 4096, gradient_steps: 8, warmup: 1, iters: 5 }
+    }
+}
+
+/// The cost of SAC's gradient step on synthetic replay data, as skrl's peer benchmark times it: a
+/// buffer of `envs × memory` random transitions (1 % terminated), then `warmup + iters` updates of
+/// `gradient_steps` gradient steps each; one gradient step = a critic update of both critics
+/// (target from the target critics and a fresh next action), an actor update, a temperature update
+/// and a Polyak step of both targets (n = 1, clipped double-Q, ELU, no LayerNorm: skrl's SAC).
+/// Returns one JSON object with `ms_per_gradient_step` (median, min, max over the timed updates).
+pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_name: &str) -> Result<serde_json::Value> {
+    use crate::config::{PolicyConfig, SacConfig};
+    use crate::learn::ppo::Dims;
+    use crate::learn::rng::Rng;
+    use crate::learn::sac::Sac;
+    use crate::learn::sac::buffer::Transitions;
+    let cfg = SacConfig { batch_size: o.batch as u32, buffer_capacity: o.memory as u32, learning_starts: u32::MAX, tau: 0.005, init_alpha: 0.2, ..SacConfig::default() };
+    let pol = PolicyConfig { actor_hidden: o.hidden.clone(), critic_hidden: o.hidden.clone(), ..PolicyConfig::default() };
+    let dims = Dims { obs: o.obs, priv_obs: o.priv_obs, act: o.actions };
+    let mut sac = Sac::new(dims, o.envs, &cfg, &pol, device, 0)?;
+    let mut rng = Rng::new(1, 1);
+    let n = o.envs;
+    for _ in 0..o.memory {
+        let mut draw = |len: usize| -> Vec<f32> { (0..len).map(|_| rng.normal() as f32).collect() };
+        let (ob, pr, next_ob, next_pr, rew) = (draw(n * o.obs), draw(n * o.priv_obs), draw(n * o.obs), draw(n * o.priv_obs), draw(n));
+        let act: Vec<f32> = (0..n * o.actions).map(|_| (2.0 * rng.uniform() - 1.0) as f32).collect();
+        let term: Vec<bool> = (0..n).map(|_| rng.uniform() < 0.01).collect();
+        sac.buffer.push(&Transitions { obs: &ob, priv_obs: &pr, actions: &act, rewards: &rew, done: &term, terminated: &term, next_obs: &next_ob, next_priv_obs: &next_pr })?;
+    }
+    let (mut per_step_ms, mut cpu_s) = (Vec::new(), Vec::new());
+    for it in 0..o.warmup + o.iters {
+        let (t0, c0) = (Instant::now(), process_cpu_time());
+        for _ in 0..o.gradient_steps {
+            sac.gradient_step()?;
+        }
+        let (dt, dc) = (t0.elapsed().as_secs_f64(), process_cpu_time() - c0);
+        crate::console::status(&format!("  update {it}{}: {:.0} ms ({:.1} ms per gradient step)", if it < o.warmup { " (warm-up)" } else { "" }, 1e3 * dt, 1e3 * dt / o.gradient_steps as f64));
+        if it >= o.warmup {
+            per_step_ms.push(1e3 * dt / o.gradient_steps as f64);
+            cpu_s.push(dc);
+        }
+    }
+    let s = sac.take_stats()?;
+    let st = stats(&per_step_ms);
+    let median = st["median"].as_f64().unwrap_or(f64::NAN);
+    Ok(json!({
+        "bench": "dextrain_sac_bench",
+        "device": device_name,
+        "threads": rayon::current_num_threads(),
+        "batch": o.batch, "gradient_steps": o.gradient_steps, "hidden": o.hidden, "activation": "elu",
+        "obs": o.obs, "state": o.priv_obs, "actions": o.actions, "num_envs": o.envs, "memory_size": o.memory,
+        "ms_per_gradient_step": st,
+        "gradient_steps_per_s": 1e3 / median,
+        "transitions_per_s": o.batch as f64 * 1e3 / median,
+        "update_process_cpu_s": stats(&cpu_s),
+        "last": {"critic_loss": s.critic_loss, "actor_loss": s.actor_loss, "alpha": s.alpha, "entropy": s.entropy},
+        "cpu": cpu_model(),
+    }))
+}
+
+/// The CPU's model name and whether it has AVX-512 and AVX2 (from /proc/cpuinfo).
+pub fn cpu_model() -> serde_json::Value {
+    let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
+    let model = info.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split(':').nth(1)).map(|s| s.trim().to_string());
+    let flags = info.lines().find(|l| l.starts_with("flags")).unwrap_or("");
+    json!({"model": model, "avx512f": flags.split_whitespace().any(|f| f == "avx512f"), "avx2": flags.split_whitespace().any(|f| f == "avx2")})
+}

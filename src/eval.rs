@@ -96,6 +96,8 @@ pub(crate) enum PolicySource<'a> {
 /// A deterministic policy that eval runs.
 enum Actor<'a> {
     Ppo(Box<Ppo>),
+    /// A SAC run's actor (tanh of its mean).
+    Sac(Box<crate::learn::sac::Sac>),
     /// A policy that someone else owns (a distillation run's teacher).
     Borrowed(&'a Ppo),
     Student(Box<crate::learn::distill::StudentPolicy>),
@@ -110,6 +112,7 @@ impl Actor<'_> {
     fn act(&mut self, obs: &[f32], priv_obs: &[f32], start: &[bool], task: &mut dyn crate::task::TaskBatch) -> Result<(Vec<f32>, Option<Vec<Targets>>)> {
         match self {
             Actor::Ppo(p) => Ok((p.act_mean(obs, priv_obs)?, None)),
+            Actor::Sac(p) => Ok((p.act_mean(obs)?, None)),
             Actor::Borrowed(p) => Ok((p.act_mean(obs, priv_obs)?, None)),
             Actor::Student(s) => Ok((s.act_mean(obs, start)?, None)),
             Actor::Exported(c) => {
@@ -496,7 +499,7 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
         let loaded_teacher = match (&actor, driver, source, device) {
             (Actor::Student(s), Driver::Policy, PolicySource::Checkpoint(ckpt), Some(device)) if s.student.latent > 0 => match load_actor(&c, ckpt, &spec, dims, n, device, Driver::Teacher) {
                 Ok(Actor::Ppo(p)) => Some(p),
-                Ok(Actor::Borrowed(_) | Actor::Student(_) | Actor::Exported(_)) => None,
+                Ok(Actor::Borrowed(_) | Actor::Sac(_) | Actor::Student(_) | Actor::Exported(_)) => None,
                 Err(e) => {
                     crate::console::warn(&format!("warning: no latent error: cannot load the student's teacher: {}", crate::config::one_line(&format!("{e:#}"))));
                     None
@@ -691,6 +694,16 @@ fn load_actor(c: &Config, ckpt: &std::path::Path, spec: &crate::task::TaskSpec, 
     } else {
         (c.clone(), ckpt.to_path_buf())
     };
+    if run_cfg.train.algorithm == crate::config::AlgorithmChoice::Sac {
+        anyhow::ensure!(driver == Driver::Policy, "{}: a SAC run cannot be a distillation teacher yet (the teacher must be a PPO run)", ckpt.display());
+        // the actor alone matters here: a replay buffer of the smallest size
+        let sac_cfg = crate::config::SacConfig { buffer_capacity: run_cfg.sac.n_step.max(2), ..run_cfg.sac.clone() };
+        let mut sac = crate::learn::sac::Sac::new(dims, n, &sac_cfg, &run_cfg.policy, device, c.seed as u64)?;
+        let model = ckpt.join("model.safetensors");
+        let state = checkpoint::read_learner_file(&model, crate::learn::sac::MODEL_FILE)?;
+        sac.load_policy(&state).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
+        return Ok(Actor::Sac(Box::new(sac)));
+    }
     let encoder_index = crate::learn::ppo::encoder_index(&run_cfg.policy, spec)?;
     let mut ppo = Ppo::new(dims, n, 1, &run_cfg.ppo, &run_cfg.policy, &encoder_index, device, c.seed as u64)?;
     checkpoint::load_model(&ckpt.join("model.safetensors"), &mut ppo).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;

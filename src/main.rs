@@ -30,20 +30,30 @@ enum Command {
         #[arg(long = "set", value_name = "KEY=VALUE")]
         sets: Vec<String>,
     },
-    /// Measure env-step throughput on the contact-rich benchmark scene (or, with --ppo, the PPO
-    /// update of the peer rsl_rl benchmark); prints one JSON line.
+    /// Measure env-step throughput on the contact-rich benchmark scene (or, with --ppo / --sac,
+    /// the learner update of the peer rsl_rl / skrl benchmark); prints one JSON line.
     Bench {
         /// Time a PPO update (4096 envs × 24 steps, obs 96, critic obs 130, 22 actions, [512, 256, 128]
         /// ELU, 5 epochs × 4 minibatches) on synthetic data instead of the simulator.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "sac")]
         ppo: bool,
+        /// Time SAC's gradient step (replay of --envs × 64 transitions, obs 96, critic obs 130, 22
+        /// actions, [512, 256, 128] ELU, 2 critics, learned α) on synthetic data.
+        #[arg(long)]
+        sac: bool,
+        /// SAC bench: transitions per gradient step.
+        #[arg(long, default_value_t = 4096)]
+        batch: usize,
+        /// SAC bench: gradient steps per timed update.
+        #[arg(long, default_value_t = 8)]
+        gradient_steps: usize,
         /// Worker threads of the CPU backends (default: one per core).
         #[arg(long)]
         threads: Option<usize>,
-        /// PPO bench: learner device (cpu, gpu, gpu:NAME, auto).
+        /// PPO / SAC bench: learner device (cpu, gpu, gpu:NAME, auto).
         #[arg(long, default_value = "cpu")]
         device: dextrain::config::BackendChoice,
-        /// PPO bench: timed iterations (after one warm-up).
+        /// PPO / SAC bench: timed iterations (after one warm-up).
         #[arg(long, default_value_t = 5)]
         iters: usize,
         /// A config file (default: the built-in scene of configs/bench_cube.toml).
@@ -127,7 +137,7 @@ fn run(cli: Cli) -> Result<()> {
             console::status(dextrain::task::spec::layout_table(&task.priv_layout, "critic observation").trim_end());
             Ok(())
         }
-        Command::Bench { ppo, threads, device, iters, config, backend, envs, chunks, seconds } => {
+        Command::Bench { ppo, sac, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds } => {
             if let Some(t) = threads {
                 rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot size the thread pool")?;
             }
@@ -135,6 +145,13 @@ fn run(cli: Cli) -> Result<()> {
                 let (dev, name) = dextrain::learn::device::learner_device(&device, None)?;
                 let opts = dextrain::bench::PpoBenchOptions { envs: envs.unwrap_or(4096), iters: iters.max(1), ..Default::default() };
                 let report = dextrain::bench::run_ppo_bench(&opts, dev, &name)?;
+                console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
+                return Ok(());
+            }
+            if sac {
+                let (dev, name) = dextrain::learn::device::learner_device(&device, None)?;
+                let opts = dextrain::bench::SacBenchOptions { envs: envs.unwrap_or(4096), iters: iters.max(1), batch: batch.max(1), gradient_steps: gradient_steps.max(1), ..Default::default() };
+                let report = dextrain::bench::run_sac_bench(&opts, dev, &name)?;
                 console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
                 return Ok(());
             }

@@ -10,15 +10,16 @@ use super::{BackendChoice, Check};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrainConfig {
-    /// The learning algorithm: `"ppo"` (default) or `"distill"` (a student distilled from a
-    /// teacher run by online DAgger, `[distill]`).
+    /// The learning algorithm: `"ppo"` (default, `[ppo]`), `"sac"` (Soft Actor-Critic, `[sac]`) or
+    /// `"distill"` (a student distilled from a teacher run by online DAgger, `[distill]`).
     pub algorithm: AlgorithmChoice,
     /// Learner device, chosen like `sim.backend`: `"auto"`, `"cpu"` (burn's flex backend), `"gpu"` or
     /// `"gpu:NAME"` (burn's wgpu backend; on the simulator's own device when the simulator is on the GPU).
     pub device: BackendChoice,
-    /// PPO iterations (each: `steps_per_env` env steps of every env, then one update).
+    /// Iterations (each: `steps_per_env` env steps of every env, then PPO's update; SAC takes its
+    /// gradient steps after every env step and writes one metrics row per iteration).
     pub iterations: u32,
-    /// Env steps per env per iteration (rollout length).
+    /// Env steps per env per iteration (PPO's rollout length).
     pub steps_per_env: u32,
     /// Write a checkpoint every this many iterations (and always after the last one).
     pub save_interval: u32,
@@ -39,6 +40,8 @@ pub struct TrainConfig {
 pub enum AlgorithmChoice {
     /// PPO (`[ppo]`, `[policy]`).
     Ppo,
+    /// Soft Actor-Critic (`[sac]`, `[policy]`).
+    Sac,
     /// Online DAgger from a teacher run (`[distill]`).
     Distill,
 }

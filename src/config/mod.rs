@@ -11,6 +11,7 @@
 
 pub mod hand;
 pub mod learn;
+pub mod sac;
 pub mod sim;
 pub mod task;
 
@@ -21,6 +22,7 @@ use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
 
 pub use hand::{HandConfig, WristConfig};
+pub use sac::{QReduction, SacConfig};
 pub use learn::{Activation, AdaptationModule, AlgorithmChoice, DatasetMode, DistillConfig, EncoderConfig, LrSchedule, PolicyConfig, PpoConfig, StudentActor, TrainConfig};
 pub use sim::{BackendChoice, ContactConfig, ObjectConfig, RandomizationConfig, SimConfig, TableConfig};
 pub use task::{
@@ -58,6 +60,8 @@ pub struct Config {
     pub policy: PolicyConfig,
     /// Teacher→student distillation (`train.algorithm = "distill"`).
     pub distill: DistillConfig,
+    /// Soft Actor-Critic hyper-parameters (`train.algorithm = "sac"`).
+    pub sac: SacConfig,
     /// Directory of the config file (paths in the config are relative to it); not part of the TOML.
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -82,6 +86,7 @@ impl Default for Config {
             ppo: PpoConfig::default(),
             policy: PolicyConfig::default(),
             distill: DistillConfig::default(),
+            sac: SacConfig::default(),
             base_dir: PathBuf::from("."),
             source: PathBuf::from("<default>"),
         }
@@ -261,6 +266,12 @@ impl Config {
         self.policy.validate(&c)?;
         if self.train.algorithm == AlgorithmChoice::Distill {
             self.distill.validate(&c, self.sim.num_envs as u64 * self.train.steps_per_env as u64)?;
+        }
+        if self.train.algorithm == AlgorithmChoice::Sac {
+            self.sac.validate(&c, self.sim.num_envs as u64)?;
+            if self.policy.encoder.is_some() {
+                return Err(c.err("policy.encoder", "a table", "no [policy.encoder] with train.algorithm = \"sac\" (the privileged encoder is PPO's)"));
+            }
         }
         if let Some(e) = &self.policy.encoder {
             // the encoder's inputs are fields of this task's critic observation

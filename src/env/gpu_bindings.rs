@@ -6,8 +6,8 @@
 //! every global, and the globals each entry point really uses), so a binding renamed or moved on one
 //! side only fails a test that needs no GPU instead of a pipeline at run time.
 //!
-//! Bindings 0–8 and 16 are the simulator's (common.wgsl), 9–12 the task layer's (task.wgsl), 13–15
-//! the reference bank's (reference.wgsl). Indices from 17 up are free for the test kernels of
+//! Bindings 0–8 and 16 are the simulator's (common.wgsl), 9–12 and 17 the task layer's (task.wgsl),
+//! 13–15 the reference bank's (reference.wgsl). Indices from 18 up are free for the test kernels of
 //! `gpu::run_kernel` (the parity tests use 20 and up).
 
 /// Where a binding lives in WGSL: its address space and, for storage, its access mode.
@@ -81,6 +81,8 @@ pub const TASK_STATES: Binding = binding(10, "task_states", StorageReadWrite);
 pub const ACTIONS: Binding = binding(11, "actions", StorageRead);
 /// `array<f32>`: obs `[N, obs_dim]`, priv obs `[N, priv_dim]`, records `[N, OUT_MISC]`.
 pub const TASK_OUT: Binding = binding(12, "task_out", StorageReadWrite);
+/// `array<f32>`: final obs `[N, obs_dim]`, final priv obs `[N, priv_dim]` (`task_observe_final`).
+pub const FINAL_OUT: Binding = binding(17, "final_out", StorageReadWrite);
 
 // ---- the reference bank (reference.wgsl; bound by task_gpu.rs) ----
 /// `array<f32>` `[Σ n_frames, stride]`: the reference frames.
@@ -130,7 +132,12 @@ pub const TASK_REWARD: EntryBindings = EntryBindings {
 /// `task_observe`: observations (and the task state of the envs just reset).
 pub const TASK_OBSERVE: EntryBindings = EntryBindings {
     entry_point: "task_observe",
-    bindings: &[GLOBALS, JOINTS, TIPS, STATES, PARAMS, RESET_MASK, TASK_CFG, TASK_STATES, TASK_OUT, REF_FRAMES, REF_INFO, REF_CFG],
+    bindings: &[GLOBALS, JOINTS, TIPS, STATES, PARAMS, RESET_MASK, TASK_CFG, TASK_STATES, TASK_OUT, FINAL_OUT, REF_FRAMES, REF_INFO, REF_CFG],
+};
+/// `task_observe_final`: the observations of the ending envs' final states (before the resets).
+pub const TASK_OBSERVE_FINAL: EntryBindings = EntryBindings {
+    entry_point: "task_observe_final",
+    bindings: &[GLOBALS, JOINTS, TIPS, STATES, PARAMS, RESET_MASK, TASK_CFG, TASK_STATES, TASK_OUT, FINAL_OUT, REF_FRAMES, REF_INFO, REF_CFG],
 };
 
 /// The simulator's module (`gpu::shader_source`: common + reset + physics).
@@ -145,7 +152,7 @@ pub const TASK_GROUP: ShaderGroup = ShaderGroup {
     shader: "dextrain task",
     bindings: &[
         GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, TASK_CFG, TASK_STATES, ACTIONS, TASK_OUT, REF_FRAMES,
-        REF_INFO, REF_CFG, SPRINGS,
+        REF_INFO, REF_CFG, SPRINGS, FINAL_OUT,
     ],
-    entry_points: &[TASK_ACT, TASK_REWARD, TASK_OBSERVE],
+    entry_points: &[TASK_ACT, TASK_REWARD, TASK_OBSERVE, TASK_OBSERVE_FINAL],
 };

@@ -16,6 +16,8 @@ pub struct Adam {
     pub beta2: f64,
     /// ε added to √v̂ in the denominator.
     pub eps: f64,
+    /// Decoupled weight decay λ (torch's AdamW: `p ← p (1 − lr λ)` before the Adam step; 0 = Adam).
+    pub weight_decay: f64,
     /// Steps taken.
     pub t: u64,
     /// First moment estimates, one per parameter (non-autodiff tensors).
@@ -28,7 +30,7 @@ impl Adam {
     /// torch's defaults: β = (0.9, 0.999), ε = 1e-8; moments start at zero.
     pub fn new(shapes: &[[usize; 2]], device: &Device) -> Adam {
         let zeros = || shapes.iter().map(|s| Tensor::zeros(*s, device).inner()).collect::<Vec<_>>();
-        Adam { beta1: 0.9, beta2: 0.999, eps: 1e-8, t: 0, m: zeros(), v: zeros() }
+        Adam { beta1: 0.9, beta2: 0.999, eps: 1e-8, weight_decay: 0.0, t: 0, m: zeros(), v: zeros() }
     }
 
     /// One step: `params[i] ← params[i] − lr/(1−β1ᵗ) · m / (√v/√(1−β2ᵗ) + ε)`. `params` are the
@@ -44,7 +46,11 @@ impl Adam {
             self.m[i] = self.m[i].clone().mul_scalar(self.beta1) + g.clone().mul_scalar(1.0 - self.beta1);
             self.v[i] = self.v[i].clone().mul_scalar(self.beta2) + g.square().mul_scalar(1.0 - self.beta2);
             let denom = self.v[i].clone().sqrt().div_scalar(bc2_sqrt).add_scalar(self.eps);
-            let p = params[i].clone().inner() - self.m[i].clone().div(denom).mul_scalar(step_size);
+            let mut p = params[i].clone().inner();
+            if self.weight_decay > 0.0 {
+                p = p.mul_scalar(1.0 - lr * self.weight_decay); // AdamW: p ← p (1 − lr λ)
+            }
+            let p = p - self.m[i].clone().div(denom).mul_scalar(step_size);
             out.push(p.autodiff().require_grad());
         }
         out
@@ -53,24 +59,44 @@ impl Adam {
     /// Saves the moments as `adam.m.<name>` / `adam.v.<name>` ([rows, cols] each, f32) into `file`
     /// of `state`, and the step count as the scalar `adam_step` (`names`/`shapes`: the parameters').
     pub fn save(&self, names: &[String], shapes: &[[usize; 2]], state: &mut LearnerState, file: &str) -> Result<()> {
+        self.save_as(names, shapes, state, file, "adam_step")
+    }
+
+    /// [`Adam::save`] with the step count under the scalar `step_key` (a learner with several
+    /// optimisers names each one's).
+    pub fn save_as(&self, names: &[String], shapes: &[[usize; 2]], state: &mut LearnerState, file: &str, step_key: &str) -> Result<()> {
         for (i, (n, s)) in names.iter().zip(shapes).enumerate() {
             state.push_tensor(file, &format!("adam.m.{n}"), s.to_vec(), TensorValues::F32(to_host(self.m[i].clone())?));
             state.push_tensor(file, &format!("adam.v.{n}"), s.to_vec(), TensorValues::F32(to_host(self.v[i].clone())?));
         }
-        state.set_u64("adam_step", self.t);
+        state.set_u64(step_key, self.t);
         Ok(())
     }
 
     /// Restores what [`Adam::save`] wrote (same names and shapes).
     pub fn load(&mut self, names: &[String], shapes: &[[usize; 2]], state: &LearnerState, file: &str, device: &Device) -> Result<()> {
+        self.load_as(names, shapes, state, file, device, "adam_step")
+    }
+
+    /// Restores what [`Adam::save_as`] wrote.
+    pub fn load_as(&mut self, names: &[String], shapes: &[[usize; 2]], state: &LearnerState, file: &str, device: &Device, step_key: &str) -> Result<()> {
         ensure!(names.len() == self.m.len(), "Adam has {} moments but {} parameters were named", self.m.len(), names.len());
         for (i, (n, s)) in names.iter().zip(shapes).enumerate() {
             self.m[i] = to_tensor(state.f32s(file, &format!("adam.m.{n}"), Some(s[0] * s[1]))?, *s, device).inner();
             self.v[i] = to_tensor(state.f32s(file, &format!("adam.v.{n}"), Some(s[0] * s[1]))?, *s, device).inner();
         }
-        self.t = state.u64("adam_step")?;
+        self.t = state.u64(step_key)?;
         Ok(())
     }
+}
+
+/// The gradients of `params` (in order) from a backward pass, clipped to a global norm of
+/// `max_norm` as [`clipped_grads`] does when `max_norm > 0`, unclipped when it is 0.
+pub fn grads_of(params: &[Tensor<2>], grads: &burn::tensor::Gradients, max_norm: f64) -> Result<Vec<Tensor<2>>> {
+    if max_norm > 0.0 {
+        return Ok(clipped_grads(params, grads, max_norm)?.0);
+    }
+    params.iter().enumerate().map(|(i, p)| p.grad(grads).with_context(|| format!("parameter {i} got no gradient"))).collect()
 }
 
 /// The gradients of `params` (in order) from a backward pass, scaled so that their global L2 norm

@@ -87,6 +87,9 @@ pub fn load_teacher(cfg: &Config, spec: &TaskSpec, device: &Device) -> Result<Te
     crate::run_dir::check_run(&run).map_err(|e| anyhow!("{file}: key `distill.teacher` = {:?}: {}", cfg.distill.teacher, crate::config::one_line(&format!("{e:#}"))))?;
     let tpath = run.join("config.toml");
     let tcfg = Config::load(&tpath)?;
+    if tcfg.train.algorithm != crate::config::AlgorithmChoice::Ppo {
+        bail!("{file}: key `distill.teacher`: the teacher {} was trained with train.algorithm = {:?}; expected a PPO run (DexRefine's teacher: a privileged encoder trained by PPO)", tpath.display(), tcfg.train.algorithm);
+    }
     let tmodel = crate::env::SimModel::from_config(&tcfg)?;
     let tspec = crate::task::task_setup(&tcfg, &tmodel)?.spec;
     for (what, mine, theirs) in [("actor", &spec.obs_layout, &tspec.obs_layout), ("critic", &spec.priv_layout, &tspec.priv_layout)] {

@@ -22,5 +22,6 @@ pub mod nets;
 pub mod normalizer;
 pub mod ppo;
 pub mod rng;
+pub mod sac;
 pub mod state;
 pub mod tcn;

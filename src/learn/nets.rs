@@ -70,3 +70,93 @@ pub fn to_tensor(data: Vec<f32>, shape: [usize; 2], device: &Device) -> Tensor<2
 pub fn to_host<const D: usize>(t: Tensor<D>) -> Result<Vec<f32>> {
     t.into_data().try_to_vec::<f32>().map_err(|e| anyhow!("cannot read a tensor back: {e:?}"))
 }
+
+/// An MLP `input → hidden… → output` with an optional LayerNorm after every hidden layer (before
+/// its activation; FastTD3's and FastSAC's critics). Its parameters, in order, per hidden layer:
+/// weight `[in, out]`, bias `[1, out]`, then with LayerNorm its gain and shift `[1, out]`; then the
+/// output layer's weight and bias. Without LayerNorm this is [`mlp_shapes`]' list.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MlpLayout {
+    /// Input width.
+    pub input: usize,
+    /// Hidden widths.
+    pub hidden: Vec<usize>,
+    /// Output width.
+    pub output: usize,
+    /// LayerNorm after every hidden layer.
+    pub layer_norm: bool,
+}
+
+/// ε in LayerNorm's `√(var + ε)` (torch's default).
+const LN_EPS: f64 = 1e-5;
+
+impl MlpLayout {
+    /// Parameters per hidden layer (2, or 4 with LayerNorm).
+    fn per_hidden(&self) -> usize {
+        if self.layer_norm { 4 } else { 2 }
+    }
+
+    /// Shapes of every parameter, in order.
+    pub fn shapes(&self) -> Vec<[usize; 2]> {
+        let mut out = Vec::new();
+        let mut w = self.input;
+        for &h in &self.hidden {
+            out.extend([[w, h], [1, h]]);
+            if self.layer_norm {
+                out.extend([[1, h], [1, h]]);
+            }
+            w = h;
+        }
+        out.extend([[w, self.output], [1, self.output]]);
+        out
+    }
+
+    /// Checkpoint names: `<prefix>.<layer>.weight|bias`, LayerNorm's `<prefix>.<layer>.ln_gain|ln_shift`.
+    pub fn names(&self, prefix: &str) -> Vec<String> {
+        let mut out = Vec::new();
+        for l in 0..self.hidden.len() {
+            out.extend([format!("{prefix}.{l}.weight"), format!("{prefix}.{l}.bias")]);
+            if self.layer_norm {
+                out.extend([format!("{prefix}.{l}.ln_gain"), format!("{prefix}.{l}.ln_shift")]);
+            }
+        }
+        let l = self.hidden.len();
+        out.extend([format!("{prefix}.{l}.weight"), format!("{prefix}.{l}.bias")]);
+        out
+    }
+
+    /// Fresh values: linear layers as [`init_mlp`] (torch's Linear), LayerNorm gain 1, shift 0.
+    pub fn init(&self, rng: &mut Rng) -> Vec<Vec<f32>> {
+        let mut out = Vec::new();
+        let mut w = self.input;
+        for &h in &self.hidden {
+            out.extend(init_mlp(&[[w, h], [1, h]], rng));
+            if self.layer_norm {
+                out.push(vec![1.0; h]);
+                out.push(vec![0.0; h]);
+            }
+            w = h;
+        }
+        out.extend(init_mlp(&[[w, self.output], [1, self.output]], rng));
+        out
+    }
+
+    /// x [B, input] → [B, output]: `h = act(LN(h W + b))` per hidden layer, then `h W + b`.
+    pub fn forward(&self, params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tensor<2> {
+        let k = self.per_hidden();
+        let mut h = x;
+        for l in 0..self.hidden.len() {
+            let p = &params[l * k..(l + 1) * k];
+            h = h.matmul(p[0].clone()) + p[1].clone(); // [B, out] + [1, out]
+            if self.layer_norm {
+                let mean = h.clone().mean_dim(1); // [B, 1]
+                let c = h - mean;
+                let var = c.clone().square().mean_dim(1); // [B, 1], biased as torch's LayerNorm
+                h = c / var.add_scalar(LN_EPS).sqrt() * p[2].clone() + p[3].clone(); // (h − μ)/√(σ² + ε) · g + s
+            }
+            h = act.apply(h);
+        }
+        let o = self.hidden.len() * k;
+        h.matmul(params[o].clone()) + params[o + 1].clone()
+    }
+}

@@ -7,8 +7,8 @@
 //! learner columns. This fits the three learners `learn/` is built for:
 //! - on-policy (PPO, `on_policy.rs`): `observe` stores the transition in the rollout, `update` runs
 //!   GAE and the epochs;
-//! - off-policy (SAC): `observe` pushes into the replay buffer and takes gradient steps every k env
-//!   steps (its stats accumulate), `update` only reports them;
+//! - off-policy (SAC, `off_policy.rs`): `observe` pushes into the replay buffer and takes the
+//!   gradient steps of that env step (its stats accumulate), `update` only reports them;
 //! - distillation (DAgger): `act` runs the student (the teacher labels the same observations),
 //!   `observe` stores the labels, `update` fits the student.
 
@@ -30,6 +30,11 @@ pub struct StepOutcome<'a> {
     pub priv_obs: &'a [f32],
     /// Envs whose episode ended with success [N].
     pub success: &'a [bool],
+    /// Raw actor / critic observations of the state each ended episode ended in ([N, O] / [N, P];
+    /// rows of envs that did not end are stale). Filled only for an algorithm whose
+    /// [`Algorithm::wants_final_observations`] is true.
+    pub final_obs: &'a [f32],
+    pub final_priv_obs: &'a [f32],
 }
 
 /// A learning algorithm that the runner drives.
@@ -39,6 +44,12 @@ pub trait Algorithm {
 
     /// Env steps of every env per iteration (one `update` and one metrics row each).
     fn steps_per_iteration(&self) -> usize;
+
+    /// Whether `observe` needs the final observations of ended episodes (an off-policy learner
+    /// bootstraps a time-out from them); the runner then asks the task for them.
+    fn wants_final_observations(&self) -> bool {
+        false
+    }
 
     /// The names of the values `update` returns, in order: metrics.csv columns after the env's.
     fn stat_columns(&self) -> Vec<String>;

@@ -3,13 +3,14 @@
 //! - `runner.rs`: the env loop, logging, checkpoint cadence, Ctrl-C and resume, for any algorithm;
 //! - `algorithm.rs`: the [`Algorithm`] trait, the seam between the runner and a learner;
 //! - `on_policy.rs`: PPO's part (rollouts of `train.steps_per_env` steps, then an update);
+//! - `off_policy.rs`: SAC's part (every env step into the replay buffer, gradient steps after each);
 //! - `distill.rs`: online DAgger's part (the student and teacher act, then the student learns);
 //!
-//! An off-policy runner (SAC) and a distillation runner go beside `on_policy.rs`, implementing
-//! [`Algorithm`]; none copies the loop.
+//! Each implements [`Algorithm`]; none copies the loop.
 
 pub mod algorithm;
 pub mod distill;
+pub mod off_policy;
 pub mod on_policy;
 pub mod runner;
 
@@ -30,6 +31,7 @@ pub fn train(args: &TrainArgs) -> Result<PathBuf> {
     };
     match cfg.train.algorithm {
         crate::config::AlgorithmChoice::Ppo => runner::run(args, on_policy::make),
+        crate::config::AlgorithmChoice::Sac => runner::run(args, off_policy::make),
         crate::config::AlgorithmChoice::Distill => runner::run(args, distill::make),
     }
 }

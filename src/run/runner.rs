@@ -148,7 +148,16 @@ fn collect(task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, obs: &mut [f32], 
     for _ in 0..steps {
         let actions = algo.act(obs, priv_obs)?;
         let b = task.step(&actions)?;
-        algo.observe(&StepOutcome { reward: &b.reward, terminated: &b.terminated, time_out: &b.time_out, obs: &b.obs, priv_obs: &b.priv_obs, success: &b.success })?;
+        algo.observe(&StepOutcome {
+            reward: &b.reward,
+            terminated: &b.terminated,
+            time_out: &b.time_out,
+            obs: &b.obs,
+            priv_obs: &b.priv_obs,
+            success: &b.success,
+            final_obs: &b.final_obs,
+            final_priv_obs: &b.final_priv_obs,
+        })?;
         let n = b.reward.len();
         for i in 0..n {
             let r = b.reward[i] as f64;
@@ -230,7 +239,11 @@ fn setup(args: &TrainArgs) -> Result<(Config, PathBuf, Option<PathBuf>)> {
     run_dir::validate_name(&name)?;
     // the hand and the references must load before a run directory is made
     let model = SimModel::from_config(&cfg)?;
-    crate::task::task_setup(&cfg, &model)?;
+    let setup = crate::task::task_setup(&cfg, &model)?;
+    if cfg.train.algorithm == crate::config::AlgorithmChoice::Sac {
+        // a replay buffer that cannot fit is an error before anything is written
+        super::off_policy::check_buffer(&cfg, &setup.spec)?;
+    }
     let dir = run_dir::create(&args.runs_dir, &name, args.force)?;
     // the exact resolved config, with the hand's URDF and the reference files as absolute paths so
     // that it loads from the run directory
@@ -260,6 +273,9 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
     let dims = [spec.obs_dim, spec.priv_dim, spec.action_dim];
     let encoder_index = crate::learn::ppo::encoder_index(&cfg.policy, &spec).with_context(|| cfg.source.display().to_string())?;
     let mut algo = make(&RunContext { cfg: cfg.clone(), num_envs: n, dims, device, encoder_index, spec: spec.clone() })?;
+    if algo.wants_final_observations() {
+        task.set_final_observations(true)?;
+    }
     let steps = algo.steps_per_iteration();
     let columns = metric_columns(&spec, &algo.stat_columns());
     let (mut iteration, mut env_steps, mut time_base, mut obs, mut priv_obs, mut eps, mut metrics) = match &resume {

@@ -30,6 +30,8 @@ pub struct CpuTaskBatch {
     /// Reset request per env (the GPU's reset_mask).
     mask: Vec<u32>,
     mask_bool: Vec<bool>,
+    /// Observe the ending envs' final states (`set_final_observations`).
+    final_obs: bool,
     batch: StepBatch,
 }
 
@@ -52,6 +54,7 @@ impl CpuTaskBatch {
             misc: vec![0.0; n * OUT_MISC],
             mask: vec![0; n],
             mask_bool: vec![false; n],
+            final_obs: false,
             batch,
         };
         b.reset_all()?;
@@ -98,6 +101,26 @@ impl CpuTaskBatch {
     }
 }
 
+impl CpuTaskBatch {
+    /// `task_observe_final` for every env with a reset request (before the resets).
+    fn observe_final(&mut self) {
+        let model = self.env.model();
+        let m = model.view();
+        let r = ref_model(model, self.bank.as_ref(), &self.rg);
+        let tc = &self.tc;
+        let (states, params) = (self.env.states_ref(), self.env.params_ref());
+        let (mask, task) = (&self.mask, &self.task);
+        let (od, pd) = (self.spec.obs_dim, self.spec.priv_dim);
+        self.batch
+            .final_obs
+            .par_chunks_mut(od)
+            .zip(self.batch.final_priv_obs.par_chunks_mut(pd))
+            .enumerate()
+            .filter(|(i, _)| mask[*i] != 0)
+            .for_each(|(i, (obs, privo))| task_observe_final(i as u32, &states[i], &params[i], &task[i], &m, tc, &r, obs, privo));
+    }
+}
+
 impl TaskBatch for CpuTaskBatch {
     fn spec(&self) -> &TaskSpec {
         &self.spec
@@ -126,6 +149,11 @@ impl TaskBatch for CpuTaskBatch {
 
     fn step(&mut self, actions: &[f32]) -> Result<&StepBatch> {
         self.step_inner(actions, None)
+    }
+
+    fn set_final_observations(&mut self, on: bool) -> Result<()> {
+        self.final_obs = on;
+        Ok(())
     }
 
     fn step_with_targets(&mut self, actions: &[f32], targets: &[Targets]) -> Result<&StepBatch> {
@@ -201,6 +229,9 @@ impl CpuTaskBatch {
         }
         for (b, &m) in self.mask_bool.iter_mut().zip(&self.mask) {
             *b = m != 0;
+        }
+        if self.final_obs && self.mask_bool.iter().any(|&b| b) {
+            self.observe_final();
         }
         if self.mask_bool.iter().any(|&b| b) {
             self.env.reset(&self.mask_bool)?;

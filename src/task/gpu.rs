@@ -1,11 +1,13 @@
 //! `GpuTaskBatch`: the task layer on the GPU (the contract is in [`crate::task`]).
 //!
-//! The module is the simulator's WGSL with `shaders/task.wgsl` appended; its three pipelines and
+//! The module is the simulator's WGSL with `shaders/task.wgsl` appended; its four pipelines and
 //! their bind groups, the task buffers (constants, per-env task states, actions, outputs, fingertip
 //! frames) and the readback buffer are made once in `new`. One step is one command buffer:
 //! `task_act` → `step_main` → `task_reward` → `reset_main` → `task_observe`, then a copy of the
 //! output buffer (obs `[N, obs_dim]`, priv obs `[N, priv_dim]`, records `[N, OUT_MISC]`) to the
-//! readback buffer, and one map of it. Nothing is allocated on the device per step.
+//! readback buffer, and one map of it. Nothing is allocated on the device per step. With
+//! `set_final_observations(true)` (which makes the final-observation buffer and its readback once),
+//! `task_observe_final` runs between `task_reward` and `reset_main` and its buffer is read too.
 //! `step_with_targets` (an outside controller's targets: `dextrain play`) submits `task_act` alone,
 //! reads the task states back, writes the given targets into them and into the targets buffer,
 //! then runs the rest of the step.
@@ -18,7 +20,7 @@ use super::task::OUT_MISC;
 use super::{StepBatch, TaskBatch, check_actions, check_targets, decode_snapshot, encode_snapshot};
 use crate::env::gpu::{BufferRole, GpuContext, GpuEnvBatch, ReadbackCopy, task_shader_source};
 use crate::env::gpu_bindings::{ACTIONS, GLOBALS, JOINTS, PARAMS, REF_CFG, REF_FRAMES, REF_INFO, RESET_MASK, SPRINGS, STATES, STATS, TARGETS, TIPS};
-use crate::env::gpu_bindings::{TASK_ACT, TASK_CFG, TASK_GROUP, TASK_OBSERVE, TASK_OUT, TASK_REWARD, TASK_STATES};
+use crate::env::gpu_bindings::{Binding, FINAL_OUT, TASK_ACT, TASK_CFG, TASK_GROUP, TASK_OBSERVE, TASK_OBSERVE_FINAL, TASK_OUT, TASK_REWARD, TASK_STATES};
 use crate::env::gpu_layout::*;
 use crate::env::{EnvBatch, SimModel};
 use crate::config::Config;
@@ -38,12 +40,24 @@ pub struct GpuTaskBatch {
     out: wgpu::Buffer,
     readback: wgpu::Buffer,
     out_bytes: u64,
+    /// The task's constant buffers (kept to rebuild the bind groups).
+    task_cfg: wgpu::Buffer,
+    tips: wgpu::Buffer,
+    ref_frames: wgpu::Buffer,
+    ref_info: wgpu::Buffer,
+    ref_cfg: wgpu::Buffer,
+    /// Final obs `[N, obs_dim]` and priv obs `[N, priv_dim]` (one float while they are off).
+    final_out: wgpu::Buffer,
+    /// Its readback buffer, once the final observations are on.
+    final_readback: Option<wgpu::Buffer>,
     act_pipeline: wgpu::ComputePipeline,
     reward_pipeline: wgpu::ComputePipeline,
     observe_pipeline: wgpu::ComputePipeline,
+    final_pipeline: wgpu::ComputePipeline,
     act_group: wgpu::BindGroup,
     reward_group: wgpu::BindGroup,
     observe_group: wgpu::BindGroup,
+    final_group: wgpu::BindGroup,
     /// The output buffer's contents after the last readback.
     host: Vec<f32>,
     batch: StepBatch,
@@ -82,34 +96,25 @@ impl GpuTaskBatch {
         let actions = ctx.create_binding_buffer(ACTIONS, &vec![0f32; n * spec.action_dim], none).with_context(per_env)?;
         let out = ctx.create_binding_buffer(TASK_OUT, &vec![0f32; out_floats], none).with_context(per_env)?;
         let readback = ctx.create_staging_buffer("task readback", out_bytes).with_context(per_env)?;
-        let [act_pipeline, reward_pipeline, observe_pipeline] = ctx.compute_pipelines(
+        let final_out = ctx.create_binding_buffer(FINAL_OUT, &[0f32], none)?;
+        let [act_pipeline, reward_pipeline, observe_pipeline, final_pipeline] = ctx.compute_pipelines(
             TASK_GROUP.shader,
             &task_shader_source(),
-            [TASK_ACT.entry_point, TASK_REWARD.entry_point, TASK_OBSERVE.entry_point],
+            [TASK_ACT.entry_point, TASK_REWARD.entry_point, TASK_OBSERVE.entry_point, TASK_OBSERVE_FINAL.entry_point],
         )?;
-        // each bind group lists exactly the bindings its entry point uses (the layouts are derived)
-        let buffers = [
-            (GLOBALS, &env.globals),
-            (JOINTS, &env.joints),
+        let batch = StepBatch::new(&spec);
+        let own = [
             (TIPS, &tips),
-            (STATES, &env.states),
-            (PARAMS, &env.params),
-            (TARGETS, &env.targets),
-            (STATS, &env.stats),
-            (RESET_MASK, &env.reset_mask),
-            (SPRINGS, &env.springs),
             (TASK_CFG, &task_cfg),
             (TASK_STATES, &task_states),
             (ACTIONS, &actions),
             (TASK_OUT, &out),
+            (FINAL_OUT, &final_out),
             (REF_FRAMES, &ref_frames),
             (REF_INFO, &ref_info),
             (REF_CFG, &ref_cfg),
         ];
-        let act_group = ctx.bind_group(&act_pipeline, &TASK_ACT, &buffers)?;
-        let reward_group = ctx.bind_group(&reward_pipeline, &TASK_REWARD, &buffers)?;
-        let observe_group = ctx.bind_group(&observe_pipeline, &TASK_OBSERVE, &buffers)?;
-        let batch = StepBatch::new(&spec);
+        let [act_group, reward_group, observe_group, final_group] = bind_groups(&env, [&act_pipeline, &reward_pipeline, &observe_pipeline, &final_pipeline], &own)?;
         let mut b = GpuTaskBatch {
             env,
             spec,
@@ -121,12 +126,21 @@ impl GpuTaskBatch {
             out,
             readback,
             out_bytes,
+            task_cfg,
+            tips,
+            ref_frames,
+            ref_info,
+            ref_cfg,
+            final_out,
+            final_readback: None,
             act_pipeline,
             reward_pipeline,
             observe_pipeline,
+            final_pipeline,
             act_group,
             reward_group,
             observe_group,
+            final_group,
             host: vec![0.0; out_floats],
             batch,
         };
@@ -137,6 +151,24 @@ impl GpuTaskBatch {
     /// The task constants uploaded to the GPU.
     pub fn task_globals(&self) -> &TaskGlobals {
         &self.tc
+    }
+
+    /// Remakes the four bind groups (after a buffer was replaced).
+    fn rebind(&mut self) -> Result<()> {
+        let own = [
+            (TIPS, &self.tips),
+            (TASK_CFG, &self.task_cfg),
+            (TASK_STATES, &self.task_states),
+            (ACTIONS, &self.actions),
+            (TASK_OUT, &self.out),
+            (FINAL_OUT, &self.final_out),
+            (REF_FRAMES, &self.ref_frames),
+            (REF_INFO, &self.ref_info),
+            (REF_CFG, &self.ref_cfg),
+        ];
+        let pipelines = [&self.act_pipeline, &self.reward_pipeline, &self.observe_pipeline, &self.final_pipeline];
+        [self.act_group, self.reward_group, self.observe_group, self.final_group] = bind_groups(&self.env, pipelines, &own)?;
+        Ok(())
     }
 
     /// Reads the per-env task states back (tests, recordings; not used by `step`).
@@ -152,13 +184,40 @@ impl GpuTaskBatch {
         if act {
             passes.push((&self.act_pipeline, &self.act_group));
         }
-        passes.extend([
-            (&e.step_pipeline, &e.step_group),
-            (&self.reward_pipeline, &self.reward_group),
-            (&e.reset_pipeline, &e.reset_group),
-            (&self.observe_pipeline, &self.observe_group),
-        ]);
-        dispatch_and_read(e, &passes, &self.out, &self.readback, self.out_bytes, &mut self.host, "task step")?;
+        passes.extend([(&e.step_pipeline, &e.step_group), (&self.reward_pipeline, &self.reward_group)]);
+        if self.final_readback.is_some() {
+            passes.push((&self.final_pipeline, &self.final_group));
+        }
+        passes.extend([(&e.reset_pipeline, &e.reset_group), (&self.observe_pipeline, &self.observe_group)]);
+        match &self.final_readback {
+            None => dispatch_and_read(e, &passes, &self.out, &self.readback, self.out_bytes, &mut self.host, "task step")?,
+            Some(final_readback) => {
+                let enc = e.ctx.encode_passes(&passes, e.workgroups());
+                let (od, pd) = (self.spec.obs_dim, self.spec.priv_dim);
+                let n = self.spec.num_envs;
+                let fin_bytes = (n * (od + pd) * 4) as u64;
+                let copies = [
+                    ReadbackCopy { name: TASK_OUT.name, src: &self.out, staging: &self.readback, bytes: self.out_bytes },
+                    ReadbackCopy { name: FINAL_OUT.name, src: &self.final_out, staging: final_readback, bytes: fin_bytes },
+                ];
+                let (host, batch) = (&mut self.host, &mut self.batch);
+                e.ctx.submit_and_read(enc, &copies, "task step", |k, bytes| {
+                    if k == 0 {
+                        bytemuck::cast_slice_mut::<f32, u8>(host).copy_from_slice(bytes);
+                    } else {
+                        let f: &[f32] = &bytemuck::pod_collect_to_vec::<u8, f32>(bytes);
+                        // rows of the envs that did not end keep what they had (the contract)
+                        for i in 0..n {
+                            let ended = host_ended(host, n, od + pd, i);
+                            if ended {
+                                batch.final_obs[i * od..(i + 1) * od].copy_from_slice(&f[i * od..(i + 1) * od]);
+                                batch.final_priv_obs[i * pd..(i + 1) * pd].copy_from_slice(&f[n * od + i * pd..n * od + (i + 1) * pd]);
+                            }
+                        }
+                    }
+                })?;
+            }
+        }
         self.unpack_obs();
         let n = self.spec.num_envs;
         let base = n * (self.spec.obs_dim + self.spec.priv_dim);
@@ -205,6 +264,25 @@ impl TaskBatch for GpuTaskBatch {
         check_actions(&self.spec, actions)?;
         self.env.ctx.upload(ACTIONS.name, &self.actions, bytemuck::cast_slice(actions))?;
         self.run_step(true)
+    }
+
+    fn set_final_observations(&mut self, on: bool) -> Result<()> {
+        if on == self.final_readback.is_some() {
+            return Ok(());
+        }
+        let ctx = &self.env.ctx;
+        let n = self.spec.num_envs;
+        let floats = n * (self.spec.obs_dim + self.spec.priv_dim);
+        let what = || format!("sim.num_envs = {n}: the final observations");
+        if on {
+            ctx.check_buffer_size(FINAL_OUT.name, (floats * 4) as u64, BufferRole::Storage).with_context(what)?;
+            self.final_out = ctx.create_binding_buffer(FINAL_OUT, &vec![0f32; floats], wgpu::BufferUsages::empty()).with_context(what)?;
+            self.final_readback = Some(ctx.create_staging_buffer("task final readback", (floats * 4) as u64).with_context(what)?);
+        } else {
+            self.final_out = ctx.create_binding_buffer(FINAL_OUT, &[0f32], wgpu::BufferUsages::empty())?;
+            self.final_readback = None;
+        }
+        self.rebind()
     }
 
     fn step_with_targets(&mut self, actions: &[f32], targets: &[Targets]) -> Result<&StepBatch> {
@@ -262,6 +340,38 @@ impl TaskBatch for GpuTaskBatch {
         self.env.set_params(&env.params)?;
         self.env.ctx.upload(TASK_STATES.name, &self.task_states, bytemuck::cast_slice(&task))
     }
+}
+
+/// The bind groups of `task_act`, `task_reward`, `task_observe` and `task_observe_final` (`pipelines`
+/// in that order) over the env batch's buffers and the task's (`own`); each lists exactly the
+/// bindings its entry point uses (the layouts are derived).
+fn bind_groups(env: &GpuEnvBatch, pipelines: [&wgpu::ComputePipeline; 4], own: &[(Binding, &wgpu::Buffer)]) -> Result<[wgpu::BindGroup; 4]> {
+    let mut buffers: Vec<(Binding, &wgpu::Buffer)> = vec![
+        (GLOBALS, &env.globals),
+        (JOINTS, &env.joints),
+        (STATES, &env.states),
+        (PARAMS, &env.params),
+        (TARGETS, &env.targets),
+        (STATS, &env.stats),
+        (RESET_MASK, &env.reset_mask),
+        (SPRINGS, &env.springs),
+    ];
+    buffers.extend_from_slice(own);
+    let ctx = &env.ctx;
+    Ok([
+        ctx.bind_group(pipelines[0], &TASK_ACT, &buffers)?,
+        ctx.bind_group(pipelines[1], &TASK_REWARD, &buffers)?,
+        ctx.bind_group(pipelines[2], &TASK_OBSERVE, &buffers)?,
+        ctx.bind_group(pipelines[3], &TASK_OBSERVE_FINAL, &buffers)?,
+    ])
+}
+
+/// Whether env `i` ended in the step whose output records are in `host` (`[N, row]` obs and priv obs
+/// first, then `[N, OUT_MISC]` records).
+fn host_ended(host: &[f32], n: usize, row: usize, i: usize) -> bool {
+    use super::task::{OUT_TERMINATED, OUT_TIME_OUT, OUT_BAD_RESET};
+    let r = &host[n * row + i * OUT_MISC..n * row + (i + 1) * OUT_MISC];
+    (r[OUT_TERMINATED] != 0.0 || r[OUT_TIME_OUT] != 0.0) && r[OUT_BAD_RESET] == 0.0
 }
 
 /// Records the given (pipeline, bind group) dispatches over all envs in one compute pass (wgpu

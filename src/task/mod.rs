@@ -20,7 +20,9 @@
 //!   1. `task_act`: actions → targets (kept in the env's [`TaskState`] between steps);
 //!   2. the physics: one control step toward the targets ([`EnvBatch::step`]);
 //!   3. `task_reward`: reward terms, terminations and time-outs on the post-step, pre-reset state;
-//!   4. the reset of every done env (its next episode, drawn as [`EnvBatch::reset`] does);
+//!   4. the reset of every done env (its next episode, drawn as [`EnvBatch::reset`] does) — before
+//!      it, with [`TaskBatch::set_final_observations`], `task_observe_final` observes the ending
+//!      envs' final states;
 //!   5. `task_observe`: the task state of every env that was just reset is initialised, then every
 //!      env is observed. So `obs` of a done env is the first observation of its next episode
 //!      (rsl_rl / Isaac Lab auto-reset).
@@ -122,6 +124,13 @@ pub struct StepBatch {
     /// `[N]` the physics reset this env during the step because its state went bad (non-finite, or
     /// a speed or distance beyond `sim.max_speed` / `sim.max_distance`); `terminated` is set too.
     pub bad_reset: Vec<bool>,
+    /// `[N, obs_dim]` / `[N, priv_dim]`, only after [`TaskBatch::set_final_observations`]`(true)`:
+    /// for an env whose episode ended in this step by a time-out or a termination, the
+    /// observations of the state it ended in (before its reset; `obs` holds its next episode's
+    /// first); rows of other envs, and of envs reset for a bad state, are left as they were. An
+    /// off-policy learner bootstraps a time-out's value from these.
+    pub final_obs: Vec<f32>,
+    pub final_priv_obs: Vec<f32>,
     /// Reward terms per env (the kind's).
     pub n_terms: usize,
 }
@@ -143,6 +152,8 @@ impl StepBatch {
             obj_pos_err: vec![0.0; n],
             obj_rot_err: vec![0.0; n],
             bad_reset: vec![false; n],
+            final_obs: vec![0.0; n * spec.obs_dim],
+            final_priv_obs: vec![0.0; n * spec.priv_dim],
             n_terms: spec.term_names.len(),
         }
     }
@@ -200,6 +211,11 @@ pub trait TaskBatch: Send {
     /// targets, steps the physics, computes reward terms / terminations / time-outs on the post-step
     /// state, resets the done envs (next episode), then observes every env.
     fn step(&mut self, actions: &[f32]) -> Result<&StepBatch>;
+    /// From now on, [`TaskBatch::step`] also observes every env whose episode ends, on the state it
+    /// ended in, into [`StepBatch::final_obs`] / [`StepBatch::final_priv_obs`] (between the reward
+    /// and the resets: `task_observe_final`); off by default (it costs a dispatch and a larger
+    /// readback on the GPU).
+    fn set_final_observations(&mut self, on: bool) -> Result<()>;
     /// As [`TaskBatch::step`], but the physics steps toward `targets` (`[N]`) instead of the
     /// targets the task maps the actions to: a controller outside the simulator (`dextrain play`)
     /// applies the action mapping itself. The task still records the actions as `step` does (the

@@ -598,6 +598,24 @@ pub fn task_observe(env: u32, st: &mut EnvState, p: &EnvParams, ts: &mut TaskSta
     let st: &EnvState = st;
     // the actor's object pose: the one obj_delay observations ago
     let dslot = obj_delay_slot(ts, st.step, started, st.obj_pos, st.obj_rot);
+    write_observation(env, st, p, ts, dslot, m, tc, r, obs, privo);
+}
+
+/// The observations of the state an ending episode ended in (twin of task.wgsl's
+/// `task_observe_final`): called after [`task_reward`] and before the reset, for an env with a
+/// reset request; observes as [`task_observe`] does without initialising anything, and changes no
+/// state (the delayed-pose ring is advanced on a copy of the task state).
+#[allow(clippy::too_many_arguments)]
+pub fn task_observe_final(env: u32, st: &EnvState, p: &EnvParams, ts: &TaskState, m: &Model, tc: &TaskGlobals, r: &RefModel, obs: &mut [f32], privo: &mut [f32]) {
+    let mut ts = *ts;
+    let dslot = obj_delay_slot(&mut ts, st.step, false, st.obj_pos, st.obj_rot);
+    write_observation(env, st, p, &ts, dslot, m, tc, r, obs, privo);
+}
+
+/// Writes env's actor row `obs` and critic row `privo` from its state `st`, task state `ts` and the
+/// delayed object pose's slot `dslot` (the body shared by [`task_observe`] and [`task_observe_final`]).
+#[allow(clippy::too_many_arguments)]
+pub fn write_observation(env: u32, st: &EnvState, p: &EnvParams, ts: &TaskState, dslot: usize, m: &Model, tc: &TaskGlobals, r: &RefModel, obs: &mut [f32], privo: &mut [f32]) {
     let mut s = Scratch::default();
     hand_kinematics(st, m, &mut s);
     let mut o = ObsOut { seed: m.g.seed, env, episode: st.episode, step: st.step, obs, privo };

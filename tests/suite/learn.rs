@@ -153,16 +153,18 @@ fn gradients_are_clipped_to_a_global_norm_and_adam_takes_a_signed_first_step() {
 /// A 2-D point to steer onto a target: obs = target − x, x += 0.1·clip(a), reward = −‖target − x‖,
 /// 20-step episodes from random starts. A policy that ignores the observation keeps about
 /// −0.8 per step; steering straight at the target averages about −0.3.
-struct PointTask {
-    x: Vec<[f32; 2]>,
-    target: Vec<[f32; 2]>,
-    t: Vec<u32>,
-    rng: Rng,
+pub(crate) struct PointTask {
+    pub(crate) x: Vec<[f32; 2]>,
+    pub(crate) target: Vec<[f32; 2]>,
+    pub(crate) t: Vec<u32>,
+    pub(crate) rng: Rng,
+    /// [N, 2] each env's observation before its last reset (its ended episode's final one).
+    pub(crate) final_obs: Vec<f32>,
 }
 
 impl PointTask {
-    fn new(n: usize) -> PointTask {
-        let mut p = PointTask { x: vec![[0.0; 2]; n], target: vec![[0.0; 2]; n], t: vec![0; n], rng: Rng::new(3, 3) };
+    pub(crate) fn new(n: usize) -> PointTask {
+        let mut p = PointTask { x: vec![[0.0; 2]; n], target: vec![[0.0; 2]; n], t: vec![0; n], rng: Rng::new(3, 3), final_obs: vec![0.0; 2 * n] };
         for i in 0..n {
             p.reset(i);
         }
@@ -174,10 +176,10 @@ impl PointTask {
         self.target[i] = [u(), u()];
         self.t[i] = 0;
     }
-    fn obs(&self) -> Vec<f32> {
+    pub(crate) fn obs(&self) -> Vec<f32> {
         self.x.iter().zip(&self.target).flat_map(|(x, g)| [g[0] - x[0], g[1] - x[1]]).collect()
     }
-    fn step(&mut self, a: &[f32]) -> (Vec<f32>, Vec<bool>) {
+    pub(crate) fn step(&mut self, a: &[f32]) -> (Vec<f32>, Vec<bool>) {
         let n = self.x.len();
         let mut r = vec![0.0; n];
         let mut timeout = vec![false; n];
@@ -190,6 +192,7 @@ impl PointTask {
             self.t[i] += 1;
             if self.t[i] >= 20 {
                 timeout[i] = true;
+                self.final_obs[2 * i..2 * i + 2].copy_from_slice(&[self.target[i][0] - self.x[i][0], self.target[i][1] - self.x[i][1]]);
                 self.reset(i);
             }
         }
@@ -348,7 +351,7 @@ fn ppo_state_restores_a_learner_that_continues_exactly() {
     b.load_state(&state).unwrap();
     assert_eq!(b.state().unwrap(), state, "the loaded learner's state is the saved one");
     assert_eq!(b.lr.to_bits(), a.lr.to_bits());
-    let mut env_b = PointTask { x: env.x.clone(), target: env.target.clone(), t: env.t.clone(), rng: env.rng.clone() };
+    let mut env_b = PointTask { x: env.x.clone(), target: env.target.clone(), t: env.t.clone(), rng: env.rng.clone(), final_obs: env.final_obs.clone() };
     let acts_a = rollout(&mut a, &mut env);
     let acts_b = rollout(&mut b, &mut env_b);
     assert_eq!(acts_a, acts_b, "the restored learner acts differently");

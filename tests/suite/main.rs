@@ -21,6 +21,7 @@ mod physics;
 mod play;
 mod record;
 mod reference;
+mod sac;
 mod shaders;
 mod task;
 mod track;

@@ -72,11 +72,24 @@ fn cpu_and_gpu_agree_over_random_actions_with_resets_and_noise() {
     let mut cpu = cpu_task(&c);
     let mut gpu = GpuTaskBatch::new(&c, ctx, SimModel::from_config(&c).unwrap()).expect("gpu task");
     assert!(gpu.gpu_context().is_some() && cpu.gpu_context().is_none());
+    // the ended episodes' final observations too (task_observe_final and its twin)
+    cpu.set_final_observations(true).unwrap();
+    gpu.set_final_observations(true).unwrap();
     let spec = cpu.spec().clone();
     let (od, pd, na) = (spec.obs_dim, spec.priv_dim, spec.action_dim);
     let term_names: Vec<String> = spec.term_names.clone();
     let worst = std::cell::RefCell::new((0.0f32, String::new()));
+    let finals = std::cell::Cell::new(0usize);
     let compare = |step: u32, a: &StepBatch, b: &StepBatch| {
+        for i in (0..n).filter(|&i| a.done(i) && !a.bad_reset[i]) {
+            let (d, at) = max_rel(&a.final_obs[i * od..(i + 1) * od], &b.final_obs[i * od..(i + 1) * od], 0.1, od, &spec.obs_names);
+            assert!(d < 2e-4, "step {step}: env {i}'s final actor obs differ by {d:e}: {at}");
+            let (d, at) = max_rel(&a.final_priv_obs[i * pd..(i + 1) * pd], &b.final_priv_obs[i * pd..(i + 1) * pd], 0.1, pd, &spec.priv_names);
+            assert!(d < 2e-4, "step {step}: env {i}'s final critic obs differ by {d:e}: {at}");
+            // the final state is not the next episode's first
+            assert_ne!(a.final_priv_obs[i * pd..(i + 1) * pd], a.priv_obs[i * pd..(i + 1) * pd]);
+            finals.set(finals.get() + 1);
+        }
         // contact-free rollouts agree to ~1e-4 (DESIGN §4); positions (and their noise draws) are
         // compared relative to max(|x|, 0.1 m), velocities relative to max(|v|, 1) as in parity.rs
         let (d, at) = max_rel(&a.obs, &b.obs, 0.1, od, &spec.obs_names);
@@ -132,6 +145,7 @@ fn cpu_and_gpu_agree_over_random_actions_with_resets_and_noise() {
     // episodes of 8 steps in 30 steps: 3 time-outs per env (env 3: at 8, then terminated at 12, then 20, 28)
     assert_eq!(timeouts, 3 * n);
     assert_eq!(terminations, 1);
+    assert_eq!(finals.get(), 3 * n + 1, "every ended episode's final observations were compared");
     let (d, at) = worst.borrow().clone();
     eprintln!("largest relative obs difference over 30 steps: {d:.1e} ({at})");
     // the env states and task states underneath agree too (counters exactly)
@@ -153,6 +167,44 @@ fn cpu_and_gpu_agree_over_random_actions_with_resets_and_noise() {
     let a = cpu.step(&actions).unwrap().clone();
     let b = gpu.step(&actions).unwrap().clone();
     compare(99, &a, &b);
+}
+
+/// `set_final_observations`: an episode that times out gets, as its final observations, exactly
+/// what the same env observes at that step when its episode goes on (a batch with one more step
+/// per episode), and `obs` holds its next episode's first; without the switch nothing is written.
+#[test]
+fn final_observations_are_the_observations_of_the_state_an_episode_ended_in() {
+    let n = 4;
+    let mut c = task_config(n);
+    c.task.episode_length = 6;
+    let nz = &mut c.task.obs_noise;
+    (nz.joint_pos, nz.object_pos) = (0.01, 0.005);
+    nz.object_delay = [0, 3];
+    let mut longer = c.clone();
+    longer.task.episode_length = 7;
+    let (mut a, mut b, mut off) = (cpu_task(&c), cpu_task(&longer), cpu_task(&c));
+    a.set_final_observations(true).unwrap();
+    let (od, pd, na) = (a.spec().obs_dim, a.spec().priv_dim, a.spec().action_dim);
+    for t in 1..=6u32 {
+        let actions = random_actions(n, na, t);
+        let sa = a.step(&actions).unwrap().clone();
+        let sb = b.step(&actions).unwrap().clone();
+        let so = off.step(&actions).unwrap().clone();
+        if t < 6 {
+            assert!(!sa.time_out.iter().any(|&x| x));
+            assert_eq!(sa.obs, sb.obs);
+            continue;
+        }
+        assert!(sa.time_out.iter().all(|&x| x) && !sb.time_out.iter().any(|&x| x), "episodes of 6 steps end at step 6, of 7 do not");
+        assert_eq!(sa.final_obs, sb.obs, "the final actor observations are the continuing episode's");
+        assert_eq!(sa.final_priv_obs, sb.priv_obs, "the final critic observations are the continuing episode's");
+        for i in 0..n {
+            assert_ne!(sa.obs[i * od..(i + 1) * od], sa.final_obs[i * od..(i + 1) * od], "obs holds the next episode's first");
+        }
+        assert!(so.final_obs.iter().chain(&so.final_priv_obs).all(|&x| x == 0.0), "written without set_final_observations");
+        assert_eq!(so.obs, sa.obs, "observing the final states changes nothing");
+        assert_eq!(sa.final_priv_obs.len(), n * pd);
+    }
 }
 
 #[test]

@@ -149,6 +149,51 @@ fn metrics_tensorboard_plots_and_eval_agree_with_the_run() {
     assert_eq!(r3.iteration, 2);
 }
 
+/// A SAC run (`train.algorithm = "sac"`) on the lift task: metrics with SAC's columns, the same
+/// seed gives the same run, an interrupted and resumed run continues exactly (the replay buffer is
+/// in the checkpoint), eval runs its policy; impossible settings are one-line errors before a run
+/// directory is made.
+#[test]
+fn sac_runs_resume_exactly_and_evaluate() {
+    let tmp = tempfile::tempdir().unwrap();
+    let runs = tmp.path();
+    let sac = |name: &str| {
+        let mut a = args(runs, name);
+        a.sets.extend(["train.algorithm=\"sac\"", "sac.batch_size=32", "sac.learning_starts=3", "sac.random_steps=2", "sac.buffer_capacity=6", "sac.n_step=2", "sac.updates_per_step=2"].iter().map(|s| s.to_string()));
+        a
+    };
+    let a = train(&sac("a")).expect("sac run a");
+    let mut b_args = sac("b");
+    b_args.stop_after = Some(2);
+    let b = train(&b_args).expect("sac run b, first half");
+    assert!(b.join("checkpoints/2/replay.safetensors").is_file(), "the checkpoint holds the replay buffer");
+    train(&TrainArgs { config: None, sets: vec![], name: None, resume: Some(b.clone()), ..args(runs, "unused") }).expect("sac run b, resumed");
+    let (cols, ma) = metrics(&a);
+    for c in ["loss/critic", "loss/actor", "alpha", "policy/entropy", "q/mean", "updates", "buffer/transitions"] {
+        assert!(cols.contains(&c.to_string()), "no column {c}: {cols:?}");
+    }
+    let col = |name: &str| cols.iter().position(|c| c == name).unwrap();
+    // 4 env steps per iteration, gradient steps from the 3rd on, 2 per env step; the 6-slot rings fill
+    let updates: Vec<f64> = ma.iter().map(|(_, v)| v[col("updates")]).collect();
+    assert_eq!(updates, vec![4.0, 8.0, 8.0, 8.0]);
+    assert_eq!(ma.last().unwrap().1[col("buffer/transitions")], 48.0);
+    assert!(ma.iter().all(|(_, v)| v[col("loss/critic")].is_finite() && v[col("alpha")] > 0.0));
+    assert!(same_bits(&ma, &metrics(&b).1), "the resumed SAC run differs from the straight run");
+    assert_eq!(model_bytes(&a, 4), model_bytes(&b, 4), "final model differs after resume");
+    assert!(same_bits(&ma, &metrics(&train(&sac("c")).expect("sac run c")).1), "same seed, different run");
+    let e = EvalArgs { run: a.clone(), checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None, baseline: None };
+    let r = eval(&e).expect("eval of a SAC run");
+    assert_eq!((r.episodes, r.iteration), (3, 4));
+    // bad input: one line, naming the key, and no run directory
+    for (set, key) in [("sac.updates_per_step=0", "sac.updates_per_step"), ("sac.buffer_capacity=1099511627776", "sac.buffer_capacity"), ("sac.buffer_capacity=4000000000", "sac.buffer_capacity"), ("train.algorithm=\"sacc\"", "train.algorithm")] {
+        let mut x = sac("bad");
+        x.sets.push(set.into());
+        let err = format!("{:#}", train(&x).unwrap_err());
+        assert!(err.contains(key) && !err.contains('\n'), "{set}: {err}");
+        assert!(!runs.join("bad").exists(), "{set}: no run directory for a bad config");
+    }
+}
+
 #[test]
 fn bad_names_existing_runs_and_broken_checkpoints_are_one_line_errors() {
     let tmp = tempfile::tempdir().unwrap();
