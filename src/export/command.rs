@@ -140,6 +140,9 @@ pub fn run(args: &ExportArgs) -> Result<ExportReport> {
         spec.priv_dim,
         spec.action_dim
     );
+    if cfg.train.algorithm == crate::config::AlgorithmChoice::Sac {
+        anyhow::bail!("{}: train.algorithm = \"sac\": exporting a SAC policy is not supported yet (its actor's tanh is not in the ONNX writer); export a PPO run or a distilled student", cfg_path.display());
+    }
     if cfg.train.algorithm == crate::config::AlgorithmChoice::Distill {
         return export_student(args, &cfg, &cfg_path, &ckpt, state.iteration, &model, &setup);
     }
