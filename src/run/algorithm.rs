@@ -51,6 +51,12 @@ pub trait Algorithm {
         false
     }
 
+    /// Seconds spent learning inside `act`/`observe` since the last call (SAC's gradient steps);
+    /// the runner counts them in `time/learn_s` instead of `time/collect_s`.
+    fn take_learn_seconds(&mut self) -> f64 {
+        0.0
+    }
+
     /// The names of the values `update` returns, in order: metrics.csv columns after the env's.
     fn stat_columns(&self) -> Vec<String>;
 

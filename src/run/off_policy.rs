@@ -65,7 +65,7 @@ pub fn make(ctx: &RunContext) -> Result<Box<dyn Algorithm>> {
         if cfg.checkpoint_buffer { "" } else { "; not written into checkpoints (sac.checkpoint_buffer = false): a resume is not exact" }
     ));
     let sac = Sac::new(dims, ctx.num_envs, cfg, &ctx.cfg.policy, ctx.device.clone(), ctx.cfg.seed as u64)?;
-    Ok(Box::new(OffPolicy { sac, steps: ctx.cfg.train.steps_per_env as usize }))
+    Ok(Box::new(OffPolicy { sac, steps: ctx.cfg.train.steps_per_env as usize, learn_seconds: 0.0 }))
 }
 
 /// SAC and the iteration length.
@@ -74,6 +74,8 @@ pub struct OffPolicy {
     pub sac: Sac,
     /// Env steps of every env per iteration (`train.steps_per_env`).
     pub steps: usize,
+    /// Seconds in `observe` (the buffer push and the gradient steps) since the runner last asked.
+    pub learn_seconds: f64,
 }
 
 /// The memory the kernel says is available (`MemAvailable` of /proc/meminfo), in bytes.
@@ -93,6 +95,10 @@ impl Algorithm for OffPolicy {
         self.steps
     }
 
+    fn take_learn_seconds(&mut self) -> f64 {
+        std::mem::take(&mut self.learn_seconds)
+    }
+
     fn stat_columns(&self) -> Vec<String> {
         STAT_COLUMNS.iter().map(|s| s.to_string()).collect()
     }
@@ -106,7 +112,11 @@ impl Algorithm for OffPolicy {
     }
 
     fn observe(&mut self, step: &StepOutcome<'_>) -> Result<()> {
-        self.sac.observe(step.reward, step.terminated, step.time_out, step.obs, step.priv_obs, step.final_obs, step.final_priv_obs)
+        // (the push is part of this time too: it is the learner's bookkeeping)
+        let t0 = std::time::Instant::now();
+        let r = self.sac.observe(step.reward, step.terminated, step.time_out, step.obs, step.priv_obs, step.final_obs, step.final_priv_obs);
+        self.learn_seconds += t0.elapsed().as_secs_f64();
+        r
     }
 
     fn update(&mut self, _obs: &[f32], _priv_obs: &[f32]) -> Result<Vec<f64>> {

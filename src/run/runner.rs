@@ -339,8 +339,11 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
     while iteration < stop_at {
         let t0 = Instant::now();
         let sums = collect(task.as_mut(), algo.as_mut(), &mut obs, &mut priv_obs, &mut eps, steps)?;
-        let collect_s = t0.elapsed().as_secs_f64();
+        let collect_and_learn_s = t0.elapsed().as_secs_f64();
         let upd = algo.update(&obs, &priv_obs)?;
+        // an off-policy learner's gradient steps ran inside the env loop: they count as learning
+        let inner_learn_s = algo.take_learn_seconds().min(collect_and_learn_s);
+        let collect_s = collect_and_learn_s - inner_learn_s;
         let learn_s = t0.elapsed().as_secs_f64() - collect_s;
         iteration += 1;
         env_steps += sums.steps;
