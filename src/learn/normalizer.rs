@@ -90,6 +90,16 @@ impl Normalizer {
 }
 
 impl Normalizer {
+    /// A normalised copy of `x` ([rows, dim]) when `on`, else a plain copy (a learner with
+    /// `policy.obs_normalization = false`).
+    pub fn normalized(&self, x: &[f32], on: bool) -> Vec<f32> {
+        let mut x = x.to_vec();
+        if on {
+            self.apply(&mut x);
+        }
+        x
+    }
+
     /// Saves the statistics as `<prefix>.mean`, `.m2` ([dim] f64), `.count`, `.eps` ([1] f64) into
     /// file `file` of `state`.
     pub fn save(&self, prefix: &str, state: &mut LearnerState, file: &str) {

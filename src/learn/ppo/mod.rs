@@ -395,13 +395,6 @@ impl Ppo {
         Ok(())
     }
 
-    fn normalized(&self, norm: &Normalizer, x: &[f32]) -> Vec<f32> {
-        let mut x = x.to_vec();
-        if self.normalize {
-            norm.apply(&mut x);
-        }
-        x
-    }
 
     /// Deterministic action (the policy mean) for raw observations `obs` [N, O] and `priv_obs`
     /// [N, P] (read only by a privileged encoder); statistics unchanged.
@@ -409,8 +402,8 @@ impl Ppo {
         let d = self.dims();
         let n = obs.len() / d.obs;
         ensure!(obs.len() == n * d.obs && priv_obs.len() == n * d.priv_obs, "observation sizes do not match the learner");
-        let x = to_tensor(self.normalized(&self.obs_norm, obs), [n, d.obs], &self.device);
-        let p = to_tensor(self.normalized(&self.priv_norm, priv_obs), [n, d.priv_obs], &self.device);
+        let x = to_tensor(self.obs_norm.normalized(obs, self.normalize), [n, d.obs], &self.device);
+        let p = to_tensor(self.priv_norm.normalized(priv_obs, self.normalize), [n, d.priv_obs], &self.device);
         to_host(self.net.actor(&self.net.inference_params(), x, p))
     }
 
@@ -425,8 +418,8 @@ impl Ppo {
             self.obs_norm.update(obs);
             self.priv_norm.update(priv_obs);
         }
-        let obs_n = self.normalized(&self.obs_norm, obs);
-        let priv_n = self.normalized(&self.priv_norm, priv_obs);
+        let obs_n = self.obs_norm.normalized(obs, self.normalize);
+        let priv_n = self.priv_norm.normalized(priv_obs, self.normalize);
         let params = self.net.inference_params();
         let mu = to_host(self.net.actor(&params, to_tensor(obs_n.clone(), [n, d.obs], &self.device), to_tensor(priv_n.clone(), [n, d.priv_obs], &self.device)))?; // [N, A]
         let values = to_host(self.net.critic(&params, to_tensor(priv_n.clone(), [n, d.priv_obs], &self.device)))?; // [N, 1]
@@ -491,7 +484,7 @@ impl Ppo {
         ensure!(self.rollout_full(), "update() before the rollout is full ({} of {} steps)", self.step, self.storage.steps);
         let d = self.dims();
         let n = self.storage.envs;
-        let priv_n = self.normalized(&self.priv_norm, last_priv_obs);
+        let priv_n = self.priv_norm.normalized(last_priv_obs, self.normalize);
         let last_values = to_host(self.net.critic(&self.net.inference_params(), to_tensor(priv_n, [n, d.priv_obs], &self.device)))?;
         self.storage.compute_returns(&last_values, self.cfg.gamma, self.cfg.lam);
 

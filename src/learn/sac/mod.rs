@@ -229,13 +229,6 @@ impl Sac {
         Ok(to_host(self.log_alpha.clone().inner())?[0].exp() as f64)
     }
 
-    fn normalized(&self, norm: &Normalizer, x: &[f32]) -> Vec<f32> {
-        let mut x = x.to_vec();
-        if self.normalize {
-            norm.apply(&mut x);
-        }
-        x
-    }
 
     /// (μ [B, A], log σ [B, A]) of the actor with parameters `params` on normalised observations.
     fn policy(&self, params: &[Tensor<2>], obs_n: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
@@ -256,7 +249,7 @@ impl Sac {
         let d = self.dims;
         let n = obs.len() / d.obs.max(1);
         ensure!(obs.len() == n * d.obs, "observation sizes do not match the learner");
-        let x = to_tensor(self.normalized(&self.obs_norm, obs), [n, d.obs], &self.device);
+        let x = to_tensor(self.obs_norm.normalized(obs, self.normalize), [n, d.obs], &self.device);
         let params: Vec<Tensor<2>> = self.actor.iter().map(|p| p.clone().inner()).collect();
         let (mu, _) = self.policy(&params, x);
         to_host(mu.tanh())
@@ -276,7 +269,7 @@ impl Sac {
         let actions: Vec<f32> = if self.env_steps < self.cfg.random_steps as u64 {
             (0..n * d.act).map(|_| (2.0 * self.rng.uniform() - 1.0) as f32).collect()
         } else {
-            let x = to_tensor(self.normalized(&self.obs_norm, obs), [n, d.obs], &self.device);
+            let x = to_tensor(self.obs_norm.normalized(obs, self.normalize), [n, d.obs], &self.device);
             let params: Vec<Tensor<2>> = self.actor.iter().map(|p| p.clone().inner()).collect();
             let (mu, log_std) = self.policy(&params, x);
             let (mu, log_std) = (to_host(mu)?, to_host(log_std)?);
@@ -351,10 +344,10 @@ impl Sac {
         let b = self.cfg.batch_size as usize;
         let s = self.buffer.sample(b, self.cfg.n_step as usize, self.cfg.gamma, &mut self.rng)?;
         let dev = self.device.clone();
-        let obs = to_tensor(self.normalized(&self.obs_norm, &self.actor_rows(&s, false)), [b, d.obs], &dev);
-        let next_obs = to_tensor(self.normalized(&self.obs_norm, &self.actor_rows(&s, true)), [b, d.obs], &dev);
-        let priv_obs = to_tensor(self.normalized(&self.priv_norm, &s.priv_obs), [b, d.priv_obs], &dev);
-        let next_priv = to_tensor(self.normalized(&self.priv_norm, &s.next_priv_obs), [b, d.priv_obs], &dev);
+        let obs = to_tensor(self.obs_norm.normalized(&self.actor_rows(&s, false), self.normalize), [b, d.obs], &dev);
+        let next_obs = to_tensor(self.obs_norm.normalized(&self.actor_rows(&s, true), self.normalize), [b, d.obs], &dev);
+        let priv_obs = to_tensor(self.priv_norm.normalized(&s.priv_obs, self.normalize), [b, d.priv_obs], &dev);
+        let next_priv = to_tensor(self.priv_norm.normalized(&s.next_priv_obs, self.normalize), [b, d.priv_obs], &dev);
         let actions = to_tensor(s.actions.clone(), [b, d.act], &dev);
         let returns = to_tensor(s.returns.clone(), [b, 1], &dev).inner();
         let bootstrap = to_tensor(s.bootstrap.clone(), [b, 1], &dev).inner();
