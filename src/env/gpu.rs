@@ -162,11 +162,19 @@ impl GpuContext {
             })?,
         };
         let info = chosen.get_info();
-        // as burn/cubecl expect, so the learner can later share this device
+        // as burn/cubecl open their own devices (cubecl-wgpu's `try_request_device`), so the learner
+        // can later share this device: every adapter feature but mappable primary buffers, with
+        // wgpu's experimental features allowed. A hardware adapter lists experimental ones (an
+        // H100's Vulkan driver: mesh shaders, cooperative matrices, ray-tracing pipelines), and
+        // asking for them without the opt-in fails the device request; cubecl uses the cooperative
+        // matrices for its matmuls. Our shaders use none of them.
         let desc = wgpu::DeviceDescriptor {
             label: Some("dextrain"),
             required_features: chosen.features().difference(wgpu::Features::MAPPABLE_PRIMARY_BUFFERS),
             required_limits: limits(chosen.limits()),
+            // SAFETY: the opt-in that cubecl-wgpu also gives; what it guards (experimental shader
+            // stages and passthrough shaders) is used only by burn's kernels, as on a device of its own
+            experimental_features: unsafe { wgpu::ExperimentalFeatures::enabled() },
             ..Default::default()
         };
         let (device, queue) = pollster::block_on(chosen.request_device(&desc))

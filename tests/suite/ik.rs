@@ -494,6 +494,7 @@ fn run_ik_kernel(ctx: &GpuContext, sm: &SimModel, kernel: &str, cases: &[IkCase]
 #[test]
 fn cpu_and_gpu_solve_the_same_joints() {
     let Some(ctx) = gpu_context("cpu_and_gpu_solve_the_same_joints") else { return };
+    let slack = parity_slack(&ctx);
     for urdf in HANDS {
         let sm = model_for(urdf);
         let m = sm.view();
@@ -530,7 +531,7 @@ fn cpu_and_gpu_solve_the_same_joints() {
             if d > worst_q {
                 (worst_q, worst_at) = (d, i);
             }
-            within += (d < 1e-5) as usize;
+            within += (d < 1e-5 * slack) as usize;
             // the active fingertips (an inactive one may sit on a shared joint that moved along
             // the active tips' null space)
             for k in (0..m.g.n_tips as usize).filter(|k| (c.mask >> k) & 1 != 0) {
@@ -546,9 +547,10 @@ fn cpu_and_gpu_solve_the_same_joints() {
         // the threshold (IkParams::tol), where a whole one could move a joint by IK_TOL / (2 λ_min) =
         // 1e-7 / (2 · 0.02 · 0.05) = 5e-5 rad along a direction the tips barely see; the bounds
         // below allow such a step.
-        assert!(within * 100 >= 95 * cases.len(), "{urdf}: only {within}/{} solves agree to 1e-5 rad", cases.len());
-        assert!(worst_q < 1e-4, "{urdf}: joints differ by {worst_q:e} rad (case {worst_at})");
-        assert!(worst_tip < 1e-5, "{urdf}: active fingertips differ by {worst_tip:e} m");
+        // (× parity_slack on a hardware GPU)
+        assert!(within * 100 >= 95 * cases.len(), "{urdf}: only {within}/{} solves agree to {:e} rad", cases.len(), 1e-5 * slack);
+        assert!(worst_q < 1e-4 * slack, "{urdf}: joints differ by {worst_q:e} rad (case {worst_at})");
+        assert!(worst_tip < 1e-5 * slack, "{urdf}: active fingertips differ by {worst_tip:e} m");
     }
 }
 
@@ -608,6 +610,7 @@ fn solve_leaves_room_in_lavapipes_loop_budget() {
 #[test]
 fn straight_and_near_straight_fingers_solve_alike_on_cpu_and_gpu() {
     let Some(ctx) = gpu_context("straight_and_near_straight_fingers_solve_alike_on_cpu_and_gpu") else { return };
+    let slack = parity_slack(&ctx);
     let sm = model_for("dexhand16.urdf");
     let m = sm.view();
     let prm = IkParams::default();
@@ -658,6 +661,7 @@ fn straight_and_near_straight_fingers_solve_alike_on_cpu_and_gpu() {
     // A target out of reach (a residual of millimetres after every iteration) leaves the solve
     // where the tips barely tell the joints apart, so f32 rounding (different sin/cos on the GPU)
     // moves them more there: measured, 1 solve in ~1,500 beyond 1e-5 rad, at most 2e-5.
-    assert!(count(1e-5) * 200 <= ds.len(), "{} of {} solves differ by more than 1e-5 rad", count(1e-5), ds.len());
-    assert!(worst < 3e-5, "cpu and gpu joints differ by {worst:e} rad (case {worst_at}, {kind})");
+    // (× parity_slack on a hardware GPU)
+    assert!(count(1e-5 * slack) * 200 <= ds.len(), "{} of {} solves differ by more than {:e} rad", count(1e-5 * slack), ds.len(), 1e-5 * slack);
+    assert!(worst < 3e-5 * slack, "cpu and gpu joints differ by {worst:e} rad (case {worst_at}, {kind})");
 }

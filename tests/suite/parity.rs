@@ -73,6 +73,7 @@ fn grasp_targets(b: &dextrain::env::cpu::CpuEnvBatch) -> Targets {
 #[test]
 fn reset_draws_the_same_parameters_on_both_backends() {
     let Some(ctx) = gpu_context("reset_draws_the_same_parameters_on_both_backends") else { return };
+    let slack = parity_slack(&ctx);
     let mut c = base_config(64);
     c.randomization = dextrain::config::Config::load(std::path::Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/dexrefine_dr.toml")))
         .expect("shipped DR config")
@@ -91,7 +92,7 @@ fn reset_draws_the_same_parameters_on_both_backends() {
     assert!(pc.iter().any(|p| (p.obj_inertia[3] - pc[0].obj_inertia[3]).abs() > 1e-4));
     let (sc, sg) = (snap(&mut cpu), snap(&mut gpu));
     let (d, at) = max_rel_diff(&sc, &sg, 1e-3);
-    assert!(d < 1e-5, "initial states differ: {d:e}: {at}");
+    assert!(d < 1e-5 * slack, "initial states differ: {d:e}: {at}");
     // a masked reset starts the next episode of those envs only
     let mask: Vec<bool> = (0..64).map(|i| i % 3 == 0).collect();
     cpu.reset(&mask).unwrap();
@@ -101,7 +102,7 @@ fn reset_draws_the_same_parameters_on_both_backends() {
         assert_eq!(sc.states[i].episode, if i % 3 == 0 { 1 } else { 0 });
     }
     let (d, at) = max_rel_diff(&sc, &sg, 1e-3);
-    assert!(d < 1e-5, "states after a masked reset differ: {d:e}: {at}");
+    assert!(d < 1e-5 * slack, "states after a masked reset differ: {d:e}: {at}");
 }
 
 #[test]
@@ -224,6 +225,7 @@ fn contact_rich_step_agrees(c: dextrain::config::Config, ctx: dextrain::env::gpu
 #[test]
 fn contact_free_rollout_of_100_steps_agrees_to_1e_4() {
     let Some(ctx) = gpu_context("contact_free_rollout_of_100_steps_agrees_to_1e_4") else { return };
+    let slack = parity_slack(&ctx);
     let mut c = base_config(8);
     c.object.init_xy = [0.6, 0.0];
     c.wrist.init_pos = [0.0, 0.0, 0.6];
@@ -258,7 +260,7 @@ fn contact_free_rollout_of_100_steps_agrees_to_1e_4() {
     }
     assert_eq!(cpu.stats().unwrap().iter().map(|s| s.contacts).sum::<u32>(), 0, "rollout should be contact free");
     let (d, at) = max_rel_diff(&snap(&mut cpu), &snap(&mut gpu), 1e-2);
-    assert!(d < 1e-4, "100-step rollout differs by {d:e} (relative): {at}");
+    assert!(d < 1e-4 * slack, "100-step rollout differs by {d:e} (relative): {at}");
 }
 
 #[test]

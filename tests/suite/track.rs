@@ -319,6 +319,7 @@ fn cpu_and_gpu_agree_on_every_reference_kind() {
         let model = SimModel::from_config(&c).unwrap();
         let mut cpu = CpuTaskBatch::new(&c, model.clone()).unwrap();
         let ctx = gpu_context(kind).unwrap();
+        let slack = parity_slack(&ctx);
         let mut gpu = GpuTaskBatch::new(&c, ctx, model).unwrap();
         let spec = cpu.spec().clone();
         let a0 = cpu.reset_all().unwrap().clone();
@@ -331,7 +332,8 @@ fn cpu_and_gpu_agree_on_every_reference_kind() {
         // and deterministic there (tests/ik.rs sweeps it on both backends); its tolerances here are
         // about 3× what was measured; the other runs keep the tight ones.
         let ik = name == "residual_task";
-        let (tol, q_tol) = if ik { (1e-2, 1e-4) } else { (2e-4, 1e-5) };
+        // (the tight ones × parity_slack on a hardware GPU; the IK run's hold there as measured)
+        let (tol, q_tol) = if ik { (1e-2, 1e-4) } else { (2e-4 * slack, 1e-5 * slack) };
         let close = |x: &[f32], y: &[f32], floor: f32, what: &str, step: usize| {
             for (i, (u, v)) in x.iter().zip(y).enumerate() {
                 let d = (u - v).abs() / u.abs().max(v.abs()).max(floor);
