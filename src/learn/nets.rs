@@ -48,12 +48,45 @@ pub fn init_mlp(shapes: &[[usize; 2]], rng: &mut Rng) -> Vec<Vec<f32>> {
     out
 }
 
+/// Rows per slice that [`row_split`] aims at.
+const SPLIT_ROWS: usize = 2048;
+/// The most slices [`row_split`] makes.
+const MAX_SPLIT: usize = 32;
+
+/// In how many slices [`affine`] multiplies a batch of `rows` on `device`: 1 on the CPU (burn
+/// flex's gemm splits the work itself); on a GPU (a cubecl device) the largest S ≤ 32 that divides
+/// `rows` with at least 2,048 rows per slice. cubecl's matmul tiles the output: a weight gradient
+/// `xᵀ g` ([in, out], summed over all B rows) is a handful of tiles with a B-long loop each — a
+/// [96, 512] gradient over 24,576 rows kept 16 tiles busy on an H100's 132 SMs (matmul: 3.2 of
+/// 4.8 GPU-seconds of the PPO bench, BENCHMARKS.md). S slices turn it into S× the tiles with a
+/// B/S loop, summed after.
+pub fn row_split(device: &Device, rows: usize) -> usize {
+    if device.identity().is_none() {
+        return 1;
+    }
+    (1..=MAX_SPLIT.min(rows / SPLIT_ROWS).max(1)).rev().find(|s| rows % s == 0).unwrap_or(1)
+}
+
+/// `x W` [B, out] for x [B, in] and W [in, out], as S products of B/S rows against the same W
+/// (`[S, B/S, in] · [1, in, out]`, [`row_split`]): the same sums in another order; burn's
+/// autodiff sums the S slices of the weight gradient over the broadcast axis.
+pub fn matmul_rows(x: Tensor<2>, w: Tensor<2>, split: usize) -> Tensor<2> {
+    if split <= 1 {
+        return x.matmul(w);
+    }
+    let [b, i] = x.dims();
+    let o = w.dims()[1];
+    let y = x.reshape([split, b / split, i]).matmul(w.unsqueeze_dim::<3>(0)); // [S, B/S, out]
+    y.reshape([b, o])
+}
+
 /// `h = act(h W + b)` for every layer but the last: x [B, in] → [B, out].
 pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tensor<2> {
     let layers = params.len() / 2;
+    let split = row_split(&x.device(), x.dims()[0]);
     let mut h = x;
     for l in 0..layers {
-        h = h.matmul(params[2 * l].clone()) + params[2 * l + 1].clone(); // [B, out] + [1, out]
+        h = matmul_rows(h, params[2 * l].clone(), split) + params[2 * l + 1].clone(); // [B, out] + [1, out]
         if l + 1 < layers {
             h = act.apply(h);
         }
@@ -144,10 +177,11 @@ impl MlpLayout {
     /// x [B, input] → [B, output]: `h = act(LN(h W + b))` per hidden layer, then `h W + b`.
     pub fn forward(&self, params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tensor<2> {
         let k = self.per_hidden();
+        let split = row_split(&x.device(), x.dims()[0]);
         let mut h = x;
         for l in 0..self.hidden.len() {
             let p = &params[l * k..(l + 1) * k];
-            h = h.matmul(p[0].clone()) + p[1].clone(); // [B, out] + [1, out]
+            h = matmul_rows(h, p[0].clone(), split) + p[1].clone(); // [B, out] + [1, out]
             if self.layer_norm {
                 let mean = h.clone().mean_dim(1); // [B, 1]
                 let c = h - mean;
@@ -157,6 +191,6 @@ impl MlpLayout {
             h = act.apply(h);
         }
         let o = self.hidden.len() * k;
-        h.matmul(params[o].clone()) + params[o + 1].clone()
+        matmul_rows(h, params[o].clone(), split) + params[o + 1].clone()
     }
 }

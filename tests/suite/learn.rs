@@ -248,7 +248,7 @@ fn pass_through_student(adapt: dextrain::export::onnx::Adaptation, step_dim: usi
         hist_norm: Normalization { mean: vec![0.0; step_dim], denom: vec![1.0; step_dim] },
         adapt,
         head: Dense { weight: eye, bias: vec![0.0; f], inputs: f, outputs: f },
-        actor: Mlp { layers: vec![Dense { weight: actor_w, bias: vec![0.0; f], inputs: 1 + f, outputs: f }], activation: Activation::Elu },
+        actor: Mlp::plain(vec![Dense { weight: actor_w, bias: vec![0.0; f], inputs: 1 + f, outputs: f }], Activation::Elu),
         history_len: steps,
     }
 }
@@ -290,6 +290,40 @@ fn the_wgpu_learner_matches_the_cpu_learner() {
     // the update did change the parameters
     let fresh = Ppo::new(dims, n, steps, &cfg, &pol, &[], cpu(), 5).unwrap().net.values().unwrap();
     assert!(fresh.iter().flatten().zip(p_cpu.iter().flatten()).any(|(a, b)| a != b));
+}
+
+/// The row-split product (`nets::matmul_rows`, the GPU's layers at large batches): on the wgpu
+/// device a batch of 4,096 rows is split (2 slices of 2,048), and the product and the weight
+/// gradient (summed over the slices by autodiff) equal the plain product's to float rounding;
+/// on the CPU nothing is split.
+#[test]
+fn split_rows_give_the_plain_product_and_weight_gradient() {
+    use dextrain::learn::nets::{matmul_rows, row_split};
+    assert_eq!(row_split(&cpu(), 65536), 1);
+    let Some((_ctx, gpu)) = crate::common::wgpu_learner("split_rows_give_the_plain_product_and_weight_gradient") else { return };
+    let (b, i, o) = (4096, 7, 5);
+    let split = row_split(&gpu, b);
+    assert_eq!(split, 2, "4,096 rows on a GPU: 2 slices of 2,048");
+    assert_eq!(row_split(&gpu, 24576), 12);
+    assert_eq!(row_split(&gpu, 1000), 1);
+    let mut rng = Rng::new(3, 4);
+    let x: Vec<f32> = (0..b * i).map(|_| rng.normal() as f32).collect();
+    let w: Vec<f32> = (0..i * o).map(|_| rng.normal() as f32).collect();
+    let g: Vec<f32> = (0..b * o).map(|_| rng.normal() as f32).collect();
+    let run = |split: usize| {
+        let wt = to_tensor(w.clone(), [i, o], &gpu).require_grad();
+        let y = matmul_rows(to_tensor(x.clone(), [b, i], &gpu), wt.clone(), split);
+        let loss = (y.clone() * to_tensor(g.clone(), [b, o], &gpu)).sum(); // ∂loss/∂W = xᵀ g
+        let grads = loss.backward();
+        (to_host(y.inner()).unwrap(), to_host(wt.grad(&grads).unwrap()).unwrap())
+    };
+    let (y1, g1) = run(1);
+    let (ys, gs) = run(split);
+    let worst = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(u, v)| (u - v).abs() / u.abs().max(1.0)).fold(0.0f32, f32::max);
+    assert!(worst(&y1, &ys) < 1e-5, "products differ by {}", worst(&y1, &ys));
+    // the gradient sums 4,096 products: ~√4096 · 1 in size, rounding ~1e-5 of it
+    assert!(worst(&g1, &gs) < 1e-4, "weight gradients differ by {}", worst(&g1, &gs));
+    assert!(g1.iter().any(|v| v.abs() > 1.0), "a real gradient");
 }
 
 /// `policy.zero_init_output`: the initial policy mean is exactly 0 for any observation (a residual
