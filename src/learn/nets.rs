@@ -80,13 +80,25 @@ pub fn matmul_rows(x: Tensor<2>, w: Tensor<2>, split: usize) -> Tensor<2> {
     y.reshape([b, o])
 }
 
+/// `x W + b` [B, out] for x [B, in], W [in, out], b [1, out], in `split` row slices
+/// ([`matmul_rows`]). Split, the bias enters as a product too, `1 b` ([B, 1] · [1, out]): its
+/// gradient `1ᵀ g` is then a split product and a sum over S, where the broadcast add's gradient
+/// is a sum over the B rows of [B, out], which cubecl runs as a reduction per output column.
+pub fn affine(x: Tensor<2>, w: Tensor<2>, b: Tensor<2>, split: usize) -> Tensor<2> {
+    if split <= 1 {
+        return x.matmul(w) + b; // [B, out] + [1, out]
+    }
+    let ones = Tensor::<2>::ones([x.dims()[0], 1], &x.device()); // [B, 1]
+    matmul_rows(x, w, split) + matmul_rows(ones, b, split)
+}
+
 /// `h = act(h W + b)` for every layer but the last: x [B, in] → [B, out].
 pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tensor<2> {
     let layers = params.len() / 2;
     let split = row_split(&x.device(), x.dims()[0]);
     let mut h = x;
     for l in 0..layers {
-        h = matmul_rows(h, params[2 * l].clone(), split) + params[2 * l + 1].clone(); // [B, out] + [1, out]
+        h = affine(h, params[2 * l].clone(), params[2 * l + 1].clone(), split); // [B, out]
         if l + 1 < layers {
             h = act.apply(h);
         }
@@ -181,7 +193,7 @@ impl MlpLayout {
         let mut h = x;
         for l in 0..self.hidden.len() {
             let p = &params[l * k..(l + 1) * k];
-            h = matmul_rows(h, p[0].clone(), split) + p[1].clone(); // [B, out] + [1, out]
+            h = affine(h, p[0].clone(), p[1].clone(), split); // [B, out]
             if self.layer_norm {
                 let mean = h.clone().mean_dim(1); // [B, 1]
                 let c = h - mean;
@@ -191,6 +203,6 @@ impl MlpLayout {
             h = act.apply(h);
         }
         let o = self.hidden.len() * k;
-        matmul_rows(h, params[o].clone(), split) + params[o + 1].clone()
+        affine(h, params[o].clone(), params[o + 1].clone(), split)
     }
 }

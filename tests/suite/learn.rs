@@ -292,13 +292,13 @@ fn the_wgpu_learner_matches_the_cpu_learner() {
     assert!(fresh.iter().flatten().zip(p_cpu.iter().flatten()).any(|(a, b)| a != b));
 }
 
-/// The row-split product (`nets::matmul_rows`, the GPU's layers at large batches): on the wgpu
-/// device a batch of 4,096 rows is split (2 slices of 2,048), and the product and the weight
-/// gradient (summed over the slices by autodiff) equal the plain product's to float rounding;
-/// on the CPU nothing is split.
+/// The row-split layer (`nets::affine`, the GPU's layers at large batches): on the wgpu device a
+/// batch of 4,096 rows is split (2 slices of 2,048), and `x W + b` and the gradients of W and b
+/// (summed over the slices by autodiff; b's through its `1 b` product) equal the plain layer's to
+/// float rounding; on the CPU nothing is split.
 #[test]
 fn split_rows_give_the_plain_product_and_weight_gradient() {
-    use dextrain::learn::nets::{matmul_rows, row_split};
+    use dextrain::learn::nets::{affine, row_split};
     assert_eq!(row_split(&cpu(), 65536), 1);
     let Some((_ctx, gpu)) = crate::common::wgpu_learner("split_rows_give_the_plain_product_and_weight_gradient") else { return };
     let (b, i, o) = (4096, 7, 5);
@@ -310,19 +310,21 @@ fn split_rows_give_the_plain_product_and_weight_gradient() {
     let x: Vec<f32> = (0..b * i).map(|_| rng.normal() as f32).collect();
     let w: Vec<f32> = (0..i * o).map(|_| rng.normal() as f32).collect();
     let g: Vec<f32> = (0..b * o).map(|_| rng.normal() as f32).collect();
+    let bias: Vec<f32> = (0..o).map(|_| rng.normal() as f32).collect();
     let run = |split: usize| {
         let wt = to_tensor(w.clone(), [i, o], &gpu).require_grad();
-        let y = matmul_rows(to_tensor(x.clone(), [b, i], &gpu), wt.clone(), split);
-        let loss = (y.clone() * to_tensor(g.clone(), [b, o], &gpu)).sum(); // ∂loss/∂W = xᵀ g
+        let bt = to_tensor(bias.clone(), [1, o], &gpu).require_grad();
+        let y = affine(to_tensor(x.clone(), [b, i], &gpu), wt.clone(), bt.clone(), split);
+        let loss = (y.clone() * to_tensor(g.clone(), [b, o], &gpu)).sum(); // ∂loss/∂W = xᵀ g, ∂loss/∂b = 1ᵀ g
         let grads = loss.backward();
-        (to_host(y.inner()).unwrap(), to_host(wt.grad(&grads).unwrap()).unwrap())
+        (to_host(y.inner()).unwrap(), [to_host(wt.grad(&grads).unwrap()).unwrap(), to_host(bt.grad(&grads).unwrap()).unwrap()].concat())
     };
     let (y1, g1) = run(1);
     let (ys, gs) = run(split);
     let worst = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(u, v)| (u - v).abs() / u.abs().max(1.0)).fold(0.0f32, f32::max);
     assert!(worst(&y1, &ys) < 1e-5, "products differ by {}", worst(&y1, &ys));
     // the gradient sums 4,096 products: ~√4096 · 1 in size, rounding ~1e-5 of it
-    assert!(worst(&g1, &gs) < 1e-4, "weight gradients differ by {}", worst(&g1, &gs));
+    assert!(worst(&g1, &gs) < 1e-4, "weight and bias gradients differ by {}", worst(&g1, &gs));
     assert!(g1.iter().any(|v| v.abs() > 1.0), "a real gradient");
 }
 
