@@ -696,13 +696,7 @@ fn load_actor(c: &Config, ckpt: &std::path::Path, spec: &crate::task::TaskSpec, 
     };
     if run_cfg.train.algorithm == crate::config::AlgorithmChoice::Sac {
         anyhow::ensure!(driver == Driver::Policy, "{}: a SAC run cannot be a distillation teacher yet (the teacher must be a PPO run)", ckpt.display());
-        // the actor alone matters here: a replay buffer of the smallest size
-        let sac_cfg = crate::config::SacConfig { buffer_capacity: run_cfg.sac.n_step.max(2), ..run_cfg.sac.clone() };
-        let mut sac = crate::learn::sac::Sac::new(dims, n, &sac_cfg, &run_cfg.policy, device, c.seed as u64)?;
-        let model = ckpt.join("model.safetensors");
-        let state = checkpoint::read_learner_file(&model, crate::learn::sac::MODEL_FILE)?;
-        sac.load_policy(&state).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
-        return Ok(Actor::Sac(Box::new(sac)));
+        return Ok(Actor::Sac(Box::new(crate::learn::sac::Sac::from_checkpoint(dims, n, &run_cfg, &ckpt, device)?)));
     }
     let encoder_index = crate::learn::ppo::encoder_index(&run_cfg.policy, spec)?;
     let mut ppo = Ppo::new(dims, n, 1, &run_cfg.ppo, &run_cfg.policy, &encoder_index, device, c.seed as u64)?;

@@ -14,13 +14,15 @@ use anyhow::{Context, Result, bail, ensure};
 use serde::Serialize;
 
 use super::contract::{self, CONTRACT_FILE, ContractSource, PolicyContract, Source, TensorIo};
-use super::onnx::{self, Dense, Mlp, Normalization, PolicyNet};
+use super::onnx::{self, Dense, LayerNorm, Mlp, Normalization, PolicyNet};
 use crate::checkpoint;
 use crate::config::Config;
 use crate::env::SimModel;
 use crate::learn::normalizer::Normalizer;
 use crate::learn::distill::{Adaptation, StudentPolicy};
+use crate::learn::nets::to_host;
 use crate::learn::ppo::{Dims, Ppo};
+use crate::learn::sac::Sac;
 use crate::run_dir;
 use crate::task::{make_task_batch, task_setup};
 
@@ -82,13 +84,29 @@ fn dense(values: &[Vec<f32>], shapes: &[[usize; 2]]) -> Dense {
 /// An MLP's layers from flat parameters `[w0, b0, w1, b1, …]` with shapes `[in, out]`, `[1, out]`.
 fn mlp(values: &[Vec<f32>], shapes: &[[usize; 2]], activation: crate::config::Activation) -> Mlp {
     let layers = values.chunks(2).zip(shapes.chunks(2)).map(|(v, s)| dense(v, s)).collect();
-    Mlp { layers, activation }
+    Mlp::plain(layers, activation)
+}
+
+/// The burn policy `--verify` compares the ONNX model with.
+enum BurnPolicy {
+    Ppo(Box<Ppo>),
+    Sac(Box<Sac>),
+}
+
+impl BurnPolicy {
+    /// The deterministic actions [N, A] for raw observations (and critic observations).
+    fn act_mean(&self, obs: &[f32], priv_obs: &[f32]) -> Result<Vec<f32>> {
+        match self {
+            BurnPolicy::Ppo(p) => p.act_mean(obs, priv_obs),
+            BurnPolicy::Sac(s) => s.act_mean(obs),
+        }
+    }
 }
 
 /// A run's policy as the exporter sees it: the network description and the burn policy.
 struct Loaded {
     net: PolicyNet,
-    ppo: Ppo,
+    policy: BurnPolicy,
 }
 
 /// Loads a PPO policy (with or without a privileged encoder) of `cfg`'s shape from a checkpoint.
@@ -108,7 +126,38 @@ fn load(cfg: &Config, ckpt: &Path, dims: Dims, encoder_index: &[usize]) -> Resul
         let encoder = mlp(&values[start..], &ppo.net.encoder_shapes, ppo.net.encoder_activation);
         PolicyNet::Encoder { obs_norm, priv_norm: normalization(&ppo.priv_norm, ppo.normalize), priv_index: encoder_index.to_vec(), encoder, actor }
     };
-    Ok(Loaded { net, ppo })
+    Ok(Loaded { net, policy: BurnPolicy::Ppo(Box::new(ppo)) })
+}
+
+/// Loads a SAC run's actor: its deterministic action `tanh(μ(ŝ))`, the first `A` of the actor's
+/// `2A` outputs (the rest are log σ, which the deterministic action does not use), with the
+/// actor's LayerNorms when `sac.actor_layer_norm` is on.
+fn load_sac(cfg: &Config, ckpt: &Path, dims: Dims) -> Result<Loaded> {
+    // the learner's parameters are autodiff leaves: an autodiff device
+    let sac = Sac::from_checkpoint(dims, 1, cfg, ckpt, burn::prelude::Device::flex().autodiff())?;
+    let values = sac.actor.iter().map(|p| to_host(p.clone().inner())).collect::<Result<Vec<Vec<f32>>>>()?;
+    let shapes = sac.actor_layout.shapes();
+    let per_hidden = if sac.actor_layout.layer_norm { 4 } else { 2 };
+    let hidden = sac.actor_layout.hidden.len();
+    let mut layers = Vec::new();
+    let mut layer_norms = Vec::new();
+    for l in 0..hidden {
+        let k = l * per_hidden;
+        layers.push(dense(&values[k..], &shapes[k..]));
+        if sac.actor_layout.layer_norm {
+            layer_norms.push(LayerNorm { gain: values[k + 2].clone(), shift: values[k + 3].clone() });
+        }
+    }
+    // the output layer [h, 2A]: μ's columns 0..A of every row
+    let k = hidden * per_hidden;
+    let [h, two_a] = shapes[k];
+    let a = dims.act;
+    ensure!(two_a == 2 * a, "{}: the SAC actor has {two_a} outputs; expected {} (μ and log σ for {a} actions)", ckpt.display(), 2 * a);
+    let weight = values[k].chunks(two_a).flat_map(|row| row[..a].iter().copied()).collect();
+    layers.push(Dense { weight, bias: values[k + 1][..a].to_vec(), inputs: h, outputs: a });
+    let actor = Mlp { layers, activation: sac.activation, layer_norms, tanh_output: true };
+    let net = PolicyNet::Mlp { obs_norm: normalization(&sac.obs_norm, sac.normalize), actor };
+    Ok(Loaded { net, policy: BurnPolicy::Sac(Box::new(sac)) })
 }
 
 /// XXH64 (hex) of a checkpoint's manifest.
@@ -140,14 +189,17 @@ pub fn run(args: &ExportArgs) -> Result<ExportReport> {
         spec.priv_dim,
         spec.action_dim
     );
-    if cfg.train.algorithm == crate::config::AlgorithmChoice::Sac {
-        anyhow::bail!("{}: train.algorithm = \"sac\": exporting a SAC policy is not supported yet (its actor's tanh is not in the ONNX writer); export a PPO run or a distilled student", cfg_path.display());
-    }
     if cfg.train.algorithm == crate::config::AlgorithmChoice::Distill {
         return export_student(args, &cfg, &cfg_path, &ckpt, state.iteration, &model, &setup);
     }
-    let encoder_index = crate::learn::ppo::encoder_index(&cfg.policy, spec).with_context(|| cfg_path.display().to_string())?;
-    let loaded = load(&cfg, &ckpt, Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim }, &encoder_index)?;
+    let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
+    let is_sac = cfg.train.algorithm == crate::config::AlgorithmChoice::Sac;
+    let (loaded, encoder_index) = if is_sac {
+        (load_sac(&cfg, &ckpt, dims)?, Vec::new())
+    } else {
+        let encoder_index = crate::learn::ppo::encoder_index(&cfg.policy, spec).with_context(|| cfg_path.display().to_string())?;
+        (load(&cfg, &ckpt, dims, &encoder_index)?, encoder_index)
+    };
     let has_encoder = !encoder_index.is_empty();
     let io = |name: &str, dims: Vec<serde_json::Value>, description: &str| TensorIo { name: name.into(), shape: dims, description: description.into() };
     let batch = serde_json::Value::from("batch");
@@ -155,7 +207,11 @@ pub fn run(args: &ExportArgs) -> Result<ExportReport> {
     if has_encoder {
         inputs.push(io("priv_obs", vec![batch.clone(), spec.priv_dim.into()], "the privileged (critic) observation, raw values in `privileged`'s layout: simulator state a robot does not have; the encoder reads the entries of policy.encoder.inputs"));
     }
-    let output = io("actions", vec![batch, spec.action_dim.into()], "the policy's mean action, before clipping and the action mapping");
+    let output = if is_sac {
+        io("actions", vec![batch, spec.action_dim.into()], "the policy's deterministic action tanh(μ) (the squashed Gaussian's mean squashed), in (−1, 1), before the action mapping")
+    } else {
+        io("actions", vec![batch, spec.action_dim.into()], "the policy's mean action, before clipping and the action mapping")
+    };
     let metadata = metadata(spec, &model, args, state.iteration);
     let bytes = onnx::to_onnx(&loaded.net, &metadata)?;
     let src = ContractSource {
@@ -163,7 +219,7 @@ pub fn run(args: &ExportArgs) -> Result<ExportReport> {
             run: std::fs::canonicalize(&args.run).unwrap_or_else(|_| args.run.clone()).display().to_string(),
             checkpoint: state.iteration,
             checkpoint_xxh64: manifest_hash(&ckpt)?,
-            algorithm: "ppo".into(),
+            algorithm: if is_sac { "sac" } else { "ppo" }.into(),
             teacher: None,
         },
         model_file: ONNX_FILE,
@@ -264,7 +320,7 @@ fn verify(cfg: &Config, loaded: &Loaded, bytes: &[u8]) -> Result<(usize, f64)> {
     let mut priv_rows: Vec<f32> = Vec::new();
     let mut burn: Vec<f32> = Vec::new();
     for _ in 0..spec.episode_length {
-        let a = loaded.ppo.act_mean(&obs, &priv_obs)?;
+        let a = loaded.policy.act_mean(&obs, &priv_obs)?;
         rows.extend_from_slice(&obs);
         priv_rows.extend_from_slice(&priv_obs);
         burn.extend_from_slice(&a);

@@ -65,7 +65,7 @@ pub struct Source {
     pub checkpoint: u64,
     /// XXH64 (hex) of the checkpoint's `manifest.json`, which holds the hash of every file of it.
     pub checkpoint_xxh64: String,
-    /// The learning algorithm ("ppo", "distill").
+    /// The learning algorithm ("ppo", "sac", "distill").
     pub algorithm: String,
     /// A student's teacher: its run, checkpoint iteration and manifest hash.
     pub teacher: Option<TeacherRef>,
@@ -606,9 +606,14 @@ pub fn build(cfg: &Config, spec: &TaskSpec, tc: &TaskGlobals, model: &SimModel, 
         opset: 17,
         inputs: src.inputs,
         output: src.output,
-        notes: "inputs are raw values as described here: the observation normalisation is inside the model; the output is the policy's mean action \
-                before clipping and mapping"
-            .into(),
+        notes: if src.source.algorithm == "sac" {
+            "inputs are raw values as described here: the observation normalisation is inside the model; the output is the SAC actor's deterministic \
+             action tanh(μ), in (−1, 1), before clipping and mapping"
+        } else {
+            "inputs are raw values as described here: the observation normalisation is inside the model; the output is the policy's mean action \
+             before clipping and mapping"
+        }
+        .into(),
     };
     let units = spec
         .action_names

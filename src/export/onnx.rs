@@ -9,7 +9,8 @@
 //! a robot feeds raw observations.
 //!
 //! Graph of each kind (B = batch):
-//! - `Mlp`: obs [B, O] → Sub μ → Div d → (Gemm → act)* → Gemm → actions [B, A];
+//! - `Mlp`: obs [B, O] → Sub μ → Div d → (Gemm → [LayerNormalization] → act)* → Gemm → [Tanh] →
+//!   actions [B, A] (LayerNorm and the final Tanh for a SAC actor: its deterministic action tanh(μ));
 //! - `Encoder`: also priv_obs [B, P] → Sub → Div → Gather(axis 1, the encoder's inputs) → encoder
 //!   MLP → z [B, L]; Concat(x̂, z) → actor;
 //! - `Student`: history [B, H, D] → Sub → Div (per component) → φ → Gemm (head) → z; Concat(x̂, z)
@@ -45,12 +46,36 @@ pub struct Dense {
     pub outputs: usize,
 }
 
-/// An MLP: the activation between layers, none after the last.
+/// An MLP: the activation between layers, none after the last (or tanh with `tanh_output`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Mlp {
     pub layers: Vec<Dense>,
     pub activation: Activation,
+    /// LayerNorm after each hidden layer's affine map, before its activation (a SAC actor with
+    /// `sac.actor_layer_norm`): empty, or one per hidden layer.
+    pub layer_norms: Vec<LayerNorm>,
+    /// tanh after the last layer: a SAC actor's deterministic action `tanh(μ)` (the squashed
+    /// Gaussian's mean squashed).
+    pub tanh_output: bool,
 }
+
+impl Mlp {
+    /// Layers with `activation` between them, no LayerNorm, nothing after the last.
+    pub fn plain(layers: Vec<Dense>, activation: Activation) -> Mlp {
+        Mlp { layers, activation, layer_norms: Vec::new(), tanh_output: false }
+    }
+}
+
+/// LayerNorm over the features: `y = (x − mean(x)) / √(var(x) + ε) · gain + shift` (biased
+/// variance, ε = [`LAYER_NORM_EPS`], torch's and ONNX's `LayerNormalization` default).
+#[derive(Clone, Debug, PartialEq)]
+pub struct LayerNorm {
+    pub gain: Vec<f32>,
+    pub shift: Vec<f32>,
+}
+
+/// LayerNorm's ε (the learner's `nets::MlpLayout`).
+pub const LAYER_NORM_EPS: f32 = 1e-5;
 
 /// Per-component normalisation `x̂ = (x − mean) / denom`.
 #[derive(Clone, Debug, PartialEq)]
@@ -160,7 +185,15 @@ fn check_layers(layers: &[Dense], inputs: usize, what: &str) -> Result<usize> {
 }
 
 fn check_mlp(m: &Mlp, inputs: usize, what: &str) -> Result<()> {
-    check_layers(&m.layers, inputs, what).map(|_| ())
+    check_layers(&m.layers, inputs, what)?;
+    if !m.layer_norms.is_empty() {
+        ensure!(m.layer_norms.len() + 1 == m.layers.len(), "{what}: {} LayerNorms for {} hidden layers; expected one per hidden layer", m.layer_norms.len(), m.layers.len() - 1);
+        for (k, (ln, l)) in m.layer_norms.iter().zip(&m.layers).enumerate() {
+            ensure!(ln.gain.len() == l.outputs && ln.shift.len() == l.outputs, "{what} LayerNorm {k}: {} gains and {} shifts; expected {} (the layer's outputs)", ln.gain.len(), ln.shift.len(), l.outputs);
+            ensure!(ln.gain.iter().chain(&ln.shift).all(|x| x.is_finite()), "{what} LayerNorm {k}: a gain or shift is not finite");
+        }
+    }
+    Ok(())
 }
 
 fn check_norm(n: &Normalization, what: &str) -> Result<()> {
@@ -271,13 +304,32 @@ fn activate(a: Activation, x: &mut [f32]) {
     }
 }
 
+/// LayerNorm of every row of `x` [B, gain.len()] in place.
+fn layer_norm(ln: &LayerNorm, x: &mut [f32]) {
+    let d = ln.gain.len();
+    for row in x.chunks_mut(d) {
+        let mean = row.iter().sum::<f32>() / d as f32;
+        let var = row.iter().map(|v| (v - mean) * (v - mean)).sum::<f32>() / d as f32; // biased
+        let inv = 1.0 / (var + LAYER_NORM_EPS).sqrt();
+        for ((v, g), s) in row.iter_mut().zip(&ln.gain).zip(&ln.shift) {
+            *v = (*v - mean) * inv * g + s; // (x − μ)/√(σ² + ε) · g + s
+        }
+    }
+}
+
 fn mlp_forward(m: &Mlp, x: &[f32], b: usize) -> Vec<f32> {
     let mut h = x.to_vec();
     for (k, l) in m.layers.iter().enumerate() {
         h = dense(l, &h, b);
         if k + 1 < m.layers.len() {
+            if let Some(ln) = m.layer_norms.get(k) {
+                layer_norm(ln, &mut h);
+            }
             activate(m.activation, &mut h);
         }
+    }
+    if m.tanh_output {
+        h.iter_mut().for_each(|v| *v = v.tanh());
     }
     h
 }
@@ -535,8 +587,13 @@ impl Graph {
         let mut h = x.to_string();
         let n = m.layers.len();
         for (k, l) in m.layers.iter().enumerate() {
-            let y = self.dense(&h, l, &format!("{prefix}_{k}"));
+            let mut y = self.dense(&h, l, &format!("{prefix}_{k}"));
             h = if k + 1 < n {
+                if let Some(ln) = m.layer_norms.get(k) {
+                    let g = self.f32s(&format!("{prefix}_{k}_ln_gain"), &[ln.gain.len()], &ln.gain);
+                    let s = self.f32s(&format!("{prefix}_{k}_ln_shift"), &[ln.shift.len()], &ln.shift);
+                    y = self.node("LayerNormalization", &[&y, &g, &s], &format!("{prefix}_{k}_ln"), vec![attr_int("axis", -1), attr_float("epsilon", LAYER_NORM_EPS)]);
+                }
                 let act = format!("{prefix}_{k}_act");
                 match m.activation {
                     Activation::Elu => self.node("Elu", &[&y], &act, vec![attr_float("alpha", 1.0)]),
@@ -546,6 +603,9 @@ impl Graph {
             } else {
                 y
             };
+        }
+        if m.tanh_output {
+            return self.node("Tanh", &[&h], output, vec![]);
         }
         self.node("Identity", &[&h], output, vec![])
     }
@@ -631,7 +691,7 @@ pub fn to_onnx(net: &PolicyNet, metadata: &[(String, String)]) -> Result<Vec<u8>
         opset_import: vec![pb::OperatorSetIdProto { domain: String::new(), version: OPSET }],
         producer_name: "dextrain".into(),
         producer_version: env!("CARGO_PKG_VERSION").into(),
-        doc_string: "dextrain policy: the deterministic action (the Gaussian policy's mean) for raw observations; see policy.json".into(),
+        doc_string: "dextrain policy: the deterministic action (the Gaussian policy's mean; tanh of it for a SAC actor) for raw observations; see policy.json".into(),
         graph: Some(graph),
         metadata_props: metadata.iter().map(|(k, v)| pb::StringStringEntryProto { key: k.clone(), value: v.clone() }).collect(),
         ..Default::default()

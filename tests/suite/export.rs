@@ -1,12 +1,12 @@
 //! Policy export: the ONNX writer against the plain-Rust forward pass, run back by tract and by
 //! onnxruntime (Python, with `onnx.checker`'s full check), for an MLP policy, a teacher with a
-//! privileged encoder and a GRU student; a GRU worked by hand; bad input; and `dextrain export
-//! --verify` end to end on a trained run.
+//! privileged encoder, a GRU student and a SAC actor (LayerNorm, tanh); a GRU worked by hand; bad
+//! input; and `dextrain export --verify` end to end on a trained run (play.rs: a SAC run's too).
 
 use std::process::Command;
 
 use dextrain::config::Activation;
-use dextrain::export::onnx::{Adaptation, Conv1d, Dense, Gru, Mlp, Normalization, PolicyNet, Tcn, check, forward, read_metadata, run_onnx, to_onnx};
+use dextrain::export::onnx::{Adaptation, Conv1d, Dense, Gru, LayerNorm, Mlp, Normalization, PolicyNet, Tcn, check, forward, read_metadata, run_onnx, to_onnx};
 use dextrain::learn::rng::Rng;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
@@ -20,7 +20,7 @@ fn dense(rng: &mut Rng, i: usize, o: usize) -> Dense {
 }
 
 fn mlp(rng: &mut Rng, widths: &[usize], activation: Activation) -> Mlp {
-    Mlp { layers: widths.windows(2).map(|w| dense(rng, w[0], w[1])).collect(), activation }
+    Mlp::plain(widths.windows(2).map(|w| dense(rng, w[0], w[1])).collect(), activation)
 }
 
 fn norm(rng: &mut Rng, d: usize) -> Normalization {
@@ -60,7 +60,12 @@ fn nets() -> Vec<(&'static str, PolicyNet, usize, (usize, usize))> {
         actor: mlp(&mut rng, &[o + l, 10, a], Activation::Elu),
         history_len: th,
     };
-    vec![("mlp", mlp_net, 0, (0, 0)), ("encoder", encoder, p, (0, 0)), ("student", student, 0, (h, d)), ("tcn_student", tcn, 0, (th, d))]
+    // a SAC actor: LayerNorm before every hidden activation, tanh after the last layer
+    let mut sac_actor = mlp(&mut rng, &[o, 16, 8, a], Activation::Elu);
+    sac_actor.layer_norms = [16, 8].iter().map(|&w| LayerNorm { gain: (0..w).map(|_| 0.5 + rng.uniform() as f32).collect(), shift: draw(&mut rng, w, 0.3) }).collect();
+    sac_actor.tanh_output = true;
+    let sac = PolicyNet::Mlp { obs_norm: norm(&mut rng, o), actor: sac_actor };
+    vec![("mlp", mlp_net, 0, (0, 0)), ("encoder", encoder, p, (0, 0)), ("student", student, 0, (h, d)), ("tcn_student", tcn, 0, (th, d)), ("sac_actor", sac, 0, (0, 0))]
 }
 
 fn max_diff(a: &[f32], b: &[f32]) -> f64 {
@@ -110,6 +115,9 @@ fn exported_networks_match_the_reference_forward_pass_in_tract_and_onnxruntime()
             let hist = draw(&mut rng, batch * h * d, 2.0);
             let want = forward(&net, &obs, &priv_obs, &hist, batch).unwrap();
             assert_eq!(want.len(), batch * 4);
+            if name == "sac_actor" {
+                assert!(want.iter().all(|a| a.abs() < 1.0), "tanh bounds a SAC actor's actions: {want:?}");
+            }
             let tract = run_onnx(&bytes, &obs, &priv_obs, &hist, batch).unwrap();
             let dt = max_diff(&tract, &want);
             eprintln!("{name} batch {batch}: |tract − forward| ≤ {dt:e}");
@@ -152,7 +160,7 @@ fn a_gru_worked_by_hand() {
         adapt: Adaptation::Gru(gru),
         head: one(1.0),
         // actions = 0 · obs + 1 · z
-        actor: Mlp { layers: vec![Dense { weight: vec![0.0, 1.0], bias: vec![0.0], inputs: 2, outputs: 1 }], activation: Activation::Elu },
+        actor: Mlp::plain(vec![Dense { weight: vec![0.0, 1.0], bias: vec![0.0], inputs: 2, outputs: 1 }], Activation::Elu),
         history_len: 2,
     };
     let sig = |x: f32| 1.0 / (1.0 + (-x).exp());

@@ -1,6 +1,7 @@
 //! `dextrain play`: the simulator driven from an export's files alone gives eval's episodes — for
 //! each action mapping (lift's direct one, track's direct one from the reference's first frame,
-//! residual_joint's, residual_task's with its IK), and (distill.rs) a student with its history —
+//! residual_joint's, residual_task's with its IK), a SAC actor (tanh, LayerNorm), and (distill.rs)
+//! a student with its history —
 //! and a damaged export is a one-line error naming the file and the field.
 
 use std::path::{Path, PathBuf};
@@ -108,6 +109,15 @@ fn play_reproduces_eval_from_the_exported_files_for_every_action_mapping() {
     // lift: the direct mapping (wrist deltas, absolute finger targets)
     let lift = tiny_run(tmp.path(), "lift", "lift_cube_cpu.toml", &["task.episode_length=10"]);
     play_equals_eval(&lift, "lift");
+    // a SAC actor (tanh of its mean, LayerNorm in the actor, trained a few gradient steps): the
+    // export runs as the burn actor does (--verify) and plays eval's episodes
+    let sac = ["task.episode_length=10", "train.algorithm=\"sac\"", "sac.batch_size=16", "sac.learning_starts=2", "sac.random_steps=0", "sac.buffer_capacity=8", "sac.actor_layer_norm=true", "policy.zero_init_output=false"];
+    let sac_run = tiny_run(tmp.path(), "lift_sac", "lift_cube_cpu.toml", &sac);
+    let r = export(&ExportArgs { run: sac_run.clone(), checkpoint: "latest".into(), out: None, verify: true }).unwrap();
+    assert!(r.max_abs_diff.unwrap() <= 1e-5 && r.verified_rows.unwrap() >= 16, "{r:?}");
+    let c = dextrain::export::contract::PolicyContract::read(&sac_run.join("export/policy.json")).unwrap();
+    assert_eq!(c.source.algorithm, "sac");
+    play_equals_eval(&sac_run, "lift (SAC actor)");
     // the reference mappings, with a policy whose output is not zero (so the residuals move)
     let short = ["task.reference.files=[\"refs/perturbed/ref_000.mcap\", \"refs/perturbed/ref_001.mcap\"]", "task.episode_length=10", "policy.zero_init_output=false", "policy.init_std=0.5"];
     let mut rt = short.to_vec();

@@ -476,6 +476,18 @@ impl Sac {
         Ok(())
     }
 
+    /// The policy of a SAC run's checkpoint directory `ckpt` (its `model.safetensors`), for `n`
+    /// envs: what eval and export need (the actor, critics and normalisers; a replay buffer of
+    /// the smallest size, fresh optimisers).
+    pub fn from_checkpoint(dims: Dims, n: usize, run: &crate::config::Config, ckpt: &std::path::Path, device: Device) -> Result<Sac> {
+        use anyhow::Context;
+        let cfg = SacConfig { buffer_capacity: run.sac.n_step.max(2), ..run.sac.clone() };
+        let mut sac = Sac::new(dims, n, &cfg, &run.policy, device, run.seed as u64)?;
+        let state = crate::checkpoint::read_learner_file(&ckpt.join("model.safetensors"), MODEL_FILE)?;
+        sac.load_policy(&state).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
+        Ok(sac)
+    }
+
     /// Loads what [`Sac::save_policy`] wrote (same config).
     pub fn load_policy(&mut self, state: &LearnerState) -> Result<()> {
         self.actor = load_all(state, &self.actor_layout.names("actor"), &self.actor_layout.shapes(), &self.device)?;

@@ -1,0 +1,105 @@
+#!/usr/bin/env bash
+# Every GPU figure of dextrain in one command, for a short window on a GPU machine (issue 16).
+#
+# Needs only the release binary and a Vulkan driver (no Rust toolchain, no Python): copy
+# target/release/dextrain, configs/ and this script to the machine, then, from the folder holding
+# configs/,
+#     benches/gpu_suite.sh --bin ./dextrain --out results/
+# It writes results/gpu_suite.json (one JSON object) and one log per step beside it. Steps:
+#   1. env-only throughput of the contact-rich bench scene (`dextrain bench --backend gpu`) at
+#      4 k, 16 k, 64 k and 256 k envs (every env step uploads the targets and reads the step
+#      statistics back, as an RL loop does);
+#   2. the learner updates on the GPU at the peers' shapes (`bench --ppo` / `bench --sac --device gpu`);
+#   3. PPO training on configs/lift_cube_gpu.toml for TRAIN_PPO_S seconds (SIGINT: the run stops at
+#      the end of its iteration with a checkpoint), then SAC on configs/lift_cube_sac_gpu.toml for
+#      TRAIN_SAC_S seconds: env-steps/s with the learner, the best success rate and the wall time
+#      and env steps of the first iteration at >= 90 % success.
+# --quick runs the same steps at tiny sizes (any adapter, lavapipe included) so that the script
+# can be checked anywhere. Environment: ENVS (space-separated env counts), TRAIN_PPO_S, TRAIN_SAC_S,
+# BENCH_S (least timed seconds per env-only point), ADAPTER (gpu or gpu:NAME, default gpu).
+set -uo pipefail
+
+bin=target/release/dextrain
+out=gpu_suite_out
+quick=0
+while [ $# -gt 0 ]; do
+    case "$1" in
+        --bin) bin=$2; shift 2 ;;
+        --out) out=$2; shift 2 ;;
+        --quick) quick=1; shift ;;
+        *) echo "gpu_suite.sh: unknown argument '$1' (expected --bin PATH, --out DIR, --quick)" >&2; exit 2 ;;
+    esac
+done
+mkdir -p "$out"
+adapter=${ADAPTER:-gpu}
+if [ "$quick" = 1 ]; then
+    envs=${ENVS:-"64 128"}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; bench_s=${BENCH_S:-0.5}
+    small=(--set sim.num_envs=64 --set train.steps_per_env=4 --set 'policy.actor_hidden=[32]' --set 'policy.critic_hidden=[32]')
+    sac_small=(--set sac.batch_size=64 --set sac.learning_starts=8 --set sac.buffer_capacity=64)
+    learner_sizes=(--envs 64 --iters 1)
+else
+    envs=${ENVS:-"4096 16384 65536 262144"}; ppo_s=${TRAIN_PPO_S:-240}; sac_s=${TRAIN_SAC_S:-120}; bench_s=${BENCH_S:-5}
+    small=(); sac_small=(); learner_sizes=(--iters 3)
+fi
+runs=$out/runs
+mkdir -p "$runs"
+
+# the JSON value of a command's last line on stdout, or null (its .log, stderr, says why)
+json_of() {
+    local line
+    line=$(tail -n 1 "$1" 2>/dev/null)
+    case "$line" in
+        \{*\}) printf '%s' "$line" ;;
+        *) printf 'null' ;;
+    esac
+}
+
+# a training run's summary from its metrics.csv: rows, env steps, wall time, env-steps/s of the
+# last row, best success and the first row at >= 90 % success
+train_summary() {
+    local csv=$1
+    [ -f "$csv" ] || { printf 'null'; return; }
+    awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
+        { rows++; steps = $col["env_steps"]; t = $col["time_s"]; fps = $col["fps"]; s = $col["episode/success_rate"] + 0
+          if (s > best) best = s
+          if (s >= 0.9 && first_it == "") { first_it = $col["iteration"]; first_steps = steps; first_t = t } }
+        END { printf "{\"iterations\": %d, \"env_steps\": %s, \"time_s\": %s, \"env_steps_per_s_last\": %s, \"best_success\": %s, \"first_90_iteration\": %s, \"first_90_env_steps\": %s, \"first_90_time_s\": %s}",
+              rows, steps + 0, t + 0, fps + 0, best + 0, first_it == "" ? "null" : first_it, first_it == "" ? "null" : first_steps, first_it == "" ? "null" : first_t }' "$csv"
+}
+
+# a training run stopped by SIGINT after $2 seconds (it writes its checkpoint and exits)
+train_for() {
+    local name=$1 secs=$2 cfg=$3; shift 3
+    "$bin" train "$cfg" --name "$name" --runs-dir "$runs" --force --quiet "$@" >"$out/$name.log" 2>&1 &
+    local pid=$!
+    local waited=0
+    while kill -0 "$pid" 2>/dev/null && [ "$waited" -lt "$secs" ]; do sleep 1; waited=$((waited + 1)); done
+    kill -INT "$pid" 2>/dev/null
+    wait "$pid"
+    echo "exit $?" >>"$out/$name.log"
+}
+
+start=$(date +%s)
+echo "gpu_suite: adapter $adapter, env counts $envs, quick=$quick" >&2
+env_json=""
+for n in $envs; do
+    echo "gpu_suite: env-only bench at $n envs" >&2
+    "$bin" bench --backend "$adapter" --envs "$n" --chunks 5 --seconds "$bench_s" >"$out/env_$n.json" 2>"$out/env_$n.log"
+    env_json="$env_json${env_json:+, }$(json_of "$out/env_$n.json")"
+done
+echo "gpu_suite: learner updates" >&2
+"$bin" bench --ppo --device "$adapter" "${learner_sizes[@]}" >"$out/ppo_update.json" 2>"$out/ppo_update.log"
+"$bin" bench --sac --device "$adapter" "${learner_sizes[@]}" >"$out/sac_update.json" 2>"$out/sac_update.log"
+echo "gpu_suite: PPO lift for ${ppo_s}s" >&2
+train_for gpu_ppo "$ppo_s" configs/lift_cube_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" "${small[@]}"
+echo "gpu_suite: SAC lift for ${sac_s}s" >&2
+train_for gpu_sac "$sac_s" configs/lift_cube_sac_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" "${small[@]}" "${sac_small[@]}"
+driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader 2>/dev/null || echo unknown) | head -n 1)
+{
+    printf '{"suite": "dextrain_gpu", "quick": %s, "date": "%s", "driver": "%s", "wall_s": %s,\n' \
+        "$([ "$quick" = 1 ] && echo true || echo false)" "$(date -u +%FT%TZ)" "$driver" "$(($(date +%s) - start))"
+    printf ' "env_only": [%s],\n' "$env_json"
+    printf ' "ppo_update": %s,\n "sac_update": %s,\n' "$(json_of "$out/ppo_update.json")" "$(json_of "$out/sac_update.json")"
+    printf ' "train_ppo": %s,\n "train_sac": %s}\n' "$(train_summary "$runs/gpu_ppo/metrics.csv")" "$(train_summary "$runs/gpu_sac/metrics.csv")"
+} >"$out/gpu_suite.json"
+cat "$out/gpu_suite.json"
