@@ -2,6 +2,7 @@
 //!
 //! Shared by every algorithm:
 //! - `nets.rs`: MLPs as flat lists of `Tensor<2>`;
+//! - `elu.rs`: ELU as one operation with its own gradient (a vectorised one on the CPU);
 //! - `adam.rs`: Adam and global gradient-norm clipping;
 //! - `normalizer.rs`: empirical observation normalisation;
 //! - `rng.rs`: the host RNG (one `u64` of state, saved in checkpoints);
@@ -17,6 +18,7 @@
 pub mod adam;
 pub mod device;
 pub mod distill;
+pub mod elu;
 pub mod gru;
 pub mod nets;
 pub mod normalizer;

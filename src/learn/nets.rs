@@ -19,9 +19,9 @@ impl Activation {
     /// The activation applied element-wise.
     pub fn apply(self, x: Tensor<2>) -> Tensor<2> {
         match self {
-            // ELU(x) = max(x, 0) + exp(min(x, 0)) − 1, written with relu: burn's `elu` uses
-            // mask_where, which burn's CPU backend runs on a slow generic path under autodiff
-            Activation::Elu => activation::relu(x.clone()) + activation::relu(-x).neg().exp().sub_scalar(1.0),
+            // one fused operation with its own gradient (`elu.rs`): burn's `elu` uses mask_where,
+            // which burn's CPU backend runs on a slow generic path under autodiff
+            Activation::Elu => super::elu::elu(x),
             Activation::Relu => activation::relu(x),
             Activation::Tanh => activation::tanh(x),
         }

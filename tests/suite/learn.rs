@@ -292,6 +292,43 @@ fn the_wgpu_learner_matches_the_cpu_learner() {
     assert!(fresh.iter().flatten().zip(p_cpu.iter().flatten()).any(|(a, b)| a != b));
 }
 
+/// The fused ELU (`learn::elu`): on the CPU (its vectorised exp) and on the wgpu device (tensor
+/// ops), the values and the gradient match an f64 reference over [−100, 10] — large negative
+/// inputs at −1, 0 and tiny inputs included — on a tensor shared with another (copy on write) and
+/// on a transposed one.
+#[test]
+fn fused_elu_and_its_gradient_match_the_reference() {
+    use dextrain::learn::elu::elu;
+    let xs: Vec<f32> = (0..40_000).map(|i| -100.0 + 110.0 * i as f32 / 40_000.0).chain([0.0, -1e-7, 1e-7, -87.5, -88.0, -1e30, 3.0e38]).collect();
+    let n = xs.len();
+    let check = |device: Device, what: &str| {
+        let x = to_tensor(xs.clone(), [1, n], &device).require_grad();
+        let kept = x.clone(); // shared storage: the ELU must not write into it
+        let y = elu(x.clone());
+        let w: Vec<f32> = (0..n).map(|i| 1.0 + (i % 7) as f32).collect();
+        let grads = (y.clone() * to_tensor(w.clone(), [1, n], &device)).sum().backward();
+        let (y, g) = (to_host(y.inner()).unwrap(), to_host(x.grad(&grads).unwrap()).unwrap());
+        assert_eq!(to_host(kept.inner()).unwrap(), xs, "{what}: the input changed");
+        for i in 0..n {
+            let v = xs[i] as f64;
+            let want = if v > 0.0 { v } else { v.exp() - 1.0 };
+            let dwant = w[i] as f64 * if v > 0.0 { 1.0 } else { v.exp() };
+            // 2 ulp of eˣ, absolute below 1 (eˣ − 1 cancels there), relative above
+            assert!((y[i] as f64 - want).abs() <= 2.4e-7 * want.abs().max(1.0), "{what}: ELU({v}) = {} vs {want}", y[i]);
+            assert!((g[i] as f64 - dwant).abs() <= 2.4e-7 * dwant.abs().max(w[i] as f64), "{what}: ELU'({v}) · {} = {} vs {dwant}", w[i], g[i]);
+        }
+        // a transposed (non-contiguous) input
+        let t = to_tensor(xs[..40_000].to_vec(), [200, 200], &device);
+        let yt = to_host(elu(t.clone().transpose())).unwrap();
+        let want = to_host(elu(t).transpose().reshape([200 * 200])).unwrap();
+        assert_eq!(yt, want, "{what}: a transposed input");
+    };
+    check(cpu(), "cpu");
+    if let Some((_ctx, gpu)) = crate::common::wgpu_learner("fused_elu_and_its_gradient_match_the_reference") {
+        check(gpu, "wgpu");
+    }
+}
+
 /// The row-split layer (`nets::affine`, the GPU's layers at large batches): on the wgpu device a
 /// batch of 4,096 rows is split (2 slices of 2,048), and `x W + b` and the gradients of W and b
 /// (summed over the slices by autodiff; b's through its `1 b` product) equal the plain layer's to

@@ -1,0 +1,195 @@
+//! ELU (α = 1) as one operation with its own gradient: `y = x` for x > 0, `eˣ − 1` otherwise, and
+//! `∂L/∂x = ∂L/∂y · (1 if y > 0 else y + 1)`.
+//!
+//! burn has no ELU kernel of its own on its CPU backend: written with tensor ops it is five passes
+//! over the activations forward (relu, neg, relu, exp, add) and as many backward, and burn-flex's
+//! `exp` calls libm's scalar `expf` per element (18 % of a SAC gradient step, 13 % of a PPO update
+//! on one core; BENCHMARKS.md). Here, through burn's backend extensions:
+//! - burn flex (the CPU): one pass each way, in place where the tensor is not shared, with a
+//!   vectorised `exp` (Cephes' expf polynomial, ≤ 2 ulp on [−87, 0]) compiled for AVX-512 and for
+//!   AVX2 + FMA and picked at run time, split over the rayon pool for large tensors;
+//! - cubecl (the GPU): the same formulas as tensor ops (the trait's default bodies);
+//! - autodiff: the backward pass above, from the saved output.
+
+use burn::backend::autodiff::checkpoint::base::Checkpointer;
+use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
+use burn::backend::autodiff::grads::Gradients;
+use burn::backend::autodiff::ops::{Backward, Ops, OpsKind, unary};
+use burn::backend::ops::{ActivationOps, FloatTensorOps};
+use burn::backend::tensor::FloatTensor;
+use burn::backend::{Autodiff, Backend, Cube, Flex, backend_extension};
+use burn::prelude::Tensor;
+use burn::tensor::DType;
+use rayon::prelude::*;
+
+/// The fused ELU and its gradient, per backend.
+#[backend_extension(Flex, Cube, Autodiff)]
+pub trait EluOps: Backend {
+    /// `ELU(x) = relu(x) + exp(−relu(−x)) − 1` (the default body: tensor ops).
+    fn elu_fused(x: FloatTensor<Self>) -> FloatTensor<Self> {
+        let pos = Self::relu(x.clone());
+        let neg = Self::float_neg(Self::relu(Self::float_neg(x)));
+        Self::float_add(pos, Self::float_sub_scalar(Self::float_exp(neg), 1.0f64.into()))
+    }
+
+    /// `∂L/∂x` from `y = ELU(x)` and `∂L/∂y`: `grad · (1 − relu(−y))` (= grad for y > 0, grad · (y + 1)
+    /// = grad · eˣ otherwise).
+    fn elu_fused_backward(y: FloatTensor<Self>, grad: FloatTensor<Self>) -> FloatTensor<Self> {
+        let slope = Self::float_add_scalar(Self::float_neg(Self::relu(Self::float_neg(y))), 1.0f64.into());
+        Self::float_mul(grad, slope)
+    }
+}
+
+impl EluOps for Cube {}
+
+/// Elements per rayon task.
+const CHUNK: usize = 16 * 1024;
+
+/// eˣ for x ≤ 0 (Cephes' expf: x = n ln 2 + r, |r| ≤ ½ ln 2, eʳ by a degree-7 polynomial, 2ⁿ by
+/// the exponent bits); x below −87.3 gives e^−87.3 ≈ 1.2e−38 (ELU's −1 to f32 precision).
+#[inline(always)]
+fn exp_nonpositive(x: f32) -> f32 {
+    let x = x.max(-87.3);
+    let n = (x * std::f32::consts::LOG2_E + 0.5).floor(); // n = round(x / ln 2)
+    let r = x - n * 0.693_359_4 - n * -2.121_944_4e-4; // r = x − n ln 2, ln 2 in two parts
+    let mut p = 1.987_569_1e-4f32;
+    p = p * r + 1.398_199_9e-3;
+    p = p * r + 8.333_452e-3;
+    p = p * r + 4.166_579_6e-2;
+    p = p * r + 1.666_666_5e-1;
+    p = p * r + 5.000_000_1e-1;
+    let er = p * r * r + r + 1.0; // eʳ
+    er * f32::from_bits((((n as i32) + 127) as u32) << 23) // · 2ⁿ (n ≥ −126: a normal number)
+}
+
+#[inline(always)]
+fn elu_loop(xs: &mut [f32]) {
+    for v in xs.iter_mut() {
+        let e = exp_nonpositive(v.min(0.0)) - 1.0;
+        *v = if *v > 0.0 { *v } else { e };
+    }
+}
+
+#[inline(always)]
+fn elu_backward_loop(ys: &[f32], gs: &mut [f32]) {
+    for (g, &y) in gs.iter_mut().zip(ys) {
+        *g *= if y > 0.0 { 1.0 } else { y + 1.0 };
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+mod simd {
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn elu_avx512(xs: &mut [f32]) {
+        super::elu_loop(xs)
+    }
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn elu_avx2(xs: &mut [f32]) {
+        super::elu_loop(xs)
+    }
+    #[target_feature(enable = "avx512f")]
+    pub unsafe fn backward_avx512(ys: &[f32], gs: &mut [f32]) {
+        super::elu_backward_loop(ys, gs)
+    }
+    #[target_feature(enable = "avx2,fma")]
+    pub unsafe fn backward_avx2(ys: &[f32], gs: &mut [f32]) {
+        super::elu_backward_loop(ys, gs)
+    }
+}
+
+/// ELU of every element, in place, with the widest vector unit this CPU has.
+pub fn elu_slice(xs: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F (checked above)
+            return unsafe { simd::elu_avx512(xs) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU has AVX2 and FMA (checked above)
+            return unsafe { simd::elu_avx2(xs) };
+        }
+    }
+    elu_loop(xs)
+}
+
+/// `gs[i] *= 1 if ys[i] > 0 else ys[i] + 1`, with the widest vector unit this CPU has.
+pub fn elu_backward_slice(ys: &[f32], gs: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU has AVX-512F (checked above)
+            return unsafe { simd::backward_avx512(ys, gs) };
+        }
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU has AVX2 and FMA (checked above)
+            return unsafe { simd::backward_avx2(ys, gs) };
+        }
+    }
+    elu_backward_loop(ys, gs)
+}
+
+/// A flex tensor laid out contiguously from offset 0 (copied if it is not).
+fn contiguous(t: FloatTensor<Flex>) -> FloatTensor<Flex> {
+    if t.is_contiguous() && t.layout().start_offset() == 0 { t } else { t.to_contiguous() }
+}
+
+impl EluOps for Flex {
+    fn elu_fused(x: FloatTensor<Self>) -> FloatTensor<Self> {
+        if x.dtype() != DType::F32 {
+            let pos = Self::relu(x.clone());
+            let neg = Self::float_neg(Self::relu(Self::float_neg(x)));
+            return Self::float_add(pos, Self::float_sub_scalar(Self::float_exp(neg), 1.0f64.into()));
+        }
+        let mut y = contiguous(x);
+        let n = y.layout().num_elements();
+        let s: &mut [f32] = y.storage_mut(); // copies first if the storage is shared
+        s[..n].par_chunks_mut(CHUNK).for_each(elu_slice);
+        y
+    }
+
+    fn elu_fused_backward(y: FloatTensor<Self>, grad: FloatTensor<Self>) -> FloatTensor<Self> {
+        if y.dtype() != DType::F32 || grad.dtype() != DType::F32 {
+            let slope = Self::float_add_scalar(Self::float_neg(Self::relu(Self::float_neg(y))), 1.0f64.into());
+            return Self::float_mul(grad, slope);
+        }
+        let y = contiguous(y);
+        let mut g = contiguous(grad);
+        let n = g.layout().num_elements();
+        let ys: &[f32] = &y.storage::<f32>()[..n];
+        let gs: &mut [f32] = &mut g.storage_mut::<f32>()[..n];
+        gs.par_chunks_mut(CHUNK).zip(ys.par_chunks(CHUNK)).for_each(|(g, y)| elu_backward_slice(y, g));
+        g
+    }
+}
+
+impl<B: Backend + EluOps, C: CheckpointStrategy> EluOps for Autodiff<B, C> {
+    fn elu_fused(x: FloatTensor<Self>) -> FloatTensor<Self> {
+        #[derive(Debug)]
+        struct Elu;
+
+        impl<B: Backend + EluOps> Backward<B, 1> for Elu {
+            /// The output y.
+            type State = FloatTensor<B>;
+
+            fn backward(self, ops: Ops<Self::State, 1>, grads: &mut Gradients, _checkpointer: &mut Checkpointer) {
+                let y = ops.state;
+                unary::<B, _>(ops.parents, ops.node, grads, |grad| B::elu_fused_backward(y, grad));
+            }
+        }
+
+        let node = x.node();
+        match Elu.prepare::<C>([node]).compute_bound().stateful() {
+            OpsKind::Tracked(prep) => {
+                let y = B::elu_fused(x.into_primitive());
+                prep.finish(y.clone(), y)
+            }
+            OpsKind::UnTracked(prep) => prep.finish(B::elu_fused(x.into_primitive())),
+        }
+    }
+}
+
+/// ELU (α = 1) of a tensor on any learner device, differentiable.
+pub fn elu<const D: usize>(x: Tensor<D>) -> Tensor<D> {
+    Tensor::from_dispatch(<burn::backend::Dispatch as EluOps>::elu_fused(x.into_dispatch()))
+}
