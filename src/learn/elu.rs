@@ -49,8 +49,13 @@ const CHUNK: usize = 16 * 1024;
 /// the exponent bits); x below −87.3 gives e^−87.3 ≈ 1.2e−38 (ELU's −1 to f32 precision).
 #[inline(always)]
 fn exp_nonpositive(x: f32) -> f32 {
+    const ROUNDER: f32 = 12_582_912.0; // 1.5 · 2²³: adding it rounds to an integer in the low mantissa bits
     let x = x.max(-87.3);
-    let n = (x * std::f32::consts::LOG2_E + 0.5).floor(); // n = round(x / ln 2)
+    // n = round(x / ln 2) as a float and as an integer, without a float → int conversion (Rust's
+    // saturating `as` does not vectorise): the integer is in the low bits of t
+    let t = x * std::f32::consts::LOG2_E + ROUNDER;
+    let n_int = t.to_bits().wrapping_sub(ROUNDER.to_bits()) as i32;
+    let n = t - ROUNDER;
     let r = x - n * 0.693_359_4 - n * -2.121_944_4e-4; // r = x − n ln 2, ln 2 in two parts
     let mut p = 1.987_569_1e-4f32;
     p = p * r + 1.398_199_9e-3;
@@ -59,7 +64,7 @@ fn exp_nonpositive(x: f32) -> f32 {
     p = p * r + 1.666_666_5e-1;
     p = p * r + 5.000_000_1e-1;
     let er = p * r * r + r + 1.0; // eʳ
-    er * f32::from_bits((((n as i32) + 127) as u32) << 23) // · 2ⁿ (n ≥ −126: a normal number)
+    er * f32::from_bits(((n_int + 127) as u32) << 23) // · 2ⁿ (n ≥ −126: a normal number)
 }
 
 #[inline(always)]
