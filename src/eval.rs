@@ -695,7 +695,8 @@ fn load_actor(c: &Config, ckpt: &std::path::Path, spec: &crate::task::TaskSpec, 
         (c.clone(), ckpt.to_path_buf())
     };
     if run_cfg.train.algorithm == crate::config::AlgorithmChoice::Sac {
-        anyhow::ensure!(driver == Driver::Policy, "{}: a SAC run cannot be a distillation teacher yet (the teacher must be a PPO run)", ckpt.display());
+        // (open-loop episodes load the run's policy too, and do not use it)
+        anyhow::ensure!(driver != Driver::Teacher, "{}: a SAC run cannot be a distillation teacher yet (the teacher must be a PPO run)", ckpt.display());
         return Ok(Actor::Sac(Box::new(crate::learn::sac::Sac::from_checkpoint(dims, n, &run_cfg, &ckpt, device)?)));
     }
     let encoder_index = crate::learn::ppo::encoder_index(&run_cfg.policy, spec)?;

@@ -15,28 +15,37 @@ use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind, unary};
-use burn::backend::ops::{ActivationOps, FloatTensorOps};
 use burn::backend::tensor::FloatTensor;
 use burn::backend::{Autodiff, Backend, Cube, Flex, backend_extension};
 use burn::prelude::Tensor;
 use burn::tensor::DType;
 use rayon::prelude::*;
 
-/// The fused ELU and its gradient, per backend.
+/// `ELU(x) = relu(x) + exp(−relu(−x)) − 1` as tensor ops of `B`.
+fn elu_ops<B: Backend>(x: FloatTensor<B>) -> FloatTensor<B> {
+    let pos = B::relu(x.clone());
+    let neg = B::float_neg(B::relu(B::float_neg(x)));
+    B::float_add(pos, B::float_sub_scalar(B::float_exp(neg), 1.0f64.into()))
+}
+
+/// `∂L/∂x` from `y = ELU(x)` and `∂L/∂y` as tensor ops of `B`: `grad · (1 − relu(−y))` (= grad for
+/// y > 0, grad · (y + 1) = grad · eˣ otherwise).
+fn elu_backward_ops<B: Backend>(y: FloatTensor<B>, grad: FloatTensor<B>) -> FloatTensor<B> {
+    let slope = B::float_add_scalar(B::float_neg(B::relu(B::float_neg(y))), 1.0f64.into());
+    B::float_mul(grad, slope)
+}
+
+/// The fused ELU and its gradient, per backend (the default bodies: tensor ops).
 #[backend_extension(Flex, Cube, Autodiff)]
 pub trait EluOps: Backend {
-    /// `ELU(x) = relu(x) + exp(−relu(−x)) − 1` (the default body: tensor ops).
+    /// `ELU(x)`, α = 1.
     fn elu_fused(x: FloatTensor<Self>) -> FloatTensor<Self> {
-        let pos = Self::relu(x.clone());
-        let neg = Self::float_neg(Self::relu(Self::float_neg(x)));
-        Self::float_add(pos, Self::float_sub_scalar(Self::float_exp(neg), 1.0f64.into()))
+        elu_ops::<Self>(x)
     }
 
-    /// `∂L/∂x` from `y = ELU(x)` and `∂L/∂y`: `grad · (1 − relu(−y))` (= grad for y > 0, grad · (y + 1)
-    /// = grad · eˣ otherwise).
+    /// `∂L/∂x` from `y = ELU(x)` and `∂L/∂y`.
     fn elu_fused_backward(y: FloatTensor<Self>, grad: FloatTensor<Self>) -> FloatTensor<Self> {
-        let slope = Self::float_add_scalar(Self::float_neg(Self::relu(Self::float_neg(y))), 1.0f64.into());
-        Self::float_mul(grad, slope)
+        elu_backward_ops::<Self>(y, grad)
     }
 }
 
@@ -142,9 +151,7 @@ fn contiguous(t: FloatTensor<Flex>) -> FloatTensor<Flex> {
 impl EluOps for Flex {
     fn elu_fused(x: FloatTensor<Self>) -> FloatTensor<Self> {
         if x.dtype() != DType::F32 {
-            let pos = Self::relu(x.clone());
-            let neg = Self::float_neg(Self::relu(Self::float_neg(x)));
-            return Self::float_add(pos, Self::float_sub_scalar(Self::float_exp(neg), 1.0f64.into()));
+            return elu_ops::<Self>(x);
         }
         let mut y = contiguous(x);
         let n = y.layout().num_elements();
@@ -155,8 +162,7 @@ impl EluOps for Flex {
 
     fn elu_fused_backward(y: FloatTensor<Self>, grad: FloatTensor<Self>) -> FloatTensor<Self> {
         if y.dtype() != DType::F32 || grad.dtype() != DType::F32 {
-            let slope = Self::float_add_scalar(Self::float_neg(Self::relu(Self::float_neg(y))), 1.0f64.into());
-            return Self::float_mul(grad, slope);
+            return elu_backward_ops::<Self>(y, grad);
         }
         let y = contiguous(y);
         let mut g = contiguous(grad);

@@ -184,6 +184,14 @@ fn sac_runs_resume_exactly_and_evaluate() {
     let e = EvalArgs { run: a.clone(), checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None, baseline: None };
     let r = eval(&e).expect("eval of a SAC run");
     assert_eq!((r.episodes, r.iteration), (3, 4));
+    // a SAC run of a reference kind beside open-loop replay (the baseline's episodes load the run's
+    // policy too; they used to refuse a SAC run as if it were a distillation teacher)
+    let mut rj = sac("rj");
+    rj.config = Some(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/residual_joint_sac.toml").into());
+    rj.sets.extend(["task.reference.files=[\"refs/perturbed/ref_000.mcap\"]", "task.episode_length=6", "train.iterations=2"].iter().map(|s| s.to_string()));
+    let rj = train(&rj).expect("residual_joint SAC run");
+    let r = eval(&EvalArgs { run: rj, baseline: Some(dextrain::eval::Baseline::OpenLoop), ..e.clone() }).expect("eval of a SAC run with the open-loop baseline");
+    assert_eq!(r.baseline.expect("an open-loop summary").per_episode.len(), 3);
     // bad input: one line, naming the key, and no run directory
     for (set, key) in [("sac.updates_per_step=0", "sac.updates_per_step"), ("sac.buffer_capacity=1099511627776", "sac.buffer_capacity"), ("sac.buffer_capacity=4000000000", "sac.buffer_capacity"), ("train.algorithm=\"sacc\"", "train.algorithm")] {
         let mut x = sac("bad");
