@@ -137,7 +137,7 @@ fn load_sac(cfg: &Config, ckpt: &Path, dims: Dims) -> Result<Loaded> {
     let sac = Sac::from_checkpoint(dims, 1, cfg, ckpt, burn::prelude::Device::flex().autodiff())?;
     let values = sac.actor.iter().map(|p| to_host(p.clone().inner())).collect::<Result<Vec<Vec<f32>>>>()?;
     let shapes = sac.actor_layout.shapes();
-    let per_hidden = if sac.actor_layout.layer_norm { 4 } else { 2 };
+    let per_hidden = sac.actor_layout.per_hidden();
     let hidden = sac.actor_layout.hidden.len();
     let mut layers = Vec::new();
     let mut layer_norms = Vec::new();
@@ -207,11 +207,12 @@ pub fn run(args: &ExportArgs) -> Result<ExportReport> {
     if has_encoder {
         inputs.push(io("priv_obs", vec![batch.clone(), spec.priv_dim.into()], "the privileged (critic) observation, raw values in `privileged`'s layout: simulator state a robot does not have; the encoder reads the entries of policy.encoder.inputs"));
     }
-    let output = if is_sac {
-        io("actions", vec![batch, spec.action_dim.into()], "the policy's deterministic action tanh(μ) (the squashed Gaussian's mean squashed), in (−1, 1), before the action mapping")
+    let action = if is_sac {
+        "the policy's deterministic action tanh(μ) (the squashed Gaussian's mean squashed), in (−1, 1), before the action mapping"
     } else {
-        io("actions", vec![batch, spec.action_dim.into()], "the policy's mean action, before clipping and the action mapping")
+        "the policy's mean action, before clipping and the action mapping"
     };
+    let output = io("actions", vec![batch, spec.action_dim.into()], action);
     let metadata = metadata(spec, &model, args, state.iteration);
     let bytes = onnx::to_onnx(&loaded.net, &metadata)?;
     let src = ContractSource {

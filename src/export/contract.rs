@@ -606,14 +606,10 @@ pub fn build(cfg: &Config, spec: &TaskSpec, tc: &TaskGlobals, model: &SimModel, 
         opset: 17,
         inputs: src.inputs,
         output: src.output,
-        notes: if src.source.algorithm == "sac" {
-            "inputs are raw values as described here: the observation normalisation is inside the model; the output is the SAC actor's deterministic \
-             action tanh(μ), in (−1, 1), before clipping and mapping"
-        } else {
-            "inputs are raw values as described here: the observation normalisation is inside the model; the output is the policy's mean action \
-             before clipping and mapping"
-        }
-        .into(),
+        notes: format!(
+            "inputs are raw values as described here: the observation normalisation is inside the model; the output is {} before clipping and mapping",
+            if src.source.algorithm == "sac" { "the SAC actor's deterministic action tanh(μ), in (−1, 1)," } else { "the policy's mean action" }
+        ),
     };
     let units = spec
         .action_names

@@ -137,7 +137,7 @@ const LN_EPS: f64 = 1e-5;
 
 impl MlpLayout {
     /// Parameters per hidden layer (2, or 4 with LayerNorm).
-    fn per_hidden(&self) -> usize {
+    pub fn per_hidden(&self) -> usize {
         if self.layer_norm { 4 } else { 2 }
     }
 
