@@ -2,6 +2,7 @@
 //!
 //! Shared by every algorithm:
 //! - `nets.rs`: MLPs as flat lists of `Tensor<2>`;
+//! - `affine.rs`: a dense layer `x W + b` as one operation with its own gradient (no copies on the CPU);
 //! - `elu.rs`: ELU as one operation with its own gradient (a vectorised one on the CPU);
 //! - `adam.rs`: Adam and global gradient-norm clipping;
 //! - `normalizer.rs`: empirical observation normalisation;
@@ -16,6 +17,7 @@
 //! `run/`.
 
 pub mod adam;
+pub mod affine;
 pub mod device;
 pub mod distill;
 pub mod elu;

@@ -86,7 +86,7 @@ pub fn matmul_rows(x: Tensor<2>, w: Tensor<2>, split: usize) -> Tensor<2> {
 /// is a sum over the B rows of [B, out], which cubecl runs as a reduction per output column.
 pub fn affine(x: Tensor<2>, w: Tensor<2>, b: Tensor<2>, split: usize) -> Tensor<2> {
     if split <= 1 {
-        return x.matmul(w) + b; // [B, out] + [1, out]
+        return super::affine::fused_affine(x, w, b); // [B, out]: one op with its own gradient (affine.rs)
     }
     let ones = Tensor::<2>::ones([x.dims()[0], 1], &x.device()); // [B, 1]
     matmul_rows(x, w, split) + matmul_rows(ones, b, split)

@@ -329,6 +329,64 @@ fn fused_elu_and_its_gradient_match_the_reference() {
     }
 }
 
+/// The fused dense layer (`learn::affine`: on the CPU gemm straight into the output, the bias
+/// rows first; on the wgpu device tensor ops): `y = x W + b` and the gradients of x, W and b match
+/// an f64 reference, with x given transposed (non-contiguous) and W shared with another tensor
+/// (it must not change), at sizes where gemm splits the work over threads; an untracked x gets no
+/// gradient while W and b still get theirs.
+#[test]
+fn fused_affine_and_its_gradients_match_the_reference() {
+    use dextrain::learn::affine::fused_affine;
+    let (b, i, o) = (1030, 97, 83); // 8.3 M multiply-adds: over gemm's threshold for threads
+    let mut rng = Rng::new(5, 6);
+    let mut normal = |n: usize| -> Vec<f32> { (0..n).map(|_| rng.normal() as f32).collect() };
+    let (xt, w, bias, g) = (normal(i * b), normal(i * o), normal(o), normal(b * o)); // x given as xᵀ [in, B]
+    let x = |r: usize, c: usize| xt[c * b + r] as f64; // x[r, c]
+    let mut want_y = vec![0.0f64; b * o];
+    let (mut want_dx, mut want_dw, mut want_db) = (vec![0.0f64; b * i], vec![0.0f64; i * o], vec![0.0f64; o]);
+    for r in 0..b {
+        for c in 0..o {
+            let gv = g[r * o + c] as f64;
+            want_db[c] += gv; // ∂b = 1ᵀ g
+            want_y[r * o + c] = bias[c] as f64 + (0..i).map(|k| x(r, k) * w[k * o + c] as f64).sum::<f64>();
+            for k in 0..i {
+                want_dx[r * i + k] += gv * w[k * o + c] as f64; // ∂x = g Wᵀ
+                want_dw[k * o + c] += x(r, k) * gv; // ∂W = xᵀ g
+            }
+        }
+    }
+    // each output sums ~100 (y, ∂x) or ~1,000 (∂W, ∂b) products of N(0, 1) values
+    let close = |got: &[f32], want: &[f64], tol: f64, what: &str| {
+        assert_eq!(got.len(), want.len(), "{what}: length");
+        let worst = got.iter().zip(want).map(|(a, b)| (*a as f64 - b).abs()).fold(0.0, f64::max);
+        assert!(worst < tol, "{what}: off by {worst}");
+    };
+    let check = |device: Device, what: &str| {
+        let xin = to_tensor(xt.clone(), [i, b], &device).transpose().require_grad(); // [B, in], strided
+        let wt = to_tensor(w.clone(), [i, o], &device).require_grad();
+        let w_kept = wt.clone(); // shared storage: must not be written
+        let bt = to_tensor(bias.clone(), [1, o], &device).require_grad();
+        let y = fused_affine(xin.clone(), wt.clone(), bt.clone());
+        let grads = (y.clone() * to_tensor(g.clone(), [b, o], &device)).sum().backward();
+        close(&to_host(y.inner()).unwrap(), &want_y, 1e-3, &format!("{what}: y"));
+        close(&to_host(xin.grad(&grads).unwrap()).unwrap(), &want_dx, 1e-3, &format!("{what}: ∂x"));
+        close(&to_host(wt.grad(&grads).unwrap()).unwrap(), &want_dw, 1e-2, &format!("{what}: ∂W"));
+        close(&to_host(bt.grad(&grads).unwrap()).unwrap(), &want_db, 1e-2, &format!("{what}: ∂b"));
+        assert_eq!(to_host(w_kept.inner()).unwrap(), w, "{what}: W changed");
+        // an untracked input (the first layer's observations): W and b still get their gradients
+        let xin = to_tensor(xt.clone(), [i, b], &device).transpose();
+        let wt = to_tensor(w.clone(), [i, o], &device).require_grad();
+        let bt = to_tensor(bias.clone(), [1, o], &device).require_grad();
+        let grads = (fused_affine(xin.clone(), wt.clone(), bt.clone()) * to_tensor(g.clone(), [b, o], &device)).sum().backward();
+        close(&to_host(wt.grad(&grads).unwrap()).unwrap(), &want_dw, 1e-2, &format!("{what}: ∂W, x untracked"));
+        close(&to_host(bt.grad(&grads).unwrap()).unwrap(), &want_db, 1e-2, &format!("{what}: ∂b, x untracked"));
+    };
+    check(cpu(), "cpu");
+    if let Some((_ctx, gpu)) = crate::common::wgpu_learner("fused_affine_and_its_gradients_match_the_reference") {
+        check(gpu, "wgpu");
+    }
+}
+
 /// The row-split layer (`nets::affine`, the GPU's layers at large batches): on the wgpu device a
 /// batch of 4,096 rows is split (2 slices of 2,048), and `x W + b` and the gradients of W and b
 /// (summed over the slices by autodiff; b's through its `1 b` product) equal the plain layer's to

@@ -1,0 +1,248 @@
+//! A dense layer `y = x W + b` as one operation with its own gradient: x [B, in], W [in, out],
+//! b [1, out] → y [B, out]; backward `∂x = g Wᵀ` [B, in], `∂W = xᵀ g` [in, out], `∂b = 1ᵀ g`
+//! [1, out] for g = ∂L/∂y.
+//!
+//! Written as `x.matmul(w) + b`, burn's CPU backend (flex) allocates every product's output as a
+//! zeroed byte vector and then copies it into an aligned one (`FlexTensor::empty` →
+//! `Bytes::from_bytes_vec`): a memset and a memcpy per matmul, forward and both backward products,
+//! 7-8 % of a PPO update on one core (BENCHMARKS.md), plus a separate pass for the broadcast bias
+//! add and a reduction for its gradient. Here, through burn's backend extensions:
+//! - burn flex (the CPU): the output is a `Vec<f32>` handed to the tensor without a copy; the
+//!   forward writes the bias rows and lets gemm accumulate `x W` onto them (`dst = dst + x W`), the
+//!   backward products write their outputs directly (gemm without reading dst), and `∂b` is one
+//!   read pass;
+//! - cubecl (the GPU): the same formulas as tensor ops (the trait's default bodies);
+//! - autodiff: the gradients above, for the inputs that are tracked only (the first layer's
+//!   observations are not: no `∂x` there).
+
+use burn::backend::autodiff::checkpoint::base::Checkpointer;
+use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
+use burn::backend::autodiff::grads::Gradients;
+use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::tensor::FloatTensor;
+use burn::backend::{Autodiff, Backend, Cube, Flex, backend_extension};
+use burn::prelude::Tensor;
+use burn::tensor::{Bytes, DType, Shape};
+use burn_flex::{FlexTensor, Layout};
+use rayon::prelude::*;
+
+/// `x W + b` as tensor ops of `B`.
+fn affine_ops<B: Backend>(x: FloatTensor<B>, w: FloatTensor<B>, b: FloatTensor<B>) -> FloatTensor<B> {
+    B::float_add(B::float_matmul(x, w), b)
+}
+
+/// `g Wᵀ` as tensor ops of `B`.
+fn grad_x_ops<B: Backend>(g: FloatTensor<B>, w: FloatTensor<B>) -> FloatTensor<B> {
+    B::float_matmul(g, B::float_transpose(w))
+}
+
+/// `xᵀ g` as tensor ops of `B`.
+fn grad_w_ops<B: Backend>(x: FloatTensor<B>, g: FloatTensor<B>) -> FloatTensor<B> {
+    B::float_matmul(B::float_transpose(x), g)
+}
+
+/// `1ᵀ g` as tensor ops of `B`.
+fn grad_b_ops<B: Backend>(g: FloatTensor<B>) -> FloatTensor<B> {
+    B::float_sum_dim(g, 0)
+}
+
+/// The fused dense layer and its gradients, per backend (the default bodies: tensor ops).
+#[backend_extension(Flex, Cube, Autodiff)]
+pub trait AffineOps: Backend {
+    /// `x W + b`: x [B, in], W [in, out], b [1, out] → [B, out].
+    fn affine_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
+        affine_ops::<Self>(x, w, b)
+    }
+
+    /// `∂x = g Wᵀ`: g [B, out], W [in, out] → [B, in].
+    fn affine_grad_x(g: FloatTensor<Self>, w: FloatTensor<Self>) -> FloatTensor<Self> {
+        grad_x_ops::<Self>(g, w)
+    }
+
+    /// `∂W = xᵀ g`: x [B, in], g [B, out] → [in, out].
+    fn affine_grad_w(x: FloatTensor<Self>, g: FloatTensor<Self>) -> FloatTensor<Self> {
+        grad_w_ops::<Self>(x, g)
+    }
+
+    /// `∂b = 1ᵀ g`, the column sums: g [B, out] → [1, out].
+    fn affine_grad_b(g: FloatTensor<Self>) -> FloatTensor<Self> {
+        grad_b_ops::<Self>(g)
+    }
+}
+
+impl AffineOps for Cube {}
+
+/// Multiply-adds (m·n·k) from which gemm splits a product over the rayon pool (burn flex's own
+/// threshold).
+const PARALLEL_MACS: usize = 192 * 192 * 192;
+
+/// Rows per rayon task in the bias fill and the bias gradient.
+const ROWS_PER_TASK: usize = 512;
+
+/// A rank-2 f32 flex tensor as (pointer to its first element, [rows, cols], row stride, column
+/// stride), or None for another rank, dtype or a negative stride (then the default bodies run).
+fn view_2d(t: &FlexTensor) -> Option<(*const f32, [usize; 2], isize, isize)> {
+    let layout = t.layout();
+    if t.dtype() != DType::F32 || layout.num_dims() != 2 {
+        return None;
+    }
+    let strides = layout.strides();
+    if strides.iter().any(|&s| s < 0) {
+        return None;
+    }
+    let shape = layout.shape();
+    let data: &[f32] = t.storage();
+    // SAFETY: start_offset is inside the storage for any non-empty tensor of this layout
+    let ptr = unsafe { data.as_ptr().add(layout.start_offset()) };
+    Some((ptr, [shape[0], shape[1]], strides[0], strides[1]))
+}
+
+/// gemm's thread split for an m×n×k product.
+fn parallelism(m: usize, n: usize, k: usize) -> gemm::Parallelism {
+    if m.saturating_mul(n).saturating_mul(k) >= PARALLEL_MACS { gemm::Parallelism::Rayon(0) } else { gemm::Parallelism::None }
+}
+
+/// A row-major [rows, cols] f32 tensor owning `data`, without a copy.
+fn from_rows(data: Vec<f32>, rows: usize, cols: usize) -> FlexTensor {
+    FlexTensor::new(Bytes::from_elems(data), Layout::contiguous(Shape::from(vec![rows, cols])), DType::F32)
+}
+
+/// `lhs · rhs` [m, n] into a new row-major tensor, each operand given by its view (pointer, rows
+/// and columns of the operand as multiplied, row stride, column stride).
+fn product(lhs: (*const f32, [usize; 2], isize, isize), rhs: (*const f32, [usize; 2], isize, isize)) -> FlexTensor {
+    let (lp, [m, k], lrs, lcs) = lhs;
+    let (rp, [_, n], rrs, rcs) = rhs;
+    let mut out = Vec::<f32>::with_capacity(m * n);
+    // SAFETY: the views describe live storage of the operands' shapes; gemm writes all m·n outputs
+    // without reading them (read_dst = false), after which they are initialised
+    unsafe {
+        gemm::gemm(
+            m, n, k, out.as_mut_ptr(), 1, n as isize, false, lp, lcs, lrs, rp, rcs, rrs, 0.0f32, 1.0f32, false, false,
+            false, parallelism(m, n, k),
+        );
+        out.set_len(m * n);
+    }
+    from_rows(out, m, n)
+}
+
+/// The transposed view of a 2-D view (swapped shape and strides; no data moves).
+fn transposed(v: (*const f32, [usize; 2], isize, isize)) -> (*const f32, [usize; 2], isize, isize) {
+    let (p, [r, c], rs, cs) = v;
+    (p, [c, r], cs, rs)
+}
+
+impl AffineOps for Flex {
+    fn affine_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
+        let (Some(xv), Some(wv), Some(bv)) = (view_2d(&x), view_2d(&w), view_2d(&b)) else {
+            return affine_ops::<Self>(x, w, b);
+        };
+        let ((xp, [m, k], xrs, xcs), (wp, [_, n], wrs, wcs), (bp, [_, bn], _, bcs)) = (xv, wv, bv);
+        assert_eq!(bn, n, "affine: bias width {bn} against {n} outputs");
+        let bias: Vec<f32> = (0..n).map(|j| unsafe { *bp.offset(j as isize * bcs) }).collect(); // [out]
+        let mut out = Vec::<f32>::with_capacity(m * n);
+        // y rows start as b (one write pass, where burn zeroed the output and copied it)
+        for _ in 0..m {
+            out.extend_from_slice(&bias);
+        }
+        // SAFETY: x and W views describe live storage of [m, k] and [k, n]; out holds m·n values
+        unsafe {
+            gemm::gemm(
+                m, n, k, out.as_mut_ptr(), 1, n as isize, true, xp, xcs, xrs, wp, wcs, wrs, 1.0f32, 1.0f32, false,
+                false, false, parallelism(m, n, k),
+            ); // y = 1 · y + 1 · x W
+        }
+        from_rows(out, m, n)
+    }
+
+    fn affine_grad_x(g: FloatTensor<Self>, w: FloatTensor<Self>) -> FloatTensor<Self> {
+        match (view_2d(&g), view_2d(&w)) {
+            (Some(gv), Some(wv)) => product(gv, transposed(wv)), // [B, out] · [out, in]
+            _ => grad_x_ops::<Self>(g, w),
+        }
+    }
+
+    fn affine_grad_w(x: FloatTensor<Self>, g: FloatTensor<Self>) -> FloatTensor<Self> {
+        match (view_2d(&x), view_2d(&g)) {
+            (Some(xv), Some(gv)) => product(transposed(xv), gv), // [in, B] · [B, out]
+            _ => grad_w_ops::<Self>(x, g),
+        }
+    }
+
+    fn affine_grad_b(g: FloatTensor<Self>) -> FloatTensor<Self> {
+        let contiguous = g.is_contiguous() && g.layout().start_offset() == 0;
+        if g.dtype() != DType::F32 || g.layout().num_dims() != 2 || !contiguous {
+            return grad_b_ops::<Self>(g);
+        }
+        let n = g.layout().shape()[1];
+        let rows: &[f32] = &g.storage::<f32>()[..g.layout().num_elements()];
+        let add_rows = |acc: &mut Vec<f32>, block: &[f32]| {
+            for row in block.chunks_exact(n) {
+                acc.iter_mut().zip(row).for_each(|(a, v)| *a += v); // Σ over rows, per column
+            }
+        };
+        let sums = if n == 0 {
+            Vec::new()
+        } else {
+            rows.par_chunks(ROWS_PER_TASK * n)
+                .map(|block| {
+                    let mut acc = vec![0.0f32; n];
+                    add_rows(&mut acc, block);
+                    acc
+                })
+                .reduce(|| vec![0.0f32; n], |mut a, b| {
+                    a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                    a
+                })
+        };
+        from_rows(sums, 1, n)
+    }
+}
+
+impl<B: Backend + AffineOps, C: CheckpointStrategy> AffineOps for Autodiff<B, C> {
+    fn affine_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
+        #[derive(Debug)]
+        struct Affine;
+
+        impl<B: Backend + AffineOps> Backward<B, 3> for Affine {
+            /// x when W is tracked (for ∂W), W when x is tracked (for ∂x).
+            type State = (Option<FloatTensor<B>>, Option<FloatTensor<B>>);
+
+            fn backward(self, ops: Ops<Self::State, 3>, grads: &mut Gradients, _checkpointer: &mut Checkpointer) {
+                let (x, w) = ops.state;
+                let [node_x, node_w, node_b] = ops.parents;
+                let g = grads.consume::<B>(&ops.node); // [B, out]
+                if let Some(node) = node_b {
+                    grads.register::<B>(node.id, B::affine_grad_b(g.clone()));
+                }
+                if let (Some(node), Some(x)) = (node_w, x) {
+                    grads.register::<B>(node.id, B::affine_grad_w(x, g.clone()));
+                }
+                if let (Some(node), Some(w)) = (node_x, w) {
+                    grads.register::<B>(node.id, B::affine_grad_x(g, w));
+                }
+            }
+        }
+
+        let x_tracked = x.is_tracked();
+        let w_tracked = w.is_tracked();
+        match Affine.prepare::<C>([x.node(), w.node(), b.node()]).compute_bound().stateful() {
+            OpsKind::Tracked(prep) => {
+                let (x, w, b) = (x.into_primitive(), w.into_primitive(), b.into_primitive());
+                let state = (w_tracked.then(|| x.clone()), x_tracked.then(|| w.clone()));
+                prep.finish(state, B::affine_fused(x, w, b))
+            }
+            OpsKind::UnTracked(prep) => {
+                prep.finish(B::affine_fused(x.into_primitive(), w.into_primitive(), b.into_primitive()))
+            }
+        }
+    }
+}
+
+/// `x W + b` for x [B, in], W [in, out], b [1, out] on any learner device, differentiable.
+pub fn fused_affine(x: Tensor<2>, w: Tensor<2>, b: Tensor<2>) -> Tensor<2> {
+    Tensor::from_dispatch(<burn::backend::Dispatch as AffineOps>::affine_fused(
+        x.into_dispatch(),
+        w.into_dispatch(),
+        b.into_dispatch(),
+    ))
+}
