@@ -74,8 +74,8 @@ pub struct LayerNorm {
     pub shift: Vec<f32>,
 }
 
-/// LayerNorm's ε (the learner's `nets::MlpLayout`).
-pub const LAYER_NORM_EPS: f32 = 1e-5;
+/// LayerNorm's ε: the learner's (`learn::layer_norm`).
+pub use crate::learn::layer_norm::LAYER_NORM_EPS;
 
 /// Per-component normalisation `x̂ = (x − mean) / denom`.
 #[derive(Clone, Debug, PartialEq)]

@@ -3,6 +3,7 @@
 //! Shared by every algorithm:
 //! - `nets.rs`: MLPs as flat lists of `Tensor<2>`;
 //! - `affine.rs`: a dense layer `x W + b` as one operation with its own gradient (no copies on the CPU);
+//! - `layer_norm.rs`: LayerNorm over the features as one operation with its own gradient;
 //! - `elu.rs`: ELU as one operation with its own gradient (a vectorised one on the CPU);
 //! - `adam.rs`: Adam and global gradient-norm clipping;
 //! - `normalizer.rs`: empirical observation normalisation;
@@ -22,6 +23,7 @@ pub mod device;
 pub mod distill;
 pub mod elu;
 pub mod gru;
+pub mod layer_norm;
 pub mod nets;
 pub mod normalizer;
 pub mod ppo;

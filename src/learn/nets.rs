@@ -132,8 +132,6 @@ pub struct MlpLayout {
     pub layer_norm: bool,
 }
 
-/// ε in LayerNorm's `√(var + ε)` (torch's default).
-const LN_EPS: f64 = 1e-5;
 
 impl MlpLayout {
     /// Parameters per hidden layer (2, or 4 with LayerNorm).
@@ -195,10 +193,7 @@ impl MlpLayout {
             let p = &params[l * k..(l + 1) * k];
             h = affine(h, p[0].clone(), p[1].clone(), split); // [B, out]
             if self.layer_norm {
-                let mean = h.clone().mean_dim(1); // [B, 1]
-                let c = h - mean;
-                let var = c.clone().square().mean_dim(1); // [B, 1], biased as torch's LayerNorm
-                h = c / var.add_scalar(LN_EPS).sqrt() * p[2].clone() + p[3].clone(); // (h − μ)/√(σ² + ε) · g + s
+                h = super::layer_norm::layer_norm(h, p[2].clone(), p[3].clone()); // (h − μ)/√(σ² + ε) · g + s per row
             }
             h = act.apply(h);
         }

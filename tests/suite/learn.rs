@@ -387,6 +387,62 @@ fn fused_affine_and_its_gradients_match_the_reference() {
     }
 }
 
+/// The fused LayerNorm (`learn::layer_norm`: one pass per row on the CPU, tensor ops on the wgpu
+/// device): y and the gradients of h, gain and shift match an f64 reference — rows of every scale,
+/// a constant row (σ² = 0) and widths that are not a multiple of the CPU's 16 lanes — and the input
+/// it normalises is left as it was.
+#[test]
+fn fused_layer_norm_and_its_gradients_match_the_reference() {
+    use dextrain::learn::layer_norm::{LAYER_NORM_EPS, layer_norm};
+    let (b, n) = (700, 37); // over the CPU's 256 rows per task: several tasks and a reduction
+    let mut rng = Rng::new(7, 8);
+    let mut h: Vec<f32> = (0..b * n).map(|i| (rng.normal() * (1.0 + (i / n % 5) as f64 * 10.0) + 3.0) as f32).collect();
+    h[..n].iter_mut().for_each(|v| *v = 2.5); // a constant row
+    let gain: Vec<f32> = (0..n).map(|_| 1.0 + 0.5 * rng.normal() as f32).collect();
+    let shift: Vec<f32> = (0..n).map(|_| rng.normal() as f32).collect();
+    let dy: Vec<f32> = (0..b * n).map(|_| rng.normal() as f32).collect();
+    // the f64 reference
+    let (mut want_y, mut want_dh, mut want_dg, mut want_ds) = (vec![0.0f64; b * n], vec![0.0f64; b * n], vec![0.0f64; n], vec![0.0f64; n]);
+    for r in 0..b {
+        let row: Vec<f64> = h[r * n..(r + 1) * n].iter().map(|&v| v as f64).collect();
+        let mean = row.iter().sum::<f64>() / n as f64;
+        let var = row.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n as f64;
+        let rstd = 1.0 / (var + LAYER_NORM_EPS as f64).sqrt();
+        let nh: Vec<f64> = row.iter().map(|v| (v - mean) * rstd).collect();
+        let d: Vec<f64> = (0..n).map(|j| dy[r * n + j] as f64 * gain[j] as f64).collect();
+        let (m1, m2) = (d.iter().sum::<f64>() / n as f64, d.iter().zip(&nh).map(|(a, b)| a * b).sum::<f64>() / n as f64);
+        for j in 0..n {
+            want_y[r * n + j] = nh[j] * gain[j] as f64 + shift[j] as f64;
+            want_dh[r * n + j] = rstd * (d[j] - m1 - nh[j] * m2);
+            want_dg[j] += dy[r * n + j] as f64 * nh[j];
+            want_ds[j] += dy[r * n + j] as f64;
+        }
+    }
+    let close = |got: &[f32], want: &[f64], tol: f64, what: &str| {
+        assert_eq!(got.len(), want.len(), "{what}: length");
+        let worst = got.iter().zip(want).map(|(a, b)| (*a as f64 - b).abs() / b.abs().max(1.0)).fold(0.0, f64::max);
+        assert!(worst < tol, "{what}: off by {worst}");
+    };
+    let check = |device: Device, what: &str| {
+        let ht = to_tensor(h.clone(), [b, n], &device).require_grad();
+        let kept = ht.clone();
+        let gt = to_tensor(gain.clone(), [1, n], &device).require_grad();
+        let st = to_tensor(shift.clone(), [1, n], &device).require_grad();
+        let y = layer_norm(ht.clone(), gt.clone(), st.clone());
+        let grads = (y.clone() * to_tensor(dy.clone(), [b, n], &device)).sum().backward();
+        close(&to_host(y.inner()).unwrap(), &want_y, 1e-5, &format!("{what}: y"));
+        // a constant row: ∂h = r (d − mean d) with r = 1/√ε ≈ 316, so its rounding is 316× larger
+        close(&to_host(ht.grad(&grads).unwrap()).unwrap(), &want_dh, 2e-3, &format!("{what}: ∂h"));
+        close(&to_host(gt.grad(&grads).unwrap()).unwrap(), &want_dg, 1e-4, &format!("{what}: ∂gain"));
+        close(&to_host(st.grad(&grads).unwrap()).unwrap(), &want_ds, 1e-4, &format!("{what}: ∂shift"));
+        assert_eq!(to_host(kept.inner()).unwrap(), h, "{what}: the input changed");
+    };
+    check(cpu(), "cpu");
+    if let Some((_ctx, gpu)) = crate::common::wgpu_learner("fused_layer_norm_and_its_gradients_match_the_reference") {
+        check(gpu, "wgpu");
+    }
+}
+
 /// The row-split layer (`nets::affine`, the GPU's layers at large batches): on the wgpu device a
 /// batch of 4,096 rows is split (2 slices of 2,048), and `x W + b` and the gradients of W and b
 /// (summed over the slices by autodiff; b's through its `1 b` product) equal the plain layer's to

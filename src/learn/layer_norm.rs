@@ -1,0 +1,259 @@
+//! LayerNorm over the last axis as one operation with its own gradient: for h [B, n], gain g and
+//! shift s [1, n], per row `ĥ = (h − μ) r` with μ the row mean and `r = 1/√(σ² + ε)` (σ² the biased
+//! row variance, torch's), `y = ĥ g + s`; backward from `∂y`: `∂s = Σ_rows ∂y`, `∂g = Σ_rows ∂y ĥ`,
+//! and with `d = ∂y g`: `∂h = r (d − mean(d) − ĥ mean(d ĥ))` per row.
+//!
+//! Written with tensor ops (mean, subtract, square, mean, add, sqrt, divide, multiply, add) it is
+//! nine passes over [B, n] forward and about twice that backward, 30 % of a SAC gradient step of
+//! the lift config (LayerNorm in both critics and their targets, BENCHMARKS.md). Through burn's
+//! backend extensions:
+//! - burn flex (the CPU): forward one pass per row (mean, variance, ĥ and y while the row is in
+//!   cache), backward one pass per row plus the column sums, rows split over the rayon pool;
+//! - cubecl (the GPU): the same formulas as tensor ops (the trait's default bodies);
+//! - autodiff: the backward above from the saved ĥ and r, for the tracked inputs.
+
+use burn::backend::autodiff::checkpoint::base::Checkpointer;
+use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
+use burn::backend::autodiff::grads::Gradients;
+use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::tensor::FloatTensor;
+use burn::backend::{Autodiff, Backend, Cube, Flex, backend_extension};
+use burn::prelude::Tensor;
+use burn::tensor::{Bytes, DType, Shape};
+use burn_flex::{FlexTensor, Layout};
+use rayon::prelude::*;
+
+/// ε under the variance (torch's and ONNX's `LayerNormalization` default).
+pub const LAYER_NORM_EPS: f32 = 1e-5;
+
+/// Rows per rayon task.
+const ROWS_PER_TASK: usize = 256;
+
+/// `(y, ĥ, r)` as tensor ops of `B`: y [B, n], ĥ [B, n], r [B, 1].
+fn forward_ops<B: Backend>(h: FloatTensor<B>, g: FloatTensor<B>, s: FloatTensor<B>) -> (FloatTensor<B>, FloatTensor<B>, FloatTensor<B>) {
+    let mean = B::float_mean_dim(h.clone(), 1); // [B, 1]
+    let c = B::float_sub(h, mean); // h − μ
+    let var = B::float_mean_dim(B::float_mul(c.clone(), c.clone()), 1); // [B, 1], biased
+    let r = B::float_recip(B::float_sqrt(B::float_add_scalar(var, (LAYER_NORM_EPS as f64).into()))); // 1/√(σ² + ε)
+    let normed = B::float_mul(c, r.clone()); // ĥ
+    let y = B::float_add(B::float_mul(normed.clone(), g), s); // ĥ g + s
+    (y, normed, r)
+}
+
+/// `(∂h, ∂g, ∂s)` as tensor ops of `B` from ĥ [B, n], r [B, 1], g [1, n] and ∂y [B, n].
+fn backward_ops<B: Backend>(
+    normed: FloatTensor<B>,
+    r: FloatTensor<B>,
+    g: FloatTensor<B>,
+    dy: FloatTensor<B>,
+) -> (FloatTensor<B>, FloatTensor<B>, FloatTensor<B>) {
+    let ds = B::float_sum_dim(dy.clone(), 0); // [1, n]
+    let dg = B::float_sum_dim(B::float_mul(dy.clone(), normed.clone()), 0); // [1, n]
+    let d = B::float_mul(dy, g); // ∂ĥ
+    let m1 = B::float_mean_dim(d.clone(), 1); // [B, 1]
+    let m2 = B::float_mean_dim(B::float_mul(d.clone(), normed.clone()), 1); // [B, 1]
+    let dh = B::float_mul(B::float_sub(B::float_sub(d, m1), B::float_mul(normed, m2)), r); // r (d − m1 − ĥ m2)
+    (dh, dg, ds)
+}
+
+/// The fused LayerNorm and its gradient, per backend (the default bodies: tensor ops).
+#[backend_extension(Flex, Cube, Autodiff)]
+pub trait LayerNormOps: Backend {
+    /// `y = (h − μ)/√(σ² + ε) · g + s` per row: h [B, n], g and s [1, n] → [B, n].
+    fn layer_norm_fused(h: FloatTensor<Self>, g: FloatTensor<Self>, s: FloatTensor<Self>) -> FloatTensor<Self> {
+        Self::layer_norm_forward(h, g, s).0
+    }
+
+    /// `(y, ĥ, r)`: the output [B, n], the normalised rows [B, n] and 1/√(σ² + ε) [B, 1].
+    fn layer_norm_forward(
+        h: FloatTensor<Self>,
+        g: FloatTensor<Self>,
+        s: FloatTensor<Self>,
+    ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
+        forward_ops::<Self>(h, g, s)
+    }
+
+    /// `(∂h, ∂g, ∂s)` from ĥ [B, n], r [B, 1], g [1, n] and ∂y [B, n].
+    fn layer_norm_backward(
+        normed: FloatTensor<Self>,
+        r: FloatTensor<Self>,
+        g: FloatTensor<Self>,
+        dy: FloatTensor<Self>,
+    ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
+        backward_ops::<Self>(normed, r, g, dy)
+    }
+}
+
+impl LayerNormOps for Cube {}
+
+/// A row-major f32 tensor owning `data`, without a copy.
+fn from_vec(data: Vec<f32>, shape: [usize; 2]) -> FlexTensor {
+    FlexTensor::new(Bytes::from_elems(data), Layout::contiguous(Shape::from(shape.to_vec())), DType::F32)
+}
+
+/// The values of a flex tensor, row-major (a copy only when it is strided or offset).
+fn contiguous(t: FloatTensor<Flex>) -> FloatTensor<Flex> {
+    if t.is_contiguous() && t.layout().start_offset() == 0 { t } else { t.to_contiguous() }
+}
+
+/// Whether every tensor is an f32 matrix (else the tensor-op bodies run).
+fn all_f32_2d(ts: &[&FlexTensor]) -> bool {
+    ts.iter().all(|t| t.dtype() == DType::F32 && t.layout().num_dims() == 2)
+}
+
+/// Lanes of the partial sums below (one AVX-512 register; the compiler vectorises a fixed-width
+/// array where it would not reorder a plain float sum).
+const LANES: usize = 16;
+
+/// `Σ f(a[i], b[i])` over equal-length slices, in LANES partial sums.
+#[inline(always)]
+fn lane_sum(a: &[f32], b: &[f32], f: impl Fn(f32, f32) -> f32) -> f32 {
+    let mut acc = [0.0f32; LANES];
+    let (ac, bc) = (a.chunks_exact(LANES), b.chunks_exact(LANES));
+    let tail: f32 = ac.remainder().iter().zip(bc.remainder()).map(|(x, y)| f(*x, *y)).sum();
+    for (x, y) in ac.zip(bc) {
+        let (x, y): (&[f32; LANES], &[f32; LANES]) = (x.try_into().unwrap(), y.try_into().unwrap());
+        for l in 0..LANES {
+            acc[l] += f(x[l], y[l]);
+        }
+    }
+    acc.iter().sum::<f32>() + tail
+}
+
+/// Adds `b` into `a` element by element.
+fn add_into(a: &mut [f32], b: &[f32]) {
+    a.iter_mut().zip(b).for_each(|(x, y)| *x += y);
+}
+
+impl LayerNormOps for Flex {
+    fn layer_norm_forward(
+        h: FloatTensor<Self>,
+        g: FloatTensor<Self>,
+        s: FloatTensor<Self>,
+    ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
+        if !all_f32_2d(&[&h, &g, &s]) {
+            return forward_ops::<Self>(h, g, s);
+        }
+        let (h, g, s) = (contiguous(h), contiguous(g), contiguous(s));
+        let [rows, n] = [h.layout().shape()[0], h.layout().shape()[1]];
+        let (hs, gs, ss): (&[f32], &[f32], &[f32]) = (&h.storage()[..rows * n], &g.storage()[..n], &s.storage()[..n]);
+        let (mut y, mut normed, mut r) = (vec![0.0f32; rows * n], vec![0.0f32; rows * n], vec![0.0f32; rows]);
+        if n > 0 {
+            let inv_n = 1.0 / n as f32;
+            y.par_chunks_mut(ROWS_PER_TASK * n)
+                .zip(normed.par_chunks_mut(ROWS_PER_TASK * n))
+                .zip(r.par_chunks_mut(ROWS_PER_TASK))
+                .zip(hs.par_chunks(ROWS_PER_TASK * n))
+                .for_each(|(((y, normed), r), h)| {
+                    for (((y, nh), r), h) in y.chunks_exact_mut(n).zip(normed.chunks_exact_mut(n)).zip(r.iter_mut()).zip(h.chunks_exact(n)) {
+                        let mean = lane_sum(h, h, |x, _| x) * inv_n; // μ
+                        let var = lane_sum(h, h, |x, _| (x - mean) * (x - mean)) * inv_n; // σ², biased
+                        *r = 1.0 / (var + LAYER_NORM_EPS).sqrt();
+                        let r = *r;
+                        for ((((y, nh), h), g), s) in y.iter_mut().zip(nh.iter_mut()).zip(h).zip(gs).zip(ss) {
+                            *nh = (h - mean) * r; // ĥ
+                            *y = *nh * g + s; // ĥ g + s
+                        }
+                    }
+                });
+        }
+        (from_vec(y, [rows, n]), from_vec(normed, [rows, n]), from_vec(r, [rows, 1]))
+    }
+
+    fn layer_norm_backward(
+        normed: FloatTensor<Self>,
+        r: FloatTensor<Self>,
+        g: FloatTensor<Self>,
+        dy: FloatTensor<Self>,
+    ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
+        if !all_f32_2d(&[&normed, &r, &g, &dy]) {
+            return backward_ops::<Self>(normed, r, g, dy);
+        }
+        let (normed, r, g, dy) = (contiguous(normed), contiguous(r), contiguous(g), contiguous(dy));
+        let [rows, n] = [normed.layout().shape()[0], normed.layout().shape()[1]];
+        let (nhs, rs, gs, dys): (&[f32], &[f32], &[f32], &[f32]) =
+            (&normed.storage()[..rows * n], &r.storage()[..rows], &g.storage()[..n], &dy.storage()[..rows * n]);
+        let mut dh = vec![0.0f32; rows * n];
+        let (mut dg, mut ds) = (vec![0.0f32; n], vec![0.0f32; n]);
+        if n > 0 {
+            let inv_n = 1.0 / n as f32;
+            let sums = dh
+                .par_chunks_mut(ROWS_PER_TASK * n)
+                .zip(nhs.par_chunks(ROWS_PER_TASK * n))
+                .zip(rs.par_chunks(ROWS_PER_TASK))
+                .zip(dys.par_chunks(ROWS_PER_TASK * n))
+                .map(|(((dh, nh), r), dy)| {
+                    let (mut dg, mut ds) = (vec![0.0f32; n], vec![0.0f32; n]); // this task's column sums
+                    let mut d = vec![0.0f32; n]; // one row's ∂ĥ = ∂y g
+                    for (((dh, nh), r), dy) in dh.chunks_exact_mut(n).zip(nh.chunks_exact(n)).zip(r).zip(dy.chunks_exact(n)) {
+                        for (((dg, ds), y), nh) in dg.iter_mut().zip(ds.iter_mut()).zip(dy).zip(nh) {
+                            *dg += y * nh; // Σ ∂y ĥ
+                            *ds += y; // Σ ∂y
+                        }
+                        d.iter_mut().zip(dy).zip(gs).for_each(|((d, y), g)| *d = y * g);
+                        let m1 = lane_sum(&d, &d, |x, _| x) * inv_n; // mean(d)
+                        let m2 = lane_sum(&d, nh, |x, y| x * y) * inv_n; // mean(d ĥ)
+                        for ((dh, d), nh) in dh.iter_mut().zip(&d).zip(nh) {
+                            *dh = r * (d - m1 - nh * m2); // r (d − m1 − ĥ m2)
+                        }
+                    }
+                    (dg, ds)
+                })
+                .reduce(
+                    || (vec![0.0f32; n], vec![0.0f32; n]),
+                    |(mut ga, mut sa), (gb, sb)| {
+                        add_into(&mut ga, &gb);
+                        add_into(&mut sa, &sb);
+                        (ga, sa)
+                    },
+                );
+            (dg, ds) = sums;
+        }
+        (from_vec(dh, [rows, n]), from_vec(dg, [1, n]), from_vec(ds, [1, n]))
+    }
+}
+
+impl<B: Backend + LayerNormOps, C: CheckpointStrategy> LayerNormOps for Autodiff<B, C> {
+    fn layer_norm_fused(h: FloatTensor<Self>, g: FloatTensor<Self>, s: FloatTensor<Self>) -> FloatTensor<Self> {
+        #[derive(Debug)]
+        struct LayerNorm;
+
+        impl<B: Backend + LayerNormOps> Backward<B, 3> for LayerNorm {
+            /// ĥ [B, n], r [B, 1] and the gain g [1, n].
+            type State = (FloatTensor<B>, FloatTensor<B>, FloatTensor<B>);
+
+            fn backward(self, ops: Ops<Self::State, 3>, grads: &mut Gradients, _checkpointer: &mut Checkpointer) {
+                let (normed, r, g) = ops.state;
+                let [node_h, node_g, node_s] = ops.parents;
+                let dy = grads.consume::<B>(&ops.node);
+                let (dh, dg, ds) = B::layer_norm_backward(normed, r, g, dy);
+                for (node, grad) in [(node_h, dh), (node_g, dg), (node_s, ds)] {
+                    if let Some(node) = node {
+                        grads.register::<B>(node.id, grad);
+                    }
+                }
+            }
+        }
+
+        match LayerNorm.prepare::<C>([h.node(), g.node(), s.node()]).compute_bound().stateful() {
+            OpsKind::Tracked(prep) => {
+                let g = g.into_primitive();
+                let (y, normed, r) = B::layer_norm_forward(h.into_primitive(), g.clone(), s.into_primitive());
+                prep.finish((normed, r, g), y)
+            }
+            OpsKind::UnTracked(prep) => {
+                prep.finish(B::layer_norm_fused(h.into_primitive(), g.into_primitive(), s.into_primitive()))
+            }
+        }
+    }
+}
+
+/// LayerNorm of each row of h [B, n] with gain and shift [1, n] on any learner device,
+/// differentiable.
+pub fn layer_norm(h: Tensor<2>, gain: Tensor<2>, shift: Tensor<2>) -> Tensor<2> {
+    Tensor::from_dispatch(<burn::backend::Dispatch as LayerNormOps>::layer_norm_fused(
+        h.into_dispatch(),
+        gain.into_dispatch(),
+        shift.into_dispatch(),
+    ))
+}
