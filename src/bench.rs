@@ -287,6 +287,7 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
         "rollout_policy_ms_24_steps": stats(&rollout_ms),
         "policy_inference_ms": stats(&inf_ms),
         "last_losses": {"surrogate": u.surrogate, "value": u.value, "entropy": u.entropy, "kl": u.kl, "lr": u.lr},
+        "cpu": cpu_model(),
     }))
 }
 
@@ -371,10 +372,15 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
     }))
 }
 
-/// The CPU's model name and whether it has AVX-512 and AVX2 (from /proc/cpuinfo).
+/// The CPU's model name, whether it has AVX-512 and AVX2 (from /proc/cpuinfo), and which kernels the
+/// learner runs on it: gemm's (AVX-512 when built with the `x86-v4` feature and the CPU has it, else
+/// AVX2 + FMA) and the fused ELU's ([`crate::learn::elu::isa`], capped by `DEXTRAIN_SIMD`).
 pub fn cpu_model() -> serde_json::Value {
     let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
     let model = info.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split(':').nth(1)).map(|s| s.trim().to_string());
     let flags = info.lines().find(|l| l.starts_with("flags")).unwrap_or("");
-    json!({"model": model, "avx512f": flags.split_whitespace().any(|f| f == "avx512f"), "avx2": flags.split_whitespace().any(|f| f == "avx2")})
+    let avx512f = flags.split_whitespace().any(|f| f == "avx512f");
+    let gemm = if cfg!(feature = "x86-v4") && avx512f { "avx512" } else { "avx2" };
+    json!({"model": model, "avx512f": avx512f, "avx2": flags.split_whitespace().any(|f| f == "avx2"),
+           "kernels": {"gemm": gemm, "elu": format!("{:?}", crate::learn::elu::isa()).to_lowercase()}})
 }

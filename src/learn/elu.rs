@@ -7,7 +7,7 @@
 //! on one core; BENCHMARKS.md). Here, through burn's backend extensions:
 //! - burn flex (the CPU): one pass each way, in place where the tensor is not shared, with a
 //!   vectorised `exp` (Cephes' expf polynomial, ≤ 2 ulp on [−87, 0]) compiled for AVX-512 and for
-//!   AVX2 + FMA and picked at run time, split over the rayon pool for large tensors;
+//!   AVX2 + FMA and picked at run time ([`isa`]), split over the rayon pool for large tensors;
 //! - cubecl (the GPU): the same formulas as tensor ops (the trait's default bodies);
 //! - autodiff: the backward pass above, from the saved output.
 
@@ -111,35 +111,73 @@ mod simd {
     }
 }
 
-/// ELU of every element, in place, with the widest vector unit this CPU has.
-pub fn elu_slice(xs: &mut [f32]) {
+/// The vector instruction sets the CPU kernels here are compiled for.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Isa {
+    /// Plain Rust (whatever the target's baseline gives).
+    Scalar,
+    /// AVX2 + FMA (x86-64-v3).
+    Avx2,
+    /// AVX-512F (x86-64-v4).
+    Avx512,
+}
+
+/// The widest [`Isa`] this CPU has, capped by the environment variable `DEXTRAIN_SIMD`
+/// (`avx512`, `avx2` or `scalar`): `DEXTRAIN_SIMD=avx2` runs the AVX2 kernels on an AVX-512 CPU,
+/// which with a build without the `x86-v4` feature (gemm's AVX-512 kernels) is how an AVX2-only
+/// CPU's learner is measured here (BENCHMARKS.md). Read once.
+pub fn isa() -> Isa {
+    static ISA: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
+    *ISA.get_or_init(|| {
+        let cap = match std::env::var("DEXTRAIN_SIMD").as_deref() {
+            Ok("scalar") => Isa::Scalar,
+            Ok("avx2") => Isa::Avx2,
+            _ => Isa::Avx512,
+        };
+        detected_isa().min(cap)
+    })
+}
+
+/// The widest [`Isa`] this CPU has.
+fn detected_isa() -> Isa {
     #[cfg(target_arch = "x86_64")]
     {
         if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU has AVX-512F (checked above)
-            return unsafe { simd::elu_avx512(xs) };
+            return Isa::Avx512;
         }
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU has AVX2 and FMA (checked above)
-            return unsafe { simd::elu_avx2(xs) };
+            return Isa::Avx2;
         }
     }
+    Isa::Scalar
+}
+
+/// ELU of every element, in place, with the kernel of `isa` (at most what this CPU has: a wider
+/// one than [`isa`] reports runs the scalar loop).
+pub fn elu_slice_with(isa: Isa, xs: &mut [f32]) {
+    #[cfg(target_arch = "x86_64")]
+    match isa.min(detected_isa()) {
+        // SAFETY: the CPU has AVX-512F (checked by detected_isa)
+        Isa::Avx512 => return unsafe { simd::elu_avx512(xs) },
+        // SAFETY: the CPU has AVX2 and FMA (checked by detected_isa)
+        Isa::Avx2 => return unsafe { simd::elu_avx2(xs) },
+        Isa::Scalar => {}
+    }
+    let _ = isa;
     elu_loop(xs)
 }
 
-/// `gs[i] *= 1 if ys[i] > 0 else ys[i] + 1`, with the widest vector unit this CPU has.
-pub fn elu_backward_slice(ys: &[f32], gs: &mut [f32]) {
+/// `gs[i] *= 1 if ys[i] > 0 else ys[i] + 1` with the kernel of `isa` (as [`elu_slice_with`]).
+pub fn elu_backward_slice_with(isa: Isa, ys: &[f32], gs: &mut [f32]) {
     #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU has AVX-512F (checked above)
-            return unsafe { simd::backward_avx512(ys, gs) };
-        }
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-            // SAFETY: the CPU has AVX2 and FMA (checked above)
-            return unsafe { simd::backward_avx2(ys, gs) };
-        }
+    match isa.min(detected_isa()) {
+        // SAFETY: the CPU has AVX-512F (checked by detected_isa)
+        Isa::Avx512 => return unsafe { simd::backward_avx512(ys, gs) },
+        // SAFETY: the CPU has AVX2 and FMA (checked by detected_isa)
+        Isa::Avx2 => return unsafe { simd::backward_avx2(ys, gs) },
+        Isa::Scalar => {}
     }
+    let _ = isa;
     elu_backward_loop(ys, gs)
 }
 
@@ -156,7 +194,8 @@ impl EluOps for Flex {
         let mut y = contiguous(x);
         let n = y.layout().num_elements();
         let s: &mut [f32] = y.storage_mut(); // copies first if the storage is shared
-        s[..n].par_chunks_mut(CHUNK).for_each(elu_slice);
+        let isa = isa();
+        s[..n].par_chunks_mut(CHUNK).for_each(|c| elu_slice_with(isa, c));
         y
     }
 
@@ -169,7 +208,8 @@ impl EluOps for Flex {
         let n = g.layout().num_elements();
         let ys: &[f32] = &y.storage::<f32>()[..n];
         let gs: &mut [f32] = &mut g.storage_mut::<f32>()[..n];
-        gs.par_chunks_mut(CHUNK).zip(ys.par_chunks(CHUNK)).for_each(|(g, y)| elu_backward_slice(y, g));
+        let isa = isa();
+        gs.par_chunks_mut(CHUNK).zip(ys.par_chunks(CHUNK)).for_each(|(g, y)| elu_backward_slice_with(isa, y, g));
         g
     }
 }

@@ -324,6 +324,23 @@ fn fused_elu_and_its_gradient_match_the_reference() {
         assert_eq!(yt, want, "{what}: a transposed input");
     };
     check(cpu(), "cpu");
+    // every CPU kernel, whichever the op picked: AVX-512, AVX2 + FMA (what an AVX2-only CPU runs)
+    // and the plain loop; a kernel this CPU lacks runs the next narrower one
+    use dextrain::learn::elu::{Isa, elu_backward_slice_with, elu_slice_with};
+    for isa in [Isa::Avx512, Isa::Avx2, Isa::Scalar] {
+        let mut y = xs.clone();
+        elu_slice_with(isa, &mut y);
+        let mut g: Vec<f32> = (0..n).map(|i| 1.0 + (i % 7) as f32).collect();
+        elu_backward_slice_with(isa, &y, &mut g);
+        for i in 0..n {
+            let v = xs[i] as f64;
+            let want = if v > 0.0 { v } else { v.exp() - 1.0 };
+            let w = 1.0 + (i % 7) as f64;
+            let dwant = w * if v > 0.0 { 1.0 } else { v.exp() };
+            assert!((y[i] as f64 - want).abs() <= 2.4e-7 * want.abs().max(1.0), "{isa:?}: ELU({v}) = {} vs {want}", y[i]);
+            assert!((g[i] as f64 - dwant).abs() <= 2.4e-7 * dwant.abs().max(w), "{isa:?}: ELU'({v}) · {w} = {} vs {dwant}", g[i]);
+        }
+    }
     if let Some((_ctx, gpu)) = crate::common::wgpu_learner("fused_elu_and_its_gradient_match_the_reference") {
         check(gpu, "wgpu");
     }
