@@ -4,6 +4,9 @@
 //! (`mesh_approx`), and objects made from meshes can do the same.
 //!
 //! - [`read`]: the vertices of STL (binary and ASCII) and OBJ files.
+//! - [`mass`]: volume, centre of mass and inertia of the solid a closed triangle mesh
+//!   ([`read::TriangleMesh`], from `read::parse_stl_mesh` or `read::parse_obj_pieces`) encloses,
+//!   whether a mesh is closed, and the union of pieces.
 //! - [`hull`]: the 3D convex hull of a point cloud (quickhull with conflict lists on exact
 //!   orientation predicates), its volume, area, principal axes of its surface and the distance
 //!   from a point to it.
@@ -16,4 +19,5 @@
 
 pub mod fit;
 pub mod hull;
+pub mod mass;
 pub mod read;

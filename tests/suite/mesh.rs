@@ -1,12 +1,14 @@
 //! The mesh module: reading STL/OBJ, the convex hull, and the primitive fits (sphere, capsule,
-//! oriented box) that contain every vertex and are tighter than the axis-aligned ones.
+//! oriented box) that contain every vertex and are tighter than the axis-aligned ones; triangle
+//! meshes and their mass properties.
 
 use std::path::{Path, PathBuf};
 
 use dextrain::mesh::fit::{FittedShape, PrimitiveFit, PrimitiveKind, axis_aligned, fit, fit_tightest, fit_with_hull};
 use dextrain::mesh::hull::convex_hull;
-use dextrain::mesh::read::{parse_obj, parse_stl};
-use glam::{DQuat, DVec3};
+use dextrain::mesh::mass::{MassProperties, combine, is_closed, mass_properties};
+use dextrain::mesh::read::{TriangleMesh, parse_obj, parse_obj_pieces, parse_stl, parse_stl_mesh};
+use glam::{DMat3, DQuat, DVec3};
 
 const KINDS: [PrimitiveKind; 3] = [PrimitiveKind::Sphere, PrimitiveKind::Capsule, PrimitiveKind::Box];
 
@@ -533,4 +535,341 @@ fn shared_hand_meshes_fit_tighter_than_axis_aligned() {
         tighter[1],
         tighter[2]
     );
+}
+
+// ------------------------------------------------------------------------- mass and triangles
+
+/// A convex mesh with every triangle turned counter-clockwise seen from outside (away from the
+/// mean vertex).
+fn wound_outward(vertices: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> TriangleMesh {
+    let mean = vertices.iter().copied().sum::<DVec3>() / vertices.len() as f64;
+    let triangles = triangles
+        .into_iter()
+        .map(|[i, j, k]| {
+            let [a, b, c] = [i, j, k].map(|x| vertices[x as usize]);
+            if (b - a).cross(c - a).dot(a - mean) > 0.0 { [i, j, k] } else { [i, k, j] }
+        })
+        .collect();
+    TriangleMesh { vertices, triangles }
+}
+
+/// The box of half extents h about `centre`, turned by `rot` about its centre: 8 vertices
+/// (index bits 0, 1, 2: the +x, +y, +z side), 12 triangles wound outward.
+fn box_mesh(h: DVec3, centre: DVec3, rot: DQuat) -> TriangleMesh {
+    let sign = |bit: u32, x: f64| if bit != 0 { x } else { -x };
+    let vertices = (0..8u32).map(|i| centre + rot * DVec3::new(sign(i & 1, h.x), sign(i & 2, h.y), sign(i & 4, h.z))).collect();
+    let mut triangles = Vec::new();
+    for k in 0..3 {
+        let (u, v) = (1u32 << ((k + 1) % 3), 1u32 << ((k + 2) % 3));
+        for side in [0, 1u32 << k] {
+            let q = [side, side | u, side | u | v, side | v]; // the face's corners in cyclic order
+            triangles.push([q[0], q[1], q[2]]);
+            triangles.push([q[0], q[2], q[3]]);
+        }
+    }
+    wound_outward(vertices, triangles)
+}
+
+/// Full sides 2h: I_xx = V ((2h_y)² + (2h_z)²)/12 etc. (unit density).
+fn box_inertia(h: DVec3) -> DMat3 {
+    let v = 8.0 * h.x * h.y * h.z;
+    let s = (2.0 * h) * (2.0 * h);
+    DMat3::from_diagonal(DVec3::new(s.y + s.z, s.z + s.x, s.x + s.y) * (v / 12.0))
+}
+
+fn max_abs(m: DMat3) -> f64 {
+    m.to_cols_array().iter().fold(0.0f64, |a, x| a.max(x.abs()))
+}
+
+/// Panics unless `got` is within `rel` × |want| (largest entry) of `want`, entry by entry.
+fn assert_mat_close(got: DMat3, want: DMat3, rel: f64, what: &str) {
+    let err = max_abs(got - want);
+    assert!(err <= rel * max_abs(want), "{what}: inertia {got} vs {want} (off by {err:e})");
+}
+
+fn assert_props_close(got: &MassProperties, want: &MassProperties, rel: f64, what: &str) {
+    assert!((got.volume / want.volume - 1.0).abs() <= rel, "{what}: volume {} vs {}", got.volume, want.volume);
+    let size = want.volume.cbrt();
+    assert!(got.center_of_mass.distance(want.center_of_mass) <= rel * size, "{what}: COM {} vs {}", got.center_of_mass, want.center_of_mass);
+    assert_mat_close(got.inertia, want.inertia, rel, what);
+}
+
+/// An axis-aligned box away from the origin: volume 8abc, COM the centre, inertia diagonal with
+/// V(s_y² + s_z²)/12 ... (sides s = 2h), to 1e-12; scaled_to_mass multiplies by mass / V; the
+/// principal moments are the diagonal, sorted descending, the axes the coordinate axes.
+#[test]
+fn mass_properties_of_an_axis_aligned_box() {
+    let (h, centre) = (DVec3::new(0.031, 0.012, 0.007), DVec3::new(0.3, -0.2, 0.5));
+    let mesh = box_mesh(h, centre, DQuat::IDENTITY);
+    assert_eq!((mesh.vertices.len(), mesh.triangles.len()), (8, 12));
+    let p = mass_properties(&mesh).unwrap();
+    let v = 8.0 * h.x * h.y * h.z;
+    assert!((p.volume / v - 1.0).abs() < 1e-12, "volume {} vs {v}", p.volume);
+    assert!(p.center_of_mass.distance(centre) < 1e-12 * h.length(), "COM {}", p.center_of_mass);
+    assert_mat_close(p.inertia, box_inertia(h), 1e-12, "box");
+    let (com, inertia) = p.scaled_to_mass(0.25);
+    assert_eq!(com, p.center_of_mass);
+    assert_mat_close(inertia, box_inertia(h) * (0.25 / v), 1e-12, "scaled to 0.25 kg");
+    let (moments, axes) = p.principal();
+    let d = box_inertia(h);
+    let want = DVec3::new(d.x_axis.x, d.y_axis.y, d.z_axis.z); // h.x > h.y > h.z: I_zz > I_yy > I_xx
+    for (got, want) in moments.to_array().iter().zip([want.z, want.y, want.x]) {
+        assert!((got / want - 1.0).abs() < 1e-12, "principal moments {moments} vs {want}");
+    }
+    assert!(axes.x_axis.z.abs() > 1.0 - 1e-12 && axes.z_axis.x.abs() > 1.0 - 1e-12, "axes {axes}");
+}
+
+/// The box turned by R (about its centre, three seeds): inertia R I Rᵀ, the same principal
+/// moments, the principal axes R's columns up to sign; principal() reassembles the inertia.
+#[test]
+fn mass_properties_of_a_rotated_box() {
+    let (h, centre) = (DVec3::new(0.031, 0.012, 0.007), DVec3::new(0.3, -0.2, 0.5));
+    let straight = mass_properties(&box_mesh(h, centre, DQuat::IDENTITY)).unwrap();
+    for seed in [21u64, 22, 23] {
+        let rot = Lcg::new(seed).rotation();
+        let p = mass_properties(&box_mesh(h, centre, rot)).unwrap();
+        let r = DMat3::from_quat(rot);
+        let want = MassProperties { volume: 8.0 * h.x * h.y * h.z, center_of_mass: centre, inertia: r * box_inertia(h) * r.transpose() };
+        assert_props_close(&p, &want, 1e-12, &format!("seed {seed}"));
+        let ((m0, _), (m, axes)) = (straight.principal(), p.principal());
+        assert!((m - m0).abs().max_element() < 1e-12 * m0.max_element(), "seed {seed}: moments {m} vs {m0}");
+        // largest moment about the shortest side (z of the box), smallest about the longest (x)
+        assert!(axes.x_axis.dot(rot * DVec3::Z).abs() > 1.0 - 1e-9 && axes.z_axis.dot(rot * DVec3::X).abs() > 1.0 - 1e-9, "seed {seed}: {axes}");
+        assert_mat_close(axes * DMat3::from_diagonal(m) * axes.transpose(), p.inertia, 1e-12, "R diag(m) Rᵀ");
+    }
+}
+
+/// The unit right tetrahedron (0, X, Y, Z): V = 1/6, COM (1/4, 1/4, 1/4), and its inertia from
+/// the closed-form moments about the origin: ∫ x² dV = ∫₀¹ x² (1 − x)²/2 dx = B(3, 3)/2 = 1/60
+/// (the cross-section at x is a right triangle of legs 1 − x), ∫ x y dV = ∫∫ x y (1 − x − y) dy
+/// dx over the unit triangle = 1/120; about the COM: ∫ x'² = 1/60 − V/16 = 1/160, ∫ x'y' =
+/// 1/120 − V/16 = −1/480, so I_xx = 2/160 = 1/80 and I_xy = +1/480. Moved far from the origin
+/// (1e3 units, coordinates rounded) the reference point keeps 1e-9 relative precision (tetrahedra
+/// from the origin would lose several digits: their determinants cancel terms of ~1e10 to ~1).
+#[test]
+fn mass_properties_of_the_unit_right_tetrahedron() {
+    let vertices = vec![DVec3::ZERO, DVec3::X, DVec3::Y, DVec3::Z];
+    let mesh = wound_outward(vertices, vec![[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]);
+    let (v, origin_xx, origin_xy): (f64, f64, f64) = (1.0 / 6.0, 1.0 / 60.0, 1.0 / 120.0);
+    let (cxx, cxy) = (origin_xx - v / 16.0, origin_xy - v / 16.0); // parallel axis, COM at 1/4
+    assert!((cxx - 1.0 / 160.0).abs() < 1e-15 && (cxy + 1.0 / 480.0).abs() < 1e-15);
+    let inertia = DMat3::from_cols(DVec3::new(2.0 * cxx, -cxy, -cxy), DVec3::new(-cxy, 2.0 * cxx, -cxy), DVec3::new(-cxy, -cxy, 2.0 * cxx));
+    assert!((inertia.x_axis.x - 1.0 / 80.0).abs() < 1e-15);
+    let want = MassProperties { volume: v, center_of_mass: DVec3::splat(0.25), inertia };
+    assert_props_close(&mass_properties(&mesh).unwrap(), &want, 1e-12, "tetrahedron");
+    let far = DVec3::new(1000.1, -2000.3, 500.7); // not exact: the corners are rounded
+    let moved = TriangleMesh { vertices: mesh.vertices.iter().map(|p| *p + far).collect(), triangles: mesh.triangles.clone() };
+    let want_far = MassProperties { center_of_mass: want.center_of_mass + far, ..want };
+    assert_props_close(&mass_properties(&moved).unwrap(), &want_far, 1e-9, "tetrahedron far away");
+}
+
+/// Every triangle reversed (wound inward): the same properties. is_closed: the box yes; with a
+/// triangle missing or flipped, or with no triangles, no.
+#[test]
+fn inward_winding_and_closedness() {
+    let mesh = box_mesh(DVec3::new(0.05, 0.02, 0.01), DVec3::new(0.3, -0.2, 0.5), Lcg::new(24).rotation());
+    let p = mass_properties(&mesh).unwrap();
+    let inward = TriangleMesh { triangles: mesh.triangles.iter().map(|[a, b, c]| [*a, *c, *b]).collect(), ..mesh.clone() };
+    assert_props_close(&mass_properties(&inward).unwrap(), &p, 1e-12, "inward");
+    assert!(is_closed(&mesh) && is_closed(&inward));
+    let mut missing = mesh.clone();
+    missing.triangles.remove(5);
+    assert!(!is_closed(&missing), "a triangle missing");
+    let mut flipped = mesh.clone();
+    flipped.triangles[3].swap(1, 2);
+    assert!(!is_closed(&flipped), "a triangle flipped");
+    let mut doubled = mesh.clone();
+    doubled.triangles.extend(mesh.triangles.clone());
+    assert!(!is_closed(&doubled), "every edge used four times");
+    assert!(!is_closed(&TriangleMesh::default()));
+}
+
+/// Errors: no triangles, an index out of range, a flat mesh (one triangle, or the two sides of one
+/// triangle: closed, but zero volume), a non-finite vertex; combine of nothing.
+#[test]
+fn mass_property_errors() {
+    let tri = TriangleMesh { vertices: vec![DVec3::ZERO, DVec3::X, DVec3::Y], triangles: vec![[0, 1, 2]] };
+    let sheet = TriangleMesh { triangles: vec![[0, 1, 2], [0, 2, 1]], ..tri.clone() };
+    assert!(is_closed(&sheet), "closed, but flat");
+    let cases = [
+        (TriangleMesh::default(), "no triangles"),
+        (TriangleMesh { triangles: vec![[0, 1, 3]], ..tri.clone() }, "indexes past"),
+        (tri.clone(), "no volume"),
+        (sheet, "flat or degenerate"),
+        (TriangleMesh { vertices: vec![DVec3::ZERO, DVec3::X, DVec3::new(0.0, f64::INFINITY, 0.0)], ..tri }, "non-finite"),
+    ];
+    for (mesh, want) in cases {
+        let e = mass_properties(&mesh).unwrap_err();
+        assert!(e.contains(want) && !e.contains('\n'), "{want}: {e}");
+    }
+    assert!(combine(&[]).unwrap_err().contains("no parts"));
+}
+
+/// combine() of two disjoint boxes (one turned) equals the mass properties of one mesh that
+/// holds both.
+#[test]
+fn combine_equals_one_mesh_of_both_parts() {
+    let a = box_mesh(DVec3::new(0.03, 0.02, 0.01), DVec3::new(0.3, -0.2, 0.5), DQuat::IDENTITY);
+    let b = box_mesh(DVec3::new(0.01, 0.04, 0.02), DVec3::new(0.2, -0.1, 0.45), Lcg::new(25).rotation());
+    let offset = a.vertices.len() as u32;
+    let both = TriangleMesh {
+        vertices: a.vertices.iter().chain(&b.vertices).copied().collect(),
+        triangles: a.triangles.iter().copied().chain(b.triangles.iter().map(|t| t.map(|i| i + offset))).collect(),
+    };
+    let parts = [mass_properties(&a).unwrap(), mass_properties(&b).unwrap()];
+    let c = combine(&parts).unwrap();
+    assert_props_close(&c, &mass_properties(&both).unwrap(), 1e-12, "combined");
+    assert!((c.volume - parts[0].volume - parts[1].volume).abs() < 1e-18);
+    assert_props_close(&combine(&parts[..1]).unwrap(), &parts[0], 1e-15, "one part is itself");
+    assert!(max_abs(c.inertia - parts[0].inertia - parts[1].inertia) > 1e-3 * max_abs(c.inertia), "the parallel-axis terms matter here");
+}
+
+/// An OBJ of two `o` pieces: a unit cube of quads (`i/t/n`, `i//n`, `i/t` and `i` corners,
+/// scaled by 0.1 and moved) and a tetrahedron of negative indices: 12 and 4 triangles, 8 and 4
+/// vertices each, closed, volumes 1e-3 and 1/6; usemtl, s, vt, vn and comments are skipped.
+#[test]
+fn obj_pieces_of_a_cube_of_quads_and_a_tetrahedron() {
+    let obj = "# two pieces\nmtllib x.mtl\no cube\n\
+        v 1 1 1\nv 1.1 1 1\nv 1.1 1.1 1\nv 1 1.1 1\nv 1 1 1.1\nv 1.1 1 1.1\nv 1.1 1.1 1.1\nv 1 1.1 1.1\n\
+        vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nvn 0 0 1\nusemtl m\ns off\n\
+        f 1/1/1 4/4/1 3/3/1 2/2/1\nf 5/1/1 6/2/1 7/3/1 8/4/1\nf 1//1 2//1 6//1 5//1\nf 4/1 8/2 7/3 3/4\nf 1 5 8 4 # left\nf 2/2/1 3/3/1 7/3/1 6/2/1\n\
+        o tet\nv 2 0 0\nv 3 0 0\nv 2 1 0\nv 2 0 1\n\
+        f -4 -2 -3\nf -4 -3 -1\nf -4 -1 -2\nf -3 -2 -1\n";
+    let pieces = parse_obj_pieces(obj.as_bytes()).unwrap();
+    let summary: Vec<(&str, usize, usize)> = pieces.iter().map(|p| (p.name.as_str(), p.mesh.vertices.len(), p.mesh.triangles.len())).collect();
+    assert_eq!(summary, [("cube", 8, 12), ("tet", 4, 4)]);
+    for (p, volume, com) in [(&pieces[0], 1e-3, DVec3::splat(1.05)), (&pieces[1], 1.0 / 6.0, DVec3::new(2.25, 0.25, 0.25))] {
+        assert!(is_closed(&p.mesh), "{} is closed", p.name);
+        let m = mass_properties(&p.mesh).unwrap();
+        assert!((m.volume / volume - 1.0).abs() < 1e-12 && m.center_of_mass.distance(com) < 1e-12, "{}: {m:?}", p.name);
+    }
+    assert_eq!(pieces[1].mesh.vertices[0], DVec3::new(2.0, 0.0, 0.0), "re-indexed from the piece's own vertices");
+    // faces before any o/g go to "default"; a group without faces is dropped; g's name is kept
+    let p = parse_obj_pieces(b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\ng empty\no\ng side 2\nf 3 2 1\n").unwrap();
+    let names: Vec<&str> = p.iter().map(|p| p.name.as_str()).collect();
+    assert_eq!(names, ["default", "side 2"]);
+    assert_eq!(p[1].mesh.triangles, [[0, 1, 2]]);
+    assert!(parse_obj_pieces(b"# nothing\n").unwrap().is_empty());
+}
+
+/// OBJ errors are one line naming the line and what was expected; no input panics.
+#[test]
+fn obj_piece_errors_name_the_line() {
+    let head = "v 0 0 0\nv 1 0 0\nv 0 1 0\n";
+    let cases = [
+        ("f 1 2 9\n", "OBJ line 4: face index 9 is out of range (the file has 3 vertices so far)"),
+        ("f -4 1 2\n", "OBJ line 4: face index -4 is out of range"),
+        ("f 1 2\n", "OBJ line 4: a face needs at least 3 corners, found 2"),
+        ("f 1 x 3\n", "OBJ line 4: a face corner must start with a vertex index"),
+        ("f 1/2/3 /1/1 3\n", "'/1/1'"),
+        ("f 0 1 2\n", "OBJ line 4: face index 0 is invalid"),
+        ("v 1 2\n", "OBJ line 4: a 'v' line needs three numbers"),
+        ("v 1 nan 2\n", "OBJ line 4: a vertex has a non-finite coordinate"),
+        ("v 1 2 inf\n", "non-finite"),
+        ("f 1 2 99999999999999999999999\n", "OBJ line 4: a face corner"),
+        ("f 1 2 -9223372036854775808\n", "out of range"),
+        ("f\n", "found 0"),
+    ];
+    for (tail, want) in cases {
+        let e = parse_obj_pieces(format!("{head}{tail}").as_bytes()).unwrap_err();
+        assert!(e.contains(want) && !e.contains('\n'), "{tail:?}: {e}");
+    }
+}
+
+/// The box as a binary STL (f32 corners, exactly representable) and as an ASCII STL: welded to 8
+/// vertices, closed, volume 8abc, the same mesh both ways.
+#[test]
+fn stl_mesh_is_welded_and_closed() {
+    let (h, centre) = (DVec3::new(0.5, 0.25, 0.125), DVec3::new(0.25, -0.125, 0.5));
+    let mesh = box_mesh(h, centre, DQuat::IDENTITY);
+    let mut bin = vec![0u8; 80];
+    bin.extend((mesh.triangles.len() as u32).to_le_bytes());
+    let mut ascii = "solid box\n".to_string();
+    for t in &mesh.triangles {
+        bin.extend([0u8; 12]); // normal
+        ascii += " facet normal 0 0 0\n  outer loop\n";
+        for i in t {
+            let p = mesh.vertices[*i as usize];
+            bin.extend(p.to_array().iter().flat_map(|x| (*x as f32).to_le_bytes()));
+            ascii += &format!("   vertex {} {} {}\n", p.x, p.y, p.z);
+        }
+        bin.extend([0u8; 2]);
+        ascii += "  endloop\n endfacet\n";
+    }
+    ascii += "endsolid box\n";
+    let m = parse_stl_mesh(&bin).unwrap();
+    assert_eq!((m.vertices.len(), m.triangles.len()), (8, 12));
+    assert!(is_closed(&m));
+    let p = mass_properties(&m).unwrap();
+    assert!((p.volume / (8.0 * h.x * h.y * h.z) - 1.0).abs() < 1e-12 && p.center_of_mass.distance(centre) < 1e-12, "{p:?}");
+    assert_eq!(parse_stl_mesh(ascii.as_bytes()).unwrap(), m);
+    // -0.0 and 0.0 weld
+    let signed_zero = "solid z\nvertex 0 0 0\nvertex 1 0 0\nvertex 0 1 0\nvertex -0 0 0\nvertex 0 1 0\nvertex 1 0 0\nendsolid\n";
+    assert_eq!(parse_stl_mesh(signed_zero.as_bytes()).unwrap().vertices.len(), 3);
+    assert!(parse_stl_mesh(b"solid s\nvertex 0 0 0\nvertex 1 0 0\nendsolid\n").unwrap_err().contains("three vertices per triangle"));
+}
+
+/// The signed volume a mesh's triangles enclose (tetrahedra from the mean vertex): > 0 when wound
+/// outward (reported, not asserted).
+fn signed_volume(m: &TriangleMesh) -> f64 {
+    let o = m.vertices.iter().copied().sum::<DVec3>() / m.vertices.len() as f64;
+    m.triangles.iter().map(|t| t.map(|i| m.vertices[i as usize] - o)).map(|[a, b, c]| a.dot(b.cross(c)) / 6.0).sum()
+}
+
+/// Every .obj under ../shared/objects (real YCB collision meshes, see its SOURCES.md): every
+/// piece that is closed has 0 < volume ≤ its convex hull's (× (1 + 1e-6)) and its centre of mass
+/// inside the hull. Prints a line per file (run with --nocapture): pieces, closed, wound inward,
+/// the smallest volume / hull volume of a piece, total volume of the closed pieces, their combined
+/// COM, and the mass at 1000 kg/m³.
+#[test]
+fn shared_object_meshes_have_sane_mass_properties() {
+    let shared = Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/objects");
+    if !shared.is_dir() {
+        eprintln!("shared_object_meshes_have_sane_mass_properties: SKIPPED, {} does not exist", shared.display());
+        return;
+    }
+    let mut files = Vec::new();
+    mesh_files(&shared, &mut files);
+    files.retain(|p| p.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")));
+    assert!(!files.is_empty(), "no .obj under {}", shared.display());
+    let mut all_closed = 0;
+    for path in &files {
+        let name = path.strip_prefix(&shared).unwrap_or(path).display().to_string();
+        let pieces = parse_obj_pieces(&std::fs::read(path).unwrap()).unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert!(!pieces.is_empty(), "{name}: no pieces");
+        let mut closed = Vec::new();
+        let mut inward = 0;
+        let mut fill = f64::INFINITY; // the smallest volume / hull volume of a closed piece
+        for piece in &pieces {
+            if signed_volume(&piece.mesh) < 0.0 {
+                inward += 1;
+            }
+            if !is_closed(&piece.mesh) {
+                continue;
+            }
+            let what = format!("{name} / {}", piece.name);
+            let m = mass_properties(&piece.mesh).unwrap_or_else(|e| panic!("{what}: {e}"));
+            let hull = convex_hull(&piece.mesh.vertices).unwrap_or_else(|e| panic!("{what}: {e}"));
+            assert!(m.volume > 0.0 && m.volume <= hull.volume * (1.0 + 1e-6), "{what}: volume {:e} vs hull {:e}", m.volume, hull.volume);
+            let tol = 1e-9 * extent(&piece.mesh.vertices) + hull.tolerance;
+            assert!(hull.contains(m.center_of_mass, tol), "{what}: COM {} outside the hull by {:e}", m.center_of_mass, hull.plane_distance(m.center_of_mass));
+            fill = fill.min(m.volume / hull.volume);
+            closed.push(m);
+        }
+        all_closed += closed.len();
+        let (volume, com) = match combine(&closed) {
+            Ok(c) => (c.volume, format!("({:.1}, {:.1}, {:.1}) mm", c.center_of_mass.x * 1e3, c.center_of_mass.y * 1e3, c.center_of_mass.z * 1e3)),
+            Err(_) => (0.0, "-".to_string()),
+        };
+        println!(
+            "{name:<40} pieces {:>2}, closed {:>2}, wound inward {}, volume/hull min {:.4}, volume {:.2} cm3, COM {com}, mass at 1000 kg/m3 {:.3} kg",
+            pieces.len(),
+            closed.len(),
+            inward,
+            fill,
+            volume * 1e6,
+            volume * 1e3
+        );
+    }
+    assert!(all_closed > 0, "no closed piece in any file under {}", shared.display());
 }
