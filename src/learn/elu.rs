@@ -123,7 +123,7 @@ pub enum Isa {
 }
 
 /// The widest [`Isa`] this CPU has, capped by the environment variable `DEXTRAIN_SIMD`
-/// (`avx512`, `avx2` or `scalar`): `DEXTRAIN_SIMD=avx2` runs the AVX2 kernels on an AVX-512 CPU,
+/// (`avx512`, `avx2` or `scalar`; another value is ignored with a warning): `DEXTRAIN_SIMD=avx2` runs the AVX2 kernels on an AVX-512 CPU,
 /// which with a build without the `x86-v4` feature (gemm's AVX-512 kernels) is how an AVX2-only
 /// CPU's learner is measured here (BENCHMARKS.md). Read once.
 pub fn isa() -> Isa {
@@ -132,7 +132,12 @@ pub fn isa() -> Isa {
         let cap = match std::env::var("DEXTRAIN_SIMD").as_deref() {
             Ok("scalar") => Isa::Scalar,
             Ok("avx2") => Isa::Avx2,
-            _ => Isa::Avx512,
+            Ok("avx512") | Err(_) => Isa::Avx512,
+            Ok(other) => {
+                // a typo must not pass for a measured cap: say so once (bench prints what ran)
+                eprintln!("dextrain: DEXTRAIN_SIMD={other} is not avx512, avx2 or scalar; ignored");
+                Isa::Avx512
+            }
         };
         detected_isa().min(cap)
     })
