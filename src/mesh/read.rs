@@ -63,14 +63,7 @@ pub fn parse_obj(b: &[u8]) -> Result<Vec<DVec3>, String> {
         if it.next() != Some("v") {
             continue;
         }
-        let mut c = [0.0; 3];
-        for x in &mut c {
-            *x = it
-                .next()
-                .and_then(|s| s.parse::<f64>().ok())
-                .ok_or_else(|| format!("OBJ line {}: a 'v' line needs three numbers", ln + 1))?;
-        }
-        v.push(DVec3::from_array(c));
+        v.push(obj_position(it).map_err(|e| format!("OBJ line {}: {e}", ln + 1))?);
     }
     check_vertices(v)
 }
@@ -179,16 +172,21 @@ pub fn parse_obj_pieces(b: &[u8]) -> Result<Vec<MeshPiece>, String> {
 }
 
 /// The position of a `v` line (the words after `v`): three finite numbers; more are ignored.
-fn obj_vertex<'a>(mut words: impl Iterator<Item = &'a str>) -> Result<DVec3, String> {
-    let mut c = [0.0; 3];
-    for x in &mut c {
-        *x = words.next().and_then(|s| s.parse::<f64>().ok()).ok_or_else(|| "a 'v' line needs three numbers".to_string())?;
-    }
-    let p = DVec3::from_array(c);
+fn obj_vertex<'a>(words: impl Iterator<Item = &'a str>) -> Result<DVec3, String> {
+    let p = obj_position(words)?;
     if !p.is_finite() {
         return Err(format!("a vertex has a non-finite coordinate ({p})"));
     }
     Ok(p)
+}
+
+/// The first three numbers of a `v` line (the words after `v`), finite or not.
+fn obj_position<'a>(mut words: impl Iterator<Item = &'a str>) -> Result<DVec3, String> {
+    let mut c = [0.0; 3];
+    for x in &mut c {
+        *x = words.next().and_then(|s| s.parse::<f64>().ok()).ok_or_else(|| "a 'v' line needs three numbers".to_string())?;
+    }
+    Ok(DVec3::from_array(c))
 }
 
 /// The 0-based vertex index of one face corner (`i`, `i/t`, `i//n`, `i/t/n`), `n` vertices having
