@@ -6,7 +6,7 @@
 const MAX_JOINTS: u32 = 32u;
 const MAX_LINKS: u32 = 33u;
 const MAX_TIPS: u32 = 6u;
-const MAX_OBJ_PTS: u32 = 16u;
+const MAX_PIECES: u32 = 32u;
 const PROJ_ITERS: u32 = 4u;
 
 const SHAPE_SPHERE: u32 = 0u;
@@ -18,7 +18,6 @@ const NO_JOINT: u32 = 0xffffffffu;
 struct Globals {
     init_wrist_pos: vec4<f32>,
     init_wrist_rot: vec4<f32>,
-    obj_size: vec4<f32>,
     obj_init: vec4<f32>,
     rnd: array<vec4<f32>, 6>,
     n_envs: u32,
@@ -26,7 +25,7 @@ struct Globals {
     n_colliders: u32,
     n_tips: u32,
     n_links: u32,
-    obj_shape: u32,
+    n_objects: u32,
     n_obj_pts: u32,
     substeps: u32,
     decimation: u32,
@@ -39,7 +38,7 @@ struct Globals {
     contact_kt: f32,
     hand_eff_mass: f32,
     hand_friction: f32,
-    obj_mass: f32,
+    _pad1: f32,
     obj_friction: f32,
     table_friction: f32,
     yaw_noise: f32,
@@ -117,7 +116,7 @@ struct EnvState {
 }
 
 struct EnvParams {
-    obj_size: vec4<f32>,
+    obj_com: vec4<f32>,
     obj_inertia: vec4<f32>,
     obj_friction: f32,
     restitution: f32,
@@ -131,10 +130,32 @@ struct EnvParams {
     added_gravity: f32,
     obj_contact_c: f32,
     hand_table_c: f32,
-    _pad0: f32,
-    _pad1: f32,
-    _pad2: f32,
-    _pad3: f32,
+    obj_index: u32,
+    obj_rest_height: f32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// One collision piece of an object, in the object's frame, unscaled (twin: gpu_layout.rs PieceDesc).
+struct PieceDesc {
+    pos: vec4<f32>,
+    rot: vec4<f32>,
+    size: vec4<f32>,
+    shape: u32,
+    n_support: u32,
+    _pad0: u32,
+    _pad1: u32,
+}
+
+// One object of the run, unscaled (twin: gpu_layout.rs ObjectDesc).
+struct ObjectDesc {
+    com: vec4<f32>,
+    principal_rot: vec4<f32>,
+    inertia: vec4<f32>,
+    first_piece: u32,
+    n_pieces: u32,
+    n_support: u32,
+    rest_height: f32,
 }
 
 struct Targets {
@@ -244,6 +265,9 @@ fn rand_uniform(seed: u32, env: u32, episode: u32, purpose: u32, k: u32) -> f32 
 // slots from e * g.n_springs: hand collider c vs object at c, vs table at n_colliders + c, object
 // support point k vs table at 2 n_colliders + k (twin: gpu_layout.rs spring_slot)
 @group(0) @binding(16) var<storage, read_write> springs: array<vec4<f32>>;
+// the objects' collision pieces and the objects (twin: SimModel::pieces, SimModel::objects)
+@group(0) @binding(18) var<storage, read> pieces: array<PieceDesc>;
+@group(0) @binding(19) var<storage, read> objects: array<ObjectDesc>;
 const WORKGROUP_SIZE: u32 = 64u;
 
 // Env index of an invocation of a (possibly 2-D) dispatch.

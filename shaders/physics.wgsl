@@ -249,19 +249,56 @@ fn bounding_radius(code: u32, size: vec3<f32>) -> f32 {
     return sqrt(size.x * size.x + size.y * size.y);
 }
 
+struct PiecePose {
+    pos: vec3<f32>,
+    rot: vec4<f32>,
+    size: vec3<f32>,
+}
+
+// world pose and scaled size of an object piece: centre = p_obj + R_obj (s c), rotation = R_obj R_piece
+fn piece_pose(pd: PieceDesc) -> PiecePose {
+    let orot = st.obj_rot;
+    let pos = st.obj_pos.xyz + quat_rotate(orot, pd.pos.xyz * prm.obj_scale);
+    return PiecePose(pos, quat_mul(orot, pd.rot), pd.size.xyz * prm.obj_scale);
+}
+
+// the object's centre of mass (world): p_obj + R_obj c
+fn object_com() -> vec3<f32> {
+    return st.obj_pos.xyz + quat_rotate(st.obj_rot, prm.obj_com.xyz);
+}
+
+// the deepest contact of hand collider ci over the object's pieces (bounding spheres first)
 fn collide_hand_object(ci: u32) -> Contact {
     let cd = colliders[ci];
     let cp = collider_pose(ci);
     let opos = st.obj_pos.xyz;
-    let reach = bounding_radius(cd.shape, cd.size.xyz) + bounding_radius(g.obj_shape, prm.obj_size.xyz);
+    let rc = bounding_radius(cd.shape, cd.size.xyz);
+    let reach = rc + prm.obj_com.w;
     let dc = cp.pos - opos;
+    var best = Contact(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
     if (dot(dc, dc) > reach * reach) {
-        return Contact(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
+        return best;
     }
-    let orot = st.obj_rot;
+    let od = objects[prm.obj_index];
+    for (var k = 0u; k < od.n_pieces; k++) {
+        let pd = pieces[od.first_piece + k];
+        let pp = piece_pose(pd);
+        let r = rc + pd.pos.w * prm.obj_scale;
+        let dp = cp.pos - pp.pos;
+        if (dot(dp, dp) > r * r) {
+            continue;
+        }
+        let c = collide_collider_piece(cd, cp, pd.shape, pp.size, pp.pos, pp.rot);
+        if (c.depth > best.depth) {
+            best = c;
+        }
+    }
+    return best;
+}
+
+// a hand collider against one object piece (shape code, scaled size, at opos, orot)
+fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, code: u32, size: vec3<f32>, opos: vec3<f32>, orot: vec4<f32>) -> Contact {
     let oinv = quat_conj(orot);
-    let code = g.obj_shape;
-    let size = prm.obj_size.xyz;
     // collider in the object's frame
     let c_o = quat_rotate(oinv, cp.pos - opos);
     let r_o = quat_mul(oinv, cp.rot);
@@ -354,9 +391,10 @@ fn collide_hand_table(ci: u32) -> Contact {
     return Contact(r - low.z, vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(low.x, low.y, 0.0));
 }
 
-fn collide_object_table(k: u32) -> Contact {
-    let sp = object_support_point(g.obj_shape, prm.obj_size.xyz, k);
-    let w = st.obj_pos.xyz + quat_rotate(st.obj_rot, sp.pos);
+// support point k of an object piece (shape code, scaled size, at ppos, prot) against the table
+fn collide_piece_table(code: u32, size: vec3<f32>, ppos: vec3<f32>, prot: vec4<f32>, k: u32) -> Contact {
+    let sp = object_support_point(code, size, k);
+    let w = ppos + quat_rotate(prot, sp.pos);
     return Contact(sp.radius - w.z, vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(w.x, w.y, 0.0));
 }
 
@@ -506,9 +544,9 @@ fn apply_object_torque(tq: vec3<f32>, n: vec3<f32>, b: f32) {
     }
 }
 
-// f at x on the object, and Σ JᵀDJ with D = a nnᵀ + b (I − nnᵀ), J = [I, −[r]×]
-fn apply_object_force(x: vec3<f32>, f: vec3<f32>, n: vec3<f32>, a: f32, b: f32) {
-    let r = x - st.obj_pos.xyz;
+// f at x on the object (centre of mass com), and Σ JᵀDJ with D = a nnᵀ + b (I − nnᵀ), J = [I, −[r]×]
+fn apply_object_force(com: vec3<f32>, x: vec3<f32>, f: vec3<f32>, n: vec3<f32>, a: f32, b: f32) {
+    let r = x - com;
     obj_f += f;
     obj_t += cross(r, f);
     var dm: array<vec3<f32>, 3>;
@@ -538,7 +576,8 @@ fn apply_object_force(x: vec3<f32>, f: vec3<f32>, n: vec3<f32>, a: f32, b: f32) 
 fn contacts_and_forces(h: f32) {
     let k = g.contact_k;
     let kt = g.contact_kt;
-    let opos = st.obj_pos.xyz;
+    // the object's velocities are those of its centre of mass
+    let ocom = object_com();
     let ovel = st.obj_vel.xyz;
     let ow = st.obj_angvel.xyz;
     let mu_ho = 0.5 * (prm.hand_friction + prm.obj_friction);
@@ -550,14 +589,14 @@ fn contacts_and_forces(h: f32) {
         let c = collide_hand_object(ci);
         if (c.depth > 0.0) {
             let vh = link_point_velocity(l, c.point);
-            let vo = ovel + cross(ow, c.point - opos);
+            let vo = ovel + cross(ow, c.point - ocom);
             let gn = hand_contact_gains(k, kt, prm.obj_contact_c, hand_mobility(l, c.point), h);
             let cf = contact_force(c, vh - vo, springs[spring_base + ci].xyz, gn.k, gn.kt, gn.c, mu_ho, h);
             springs[spring_base + ci] = vec4<f32>(cf.spring, 1.0);
             apply_hand_force(l, c.point, cf.force);
             // the normal damper acts only while the contact pushes (Fn > 0)
             let a = select(0.0, gn.k * h + gn.c, dot(cf.force, c.normal) > 0.0);
-            apply_object_force(c.point, -cf.force, c.normal, a, cf.tdamp);
+            apply_object_force(ocom, c.point, -cf.force, c.normal, a, cf.tdamp);
             let tor = torsion_torque(c.normal, link_w[l] - ow, dot(cf.force, c.normal), mu_ho, g.torsion_radius);
             apply_hand_torque(l, tor.torque);
             apply_object_torque(-tor.torque, c.normal, tor.damping);
@@ -591,21 +630,29 @@ fn contacts_and_forces(h: f32) {
             }
         }
     }
-    // object–table
-    for (var kp = 0u; kp < g.n_obj_pts; kp++) {
-        let c = collide_object_table(kp);
-        if (c.depth > 0.0) {
-            let vo = ovel + cross(ow, c.point - opos);
-            let cf = contact_force(c, vo, springs[spring_base + 2u * g.n_colliders + kp].xyz, k, kt, prm.obj_contact_c, mu_ot, h);
-            springs[spring_base + 2u * g.n_colliders + kp] = vec4<f32>(cf.spring, 1.0);
-            let a = select(0.0, k * h + prm.obj_contact_c, dot(cf.force, c.normal) > 0.0);
-            apply_object_force(c.point, cf.force, c.normal, a, cf.tdamp);
-            let tor = torsion_torque(c.normal, ow, dot(cf.force, c.normal), mu_ot, g.torsion_radius);
-            apply_object_torque(tor.torque, c.normal, tor.damping);
-            n_contacts += 1u;
-            max_pen = max(max_pen, c.depth);
-        } else {
-            springs[spring_base + 2u * g.n_colliders + kp] = vec4<f32>(0.0);
+    // object–table: every support point of every piece, in order (spring slots 0.. of the object)
+    let od = objects[prm.obj_index];
+    var kp = 0u;
+    for (var pi = 0u; pi < od.n_pieces; pi++) {
+        let pd = pieces[od.first_piece + pi];
+        let pp = piece_pose(pd);
+        for (var j = 0u; j < pd.n_support; j++) {
+            let ki = spring_base + 2u * g.n_colliders + kp;
+            kp += 1u;
+            let c = collide_piece_table(pd.shape, pp.size, pp.pos, pp.rot, j);
+            if (c.depth > 0.0) {
+                let vo = ovel + cross(ow, c.point - ocom);
+                let cf = contact_force(c, vo, springs[ki].xyz, k, kt, prm.obj_contact_c, mu_ot, h);
+                springs[ki] = vec4<f32>(cf.spring, 1.0);
+                let a = select(0.0, k * h + prm.obj_contact_c, dot(cf.force, c.normal) > 0.0);
+                apply_object_force(ocom, c.point, cf.force, c.normal, a, cf.tdamp);
+                let tor = torsion_torque(c.normal, ow, dot(cf.force, c.normal), mu_ot, g.torsion_radius);
+                apply_object_torque(tor.torque, c.normal, tor.damping);
+                n_contacts += 1u;
+                max_pen = max(max_pen, c.depth);
+            } else {
+                springs[ki] = vec4<f32>(0.0);
+            }
         }
     }
 }
@@ -722,12 +769,15 @@ fn integrate_object(h: f32) {
     let mass = prm.obj_inertia.w;
     let ib = prm.obj_inertia.xyz;
     let rot = st.obj_rot;
+    // the principal frame in the world: R_obj R_principal
+    let prot = quat_mul(rot, objects[prm.obj_index].principal_rot);
+    let com = object_com();
     let w = st.obj_angvel.xyz;
     // gyroscopic: ω ← ω − h I⁻¹ (ω × Iω), rescaled so that ωᵀIω is unchanged
-    let iw = inertia_mul(rot, ib, w);
+    let iw = inertia_mul(prot, ib, w);
     let e0 = dot(w, iw);
-    var wg = w - h * inertia_inv_mul(rot, ib, cross(w, iw));
-    let e1 = dot(wg, inertia_mul(rot, ib, wg));
+    var wg = w - h * inertia_inv_mul(prot, ib, cross(w, iw));
+    let e1 = dot(wg, inertia_mul(prot, ib, wg));
     if (e1 > 1e-20) {
         wg *= sqrt(e0 / e1);
     }
@@ -740,7 +790,7 @@ fn integrate_object(h: f32) {
         a[i * 6u + i] += mass;
         var e = vec3<f32>(0.0);
         e[i] = 1.0;
-        let col = inertia_mul(rot, ib, e);
+        let col = inertia_mul(prot, ib, e);
         for (var row = 0u; row < 3u; row++) {
             a[(3u + row) * 6u + 3u + i] += col[row];
         }
@@ -751,10 +801,12 @@ fn integrate_object(h: f32) {
     let du = solve6(a, array<f32, 6>(h * f.x, h * f.y, h * f.z, h * tq.x, h * tq.y, h * tq.z));
     let vel_n = st.obj_vel.xyz + vec3<f32>(du[0], du[1], du[2]);
     let w_n = wg + vec3<f32>(du[3], du[4], du[5]);
+    // the centre of mass moves with v, the frame turns about it: p_obj = com − R c
+    let rot_n = quat_integrate(rot, w_n, h);
     st.obj_vel = vec4<f32>(vel_n, 0.0);
     st.obj_angvel = vec4<f32>(w_n, 0.0);
-    st.obj_pos = vec4<f32>(st.obj_pos.xyz + vel_n * h, 0.0);
-    st.obj_rot = quat_integrate(rot, w_n, h);
+    st.obj_pos = vec4<f32>(com + vel_n * h - quat_rotate(rot_n, prm.obj_com.xyz), 0.0);
+    st.obj_rot = rot_n;
 }
 
 fn substep(h: f32) {

@@ -8,35 +8,6 @@ fn rand_range(env: u32, episode: u32, purpose: u32, k: u32, lo: f32, hi: f32) ->
     return lo + (hi - lo) * rand_uniform(g.seed, env, episode, purpose, k);
 }
 
-fn object_inertia(code: u32, size: vec3<f32>, m: f32) -> vec3<f32> {
-    let r = size.x;
-    if (code == SHAPE_SPHERE) {
-        return vec3<f32>(0.4 * m * r * r);
-    }
-    if (code == SHAPE_BOX) {
-        let x = size.x;
-        let y = size.y;
-        let z = size.z;
-        // I_xx = m (b² + c²)/3 with half extents b, c
-        return vec3<f32>(m * (y * y + z * z) / 3.0, m * (x * x + z * z) / 3.0, m * (x * x + y * y) / 3.0);
-    }
-    let h = size.y;
-    let l = 2.0 * h;
-    if (code == SHAPE_CYLINDER) {
-        let ixx = m * (3.0 * r * r + l * l) / 12.0;
-        return vec3<f32>(ixx, ixx, 0.5 * m * r * r);
-    }
-    // capsule: a cylinder and two hemispheres sharing the mass by volume
-    let vc = 3.14159265 * r * r * l;
-    let vs = 4.0 / 3.0 * 3.14159265 * r * r * r;
-    let mc = m * vc / (vc + vs);
-    let ms = m - mc;
-    let izz = 0.5 * mc * r * r + 0.4 * ms * r * r;
-    let ixx = mc * (3.0 * r * r + l * l) / 12.0 + ms * (0.4 * r * r + h * h + 0.75 * h * r);
-    return vec3<f32>(ixx, ixx, izz);
-}
-
-// ζ = −ln e / √(π² + ln² e); ζ = 1 for e → 0
 fn damping_ratio(e: f32) -> f32 {
     if (e < 1e-3) {
         return 1.0;
@@ -48,20 +19,25 @@ fn damping_ratio(e: f32) -> f32 {
 fn reset_params(env: u32, episode: u32) -> EnvParams {
     let pp = PURPOSE_PARAMS;
     var p: EnvParams;
+    // the object: ⌊u · n⌋, clamped (u < 1, but f32 rounding of u · n could reach n)
+    p.obj_index = min(u32(rand_uniform(g.seed, env, episode, pp, 11u) * f32(g.n_objects)), g.n_objects - 1u);
+    let od = objects[p.obj_index];
     p.hand_mass_scale = rand_range(env, episode, pp, 0u, g.rnd[0].x, g.rnd[0].y);
     p.hand_friction = g.hand_friction * rand_range(env, episode, pp, 1u, g.rnd[0].z, g.rnd[0].w);
     p.limit_scale = rand_range(env, episode, pp, 2u, g.rnd[1].x, g.rnd[1].y);
     p.kp_scale = rand_range(env, episode, pp, 3u, g.rnd[1].z, g.rnd[1].w);
     p.kd_scale = rand_range(env, episode, pp, 4u, g.rnd[2].x, g.rnd[2].y);
-    let mass = g.obj_mass * rand_range(env, episode, pp, 5u, g.rnd[2].z, g.rnd[2].w);
+    let mass = od.inertia.w * rand_range(env, episode, pp, 5u, g.rnd[2].z, g.rnd[2].w);
     p.obj_friction = g.obj_friction * rand_range(env, episode, pp, 6u, g.rnd[3].x, g.rnd[3].y);
     p.obj_scale = rand_range(env, episode, pp, 7u, g.rnd[3].z, g.rnd[3].w);
     p.restitution = rand_range(env, episode, pp, 8u, g.rnd[4].x, g.rnd[4].y);
     p.table_friction = g.table_friction * rand_range(env, episode, pp, 9u, g.rnd[4].z, g.rnd[4].w);
     p.added_gravity = rand_range(env, episode, pp, 10u, g.rnd[5].x, g.rnd[5].y);
-    let size = g.obj_size.xyz * p.obj_scale;
-    p.obj_size = vec4<f32>(size, 0.0);
-    let inertia = object_inertia(g.obj_shape, size, mass);
+    let sc = p.obj_scale;
+    p.obj_com = od.com * sc;
+    p.obj_rest_height = od.rest_height * sc;
+    // I = (I/m) · m · s² (every length scaled by s)
+    let inertia = od.inertia.xyz * (mass * sc * sc);
     p.obj_inertia = vec4<f32>(inertia, mass);
     // reduced mass m_h m_o / (m_h + m_o)
     let m_red = g.hand_eff_mass * mass / (g.hand_eff_mass + mass);
@@ -91,7 +67,7 @@ fn reset_state(p: EnvParams, env: u32, episode: u32, bad_resets: u32) -> EnvStat
     let x = g.obj_init.x + rand_range(env, episode, pi, 0u, -g.rnd[5].z, g.rnd[5].z);
     let y = g.obj_init.y + rand_range(env, episode, pi, 1u, -g.rnd[5].w, g.rnd[5].w);
     let yaw = g.obj_init.z + rand_range(env, episode, pi, 2u, -g.yaw_noise, g.yaw_noise);
-    s.obj_pos = vec4<f32>(x, y, g.obj_init.w * p.obj_scale, 0.0);
+    s.obj_pos = vec4<f32>(x, y, p.obj_rest_height, 0.0);
     s.obj_rot = quat_from_axis_angle(vec3<f32>(0.0, 0.0, 1.0), yaw);
     s.episode = episode;
     s.bad_resets = bad_resets;

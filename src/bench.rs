@@ -26,8 +26,8 @@ pub fn bench_config(n: usize) -> Config {
     c.base_dir = "configs".into();
     c.source = "<bench scene>".into();
     c.sim.num_envs = n;
-    c.object.shape = ObjectShape::Box { half_extents: [0.025, 0.025, 0.025] };
-    c.object.mass = 0.1;
+    c.object.shape = Some(ObjectShape::Box { half_extents: [0.025, 0.025, 0.025] });
+    c.object.mass = Some(0.1);
     c.wrist.init_pos = [0.0, 0.0, 0.115];
     // the peer's table is hand-transparent: no hand–table contacts
     c.table.hand_collision = false;

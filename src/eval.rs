@@ -172,6 +172,29 @@ pub struct EpisodeRow {
     /// when two references share a name), so that the demonstrations the policy cannot follow
     /// stand out; empty for lift.
     pub reference: String,
+    /// The name of the object the episode's env held (`[object]` or `[[object.set]]`).
+    pub object: String,
+    /// Object lift height at the episode's last step (m).
+    pub final_lift_m: f64,
+}
+
+/// The episodes of one object (runs with several objects: each env draws one at its reset).
+#[derive(Clone, Debug, Serialize)]
+pub struct ObjectSummary {
+    /// The object's name.
+    pub object: String,
+    /// Its episodes.
+    pub episodes: usize,
+    /// Their success rate.
+    pub success_rate: f64,
+    /// Object lift height at the episodes' last step (m).
+    pub final_lift_height_m: MeanStd,
+    /// Reference kinds: the object's translation error (m) at the episodes' last step.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub terminal_obj_pos_err_m: Option<MeanStd>,
+    /// Reference kinds: the object's orientation error (deg) at the episodes' last step.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub terminal_obj_rot_err_deg: Option<MeanStd>,
 }
 
 /// What a set of episodes did (the policy's, or the open-loop baseline's). The metric names mean
@@ -222,6 +245,8 @@ pub struct Summary {
     /// episodes (left out otherwise).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub latent_error: Option<MeanStd>,
+    /// Per object, in the order of the config's objects (those with episodes).
+    pub per_object: Vec<ObjectSummary>,
     /// Every episode, in env order.
     pub per_episode: Vec<EpisodeRow>,
 }
@@ -392,6 +417,23 @@ pub fn markdown(r: &EvalReport) -> String {
         let cells: Vec<String> = cells.into_iter().map(|c| c.unwrap_or_else(|| "–".into())).collect();
         out.push_str(&format!("| {name} | {} |\n", cells.join(" | ")));
     }
+    // several objects: per object, its episodes' success, final lift and terminal error
+    if r.policy.per_object.len() > 1 {
+        out.push_str(&format!(
+            "\nPer object: successes, final lift (mean) and terminal object error (mean)\n\n| object | {} |\n|---|{}\n",
+            cols.iter().map(|c| c.0).collect::<Vec<_>>().join(" | "),
+            "---|".repeat(cols.len())
+        ));
+        for o in &r.policy.per_object {
+            let cell = |s: &Summary| {
+                s.per_object.iter().find(|x| x.object == o.object).map_or("–".to_string(), |x| {
+                    let err = x.terminal_obj_pos_err_m.as_ref().map_or(String::new(), |m| format!(", {:.1} mm", m.mean * 1e3));
+                    format!("{}/{} ({:.1} %), lift {:.1} mm{err}", (x.success_rate * x.episodes as f64).round(), x.episodes, 100.0 * x.success_rate, x.final_lift_height_m.mean * 1e3)
+                })
+            };
+            out.push_str(&format!("| {} | {} |\n", o.object, cols.iter().map(|c| cell(c.1)).collect::<Vec<_>>().join(" | ")));
+        }
+    }
     // reference kinds: per reference, its episodes' mean terminal error and success
     let mut names: Vec<&str> = r.policy.per_episode.iter().map(|e| e.reference.as_str()).filter(|n| !n.is_empty()).collect();
     names.sort_unstable();
@@ -453,6 +495,8 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
     } else {
         reference_names(&reference_paths(cfg)?)
     };
+    // the config's objects, in order (the same every round)
+    let mut object_names: Vec<String> = Vec::new();
     for round in 0..rounds {
         let n = (episodes - round * max_envs).min(max_envs);
         let mut c = cfg.clone();
@@ -465,6 +509,7 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
         c.seed = seed.wrapping_add(round as u32 * 7919);
         c.validate()?;
         let model = SimModel::from_config(&c)?;
+        object_names = model.objects.iter().map(|o| o.name.clone()).collect();
         let mut task = make_task_batch(&c, model.clone())?;
         let spec = task.spec().clone();
         env_backend = task.backend_name();
@@ -521,7 +566,10 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
                 let g = &model.globals;
                 let meta = RolloutMeta {
                     hand: model.hand.clone(),
-                    object: c.object.shape.scaled(reset_params(g, 0, 0).obj_scale),
+                    object: {
+                        let p0 = reset_params(g, &model.object_descs, 0, 0);
+                        model.objects[p0.obj_index as usize].parts(p0.obj_scale)
+                    },
                     dt: spec.control_dt,
                     info: serde_json::json!({"run": args.run.display().to_string(), "checkpoint": source.describe(), "seed": c.seed}),
                 };
@@ -532,12 +580,11 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
         let first = task.reset_all()?;
         let (mut obs, mut priv_obs) = (first.obs.clone(), first.priv_obs.clone());
         // the reference of each env's (only) episode, drawn at the reset
-        let refs: Vec<String> = if !has_reference {
-            vec![String::new(); n]
-        } else {
-            let (_, ts) = decode_snapshot(&task.save_state()?, n, model.globals.n_springs as usize)?;
-            ts.iter().map(|t| ref_names.get(t.cursor.ref_id as usize).cloned().unwrap_or_default()).collect()
-        };
+        let (env_snap, ts) = decode_snapshot(&task.save_state()?, n, model.globals.n_springs as usize)?;
+        let refs: Vec<String> =
+            if !has_reference { vec![String::new(); n] } else { ts.iter().map(|t| ref_names.get(t.cursor.ref_id as usize).cloned().unwrap_or_default()).collect() };
+        // the object each env drew at that reset
+        let objects: Vec<String> = env_snap.params.iter().map(|p| model.objects[p.obj_index as usize].name.clone()).collect();
         let mut done = vec![false; n];
         let mut ret = vec![0.0f64; n];
         let mut len = vec![0u32; n];
@@ -624,6 +671,8 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
                         terminal_pos_err_m: has_reference.then(|| b.obj_pos_err[i] as f64),
                         terminal_rot_err_deg: has_reference.then(|| (b.obj_rot_err[i] as f64).to_degrees()),
                         reference: refs[i].clone(),
+                        object: objects[i].clone(),
+                        final_lift_m: b.lift_height[i] as f64,
                     });
                     final_lift.push(b.lift_height[i] as f64);
                     max_lift_ep.push(lift_max[i]);
@@ -664,9 +713,32 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
         frac_frames_penetration_over_1mm: frames_over as f64 / total_frames,
         mean_fingertip_force_n: if force_n > 0 { force_sum / force_n as f64 } else { 0.0 },
         latent_error: (!latent_err.is_empty()).then(|| mean_std(&latent_err)),
+        per_object: object_summaries(&rows, &object_names, has_reference),
         per_episode: rows,
     };
     Ok((summary, env_backend, device_name))
+}
+
+/// The episodes of each object in `names` (the config's order) that has any.
+fn object_summaries(rows: &[EpisodeRow], names: &[String], has_reference: bool) -> Vec<ObjectSummary> {
+    names
+        .iter()
+        .filter_map(|name| {
+            let eps: Vec<&EpisodeRow> = rows.iter().filter(|r| &r.object == name).collect();
+            if eps.is_empty() {
+                return None;
+            }
+            let col = |f: &dyn Fn(&EpisodeRow) -> Option<f64>| mean_std(&eps.iter().filter_map(|r| f(r)).collect::<Vec<f64>>());
+            Some(ObjectSummary {
+                object: name.clone(),
+                episodes: eps.len(),
+                success_rate: eps.iter().filter(|r| r.success).count() as f64 / eps.len() as f64,
+                final_lift_height_m: col(&|r| Some(r.final_lift_m)),
+                terminal_obj_pos_err_m: has_reference.then(|| col(&|r| r.terminal_pos_err_m)),
+                terminal_obj_rot_err_deg: has_reference.then(|| col(&|r| r.terminal_rot_err_deg)),
+            })
+        })
+        .collect()
 }
 
 impl PolicySource<'_> {

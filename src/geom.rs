@@ -97,7 +97,7 @@ impl ObjectShape {
     /// Principal moments of inertia (kg·m²) of the solid of mass `mass`, about its centre (the same
     /// formulas the simulator uses at reset).
     pub fn inertia_diag(&self, mass: f32) -> Vec3 {
-        crate::env::reset::object_inertia(self.code(), Vec3::from(self.size_params()), mass)
+        crate::object::object_inertia(self.code(), Vec3::from(self.size_params()), mass)
     }
 
     /// The shape with every length multiplied by `scale` (an env's object scale).

@@ -1205,6 +1205,8 @@ impl Loader<'_> {
             FittedShape::Sphere { radius } => ColliderShape::Sphere { radius: radius as f32 },
             FittedShape::Capsule { radius, half_length } => ColliderShape::Capsule { radius: radius as f32, half_length: half_length as f32 },
             FittedShape::Box { half_extents } => ColliderShape::Box { half_extents: half_extents.as_vec3() },
+            // not among the kinds asked for above; the capsule on the same segment contains it
+            FittedShape::Cylinder { radius, half_length } => ColliderShape::Capsule { radius: radius as f32, half_length: half_length as f32 },
         };
         self.mesh_fits.borrow_mut().push(MeshFitReport {
             link: link.to_string(),

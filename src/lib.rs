@@ -1,7 +1,7 @@
 //! dextrain: a batched simulator and trainer for dexterous robot hands.
 //!
 //! See README.md for the architecture; `env` holds the simulator (CPU and GPU backends behind
-//! [`env::EnvBatch`]), `hand` the URDF loader, `traj` reference trajectories, `record` MCAP rollouts.
+//! [`env::EnvBatch`]), `hand` the URDF loader, `object` the manipulated objects, `traj` reference trajectories, `record` MCAP rollouts.
 
 pub mod bench;
 pub mod checkpoint;
@@ -15,6 +15,7 @@ pub mod hand;
 pub mod learn;
 pub mod mesh;
 pub mod metrics;
+pub mod object;
 pub mod plot;
 pub mod record;
 pub mod replay;

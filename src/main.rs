@@ -132,6 +132,10 @@ fn run(cli: Cli) -> Result<()> {
                     console::status(&format!("  {}{}", fit.describe(), if fit.is_poor() { "  [poor fit]" } else { "" }));
                 }
             }
+            // what each object became: pieces, fit quality, mass properties
+            for o in &model.objects {
+                console::status(o.describe().trim_end());
+            }
             // what the policy sees: the actor's and the critic's observation layouts
             console::status(dextrain::task::spec::layout_table(&task.obs_layout, "actor observation").trim_end());
             console::status(dextrain::task::spec::layout_table(&task.priv_layout, "critic observation").trim_end());

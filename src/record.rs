@@ -34,7 +34,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::{Context, Result, bail};
 use glam::{Quat, Vec3};
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
 use crate::geom::{ObjectShape, Pose};
@@ -65,12 +65,19 @@ pub struct ContactRecord {
     pub force: Vec3,
 }
 
+/// One collision piece of the recorded object: a primitive (scaled) at a pose in the object frame.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct ObjectPart {
+    pub shape: ObjectShape,
+    pub pose: Pose,
+}
+
 /// Static description of a recorded rollout.
 #[derive(Clone, Debug)]
 pub struct RolloutMeta {
     pub hand: HandModel,
-    /// Object shape with the env's object scale already applied.
-    pub object: ObjectShape,
+    /// The object's pieces with the env's object scale already applied.
+    pub object: Vec<ObjectPart>,
     /// Time between recorded frames (s).
     pub dt: f32,
     /// Free-form JSON (config summary, command line) stored as MCAP metadata "dextrain".
@@ -558,13 +565,15 @@ impl Prims {
         }
     }
 
-    fn object(&mut self, shape: &ObjectShape, color: FgColor) {
-        let id = Pose::IDENTITY;
-        match *shape {
-            ObjectShape::Sphere { radius } => self.sphere(&id, radius, color),
-            ObjectShape::Box { half_extents } => self.cube(&id, Vec3::from(half_extents), color),
-            ObjectShape::Capsule { radius, half_length } => self.capsule(&id, radius, half_length, color),
-            ObjectShape::Cylinder { radius, half_length } => self.cylinder(&id, radius, half_length, color),
+    fn object(&mut self, parts: &[ObjectPart], color: FgColor) {
+        for part in parts {
+            let at = &part.pose;
+            match part.shape {
+                ObjectShape::Sphere { radius } => self.sphere(at, radius, color),
+                ObjectShape::Box { half_extents } => self.cube(at, Vec3::from(half_extents), color),
+                ObjectShape::Capsule { radius, half_length } => self.capsule(at, radius, half_length, color),
+                ObjectShape::Cylinder { radius, half_length } => self.cylinder(at, radius, half_length, color),
+            }
         }
     }
 

@@ -3,14 +3,16 @@
 //! the value and what is allowed. Everything is checked once, in [`Config::load`]; the code that
 //! reads a `Config` afterwards trusts it.
 //!
-//! One file per concern: [`sim`] (backend, time stepping, object, table, contact, randomisation),
+//! One file per concern: [`sim`] (backend, time stepping, table, contact, randomisation), [`object`]
+//! (the object or the set of objects),
 //! [`hand`] (the hand and its wrist), [`task`] (task kinds, actions, observations, rewards,
 //! references) and [`learn`] (the run, PPO, the networks); each struct's `validate()` sits beside
-//! it. Paths inside a config (the hand's URDF, references) are relative to the config file's
+//! it. Paths inside a config (the hand's URDF, object meshes and URDFs, references) are relative to the config file's
 //! directory.
 
 pub mod hand;
 pub mod learn;
+pub mod object;
 pub mod sac;
 pub mod sim;
 pub mod task;
@@ -24,7 +26,8 @@ use serde::{Deserialize, Serialize};
 pub use hand::{HandConfig, WristConfig};
 pub use sac::{QReduction, SacConfig};
 pub use learn::{Activation, AdaptationModule, AlgorithmChoice, DatasetMode, DistillConfig, EncoderConfig, LrSchedule, PolicyConfig, PpoConfig, StudentActor, TrainConfig};
-pub use sim::{BackendChoice, ContactConfig, ObjectConfig, RandomizationConfig, SimConfig, TableConfig};
+pub use object::{MeshFiles, ObjectConfig, ObjectItem, PieceKind};
+pub use sim::{BackendChoice, ContactConfig, RandomizationConfig, SimConfig, TableConfig};
 pub use task::{
     ActionConfig, FingerMode, HandPointsConfig, LiftConfig, ObsNoiseConfig, ReferenceConfig, ReferenceStart, ResidualConfig, TaskConfig, TaskKind,
     TerminationConfig, TrackAction, TrackConfig,

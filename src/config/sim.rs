@@ -1,4 +1,4 @@
-//! `[sim]`, `[object]`, `[table]`, `[contact]` and `[randomization]`: the batched physics (DESIGN §4)
+//! `[sim]`, `[table]`, `[contact]` and `[randomization]`: the batched physics (DESIGN §4)
 //! and the backend it runs on.
 
 use std::fmt;
@@ -8,7 +8,6 @@ use anyhow::Result;
 use serde::{Deserialize, Serialize};
 
 use super::Check;
-use crate::geom::ObjectShape;
 
 /// Where the simulator (`sim.backend`) or the learner (`train.device`) runs. In the TOML and on the
 /// command line: `"auto"` (a hardware GPU adapter if there is one, else the CPU), `"cpu"`, `"gpu"`
@@ -86,29 +85,6 @@ pub struct SimConfig {
     pub max_distance: f32,
 }
 
-/// `[object]`
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields, default)]
-pub struct ObjectConfig {
-    /// Shape and size: `{ type = "box", half_extents = [..] }`, `{ type = "sphere", radius = .. }`,
-    /// `{ type = "capsule", radius = .., half_length = .. }` or `{ type = "cylinder", radius = .., half_length = .. }`.
-    pub shape: ObjectShape,
-    /// Mass (kg).
-    pub mass: f32,
-    /// Coulomb friction coefficient (combined with the other body's by averaging).
-    pub friction: f32,
-    /// Coefficient of restitution of the object's contacts, in [0, 1).
-    pub restitution: f32,
-    /// Initial x, y (m) of the object's centre; it starts resting on the table.
-    pub init_xy: [f32; 2],
-    /// Initial rotation about z (rad).
-    pub init_yaw: f32,
-    /// Half widths (m) of the uniform noise added to the initial x and y at each reset.
-    pub xy_noise: [f32; 2],
-    /// Half width (rad) of the uniform noise added to the initial yaw at each reset.
-    pub yaw_noise: f32,
-}
-
 /// `[table]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -171,21 +147,6 @@ impl Default for SimConfig {
     }
 }
 
-impl Default for ObjectConfig {
-    fn default() -> Self {
-        ObjectConfig {
-            shape: ObjectShape::Box { half_extents: [0.025, 0.025, 0.025] },
-            mass: 0.1,
-            friction: 1.0,
-            restitution: 0.0,
-            init_xy: [0.0, 0.0],
-            init_yaw: 0.0,
-            xy_noise: [0.0, 0.0],
-            yaw_noise: 0.0,
-        }
-    }
-}
-
 impl Default for TableConfig {
     fn default() -> Self {
         TableConfig { friction: 1.0, hand_collision: true }
@@ -231,35 +192,6 @@ impl SimConfig {
         }
         c.in_range("sim.max_speed", self.max_speed, 1e-3, 1e6, "a speed in m/s in (0, 1e6]")?;
         c.in_range("sim.max_distance", self.max_distance, 1e-3, 1e6, "a distance in m in (0, 1e6]")
-    }
-}
-
-impl ObjectConfig {
-    /// Checks `[object]`.
-    pub fn validate(&self, c: &Check) -> Result<()> {
-        match self.shape {
-            ObjectShape::Sphere { radius } => c.in_range("object.shape.radius", radius, 1e-4, 10.0, "a radius in m in [1e-4, 10]")?,
-            ObjectShape::Box { half_extents } => {
-                for (i, v) in half_extents.iter().enumerate() {
-                    c.in_range(&format!("object.shape.half_extents[{i}]"), *v, 1e-4, 10.0, "a half extent in m in [1e-4, 10]")?;
-                }
-            }
-            ObjectShape::Capsule { radius, half_length } | ObjectShape::Cylinder { radius, half_length } => {
-                c.in_range("object.shape.radius", radius, 1e-4, 10.0, "a radius in m in [1e-4, 10]")?;
-                c.in_range("object.shape.half_length", half_length, 0.0, 10.0, "a half length in m in [0, 10]")?;
-            }
-        }
-        c.in_range("object.mass", self.mass, 1e-4, 1e3, "a mass in kg in [1e-4, 1000]")?;
-        c.non_neg("object.friction", self.friction)?;
-        c.unit_interval("object.restitution", self.restitution)?;
-        for (i, v) in self.init_xy.iter().enumerate() {
-            c.finite(&format!("object.init_xy[{i}]"), *v)?;
-        }
-        c.finite("object.init_yaw", self.init_yaw)?;
-        for (i, v) in self.xy_noise.iter().enumerate() {
-            c.non_neg(&format!("object.xy_noise[{i}]"), *v)?;
-        }
-        c.non_neg("object.yaw_noise", self.yaw_noise)
     }
 }
 

@@ -22,7 +22,7 @@ use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
 use super::gpu_bindings::{Binding, BindingSpace, EntryBindings, RESET_MAIN, SIM_GROUP, SPRINGS, STEP_MAIN};
-use super::gpu_bindings::{COLLIDERS, GLOBALS, JOINTS, PARAMS, RESET_MASK, STATES, STATS, TARGETS};
+use super::gpu_bindings::{COLLIDERS, GLOBALS, JOINTS, OBJECTS, PARAMS, PIECES, RESET_MASK, STATES, STATS, TARGETS};
 use super::gpu_layout::*;
 use super::{EnvBatch, EnvSpec, SimModel};
 
@@ -477,6 +477,8 @@ impl GpuEnvBatch {
         let globals = ctx.create_binding_buffer(GLOBALS, std::slice::from_ref(&model.globals), none)?;
         let joints = ctx.create_binding_buffer(JOINTS, &model.joints, none)?;
         let colliders = ctx.create_binding_buffer(COLLIDERS, &model.colliders, none)?;
+        let pieces = ctx.create_binding_buffer(PIECES, &model.pieces, none)?;
+        let objects = ctx.create_binding_buffer(OBJECTS, &model.object_descs, none)?;
         let per_env = || format!("sim.num_envs = {n}");
         let states = ctx.create_binding_buffer(STATES, &vec![EnvState::default(); n], none).with_context(per_env)?;
         let params = ctx.create_binding_buffer(PARAMS, &vec![<EnvParams as bytemuck::Zeroable>::zeroed(); n], none).with_context(per_env)?;
@@ -499,6 +501,8 @@ impl GpuEnvBatch {
             (STATS, &stats),
             (RESET_MASK, &reset_mask),
             (SPRINGS, &springs),
+            (PIECES, &pieces),
+            (OBJECTS, &objects),
         ];
         let step_group = ctx.bind_group(&step_pipeline, &STEP_MAIN, &buffers)?;
         let reset_group = ctx.bind_group(&reset_pipeline, &RESET_MAIN, &buffers)?;

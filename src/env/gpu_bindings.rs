@@ -6,8 +6,8 @@
 //! every global, and the globals each entry point really uses), so a binding renamed or moved on one
 //! side only fails a test that needs no GPU instead of a pipeline at run time.
 //!
-//! Bindings 0–8 and 16 are the simulator's (common.wgsl), 9–12 and 17 the task layer's (task.wgsl),
-//! 13–15 the reference bank's (reference.wgsl). Indices from 18 up are free for the test kernels of
+//! Bindings 0–8, 16, 18 and 19 are the simulator's (common.wgsl), 9–12 and 17 the task layer's
+//! (task.wgsl), 13–15 the reference bank's (reference.wgsl). Indices from 20 up are free for the test kernels of
 //! `gpu::run_kernel` (the parity tests use 20 and up).
 
 /// Where a binding lives in WGSL: its address space and, for storage, its access mode.
@@ -71,6 +71,10 @@ pub const STATS: Binding = binding(7, "stats", StorageReadWrite);
 pub const RESET_MASK: Binding = binding(8, "reset_mask", StorageReadWrite);
 /// `array<vec4<f32>>` `[N, n_springs]`: the contact springs (`gpu_layout::spring_slot`).
 pub const SPRINGS: Binding = binding(16, "springs", StorageReadWrite);
+/// `array<PieceDesc>`: the objects' collision pieces.
+pub const PIECES: Binding = binding(18, "pieces", StorageRead);
+/// `array<ObjectDesc>`: the run's objects.
+pub const OBJECTS: Binding = binding(19, "objects", StorageRead);
 
 // ---- the task layer (task.wgsl; bound by task_gpu.rs) ----
 /// `TaskGlobals`: the task's constants.
@@ -116,9 +120,9 @@ pub struct ShaderGroup {
 
 /// `step_main`: one control step of every env.
 pub const STEP_MAIN: EntryBindings =
-    EntryBindings { entry_point: "step_main", bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS, SPRINGS] };
+    EntryBindings { entry_point: "step_main", bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS, SPRINGS, PIECES, OBJECTS] };
 /// `reset_main`: the resets that `reset_mask` asks for.
-pub const RESET_MAIN: EntryBindings = EntryBindings { entry_point: "reset_main", bindings: &[GLOBALS, JOINTS, STATES, PARAMS, RESET_MASK, SPRINGS] };
+pub const RESET_MAIN: EntryBindings = EntryBindings { entry_point: "reset_main", bindings: &[GLOBALS, JOINTS, STATES, PARAMS, RESET_MASK, SPRINGS, OBJECTS] };
 /// `task_act`: actions → targets.
 pub const TASK_ACT: EntryBindings = EntryBindings {
     entry_point: "task_act",
@@ -143,7 +147,7 @@ pub const TASK_OBSERVE_FINAL: EntryBindings = EntryBindings {
 /// The simulator's module (`gpu::shader_source`: common + reset + physics).
 pub const SIM_GROUP: ShaderGroup = ShaderGroup {
     shader: "dextrain physics",
-    bindings: &[GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, SPRINGS],
+    bindings: &[GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, SPRINGS, PIECES, OBJECTS],
     entry_points: &[STEP_MAIN, RESET_MAIN],
 };
 
@@ -152,7 +156,7 @@ pub const TASK_GROUP: ShaderGroup = ShaderGroup {
     shader: "dextrain task",
     bindings: &[
         GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, TASK_CFG, TASK_STATES, ACTIONS, TASK_OUT, REF_FRAMES,
-        REF_INFO, REF_CFG, SPRINGS, FINAL_OUT,
+        REF_INFO, REF_CFG, SPRINGS, FINAL_OUT, PIECES, OBJECTS,
     ],
     entry_points: &[TASK_ACT, TASK_REWARD, TASK_OBSERVE, TASK_OBSERVE_FINAL],
 };

@@ -9,14 +9,55 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 
-/// Most support points of an object against the table (keep in sync with `MAX_OBJ_PTS`).
-pub const MAX_OBJ_PTS: usize = 16;
+/// Most collision pieces of one object (keep in sync with shaders/common.wgsl `MAX_PIECES`): like a
+/// hand's colliders, a few dozen; a 16-piece mug fits.
+pub const MAX_PIECES: usize = 32;
 
 /// Object shape codes (keep in sync with shaders/common.wgsl `SHAPE_*`).
 pub const SHAPE_SPHERE: u32 = 0;
 pub const SHAPE_BOX: u32 = 1;
 pub const SHAPE_CAPSULE: u32 = 2;
 pub const SHAPE_CYLINDER: u32 = 3;
+
+/// One collision piece of an object (WGSL `PieceDesc`): a primitive at a pose in the object's
+/// frame. Lengths are unscaled (an env's object scale multiplies them).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct PieceDesc {
+    /// Centre in the object frame (xyz); w = radius about the centre that bounds the piece.
+    pub pos: [f32; 4],
+    /// Orientation in the object frame (quaternion xyzw).
+    pub rot: [f32; 4],
+    /// Sphere (r, 0, 0), box (hx, hy, hz), capsule and cylinder (r, half_length, 0).
+    pub size: [f32; 4],
+    /// `SHAPE_*` code.
+    pub shape: u32,
+    /// Support points of the piece against the table (`object_num_support`).
+    pub n_support: u32,
+    pub _pad: [u32; 2],
+}
+
+/// One object of the run (WGSL `ObjectDesc`): its pieces and mass properties, unscaled.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
+pub struct ObjectDesc {
+    /// Centre of mass in the object frame (xyz); w = radius about the frame's origin that bounds
+    /// every piece.
+    pub com: [f32; 4],
+    /// Principal axes of inertia in the object frame (quaternion xyzw).
+    pub principal_rot: [f32; 4],
+    /// Principal moments of inertia per unit mass (m², xyz, about the centre of mass); w = the
+    /// nominal mass (kg).
+    pub inertia: [f32; 4],
+    /// The object's pieces: `pieces[first_piece .. first_piece + n_pieces]`.
+    pub first_piece: u32,
+    pub n_pieces: u32,
+    /// Support points of all its pieces against the table (≤ `Globals::n_obj_pts`).
+    pub n_support: u32,
+    /// Height of the object frame's origin above the table when the object rests in the mesh's
+    /// orientation (m).
+    pub rest_height: f32,
+}
 
 /// Marks "no joint" in `JointDesc::mimic_leader`.
 pub const NO_JOINT: u32 = u32::MAX;
@@ -28,9 +69,8 @@ pub struct Globals {
     /// Initial wrist position (xyz) and orientation (quaternion xyzw).
     pub init_wrist_pos: [f32; 4],
     pub init_wrist_rot: [f32; 4],
-    /// Unscaled object size parameters (see `ObjectShape::size_params`), w unused.
-    pub obj_size: [f32; 4],
-    /// Nominal object placement: x, y, yaw, and the unscaled rest height (z of the centre).
+    /// Nominal object placement: x, y, yaw, and the first object's unscaled rest height (z of its
+    /// frame's origin; resets use each object's `ObjectDesc::rest_height`).
     pub obj_init: [f32; 4],
     /// Randomisation ranges [lo, hi] as pairs: (hand_mass, hand_friction), (joint_limits, joint_stiffness),
     /// (joint_damping, object_mass), (object_friction, object_scale), (restitution, table_friction),
@@ -41,7 +81,9 @@ pub struct Globals {
     pub n_colliders: u32,
     pub n_tips: u32,
     pub n_links: u32,
-    pub obj_shape: u32,
+    /// Objects of the run (`ObjectDesc`s); each env draws one at every reset.
+    pub n_objects: u32,
+    /// Support points against the table of the object with the most (the springs reserved per env).
     pub n_obj_pts: u32,
     pub substeps: u32,
     pub decimation: u32,
@@ -58,7 +100,7 @@ pub struct Globals {
     pub contact_kt: f32,
     pub hand_eff_mass: f32,
     pub hand_friction: f32,
-    pub obj_mass: f32,
+    pub _pad1: f32,
     pub obj_friction: f32,
     pub table_friction: f32,
     pub yaw_noise: f32,
@@ -193,9 +235,11 @@ pub mod spring_slot {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Pod, Zeroable, PartialEq)]
 pub struct EnvParams {
-    /// Scaled object size parameters.
-    pub obj_size: [f32; 4],
-    /// Object principal inertia (xyz) and mass (w).
+    /// The object's centre of mass in its frame (xyz, scaled) and the radius about the frame's
+    /// origin that bounds its pieces (w, scaled).
+    pub obj_com: [f32; 4],
+    /// Object principal moments of inertia (xyz, about the centre of mass along
+    /// `ObjectDesc::principal_rot`) and mass (w).
     pub obj_inertia: [f32; 4],
     pub obj_friction: f32,
     pub restitution: f32,
@@ -211,7 +255,11 @@ pub struct EnvParams {
     pub obj_contact_c: f32,
     /// Normal damping of hand–table contacts (N·s/m).
     pub hand_table_c: f32,
-    pub _pad: [f32; 4],
+    /// The object this env holds (index into the `objects` buffer).
+    pub obj_index: u32,
+    /// Height of the object frame's origin when it rests on the table (m, scaled).
+    pub obj_rest_height: f32,
+    pub _pad: [u32; 2],
 }
 
 /// Per-env joint and wrist targets for one env step (WGSL `Targets`).

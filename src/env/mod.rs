@@ -37,6 +37,7 @@ use glam::{Mat3, Quat, Vec3};
 
 use crate::config::{BackendChoice, Config};
 use crate::hand::{ColliderShape, HandModel, MAX_TIPS};
+use crate::object::ObjectModel;
 pub use gpu_layout::{EnvParams, EnvState, StepStats, Targets};
 use gpu_layout::*;
 
@@ -82,6 +83,11 @@ pub struct SimModel {
     pub joints: Vec<JointDesc>,
     pub colliders: Vec<ColliderDesc>,
     pub tips: Vec<TipDesc>,
+    /// The run's objects (`[object]` or `[[object.set]]`, in order), their simulator descriptions
+    /// and all their pieces (`objects[i]`'s from `object_descs[i].first_piece`).
+    pub objects: Vec<ObjectModel>,
+    pub object_descs: Vec<ObjectDesc>,
+    pub pieces: Vec<PieceDesc>,
     pub hand: HandModel,
     pub spec: EnvSpec,
 }
@@ -232,13 +238,19 @@ impl SimModel {
         let restitution = r.object_restitution.unwrap_or([cfg.object.restitution; 2]);
         let [roll, pitch, yaw] = cfg.wrist.init_rpy;
         let wrist_rot = Quat::from_rotation_z(yaw) * Quat::from_rotation_y(pitch) * Quat::from_rotation_x(roll);
-        let shape = cfg.object.shape;
-        let size = shape.size_params();
+        let objects = crate::object::load::load_objects(cfg)?;
+        let mut object_descs = Vec::with_capacity(objects.len());
+        let mut pieces = Vec::new();
+        for o in &objects {
+            let (d, p) = o.descs(pieces.len() as u32);
+            object_descs.push(d);
+            pieces.extend(p);
+        }
+        let n_obj_pts = object_descs.iter().map(|d| d.n_support).max().unwrap_or(0);
         let globals = Globals {
             init_wrist_pos: [cfg.wrist.init_pos[0], cfg.wrist.init_pos[1], cfg.wrist.init_pos[2], 0.0],
             init_wrist_rot: wrist_rot.normalize().to_array(),
-            obj_size: [size[0], size[1], size[2], 0.0],
-            obj_init: [cfg.object.init_xy[0], cfg.object.init_xy[1], cfg.object.init_yaw, shape.rest_height()],
+            obj_init: [cfg.object.init_xy[0], cfg.object.init_xy[1], cfg.object.init_yaw, object_descs[0].rest_height],
             rnd: [
                 [r.hand_mass[0], r.hand_mass[1], r.hand_friction[0], r.hand_friction[1]],
                 [r.joint_limits[0], r.joint_limits[1], r.joint_stiffness[0], r.joint_stiffness[1]],
@@ -252,20 +264,20 @@ impl SimModel {
             n_colliders: colliders.len() as u32,
             n_tips: tips.len() as u32,
             n_links: hand.links.len() as u32,
-            obj_shape: shape.code(),
-            n_obj_pts: physics::object_num_support(shape.code()),
+            n_objects: objects.len() as u32,
+            n_obj_pts,
             substeps: cfg.sim.substeps,
             decimation: cfg.sim.decimation,
             seed: cfg.seed,
             hand_table: cfg.table.hand_collision as u32,
-            n_springs: gpu_layout::spring_slot::per_env(colliders.len() as u32, physics::object_num_support(shape.code())),
+            n_springs: gpu_layout::spring_slot::per_env(colliders.len() as u32, n_obj_pts),
             dt: cfg.sim.dt,
             gravity: 9.81,
             contact_k: cfg.contact.stiffness,
             contact_kt: cfg.contact.friction_stiffness,
             hand_eff_mass: cfg.contact.hand_effective_mass,
             hand_friction: cfg.hand.friction,
-            obj_mass: cfg.object.mass,
+            _pad1: 0.0,
             obj_friction: cfg.object.friction,
             table_friction: cfg.table.friction,
             yaw_noise: cfg.object.yaw_noise,
@@ -293,12 +305,12 @@ impl SimModel {
             substeps: cfg.sim.substeps,
             decimation: cfg.sim.decimation,
         };
-        Ok(SimModel { globals, joints, colliders, tips, hand, spec })
+        Ok(SimModel { globals, joints, colliders, tips, objects, object_descs, pieces, hand, spec })
     }
 
     /// The read-only model view used by the CPU physics.
     pub fn view(&self) -> physics::Model<'_> {
-        physics::Model { g: &self.globals, joints: &self.joints, colliders: &self.colliders, tips: &self.tips }
+        physics::Model { g: &self.globals, joints: &self.joints, colliders: &self.colliders, tips: &self.tips, pieces: &self.pieces, objects: &self.object_descs }
     }
 
     /// Targets that hold the initial wrist pose and default joint positions.
@@ -362,7 +374,7 @@ pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p:
     physics::hand_kinematics(st, &m, &mut s);
     let h = g.dt / g.substeps as f32;
     let v3 = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
-    let (opos, ovel, ow) = (v3(st.obj_pos), v3(st.obj_vel), v3(st.obj_angvel));
+    let (ocom, ovel, ow) = (physics::object_com(st, p), v3(st.obj_vel), v3(st.obj_angvel));
     let mut out = Vec::new();
     let mut push = |kind, index: usize, c: &physics::Contact, f: Vec3| {
         out.push(ContactRecord { kind, index: index as u32, pos: c.point, normal: c.normal, depth: c.depth, force: f });
@@ -371,7 +383,7 @@ pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p:
         let l = model.colliders[ci].link as usize;
         let c = physics::collide_hand_object(st, p, &m, &s, ci);
         if c.depth > 0.0 {
-            let vrel = physics::link_point_velocity(&s, l, c.point) - (ovel + ow.cross(c.point - opos));
+            let vrel = physics::link_point_velocity(&s, l, c.point) - (ovel + ow.cross(c.point - ocom));
             let mu = 0.5 * (p.hand_friction + p.obj_friction);
             let (k, kt, damp) = physics::hand_contact_gains(g.contact_k, g.contact_kt, p.obj_contact_c, physics::hand_mobility(p, &m, &s, l, c.point), h);
             let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::hand_object(ci as u32) as usize]), k, kt, damp, mu, h);
@@ -388,13 +400,20 @@ pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p:
             }
         }
     }
-    for k in 0..g.n_obj_pts {
-        let c = physics::collide_object_table(st, p, &m, k);
-        if c.depth > 0.0 {
-            let mu = 0.5 * (p.obj_friction + p.table_friction);
-            let vrel = ovel + ow.cross(c.point - opos);
-            let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::object_table(g.n_colliders, k) as usize]), g.contact_k, g.contact_kt, p.obj_contact_c, mu, h);
-            push(ContactKind::ObjectTable, k as usize, &c, f);
+    let od = &model.object_descs[p.obj_index as usize];
+    let mut k = 0u32;
+    for pi in 0..od.n_pieces {
+        let pd = &model.pieces[(od.first_piece + pi) as usize];
+        let (ppos, prot, size) = physics::piece_pose(st, p, pd);
+        for j in 0..pd.n_support {
+            let c = physics::collide_piece_table(pd.shape, size, ppos, prot, j);
+            if c.depth > 0.0 {
+                let mu = 0.5 * (p.obj_friction + p.table_friction);
+                let vrel = ovel + ow.cross(c.point - ocom);
+                let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::object_table(g.n_colliders, k) as usize]), g.contact_k, g.contact_kt, p.obj_contact_c, mu, h);
+                push(ContactKind::ObjectTable, k as usize, &c, f);
+            }
+            k += 1;
         }
     }
     out

@@ -40,13 +40,16 @@ pub const SAFE_STIFFNESS: f32 = 1.0;
 /// in one substep, so it never reverses it).
 pub const SAFE_DAMPING: f32 = 0.5;
 
-/// Read-only description of the run shared by all envs (the shader's bindings 0–3).
+/// Read-only description of the run shared by all envs (the shader's bindings 0–3, 18, 19).
 #[derive(Clone, Copy)]
 pub struct Model<'a> {
     pub g: &'a Globals,
     pub joints: &'a [JointDesc],
     pub colliders: &'a [ColliderDesc],
     pub tips: &'a [TipDesc],
+    /// The objects' collision pieces (binding 18) and the objects (binding 19).
+    pub pieces: &'a [PieceDesc],
+    pub objects: &'a [ObjectDesc],
 }
 
 /// Per-invocation working memory (the shader's `var<private>` variables).
@@ -325,20 +328,52 @@ pub fn bounding_radius(code: u32, size: Vec3) -> f32 {
     (size.x * size.x + size.y * size.y).sqrt()
 }
 
-/// Narrow phase between hand collider `ci` and the object (normal from object to hand). Pairs whose
-/// bounding spheres do not touch are rejected first (depth −1).
+/// World pose and scaled size of an object piece: (centre, rotation, size).
+pub fn piece_pose(st: &EnvState, p: &EnvParams, pd: &PieceDesc) -> (Vec3, Vec4, Vec3) {
+    let orot = v4(st.obj_rot);
+    // centre = p_obj + R_obj (s · c_piece),  rotation = R_obj R_piece
+    let pos = v3(st.obj_pos) + quat_rotate(orot, v3(pd.pos) * p.obj_scale);
+    (pos, quat_mul(orot, v4(pd.rot)), v3(pd.size) * p.obj_scale)
+}
+
+/// The object's centre of mass (world): p_obj + R_obj c.
+pub fn object_com(st: &EnvState, p: &EnvParams) -> Vec3 {
+    v3(st.obj_pos) + quat_rotate(v4(st.obj_rot), v3(p.obj_com))
+}
+
+/// Narrow phase between hand collider `ci` and the env's object: the deepest contact over the
+/// object's pieces (normal from object to hand). Pairs whose bounding spheres do not touch (the
+/// whole object's first, then each piece's) are rejected (depth −1).
 pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize) -> Contact {
     let cd = &m.colliders[ci];
     let (cpos, crot) = collider_pose(m, s, ci);
     let opos = v3(st.obj_pos);
-    let reach = bounding_radius(cd.shape, v3(cd.size)) + bounding_radius(m.g.obj_shape, v3(p.obj_size));
+    let rc = bounding_radius(cd.shape, v3(cd.size));
+    let reach = rc + p.obj_com[3];
+    let mut best = Contact { depth: -1.0, normal: Vec3::Z, point: opos };
     if (cpos - opos).length_squared() > reach * reach {
-        return Contact { depth: -1.0, normal: Vec3::Z, point: opos };
+        return best;
     }
-    let orot = v4(st.obj_rot);
+    let od = &m.objects[p.obj_index as usize];
+    for k in 0..od.n_pieces {
+        let pd = &m.pieces[(od.first_piece + k) as usize];
+        let (ppos, prot, size) = piece_pose(st, p, pd);
+        let r = rc + pd.pos[3] * p.obj_scale;
+        if (cpos - ppos).length_squared() > r * r {
+            continue;
+        }
+        let c = collide_collider_piece(cd, cpos, crot, pd.shape, size, ppos, prot);
+        if c.depth > best.depth {
+            best = c;
+        }
+    }
+    best
+}
+
+/// Narrow phase between a hand collider (`cd` at `cpos`, `crot`) and one object piece (shape
+/// `code`, scaled `size`, at `opos`, `orot`); normal from the piece to the hand.
+pub fn collide_collider_piece(cd: &ColliderDesc, cpos: Vec3, crot: Vec4, code: u32, size: Vec3, opos: Vec3, orot: Vec4) -> Contact {
     let oinv = quat_conj(orot);
-    let code = m.g.obj_shape;
-    let size = v3(p.obj_size);
     // collider in the object's frame
     let c_o = quat_rotate(oinv, cpos - opos);
     let r_o = quat_mul(oinv, crot);
@@ -431,10 +466,11 @@ pub fn collide_hand_table(m: &Model, s: &Scratch, ci: usize) -> Contact {
     Contact { depth: r - low.z, normal: Vec3::Z, point: Vec3::new(low.x, low.y, 0.0) }
 }
 
-/// Narrow phase between object support point `k` and the table.
-pub fn collide_object_table(st: &EnvState, p: &EnvParams, m: &Model, k: u32) -> Contact {
-    let (local, r) = object_support_point(m.g.obj_shape, v3(p.obj_size), k);
-    let w = v3(st.obj_pos) + quat_rotate(v4(st.obj_rot), local);
+/// Narrow phase between support point `k` of an object piece (shape `code`, scaled `size`, at
+/// `ppos`, `prot`) and the table.
+pub fn collide_piece_table(code: u32, size: Vec3, ppos: Vec3, prot: Vec4, k: u32) -> Contact {
+    let (local, r) = object_support_point(code, size, k);
+    let w = ppos + quat_rotate(prot, local);
     Contact { depth: r - w.z, normal: Vec3::Z, point: Vec3::new(w.x, w.y, 0.0) }
 }
 
@@ -585,10 +621,10 @@ pub fn apply_object_torque(s: &mut Scratch, tq: Vec3, n: Vec3, b: f32) {
     }
 }
 
-/// Adds a contact force `f` at world point `x` on the object, and its implicit damping
-/// D = a nnᵀ + b (I − nnᵀ) mapped through J = [I, −[r]×]: Σ Jᵀ D J.
-pub fn apply_object_force(st: &EnvState, s: &mut Scratch, x: Vec3, f: Vec3, n: Vec3, a: f32, b: f32) {
-    let r = x - v3(st.obj_pos);
+/// Adds a contact force `f` at world point `x` on the object (centre of mass `com`), and its
+/// implicit damping D = a nnᵀ + b (I − nnᵀ) mapped through J = [I, −[r]×]: Σ Jᵀ D J.
+pub fn apply_object_force(com: Vec3, s: &mut Scratch, x: Vec3, f: Vec3, n: Vec3, a: f32, b: f32) {
+    let r = x - com;
     s.obj_f += f;
     s.obj_t += r.cross(f);
     // D columns: D e_i = b e_i + (a − b) n n_i
@@ -624,7 +660,8 @@ pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvP
     let g = m.g;
     let k = g.contact_k;
     let kt = g.contact_kt;
-    let opos = v3(st.obj_pos);
+    // the object's velocities are those of its centre of mass
+    let ocom = object_com(st, p);
     let ovel = v3(st.obj_vel);
     let ow = v3(st.obj_angvel);
     let mu_ho = 0.5 * (p.hand_friction + p.obj_friction);
@@ -638,14 +675,14 @@ pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvP
         let c = collide_hand_object(st, p, m, s, ci);
         if c.depth > 0.0 {
             let vh = link_point_velocity(s, l, c.point);
-            let vo = ovel + ow.cross(c.point - opos);
+            let vo = ovel + ow.cross(c.point - ocom);
             let (kc, ktc, cc) = hand_contact_gains(k, kt, p.obj_contact_c, hand_mobility(p, m, s, l, c.point), h);
             let (f, spring, b) = contact_force(&c, vh - vo, v3(springs[sho]), kc, ktc, cc, mu_ho, h);
             springs[sho] = [spring.x, spring.y, spring.z, 1.0];
             apply_hand_force(m, s, l, c.point, f);
             // the normal damper acts only while the contact pushes (Fn > 0)
             let a = if f.dot(c.normal) > 0.0 { kc * h + cc } else { 0.0 };
-            apply_object_force(st, s, c.point, -f, c.normal, a, b);
+            apply_object_force(ocom, s, c.point, -f, c.normal, a, b);
             let (tq, br) = torsion_torque(c.normal, s.link_w[l] - ow, f.dot(c.normal), mu_ho, g.torsion_radius);
             apply_hand_torque(m, s, l, tq);
             apply_object_torque(s, -tq, c.normal, br);
@@ -679,22 +716,29 @@ pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvP
             }
         }
     }
-    // object–table
-    for kp in 0..g.n_obj_pts {
-        let ki = spring_slot::object_table(n_c, kp) as usize;
-        let c = collide_object_table(st, p, m, kp);
-        if c.depth > 0.0 {
-            let vo = ovel + ow.cross(c.point - opos);
-            let (f, spring, b) = contact_force(&c, vo, v3(springs[ki]), k, kt, p.obj_contact_c, mu_ot, h);
-            springs[ki] = [spring.x, spring.y, spring.z, 1.0];
-            let a = if f.dot(c.normal) > 0.0 { k * h + p.obj_contact_c } else { 0.0 };
-            apply_object_force(st, s, c.point, f, c.normal, a, b);
-            let (tq, br) = torsion_torque(c.normal, ow, f.dot(c.normal), mu_ot, g.torsion_radius);
-            apply_object_torque(s, tq, c.normal, br);
-            s.contacts += 1;
-            s.max_pen = s.max_pen.max(c.depth);
-        } else {
-            springs[ki] = [0.0; 4];
+    // object–table: every support point of every piece, in order (spring slots 0.. of the object)
+    let od = &m.objects[p.obj_index as usize];
+    let mut kp = 0u32;
+    for pi in 0..od.n_pieces {
+        let pd = &m.pieces[(od.first_piece + pi) as usize];
+        let (ppos, prot, size) = piece_pose(st, p, pd);
+        for j in 0..pd.n_support {
+            let ki = spring_slot::object_table(n_c, kp) as usize;
+            kp += 1;
+            let c = collide_piece_table(pd.shape, size, ppos, prot, j);
+            if c.depth > 0.0 {
+                let vo = ovel + ow.cross(c.point - ocom);
+                let (f, spring, b) = contact_force(&c, vo, v3(springs[ki]), k, kt, p.obj_contact_c, mu_ot, h);
+                springs[ki] = [spring.x, spring.y, spring.z, 1.0];
+                let a = if f.dot(c.normal) > 0.0 { k * h + p.obj_contact_c } else { 0.0 };
+                apply_object_force(ocom, s, c.point, f, c.normal, a, b);
+                let (tq, br) = torsion_torque(c.normal, ow, f.dot(c.normal), mu_ot, g.torsion_radius);
+                apply_object_torque(s, tq, c.normal, br);
+                s.contacts += 1;
+                s.max_pen = s.max_pen.max(c.depth);
+            } else {
+                springs[ki] = [0.0; 4];
+            }
         }
     }
 }
@@ -818,12 +862,15 @@ pub fn integrate_object(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch
     let mass = p.obj_inertia[3];
     let ib = v3(p.obj_inertia);
     let rot = v4(st.obj_rot);
+    // the principal frame in the world: R_obj R_principal
+    let prot = quat_mul(rot, v4(m.objects[p.obj_index as usize].principal_rot));
+    let com = object_com(st, p);
     let w = v3(st.obj_angvel);
     // gyroscopic: ω ← ω − h I⁻¹ (ω × Iω), rescaled so that ωᵀIω (the rotational energy) is unchanged
-    let iw = inertia_mul(rot, ib, w);
+    let iw = inertia_mul(prot, ib, w);
     let e0 = w.dot(iw);
-    let mut wg = w - h * inertia_inv_mul(rot, ib, w.cross(iw));
-    let e1 = wg.dot(inertia_mul(rot, ib, wg));
+    let mut wg = w - h * inertia_inv_mul(prot, ib, w.cross(iw));
+    let e1 = wg.dot(inertia_mul(prot, ib, wg));
     if e1 > 1e-20 {
         wg *= (e0 / e1).sqrt();
     }
@@ -836,7 +883,7 @@ pub fn integrate_object(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch
         a[i * 6 + i] += mass;
         let mut e = Vec3::ZERO;
         e[i] = 1.0;
-        let col = inertia_mul(rot, ib, e);
+        let col = inertia_mul(prot, ib, e);
         for row in 0..3 {
             a[(3 + row) * 6 + 3 + i] += col[row];
         }
@@ -847,10 +894,12 @@ pub fn integrate_object(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch
     let du = solve6(&a, [h * f.x, h * f.y, h * f.z, h * tq.x, h * tq.y, h * tq.z]);
     let vel_n = v3(st.obj_vel) + Vec3::new(du[0], du[1], du[2]);
     let w_n = wg + Vec3::new(du[3], du[4], du[5]);
+    // the centre of mass moves with v, the frame turns about it: p_obj = com − R c
+    let rot_n = quat_integrate(rot, w_n, h);
     st.obj_vel = put3(vel_n);
     st.obj_angvel = put3(w_n);
-    st.obj_pos = put3(v3(st.obj_pos) + vel_n * h);
-    st.obj_rot = quat_integrate(rot, w_n, h).to_array();
+    st.obj_pos = put3(com + vel_n * h - quat_rotate(rot_n, v3(p.obj_com)));
+    st.obj_rot = rot_n.to_array();
 }
 
 /// One substep of length h.
@@ -916,7 +965,7 @@ pub fn env_step(env: u32, st: &mut EnvState, springs: &mut [[f32; 4]], p: &mut E
     if !state_is_sane(st, g) {
         let episode = st.episode + 1;
         let bad = st.bad_resets + 1;
-        *p = reset_params(g, env, episode);
+        *p = reset_params(g, m.objects, env, episode);
         *st = reset_state(g, m.joints, p, env, episode, bad);
         clear_springs(springs);
         stats.bad_reset = 1;

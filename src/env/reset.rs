@@ -15,33 +15,6 @@ pub fn rand_range(g: &Globals, env: u32, episode: u32, purpose: u32, k: u32, lo:
     lo + (hi - lo) * rand_uniform(g.seed, env, episode, purpose, k)
 }
 
-/// Principal moments of inertia of a solid object shape (`code`, scaled `size`) of mass `m`.
-pub fn object_inertia(code: u32, size: Vec3, m: f32) -> Vec3 {
-    let r = size.x;
-    if code == SHAPE_SPHERE {
-        return Vec3::splat(0.4 * m * r * r);
-    }
-    if code == SHAPE_BOX {
-        let (x, y, z) = (size.x, size.y, size.z);
-        // I_xx = m (b² + c²)/3 with half extents b, c
-        return Vec3::new(m * (y * y + z * z) / 3.0, m * (x * x + z * z) / 3.0, m * (x * x + y * y) / 3.0);
-    }
-    let h = size.y;
-    let l = 2.0 * h;
-    if code == SHAPE_CYLINDER {
-        let ixx = m * (3.0 * r * r + l * l) / 12.0;
-        return Vec3::new(ixx, ixx, 0.5 * m * r * r);
-    }
-    // capsule: a cylinder and two hemispheres sharing the mass by volume
-    let vc = 3.14159265 * r * r * l;
-    let vs = 4.0 / 3.0 * 3.14159265 * r * r * r;
-    let mc = m * vc / (vc + vs);
-    let ms = m - mc;
-    let izz = 0.5 * mc * r * r + 0.4 * ms * r * r;
-    let ixx = mc * (3.0 * r * r + l * l) / 12.0 + ms * (0.4 * r * r + h * h + 0.75 * h * r);
-    Vec3::new(ixx, ixx, izz)
-}
-
 /// Damping ratio of a spring-damper contact whose coefficient of restitution is `e`:
 /// ζ = −ln e / √(π² + ln² e); ζ = 1 (critical) for e → 0.
 pub fn damping_ratio(e: f32) -> f32 {
@@ -52,24 +25,29 @@ pub fn damping_ratio(e: f32) -> f32 {
     -l / (9.8696044 + l * l).sqrt()
 }
 
-/// Draws the physical parameters of `env` for `episode`.
-pub fn reset_params(g: &Globals, env: u32, episode: u32) -> EnvParams {
+/// Draws the physical parameters of `env` for `episode`, the object among `objects` included.
+pub fn reset_params(g: &Globals, objects: &[ObjectDesc], env: u32, episode: u32) -> EnvParams {
     let pp = PURPOSE_PARAMS;
     let mut p = EnvParams::default_zeroed();
+    // the object: ⌊u · n⌋, clamped (u < 1, but f32 rounding of u · n could reach n)
+    p.obj_index = ((rand_uniform(g.seed, env, episode, pp, 11) * g.n_objects as f32) as u32).min(g.n_objects - 1);
+    let od = &objects[p.obj_index as usize];
     p.hand_mass_scale = rand_range(g, env, episode, pp, 0, g.rnd[0][0], g.rnd[0][1]);
     p.hand_friction = g.hand_friction * rand_range(g, env, episode, pp, 1, g.rnd[0][2], g.rnd[0][3]);
     p.limit_scale = rand_range(g, env, episode, pp, 2, g.rnd[1][0], g.rnd[1][1]);
     p.kp_scale = rand_range(g, env, episode, pp, 3, g.rnd[1][2], g.rnd[1][3]);
     p.kd_scale = rand_range(g, env, episode, pp, 4, g.rnd[2][0], g.rnd[2][1]);
-    let mass = g.obj_mass * rand_range(g, env, episode, pp, 5, g.rnd[2][2], g.rnd[2][3]);
+    let mass = od.inertia[3] * rand_range(g, env, episode, pp, 5, g.rnd[2][2], g.rnd[2][3]);
     p.obj_friction = g.obj_friction * rand_range(g, env, episode, pp, 6, g.rnd[3][0], g.rnd[3][1]);
     p.obj_scale = rand_range(g, env, episode, pp, 7, g.rnd[3][2], g.rnd[3][3]);
     p.restitution = rand_range(g, env, episode, pp, 8, g.rnd[4][0], g.rnd[4][1]);
     p.table_friction = g.table_friction * rand_range(g, env, episode, pp, 9, g.rnd[4][2], g.rnd[4][3]);
     p.added_gravity = rand_range(g, env, episode, pp, 10, g.rnd[5][0], g.rnd[5][1]);
-    let size = Vec3::new(g.obj_size[0], g.obj_size[1], g.obj_size[2]) * p.obj_scale;
-    p.obj_size = [size.x, size.y, size.z, 0.0];
-    let inertia = object_inertia(g.obj_shape, size, mass);
+    let sc = p.obj_scale;
+    p.obj_com = [od.com[0] * sc, od.com[1] * sc, od.com[2] * sc, od.com[3] * sc];
+    p.obj_rest_height = od.rest_height * sc;
+    // I = (I/m) · m · s² (every length scaled by s)
+    let inertia = Vec3::new(od.inertia[0], od.inertia[1], od.inertia[2]) * (mass * sc * sc);
     p.obj_inertia = [inertia.x, inertia.y, inertia.z, mass];
     // reduced mass of a hand link and the object: m_h m_o / (m_h + m_o)
     let m_red = g.hand_eff_mass * mass / (g.hand_eff_mass + mass);
@@ -101,7 +79,7 @@ pub fn reset_state(g: &Globals, joints: &[JointDesc], p: &EnvParams, env: u32, e
     let x = g.obj_init[0] + rand_range(g, env, episode, pi, 0, -g.rnd[5][2], g.rnd[5][2]);
     let y = g.obj_init[1] + rand_range(g, env, episode, pi, 1, -g.rnd[5][3], g.rnd[5][3]);
     let yaw = g.obj_init[2] + rand_range(g, env, episode, pi, 2, -g.yaw_noise, g.yaw_noise);
-    s.obj_pos = [x, y, g.obj_init[3] * p.obj_scale, 0.0];
+    s.obj_pos = [x, y, p.obj_rest_height, 0.0];
     let rot: Vec4 = quat_from_axis_angle(Vec3::Z, yaw);
     s.obj_rot = rot.to_array();
     s.episode = episode;

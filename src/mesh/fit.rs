@@ -1,4 +1,4 @@
-//! Tight primitives around a mesh: the smallest sphere, capsule or oriented box (by volume) that
+//! Tight primitives around a mesh: the smallest sphere, capsule, oriented box or cylinder (by volume) that
 //! contains every vertex, and how much bigger than the mesh each one is.
 //!
 //! The search:
@@ -23,6 +23,8 @@
 //!   of the identity, of the principal frame and of its turns, and the normals of the hull's
 //!   largest flat parts (the polish turns the axis only); the axis-aligned capsule
 //!   ([`axis_aligned`]) is a candidate too.
+//! - **Cylinder** (axis = local z, flat caps; for objects): the capsule's circle for each candidate
+//!   axis, and the vertices' extent along it.
 //! - **Sphere**: the minimum enclosing sphere (Welzl's algorithm in 3D); no orientation (`rot` is
 //!   the identity).
 //!
@@ -65,6 +67,8 @@ pub enum PrimitiveKind {
     Capsule,
     /// An oriented box.
     Box,
+    /// A solid cylinder (flat caps), axis = local z.
+    Cylinder,
 }
 
 impl PrimitiveKind {
@@ -74,15 +78,17 @@ impl PrimitiveKind {
             PrimitiveKind::Sphere => "sphere",
             PrimitiveKind::Capsule => "capsule",
             PrimitiveKind::Box => "box",
+            PrimitiveKind::Cylinder => "cylinder",
         }
     }
 
-    /// Simplicity rank for ties in [`fit_tightest`]: sphere < capsule < box.
+    /// Simplicity rank for ties in [`fit_tightest`]: sphere < capsule < box < cylinder.
     fn rank(self) -> u8 {
         match self {
             PrimitiveKind::Sphere => 0,
             PrimitiveKind::Capsule => 1,
             PrimitiveKind::Box => 2,
+            PrimitiveKind::Cylinder => 3,
         }
     }
 }
@@ -114,6 +120,13 @@ pub enum FittedShape {
         /// Half extents along local x, y, z.
         half_extents: DVec3,
     },
+    /// The points within `radius` of the z axis with |z| ≤ `half_length` (flat caps).
+    Cylinder {
+        /// Radius.
+        radius: f64,
+        /// Half the length along local z.
+        half_length: f64,
+    },
 }
 
 impl FittedShape {
@@ -123,6 +136,7 @@ impl FittedShape {
             FittedShape::Sphere { .. } => PrimitiveKind::Sphere,
             FittedShape::Capsule { .. } => PrimitiveKind::Capsule,
             FittedShape::Box { .. } => PrimitiveKind::Box,
+            FittedShape::Cylinder { .. } => PrimitiveKind::Cylinder,
         }
     }
 
@@ -134,6 +148,8 @@ impl FittedShape {
             // V = π r² · 2h (cylinder) + 4/3 π r³ (the two caps)
             FittedShape::Capsule { radius, half_length } => PI * radius * radius * 2.0 * half_length + 4.0 / 3.0 * PI * radius.powi(3),
             FittedShape::Box { half_extents: h } => 8.0 * h.x * h.y * h.z,
+            // V = π r² · 2h
+            FittedShape::Cylinder { radius, half_length } => PI * radius * radius * 2.0 * half_length,
         }
     }
 }
@@ -179,6 +195,7 @@ impl PrimitiveFit {
                 DVec3::new(q.x, q.y, q.z - z).length() <= radius + tol
             }
             FittedShape::Box { half_extents } => (q.abs() - half_extents).max_element() <= tol,
+            FittedShape::Cylinder { radius, half_length } => q.truncate().length() <= radius + tol && q.z.abs() <= half_length + tol,
         }
     }
 }
@@ -214,8 +231,8 @@ pub fn fit_with_hull(vertices: &[DVec3], hull: &ConvexHull, kind: PrimitiveKind)
             let frame = search.best_frame(|f| search.box_volume(f), &about, &frames);
             box_in_frame(vertices, frame)
         }
-        PrimitiveKind::Capsule => {
-            // the principal frames offer their three axes as the capsule's z (columns turned
+        PrimitiveKind::Capsule | PrimitiveKind::Cylinder => {
+            // the principal frames offer their three axes as the primitive's z (columns turned
             // cyclically, so each stays right-handed), a flat part its normal
             let mut axes: Vec<DMat3> = Vec::new();
             let turned = search
@@ -224,13 +241,14 @@ pub fn fit_with_hull(vertices: &[DVec3], hull: &ConvexHull, kind: PrimitiveKind)
                 .flat_map(|m| [*m, DMat3::from_cols(m.y_axis, m.z_axis, m.x_axis), DMat3::from_cols(m.z_axis, m.x_axis, m.y_axis)]);
             for m in turned.chain(search.flat_frames.iter().copied()) {
                 if !axes.iter().any(|a| a.z_axis.dot(m.z_axis).abs() > 1.0 - 1e-12) {
-                    axes.push(m); // one frame per axis: turning about z does not change a capsule
+                    axes.push(m); // one frame per axis: turning about z changes neither shape
                 }
             }
             // polish about x, y and their diagonals (not about z, for the same reason)
             let about = [DVec3::X, DVec3::Y, DVec3::new(1.0, 1.0, 0.0), DVec3::new(1.0, -1.0, 0.0)];
-            let frame = search.best_frame(|f| search.capsule_volume(f), &about, &axes);
-            capsule_in_frame(&search.all, vertices, frame, search.tol)
+            let capped = kind == PrimitiveKind::Cylinder;
+            let frame = search.best_frame(|f| round_in_frame(&search.points, &search.points, *f, search.tol, capped).2.volume(), &about, &axes);
+            round_in_frame(&search.all, vertices, frame, search.tol, capped)
         }
         PrimitiveKind::Sphere => {
             let (c, _) = min_sphere(&search.all, search.tol);
@@ -296,7 +314,7 @@ fn aligned_primitive(vertices: &[DVec3], kind: PrimitiveKind) -> (DVec3, DQuat, 
     match kind {
         PrimitiveKind::Box => (c, DQuat::IDENTITY, FittedShape::Box { half_extents: half }),
         PrimitiveKind::Sphere => (c, DQuat::IDENTITY, FittedShape::Sphere { radius: vertices.iter().map(|v| v.distance(c)).fold(0.0, f64::max) }),
-        PrimitiveKind::Capsule => {
+        PrimitiveKind::Capsule | PrimitiveKind::Cylinder => {
             // the rotation taking local z to the longest axis (as the hand loader did)
             let rot = if half.z >= half.x && half.z >= half.y {
                 DQuat::IDENTITY
@@ -308,6 +326,10 @@ fn aligned_primitive(vertices: &[DVec3], kind: PrimitiveKind) -> (DVec3, DQuat, 
             let inv = rot.inverse();
             let local: Vec<DVec3> = vertices.iter().map(|v| inv * (*v - c)).collect();
             let r = local.iter().map(|q| q.truncate().length()).fold(0.0, f64::max); // d = √(x² + y²)
+            if kind == PrimitiveKind::Cylinder {
+                let h = local.iter().map(|q| q.z.abs()).fold(0.0, f64::max);
+                return (c, rot, FittedShape::Cylinder { radius: r, half_length: h });
+            }
             // symmetric segment [−h, h]: a vertex at (t, d) needs |t| ≤ h + √(r² − d²)
             let h = local.iter().map(|q| q.z.abs() - (r * r - q.truncate().length_squared()).max(0.0).sqrt()).fold(0.0, f64::max);
             (c, rot, FittedShape::Capsule { radius: r, half_length: h })
@@ -426,10 +448,6 @@ impl Search {
         d.x * d.y * d.z
     }
 
-    /// Volume of the capsule along `frame`'s z around the search points.
-    fn capsule_volume(&self, frame: &DMat3) -> f64 {
-        capsule_in_frame(&self.points, &self.points, *frame, self.tol).2.volume()
-    }
 }
 
 /// The normals of the `k` largest flat parts of the hull: its faces grouped by normal (rounded to
@@ -473,11 +491,12 @@ fn box_in_frame(points: &[DVec3], frame: DMat3) -> (DVec3, DQuat, FittedShape) {
     (frame * ((lo + hi) * 0.5), rot, FittedShape::Box { half_extents: (hi - lo) * 0.5 })
 }
 
-/// The capsule along `frame`'s z around `points`: radius of the minimum enclosing circle of the
-/// projections, shortest covering segment (module docs). The circle's centre is found on `hull`
-/// (the extreme points, in random order for Welzl's algorithm; `points` itself when searching),
-/// the radius and the segment are sized on `points`.
-fn capsule_in_frame(hull: &[DVec3], points: &[DVec3], frame: DMat3, tol: f64) -> (DVec3, DQuat, FittedShape) {
+/// The capsule (`capped` false) or cylinder (`capped` true) along `frame`'s z around `points`:
+/// radius of the minimum enclosing circle of the projections; a capsule's segment is the shortest
+/// covering one (module docs), a cylinder spans the points' extent along z. The circle's centre is
+/// found on `hull` (the extreme points, in random order for Welzl's algorithm; `points` itself when
+/// searching), the radius and the length are sized on `points`.
+fn round_in_frame(hull: &[DVec3], points: &[DVec3], frame: DMat3, tol: f64, capped: bool) -> (DVec3, DQuat, FittedShape) {
     let (rot, frame) = as_rotation(frame);
     let ft = frame.transpose();
     let hull_flat: Vec<DVec2> = hull.iter().map(|p| (ft * *p).truncate()).collect();
@@ -485,6 +504,11 @@ fn capsule_in_frame(hull: &[DVec3], points: &[DVec3], frame: DMat3, tol: f64) ->
     let local: Vec<DVec3> = points.iter().map(|p| ft * *p).collect();
     let flat: Vec<DVec2> = local.iter().map(|q| q.truncate()).collect();
     let r = flat.iter().map(|q| q.distance(c2)).fold(0.0, f64::max); // covers every projection
+    if capped {
+        let (lo, hi) = local.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), q| (lo.min(q.z), hi.max(q.z)));
+        let centre = frame * DVec3::new(c2.x, c2.y, (lo + hi) * 0.5);
+        return (centre, rot, FittedShape::Cylinder { radius: r, half_length: (hi - lo) * 0.5 });
+    }
     // a vertex (t, d) is inside iff [s0, s1] meets [t − w, t + w], w = √(r² − d²)
     let (mut s0, mut s1) = (f64::INFINITY, f64::NEG_INFINITY);
     for (q, p2) in local.iter().zip(&flat) {
@@ -635,6 +659,18 @@ fn surface_samples(shape: &FittedShape) -> Vec<DVec3> {
         FittedShape::Sphere { radius } => {
             let mut s: Vec<DVec3> = fibonacci(GAP_SAMPLES, -1.0).into_iter().map(|u| u * radius).collect();
             s.extend([DVec3::X, DVec3::NEG_X, DVec3::Y, DVec3::NEG_Y, DVec3::Z, DVec3::NEG_Z].map(|u| u * radius));
+            s
+        }
+        FittedShape::Cylinder { radius, half_length } => {
+            // the extreme points are the two rim circles
+            let n = GAP_SAMPLES / 2;
+            let mut s = Vec::with_capacity(2 * n);
+            for k in 0..n {
+                let a = k as f64 * std::f64::consts::TAU / n as f64;
+                for z in [-half_length, half_length] {
+                    s.push(DVec3::new(radius * a.cos(), radius * a.sin(), z));
+                }
+            }
             s
         }
         FittedShape::Capsule { radius, half_length } => {

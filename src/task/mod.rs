@@ -238,7 +238,7 @@ pub trait TaskBatch: Send {
     fn load_state(&mut self, state: &[u8]) -> Result<()>;
 }
 
-const SNAPSHOT_MAGIC: &[u8; 8] = b"DXTASK02";
+const SNAPSHOT_MAGIC: &[u8; 8] = b"DXTASK03";
 /// Header of a snapshot: the magic, then N, the three struct sizes and the springs per env (u32 LE).
 const SNAPSHOT_HEADER: usize = 8 + 5 * 4;
 
@@ -270,7 +270,7 @@ pub(crate) fn encode_snapshot(states: &[EnvState], springs: &[[f32; 4]], params:
 /// The inverse of [`encode_snapshot`] for a batch of `n` envs with `springs_per_env` contact
 /// springs each.
 pub(crate) fn decode_snapshot(bytes: &[u8], n: usize, springs_per_env: usize) -> Result<(EnvSnapshot, Vec<TaskState>)> {
-    ensure!(bytes.len() >= SNAPSHOT_HEADER && &bytes[..8] == SNAPSHOT_MAGIC, "not a dextrain task snapshot of this version (DXTASK02)");
+    ensure!(bytes.len() >= SNAPSHOT_HEADER && &bytes[..8] == SNAPSHOT_MAGIC, "not a dextrain task snapshot of this version (DXTASK03)");
     let word = |i: usize| u32::from_le_bytes([bytes[8 + 4 * i], bytes[9 + 4 * i], bytes[10 + 4 * i], bytes[11 + 4 * i]]) as usize;
     let sizes = [std::mem::size_of::<EnvState>(), std::mem::size_of::<EnvParams>(), std::mem::size_of::<TaskState>()];
     ensure!(word(0) == n, "the snapshot holds {} envs, this batch has {n} (sim.num_envs)", word(0));

@@ -46,7 +46,6 @@ use glam::{Quat, Vec3};
 use crate::env::SimModel;
 use crate::env::common::quat_from_axis_angle;
 use crate::env::gpu_layout::NO_JOINT;
-use crate::env::physics::bounding_radius;
 pub use crate::env::reference::{REF_HAS_OBJECT, REF_TIPS_FROM_FILE, RefGlobals, RefInfo};
 use crate::geom::Pose;
 use crate::replay::targets_at;
@@ -180,7 +179,8 @@ impl RefBank {
             Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]),
             Quat::from_array(quat_from_axis_angle(Vec3::Z, g.obj_init[2]).to_array()),
         );
-        let radius = bounding_radius(g.obj_shape, Vec3::new(g.obj_size[0], g.obj_size[1], g.obj_size[2]));
+        // the first object's bounding radius about its frame's origin
+        let radius = model.object_descs[0].com[3];
         let mut rec = vec![0.0f32; l.stride];
         let mut obj0 = nominal_obj;
         let mut lo = Vec3::splat(f32::INFINITY);

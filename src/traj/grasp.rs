@@ -463,8 +463,10 @@ const DESCENT_CHECKS: usize = 10;
 pub fn hand_object_depth(model: &SimModel, wrist: &Pose, q: &[f32]) -> f32 {
     let g = &model.globals;
     let m = model.view();
-    let mut p = reset_params(g, 0, 0);
-    p.obj_size = g.obj_size;
+    // the first object, unscaled
+    let mut p = reset_params(g, &model.object_descs, 0, 0);
+    let od = &model.object_descs[0];
+    (p.obj_index, p.obj_scale, p.obj_com) = (0, 1.0, od.com);
     let mut st = EnvState { wrist_pos: [wrist.pos.x, wrist.pos.y, wrist.pos.z, 0.0], wrist_rot: wrist.rot.to_array(), ..Default::default() };
     st.q[..q.len()].copy_from_slice(q);
     st.obj_pos = [g.obj_init[0], g.obj_init[1], g.obj_init[3], 0.0];

@@ -196,10 +196,18 @@ fn antipodal(cfg: &Config, args: &SynthArgs, model: &SimModel) -> Result<Traject
     verify.object.yaw_noise = 0.0;
     verify.randomization = Default::default();
     let verify_model = SimModel::from_config(&verify)?;
+    // grasps are planned on a primitive's faces; a mesh object's geometry is not planned on yet
+    let Some(shape) = cfg.object.first_primitive() else {
+        bail!(
+            "{}: `traj synth` plans grasps on a primitive object (`[object] shape`), and object '{}' is made from a mesh: expected a primitive object (record or import references for mesh objects)",
+            cfg.source.display(),
+            model.objects[0].name
+        );
+    };
     let mut first_err = None;
     let mut best: Option<(f64, Trajectory, String)> = None;
     for (k, variant) in GRASP_VARIANTS.iter().enumerate() {
-        let plan = match plan_grasp(model, cfg.object.shape, &cfg.task.hand.thumb, variant) {
+        let plan = match plan_grasp(model, shape, &cfg.task.hand.thumb, variant) {
             Ok(plan) => plan,
             Err(e) => {
                 first_err.get_or_insert(e);

@@ -76,9 +76,9 @@ fn antipodal_plan_puts_thumb_and_fingers_on_opposite_faces_within_reach() {
     for (name, c) in &configs {
         let model = SimModel::from_config(c).unwrap();
         let variant = &GRASP_VARIANTS[0];
-        let plan = plan_grasp(&model, c.object.shape, &c.task.hand.thumb, variant).unwrap();
+        let plan = plan_grasp(&model, c.object.first_primitive().unwrap(), &c.task.hand.thumb, variant).unwrap();
         let th = plan.thumb;
-        let centre = Vec3::new(c.object.init_xy[0], c.object.init_xy[1], c.object.shape.rest_height());
+        let centre = Vec3::new(c.object.init_xy[0], c.object.init_xy[1], c.object.first_primitive().unwrap().rest_height());
         let half = 0.025;
         for (i, (p, n)) in plan.contacts.iter().zip(&plan.normals).enumerate() {
             // on the face whose outward normal is n: the thumb's is opposite every finger's

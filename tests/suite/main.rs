@@ -14,6 +14,7 @@ mod hand;
 mod ik;
 mod learn;
 mod mesh;
+mod objects;
 mod metrics;
 mod parity;
 mod perturb;

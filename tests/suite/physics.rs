@@ -23,7 +23,7 @@ fn object_at_rest_drifts_less_than_1mm_in_10s() {
         ObjectShape::Capsule { radius: 0.02, half_length: 0.04 },
     ] {
         let mut c = base_config(1);
-        c.object.shape = shape;
+        c.object.shape = Some(shape);
         let mut b = cpu_batch(&c);
         let p0 = obj_pos(&mut b, 0);
         let t = b.model().default_targets();
@@ -36,7 +36,7 @@ fn object_at_rest_drifts_less_than_1mm_in_10s() {
 #[test]
 fn free_fall_matches_the_analytic_time_within_1_percent() {
     let mut c = base_config(1);
-    c.object.shape = ObjectShape::Sphere { radius: 0.03 };
+    c.object.shape = Some(ObjectShape::Sphere { radius: 0.03 });
     c.sim.decimation = 1;
     let mut b = cpu_batch(&c);
     let mut s = b.states().unwrap();
@@ -112,7 +112,7 @@ fn passive_object_never_gains_energy() {
         (ObjectShape::Cylinder { radius: 0.03, half_length: 0.02 }, 0.0),
     ] {
         let mut c = base_config(1);
-        c.object.shape = shape;
+        c.object.shape = Some(shape);
         c.object.restitution = e;
         c.sim.decimation = 1;
         let mut b = cpu_batch(&c);

@@ -11,7 +11,7 @@ use serde_json::Value;
 use dextrain::geom::{ObjectShape, Pose};
 use dextrain::hand::{Collider, ColliderShape, Fingertip, HandModel, Joint, Link};
 use dextrain::record::{
-    ContactKind, ContactRecord, RolloutFrame, RolloutMeta, RolloutWriter, TOPIC_CONTACTS, TOPIC_HAND_STATE,
+    ContactKind, ObjectPart, ContactRecord, RolloutFrame, RolloutMeta, RolloutWriter, TOPIC_CONTACTS, TOPIC_HAND_STATE,
     TOPIC_POSES, TOPIC_SCENE, TOPIC_TF,
 };
 
@@ -67,6 +67,10 @@ fn small_hand() -> HandModel {
 }
 
 fn meta(object: ObjectShape) -> RolloutMeta {
+    parts_meta(vec![ObjectPart { shape: object, pose: Pose::IDENTITY }])
+}
+
+fn parts_meta(object: Vec<ObjectPart>) -> RolloutMeta {
     RolloutMeta {
         hand: small_hand(),
         object,
@@ -372,8 +376,8 @@ fn rollout_reads_back() {
     assert_eq!(serde_json::from_str::<Value>(&md["links"]).unwrap(), serde_json::json!(["palm", "finger"]));
     assert_eq!(serde_json::from_str::<Value>(&md["joints"]).unwrap(), serde_json::json!(["finger_joint"]));
     assert_eq!(serde_json::from_str::<Value>(&md["info"]).unwrap(), meta.info);
-    let shape: ObjectShape = serde_json::from_str(&md["object"]).unwrap();
-    assert_eq!(shape, meta.object);
+    let parts: Vec<ObjectPart> = serde_json::from_str(&md["object"]).unwrap();
+    assert_eq!(parts, meta.object);
     assert_eq!(md["dt"].parse::<f32>().unwrap(), DT);
 }
 
@@ -407,6 +411,27 @@ fn object_shapes_primitives() {
             assert_eq!(f32_of(&cyl["size"]["x"]), 0.04);
         }
     }
+}
+
+#[test]
+fn compound_object_draws_each_piece_at_its_pose() {
+    let box_at = Pose::new(Vec3::new(0.05, 0.0, 0.01), Quat::from_rotation_z(0.3));
+    let meta = parts_meta(vec![
+        ObjectPart { shape: ObjectShape::Box { half_extents: [0.01, 0.02, 0.03] }, pose: box_at },
+        ObjectPart { shape: ObjectShape::Sphere { radius: 0.02 }, pose: Pose::new(Vec3::new(-0.04, 0.0, 0.0), Quat::IDENTITY) },
+    ]);
+    let mut w = RolloutWriter::create_in_memory(&meta).unwrap();
+    w.write_frame(&frame(&meta.hand, 0)).unwrap();
+    let r = read(&w.into_bytes().unwrap());
+    let e = entity(&r.messages[TOPIC_SCENE][0].json, "object");
+    assert_eq!((prim_count(e, "cubes"), prim_count(e, "spheres"), prim_count(e, "cylinders")), (1, 1, 0));
+    let cube = &e["cubes"][0]["pose"];
+    assert_eq!(f32_of(&cube["position"]["x"]), 0.05);
+    assert_eq!(f32_of(&cube["position"]["z"]), 0.01);
+    assert!((f32_of(&cube["orientation"]["z"]) - (0.15f32).sin()).abs() < 1e-6);
+    assert_eq!(f32_of(&e["spheres"][0]["pose"]["position"]["x"]), -0.04);
+    let parts: Vec<ObjectPart> = serde_json::from_str(&r.metadata["dextrain"]["object"]).unwrap();
+    assert_eq!(parts, meta.object);
 }
 
 #[test]

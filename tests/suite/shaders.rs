@@ -68,9 +68,9 @@ fn check(m: &naga::Module, name: &str, size: usize, fields: Vec<(&str, usize)>) 
 #[test]
 fn pod_structs_match_their_wgsl_twins() {
     let m = validate(&shader_source());
-    check(&m, "Globals", size_of::<Globals>(), rust_fields!(Globals; init_wrist_pos, init_wrist_rot, obj_size, obj_init, rnd,
-        n_envs, n_joints, n_colliders, n_tips, n_links, obj_shape, n_obj_pts, substeps, decimation, seed, hand_table, n_springs,
-        dt, gravity, contact_k, contact_kt, hand_eff_mass, hand_friction, obj_mass, obj_friction, table_friction, yaw_noise,
+    check(&m, "Globals", size_of::<Globals>(), rust_fields!(Globals; init_wrist_pos, init_wrist_rot, obj_init, rnd,
+        n_envs, n_joints, n_colliders, n_tips, n_links, n_objects, n_obj_pts, substeps, decimation, seed, hand_table, n_springs,
+        dt, gravity, contact_k, contact_kt, hand_eff_mass, hand_friction, _pad1, obj_friction, table_friction, yaw_noise,
         hand_mass, hand_inertia, wrist_added_mass, wrist_added_inertia, wrist_kp_lin, wrist_kd_lin, wrist_force_limit,
         wrist_kp_rot, wrist_kd_rot, wrist_torque_limit, max_speed, max_distance, torsion_radius, _pad2));
     check(&m, "JointDesc", size_of::<JointDesc>(), rust_fields!(JointDesc; origin_pos, origin_rot, axis, parent_link, mimic_leader,
@@ -79,9 +79,12 @@ fn pod_structs_match_their_wgsl_twins() {
     check(&m, "TipDesc", size_of::<TipDesc>(), rust_fields!(TipDesc; pos, link, _pad));
     check(&m, "EnvState", size_of::<EnvState>(), rust_fields!(EnvState; wrist_pos, wrist_rot, wrist_vel, wrist_angvel,
         obj_pos, obj_rot, obj_vel, obj_angvel, q, qd, time, episode, step, bad_resets));
-    check(&m, "EnvParams", size_of::<EnvParams>(), rust_fields!(EnvParams; obj_size, obj_inertia, obj_friction, restitution,
+    check(&m, "EnvParams", size_of::<EnvParams>(), rust_fields!(EnvParams; obj_com, obj_inertia, obj_friction, restitution,
         obj_scale, table_friction, hand_friction, hand_mass_scale, limit_scale, kp_scale, kd_scale, added_gravity,
-        obj_contact_c, hand_table_c, _pad));
+        obj_contact_c, hand_table_c, obj_index, obj_rest_height, _pad));
+    check(&m, "PieceDesc", size_of::<PieceDesc>(), rust_fields!(PieceDesc; pos, rot, size, shape, n_support, _pad));
+    check(&m, "ObjectDesc", size_of::<ObjectDesc>(), rust_fields!(ObjectDesc; com, principal_rot, inertia, first_piece, n_pieces,
+        n_support, rest_height));
     check(&m, "Targets", size_of::<Targets>(), rust_fields!(Targets; wrist_pos, wrist_rot, q));
     check(&m, "StepStats", size_of::<StepStats>(), rust_fields!(StepStats; tip_force, max_pen_ho, max_pen, contacts,
         contacts_ho, bad_reset, link_contact, table_contact, _pad));
@@ -120,7 +123,7 @@ fn shader_constants_match_rust() {
     for (name, v) in [
         ("MAX_JOINTS", dextrain::hand::MAX_JOINTS),
         ("MAX_TIPS", dextrain::hand::MAX_TIPS),
-        ("MAX_OBJ_PTS", MAX_OBJ_PTS),
+        ("MAX_PIECES", MAX_PIECES),
         ("MAX_LINKS", dextrain::env::physics::MAX_LINKS),
         ("PROJ_ITERS", dextrain::env::physics::PROJ_ITERS),
     ] {
@@ -323,12 +326,12 @@ fn binding_tables_match_the_wgsl_globals() {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other
         assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu_bindings.rs (right)", group.shader);
-        // indices and names are unique, and indices from 18 up stay free for the test kernels
+        // indices and names are unique, and indices from 20 up stay free for the test kernels
         let mut ix: Vec<u32> = group.bindings.iter().map(|b| b.index).collect();
         ix.sort();
         ix.dedup();
         assert_eq!(ix.len(), group.bindings.len(), "{}: an index appears twice", group.shader);
-        assert!(ix.iter().all(|&i| i < 18), "{}: {ix:?}", group.shader);
+        assert!(ix.iter().all(|&i| i < 20), "{}: {ix:?}", group.shader);
         // each entry point's table lists exactly the globals it uses (its bind group binds these)
         for ep in group.entry_points {
             let (_, uses) = used.iter().find(|(n, _)| n == ep.entry_point).unwrap_or_else(|| panic!("{}: no entry point {}", group.shader, ep.entry_point));

@@ -507,6 +507,7 @@ fn summary(tracking: bool) -> dextrain::eval::Summary {
         frac_frames_penetration_over_1mm: 0.1,
         mean_fingertip_force_n: 2.0,
         latent_error: None,
+        per_object: Vec::new(),
         per_episode: vec![EpisodeRow {
             ret: 10.0,
             length: 100,
@@ -517,6 +518,8 @@ fn summary(tracking: bool) -> dextrain::eval::Summary {
             terminal_pos_err_m: t(0.02),
             terminal_rot_err_deg: t(6.0),
             reference: if tracking { "a.mcap".into() } else { String::new() },
+            object: "box".into(),
+            final_lift_m: 0.05,
         }],
     }
 }
