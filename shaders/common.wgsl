@@ -13,6 +13,7 @@ const SHAPE_SPHERE: u32 = 0u;
 const SHAPE_BOX: u32 = 1u;
 const SHAPE_CAPSULE: u32 = 2u;
 const SHAPE_CYLINDER: u32 = 3u;
+const SHAPE_HULL: u32 = 4u;
 const NO_JOINT: u32 = 0xffffffffu;
 
 struct Globals {
@@ -143,8 +144,8 @@ struct PieceDesc {
     size: vec4<f32>,
     shape: u32,
     n_support: u32,
-    _pad0: u32,
-    _pad1: u32,
+    hull_first: u32,
+    hull_faces: u32,
 }
 
 // One object of the run, unscaled (twin: gpu_layout.rs ObjectDesc).
@@ -268,6 +269,9 @@ fn rand_uniform(seed: u32, env: u32, episode: u32, purpose: u32, k: u32) -> f32 
 // the objects' collision pieces and the objects (twin: SimModel::pieces, SimModel::objects)
 @group(0) @binding(18) var<storage, read> pieces: array<PieceDesc>;
 @group(0) @binding(19) var<storage, read> objects: array<ObjectDesc>;
+// the convex-hull pieces' data: per hull F planes (n, d), F triangles (vertex indices as floats),
+// then its vertices (twin: SimModel::hulls)
+@group(0) @binding(20) var<storage, read> hulls: array<vec4<f32>>;
 const WORKGROUP_SIZE: u32 = 64u;
 
 // Env index of an invocation of a (possibly 2-D) dispatch.

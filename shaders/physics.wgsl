@@ -229,6 +229,103 @@ fn box_project(c: vec3<f32>, r: vec4<f32>, h: vec3<f32>, p: vec3<f32>) -> vec3<f
     return c + quat_rotate(r, clamp(local, -h, h));
 }
 
+// closest point of the triangle (a, b, c) to p (Ericson §5.1.5: vertex, edge, then face regions)
+fn triangle_closest(p: vec3<f32>, a: vec3<f32>, b: vec3<f32>, c: vec3<f32>) -> vec3<f32> {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = dot(ab, ap);
+    let d2 = dot(ac, ap);
+    if (d1 <= 0.0 && d2 <= 0.0) {
+        return a;
+    }
+    let bp = p - b;
+    let d3 = dot(ab, bp);
+    let d4 = dot(ac, bp);
+    if (d3 >= 0.0 && d4 <= d3) {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if (vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0) {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let d5 = dot(ab, cp);
+    let d6 = dot(ac, cp);
+    if (d6 >= 0.0 && d5 <= d6) {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if (vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0) {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if (va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0) {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    let denom = 1.0 / (va + vb + vc);
+    return a + ab * (vb * denom) + ac * (vc * denom);
+}
+
+// vertex k of hull piece pd (piece frame, scaled): after its F planes and F triangles
+fn hull_vertex(pd: PieceDesc, scale: f32, k: u32) -> vec3<f32> {
+    return hulls[pd.hull_first + 2u * pd.hull_faces + k].xyz * scale;
+}
+
+// closest point of the solid hull to p; outside, the nearest triangle among those p is in front of
+fn hull_project(pd: PieceDesc, scale: f32, p: vec3<f32>) -> Projection {
+    let base = pd.hull_first;
+    let nf = pd.hull_faces;
+    var inside = true;
+    var best = p;
+    var best_d2 = 1e30;
+    for (var f = 0u; f < nf; f++) {
+        let pl = hulls[base + f];
+        if (dot(pl.xyz, p) - scale * pl.w > 0.0) {
+            inside = false;
+            let t = hulls[base + nf + f];
+            let a = hull_vertex(pd, scale, u32(t.x));
+            let b = hull_vertex(pd, scale, u32(t.y));
+            let c = hull_vertex(pd, scale, u32(t.z));
+            let q = triangle_closest(p, a, b, c);
+            let dq = p - q;
+            let d2 = dot(dq, dq);
+            if (d2 < best_d2) {
+                best_d2 = d2;
+                best = q;
+            }
+        }
+    }
+    return Projection(best, inside);
+}
+
+// the segment [a, b] pushed out of the hull along a face normal (SAT on the hull's faces)
+fn segment_hull_push(pd: PieceDesc, scale: f32, a: vec3<f32>, b: vec3<f32>) -> BoxPush {
+    var best_d = 1e30;
+    var best_n = vec3<f32>(0.0, 0.0, 1.0);
+    var best_p = a;
+    for (var f = 0u; f < pd.hull_faces; f++) {
+        let pl = hulls[pd.hull_first + f];
+        let n = pl.xyz;
+        let deep = select(b, a, dot(n, a) <= dot(n, b));
+        let d = scale * pl.w - dot(n, deep);
+        if (d < best_d) {
+            best_d = d;
+            best_n = n;
+            best_p = deep + n * d;
+        }
+    }
+    return BoxPush(best_n, best_d, best_p);
+}
+
+// closest point of an object piece (a primitive of scaled size, or its hull) to p
+fn piece_project(pd: PieceDesc, scale: f32, size: vec3<f32>, p: vec3<f32>) -> Projection {
+    if (pd.shape == SHAPE_HULL) {
+        return hull_project(pd, scale, p);
+    }
+    return object_project(pd.shape, size, p);
+}
+
 fn collider_pose(ci: u32) -> ColliderPose {
     let cd = colliders[ci];
     let l = cd.link;
@@ -288,7 +385,7 @@ fn collide_hand_object(ci: u32) -> Contact {
         if (dot(dp, dp) > r * r) {
             continue;
         }
-        let c = collide_collider_piece(cd, cp, pd.shape, pp.size, pp.pos, pp.rot);
+        let c = collide_collider_piece(cd, cp, pd, prm.obj_scale, pp.pos, pp.rot);
         if (c.depth > best.depth) {
             best = c;
         }
@@ -296,8 +393,10 @@ fn collide_hand_object(ci: u32) -> Contact {
     return best;
 }
 
-// a hand collider against one object piece (shape code, scaled size, at opos, orot)
-fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, code: u32, size: vec3<f32>, opos: vec3<f32>, orot: vec4<f32>) -> Contact {
+// a hand collider against object piece pd (lengths scaled by scale, at opos, orot)
+fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, scale: f32, opos: vec3<f32>, orot: vec4<f32>) -> Contact {
+    let code = pd.shape;
+    let size = pd.size.xyz * scale;
     let oinv = quat_conj(orot);
     // collider in the object's frame
     let c_o = quat_rotate(oinv, cp.pos - opos);
@@ -307,10 +406,10 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, code: u32, size: v
         let h = cd.size.xyz;
         var x = c_o;
         for (var it = 0u; it < PROJ_ITERS; it++) {
-            let y = object_project(code, size, x).point;
+            let y = piece_project(pd, scale, size, x).point;
             x = box_project(c_o, r_o, h, y);
         }
-        let y = object_project(code, size, x).point;
+        let y = piece_project(pd, scale, size, x).point;
         // y lies in the hand box when the two overlap: push the hand out through its nearest face
         let local = quat_rotate(quat_conj(r_o), y - c_o);
         let d = h - abs(local);
@@ -339,10 +438,10 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, code: u32, size: v
     let b = c_o + axis;
     var x = segment_closest(a, b, vec3<f32>(0.0));
     for (var it = 0u; it < PROJ_ITERS; it++) {
-        let y = object_project(code, size, x).point;
+        let y = piece_project(pd, scale, size, x).point;
         x = segment_closest(a, b, y);
     }
-    let pr = object_project(code, size, x);
+    let pr = piece_project(pd, scale, size, x);
     let y = pr.point;
     let rc = cd.size.x;
     var n = vec3<f32>(0.0, 0.0, 1.0);
@@ -352,6 +451,11 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, code: u32, size: v
         n = bp.normal;
         out.depth = rc + bp.dist;
         surf = bp.point;
+    } else if (pr.inside && code == SHAPE_HULL) {
+        let hp = segment_hull_push(pd, scale, a, b);
+        n = hp.normal;
+        out.depth = rc + hp.dist;
+        surf = hp.point;
     } else if (pr.inside) {
         let ins = object_inside_normal(code, size, x);
         n = ins.normal;
@@ -391,9 +495,15 @@ fn collide_hand_table(ci: u32) -> Contact {
     return Contact(r - low.z, vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(low.x, low.y, 0.0));
 }
 
-// support point k of an object piece (shape code, scaled size, at ppos, prot) against the table
-fn collide_piece_table(code: u32, size: vec3<f32>, ppos: vec3<f32>, prot: vec4<f32>, k: u32) -> Contact {
-    let sp = object_support_point(code, size, k);
+// support point k of object piece pd (scaled size, hull scaled by scale, at ppos, prot) against
+// the table: a primitive's support points, a hull's vertices
+fn collide_piece_table(pd: PieceDesc, scale: f32, size: vec3<f32>, ppos: vec3<f32>, prot: vec4<f32>, k: u32) -> Contact {
+    var sp = SupportPoint(vec3<f32>(0.0), 0.0);
+    if (pd.shape == SHAPE_HULL) {
+        sp = SupportPoint(hull_vertex(pd, scale, k), 0.0);
+    } else {
+        sp = object_support_point(pd.shape, size, k);
+    }
     let w = ppos + quat_rotate(prot, sp.pos);
     return Contact(sp.radius - w.z, vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(w.x, w.y, 0.0));
 }
@@ -639,7 +749,7 @@ fn contacts_and_forces(h: f32) {
         for (var j = 0u; j < pd.n_support; j++) {
             let ki = spring_base + 2u * g.n_colliders + kp;
             kp += 1u;
-            let c = collide_piece_table(pd.shape, pp.size, pp.pos, pp.rot, j);
+            let c = collide_piece_table(pd, prm.obj_scale, pp.size, pp.pos, pp.rot, j);
             if (c.depth > 0.0) {
                 let vo = ovel + cross(ow, c.point - ocom);
                 let cf = contact_force(c, vo, springs[ki].xyz, k, kt, prm.obj_contact_c, mu_ot, h);

@@ -66,10 +66,14 @@ pub struct ContactRecord {
 }
 
 /// One collision piece of the recorded object: a primitive (scaled) at a pose in the object frame.
-#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ObjectPart {
     pub shape: ObjectShape,
     pub pose: Pose,
+    /// A convex-hull piece: its triangles (three points each, in the part's frame), drawn instead
+    /// of `shape`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub triangles: Vec<[f32; 3]>,
 }
 
 /// Static description of a recorded rollout.
@@ -534,6 +538,8 @@ struct Prims {
     cubes: Vec<FgShape>,
     spheres: Vec<FgShape>,
     cylinders: Vec<FgCylinder>,
+    /// Foxglove TriangleListPrimitive messages (convex-hull pieces).
+    triangles: Vec<Value>,
 }
 
 impl Prims {
@@ -568,6 +574,16 @@ impl Prims {
     fn object(&mut self, parts: &[ObjectPart], color: FgColor) {
         for part in parts {
             let at = &part.pose;
+            if !part.triangles.is_empty() {
+                self.triangles.push(json!({
+                    "pose": FgPose::from(at),
+                    "points": part.triangles.iter().map(|p| fv(Vec3::from(*p))).collect::<Vec<_>>(),
+                    "color": color,
+                    "colors": [],
+                    "indices": [],
+                }));
+                continue;
+            }
             match part.shape {
                 ObjectShape::Sphere { radius } => self.sphere(at, radius, color),
                 ObjectShape::Box { half_extents } => self.cube(at, Vec3::from(half_extents), color),
@@ -590,7 +606,7 @@ impl Prims {
             spheres: self.spheres,
             cylinders: self.cylinders,
             lines: Vec::new(),
-            triangles: Vec::new(),
+            triangles: self.triangles,
             texts: Vec::new(),
             models: Vec::new(),
         }

@@ -17,8 +17,9 @@ pub const DEFAULT_PRIMITIVE_MASS: f32 = 0.1;
 /// water's, as dex-hand-teleop loads its YCB hulls.
 pub const DEFAULT_DENSITY: f32 = 1000.0;
 
-/// The primitive kinds a mesh piece may become, in the TOML: `"sphere"`, `"capsule"`, `"box"`,
-/// `"cylinder"`.
+/// What a mesh piece may become, in the TOML: the primitives `"sphere"`, `"capsule"`, `"box"`,
+/// `"cylinder"`, and `"hull"` (the piece's own convex hull, where no primitive fits it within
+/// `hull_above_gap`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PieceKind {
@@ -26,16 +27,18 @@ pub enum PieceKind {
     Capsule,
     Box,
     Cylinder,
+    Hull,
 }
 
 impl PieceKind {
-    /// The fitter's kind.
-    pub fn primitive(self) -> PrimitiveKind {
+    /// The fitter's kind (`None` for the hull).
+    pub fn primitive(self) -> Option<PrimitiveKind> {
         match self {
-            PieceKind::Sphere => PrimitiveKind::Sphere,
-            PieceKind::Capsule => PrimitiveKind::Capsule,
-            PieceKind::Box => PrimitiveKind::Box,
-            PieceKind::Cylinder => PrimitiveKind::Cylinder,
+            PieceKind::Sphere => Some(PrimitiveKind::Sphere),
+            PieceKind::Capsule => Some(PrimitiveKind::Capsule),
+            PieceKind::Box => Some(PrimitiveKind::Box),
+            PieceKind::Cylinder => Some(PrimitiveKind::Cylinder),
+            PieceKind::Hull => None,
         }
     }
 }
@@ -92,9 +95,13 @@ pub struct ObjectItem {
     pub density: Option<f32>,
     /// Factor applied to the mesh's coordinates (0.001 for a mesh in millimetres).
     pub mesh_scale: f32,
-    /// The primitive kinds a mesh piece may become; each piece becomes the smallest (by volume)
-    /// that contains all its vertices.
+    /// What a mesh piece may become: the smallest (by volume) of the primitives listed that
+    /// contains all its vertices, or with `"hull"` listed, its convex hull where that primitive
+    /// sticks out of the hull by more than `hull_above_gap` (or where no primitive is listed).
     pub pieces_as: Vec<PieceKind>,
+    /// How far (m) a piece's best primitive may stick out of the piece's convex hull before the
+    /// hull is used instead (with `"hull"` in `pieces_as`).
+    pub hull_above_gap: f32,
 }
 
 impl Default for ObjectItem {
@@ -107,7 +114,8 @@ impl Default for ObjectItem {
             mass: None,
             density: None,
             mesh_scale: 1.0,
-            pieces_as: vec![PieceKind::Box, PieceKind::Cylinder, PieceKind::Capsule, PieceKind::Sphere],
+            pieces_as: vec![PieceKind::Box, PieceKind::Cylinder, PieceKind::Capsule, PieceKind::Sphere, PieceKind::Hull],
+            hull_above_gap: 0.003,
         }
     }
 }
@@ -163,8 +171,9 @@ impl ObjectItem {
         }
         c.in_range(&format!("{key}.mesh_scale"), self.mesh_scale, 1e-6, 1e3, "a factor in [1e-6, 1000]")?;
         if self.pieces_as.is_empty() {
-            return Err(c.err(&format!("{key}.pieces_as"), "[]", "a non-empty list of \"sphere\", \"capsule\", \"box\", \"cylinder\""));
+            return Err(c.err(&format!("{key}.pieces_as"), "[]", "a non-empty list of \"sphere\", \"capsule\", \"box\", \"cylinder\", \"hull\""));
         }
+        c.in_range(&format!("{key}.hull_above_gap"), self.hull_above_gap, 0.0, 1.0, "a distance in m in [0, 1]")?;
         Ok(())
     }
 
@@ -203,10 +212,17 @@ pub struct ObjectConfig {
     /// Density (kg/m³) of the single object (see [`ObjectItem::density`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub density: Option<f32>,
-    /// Mesh coordinate factor of the single object (see [`ObjectItem::mesh_scale`]).
-    pub mesh_scale: f32,
-    /// Primitive kinds the single object's mesh pieces may become (see [`ObjectItem::pieces_as`]).
-    pub pieces_as: Vec<PieceKind>,
+    /// Mesh coordinate factor of the single object (see [`ObjectItem::mesh_scale`]; unset = 1).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub mesh_scale: Option<f32>,
+    /// What the single object's mesh pieces may become (see [`ObjectItem::pieces_as`]; unset =
+    /// every primitive and the hull).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub pieces_as: Option<Vec<PieceKind>>,
+    /// The single object's gap above which a hull replaces a primitive (see
+    /// [`ObjectItem::hull_above_gap`]; unset = 3 mm).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hull_above_gap: Option<f32>,
     /// Several objects, each env drawing one at every reset (uniformly, from a hash of the seed,
     /// the env and the episode). When set, the single-object keys above must be unset.
     #[serde(skip_serializing_if = "Vec::is_empty")]
@@ -228,7 +244,6 @@ pub struct ObjectConfig {
 
 impl Default for ObjectConfig {
     fn default() -> Self {
-        let item = ObjectItem::default();
         ObjectConfig {
             name: None,
             shape: None,
@@ -236,8 +251,9 @@ impl Default for ObjectConfig {
             urdf: None,
             mass: None,
             density: None,
-            mesh_scale: item.mesh_scale,
-            pieces_as: item.pieces_as,
+            mesh_scale: None,
+            pieces_as: None,
+            hull_above_gap: None,
             set: Vec::new(),
             friction: 1.0,
             restitution: 0.0,
@@ -252,6 +268,7 @@ impl Default for ObjectConfig {
 impl ObjectConfig {
     /// The single object's keys as an item.
     fn single(&self) -> ObjectItem {
+        let d = ObjectItem::default();
         ObjectItem {
             name: self.name.clone(),
             shape: self.shape,
@@ -259,8 +276,9 @@ impl ObjectConfig {
             urdf: self.urdf.clone(),
             mass: self.mass,
             density: self.density,
-            mesh_scale: self.mesh_scale,
-            pieces_as: self.pieces_as.clone(),
+            mesh_scale: self.mesh_scale.unwrap_or(d.mesh_scale),
+            pieces_as: self.pieces_as.clone().unwrap_or(d.pieces_as),
+            hull_above_gap: self.hull_above_gap.unwrap_or(d.hull_above_gap),
         }
     }
 
@@ -283,12 +301,11 @@ impl ObjectConfig {
     /// Checks `[object]`.
     pub fn validate(&self, c: &Check) -> Result<()> {
         if !self.set.is_empty() {
-            let single = self.single();
-            let default = ObjectItem::default();
-            if single.name.is_some() || single.shape.is_some() || single.mesh.is_some() || single.urdf.is_some() || single.mass.is_some() || single.density.is_some()
-                || single.mesh_scale != default.mesh_scale || single.pieces_as != default.pieces_as
+            let o = self;
+            if o.name.is_some() || o.shape.is_some() || o.mesh.is_some() || o.urdf.is_some() || o.mass.is_some() || o.density.is_some()
+                || o.mesh_scale.is_some() || o.pieces_as.is_some() || o.hull_above_gap.is_some()
             {
-                return Err(c.msg("`[object]` sets an object's keys (name, shape, mesh, urdf, mass, density, mesh_scale, pieces_as) and `[[object.set]]`: expected the keys inside each `[[object.set]]` entry"));
+                return Err(c.msg("`[object]` sets an object's keys (name, shape, mesh, urdf, mass, density, mesh_scale, pieces_as, hull_above_gap) and `[[object.set]]`: expected the keys inside each `[[object.set]]` entry"));
             }
             if self.set.len() > MAX_OBJECTS {
                 return Err(c.err("object.set", format!("{} entries", self.set.len()), &format!("at most {MAX_OBJECTS} objects")));

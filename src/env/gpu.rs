@@ -22,7 +22,7 @@ use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
 use super::gpu_bindings::{Binding, BindingSpace, EntryBindings, RESET_MAIN, SIM_GROUP, SPRINGS, STEP_MAIN};
-use super::gpu_bindings::{COLLIDERS, GLOBALS, JOINTS, OBJECTS, PARAMS, PIECES, RESET_MASK, STATES, STATS, TARGETS};
+use super::gpu_bindings::{COLLIDERS, GLOBALS, HULLS, JOINTS, OBJECTS, PARAMS, PIECES, RESET_MASK, STATES, STATS, TARGETS};
 use super::gpu_layout::*;
 use super::{EnvBatch, EnvSpec, SimModel};
 
@@ -479,6 +479,7 @@ impl GpuEnvBatch {
         let colliders = ctx.create_binding_buffer(COLLIDERS, &model.colliders, none)?;
         let pieces = ctx.create_binding_buffer(PIECES, &model.pieces, none)?;
         let objects = ctx.create_binding_buffer(OBJECTS, &model.object_descs, none)?;
+        let hulls = ctx.create_binding_buffer(HULLS, &model.hulls, none)?;
         let per_env = || format!("sim.num_envs = {n}");
         let states = ctx.create_binding_buffer(STATES, &vec![EnvState::default(); n], none).with_context(per_env)?;
         let params = ctx.create_binding_buffer(PARAMS, &vec![<EnvParams as bytemuck::Zeroable>::zeroed(); n], none).with_context(per_env)?;
@@ -503,6 +504,7 @@ impl GpuEnvBatch {
             (SPRINGS, &springs),
             (PIECES, &pieces),
             (OBJECTS, &objects),
+            (HULLS, &hulls),
         ];
         let step_group = ctx.bind_group(&step_pipeline, &STEP_MAIN, &buffers)?;
         let reset_group = ctx.bind_group(&reset_pipeline, &RESET_MAIN, &buffers)?;
@@ -644,7 +646,7 @@ pub enum KernelBinding<'a> {
 /// Runs entry point `entry_point` of the WGSL module `source` once over `invocations` invocations
 /// (workgroups of [`WORKGROUP_SIZE`] along x; the kernel must ignore ids past the end), with
 /// `bindings` in group 0 (exactly those the entry point uses: the layout is derived from the shader;
-/// test kernels put their own bindings from 16 up, beside those of `gpu_bindings`).
+/// test kernels put their own bindings from 30 up, beside those of `gpu_bindings`).
 /// Returns the contents of every `StorageRw` binding after the dispatch, in the order given.
 /// For tests that compare a shader function with its CPU twin.
 pub fn run_kernel(ctx: &GpuContext, source: &str, entry_point: &str, bindings: &[(u32, KernelBinding)], invocations: u32) -> Result<Vec<Vec<u8>>> {

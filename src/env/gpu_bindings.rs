@@ -6,9 +6,9 @@
 //! every global, and the globals each entry point really uses), so a binding renamed or moved on one
 //! side only fails a test that needs no GPU instead of a pipeline at run time.
 //!
-//! Bindings 0–8, 16, 18 and 19 are the simulator's (common.wgsl), 9–12 and 17 the task layer's
-//! (task.wgsl), 13–15 the reference bank's (reference.wgsl). Indices from 20 up are free for the test kernels of
-//! `gpu::run_kernel` (the parity tests use 20 and up).
+//! Bindings 0–8, 16 and 18–20 are the simulator's (common.wgsl), 9–12 and 17 the task layer's
+//! (task.wgsl), 13–15 the reference bank's (reference.wgsl). Indices from 21 up are free for the test kernels of
+//! `gpu::run_kernel` (the parity tests use 30 and up).
 
 /// Where a binding lives in WGSL: its address space and, for storage, its access mode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -75,6 +75,8 @@ pub const SPRINGS: Binding = binding(16, "springs", StorageReadWrite);
 pub const PIECES: Binding = binding(18, "pieces", StorageRead);
 /// `array<ObjectDesc>`: the run's objects.
 pub const OBJECTS: Binding = binding(19, "objects", StorageRead);
+/// `array<vec4<f32>>`: the convex-hull pieces' planes, triangles and vertices.
+pub const HULLS: Binding = binding(20, "hulls", StorageRead);
 
 // ---- the task layer (task.wgsl; bound by task_gpu.rs) ----
 /// `TaskGlobals`: the task's constants.
@@ -120,7 +122,7 @@ pub struct ShaderGroup {
 
 /// `step_main`: one control step of every env.
 pub const STEP_MAIN: EntryBindings =
-    EntryBindings { entry_point: "step_main", bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS, SPRINGS, PIECES, OBJECTS] };
+    EntryBindings { entry_point: "step_main", bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS, SPRINGS, PIECES, OBJECTS, HULLS] };
 /// `reset_main`: the resets that `reset_mask` asks for.
 pub const RESET_MAIN: EntryBindings = EntryBindings { entry_point: "reset_main", bindings: &[GLOBALS, JOINTS, STATES, PARAMS, RESET_MASK, SPRINGS, OBJECTS] };
 /// `task_act`: actions → targets.
@@ -147,7 +149,7 @@ pub const TASK_OBSERVE_FINAL: EntryBindings = EntryBindings {
 /// The simulator's module (`gpu::shader_source`: common + reset + physics).
 pub const SIM_GROUP: ShaderGroup = ShaderGroup {
     shader: "dextrain physics",
-    bindings: &[GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, SPRINGS, PIECES, OBJECTS],
+    bindings: &[GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, SPRINGS, PIECES, OBJECTS, HULLS],
     entry_points: &[STEP_MAIN, RESET_MAIN],
 };
 
@@ -156,7 +158,7 @@ pub const TASK_GROUP: ShaderGroup = ShaderGroup {
     shader: "dextrain task",
     bindings: &[
         GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, TASK_CFG, TASK_STATES, ACTIONS, TASK_OUT, REF_FRAMES,
-        REF_INFO, REF_CFG, SPRINGS, FINAL_OUT, PIECES, OBJECTS,
+        REF_INFO, REF_CFG, SPRINGS, FINAL_OUT, PIECES, OBJECTS, HULLS,
     ],
     entry_points: &[TASK_ACT, TASK_REWARD, TASK_OBSERVE, TASK_OBSERVE_FINAL],
 };

@@ -18,6 +18,10 @@ pub const SHAPE_SPHERE: u32 = 0;
 pub const SHAPE_BOX: u32 = 1;
 pub const SHAPE_CAPSULE: u32 = 2;
 pub const SHAPE_CYLINDER: u32 = 3;
+/// An object piece that collides as its convex hull (`PieceDesc::hull_first`).
+pub const SHAPE_HULL: u32 = 4;
+/// Most vertices of one convex-hull piece (its support points against the table).
+pub const MAX_HULL_VERTICES: usize = 64;
 
 /// One collision piece of an object (WGSL `PieceDesc`): a primitive at a pose in the object's
 /// frame. Lengths are unscaled (an env's object scale multiplies them).
@@ -32,9 +36,12 @@ pub struct PieceDesc {
     pub size: [f32; 4],
     /// `SHAPE_*` code.
     pub shape: u32,
-    /// Support points of the piece against the table (`object_num_support`).
+    /// Support points of the piece against the table (`object_num_support`; a hull's vertices).
     pub n_support: u32,
-    pub _pad: [u32; 2],
+    /// A hull piece: its data's first entry in the `hulls` buffer (F planes, F triangles, then its
+    /// `n_support` vertices) and its number of faces F; 0 otherwise.
+    pub hull_first: u32,
+    pub hull_faces: u32,
 }
 
 /// One object of the run (WGSL `ObjectDesc`): its pieces and mass properties, unscaled.

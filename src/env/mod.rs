@@ -88,6 +88,8 @@ pub struct SimModel {
     pub objects: Vec<ObjectModel>,
     pub object_descs: Vec<ObjectDesc>,
     pub pieces: Vec<PieceDesc>,
+    /// The convex-hull pieces' planes, triangles and vertices (`physics::hull_vertex`).
+    pub hulls: Vec<[f32; 4]>,
     pub hand: HandModel,
     pub spec: EnvSpec,
 }
@@ -241,10 +243,12 @@ impl SimModel {
         let objects = crate::object::load::load_objects(cfg)?;
         let mut object_descs = Vec::with_capacity(objects.len());
         let mut pieces = Vec::new();
+        let mut hulls = Vec::new();
         for o in &objects {
-            let (d, p) = o.descs(pieces.len() as u32);
+            let (d, p, h) = o.descs(pieces.len() as u32, hulls.len() as u32);
             object_descs.push(d);
             pieces.extend(p);
+            hulls.extend(h);
         }
         let n_obj_pts = object_descs.iter().map(|d| d.n_support).max().unwrap_or(0);
         let globals = Globals {
@@ -305,12 +309,12 @@ impl SimModel {
             substeps: cfg.sim.substeps,
             decimation: cfg.sim.decimation,
         };
-        Ok(SimModel { globals, joints, colliders, tips, objects, object_descs, pieces, hand, spec })
+        Ok(SimModel { globals, joints, colliders, tips, objects, object_descs, pieces, hulls, hand, spec })
     }
 
     /// The read-only model view used by the CPU physics.
     pub fn view(&self) -> physics::Model<'_> {
-        physics::Model { g: &self.globals, joints: &self.joints, colliders: &self.colliders, tips: &self.tips, pieces: &self.pieces, objects: &self.object_descs }
+        physics::Model { g: &self.globals, joints: &self.joints, colliders: &self.colliders, tips: &self.tips, pieces: &self.pieces, objects: &self.object_descs, hulls: &self.hulls }
     }
 
     /// Targets that hold the initial wrist pose and default joint positions.
@@ -406,7 +410,7 @@ pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p:
         let pd = &model.pieces[(od.first_piece + pi) as usize];
         let (ppos, prot, size) = physics::piece_pose(st, p, pd);
         for j in 0..pd.n_support {
-            let c = physics::collide_piece_table(pd.shape, size, ppos, prot, j);
+            let c = physics::collide_piece_table(&m, pd, p.obj_scale, size, ppos, prot, j);
             if c.depth > 0.0 {
                 let mu = 0.5 * (p.obj_friction + p.table_friction);
                 let vrel = ovel + ow.cross(c.point - ocom);

@@ -40,16 +40,18 @@ pub const SAFE_STIFFNESS: f32 = 1.0;
 /// in one substep, so it never reverses it).
 pub const SAFE_DAMPING: f32 = 0.5;
 
-/// Read-only description of the run shared by all envs (the shader's bindings 0–3, 18, 19).
+/// Read-only description of the run shared by all envs (the shader's bindings 0–3, 18–20).
 #[derive(Clone, Copy)]
 pub struct Model<'a> {
     pub g: &'a Globals,
     pub joints: &'a [JointDesc],
     pub colliders: &'a [ColliderDesc],
     pub tips: &'a [TipDesc],
-    /// The objects' collision pieces (binding 18) and the objects (binding 19).
+    /// The objects' collision pieces (binding 18), the objects (binding 19) and the convex hulls'
+    /// planes, triangles and vertices (binding 20, see `hull_vertex`).
     pub pieces: &'a [PieceDesc],
     pub objects: &'a [ObjectDesc],
+    pub hulls: &'a [[f32; 4]],
 }
 
 /// Per-invocation working memory (the shader's `var<private>` variables).
@@ -306,6 +308,114 @@ pub fn box_project(c: Vec3, r: Vec4, h: Vec3, p: Vec3) -> Vec3 {
     c + quat_rotate(r, local.clamp(-h, h))
 }
 
+/// Closest point of the triangle (a, b, c) to `p` (Ericson, Real-Time Collision Detection §5.1.5:
+/// the Voronoi regions of the vertices, then the edges, then the face).
+pub fn triangle_closest(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3));
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6));
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+    }
+    // inside the face: barycentric (u, v, w) ∝ (va, vb, vc)
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
+}
+
+/// Vertex `k` of hull piece `pd` (piece frame, scaled by `scale`). The hull's data in `m.hulls`
+/// from `pd.hull_first`: its F face planes (n, d), its F triangles (vertex indices as floats),
+/// then its vertices (xyz).
+pub fn hull_vertex(m: &Model, pd: &PieceDesc, scale: f32, k: u32) -> Vec3 {
+    v3(m.hulls[(pd.hull_first + 2 * pd.hull_faces + k) as usize]) * scale
+}
+
+/// Closest point of the solid hull `pd` (piece frame, scaled) to `p`; the flag is true when `p` is
+/// inside (on the inner side of every face plane). Outside, the closest point lies on a face whose
+/// plane `p` is in front of: the nearest of those triangles' closest points.
+pub fn hull_project(m: &Model, pd: &PieceDesc, scale: f32, p: Vec3) -> (Vec3, bool) {
+    let base = pd.hull_first as usize;
+    let nf = pd.hull_faces as usize;
+    let mut inside = true;
+    let mut best = p;
+    let mut best_d2 = 1e30f32;
+    for f in 0..nf {
+        let pl = m.hulls[base + f];
+        // signed distance to the face plane: n·p − s·d
+        if v3(pl).dot(p) - scale * pl[3] > 0.0 {
+            inside = false;
+            let t = m.hulls[base + nf + f];
+            let a = hull_vertex(m, pd, scale, t[0] as u32);
+            let b = hull_vertex(m, pd, scale, t[1] as u32);
+            let c = hull_vertex(m, pd, scale, t[2] as u32);
+            let q = triangle_closest(p, a, b, c);
+            let d2 = (p - q).length_squared();
+            if d2 < best_d2 {
+                best_d2 = d2;
+                best = q;
+            }
+        }
+    }
+    (best, inside)
+}
+
+/// Minimum translation that pushes the segment [a, b] (piece frame) out of hull `pd` along a face
+/// normal (the separating-axis test on the hull's faces, as `segment_box_push` on a box's): the
+/// outward normal, the distance and the deepest endpoint moved onto that face's plane.
+pub fn segment_hull_push(m: &Model, pd: &PieceDesc, scale: f32, a: Vec3, b: Vec3) -> (Vec3, f32, Vec3) {
+    let base = pd.hull_first as usize;
+    let mut best_d = 1e30f32;
+    let mut best_n = Vec3::Z;
+    let mut best_p = a;
+    for f in 0..pd.hull_faces as usize {
+        let pl = m.hulls[base + f];
+        let n = v3(pl);
+        // the endpoint deepest along −n and how far it must move along n to reach the plane
+        let deep = if n.dot(a) <= n.dot(b) { a } else { b };
+        let d = scale * pl[3] - n.dot(deep);
+        if d < best_d {
+            best_d = d;
+            best_n = n;
+            best_p = deep + n * d;
+        }
+    }
+    (best_n, best_d, best_p)
+}
+
+/// Closest point of object piece `pd` (piece frame; scaled `size`, or its hull scaled by `scale`)
+/// to `p`, and whether `p` is inside.
+pub fn piece_project(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, p: Vec3) -> (Vec3, bool) {
+    if pd.shape == SHAPE_HULL {
+        return hull_project(m, pd, scale, p);
+    }
+    object_project(pd.shape, size, p)
+}
+
 /// World pose of hand collider `ci`.
 pub fn collider_pose(m: &Model, s: &Scratch, ci: usize) -> (Vec3, Vec4) {
     let cd = &m.colliders[ci];
@@ -357,12 +467,12 @@ pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch,
     let od = &m.objects[p.obj_index as usize];
     for k in 0..od.n_pieces {
         let pd = &m.pieces[(od.first_piece + k) as usize];
-        let (ppos, prot, size) = piece_pose(st, p, pd);
+        let (ppos, prot, _) = piece_pose(st, p, pd);
         let r = rc + pd.pos[3] * p.obj_scale;
         if (cpos - ppos).length_squared() > r * r {
             continue;
         }
-        let c = collide_collider_piece(cd, cpos, crot, pd.shape, size, ppos, prot);
+        let c = collide_collider_piece(m, cd, cpos, crot, pd, p.obj_scale, ppos, prot);
         if c.depth > best.depth {
             best = c;
         }
@@ -370,9 +480,11 @@ pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch,
     best
 }
 
-/// Narrow phase between a hand collider (`cd` at `cpos`, `crot`) and one object piece (shape
-/// `code`, scaled `size`, at `opos`, `orot`); normal from the piece to the hand.
-pub fn collide_collider_piece(cd: &ColliderDesc, cpos: Vec3, crot: Vec4, code: u32, size: Vec3, opos: Vec3, orot: Vec4) -> Contact {
+/// Narrow phase between a hand collider (`cd` at `cpos`, `crot`) and object piece `pd` (its
+/// lengths scaled by `scale`, at `opos`, `orot`); normal from the piece to the hand.
+pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Vec4, pd: &PieceDesc, scale: f32, opos: Vec3, orot: Vec4) -> Contact {
+    let code = pd.shape;
+    let size = v3(pd.size) * scale;
     let oinv = quat_conj(orot);
     // collider in the object's frame
     let c_o = quat_rotate(oinv, cpos - opos);
@@ -382,10 +494,10 @@ pub fn collide_collider_piece(cd: &ColliderDesc, cpos: Vec3, crot: Vec4, code: u
         let h = v3(cd.size);
         let mut x = c_o;
         for _ in 0..PROJ_ITERS {
-            let (y, _) = object_project(code, size, x);
+            let (y, _) = piece_project(m, pd, scale, size, x);
             x = box_project(c_o, r_o, h, y);
         }
-        let (y, _) = object_project(code, size, x);
+        let (y, _) = piece_project(m, pd, scale, size, x);
         // y lies in the hand box when the two overlap: push the hand out through its nearest face
         let local = quat_rotate(quat_conj(r_o), y - c_o);
         let d = h - local.abs();
@@ -414,10 +526,10 @@ pub fn collide_collider_piece(cd: &ColliderDesc, cpos: Vec3, crot: Vec4, code: u
     let b = c_o + axis;
     let mut x = segment_closest(a, b, Vec3::ZERO);
     for _ in 0..PROJ_ITERS {
-        let (y, _) = object_project(code, size, x);
+        let (y, _) = piece_project(m, pd, scale, size, x);
         x = segment_closest(a, b, y);
     }
-    let (y, inside) = object_project(code, size, x);
+    let (y, inside) = piece_project(m, pd, scale, size, x);
     let rc = cd.size[0];
     let mut n = Vec3::Z;
     let mut surf = y;
@@ -426,6 +538,11 @@ pub fn collide_collider_piece(cd: &ColliderDesc, cpos: Vec3, crot: Vec4, code: u
         n = nb;
         out.depth = rc + dist;
         surf = pb;
+    } else if inside && code == SHAPE_HULL {
+        let (nh, dist, ph) = segment_hull_push(m, pd, scale, a, b);
+        n = nh;
+        out.depth = rc + dist;
+        surf = ph;
     } else if inside {
         let (ni, dist) = object_inside_normal(code, size, x);
         n = ni;
@@ -466,10 +583,10 @@ pub fn collide_hand_table(m: &Model, s: &Scratch, ci: usize) -> Contact {
     Contact { depth: r - low.z, normal: Vec3::Z, point: Vec3::new(low.x, low.y, 0.0) }
 }
 
-/// Narrow phase between support point `k` of an object piece (shape `code`, scaled `size`, at
-/// `ppos`, `prot`) and the table.
-pub fn collide_piece_table(code: u32, size: Vec3, ppos: Vec3, prot: Vec4, k: u32) -> Contact {
-    let (local, r) = object_support_point(code, size, k);
+/// Narrow phase between support point `k` of object piece `pd` (scaled `size`, its hull scaled by
+/// `scale`, at `ppos`, `prot`) and the table: a primitive's support points, a hull's vertices.
+pub fn collide_piece_table(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, ppos: Vec3, prot: Vec4, k: u32) -> Contact {
+    let (local, r) = if pd.shape == SHAPE_HULL { (hull_vertex(m, pd, scale, k), 0.0) } else { object_support_point(pd.shape, size, k) };
     let w = ppos + quat_rotate(prot, local);
     Contact { depth: r - w.z, normal: Vec3::Z, point: Vec3::new(w.x, w.y, 0.0) }
 }
@@ -725,7 +842,7 @@ pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvP
         for j in 0..pd.n_support {
             let ki = spring_slot::object_table(n_c, kp) as usize;
             kp += 1;
-            let c = collide_piece_table(pd.shape, size, ppos, prot, j);
+            let c = collide_piece_table(m, pd, p.obj_scale, size, ppos, prot, j);
             if c.depth > 0.0 {
                 let vo = ovel + ow.cross(c.point - ocom);
                 let (f, spring, b) = contact_force(&c, vo, v3(springs[ki]), k, kt, p.obj_contact_c, mu_ot, h);

@@ -8,9 +8,10 @@ use std::path::{Path, PathBuf};
 use anyhow::{Result, anyhow};
 use glam::{DMat3, DQuat, DVec3};
 
-use super::{MAX_PIECES, MassSource, ObjectModel, ObjectPiece, PieceFit, object_inertia, shape_volume};
+use super::{HullPiece, MAX_PIECES, MassSource, ObjectModel, ObjectPiece, PieceFit, object_inertia, shape_volume};
+use crate::env::gpu_layout::MAX_HULL_VERTICES;
 use crate::config::object::{DEFAULT_DENSITY, DEFAULT_PRIMITIVE_MASS};
-use crate::config::{Config, ObjectItem};
+use crate::config::{Config, ObjectItem, PieceKind};
 use crate::geom::{ObjectShape, Pose};
 use crate::mesh::fit::{FittedShape, PrimitiveKind, fit_tightest_with_hull};
 use crate::mesh::hull::convex_hull;
@@ -26,6 +27,23 @@ pub fn load_objects(cfg: &Config) -> Result<Vec<ObjectModel>> {
     cfg.object.items().iter().map(|(key, item)| load_object(item, key, &file, &|p| cfg.resolve(p))).collect()
 }
 
+/// What a mesh piece becomes (`pieces_as`, `hull_above_gap`).
+struct PieceRule {
+    /// The primitive kinds listed (the box alone when only the hull is).
+    kinds: Vec<PrimitiveKind>,
+    /// Whether the hull may replace the best primitive, and beyond which gap (m); 0 with no
+    /// primitive listed (always the hull).
+    hull: Option<f64>,
+}
+
+impl PieceRule {
+    fn of(item: &ObjectItem) -> PieceRule {
+        let kinds: Vec<PrimitiveKind> = item.pieces_as.iter().filter_map(|k| k.primitive()).collect();
+        let hull = item.pieces_as.contains(&PieceKind::Hull).then(|| if kinds.is_empty() { -1.0 } else { item.hull_above_gap as f64 });
+        PieceRule { kinds: if kinds.is_empty() { vec![PrimitiveKind::Box] } else { kinds }, hull }
+    }
+}
+
 /// A mesh or URDF piece before its mass is known: the collision primitive and the solid's mass
 /// properties at unit density.
 struct RawPiece {
@@ -36,7 +54,7 @@ struct RawPiece {
 /// One object. `key`: its key prefix in the config (`object`, `object.set[2]`), `file`: the
 /// config file, `resolve`: a config path to a file path.
 pub fn load_object(item: &ObjectItem, key: &str, file: &str, resolve: &dyn Fn(&str) -> PathBuf) -> Result<ObjectModel> {
-    let kinds: Vec<PrimitiveKind> = item.pieces_as.iter().map(|k| k.primitive()).collect();
+    let kinds = PieceRule::of(item);
     if let Some(shape) = item.primitive() {
         let name = item.name.clone().unwrap_or_else(|| shape_name(&shape).to_string());
         let (mass, source) = match (item.mass, item.density) {
@@ -132,7 +150,7 @@ fn read_file(path: &Path, what: &str, whence: &str) -> Result<Vec<u8>> {
 
 /// The pieces of one mesh file, its vertices multiplied by `scale` and placed by `pose`: each OBJ
 /// group/object is a piece, an STL file is one.
-fn mesh_pieces(path: &Path, scale: f32, kinds: &[PrimitiveKind], pose: &Pose, whence: &str) -> Result<Vec<RawPiece>> {
+fn mesh_pieces(path: &Path, scale: f32, kinds: &PieceRule, pose: &Pose, whence: &str) -> Result<Vec<RawPiece>> {
     let f = path.display();
     let ext = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
     let bytes = read_file(path, "mesh", whence)?;
@@ -159,22 +177,35 @@ fn mesh_pieces(path: &Path, scale: f32, kinds: &[PrimitiveKind], pose: &Pose, wh
 }
 
 /// A mesh piece's fitted primitive and its solid's mass properties (unit density).
-fn piece_of_mesh(name: &str, mesh: &TriangleMesh, kinds: &[PrimitiveKind]) -> Result<RawPiece, String> {
+fn piece_of_mesh(name: &str, mesh: &TriangleMesh, kinds: &PieceRule) -> Result<RawPiece, String> {
     if !is_closed(mesh) {
         return Err("the piece is not closed (an edge is not used once each way by two triangles); expected a closed, consistently wound triangle mesh per piece".to_string());
     }
     let mass = mass_properties(mesh).map_err(|e| format!("{e}; expected a closed mesh that encloses a volume"))?;
     let hull = convex_hull(&mesh.vertices)?;
-    let fit = fit_tightest_with_hull(&mesh.vertices, &hull, kinds)?;
+    let fit = fit_tightest_with_hull(&mesh.vertices, &hull, &kinds.kinds)?;
     let shape = match fit.shape {
         FittedShape::Sphere { radius } => ObjectShape::Sphere { radius: radius as f32 },
         FittedShape::Capsule { radius, half_length } => ObjectShape::Capsule { radius: radius as f32, half_length: half_length as f32 },
         FittedShape::Box { half_extents: h } => ObjectShape::Box { half_extents: h.as_vec3().to_array() },
         FittedShape::Cylinder { radius, half_length } => ObjectShape::Cylinder { radius: radius as f32, half_length: half_length as f32 },
     };
-    let pose = Pose::new(fit.centre.as_vec3(), fit.rot.as_quat().normalize());
+    let mut pose = Pose::new(fit.centre.as_vec3(), fit.rot.as_quat().normalize());
+    // the hull where the primitive sticks out too far, and it is small enough to collide fast
+    let use_hull = kinds.hull.is_some_and(|gap| fit.max_gap > gap) && hull.vertices.len() <= MAX_HULL_VERTICES;
+    let hull = use_hull.then(|| {
+        // the piece frame: at the vertices' mean, the mesh's axes
+        let c = hull.vertices.iter().copied().sum::<DVec3>() / hull.vertices.len() as f64;
+        pose = Pose::new(c.as_vec3(), glam::Quat::IDENTITY);
+        let planes = hull.faces.iter().zip(&hull.normals).map(|(f, n)| (n.as_vec3(), n.dot(hull.vertices[f[0]] - c) as f32)).collect();
+        HullPiece {
+            vertices: hull.vertices.iter().map(|v| (*v - c).as_vec3()).collect(),
+            faces: hull.faces.iter().map(|f| f.map(|i| i as u32)).collect(),
+            planes,
+        }
+    });
     let fit = PieceFit { name: name.to_string(), vertices: mesh.vertices.len(), volume_ratio: fit.volume_ratio(), max_gap: fit.max_gap };
-    Ok(RawPiece { piece: ObjectPiece { shape, pose, fit: Some(fit) }, mass })
+    Ok(RawPiece { piece: ObjectPiece { shape, pose, hull, fit: Some(fit) }, mass })
 }
 
 /// A primitive piece at `pose` and its solid's mass properties (unit density: mass = volume).
@@ -183,12 +214,12 @@ fn primitive_piece(shape: ObjectShape, pose: Pose) -> RawPiece {
     let diag = object_inertia(shape.code(), glam::Vec3::from(shape.size_params()), volume as f32).as_dvec3();
     let r = DMat3::from_quat(pose.rot.as_dquat());
     let inertia = r * DMat3::from_diagonal(diag) * r.transpose(); // R diag(I) Rᵀ
-    RawPiece { piece: ObjectPiece { shape, pose, fit: None }, mass: MassProperties { volume, center_of_mass: pose.pos.as_dvec3(), inertia } }
+    RawPiece { piece: ObjectPiece { shape, pose, hull: None, fit: None }, mass: MassProperties { volume, center_of_mass: pose.pos.as_dvec3(), inertia } }
 }
 
 /// The pieces and the `<mass>` (if positive) of a single-link URDF: each `<collision>` is one mesh
 /// (its pieces) or primitive, at its `<origin>`; mesh paths are relative to the URDF's directory.
-fn urdf_pieces(path: &Path, scale: f32, kinds: &[PrimitiveKind], whence: &str) -> Result<(Vec<RawPiece>, Option<f32>)> {
+fn urdf_pieces(path: &Path, scale: f32, kinds: &PieceRule, whence: &str) -> Result<(Vec<RawPiece>, Option<f32>)> {
     let f = path.display();
     let bytes = read_file(path, "URDF", whence)?;
     let text = String::from_utf8_lossy(&bytes);

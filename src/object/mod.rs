@@ -22,7 +22,7 @@ use std::path::PathBuf;
 
 use glam::{Quat, Vec3};
 
-use crate::env::gpu_layout::{ObjectDesc, PieceDesc, SHAPE_BOX, SHAPE_CYLINDER, SHAPE_SPHERE};
+use crate::env::gpu_layout::{ObjectDesc, PieceDesc, SHAPE_BOX, SHAPE_CYLINDER, SHAPE_HULL, SHAPE_SPHERE};
 use crate::env::physics::{bounding_radius, object_num_support, object_support_point};
 use crate::geom::{ObjectShape, Pose};
 use crate::record::ObjectPart;
@@ -42,13 +42,27 @@ pub struct PieceFit {
     pub max_gap: f64,
 }
 
-/// One collision piece: a primitive at a pose in the object frame.
+/// A convex piece that collides as its hull: vertices and outward face planes in the piece frame
+/// (whose origin is the vertices' mean).
+#[derive(Clone, Debug, PartialEq)]
+pub struct HullPiece {
+    pub vertices: Vec<Vec3>,
+    /// Triangles (indices into `vertices`), wound outward.
+    pub faces: Vec<[u32; 3]>,
+    /// Each face's outward unit normal n and offset d: the face's plane is n·x = d.
+    pub planes: Vec<(Vec3, f32)>,
+}
+
+/// One collision piece: a primitive, or a convex hull, at a pose in the object frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ObjectPiece {
+    /// The primitive (for a hull piece: the best-fitting primitive, which it replaced).
     pub shape: ObjectShape,
-    /// The primitive's frame in the object frame (capsule and cylinder axes along its z).
+    /// The piece's frame in the object frame (capsule and cylinder axes along its z).
     pub pose: Pose,
-    /// For a piece fitted to a mesh: how well it fits.
+    /// A piece that collides as its convex hull (where no primitive fits it closely enough).
+    pub hull: Option<HullPiece>,
+    /// For a piece fitted to a mesh: how well the primitive fits.
     pub fit: Option<PieceFit>,
 }
 
@@ -84,6 +98,19 @@ pub struct ObjectModel {
     pub inertia: Vec3,
     /// Principal axes in the object frame: the inertia tensor is R diag(inertia) Rᵀ.
     pub principal: Quat,
+}
+
+/// The radius about a piece's origin that bounds it.
+fn piece_bound(p: &ObjectPiece) -> f32 {
+    match &p.hull {
+        Some(h) => h.vertices.iter().map(|v| v.length()).fold(0.0, f32::max),
+        None => bounding_radius(p.shape.code(), Vec3::from(p.shape.size_params())),
+    }
+}
+
+/// A piece's support points against the table: a primitive's, or a hull's vertices.
+fn piece_support(p: &ObjectPiece) -> u32 {
+    p.hull.as_ref().map_or_else(|| object_num_support(p.shape.code()), |h| h.vertices.len() as u32)
 }
 
 /// The volume of a primitive solid (m³).
@@ -131,7 +158,7 @@ impl ObjectModel {
         ObjectModel {
             name: name.to_string(),
             sources: Vec::new(),
-            pieces: vec![ObjectPiece { shape, pose: Pose::IDENTITY, fit: None }],
+            pieces: vec![ObjectPiece { shape, pose: Pose::IDENTITY, hull: None, fit: None }],
             mass,
             mass_source,
             volume: shape_volume(&shape),
@@ -145,6 +172,10 @@ impl ObjectModel {
     pub fn support_points(&self) -> Vec<(Vec3, f32)> {
         let mut out = Vec::new();
         for p in &self.pieces {
+            if let Some(h) = &p.hull {
+                out.extend(h.vertices.iter().map(|v| (p.pose.transform_point(*v), 0.0)));
+                continue;
+            }
             let size = Vec3::from(p.shape.size_params());
             for k in 0..object_num_support(p.shape.code()) {
                 let (local, r) = object_support_point(p.shape.code(), size, k);
@@ -163,31 +194,42 @@ impl ObjectModel {
 
     /// The radius about the object frame's origin that bounds every piece.
     pub fn bounding_radius(&self) -> f32 {
-        self.pieces.iter().map(|p| p.pose.pos.length() + bounding_radius(p.shape.code(), Vec3::from(p.shape.size_params()))).fold(0.0, f32::max)
+        self.pieces.iter().map(|p| p.pose.pos.length() + piece_bound(p)).fold(0.0, f32::max)
     }
 
     /// Support points of all pieces against the table.
     pub fn n_support(&self) -> u32 {
-        self.pieces.iter().map(|p| object_num_support(p.shape.code())).sum()
+        self.pieces.iter().map(piece_support).sum()
     }
 
     /// The simulator's description of the object (its pieces from `first_piece` in the run's
-    /// piece buffer) and its pieces.
-    pub fn descs(&self, first_piece: u32) -> (ObjectDesc, Vec<PieceDesc>) {
+    /// piece buffer, its hulls' data from `first_hull` in the hull buffer), its pieces and its
+    /// hulls' data (per hull: F planes (n, d), F triangles (indices as floats), its vertices).
+    pub fn descs(&self, first_piece: u32, first_hull: u32) -> (ObjectDesc, Vec<PieceDesc>, Vec<[f32; 4]>) {
+        let mut hulls: Vec<[f32; 4]> = Vec::new();
         let pieces: Vec<PieceDesc> = self
             .pieces
             .iter()
             .map(|p| {
                 let size = p.shape.size_params();
                 let pos = p.pose.pos;
-                PieceDesc {
-                    pos: [pos.x, pos.y, pos.z, bounding_radius(p.shape.code(), Vec3::from(size))],
+                let mut d = PieceDesc {
+                    pos: [pos.x, pos.y, pos.z, piece_bound(p)],
                     rot: p.pose.rot.normalize().to_array(),
                     size: [size[0], size[1], size[2], 0.0],
                     shape: p.shape.code(),
-                    n_support: object_num_support(p.shape.code()),
-                    _pad: [0; 2],
+                    n_support: piece_support(p),
+                    hull_first: 0,
+                    hull_faces: 0,
+                };
+                if let Some(h) = &p.hull {
+                    (d.shape, d.size) = (SHAPE_HULL, [0.0; 4]);
+                    (d.hull_first, d.hull_faces) = (first_hull + hulls.len() as u32, h.faces.len() as u32);
+                    hulls.extend(h.planes.iter().map(|(n, off)| [n.x, n.y, n.z, *off]));
+                    hulls.extend(h.faces.iter().map(|f| [f[0] as f32, f[1] as f32, f[2] as f32, 0.0]));
+                    hulls.extend(h.vertices.iter().map(|v| [v.x, v.y, v.z, 0.0]));
                 }
+                d
             })
             .collect();
         // per unit mass, so that a randomised mass scales it: I/m
@@ -201,12 +243,19 @@ impl ObjectModel {
             n_support: self.n_support(),
             rest_height: self.rest_height(),
         };
-        (desc, pieces)
+        (desc, pieces, hulls)
     }
 
     /// The pieces with every length multiplied by `scale` (an env's object scale), for recordings.
     pub fn parts(&self, scale: f32) -> Vec<ObjectPart> {
-        self.pieces.iter().map(|p| ObjectPart { shape: p.shape.scaled(scale), pose: Pose::new(p.pose.pos * scale, p.pose.rot) }).collect()
+        self.pieces
+            .iter()
+            .map(|p| {
+                // a hull is drawn as its triangles
+                let triangles = p.hull.as_ref().map_or_else(Vec::new, |h| h.faces.iter().flat_map(|f| f.map(|i| (h.vertices[i as usize] * scale).to_array())).collect());
+                ObjectPart { shape: p.shape.scaled(scale), pose: Pose::new(p.pose.pos * scale, p.pose.rot), triangles }
+            })
+            .collect()
     }
 
     /// What the object became, for `dextrain check`: one header line, one line per piece.
@@ -243,8 +292,13 @@ impl ObjectModel {
             };
             let at = p.pose.pos;
             let fit = p.fit.as_ref().map_or(String::new(), |f| {
-                format!(" — fits '{}' ({} vertices): volume {:.2}× its hull, sticks out ≤ {:.1} mm", f.name, f.vertices, f.volume_ratio, f.max_gap * 1e3)
+                let what = if p.hull.is_some() { "the best primitive would be" } else { "fits" };
+                format!(" — {what} '{}' ({} vertices): volume {:.2}× its hull, sticks out ≤ {:.1} mm", f.name, f.vertices, f.volume_ratio, f.max_gap * 1e3)
             });
+            let shape = match &p.hull {
+                Some(h) => format!("convex hull of {} vertices, {} faces (instead of a {shape})", h.vertices.len(), h.faces.len()),
+                None => shape,
+            };
             let _ = writeln!(s, "  piece {i}: {shape} at [{:.4}, {:.4}, {:.4}]{fit}", at.x, at.y, at.z);
         }
         s

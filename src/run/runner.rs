@@ -249,6 +249,7 @@ fn setup(args: &TrainArgs) -> Result<(Config, PathBuf, Option<PathBuf>)> {
     // that it loads from the run directory
     let mut saved = cfg.clone();
     saved.hand.urdf = absolute(&cfg.resolve(&cfg.hand.urdf));
+    saved.object = cfg.object.with_paths(|p| absolute(&cfg.resolve(p)));
     saved.task.reference.files = cfg.task.reference.files.iter().map(|f| absolute(&cfg.resolve(f))).collect();
     if !cfg.distill.teacher.is_empty() {
         saved.distill.teacher = absolute(&cfg.resolve(&cfg.distill.teacher));

@@ -445,8 +445,8 @@ struct IkOut {
     q: array<f32, MAX_JOINTS>,
     tips: array<vec4<f32>, 6>,
 }
-@group(0) @binding(20) var<storage, read> t_cases: array<IkCase>;
-@group(0) @binding(21) var<storage, read_write> t_out: array<IkOut>;
+@group(0) @binding(30) var<storage, read> t_cases: array<IkCase>;
+@group(0) @binding(31) var<storage, read_write> t_out: array<IkOut>;
 @compute @workgroup_size(64)
 fn t_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
@@ -479,8 +479,8 @@ fn run_ik_kernel(ctx: &GpuContext, sm: &SimModel, kernel: &str, cases: &[IkCase]
             (0, KernelBinding::Uniform(bytemuck::bytes_of(&sm.globals))),
             (1, KernelBinding::Storage(bytemuck::cast_slice(&sm.joints))),
             (3, KernelBinding::Storage(bytemuck::cast_slice(&sm.tips))),
-            (20, KernelBinding::Storage(bytemuck::cast_slice(cases))),
-            (21, KernelBinding::StorageRw(&vec![0u8; cases.len() * std::mem::size_of::<IkOut>()])),
+            (30, KernelBinding::Storage(bytemuck::cast_slice(cases))),
+            (31, KernelBinding::StorageRw(&vec![0u8; cases.len() * std::mem::size_of::<IkOut>()])),
         ],
         cases.len() as u32,
     )

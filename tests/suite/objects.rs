@@ -254,7 +254,7 @@ fn three_objects_are_drawn_per_env_and_episode() {
     let model = SimModel::from_config(&c).unwrap();
     let names: Vec<&str> = model.objects.iter().map(|o| o.name.as_str()).collect();
     assert_eq!(names, ["cube", "sphere", "bottle"]);
-    assert_eq!(model.globals.n_obj_pts, 48, "the bottle's 3 cylinders have the most support points");
+    assert_eq!(model.globals.n_obj_pts, 64, "the bottle (two 16-point cylinders and a 32-vertex hull) has the most support points");
     let mut b = cpu_batch(&c);
     let (params, states) = (b.params().unwrap(), b.states().unwrap());
     let mut count = [0usize; 3];
@@ -285,8 +285,11 @@ fn eval_reports_success_per_object() {
     assert!(base.contains(single));
     let text = base.replace(single, "")
         + &format!(
-            "\n[[object.set]]\nname = \"cube\"\n\n[[object.set]]\nshape = {{ type = \"cylinder\", radius = 0.025, half_length = 0.03 }}\n\n[[object.set]]\nmesh = \"{BOTTLE}\"\nmass = 0.15\n"
+            "\n[[object.set]]\nname = \"cube\"\n\n[[object.set]]\nshape = {{ type = \"cylinder\", radius = 0.025, half_length = 0.03 }}\n\n[[object.set]]\nmesh = \"meshes/bottle.obj\"\nmass = 0.15\n"
         );
+    // the mesh relative to the config file
+    std::fs::create_dir_all(tmp.path().join("meshes")).unwrap();
+    std::fs::copy(BOTTLE, tmp.path().join("meshes/bottle.obj")).unwrap();
     let cfg = tmp.path().join("three.toml");
     std::fs::write(&cfg, text).unwrap();
     let sets: Vec<String> = [
@@ -307,6 +310,8 @@ fn eval_reports_success_per_object() {
     // the saved config names the mesh by its absolute path and loads from the run directory
     let saved = Config::load(&dir.join("config.toml")).unwrap();
     assert_eq!(saved.object.set.len(), 3);
+    let Some(MeshFiles::One(mesh)) = &saved.object.set[2].mesh else { panic!("{:?}", saved.object.set[2]) };
+    assert!(Path::new(mesh).is_absolute() && mesh.ends_with("meshes/bottle.obj"), "{mesh}");
     let e = dextrain::eval::EvalArgs { run: dir, checkpoint: "latest".into(), episodes: 24, max_envs: 12, seed: Some(5), record: None, backend: None, baseline: None };
     let r = dextrain::eval::run(&e).unwrap();
     let per: Vec<(&str, usize)> = r.policy.per_object.iter().map(|o| (o.object.as_str(), o.episodes)).collect();
@@ -360,5 +365,79 @@ fn bad_object_input_is_a_one_line_error() {
     ] {
         let e = format!("{:#}", Config::from_toml_str(toml, Path::new("objects.toml")).unwrap_err());
         assert!(e.contains(want) && e.contains("objects.toml") && !e.contains('\n'), "{want:?} not in: {e}");
+    }
+}
+
+/// A hull piece's narrow phase (`physics::hull_project`, `segment_hull_push`) against the exact
+/// convex hull of `mesh::hull` (f64): the bottle's shoulder is a frustum no primitive fits within
+/// 3 mm, so it collides as its hull.
+#[test]
+fn hull_pieces_project_like_the_exact_hull() {
+    use dextrain::env::gpu_layout::SHAPE_HULL;
+    use dextrain::env::physics::{hull_project, segment_hull_push};
+    let mut c = object_config(vec![ObjectItem { mass: Some(0.15), ..mesh_item(Path::new(BOTTLE)) }]);
+    c.sim.num_envs = 1;
+    let model = SimModel::from_config(&c).unwrap();
+    let kinds: Vec<u32> = model.pieces.iter().map(|p| p.shape).collect();
+    assert_eq!(kinds, [dextrain::env::gpu_layout::SHAPE_CYLINDER, SHAPE_HULL, dextrain::env::gpu_layout::SHAPE_CYLINDER], "body, shoulder, neck");
+    let piece = &model.objects[0].pieces[1];
+    let h = piece.hull.as_ref().unwrap();
+    assert_eq!((h.vertices.len(), model.pieces[1].n_support), (32, 32));
+    let exact = dextrain::mesh::hull::convex_hull(&h.vertices.iter().map(|v| v.as_dvec3()).collect::<Vec<_>>()).unwrap();
+    let (m, pd) = (model.view(), &model.pieces[1]);
+    let mut state = 12345u64;
+    let mut rnd = || {
+        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        ((state >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    };
+    let (mut inside_n, mut outside_n) = (0, 0);
+    for _ in 0..2000 {
+        let p = Vec3::new(rnd(), rnd(), rnd()) * 0.045;
+        let (q, inside) = hull_project(&m, pd, 1.0, p);
+        let want = exact.distance(p.as_dvec3()) as f32;
+        if inside {
+            inside_n += 1;
+            assert!(want < 1e-6, "{p:?} is outside the hull by {want}");
+            assert_eq!(q, p);
+        } else {
+            outside_n += 1;
+            assert!(((p - q).length() - want).abs() < 1e-6, "{p:?}: distance {} vs {want}", (p - q).length());
+            assert!(exact.distance(q.as_dvec3()) < 1e-6, "the closest point {q:?} is on the hull");
+        }
+        // a point inside is pushed out through the nearest face plane: onto the hull's surface
+        if inside {
+            let (n, d, at) = segment_hull_push(&m, pd, 1.0, p, p);
+            assert!(d >= 0.0 && (n.length() - 1.0).abs() < 1e-5 && (at - (p + n * d)).length() < 1e-6);
+            assert!(exact.distance(at.as_dvec3()) < 1e-6 && exact.plane_distance(at.as_dvec3()).abs() < 1e-6, "{at:?}");
+        }
+        // scaled by 2: the same answer at twice the distance
+        let (q2, inside2) = hull_project(&m, pd, 2.0, 2.0 * p);
+        assert_eq!(inside2, inside);
+        assert!((q2 - 2.0 * q).length() < 1e-6);
+    }
+    assert!(inside_n > 50 && outside_n > 500, "{inside_n} inside, {outside_n} outside");
+}
+
+/// Source A's mustard bottle: no primitive fits its two rounded hulls (the best box sticks out
+/// 20–42 mm), so both collide as their hulls; it rests at the mesh's own height and stays upright.
+#[test]
+fn the_mustard_bottle_rests_on_its_hulls_at_the_meshs_height() {
+    let path = shared_objects().join("006_mustard_bottle/collision.obj");
+    if !path.is_file() {
+        eprintln!("the_mustard_bottle_rests_on_its_hulls_at_the_meshs_height: {} does not exist; not run", path.display());
+        return;
+    }
+    let mut c = object_config(vec![ObjectItem { mass: Some(0.6), ..mesh_item(&path) }]);
+    c.wrist.init_pos = [0.0, 0.0, 0.6];
+    c.object.yaw_noise = 3.0;
+    let model = SimModel::from_config(&c).unwrap();
+    let o = &model.objects[0];
+    assert!(o.pieces.iter().all(|p| p.hull.is_some()), "{}", o.describe());
+    let pieces = dextrain::mesh::read::parse_obj_pieces(&std::fs::read(&path).unwrap()).unwrap();
+    let lowest = pieces.iter().flat_map(|p| p.mesh.vertices.iter()).map(|v| v.z).fold(f64::INFINITY, f64::min) as f32;
+    assert!((o.rest_height() + lowest).abs() < 1e-6, "rest height {} vs the mesh's {}", o.rest_height(), -lowest);
+    for (i, (d, tilt)) in settle(&c, 10.0).into_iter().enumerate() {
+        eprintln!("mustard env {i}: drift {:.4} mm, tilt {:.4}°", d * 1e3, tilt.to_degrees());
+        assert!(d < 1e-3 && tilt.to_degrees() < 0.2, "env {i}: drift {:.3} mm, tilt {:.3}°", d * 1e3, tilt.to_degrees());
     }
 }

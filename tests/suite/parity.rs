@@ -222,10 +222,11 @@ fn contact_rich_step_agrees(c: dextrain::config::Config, ctx: dextrain::env::gpu
     }
 }
 
-/// Three objects in one batch (a cube, the shipped 3-piece bottle and a tilted two-box "L" whose
-/// centre of mass and principal axes are off its frame), each env holding the one it drew.
+/// Three objects in one batch (a cube, the shipped 3-piece bottle — two cylinders and a hull — and
+/// a two-box "L" whose centre of mass and principal axes are off its frame, its pieces colliding
+/// as their convex hulls), each env holding the one it drew.
 fn compound_objects(c: &mut dextrain::config::Config) {
-    use dextrain::config::{MeshFiles, ObjectItem};
+    use dextrain::config::{MeshFiles, ObjectItem, PieceKind};
     let dir = std::env::temp_dir().join(format!("dextrain-parity-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     // two boxes of an "L", each its own OBJ group, wound outward
@@ -245,7 +246,7 @@ fn compound_objects(c: &mut dextrain::config::Config) {
     c.object.set = vec![
         ObjectItem::default(),
         ObjectItem { mesh: mesh(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/objects/bottle.obj").into()), mass: Some(0.15), ..Default::default() },
-        ObjectItem { mesh: mesh(dir.join("l.obj").display().to_string()), density: Some(800.0), ..Default::default() },
+        ObjectItem { mesh: mesh(dir.join("l.obj").display().to_string()), density: Some(800.0), pieces_as: vec![PieceKind::Hull], ..Default::default() },
     ];
 }
 
@@ -384,8 +385,8 @@ fn common_functions_match_their_cpu_twins() {
     use glam::Vec4;
     let Some(ctx) = gpu_context("common_functions_match_their_cpu_twins") else { return };
     let kernel = r#"
-@group(0) @binding(20) var<storage, read> t_in: array<vec4<f32>>;
-@group(0) @binding(21) var<storage, read_write> t_out: array<vec4<f32>>;
+@group(0) @binding(30) var<storage, read> t_in: array<vec4<f32>>;
+@group(0) @binding(31) var<storage, read_write> t_out: array<vec4<f32>>;
 @compute @workgroup_size(64)
 fn t_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
@@ -410,7 +411,7 @@ fn t_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         &ctx,
         &format!("{SHADER_COMMON}\n{kernel}"),
         "t_main",
-        &[(20, KernelBinding::Storage(bytemuck::cast_slice(&input))), (21, KernelBinding::StorageRw(&vec![0u8; n * 4 * 16]))],
+        &[(30, KernelBinding::Storage(bytemuck::cast_slice(&input))), (31, KernelBinding::StorageRw(&vec![0u8; n * 4 * 16]))],
         n as u32,
     )
     .expect("kernel");

@@ -67,7 +67,7 @@ fn small_hand() -> HandModel {
 }
 
 fn meta(object: ObjectShape) -> RolloutMeta {
-    parts_meta(vec![ObjectPart { shape: object, pose: Pose::IDENTITY }])
+    parts_meta(vec![ObjectPart { shape: object, pose: Pose::IDENTITY, triangles: Vec::new() }])
 }
 
 fn parts_meta(object: Vec<ObjectPart>) -> RolloutMeta {
@@ -416,9 +416,13 @@ fn object_shapes_primitives() {
 #[test]
 fn compound_object_draws_each_piece_at_its_pose() {
     let box_at = Pose::new(Vec3::new(0.05, 0.0, 0.01), Quat::from_rotation_z(0.3));
+    let v = [[0.0, 0.0, 0.0], [0.02, 0.0, 0.0], [0.0, 0.02, 0.0], [0.0, 0.0, 0.02f32]];
+    let tetra: Vec<[f32; 3]> = [[0, 2, 1], [0, 1, 3], [0, 3, 2], [1, 2, 3]].iter().flat_map(|t: &[usize; 3]| t.map(|i| v[i])).collect();
     let meta = parts_meta(vec![
-        ObjectPart { shape: ObjectShape::Box { half_extents: [0.01, 0.02, 0.03] }, pose: box_at },
-        ObjectPart { shape: ObjectShape::Sphere { radius: 0.02 }, pose: Pose::new(Vec3::new(-0.04, 0.0, 0.0), Quat::IDENTITY) },
+        ObjectPart { shape: ObjectShape::Box { half_extents: [0.01, 0.02, 0.03] }, pose: box_at, triangles: Vec::new() },
+        ObjectPart { shape: ObjectShape::Sphere { radius: 0.02 }, pose: Pose::new(Vec3::new(-0.04, 0.0, 0.0), Quat::IDENTITY), triangles: Vec::new() },
+        // a convex-hull piece (a tetrahedron's 4 triangles) is drawn as its triangles, not its shape
+        ObjectPart { shape: ObjectShape::Sphere { radius: 0.5 }, pose: Pose::new(Vec3::new(0.0, 0.07, 0.0), Quat::IDENTITY), triangles: tetra.clone() },
     ]);
     let mut w = RolloutWriter::create_in_memory(&meta).unwrap();
     w.write_frame(&frame(&meta.hand, 0)).unwrap();
@@ -430,6 +434,12 @@ fn compound_object_draws_each_piece_at_its_pose() {
     assert_eq!(f32_of(&cube["position"]["z"]), 0.01);
     assert!((f32_of(&cube["orientation"]["z"]) - (0.15f32).sin()).abs() < 1e-6);
     assert_eq!(f32_of(&e["spheres"][0]["pose"]["position"]["x"]), -0.04);
+    let tri = &e["triangles"];
+    assert_eq!(tri.as_array().unwrap().len(), 1);
+    assert_eq!(f32_of(&tri[0]["pose"]["position"]["y"]), 0.07);
+    let points = tri[0]["points"].as_array().unwrap();
+    assert_eq!(points.len(), 12);
+    assert_eq!(f32_of(&points[11]["z"]), 0.02);
     let parts: Vec<ObjectPart> = serde_json::from_str(&r.metadata["dextrain"]["object"]).unwrap();
     assert_eq!(parts, meta.object);
 }

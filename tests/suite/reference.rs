@@ -611,11 +611,11 @@ const SAMPLES: [[u32; 2]; 16] =
     [[0, 0], [0, 1], [0, 3], [1, 0], [2, 5], [7, 0], [12, 4], [20, 9], [29, 1], [30, 0], [31, 5], [55, 2], [100, 0], [140, 3], [400, 0], [400, 10]];
 
 const KERNEL: &str = r#"
-@group(0) @binding(20) var<storage, read> t_states: array<EnvState>;
-@group(0) @binding(21) var<storage, read> t_steps: array<vec2<u32>>;
-@group(0) @binding(22) var<storage, read_write> t_cursors: array<RefCursor>;
-@group(0) @binding(23) var<storage, read_write> t_frames: array<RefFrame>;
-@group(0) @binding(24) var<storage, read_write> t_starts: array<vec4<f32>>;
+@group(0) @binding(30) var<storage, read> t_states: array<EnvState>;
+@group(0) @binding(31) var<storage, read> t_steps: array<vec2<u32>>;
+@group(0) @binding(32) var<storage, read_write> t_cursors: array<RefCursor>;
+@group(0) @binding(33) var<storage, read_write> t_frames: array<RefFrame>;
+@group(0) @binding(34) var<storage, read_write> t_starts: array<vec4<f32>>;
 @compute @workgroup_size(64)
 fn t_main(@builtin(global_invocation_id) gid: vec3<u32>) {
     let i = gid.x;
@@ -669,11 +669,11 @@ fn gpu_run(ctx: &dextrain::env::gpu::GpuContext, m: &SimModel, bank: &RefBank, r
             (13, KernelBinding::Storage(bytemuck::cast_slice(&bank.frames))),
             (14, KernelBinding::Storage(bytemuck::cast_slice(&bank.info))),
             (15, KernelBinding::Uniform(bytemuck::bytes_of(rg))),
-            (20, KernelBinding::Storage(bytemuck::cast_slice(states))),
-            (21, KernelBinding::Storage(bytemuck::cast_slice(&SAMPLES[..]))),
-            (22, KernelBinding::StorageRw(&vec![0u8; n * size_of::<RefCursor>()])),
-            (23, KernelBinding::StorageRw(&vec![0u8; n * SAMPLES.len() * size_of::<RefFrame>()])),
-            (24, KernelBinding::StorageRw(&vec![0u8; n * 2 * 16])),
+            (30, KernelBinding::Storage(bytemuck::cast_slice(states))),
+            (31, KernelBinding::Storage(bytemuck::cast_slice(&SAMPLES[..]))),
+            (32, KernelBinding::StorageRw(&vec![0u8; n * size_of::<RefCursor>()])),
+            (33, KernelBinding::StorageRw(&vec![0u8; n * SAMPLES.len() * size_of::<RefFrame>()])),
+            (34, KernelBinding::StorageRw(&vec![0u8; n * 2 * 16])),
         ],
         n as u32,
     )
