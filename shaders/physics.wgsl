@@ -377,14 +377,16 @@ fn collide_hand_object(ci: u32) -> Contact {
         return best;
     }
     let od = objects[prm.obj_index];
+    // the collider's centre in the object frame: each piece's bounding sphere is tested there
+    let c_obj = quat_rotate(quat_conj(st.obj_rot), cp.pos - opos);
     for (var k = 0u; k < od.n_pieces; k++) {
         let pd = pieces[od.first_piece + k];
-        let pp = piece_pose(pd);
         let r = rc + pd.pos.w * prm.obj_scale;
-        let dp = cp.pos - pp.pos;
+        let dp = c_obj - pd.pos.xyz * prm.obj_scale;
         if (dot(dp, dp) > r * r) {
             continue;
         }
+        let pp = piece_pose(pd);
         let c = collide_collider_piece(cd, cp, pd, prm.obj_scale, pp.pos, pp.rot);
         if (c.depth > best.depth) {
             best = c;
@@ -402,6 +404,14 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
     let c_o = quat_rotate(oinv, cp.pos - opos);
     let r_o = quat_mul(oinv, cp.rot);
     var out = Contact(0.0, vec3<f32>(0.0), vec3<f32>(0.0));
+    // the piece farther from the collider's centre than the collider reaches: no contact
+    let y0 = piece_project(pd, scale, size, c_o).point;
+    let reach = bounding_radius(cd.shape, cd.size.xyz);
+    let d0 = c_o - y0;
+    if (dot(d0, d0) > reach * reach) {
+        out.depth = -1.0;
+        return out;
+    }
     if (cd.shape == SHAPE_BOX) {
         let h = cd.size.xyz;
         var x = c_o;
@@ -741,11 +751,23 @@ fn contacts_and_forces(h: f32) {
         }
     }
     // object–table: every support point of every piece, in order (spring slots 0.. of the object)
+    // a piece whose bounding sphere is above the table has none touching (its springs are cleared)
     let od = objects[prm.obj_index];
     var kp = 0u;
+    let above = st.obj_pos.z > prm.obj_com.w;
     for (var pi = 0u; pi < od.n_pieces; pi++) {
         let pd = pieces[od.first_piece + pi];
-        let pp = piece_pose(pd);
+        var pp = PiecePose(vec3<f32>(0.0, 0.0, 1.0), vec4<f32>(0.0, 0.0, 0.0, 1.0), vec3<f32>(0.0));
+        if (!above) {
+            pp = piece_pose(pd);
+        }
+        if (above || pp.pos.z > pd.pos.w * prm.obj_scale) {
+            for (var j = 0u; j < pd.n_support; j++) {
+                springs[spring_base + 2u * g.n_colliders + kp] = vec4<f32>(0.0);
+                kp += 1u;
+            }
+            continue;
+        }
         for (var j = 0u; j < pd.n_support; j++) {
             let ki = spring_base + 2u * g.n_colliders + kp;
             kp += 1u;

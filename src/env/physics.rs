@@ -465,13 +465,16 @@ pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch,
         return best;
     }
     let od = &m.objects[p.obj_index as usize];
+    // the collider's centre in the object frame: each piece's bounding sphere is tested there,
+    // without turning the piece into the world
+    let c_obj = quat_rotate(quat_conj(v4(st.obj_rot)), cpos - opos);
     for k in 0..od.n_pieces {
         let pd = &m.pieces[(od.first_piece + k) as usize];
-        let (ppos, prot, _) = piece_pose(st, p, pd);
         let r = rc + pd.pos[3] * p.obj_scale;
-        if (cpos - ppos).length_squared() > r * r {
+        if (c_obj - v3(pd.pos) * p.obj_scale).length_squared() > r * r {
             continue;
         }
+        let (ppos, prot, _) = piece_pose(st, p, pd);
         let c = collide_collider_piece(m, cd, cpos, crot, pd, p.obj_scale, ppos, prot);
         if c.depth > best.depth {
             best = c;
@@ -490,6 +493,13 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
     let c_o = quat_rotate(oinv, cpos - opos);
     let r_o = quat_mul(oinv, crot);
     let mut out = Contact::default();
+    // the piece farther from the collider's centre than the collider reaches: no contact
+    let (y0, _) = piece_project(m, pd, scale, size, c_o);
+    let reach = bounding_radius(cd.shape, v3(cd.size));
+    if (c_o - y0).length_squared() > reach * reach {
+        out.depth = -1.0;
+        return out;
+    }
     if cd.shape == SHAPE_BOX {
         let h = v3(cd.size);
         let mut x = c_o;
@@ -833,12 +843,21 @@ pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvP
             }
         }
     }
-    // object–table: every support point of every piece, in order (spring slots 0.. of the object)
+    // object–table: every support point of every piece, in order (spring slots 0.. of the object);
+    // a piece whose bounding sphere is above the table has none touching (its springs are cleared)
     let od = &m.objects[p.obj_index as usize];
     let mut kp = 0u32;
+    let above = st.obj_pos[2] > p.obj_com[3];
     for pi in 0..od.n_pieces {
         let pd = &m.pieces[(od.first_piece + pi) as usize];
-        let (ppos, prot, size) = piece_pose(st, p, pd);
+        let (ppos, prot, size) = if above { (Vec3::Z, Vec4::W, Vec3::ZERO) } else { piece_pose(st, p, pd) };
+        if above || ppos.z > pd.pos[3] * p.obj_scale {
+            for _ in 0..pd.n_support {
+                springs[spring_slot::object_table(n_c, kp) as usize] = [0.0; 4];
+                kp += 1;
+            }
+            continue;
+        }
         for j in 0..pd.n_support {
             let ki = spring_slot::object_table(n_c, kp) as usize;
             kp += 1;
