@@ -15,6 +15,7 @@ const SHAPE_CAPSULE: u32 = 2u;
 const SHAPE_CYLINDER: u32 = 3u;
 const SHAPE_HULL: u32 = 4u;
 const NO_JOINT: u32 = 0xffffffffu;
+const NO_OBJECT: u32 = 0xffffffffu;
 
 struct Globals {
     init_wrist_pos: vec4<f32>,
@@ -39,7 +40,7 @@ struct Globals {
     contact_kt: f32,
     hand_eff_mass: f32,
     hand_friction: f32,
-    _pad1: f32,
+    n_ref_objects: u32,
     obj_friction: f32,
     table_friction: f32,
     yaw_noise: f32,
@@ -272,6 +273,8 @@ fn rand_uniform(seed: u32, env: u32, episode: u32, purpose: u32, k: u32) -> f32 
 // the convex-hull pieces' data: per hull F planes (n, d), F triangles (vertex indices as floats),
 // then its vertices (twin: SimModel::hulls)
 @group(0) @binding(20) var<storage, read> hulls: array<vec4<f32>>;
+// the object of each reference (NO_OBJECT: uniform), [g.n_ref_objects] (twin: SimModel::ref_objects)
+@group(0) @binding(21) var<storage, read> ref_objects: array<u32>;
 const WORKGROUP_SIZE: u32 = 64u;
 
 // Env index of an invocation of a (possibly 2-D) dispatch.

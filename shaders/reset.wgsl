@@ -3,6 +3,9 @@
 
 const PURPOSE_PARAMS: u32 = 1u;
 const PURPOSE_INIT: u32 = 2u;
+// the reference draw of reference.wgsl's ref_begin (PURPOSE_REF, REF_KEY_ID)
+const PURPOSE_REF_DRAW: u32 = 4u;
+const REF_KEY_ID_DRAW: u32 = 0u;
 
 fn rand_range(env: u32, episode: u32, purpose: u32, k: u32, lo: f32, hi: f32) -> f32 {
     return lo + (hi - lo) * rand_uniform(g.seed, env, episode, purpose, k);
@@ -21,6 +24,14 @@ fn reset_params(env: u32, episode: u32) -> EnvParams {
     var p: EnvParams;
     // the object: ⌊u · n⌋, clamped (u < 1, but f32 rounding of u · n could reach n)
     p.obj_index = min(u32(rand_uniform(g.seed, env, episode, pp, 11u) * f32(g.n_objects)), g.n_objects - 1u);
+    if (g.n_ref_objects > 0u) {
+        // the reference's draw, as ref_begin makes it
+        let u = rand_uniform(g.seed, env, episode, PURPOSE_REF_DRAW, REF_KEY_ID_DRAW);
+        let o = ref_objects[min(u32(u * f32(g.n_ref_objects)), g.n_ref_objects - 1u)];
+        if (o != NO_OBJECT) {
+            p.obj_index = o;
+        }
+    }
     let od = objects[p.obj_index];
     p.hand_mass_scale = rand_range(env, episode, pp, 0u, g.rnd[0].x, g.rnd[0].y);
     p.hand_friction = g.hand_friction * rand_range(env, episode, pp, 1u, g.rnd[0].z, g.rnd[0].w);

@@ -18,7 +18,6 @@ use serde::Serialize;
 
 use crate::checkpoint;
 use crate::config::{Config, TaskKind};
-use crate::env::reset::reset_params;
 use crate::task::{decode_snapshot, make_task_batch, reference_paths};
 use crate::env::gpu_layout::Targets;
 use crate::env::{SimModel, contact_records, hand_link_poses};
@@ -561,22 +560,6 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
         term_sums.resize(term_names.len(), 0.0);
         // the fingertip forces are critic observations
         let force_cols: Vec<usize> = spec.priv_names.iter().enumerate().filter(|(_, n)| n.starts_with("tip_force.")).map(|(k, _)| k).collect();
-        let mut writer = match (&args.record, round, open_loop) {
-            (Some(path), 0, false) => {
-                let g = &model.globals;
-                let meta = RolloutMeta {
-                    hand: model.hand.clone(),
-                    object: {
-                        let p0 = reset_params(g, &model.object_descs, 0, 0);
-                        model.objects[p0.obj_index as usize].parts(p0.obj_scale)
-                    },
-                    dt: spec.control_dt,
-                    info: serde_json::json!({"run": args.run.display().to_string(), "checkpoint": source.describe(), "seed": c.seed}),
-                };
-                Some(RolloutWriter::create(path, &meta)?)
-            }
-            _ => None,
-        };
         let first = task.reset_all()?;
         let (mut obs, mut priv_obs) = (first.obs.clone(), first.priv_obs.clone());
         // the reference of each env's (only) episode, drawn at the reset
@@ -585,6 +568,20 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
             if !has_reference { vec![String::new(); n] } else { ts.iter().map(|t| ref_names.get(t.cursor.ref_id as usize).cloned().unwrap_or_default()).collect() };
         // the object each env drew at that reset
         let objects: Vec<String> = env_snap.params.iter().map(|p| model.objects[p.obj_index as usize].name.clone()).collect();
+        let mut writer = match (&args.record, round, open_loop) {
+            (Some(path), 0, false) => {
+                // env 0's object as its reset drew it
+                let p0 = &env_snap.params[0];
+                let meta = RolloutMeta {
+                    hand: model.hand.clone(),
+                    object: model.objects[p0.obj_index as usize].parts(p0.obj_scale),
+                    dt: spec.control_dt,
+                    info: serde_json::json!({"run": args.run.display().to_string(), "checkpoint": source.describe(), "seed": c.seed}),
+                };
+                Some(RolloutWriter::create(path, &meta)?)
+            }
+            _ => None,
+        };
         let mut done = vec![false; n];
         let mut ret = vec![0.0f64; n];
         let mut len = vec![0u32; n];

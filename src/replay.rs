@@ -185,7 +185,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
             let meta = RolloutMeta {
                 hand: model.hand.clone(),
                 object: {
-                    let p0 = reset_params(&g, &model.object_descs, 0, 0);
+                    let p0 = reset_params(&g, &model.object_descs, &model.ref_objects, 0, 0);
                     model.objects[p0.obj_index as usize].parts(p0.obj_scale)
                 },
                 dt: ctrl_dt as f32,
@@ -259,7 +259,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
     };
     if kinematic {
         backend = "kinematic (cpu)".to_string();
-        let params: Vec<_> = (0..n as u32).map(|i| reset_params(&g, &model.object_descs, i, 0)).collect();
+        let params: Vec<_> = (0..n as u32).map(|i| reset_params(&g, &model.object_descs, &model.ref_objects, i, 0)).collect();
         let bases: Vec<EnvState> = (0..n).map(|i| reset_state(&g, &model.joints, &params[i], i as u32, 0, 0)).collect();
         // a kinematic state has no contact history: every spring is relaxed
         let relaxed = vec![[0.0f32; 4]; model.globals.n_springs as usize];

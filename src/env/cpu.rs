@@ -75,6 +75,7 @@ impl CpuEnvBatch {
         let g = &self.model.globals;
         let joints = &self.model.joints;
         let objects = &self.model.object_descs;
+        let ref_objects = &self.model.ref_objects;
         let per_env = g.n_springs as usize;
         self.states
             .par_iter_mut()
@@ -85,7 +86,7 @@ impl CpuEnvBatch {
                 let next = st.episode + 1;
                 if let Some(ep) = episode_of(i) {
                     let ep = if ep == u32::MAX { next } else { ep };
-                    *p = reset_params(g, objects, i as u32, ep);
+                    *p = reset_params(g, objects, ref_objects, i as u32, ep);
                     *st = reset_state(g, joints, p, i as u32, ep, st.bad_resets);
                     clear_springs(springs);
                 }

@@ -22,7 +22,7 @@ use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
 use super::gpu_bindings::{Binding, BindingSpace, EntryBindings, RESET_MAIN, SIM_GROUP, SPRINGS, STEP_MAIN};
-use super::gpu_bindings::{COLLIDERS, GLOBALS, HULLS, JOINTS, OBJECTS, PARAMS, PIECES, RESET_MASK, STATES, STATS, TARGETS};
+use super::gpu_bindings::{COLLIDERS, GLOBALS, HULLS, JOINTS, OBJECTS, PARAMS, PIECES, REF_OBJECTS, RESET_MASK, STATES, STATS, TARGETS};
 use super::gpu_layout::*;
 use super::{EnvBatch, EnvSpec, SimModel};
 
@@ -480,6 +480,7 @@ impl GpuEnvBatch {
         let pieces = ctx.create_binding_buffer(PIECES, &model.pieces, none)?;
         let objects = ctx.create_binding_buffer(OBJECTS, &model.object_descs, none)?;
         let hulls = ctx.create_binding_buffer(HULLS, &model.hulls, none)?;
+        let ref_objects = ctx.create_binding_buffer(REF_OBJECTS, &model.ref_objects, none)?;
         let per_env = || format!("sim.num_envs = {n}");
         let states = ctx.create_binding_buffer(STATES, &vec![EnvState::default(); n], none).with_context(per_env)?;
         let params = ctx.create_binding_buffer(PARAMS, &vec![<EnvParams as bytemuck::Zeroable>::zeroed(); n], none).with_context(per_env)?;
@@ -505,6 +506,7 @@ impl GpuEnvBatch {
             (PIECES, &pieces),
             (OBJECTS, &objects),
             (HULLS, &hulls),
+            (REF_OBJECTS, &ref_objects),
         ];
         let step_group = ctx.bind_group(&step_pipeline, &STEP_MAIN, &buffers)?;
         let reset_group = ctx.bind_group(&reset_pipeline, &RESET_MAIN, &buffers)?;

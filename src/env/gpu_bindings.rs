@@ -6,8 +6,8 @@
 //! every global, and the globals each entry point really uses), so a binding renamed or moved on one
 //! side only fails a test that needs no GPU instead of a pipeline at run time.
 //!
-//! Bindings 0–8, 16 and 18–20 are the simulator's (common.wgsl), 9–12 and 17 the task layer's
-//! (task.wgsl), 13–15 the reference bank's (reference.wgsl). Indices from 21 up are free for the test kernels of
+//! Bindings 0–8, 16 and 18–21 are the simulator's (common.wgsl), 9–12 and 17 the task layer's
+//! (task.wgsl), 13–15 the reference bank's (reference.wgsl). Indices from 22 up are free for the test kernels of
 //! `gpu::run_kernel` (the parity tests use 30 and up).
 
 /// Where a binding lives in WGSL: its address space and, for storage, its access mode.
@@ -77,6 +77,8 @@ pub const PIECES: Binding = binding(18, "pieces", StorageRead);
 pub const OBJECTS: Binding = binding(19, "objects", StorageRead);
 /// `array<vec4<f32>>`: the convex-hull pieces' planes, triangles and vertices.
 pub const HULLS: Binding = binding(20, "hulls", StorageRead);
+/// `array<u32>`: the object of each reference (`SimModel::ref_objects`).
+pub const REF_OBJECTS: Binding = binding(21, "ref_objects", StorageRead);
 
 // ---- the task layer (task.wgsl; bound by task_gpu.rs) ----
 /// `TaskGlobals`: the task's constants.
@@ -122,9 +124,9 @@ pub struct ShaderGroup {
 
 /// `step_main`: one control step of every env.
 pub const STEP_MAIN: EntryBindings =
-    EntryBindings { entry_point: "step_main", bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS, SPRINGS, PIECES, OBJECTS, HULLS] };
+    EntryBindings { entry_point: "step_main", bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS] };
 /// `reset_main`: the resets that `reset_mask` asks for.
-pub const RESET_MAIN: EntryBindings = EntryBindings { entry_point: "reset_main", bindings: &[GLOBALS, JOINTS, STATES, PARAMS, RESET_MASK, SPRINGS, OBJECTS] };
+pub const RESET_MAIN: EntryBindings = EntryBindings { entry_point: "reset_main", bindings: &[GLOBALS, JOINTS, STATES, PARAMS, RESET_MASK, SPRINGS, OBJECTS, REF_OBJECTS] };
 /// `task_act`: actions → targets.
 pub const TASK_ACT: EntryBindings = EntryBindings {
     entry_point: "task_act",
@@ -149,7 +151,7 @@ pub const TASK_OBSERVE_FINAL: EntryBindings = EntryBindings {
 /// The simulator's module (`gpu::shader_source`: common + reset + physics).
 pub const SIM_GROUP: ShaderGroup = ShaderGroup {
     shader: "dextrain physics",
-    bindings: &[GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, SPRINGS, PIECES, OBJECTS, HULLS],
+    bindings: &[GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS],
     entry_points: &[STEP_MAIN, RESET_MAIN],
 };
 
@@ -158,7 +160,7 @@ pub const TASK_GROUP: ShaderGroup = ShaderGroup {
     shader: "dextrain task",
     bindings: &[
         GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, TASK_CFG, TASK_STATES, ACTIONS, TASK_OUT, REF_FRAMES,
-        REF_INFO, REF_CFG, SPRINGS, FINAL_OUT, PIECES, OBJECTS, HULLS,
+        REF_INFO, REF_CFG, SPRINGS, FINAL_OUT, PIECES, OBJECTS, HULLS, REF_OBJECTS,
     ],
     entry_points: &[TASK_ACT, TASK_REWARD, TASK_OBSERVE, TASK_OBSERVE_FINAL],
 };

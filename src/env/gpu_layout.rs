@@ -66,6 +66,8 @@ pub struct ObjectDesc {
     pub rest_height: f32,
 }
 
+/// Marks "no object" in `SimModel::ref_objects` (a reference that names none).
+pub const NO_OBJECT: u32 = u32::MAX;
 /// Marks "no joint" in `JointDesc::mimic_leader`.
 pub const NO_JOINT: u32 = u32::MAX;
 
@@ -107,7 +109,9 @@ pub struct Globals {
     pub contact_kt: f32,
     pub hand_eff_mass: f32,
     pub hand_friction: f32,
-    pub _pad1: f32,
+    /// References that the object draw follows (`SimModel::ref_objects`; 0: objects are drawn
+    /// uniformly).
+    pub n_ref_objects: u32,
     pub obj_friction: f32,
     pub table_friction: f32,
     pub yaw_noise: f32,

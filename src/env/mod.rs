@@ -90,6 +90,9 @@ pub struct SimModel {
     pub pieces: Vec<PieceDesc>,
     /// The convex-hull pieces' planes, triangles and vertices (`physics::hull_vertex`).
     pub hulls: Vec<[f32; 4]>,
+    /// The object of each reference of the task's bank (`NO_OBJECT` for one that names none);
+    /// empty without references that name objects (`set_reference_objects`).
+    pub ref_objects: Vec<u32>,
     pub hand: HandModel,
     pub spec: EnvSpec,
 }
@@ -281,7 +284,7 @@ impl SimModel {
             contact_kt: cfg.contact.friction_stiffness,
             hand_eff_mass: cfg.contact.hand_effective_mass,
             hand_friction: cfg.hand.friction,
-            _pad1: 0.0,
+            n_ref_objects: 0,
             obj_friction: cfg.object.friction,
             table_friction: cfg.table.friction,
             yaw_noise: cfg.object.yaw_noise,
@@ -309,12 +312,25 @@ impl SimModel {
             substeps: cfg.sim.substeps,
             decimation: cfg.sim.decimation,
         };
-        Ok(SimModel { globals, joints, colliders, tips, objects, object_descs, pieces, hulls, hand, spec })
+        Ok(SimModel { globals, joints, colliders, tips, objects, object_descs, pieces, hulls, ref_objects: Vec::new(), hand, spec })
     }
 
     /// The read-only model view used by the CPU physics.
     pub fn view(&self) -> physics::Model<'_> {
-        physics::Model { g: &self.globals, joints: &self.joints, colliders: &self.colliders, tips: &self.tips, pieces: &self.pieces, objects: &self.object_descs, hulls: &self.hulls }
+        physics::Model { g: &self.globals, joints: &self.joints, colliders: &self.colliders, tips: &self.tips, pieces: &self.pieces, objects: &self.object_descs, hulls: &self.hulls, ref_objects: &self.ref_objects }
+    }
+
+    /// The index of the object named `name` among the run's objects.
+    pub fn object_index(&self, name: &str) -> Option<u32> {
+        self.objects.iter().position(|o| o.name == name).map(|i| i as u32)
+    }
+
+    /// Makes each env hold the object of the reference it follows: `ref_objects[r]` is reference
+    /// `r`'s object (`NO_OBJECT`: drawn uniformly); all `NO_OBJECT` (or none) keeps the uniform draw.
+    pub fn set_reference_objects(&mut self, ref_objects: Vec<u32>) {
+        let any = ref_objects.iter().any(|&o| o != NO_OBJECT);
+        self.globals.n_ref_objects = if any { ref_objects.len() as u32 } else { 0 };
+        self.ref_objects = if any { ref_objects } else { Vec::new() };
     }
 
     /// Targets that hold the initial wrist pose and default joint positions.

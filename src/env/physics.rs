@@ -40,7 +40,7 @@ pub const SAFE_STIFFNESS: f32 = 1.0;
 /// in one substep, so it never reverses it).
 pub const SAFE_DAMPING: f32 = 0.5;
 
-/// Read-only description of the run shared by all envs (the shader's bindings 0–3, 18–20).
+/// Read-only description of the run shared by all envs (the shader's bindings 0–3, 18–21).
 #[derive(Clone, Copy)]
 pub struct Model<'a> {
     pub g: &'a Globals,
@@ -52,6 +52,8 @@ pub struct Model<'a> {
     pub pieces: &'a [PieceDesc],
     pub objects: &'a [ObjectDesc],
     pub hulls: &'a [[f32; 4]],
+    /// The object of each reference (binding 21, `SimModel::ref_objects`).
+    pub ref_objects: &'a [u32],
 }
 
 /// Per-invocation working memory (the shader's `var<private>` variables).
@@ -1101,7 +1103,7 @@ pub fn env_step(env: u32, st: &mut EnvState, springs: &mut [[f32; 4]], p: &mut E
     if !state_is_sane(st, g) {
         let episode = st.episode + 1;
         let bad = st.bad_resets + 1;
-        *p = reset_params(g, m.objects, env, episode);
+        *p = reset_params(g, m.objects, m.ref_objects, env, episode);
         *st = reset_state(g, m.joints, p, env, episode, bad);
         clear_springs(springs);
         stats.bad_reset = 1;

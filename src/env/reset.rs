@@ -25,12 +25,27 @@ pub fn damping_ratio(e: f32) -> f32 {
     -l / (9.8696044 + l * l).sqrt()
 }
 
-/// Draws the physical parameters of `env` for `episode`, the object among `objects` included.
-pub fn reset_params(g: &Globals, objects: &[ObjectDesc], env: u32, episode: u32) -> EnvParams {
+/// The reference draw of `reference.wgsl` (`ref_begin`): purpose and key (keep in sync with
+/// `env::reference::PURPOSE_REF`, `REF_KEY_ID`).
+pub const PURPOSE_REF_DRAW: u32 = 4;
+pub const REF_KEY_ID_DRAW: u32 = 0;
+
+/// Draws the physical parameters of `env` for `episode`, the object among `objects` included:
+/// uniformly, or — when the references name their objects (`ref_objects[r]`, `NO_OBJECT` for one
+/// that names none) — the object of the reference the task layer draws for this episode.
+pub fn reset_params(g: &Globals, objects: &[ObjectDesc], ref_objects: &[u32], env: u32, episode: u32) -> EnvParams {
     let pp = PURPOSE_PARAMS;
     let mut p = EnvParams::default_zeroed();
     // the object: ⌊u · n⌋, clamped (u < 1, but f32 rounding of u · n could reach n)
     p.obj_index = ((rand_uniform(g.seed, env, episode, pp, 11) * g.n_objects as f32) as u32).min(g.n_objects - 1);
+    if g.n_ref_objects > 0 {
+        // the reference's draw, as ref_begin makes it
+        let u = rand_uniform(g.seed, env, episode, PURPOSE_REF_DRAW, REF_KEY_ID_DRAW);
+        let o = ref_objects[((u * g.n_ref_objects as f32) as u32).min(g.n_ref_objects - 1) as usize];
+        if o != NO_OBJECT {
+            p.obj_index = o;
+        }
+    }
     let od = &objects[p.obj_index as usize];
     p.hand_mass_scale = rand_range(g, env, episode, pp, 0, g.rnd[0][0], g.rnd[0][1]);
     p.hand_friction = g.hand_friction * rand_range(g, env, episode, pp, 1, g.rnd[0][2], g.rnd[0][3]);

@@ -40,6 +40,11 @@ impl CpuTaskBatch {
     /// returns the first observations).
     pub fn new(cfg: &Config, model: SimModel) -> Result<CpuTaskBatch> {
         let TaskSetup { spec, tc, bank, rg } = task_setup(cfg, &model)?;
+        let mut model = model;
+        if let Some(b) = &bank {
+            // each env holds the object its reference names
+            model.set_reference_objects(b.objects.clone());
+        }
         let n = spec.num_envs;
         let targets = vec![model.default_targets(); n];
         let batch = StepBatch::new(&spec);

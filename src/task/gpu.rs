@@ -68,6 +68,11 @@ impl GpuTaskBatch {
     /// episode 0 (`reset_all` returns the first observations).
     pub fn new(cfg: &Config, ctx: GpuContext, model: SimModel) -> Result<GpuTaskBatch> {
         let TaskSetup { spec, tc, bank, rg } = task_setup(cfg, &model)?;
+        let mut model = model;
+        if let Some(b) = &bank {
+            // each env holds the object its reference names
+            model.set_reference_objects(b.objects.clone());
+        }
         let n = spec.num_envs;
         let out_floats = n * (spec.obs_dim + spec.priv_dim + OUT_MISC);
         let out_bytes = (out_floats * 4) as u64;

@@ -45,7 +45,7 @@ use glam::{Quat, Vec3};
 
 use crate::env::SimModel;
 use crate::env::common::quat_from_axis_angle;
-use crate::env::gpu_layout::NO_JOINT;
+use crate::env::gpu_layout::{NO_JOINT, NO_OBJECT};
 pub use crate::env::reference::{REF_HAS_OBJECT, REF_TIPS_FROM_FILE, RefGlobals, RefInfo};
 use crate::geom::Pose;
 use crate::replay::targets_at;
@@ -105,6 +105,8 @@ pub struct RefBank {
     pub info: Vec<RefInfo>,
     /// Where each reference came from (its file, or `reference #k`), for messages.
     pub sources: Vec<String>,
+    /// The object each reference names (index into the config's objects; `NO_OBJECT`: none).
+    pub objects: Vec<u32>,
     pub layout: RecordLayout,
     /// The control step (s) the references were resampled at.
     pub ctrl_dt: f64,
@@ -144,7 +146,7 @@ impl RefBank {
         let g = &model.globals;
         let ctrl_dt = (g.dt * g.decimation as f32) as f64;
         let layout = RecordLayout::new(model.joints.len(), n_tips);
-        let mut bank = RefBank { frames: Vec::new(), info: Vec::new(), sources: Vec::new(), layout, ctrl_dt, thumb };
+        let mut bank = RefBank { frames: Vec::new(), info: Vec::new(), sources: Vec::new(), objects: Vec::new(), layout, ctrl_dt, thumb };
         for (name, traj) in trajs {
             bank.push(name, traj, model).map_err(|e| anyhow!("{name}: {}", one_line(&e)))?;
         }
@@ -154,6 +156,14 @@ impl RefBank {
     /// Resamples and appends one reference.
     fn push(&mut self, name: &str, traj: &Trajectory, model: &SimModel) -> Result<()> {
         traj.validate()?;
+        let object = match &traj.object_name {
+            None => NO_OBJECT,
+            Some(o) => model.object_index(o).ok_or_else(|| {
+                let names: Vec<&str> = model.objects.iter().map(|x| x.name.as_str()).collect();
+                anyhow!("names object '{}': expected one of the config's objects ({})", crate::config::clip(o, 40), names.join(", "))
+            })?,
+        };
+        self.objects.push(object);
         let map = traj.joint_map(&model.spec.joint_names)?;
         let l = self.layout;
         let ctrl_dt = self.ctrl_dt;

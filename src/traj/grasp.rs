@@ -464,7 +464,7 @@ pub fn hand_object_depth(model: &SimModel, wrist: &Pose, q: &[f32]) -> f32 {
     let g = &model.globals;
     let m = model.view();
     // the first object, unscaled
-    let mut p = reset_params(g, &model.object_descs, 0, 0);
+    let mut p = reset_params(g, &model.object_descs, &[], 0, 0);
     let od = &model.object_descs[0];
     (p.obj_index, p.obj_scale, p.obj_com) = (0, 1.0, od.com);
     let mut st = EnvState { wrist_pos: [wrist.pos.x, wrist.pos.y, wrist.pos.z, 0.0], wrist_rot: wrist.rot.to_array(), ..Default::default() };

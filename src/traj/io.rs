@@ -186,6 +186,7 @@ impl Trajectory {
         };
 
         let mut raws = Vec::new();
+        let mut object_name = None;
         let mut other_topics = BTreeSet::new();
         // channel id -> (topic, message encoding)
         let mut channels: HashMap<u16, (String, String)> = HashMap::new();
@@ -195,6 +196,9 @@ impl Trajectory {
             use mcap::records::Record;
             match record.map_err(mcap_err)? {
                 Record::Metadata(m) if m.name == REFERENCE_METADATA_NAME => {
+                    if let Some(o) = m.metadata.get("object") {
+                        object_name = Some(check_object_name(source, o)?);
+                    }
                     let got = match m.metadata.get("format_version") {
                         Some(v) if v == FORMAT_VERSION => continue,
                         Some(v) => format!("{v:?}"),
@@ -277,7 +281,7 @@ impl Trajectory {
                 format!("no messages on topic `{REFERENCE_TOPIC}`: expected at least 1 frame{others}"),
             ));
         }
-        assemble(source, raws)
+        assemble(source, raws).map(|t| Trajectory { object_name, ..t })
     }
 
     /// The MCAP file [`save_mcap`](Self::save_mcap) writes: a `dextrain.reference` metadata
@@ -292,10 +296,13 @@ impl Trajectory {
             .library(generator())
             .create(Cursor::new(Vec::new()))
             .map_err(e)?;
-        let metadata = BTreeMap::from([
+        let mut metadata = BTreeMap::from([
             ("format_version".to_string(), FORMAT_VERSION.to_string()),
             ("generator".to_string(), generator()),
         ]);
+        if let Some(o) = &self.object_name {
+            metadata.insert("object".to_string(), o.clone());
+        }
         w.write_metadata(&mcap::records::Metadata { name: REFERENCE_METADATA_NAME.into(), metadata }).map_err(e)?;
         let schema = w.add_schema(REFERENCE_SCHEMA_NAME, "jsonschema", REFERENCE_JSON_SCHEMA.as_bytes()).map_err(e)?;
         let channel = w.add_channel(schema, REFERENCE_TOPIC, "json", &BTreeMap::new()).map_err(e)?;
@@ -319,6 +326,18 @@ impl Trajectory {
     /// are skipped, cells are trimmed, rows may come in any order (they are sorted by `t`).
     pub fn from_csv_str(text: &str, source: &str) -> Result<Trajectory> {
         let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        // `# object: NAME` (a comment line, before the header) names the demonstration's object
+        let mut object_name = None;
+        for l in text.lines() {
+            let l = l.trim();
+            if let Some(rest) = l.strip_prefix('#') {
+                if let Some(name) = rest.trim().strip_prefix("object:") {
+                    object_name = Some(check_object_name(source, name.trim())?);
+                }
+            } else if !l.is_empty() {
+                break;
+            }
+        }
         let mut lines =
             text.split('\n').enumerate().map(|(i, l)| (i + 1, l.strip_suffix('\r').unwrap_or(l))).filter(|(_, l)| {
                 let l = l.trim();
@@ -339,10 +358,11 @@ impl Trajectory {
         if raws.is_empty() {
             return Err(fail(source, Loc::File, "no data rows after the header: expected at least 1 frame"));
         }
-        assemble(source, raws)
+        assemble(source, raws).map(|t| Trajectory { object_name, ..t })
     }
 
-    /// The CSV text [`save_csv`](Self::save_csv) writes: the header, then one row per frame.
+    /// The CSV text [`save_csv`](Self::save_csv) writes: `# object: NAME` when the reference names
+    /// its object, the header, then one row per frame.
     pub fn to_csv_string(&self) -> Result<String> {
         use std::fmt::Write;
         self.validate()?;
@@ -359,7 +379,8 @@ impl Trajectory {
         if object {
             cols.extend(POSE_KEYS.iter().map(|k| format!("object_{k}")));
         }
-        let mut out = cols.join(",");
+        let mut out = self.object_name.as_ref().map_or(String::new(), |o| format!("# object: {o}\n"));
+        out.push_str(&cols.join(","));
         out.push('\n');
         for f in &self.frames {
             let _ = write!(out, "{}", f.t);
@@ -670,7 +691,7 @@ fn assemble(source: &str, mut raws: Vec<RawFrame>) -> Result<Trajectory> {
         }
         frames.push(Keyframe { t: raw.t, wrist: raw.wrist, joints, fingertips, object: raw.object });
     }
-    Ok(Trajectory { joint_names, fingertip_names: tip_names.unwrap_or_default(), frames })
+    Ok(Trajectory { joint_names, fingertip_names: tip_names.unwrap_or_default(), frames, object_name: None })
 }
 
 /// Puts `(name, value)` pairs into the order of `index`, which must hold exactly the same names.
@@ -1294,4 +1315,12 @@ mod json {
             Ok(Value::Num(self.text[start..self.pos].to_string()))
         }
     }
+}
+
+/// A reference's object name: 1–100 characters, no control characters (one-line errors name them).
+fn check_object_name(source: &str, name: &str) -> Result<String> {
+    if name.is_empty() || name.chars().count() > 100 || name.chars().any(char::is_control) {
+        return Err(fail(source, Loc::File, format!("object name {:?}: expected 1 to 100 characters without control characters", crate::config::clip(name, 40))));
+    }
+    Ok(name.to_string())
 }

@@ -68,6 +68,10 @@ pub struct Trajectory {
     pub fingertip_names: Vec<String>,
     /// Keyframes by strictly increasing time.
     pub frames: Vec<Keyframe>,
+    /// The name of the object the demonstration handles (`[object] name` or an `[[object.set]]`
+    /// entry's): an env following this reference holds that object. MCAP: field `object` of the
+    /// `dextrain.reference` metadata record; CSV: a comment line `# object: NAME` before the header.
+    pub object_name: Option<String>,
 }
 
 impl Trajectory {
@@ -239,7 +243,7 @@ impl Trajectory {
             }
             frames.push(self.sample(end));
         }
-        Trajectory { joint_names: self.joint_names.clone(), fingertip_names: self.fingertip_names.clone(), frames }
+        Trajectory { joint_names: self.joint_names.clone(), fingertip_names: self.fingertip_names.clone(), frames, object_name: self.object_name.clone() }
     }
 
     /// Maps a hand's joints (`names`, e.g. `HandModel` joint order) to this trajectory's joint

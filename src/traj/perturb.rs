@@ -149,6 +149,7 @@ pub fn perturb(clean: &Trajectory, hand: &HandModel, args: &PerturbArgs, seed: u
         joint_names: clean.joint_names.clone(),
         fingertip_names: hand.fingertips.iter().map(|t| t.name.clone()).collect(),
         frames,
+        object_name: clean.object_name.clone(),
     };
     out.validate()?;
     Ok(out)

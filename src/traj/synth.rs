@@ -307,6 +307,8 @@ fn script(model: &SimModel, args: &SynthArgs, grasp: Pose, approach: Vec<(f64, P
         joint_names: hand.joints.iter().map(|j| j.name.clone()).collect(),
         fingertip_names: hand.fingertips.iter().map(|t| t.name.clone()).collect(),
         frames,
+        // a synthesised reference is the config's own object's: it names none
+        object_name: None,
     };
     traj.validate()?;
     Ok(traj)

@@ -441,3 +441,86 @@ fn the_mustard_bottle_rests_on_its_hulls_at_the_meshs_height() {
         assert!(d < 1e-3 && tilt.to_degrees() < 0.2, "env {i}: drift {:.3} mm, tilt {:.3}°", d * 1e3, tilt.to_degrees());
     }
 }
+
+/// A reference names its object (MCAP metadata `object`, CSV `# object: NAME`): both formats keep
+/// it, and an env following a reference holds that object on both backends, episode after episode.
+#[test]
+fn references_name_their_objects() {
+    use dextrain::task::{CpuTaskBatch, TaskBatch};
+    use dextrain::traj::Trajectory;
+    let tmp = tempfile::tempdir().unwrap();
+    let configs = Path::new(env!("CARGO_MANIFEST_DIR")).join("configs");
+    let base = Trajectory::load(&configs.join("refs/grasp_lift.mcap")).unwrap();
+    assert_eq!(base.object_name, None);
+    let named = |o: &str| Trajectory { object_name: Some(o.into()), ..base.clone() };
+    let (a, b) = (tmp.path().join("a.mcap"), tmp.path().join("b.csv"));
+    named("cube").save_mcap(&a).unwrap();
+    named("can").save_csv(&b).unwrap();
+    assert_eq!(Trajectory::load(&a).unwrap().object_name.as_deref(), Some("cube"));
+    assert_eq!(Trajectory::load(&b).unwrap().object_name.as_deref(), Some("can"));
+    assert!(std::fs::read_to_string(&b).unwrap().starts_with("# object: can\n"));
+    let bad = Trajectory::from_csv_str("# object: \u{7}bell\nt,wrist_x\n", "bad.csv").unwrap_err().to_string();
+    assert!(bad.contains("bad.csv") && bad.contains("object name") && !bad.contains('\n'), "{bad}");
+    // the physics reset repeats the reference layer's draw: the same purpose and key on both sides
+    use dextrain::env::{gpu, reference, reset};
+    assert_eq!((reset::PURPOSE_REF_DRAW, reset::REF_KEY_ID_DRAW), (reference::PURPOSE_REF, reference::REF_KEY_ID));
+    for (src, line) in [
+        (gpu::SHADER_RESET, format!("const PURPOSE_REF_DRAW: u32 = {}u;", reference::PURPOSE_REF)),
+        (gpu::SHADER_RESET, format!("const REF_KEY_ID_DRAW: u32 = {}u;", reference::REF_KEY_ID)),
+        (gpu::SHADER_REFERENCE, format!("const PURPOSE_REF: u32 = {}u;", reference::PURPOSE_REF)),
+        (gpu::SHADER_REFERENCE, format!("const REF_KEY_ID: u32 = {}u;", reference::REF_KEY_ID)),
+    ] {
+        assert!(src.contains(&line), "{line}");
+    }
+
+    let mut c = Config::load(&configs.join("grasp_lift.toml")).unwrap();
+    c.sim.backend = "cpu".parse().unwrap();
+    c.sim.num_envs = 32;
+    c.task.kind = "track".parse().unwrap();
+    c.task.rewards = dextrain::config::TaskKind::Track.default_rewards();
+    c.task.episode_length = 20;
+    c.object.shape = None;
+    c.object.mass = None;
+    c.object.set = vec![
+        ObjectItem { name: Some("cube".into()), ..Default::default() },
+        ObjectItem { name: Some("ball".into()), shape: Some(ObjectShape::Sphere { radius: 0.03 }), ..Default::default() },
+        ObjectItem { name: Some("can".into()), shape: Some(ObjectShape::Cylinder { radius: 0.025, half_length: 0.03 }), ..Default::default() },
+    ];
+    c.task.reference.files = vec![a.display().to_string(), b.display().to_string()];
+    let model = SimModel::from_config(&c).unwrap();
+    let mut cpu = CpuTaskBatch::new(&c, model.clone()).unwrap();
+    // reference 0 holds the cube (object 0), reference 1 the can (object 2): never the ball
+    let check = |params: &[dextrain::env::EnvParams], refs: &[u32]| {
+        for (p, r) in params.iter().zip(refs) {
+            assert_eq!(p.obj_index, [0, 2][*r as usize], "reference {r}");
+        }
+        assert!(refs.contains(&0) && refs.contains(&1), "both references drawn: {refs:?}");
+    };
+    cpu.reset_all().unwrap();
+    let zeros = vec![0.0f32; 32 * cpu.spec().action_dim];
+    for episode in 0..3u32 {
+        let states = cpu.env().states().unwrap();
+        assert!(states.iter().all(|s| s.episode == episode), "episode {episode}");
+        let refs: Vec<u32> = cpu.task_states().iter().map(|t| t.cursor.ref_id).collect();
+        check(&cpu.env().params().unwrap(), &refs);
+        // the episode runs out (20 steps): every env starts the next one with a new draw
+        for _ in 0..20 {
+            cpu.step(&zeros).unwrap();
+        }
+    }
+    // a reference naming an object the config lacks is a one-line error naming both
+    let mut bad = c.clone();
+    bad.object.set.remove(2);
+    let e = format!("{:#}", CpuTaskBatch::new(&bad, SimModel::from_config(&bad).unwrap()).err().unwrap());
+    assert!(e.contains("b.csv") && e.contains("names object 'can'") && e.contains("cube, ball") && !e.contains('\n'), "{e}");
+    // the GPU draws the same objects
+    let Some(ctx) = gpu_context("references_name_their_objects") else { return };
+    let mut gpu = dextrain::task::GpuTaskBatch::new(&c, ctx, model).unwrap();
+    gpu.reset_all().unwrap();
+    let mut cpu = CpuTaskBatch::new(&c, SimModel::from_config(&c).unwrap()).unwrap();
+    cpu.reset_all().unwrap();
+    let (pg, pc) = (gpu.env().params().unwrap(), cpu.env().params().unwrap());
+    assert_eq!(pg.iter().map(|p| p.obj_index).collect::<Vec<_>>(), pc.iter().map(|p| p.obj_index).collect::<Vec<_>>());
+    let refs: Vec<u32> = gpu.task_states().unwrap().iter().map(|t| t.cursor.ref_id).collect();
+    check(&pg, &refs);
+}

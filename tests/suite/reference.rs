@@ -109,7 +109,7 @@ fn states(m: &SimModel, n: usize) -> Vec<EnvState> {
     (0..n as u32)
         .map(|i| {
             let ep = i % 3;
-            let p = reset_params(g, &m.object_descs, i, ep);
+            let p = reset_params(g, &m.object_descs, &m.ref_objects, i, ep);
             let mut s = reset_state(g, &m.joints, &p, i, ep, 0);
             let f = i as f32;
             s.wrist_pos[0] += 0.01 * (f * 0.7).sin();

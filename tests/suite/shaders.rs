@@ -70,7 +70,7 @@ fn pod_structs_match_their_wgsl_twins() {
     let m = validate(&shader_source());
     check(&m, "Globals", size_of::<Globals>(), rust_fields!(Globals; init_wrist_pos, init_wrist_rot, obj_init, rnd,
         n_envs, n_joints, n_colliders, n_tips, n_links, n_objects, n_obj_pts, substeps, decimation, seed, hand_table, n_springs,
-        dt, gravity, contact_k, contact_kt, hand_eff_mass, hand_friction, _pad1, obj_friction, table_friction, yaw_noise,
+        dt, gravity, contact_k, contact_kt, hand_eff_mass, hand_friction, n_ref_objects, obj_friction, table_friction, yaw_noise,
         hand_mass, hand_inertia, wrist_added_mass, wrist_added_inertia, wrist_kp_lin, wrist_kd_lin, wrist_force_limit,
         wrist_kp_rot, wrist_kd_rot, wrist_torque_limit, max_speed, max_distance, torsion_radius, _pad2));
     check(&m, "JointDesc", size_of::<JointDesc>(), rust_fields!(JointDesc; origin_pos, origin_rot, axis, parent_link, mimic_leader,
@@ -326,12 +326,12 @@ fn binding_tables_match_the_wgsl_globals() {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other
         assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu_bindings.rs (right)", group.shader);
-        // indices and names are unique, and indices from 21 up stay free for the test kernels
+        // indices and names are unique, and indices from 22 up stay free for the test kernels
         let mut ix: Vec<u32> = group.bindings.iter().map(|b| b.index).collect();
         ix.sort();
         ix.dedup();
         assert_eq!(ix.len(), group.bindings.len(), "{}: an index appears twice", group.shader);
-        assert!(ix.iter().all(|&i| i < 21), "{}: {ix:?}", group.shader);
+        assert!(ix.iter().all(|&i| i < 22), "{}: {ix:?}", group.shader);
         // each entry point's table lists exactly the globals it uses (its bind group binds these)
         for ep in group.entry_points {
             let (_, uses) = used.iter().find(|(n, _)| n == ep.entry_point).unwrap_or_else(|| panic!("{}: no entry point {}", group.shader, ep.entry_point));

@@ -75,7 +75,7 @@ fn awkward_trajectory(tips: bool, object: bool) -> Trajectory {
         });
         t += 0.0123 + (rng.next_u64() % 1000) as f64 * 1.7e-5;
     }
-    Trajectory { joint_names, fingertip_names, frames }
+    Trajectory { joint_names, fingertip_names, frames, object_name: None }
 }
 
 fn pose_msg(x: f32, y: f32, z: f32, q: Quat) -> String {
@@ -196,6 +196,7 @@ fn example_expected() -> Trajectory {
             f(0.5, 0.05, 0.2, q45, [0.4, 0.2]),
             f(1.0, 0.1, 0.15, q90, [0.8, 0.6]),
         ],
+        object_name: None,
     }
 }
 
@@ -831,6 +832,7 @@ fn two_frame(rot0: Quat, rot1: Quat) -> Trajectory {
                 object: Some(Pose::new(Vec3::new(1.0, 0.0, 0.1), rot0)),
             },
         ],
+        object_name: None,
     }
 }
 
