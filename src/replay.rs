@@ -161,6 +161,21 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
 /// [`replay`] with the model of `cfg` already built (`SimModel::from_config(cfg)`), for callers
 /// that replay many references under one config.
 pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kinematic: bool, out: Option<&Path>) -> Result<ReplayReport> {
+    // a reference that names its object is replayed with that object in every env
+    let named;
+    let model = match &traj.object_name {
+        Some(o) => {
+            let mut m = model.clone();
+            let k = m.object_index(o).ok_or_else(|| {
+                let names: Vec<&str> = m.objects.iter().map(|x| x.name.as_str()).collect();
+                anyhow::anyhow!("the reference names object '{}': expected one of the config's objects ({})", crate::config::clip(o, 40), names.join(", "))
+            })?;
+            m.set_reference_objects(vec![k]);
+            named = m;
+            &named
+        }
+        None => model,
+    };
     let map = traj.joint_map(&model.spec.joint_names)?;
     let g = model.globals;
     let n = cfg.sim.num_envs;

@@ -197,6 +197,54 @@ impl ObjectModel {
         self.pieces.iter().map(|p| p.pose.pos.length() + piece_bound(p)).fold(0.0, f32::max)
     }
 
+    /// The axis-aligned box (lo, hi) in the object frame around every piece.
+    pub fn bounding_box(&self) -> (Vec3, Vec3) {
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
+        for p in &self.pieces {
+            let (pos, rot) = (p.pose.pos, p.pose.rot);
+            if let Some(h) = &p.hull {
+                for v in &h.vertices {
+                    let w = p.pose.transform_point(*v);
+                    (lo, hi) = (lo.min(w), hi.max(w));
+                }
+                continue;
+            }
+            // half extents along the object's axes: a box's |R| h; a round shape's along its axis a:
+            // |aᵢ|·l + r (capsule) or |aᵢ|·l + r·√(1 − aᵢ²) (cylinder); a sphere's r
+            let e = match p.shape {
+                ObjectShape::Box { half_extents: h } => {
+                    let m = glam::Mat3::from_quat(rot);
+                    Vec3::new(
+                        m.row(0).abs().dot(Vec3::from(h)),
+                        m.row(1).abs().dot(Vec3::from(h)),
+                        m.row(2).abs().dot(Vec3::from(h)),
+                    )
+                }
+                ObjectShape::Sphere { radius } => Vec3::splat(radius),
+                ObjectShape::Capsule { radius, half_length } => (rot * Vec3::Z).abs() * half_length + Vec3::splat(radius),
+                ObjectShape::Cylinder { radius, half_length } => {
+                    let a = (rot * Vec3::Z).abs();
+                    a * half_length + (Vec3::ONE - a * a).max(Vec3::ZERO).map(f32::sqrt) * radius
+                }
+            };
+            (lo, hi) = (lo.min(pos - e), hi.max(pos + e));
+        }
+        (lo, hi)
+    }
+
+    /// Whether the object is one sphere, or one cylinder or capsule standing upright: round in
+    /// the table's plane (a grasp may close on it from any side).
+    pub fn is_round(&self) -> bool {
+        match self.pieces.as_slice() {
+            [p] if p.hull.is_none() => match p.shape {
+                ObjectShape::Sphere { .. } => true,
+                ObjectShape::Capsule { .. } | ObjectShape::Cylinder { .. } => (p.pose.rot * Vec3::Z).z.abs() > 0.9999,
+                ObjectShape::Box { .. } => false,
+            },
+            _ => false,
+        }
+    }
+
     /// Support points of all pieces against the table.
     pub fn n_support(&self) -> u32 {
         self.pieces.iter().map(piece_support).sum()

@@ -2,7 +2,7 @@
 //! joint values per hand): the thumb's fingertip and the other fingertips are placed on opposite
 //! sides of the object and reached by the fingertip IK of `env::ik` (the residual task's solver).
 //! A [`GraspVariant`] fixes the choices below; `traj synth` tries [`GRASP_VARIANTS`] in order and
-//! keeps the first whose reference lifts the cube in simulation.
+//! keeps the first whose reference lifts the object in simulation.
 //!
 //! The plan, for the config's hand, object and initial wrist orientation:
 //! 0. **Pad points.** The IK moves each fingertip's pad point ([`pad_points`]): the tip frame, or
@@ -42,7 +42,7 @@ use crate::env::ik::{IkParams, ik_solve, ik_tip_positions};
 use crate::env::physics::{Scratch, collide_hand_object, hand_kinematics};
 use crate::env::reset::reset_params;
 use crate::env::{EnvState, SimModel};
-use crate::geom::{ObjectShape, Pose};
+use crate::geom::Pose;
 use crate::hand::{ColliderShape, HandModel, MAX_JOINTS, MAX_TIPS};
 
 /// Fingertips outside their contact points in the pre-grasp posture (m), the first clearance tried.
@@ -100,7 +100,7 @@ pub struct GraspVariant {
 }
 
 /// The variants `traj synth --grasp antipodal` tries in order, the same for every hand: the first
-/// whose reference lifts the cube in simulation is kept. The palm clear of the object's top, then
+/// whose reference lifts the object in simulation is kept. The palm clear of the object's top, then
 /// resting on it (a hand whose fingers are short for the object); within each, contact points at
 /// mid height, above and below it, each with a shallow and a deep squeeze, each with both
 /// oppositions.
@@ -176,16 +176,23 @@ struct Footprint {
     round: bool,
 }
 
-fn footprint(model: &SimModel, shape: ObjectShape) -> Footprint {
+/// The first object's footprint at its nominal place: the box around its pieces (in its frame,
+/// turned by the initial yaw), round for an upright cylinder, capsule or a sphere. For a primitive
+/// object that is the primitive itself.
+fn footprint(model: &SimModel) -> Footprint {
+    let o = &model.objects[0];
+    let (lo, hi) = o.bounding_box();
+    let h = (hi - lo) * 0.5;
+    Footprint { centre: object_centre(model), yaw: model.globals.obj_init[2], half: [h.x, h.y], half_height: h.z, round: o.is_round() }
+}
+
+/// The centre (world) of the box around the first object's pieces, with the object resting at
+/// its nominal place: where a grasp aims.
+pub fn object_centre(model: &SimModel) -> Vec3 {
     let g = &model.globals;
-    let centre = Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]);
-    let yaw = g.obj_init[2];
-    match shape {
-        ObjectShape::Box { half_extents: h } => Footprint { centre, yaw, half: [h[0], h[1]], half_height: h[2], round: false },
-        ObjectShape::Sphere { radius } => Footprint { centre, yaw, half: [radius; 2], half_height: radius, round: true },
-        ObjectShape::Capsule { radius, half_length } => Footprint { centre, yaw, half: [radius; 2], half_height: half_length + radius, round: true },
-        ObjectShape::Cylinder { radius, half_length } => Footprint { centre, yaw, half: [radius; 2], half_height: half_length, round: true },
-    }
+    let (lo, hi) = model.objects[0].bounding_box();
+    let origin = Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]);
+    origin + Quat::from_rotation_z(g.obj_init[2]) * ((lo + hi) * 0.5)
 }
 
 /// Links that no single finger moves alone: the root and every link that lies on the chains of two
@@ -271,7 +278,7 @@ pub fn pad_points(hand: &HandModel) -> Vec<Vec3> {
 
 /// Plans the grasp of the config's object by the model's hand (see the module documentation).
 /// `thumb`: the thumb's fingertip name ("" = detect).
-pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str, variant: &GraspVariant) -> Result<GraspPlan> {
+pub fn plan_grasp(model: &SimModel, thumb: &str, variant: &GraspVariant) -> Result<GraspPlan> {
     let hand = &model.hand;
     let nt = hand.fingertips.len();
     if nt < 2 {
@@ -306,7 +313,7 @@ pub fn plan_grasp(model: &SimModel, shape: ObjectShape, thumb: &str, variant: &G
     let finger_centroid = fingers.iter().map(|&i| mid_tips[i]).sum::<Vec3>() / fingers.len() as f32;
 
     // 1. opposition axis, and the wrist's turn about the vertical that aligns it with a face normal
-    let obj = footprint(model, shape);
+    let obj = footprint(model);
     let rot0 = Quat::from_array(model.globals.init_wrist_rot);
     let opp = match variant.opposition {
         Opposition::ThumbToFingers => rot0 * (mid_tips[th] - finger_centroid),

@@ -17,7 +17,7 @@
 //!   pre-grasp posture (the last `DESCENT_FRACTION` of the approach), and the closing phase passes
 //!   through the plan's closing postures. The variants of [`super::grasp::GRASP_VARIANTS`] are
 //!   tried in order, each reference replayed under the config's physics (one env, nominal object
-//!   place, no randomisation; 10–30 ms each, the model built once); the first that lifts the cube
+//!   place, no randomisation; 10–30 ms each, the model built once); the first that lifts the object
 //!   `VERIFY_LIFT_FRACTION` of `--lift` with less than `VERIFY_PEAK_PENETRATION_MM` is written
 //!   (else the best, with a warning). It lifts every hand of `../shared/hands/` (BENCHMARKS.md,
 //!   "Real hands").
@@ -34,7 +34,7 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use glam::{Quat, Vec3};
 
-use super::grasp::{GRASP_VARIANTS, HOVER_M, plan_grasp};
+use super::grasp::{GRASP_VARIANTS, HOVER_M, object_centre, plan_grasp};
 use super::perturb::{PerturbArgs, perturb};
 use super::{Keyframe, Trajectory};
 use crate::config::Config;
@@ -149,7 +149,7 @@ pub fn grasp_wrist_pose(model: &SimModel, q: &[f32]) -> Pose {
     let tips: Vec<Vec3> = model.hand.fingertips.iter().map(|t| rot * links[t.link].transform_point(t.pos)).collect();
     let lo = tips.iter().copied().fold(Vec3::splat(f32::INFINITY), Vec3::min);
     let hi = tips.iter().copied().fold(Vec3::splat(f32::NEG_INFINITY), Vec3::max);
-    let obj = Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]);
+    let obj = object_centre(model);
     Pose::new(obj - 0.5 * (lo + hi), rot)
 }
 
@@ -184,7 +184,7 @@ pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
 }
 
 /// The `antipodal` reference: the first of [`GRASP_VARIANTS`] whose reference, replayed under the
-/// config's physics (one env, the object at its nominal place, no randomisation), lifts the cube
+/// config's physics (one env, the object at its nominal place, no randomisation), lifts the object
 /// `VERIFY_LIFT_FRACTION` of `--lift` with less than `VERIFY_PEAK_PENETRATION_MM`; if none does,
 /// the one that lifted it highest, with a warning.
 fn antipodal(cfg: &Config, args: &SynthArgs, model: &SimModel) -> Result<Trajectory> {
@@ -196,18 +196,10 @@ fn antipodal(cfg: &Config, args: &SynthArgs, model: &SimModel) -> Result<Traject
     verify.object.yaw_noise = 0.0;
     verify.randomization = Default::default();
     let verify_model = SimModel::from_config(&verify)?;
-    // grasps are planned on a primitive's faces; a mesh object's geometry is not planned on yet
-    let Some(shape) = cfg.object.first_primitive() else {
-        bail!(
-            "{}: `traj synth` plans grasps on a primitive object (`[object] shape`), and object '{}' is made from a mesh: expected a primitive object (record or import references for mesh objects)",
-            cfg.source.display(),
-            model.objects[0].name
-        );
-    };
     let mut first_err = None;
     let mut best: Option<(f64, Trajectory, String)> = None;
     for (k, variant) in GRASP_VARIANTS.iter().enumerate() {
-        let plan = match plan_grasp(model, shape, &cfg.task.hand.thumb, variant) {
+        let plan = match plan_grasp(model, &cfg.task.hand.thumb, variant) {
             Ok(plan) => plan,
             Err(e) => {
                 first_err.get_or_insert(e);
@@ -220,8 +212,7 @@ fn antipodal(cfg: &Config, args: &SynthArgs, model: &SimModel) -> Result<Traject
         let approach = vec![(t1 * (1.0 - DESCENT_FRACTION), hover, pre.clone()), (t1, plan.wrist, pre)];
         let traj = script(model, args, plan.wrist, approach, plan.closing[1..].to_vec())?;
         // where the object sits in the wrist frame at the grasp: what `task.hand.palm_offset` names
-        let g = &model.globals;
-        let held = plan.wrist.inverse().transform_point(Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]));
+        let held = plan.wrist.inverse().transform_point(object_centre(model));
         let errs: Vec<String> = hand.fingertips.iter().zip(&plan.reach_error).map(|(t, e)| format!("{} {:.1}", t.name, e * 1e3)).collect();
         let about = format!(
             "variant {}/{} ({:?}, contacts at {:+.1} of the half height, squeeze {:.0} mm, palm {:.0} mm above the object), thumb '{}', fingertip distance from its contact point (mm): {}; object centre in the wrist frame at the grasp: [{:.3}, {:.3}, {:.3}] m (task.hand.palm_offset)",
@@ -245,11 +236,11 @@ fn antipodal(cfg: &Config, args: &SynthArgs, model: &SimModel) -> Result<Traject
         let lift = report.object_lift_m;
         let pen = report.peak_penetration_mm;
         if lift >= (VERIFY_LIFT_FRACTION * args.lift) as f64 && pen < VERIFY_PEAK_PENETRATION_MM {
-            crate::console::status(&format!("antipodal grasp: {about}; in simulation it lifts the cube {:.3} m, peak penetration {pen:.2} mm", lift));
+            crate::console::status(&format!("antipodal grasp: {about}; in simulation it lifts the object {:.3} m, peak penetration {pen:.2} mm", lift));
             return Ok(traj);
         }
         if best.as_ref().is_none_or(|(l, _, _)| lift > *l) {
-            best = Some((lift, traj, format!("{about}; in simulation it lifts the cube {lift:.3} m, peak penetration {pen:.2} mm")));
+            best = Some((lift, traj, format!("{about}; in simulation it lifts the object {lift:.3} m, peak penetration {pen:.2} mm")));
         }
     }
     match best {

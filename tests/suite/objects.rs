@@ -513,6 +513,18 @@ fn references_name_their_objects() {
     bad.object.set.remove(2);
     let e = format!("{:#}", CpuTaskBatch::new(&bad, SimModel::from_config(&bad).unwrap()).err().unwrap());
     assert!(e.contains("b.csv") && e.contains("names object 'can'") && e.contains("cube, ball") && !e.contains('\n'), "{e}");
+    // replay puts the reference's object in every env; an object the config lacks is an error
+    let mut one = c.clone();
+    one.sim.num_envs = 2;
+    let e = format!("{:#}", dextrain::replay::replay(&one, &named("mug"), true, None).unwrap_err());
+    assert!(e.contains("names object 'mug'") && e.contains("cube, ball, can"), "{e}");
+    let rec = tmp.path().join("ball.mcap");
+    dextrain::replay::replay(&one, &named("ball"), true, Some(&rec)).unwrap();
+    let bytes = std::fs::read(&rec).unwrap();
+    let summary = mcap::read::Summary::read(&bytes).unwrap().expect("a summary");
+    let md = summary.metadata_indexes.iter().map(|i| mcap::read::metadata(&bytes, i).unwrap()).find(|m| m.name == "dextrain").expect("dextrain metadata");
+    let parts: Vec<dextrain::record::ObjectPart> = serde_json::from_str(&md.metadata["object"]).unwrap();
+    assert!(matches!(parts[..], [dextrain::record::ObjectPart { shape: ObjectShape::Sphere { .. }, .. }]), "{parts:?}");
     // the GPU draws the same objects
     let Some(ctx) = gpu_context("references_name_their_objects") else { return };
     let mut gpu = dextrain::task::GpuTaskBatch::new(&c, ctx, model).unwrap();
