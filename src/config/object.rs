@@ -292,8 +292,7 @@ impl ObjectConfig {
         }
     }
 
-    /// The primitive shape of the first object, if it is one (trajectory synthesis plans grasps on
-    /// primitives).
+    /// The primitive shape of the first object, if it is one.
     pub fn first_primitive(&self) -> Option<ObjectShape> {
         self.items().first().and_then(|(_, it)| it.primitive())
     }
@@ -326,10 +325,16 @@ impl ObjectConfig {
         c.non_neg("object.yaw_noise", self.yaw_noise)
     }
 
-    /// `[object]` with every mesh and URDF path made absolute by `absolute` (a run's saved config).
+    /// `[object]` with every mesh and URDF path made absolute by `absolute`, and the single
+    /// object's piece settings written out (a run's saved config: it loads the same pieces later,
+    /// whatever the defaults then).
     pub fn with_paths(&self, absolute: impl Fn(&str) -> String) -> ObjectConfig {
         let mut out = self.clone();
-        out.mesh = self.single().with_paths(&absolute).mesh;
+        let single = self.single();
+        if self.set.is_empty() {
+            (out.mesh_scale, out.pieces_as, out.hull_above_gap) = (Some(single.mesh_scale), Some(single.pieces_as.clone()), Some(single.hull_above_gap));
+        }
+        out.mesh = single.with_paths(&absolute).mesh;
         out.urdf = self.urdf.as_deref().map(&absolute);
         out.set = self.set.iter().map(|it| it.with_paths(&absolute)).collect();
         out

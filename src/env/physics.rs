@@ -4,8 +4,10 @@
 //!
 //! The model (DESIGN §4), per substep of length h:
 //! 1. `hand_kinematics`: link poses and velocities from the wrist state and joint positions.
-//! 2. Contacts (penalty): hand–object (one per hand collider, closest points by alternating
-//!    projection), hand–table (lowest point of each collider), object–table (object support points).
+//! 2. Contacts (penalty): hand–object (one per hand collider: the deepest over the object's pieces,
+//!    closest points by alternating projection between the collider and a piece — a primitive, or a
+//!    convex hull whose closest point is found on the triangles the point is in front of),
+//!    hand–table (lowest point of each collider), object–table (every piece's support points).
 //!    Normal force `Fn = max(k·depth − c·vn, 0)`; friction from a tangential spring anchored per contact
 //!    pair, `Ft = −kt·s − ct·vt`, sliding (s rescaled) when `|Ft| > μ·Fn`, so a held object does not creep.
 //! 3. Contact forces on hand links push the joints of their chain (τ = Jᵀ F) and the wrist. The hand
@@ -20,6 +22,8 @@
 //!    target (the hand's weight is compensated, as by an arm controller).
 //! 5. Object: a free rigid body under gravity and contact forces, integrated linearly implicitly in
 //!    its 6 velocities (M + h·Σ Jᵀ D J) Δu = h·f, so that stiff contacts stay stable for light objects.
+//!    Its state is the pose of its own (mesh) frame and the velocity of its centre of mass; the
+//!    centre of mass and the principal axes of inertia sit in that frame (`ObjectDesc`).
 
 use glam::{Vec3, Vec4};
 

@@ -251,6 +251,10 @@ fn three_objects_are_drawn_per_env_and_episode() {
         ObjectItem { mass: Some(0.15), ..mesh_item(Path::new(BOTTLE)) },
     ]);
     c.sim.num_envs = 48;
+    // the randomisation keys apply to every object: lengths, mass and friction
+    c.randomization.object_scale = [0.7, 1.3];
+    c.randomization.object_mass = [0.5, 1.5];
+    c.randomization.object_friction = [0.5, 1.5];
     let model = SimModel::from_config(&c).unwrap();
     let names: Vec<&str> = model.objects.iter().map(|o| o.name.as_str()).collect();
     assert_eq!(names, ["cube", "sphere", "bottle"]);
@@ -261,10 +265,19 @@ fn three_objects_are_drawn_per_env_and_episode() {
     for (p, s) in params.iter().zip(&states) {
         let k = p.obj_index as usize;
         count[k] += 1;
-        // each env starts resting on its own object's base, with that object's mass
-        assert!((s.obj_pos[2] - model.object_descs[k].rest_height).abs() < 1e-6);
-        assert_eq!(p.obj_inertia[3], model.objects[k].mass);
+        // each env starts resting on its own object's base (scaled), with that object's mass
+        // (randomised) and inertia I/m · m · s², its centre of mass and bound scaled
+        let (d, sc, m) = (&model.object_descs[k], p.obj_scale, p.obj_inertia[3]);
+        assert!((0.7..=1.3).contains(&sc) && (0.5..=1.5).contains(&(m / model.objects[k].mass)), "scale {sc}, mass {m}");
+        assert!((s.obj_pos[2] - d.rest_height * sc).abs() < 1e-6);
+        assert!((p.obj_rest_height - d.rest_height * sc).abs() < 1e-7);
+        for i in 0..3 {
+            assert!((p.obj_inertia[i] - d.inertia[i] * m * sc * sc).abs() <= 1e-6 * p.obj_inertia[i]);
+            assert!((p.obj_com[i] - d.com[i] * sc).abs() < 1e-7);
+        }
+        assert!((p.obj_com[3] - d.com[3] * sc).abs() < 1e-7);
     }
+    assert!(params.iter().any(|p| (p.obj_friction - params[0].obj_friction).abs() > 1e-3), "friction drawn per env");
     assert!(count.iter().all(|&n| n >= 8), "each object drawn: {count:?}");
     // the next episode draws again: some envs change object
     b.reset(&vec![true; 48]).unwrap();
