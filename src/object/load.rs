@@ -24,7 +24,15 @@ pub const MAX_OBJECT_FILE_BYTES: u64 = 64 << 20;
 /// The run's objects: `[[object.set]]`'s entries in order, or the one `[object]` describes.
 pub fn load_objects(cfg: &Config) -> Result<Vec<ObjectModel>> {
     let file = cfg.source.display().to_string();
-    cfg.object.items().iter().map(|(key, item)| load_object(item, key, &file, &|p| cfg.resolve(p))).collect()
+    let items = cfg.object.items();
+    let objects: Vec<ObjectModel> = items.iter().map(|(key, item)| load_object(item, key, &file, &|p| cfg.resolve(p))).collect::<Result<_>>()?;
+    // references and eval reports name objects: each name once
+    for (j, o) in objects.iter().enumerate() {
+        if let Some(i) = objects[..j].iter().position(|p| p.name == o.name) {
+            return Err(anyhow!("{file}: `{}` and `{}` are both named '{}': expected a unique `name` per object", items[i].0, items[j].0, o.name));
+        }
+    }
+    Ok(objects)
 }
 
 /// What a mesh piece becomes (`pieces_as`, `hull_above_gap`).

@@ -369,6 +369,9 @@ fn bad_object_input_is_a_one_line_error() {
             assert!(e.contains(w), "{w:?} not in: {e}");
         }
     }
+    // two objects of one name (eval and references tell objects apart by name)
+    let e = format!("{:#}", load_objects(&object_config(vec![mesh_item(Path::new(BOTTLE)), mesh_item(Path::new(BOTTLE))])).unwrap_err());
+    assert!(e.contains("`object.set[0]` and `object.set[1]` are both named 'bottle'") && !e.contains('\n'), "{e}");
     // config keys that contradict each other
     for (toml, want) in [
         ("[object]\nmesh = \"a.obj\"\nshape = { type = \"sphere\", radius = 0.03 }\n", "more than one of `shape`, `mesh`, `urdf`"),
