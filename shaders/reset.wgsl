@@ -11,6 +11,7 @@ fn rand_range(env: u32, episode: u32, purpose: u32, k: u32, lo: f32, hi: f32) ->
     return lo + (hi - lo) * rand_uniform(g.seed, env, episode, purpose, k);
 }
 
+// ζ = −ln e / √(π² + ln² e); ζ = 1 for e → 0
 fn damping_ratio(e: f32) -> f32 {
     if (e < 1e-3) {
         return 1.0;
