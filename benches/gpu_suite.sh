@@ -9,6 +9,8 @@
 #   1. env-only throughput of the contact-rich bench scene (`dextrain bench --backend gpu`) at
 #      4 k, 16 k, 64 k and 256 k envs (every env step uploads the targets and reads the step
 #      statistics back, as an RL loop does);
+#   1b. the same scene at OBJ_ENVS (65536) envs with the cube, the 3-piece bottle and the 16-piece mug
+#      (configs/bench_{cube,bottle,mug16}.toml): what a compound object costs per env step;
 #   2. the learner updates on the GPU at the peers' shapes (`bench --ppo` / `bench --sac --device gpu`);
 #   3. PPO training on configs/lift_cube_gpu.toml for TRAIN_PPO_S seconds (SIGINT: the run stops at
 #      the end of its iteration with a checkpoint), then SAC on configs/lift_cube_sac_gpu.toml for
@@ -16,7 +18,8 @@
 #      and env steps of the first iteration at >= 90 % success.
 # --quick runs the same steps at tiny sizes (any adapter, lavapipe included) so that the script
 # can be checked anywhere. Environment: ENVS (space-separated env counts), TRAIN_PPO_S, TRAIN_SAC_S,
-# BENCH_S (least timed seconds per env-only point), ADAPTER (gpu or gpu:NAME, default gpu).
+# BENCH_S (least timed seconds per env-only point), OBJ_ENVS, ADAPTER (gpu or gpu:NAME, default gpu),
+# STEPS (the steps to run, default "env objects learner train"; the others' JSON values are null).
 set -uo pipefail
 
 bin=target/release/dextrain
@@ -33,12 +36,12 @@ done
 mkdir -p "$out"
 adapter=${ADAPTER:-gpu}
 if [ "$quick" = 1 ]; then
-    envs=${ENVS:-"64 128"}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; bench_s=${BENCH_S:-0.5}
+    envs=${ENVS:-"64 128"}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; bench_s=${BENCH_S:-0.5}; obj_envs=${OBJ_ENVS:-64}
     small=(--set sim.num_envs=64 --set train.steps_per_env=4 --set 'policy.actor_hidden=[32]' --set 'policy.critic_hidden=[32]')
     sac_small=(--set sac.batch_size=64 --set sac.learning_starts=8 --set sac.buffer_capacity=64)
     learner_sizes=(--envs 64 --iters 1)
 else
-    envs=${ENVS:-"4096 16384 65536 262144"}; ppo_s=${TRAIN_PPO_S:-240}; sac_s=${TRAIN_SAC_S:-120}; bench_s=${BENCH_S:-5}
+    envs=${ENVS:-"4096 16384 65536 262144"}; ppo_s=${TRAIN_PPO_S:-240}; sac_s=${TRAIN_SAC_S:-120}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
     small=(); sac_small=(); learner_sizes=(--iters 3)
 fi
 runs=$out/runs
@@ -79,26 +82,43 @@ train_for() {
     echo "exit $?" >>"$out/$name.log"
 }
 
+steps=" ${STEPS:-env objects learner train} "
+runs_step() { case "$steps" in *" $1 "*) return 0 ;; *) return 1 ;; esac; }
+
 start=$(date +%s)
 echo "gpu_suite: adapter $adapter, env counts $envs, quick=$quick" >&2
 env_json=""
+runs_step env || envs=""
 for n in $envs; do
     echo "gpu_suite: env-only bench at $n envs" >&2
     "$bin" bench --backend "$adapter" --envs "$n" --chunks 5 --seconds "$bench_s" >"$out/env_$n.json" 2>"$out/env_$n.log"
     env_json="$env_json${env_json:+, }$(json_of "$out/env_$n.json")"
 done
-echo "gpu_suite: learner updates" >&2
-"$bin" bench --ppo --device "$adapter" "${learner_sizes[@]}" >"$out/ppo_update.json" 2>"$out/ppo_update.log"
-"$bin" bench --sac --device "$adapter" "${learner_sizes[@]}" >"$out/sac_update.json" 2>"$out/sac_update.log"
-echo "gpu_suite: PPO lift for ${ppo_s}s" >&2
-train_for gpu_ppo "$ppo_s" configs/lift_cube_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" "${small[@]}"
-echo "gpu_suite: SAC lift for ${sac_s}s" >&2
-train_for gpu_sac "$sac_s" configs/lift_cube_sac_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" "${small[@]}" "${sac_small[@]}"
+obj_json=""
+objects="cube bottle mug16"
+runs_step objects || objects=""
+for o in $objects; do
+    echo "gpu_suite: env-only bench with the $o at $obj_envs envs" >&2
+    "$bin" bench configs/bench_$o.toml --backend "$adapter" --envs "$obj_envs" --chunks 5 --seconds "$bench_s" >"$out/object_$o.json" 2>"$out/object_$o.log"
+    obj_json="$obj_json${obj_json:+, }$(json_of "$out/object_$o.json")"
+done
+if runs_step learner; then
+    echo "gpu_suite: learner updates" >&2
+    "$bin" bench --ppo --device "$adapter" "${learner_sizes[@]}" >"$out/ppo_update.json" 2>"$out/ppo_update.log"
+    "$bin" bench --sac --device "$adapter" "${learner_sizes[@]}" >"$out/sac_update.json" 2>"$out/sac_update.log"
+fi
+if runs_step train; then
+    echo "gpu_suite: PPO lift for ${ppo_s}s" >&2
+    train_for gpu_ppo "$ppo_s" configs/lift_cube_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" "${small[@]}"
+    echo "gpu_suite: SAC lift for ${sac_s}s" >&2
+    train_for gpu_sac "$sac_s" configs/lift_cube_sac_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" "${small[@]}" "${sac_small[@]}"
+fi
 driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader 2>/dev/null || echo unknown) | head -n 1)
 {
     printf '{"suite": "dextrain_gpu", "quick": %s, "date": "%s", "driver": "%s", "wall_s": %s,\n' \
         "$([ "$quick" = 1 ] && echo true || echo false)" "$(date -u +%FT%TZ)" "$driver" "$(($(date +%s) - start))"
     printf ' "env_only": [%s],\n' "$env_json"
+    printf ' "objects": [%s],\n' "$obj_json"
     printf ' "ppo_update": %s,\n "sac_update": %s,\n' "$(json_of "$out/ppo_update.json")" "$(json_of "$out/sac_update.json")"
     printf ' "train_ppo": %s,\n "train_sac": %s}\n' "$(train_summary "$runs/gpu_ppo/metrics.csv")" "$(train_summary "$runs/gpu_sac/metrics.csv")"
 } >"$out/gpu_suite.json"

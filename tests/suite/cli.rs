@@ -278,3 +278,39 @@ fn sigterm_stops_a_training_run_with_a_checkpoint() {
     // the checkpoint of the last logged iteration (the periodic interval was never reached)
     assert!(dir.path().join(format!("term/checkpoints/{last}")).is_dir(), "no checkpoint at iteration {last}");
 }
+
+/// `benches/gpu_suite.sh --quick` (issue 16: the one command of a GPU window cannot rot): its
+/// env-only steps (the bench scene, and the cube, bottle and mug of issue 17) run on the adapter the
+/// GPU tests use, lavapipe included, and the JSON holds their figures. The learner and training
+/// steps are left out (STEPS): on lavapipe they took 12 of the 13 minutes this test took with them
+/// (burn's kernels compiled and tuned on a software adapter); `bench --ppo/--sac` and GPU training
+/// have their own tests.
+#[test]
+fn gpu_suite_quick_writes_every_figure() {
+    let Some(ctx) = crate::common::gpu_context("gpu_suite_quick_writes_every_figure") else { return };
+    let adapter = format!("gpu:{}", ctx.info.name.split(" (").next().unwrap_or(&ctx.info.name));
+    drop(ctx);
+    let tmp = tempfile::tempdir().unwrap();
+    let out = Command::new("bash")
+        .args(["benches/gpu_suite.sh", "--quick", "--bin", env!("CARGO_BIN_EXE_dextrain"), "--out"])
+        .arg(tmp.path())
+        .envs([("ADAPTER", adapter.as_str()), ("ENVS", "64"), ("BENCH_S", "0.2"), ("STEPS", "env objects")])
+        .current_dir(ROOT)
+        .output()
+        .unwrap();
+    let text = std::fs::read_to_string(tmp.path().join("gpu_suite.json")).unwrap_or_else(|e| panic!("no gpu_suite.json ({e}): {}", String::from_utf8_lossy(&out.stderr)));
+    let j: serde_json::Value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"));
+    assert_eq!(j["quick"], true);
+    let rate = |v: &serde_json::Value| v["env_steps_per_s"]["median"].as_f64().unwrap_or(0.0);
+    assert!(rate(&j["env_only"][0]) > 0.0, "{text}");
+    let objects = j["objects"].as_array().unwrap();
+    assert_eq!(objects.len(), 3, "{text}");
+    for (o, name) in objects.iter().zip(["bench_cube", "bench_bottle", "bench_mug16"]) {
+        assert!(rate(o) > 0.0 && o["config"].as_str().unwrap_or("").contains(name), "{o}");
+        assert!(o["backend"].as_str().unwrap_or("").starts_with("gpu"), "{o}");
+    }
+    // the steps left out are null, not figures from an earlier run
+    for k in ["ppo_update", "sac_update", "train_ppo", "train_sac"] {
+        assert!(j[k].is_null(), "{k}: {text}");
+    }
+}
