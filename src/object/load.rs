@@ -173,6 +173,10 @@ fn mesh_pieces(path: &Path, scale: f32, kinds: &PieceRule, pose: &Pose, whence: 
     if named.is_empty() {
         return Err(anyhow!("{f}: no faces ({whence}); expected a closed triangle mesh"));
     }
+    // before fitting every piece of a file that has far too many
+    if named.len() > MAX_PIECES {
+        return Err(anyhow!("{f}: {} collision pieces ({whence}); expected at most {MAX_PIECES} (MAX_PIECES): merge pieces or decompose more coarsely", named.len()));
+    }
     let (rot, pos) = (pose.rot.as_dquat(), pose.pos.as_dvec3());
     let mut out = Vec::with_capacity(named.len());
     for (name, mut mesh) in named {
