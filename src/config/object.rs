@@ -292,11 +292,6 @@ impl ObjectConfig {
         }
     }
 
-    /// The primitive shape of the first object, if it is one.
-    pub fn first_primitive(&self) -> Option<ObjectShape> {
-        self.items().first().and_then(|(_, it)| it.primitive())
-    }
-
     /// Checks `[object]`.
     pub fn validate(&self, c: &Check) -> Result<()> {
         if !self.set.is_empty() {

@@ -315,7 +315,9 @@ pub fn box_project(c: Vec3, r: Vec4, h: Vec3, p: Vec3) -> Vec3 {
 }
 
 /// Closest point of the triangle (a, b, c) to `p` (Ericson, Real-Time Collision Detection §5.1.5:
-/// the Voronoi regions of the vertices, then the edges, then the face).
+/// the Voronoi regions of the vertices, then the edges, then the face). The host's f64
+/// `mesh::hull::closest_point_on_triangle` is not used here: this twin follows the shader's f32
+/// arithmetic step for step.
 pub fn triangle_closest(p: Vec3, a: Vec3, b: Vec3, c: Vec3) -> Vec3 {
     let ab = b - a;
     let ac = c - a;

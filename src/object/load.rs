@@ -39,8 +39,8 @@ pub fn load_objects(cfg: &Config) -> Result<Vec<ObjectModel>> {
 struct PieceRule {
     /// The primitive kinds listed (the box alone when only the hull is).
     kinds: Vec<PrimitiveKind>,
-    /// Whether the hull may replace the best primitive, and beyond which gap (m); 0 with no
-    /// primitive listed (always the hull).
+    /// Whether the hull may replace the best primitive, and beyond which gap (m); −1 (every gap
+    /// exceeds it: always the hull) when no primitive is listed.
     hull: Option<f64>,
 }
 

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use dextrain::config::Config;
 use dextrain::env::SimModel;
-use dextrain::traj::grasp::{GRASP_VARIANTS, HEIGHT_FRACTION, HOVER_M, PRE_CLEARANCES_M, hand_object_depth, pad_points, plan_grasp};
+use dextrain::traj::grasp::{GRASP_VARIANTS, HEIGHT_FRACTION, HOVER_M, PRE_CLEARANCES_M, hand_object_depth, object_centre, pad_points, plan_grasp};
 use dextrain::traj::synth::{GraspChoice, SynthArgs, synth};
 use dextrain::geom::Pose;
 use glam::Vec3;
@@ -78,7 +78,7 @@ fn antipodal_plan_puts_thumb_and_fingers_on_opposite_faces_within_reach() {
         let variant = &GRASP_VARIANTS[0];
         let plan = plan_grasp(&model, &c.task.hand.thumb, variant).unwrap();
         let th = plan.thumb;
-        let centre = Vec3::new(c.object.init_xy[0], c.object.init_xy[1], c.object.first_primitive().unwrap().rest_height());
+        let centre = object_centre(&model);
         let half = 0.025;
         for (i, (p, n)) in plan.contacts.iter().zip(&plan.normals).enumerate() {
             // on the face whose outward normal is n: the thumb's is opposite every finger's

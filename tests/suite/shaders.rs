@@ -194,8 +194,12 @@ fn shader_constants_match_rust() {
     for p in [dextrain::env::reset::PURPOSE_PARAMS, dextrain::env::reset::PURPOSE_INIT, task::PURPOSE_OBS_NOISE] {
         assert_ne!(p, PURPOSE_REF);
     }
-    for (name, v) in [("SHAPE_SPHERE", SHAPE_SPHERE), ("SHAPE_BOX", SHAPE_BOX), ("SHAPE_CAPSULE", SHAPE_CAPSULE), ("SHAPE_CYLINDER", SHAPE_CYLINDER)] {
+    for (name, v) in [("SHAPE_SPHERE", SHAPE_SPHERE), ("SHAPE_BOX", SHAPE_BOX), ("SHAPE_CAPSULE", SHAPE_CAPSULE), ("SHAPE_CYLINDER", SHAPE_CYLINDER), ("SHAPE_HULL", SHAPE_HULL)] {
         assert!(src.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in the WGSL");
+    }
+    assert_eq!((NO_JOINT, NO_OBJECT), (u32::MAX, u32::MAX));
+    for name in ["NO_JOINT", "NO_OBJECT"] {
+        assert!(src.contains(&format!("const {name}: u32 = 0xffffffffu;")), "{name} should be u32::MAX in the WGSL");
     }
 }
 
