@@ -32,6 +32,13 @@ pub struct TrainConfig {
     /// The lift task only: a reference kind's episodes start at their reference's first frame
     /// (`task.reference.time_scale` spreads their ends).
     pub init_at_random_ep_len: bool,
+    /// With the envs and the learner on one GPU (`sim.backend` and `train.device` the same wgpu
+    /// device) and PPO: keep the rollouts on the device — observations, actions, rewards, the
+    /// rollout storage, GAE and the metrics' sums never cross to the host during an iteration
+    /// (README "The GPU loop"). `false`: observations are read back and uploaded to the learner
+    /// every env step (the host path, for comparisons). Ignored elsewhere (the host path is the
+    /// only one).
+    pub device_rollouts: bool,
 }
 
 /// `train.algorithm`.
@@ -360,6 +367,7 @@ impl Default for TrainConfig {
             keep_checkpoints: 0,
             plot_interval: 50,
             init_at_random_ep_len: true,
+            device_rollouts: true,
         }
     }
 }

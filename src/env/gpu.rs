@@ -38,6 +38,8 @@ pub const SHADER_TASK: &str = include_str!("../../shaders/task.wgsl");
 pub const SHADER_REFERENCE: &str = include_str!("../../shaders/reference.wgsl");
 /// shaders/ik.wgsl: the fingertip inverse kinematics.
 pub const SHADER_IK: &str = include_str!("../../shaders/ik.wgsl");
+/// The learner's action noise (appended to common.wgsl; `learn::noise`).
+pub const SHADER_NOISE: &str = include_str!("../../shaders/noise.wgsl");
 /// Invocations per workgroup (keep in sync with `WORKGROUP_SIZE` in common.wgsl).
 pub const WORKGROUP_SIZE: u32 = 64;
 
@@ -52,7 +54,14 @@ pub fn task_shader_source() -> String {
     [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_REFERENCE, SHADER_IK, SHADER_TASK].join("\n")
 }
 
-/// A wgpu instance, adapter, device and queue, with the record of the device's uncaptured errors.
+/// The WGSL module of the learner's action noise: common.wgsl (the counter hash) and noise.wgsl.
+pub fn noise_shader_source() -> String {
+    [SHADER_COMMON, SHADER_NOISE].join("\n")
+}
+
+/// A wgpu instance, adapter, device and queue, with the record of the device's uncaptured errors
+/// (a clone shares the device and the record).
+#[derive(Clone)]
 pub struct GpuContext {
     /// The wgpu instance the adapter came from.
     pub instance: wgpu::Instance,
@@ -257,6 +266,7 @@ impl GpuContext {
             contents
         };
         self.check_buffer_size(name, contents.len() as u64, role)?;
+        crate::host_traffic::add(contents.len() as u64);
         self.scoped(
             || format!("creating GPU buffer `{name}` of {} bytes", contents.len()),
             || self.device.create_buffer_init(&wgpu::util::BufferInitDescriptor { label: Some(name), contents, usage }),
@@ -347,6 +357,7 @@ impl GpuContext {
     /// Writes `data` to the start of `buffer` (named `name` in errors) through the queue.
     pub fn upload(&self, name: &str, buffer: &wgpu::Buffer, data: &[u8]) -> Result<()> {
         ensure!(data.len() as u64 <= buffer.size(), "uploading {} bytes to GPU buffer `{name}` of {} bytes", data.len(), buffer.size());
+        crate::host_traffic::add(data.len() as u64);
         self.scoped(|| format!("uploading {} bytes to GPU buffer `{name}`", data.len()), || self.queue.write_buffer(buffer, 0, data))
     }
 
@@ -363,6 +374,11 @@ impl GpuContext {
             }
         }
         enc
+    }
+
+    /// Submits `encs` in order as one submission; an error of their commands comes back naming `what`.
+    pub fn submit_all(&self, encs: Vec<wgpu::CommandEncoder>, what: &str) -> Result<()> {
+        self.scoped(|| what.to_string(), || self.queue.submit(encs.into_iter().map(|e| e.finish()))).map(|_| ())
     }
 
     /// Submits `enc`; an error of its commands comes back naming `what`.
@@ -387,6 +403,7 @@ impl GpuContext {
                 c.staging.size()
             );
         }
+        crate::host_traffic::add(copies.iter().map(|c| c.bytes).sum());
         let receivers = self.scoped(
             || format!("{what}: submitting"),
             || {

@@ -7,8 +7,9 @@
 //! side only fails a test that needs no GPU instead of a pipeline at run time.
 //!
 //! Bindings 0–8, 16 and 18–21 are the simulator's (common.wgsl), 9–12 and 17 the task layer's
-//! (task.wgsl), 13–15 the reference bank's (reference.wgsl). Indices from 22 up are free for the test kernels of
-//! `gpu::run_kernel` (the parity tests use 30 and up).
+//! (task.wgsl), 13–15 the reference bank's (reference.wgsl), 22–23 the learner's action noise
+//! (noise.wgsl). Indices from 24 up are free for the test kernels of `gpu::run_kernel` (the parity
+//! tests use 30 and up).
 
 /// Where a binding lives in WGSL: its address space and, for storage, its access mode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -100,6 +101,12 @@ pub const REF_INFO: Binding = binding(14, "ref_info", StorageRead);
 /// `RefGlobals`: the reference layer's constants.
 pub const REF_CFG: Binding = binding(15, "rg", Uniform);
 
+// ---- the learner's action noise (noise.wgsl; bound by learn/noise.rs) ----
+/// `NoiseCfg`: seed, draw, rows, columns.
+pub const NOISE_CFG: Binding = binding(22, "nc", Uniform);
+/// `array<f32>` `[rows, cols]`: the draws.
+pub const NOISE_OUT: Binding = binding(23, "noise_out", StorageReadWrite);
+
 /// The bindings one entry point uses. Its bind group lists exactly these: pipelines derive their
 /// layout from the shader, which leaves out every global the entry point does not use.
 #[derive(Clone, Copy, Debug)]
@@ -163,4 +170,14 @@ pub const TASK_GROUP: ShaderGroup = ShaderGroup {
         REF_INFO, REF_CFG, SPRINGS, FINAL_OUT, PIECES, OBJECTS, HULLS, REF_OBJECTS,
     ],
     entry_points: &[TASK_ACT, TASK_REWARD, TASK_OBSERVE, TASK_OBSERVE_FINAL],
+};
+
+/// `learner_noise`: standard normal draws for the learner's actions.
+pub const LEARNER_NOISE: EntryBindings = EntryBindings { entry_point: "learner_noise", bindings: &[NOISE_CFG, NOISE_OUT] };
+
+/// The action-noise module (`gpu::noise_shader_source`: common + noise).
+pub const NOISE_GROUP: ShaderGroup = ShaderGroup {
+    shader: "dextrain action noise",
+    bindings: &[GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS, NOISE_CFG, NOISE_OUT],
+    entry_points: &[LEARNER_NOISE],
 };

@@ -19,7 +19,7 @@ pub fn learner_device(choice: &BackendChoice, sim_gpu: Option<&GpuContext>) -> R
         BackendChoice::Cpu => Ok(cpu()),
         BackendChoice::Gpu(name) => {
             if let Some(ctx) = sim_gpu
-                && name.as_ref().is_none_or(|n| ctx.info.name.to_lowercase().contains(&n.to_lowercase()))
+                && shares_sim_device(choice, sim_gpu)
             {
                 return wgpu_on(ctx);
             }
@@ -35,6 +35,15 @@ pub fn learner_device(choice: &BackendChoice, sim_gpu: Option<&GpuContext>) -> R
                 Err(_) => Ok(cpu()),
             }
         }
+    }
+}
+
+/// Whether [`learner_device`] puts the learner on the simulator's own wgpu device `sim_gpu`.
+pub fn shares_sim_device(choice: &BackendChoice, sim_gpu: Option<&GpuContext>) -> bool {
+    match (choice, sim_gpu) {
+        (BackendChoice::Gpu(name), Some(ctx)) => name.as_ref().is_none_or(|n| ctx.info.name.to_lowercase().contains(&n.to_lowercase())),
+        (BackendChoice::Auto, Some(_)) => true,
+        _ => false,
     }
 }
 

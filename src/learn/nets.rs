@@ -106,14 +106,26 @@ pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tenso
     h
 }
 
-/// A host matrix → a tensor on `device`.
+/// A host matrix → a tensor on `device` (counted in [`crate::host_traffic`] on a GPU device).
 pub fn to_tensor(data: Vec<f32>, shape: [usize; 2], device: &Device) -> Tensor<2> {
+    if is_gpu(device) {
+        crate::host_traffic::add(4 * data.len() as u64);
+    }
     Tensor::from_data(TensorData::new(data, shape), device)
 }
 
-/// A tensor → its values on the host (row-major).
+/// A tensor → its values on the host (row-major; counted in [`crate::host_traffic`] from a GPU
+/// device).
 pub fn to_host<const D: usize>(t: Tensor<D>) -> Result<Vec<f32>> {
+    if is_gpu(&t.device()) {
+        crate::host_traffic::add(4 * t.shape().num_elements() as u64);
+    }
     t.into_data().try_to_vec::<f32>().map_err(|e| anyhow!("cannot read a tensor back: {e:?}"))
+}
+
+/// Whether `device` is a GPU (burn's cubecl backend: wgpu), i.e. not host memory.
+pub fn is_gpu(device: &Device) -> bool {
+    matches!(device.clone().inner().as_dispatch(), burn::backend::DispatchDevice::Cube(_))
 }
 
 /// An MLP `input → hidden… → output` with an optional LayerNorm after every hidden layer (before

@@ -12,8 +12,10 @@
 //! - distillation (DAgger): `act` runs the student (the teacher labels the same observations),
 //!   `observe` stores the labels, `update` fits the student.
 
-use anyhow::Result;
+use anyhow::{Result, bail};
+use burn::prelude::Tensor;
 
+use crate::env::gpu::GpuContext;
 use crate::learn::state::LearnerState;
 
 /// What one env step of all N envs gave, for the step that the last [`Algorithm::act`] started.
@@ -35,6 +37,20 @@ pub struct StepOutcome<'a> {
     /// [`Algorithm::wants_final_observations`] is true.
     pub final_obs: &'a [f32],
     pub final_priv_obs: &'a [f32],
+}
+
+/// What one env step of all N envs gave, left on the device (device-resident rollouts): `[N, 1]`
+/// columns (flags 0 or 1) and the observations after the step.
+pub struct DeviceOutcome<'a> {
+    /// The task's rewards (unscaled).
+    pub reward: &'a Tensor<2>,
+    /// 1 where the episode ended by a termination.
+    pub terminated: &'a Tensor<2>,
+    /// 1 where it ended by a time-out.
+    pub time_out: &'a Tensor<2>,
+    /// Raw actor / critic observations after the step `[N, O]` / `[N, P]`.
+    pub obs: &'a Tensor<2>,
+    pub priv_obs: &'a Tensor<2>,
 }
 
 /// A learning algorithm that the runner drives.
@@ -69,6 +85,33 @@ pub trait Algorithm {
     /// The iteration's end (`obs`/`priv_obs`: the current observations); returns one value per
     /// [`Algorithm::stat_columns`] entry.
     fn update(&mut self, obs: &[f32], priv_obs: &[f32]) -> Result<Vec<f64>>;
+
+    /// Whether the algorithm can keep its rollouts on the device ([`Algorithm::act_device`] and the
+    /// two after it); the runner then uses them when the envs and the learner share a GPU.
+    fn can_run_on_device(&self) -> bool {
+        false
+    }
+
+    /// Switches to device-resident rollouts on the simulator's wgpu context `ctx` (between
+    /// iterations).
+    fn start_device_rollouts(&mut self, _ctx: &GpuContext) -> Result<()> {
+        bail!("{} has no device-resident rollouts", self.name())
+    }
+
+    /// As [`Algorithm::act`] with the observations on the device; the actions stay there.
+    fn act_device(&mut self, _obs: &Tensor<2>, _priv_obs: &Tensor<2>) -> Result<Tensor<2>> {
+        bail!("{} has no device-resident rollouts", self.name())
+    }
+
+    /// As [`Algorithm::observe`] on the device.
+    fn observe_device(&mut self, _step: &DeviceOutcome<'_>) -> Result<()> {
+        bail!("{} has no device-resident rollouts", self.name())
+    }
+
+    /// As [`Algorithm::update`] with the current observations on the device.
+    fn update_device(&mut self, _obs: &Tensor<2>, _priv_obs: &Tensor<2>) -> Result<Vec<f64>> {
+        bail!("{} has no device-resident rollouts", self.name())
+    }
 
     /// Everything that a resumed run needs to continue exactly (taken between iterations).
     fn state(&self) -> Result<LearnerState>;

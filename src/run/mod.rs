@@ -4,11 +4,13 @@
 //! - `algorithm.rs`: the [`Algorithm`] trait, the seam between the runner and a learner;
 //! - `on_policy.rs`: PPO's part (rollouts of `train.steps_per_env` steps, then an update);
 //! - `off_policy.rs`: SAC's part (every env step into the replay buffer, gradient steps after each);
+//! - `device_loop.rs`: the env loop with the rollouts on the device (envs and learner on one GPU);
 //! - `distill.rs`: online DAgger's part (the student and teacher act, then the student learns);
 //!
 //! Each implements [`Algorithm`]; none copies the loop.
 
 pub mod algorithm;
+mod device_loop;
 pub mod distill;
 pub mod off_policy;
 pub mod on_policy;
@@ -18,7 +20,7 @@ use std::path::PathBuf;
 
 use anyhow::Result;
 
-pub use algorithm::{Algorithm, StepOutcome};
+pub use algorithm::{Algorithm, DeviceOutcome, StepOutcome};
 pub use runner::TrainArgs;
 
 /// Runs (or resumes) a training run with the config's `train.algorithm`; returns its directory.

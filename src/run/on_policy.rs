@@ -2,8 +2,10 @@
 //! every env into the rollout storage, then update. The loop itself is `runner.rs`.
 
 use anyhow::Result;
+use burn::prelude::Tensor;
 
-use super::algorithm::{Algorithm, StepOutcome};
+use super::algorithm::{Algorithm, DeviceOutcome, StepOutcome};
+use crate::env::gpu::GpuContext;
 use super::runner::RunContext;
 use crate::learn::ppo::{Dims, Ppo, UpdateStats};
 use crate::learn::state::LearnerState;
@@ -49,6 +51,26 @@ impl Algorithm for Ppo {
     fn update(&mut self, _obs: &[f32], priv_obs: &[f32]) -> Result<Vec<f64>> {
         // GAE bootstraps from the critic's value of the observation after the last step
         Ok(stat_values(&Ppo::update(self, priv_obs)?))
+    }
+
+    fn can_run_on_device(&self) -> bool {
+        true
+    }
+
+    fn start_device_rollouts(&mut self, ctx: &GpuContext) -> Result<()> {
+        Ppo::start_device_rollouts(self, ctx)
+    }
+
+    fn act_device(&mut self, obs: &Tensor<2>, priv_obs: &Tensor<2>) -> Result<Tensor<2>> {
+        Ppo::act_device(self, obs, priv_obs)
+    }
+
+    fn observe_device(&mut self, step: &DeviceOutcome<'_>) -> Result<()> {
+        self.process_step_device(step.reward, step.terminated, step.time_out)
+    }
+
+    fn update_device(&mut self, _obs: &Tensor<2>, priv_obs: &Tensor<2>) -> Result<Vec<f64>> {
+        Ok(stat_values(&Ppo::update_device(self, priv_obs)?))
     }
 
     fn state(&self) -> Result<LearnerState> {

@@ -23,6 +23,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::json;
 
 use super::algorithm::{Algorithm, StepOutcome};
+use super::device_loop::DeviceLoop;
 use crate::console;
 use crate::checkpoint::{self, CheckpointState, EnvSnapshot};
 use crate::config::{Config, TaskKind};
@@ -72,7 +73,7 @@ extern "C" fn on_stop_signal(_: libc::c_int) {
 /// The metrics columns of a run, in order (after "iteration"): the env's, the algorithm's
 /// (`learner`, e.g. PPO's losses, kl, lr…), then the reference kinds' tracking errors.
 pub fn metric_columns(spec: &TaskSpec, learner: &[String]) -> Vec<String> {
-    let mut c: Vec<String> = ["env_steps", "time_s", "fps", "time/collect_s", "time/learn_s", "reward/mean"].iter().map(|s| s.to_string()).collect();
+    let mut c: Vec<String> = ["env_steps", "time_s", "fps", "time/collect_s", "time/learn_s", "time/host_bytes", "reward/mean"].iter().map(|s| s.to_string()).collect();
     c.extend(spec.term_names.iter().map(|t| format!("reward/{t}")));
     c.extend(
         ["episode/count", "episode/return", "episode/length", "episode/success_rate", "episode/lift_height", "episode/terminated_frac", "episode/bad_reset_frac"]
@@ -114,30 +115,34 @@ pub type MakeAlgorithm = fn(&RunContext) -> Result<Box<dyn Algorithm>>;
 
 /// What happened during one iteration's rollout (host-side sums).
 #[derive(Default)]
-struct RolloutSums {
-    reward: f64,
-    terms: Vec<f64>,
-    steps: u64,
-    episodes: u64,
-    successes: u64,
-    terminated: u64,
+pub(super) struct RolloutSums {
+    /// Σ reward and Σ of each weighted term over the env steps of every env.
+    pub reward: f64,
+    pub terms: Vec<f64>,
+    /// Env steps of all envs.
+    pub steps: u64,
+    /// Episodes that ended, those that ended with success, by a termination.
+    pub episodes: u64,
+    pub successes: u64,
+    pub terminated: u64,
     /// Episodes that ended because the physics reset a bad state (NaN, speed or distance beyond
     /// the sim's limits).
-    bad_resets: u64,
-    ep_return: f64,
-    ep_len: f64,
-    lift: f64,
+    pub bad_resets: u64,
+    /// Σ over the ended episodes of their return, length and final lift height.
+    pub ep_return: f64,
+    pub ep_len: f64,
+    pub lift: f64,
     /// Σ over env steps of the object's position (m) and orientation (deg) error against its reference.
-    obj_pos_err: f64,
-    obj_rot_err: f64,
+    pub obj_pos_err: f64,
+    pub obj_rot_err: f64,
 }
 
 /// Per-env accumulators of the running episodes.
-struct Episodes {
+pub(super) struct Episodes {
     /// Return so far [N].
-    ret: Vec<f64>,
+    pub ret: Vec<f64>,
     /// Length so far [N].
-    len: Vec<f64>,
+    pub len: Vec<f64>,
 }
 
 /// One iteration's env steps: act, step, observe; returns the sums. `obs`/`priv_obs` are updated to
@@ -189,12 +194,12 @@ fn collect(task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, obs: &mut [f32], 
 }
 
 /// One metrics row in `metric_columns` order (`learner`: the algorithm's update values;
-/// `tracking`: the reference kinds' extra columns).
+/// `host_bytes`: the iteration's host↔GPU traffic; `tracking`: the reference kinds' extra columns).
 #[allow(clippy::too_many_arguments)]
-fn metric_row(s: &RolloutSums, learner: &[f64], env_steps: u64, time_s: f64, fps: f64, collect_s: f64, learn_s: f64, tracking: bool) -> Vec<f64> {
+fn metric_row(s: &RolloutSums, learner: &[f64], env_steps: u64, time_s: f64, fps: f64, collect_s: f64, learn_s: f64, host_bytes: u64, tracking: bool) -> Vec<f64> {
     let per_step = |x: f64| if s.steps > 0 { x / s.steps as f64 } else { f64::NAN };
     let per_ep = |x: f64| if s.episodes > 0 { x / s.episodes as f64 } else { f64::NAN };
-    let mut row = vec![env_steps as f64, time_s, fps, collect_s, learn_s, per_step(s.reward)];
+    let mut row = vec![env_steps as f64, time_s, fps, collect_s, learn_s, host_bytes as f64, per_step(s.reward)];
     row.extend(s.terms.iter().map(|&t| per_step(t)));
     row.extend([
         s.episodes as f64,
@@ -273,7 +278,7 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
     let n = spec.num_envs;
     let dims = [spec.obs_dim, spec.priv_dim, spec.action_dim];
     let encoder_index = crate::learn::ppo::encoder_index(&cfg.policy, &spec).with_context(|| cfg.source.display().to_string())?;
-    let mut algo = make(&RunContext { cfg: cfg.clone(), num_envs: n, dims, device, encoder_index, spec: spec.clone() })?;
+    let mut algo = make(&RunContext { cfg: cfg.clone(), num_envs: n, dims, device: device.clone(), encoder_index, spec: spec.clone() })?;
     if algo.wants_final_observations() {
         task.set_final_observations(true)?;
     }
@@ -305,19 +310,30 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
             (0, 0, 0.0, o, p, Episodes { ret: vec![0.0; n], len: vec![0.0; n] }, metrics)
         }
     };
+    // the rollouts stay on the device when the envs and the learner share a GPU (README "The GPU loop")
+    let mut device_loop = None;
+    if cfg.train.device_rollouts
+        && task.can_step_on_device()
+        && algo.can_run_on_device()
+        && let Some(ctx) = task.gpu_context().filter(|c| crate::learn::device::shares_sim_device(&choice, Some(c)))
+    {
+        algo.start_device_rollouts(ctx)?;
+        device_loop = Some(DeviceLoop::new(&obs, &priv_obs, &eps, dims, &device));
+    }
     let total = cfg.train.iterations as u64;
     if iteration >= total {
         bail!("{}: the run has finished its {total} iterations; resume with --set train.iterations=N (N > {iteration}) to train longer", dir.display());
     }
     let stop_at = args.stop_after.map(|k| (iteration + k).min(total)).unwrap_or(total);
     console::status(&format!(
-        "dextrain train: {} | envs: {} ({n} envs, obs {}, critic obs {}, actions {}) | learner: {} on {device_name} | iterations {iteration}..{stop_at} of {total}",
+        "dextrain train: {} | envs: {} ({n} envs, obs {}, critic obs {}, actions {}) | learner: {} on {device_name}{} | iterations {iteration}..{stop_at} of {total}",
         dir.display(),
         task.backend_name(),
         dims[0],
         dims[1],
         dims[2],
-        algo.name()
+        algo.name(),
+        if device_loop.is_some() { " | rollouts on the device" } else { "" }
     ));
     // Ctrl-C, and `kill` / `timeout` / a job scheduler's SIGTERM: finish the iteration, checkpoint, stop
     unsafe {
@@ -339,9 +355,22 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
     let mut last_bad_warning: Option<u64> = None;
     while iteration < stop_at {
         let t0 = Instant::now();
-        let sums = collect(task.as_mut(), algo.as_mut(), &mut obs, &mut priv_obs, &mut eps, steps)?;
-        let collect_and_learn_s = t0.elapsed().as_secs_f64();
-        let upd = algo.update(&obs, &priv_obs)?;
+        let bytes0 = crate::host_traffic::total();
+        let (sums, upd, collect_and_learn_s) = match &mut device_loop {
+            Some(dl) => {
+                dl.collect(task.as_mut(), algo.as_mut(), steps)?;
+                // reading the sums waits for the envs' steps: the collection's time ends here
+                let sums = dl.take_sums(spec.term_names.len())?;
+                let collect_s = t0.elapsed().as_secs_f64();
+                (sums, algo.update_device(&dl.obs, &dl.priv_obs)?, collect_s)
+            }
+            None => {
+                let sums = collect(task.as_mut(), algo.as_mut(), &mut obs, &mut priv_obs, &mut eps, steps)?;
+                let collect_s = t0.elapsed().as_secs_f64();
+                (sums, algo.update(&obs, &priv_obs)?, collect_s)
+            }
+        };
+        let host_bytes = crate::host_traffic::total() - bytes0;
         // an off-policy learner's gradient steps ran inside the env loop: they count as learning
         let inner_learn_s = algo.take_learn_seconds().min(collect_and_learn_s);
         let collect_s = collect_and_learn_s - inner_learn_s;
@@ -351,7 +380,7 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
         let dt = t0.elapsed().as_secs_f64();
         let time_s = time_base + started.elapsed().as_secs_f64();
         let fps = sums.steps as f64 / dt.max(1e-9);
-        let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s, spec.kind.follows_reference());
+        let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s, host_bytes, spec.kind.follows_reference());
         metrics.append(iteration, &row)?;
         let success = row[columns.iter().position(|c| c == "episode/success_rate").unwrap_or(0)];
         let reward = row[columns.iter().position(|c| c == "reward/mean").unwrap_or(0)];
@@ -378,6 +407,9 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
         last_row = row;
         let interrupted = STOP.load(Ordering::SeqCst);
         if iteration % cfg.train.save_interval as u64 == 0 || iteration == stop_at || interrupted {
+            if let Some(dl) = &device_loop {
+                (obs, priv_obs, eps) = dl.to_host()?;
+            }
             let snap = EnvSnapshot { task_state: task.save_state()?, obs: obs.clone(), priv_obs: priv_obs.clone(), ep_return: eps.ret.clone(), ep_len: eps.len.clone() };
             let learner = algo.state()?;
             let st = CheckpointState::new(iteration, env_steps, time_s, dims, &learner);

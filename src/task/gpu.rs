@@ -12,12 +12,12 @@
 //! reads the task states back, writes the given targets into them and into the targets buffer,
 //! then runs the rest of the step.
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, ensure};
 
 use super::setup::{TaskSetup, task_setup};
 use super::spec::TaskSpec;
 use super::task::OUT_MISC;
-use super::{StepBatch, TaskBatch, check_actions, check_targets, decode_snapshot, encode_snapshot};
+use super::{DeviceStep, StepBatch, TaskBatch, check_actions, check_targets, decode_snapshot, encode_snapshot};
 use crate::env::gpu::{BufferRole, GpuContext, GpuEnvBatch, ReadbackCopy, task_shader_source};
 use crate::env::gpu_bindings::{ACTIONS, GLOBALS, JOINTS, PARAMS, REF_CFG, REF_FRAMES, REF_INFO, RESET_MASK, SPRINGS, STATES, STATS, TARGETS, TIPS};
 use crate::env::gpu_bindings::{Binding, FINAL_OUT, TASK_ACT, TASK_CFG, TASK_GROUP, TASK_OBSERVE, TASK_OBSERVE_FINAL, TASK_OUT, TASK_REWARD, TASK_STATES};
@@ -269,6 +269,37 @@ impl TaskBatch for GpuTaskBatch {
         check_actions(&self.spec, actions)?;
         self.env.ctx.upload(ACTIONS.name, &self.actions, bytemuck::cast_slice(actions))?;
         self.run_step(true)
+    }
+
+    fn can_step_on_device(&self) -> bool {
+        true
+    }
+
+    fn step_on_device(&mut self, actions: &burn::prelude::Tensor<2>, device: &burn::prelude::Device) -> Result<DeviceStep> {
+        use crate::learn::gpu_io::{flush, tensor_buffer, zeros_buffer};
+        let (n, od, pd, ad) = (self.spec.num_envs, self.spec.obs_dim, self.spec.priv_dim, self.spec.action_dim);
+        ensure!(self.final_readback.is_none(), "device-resident steps do not return final observations (set_final_observations is on)");
+        ensure!(actions.dims() == [n, ad], "actions of shape {:?} for {n} envs × {ad} actions", actions.dims());
+        let act = tensor_buffer(actions)?;
+        let outs = [zeros_buffer(n, od, device)?, zeros_buffer(n, pd, device)?, zeros_buffer(n, OUT_MISC, device)?];
+        let e = &self.env;
+        // the actions into the task's action buffer, then the step's kernels, then the outputs
+        // ([N, od] obs, [N, pd] priv obs, [N, OUT_MISC] records, back to back in `out`) into the tensors
+        let mut copy_in = e.ctx.device.create_command_encoder(&Default::default());
+        copy_in.copy_buffer_to_buffer(act.buffer(), act.offset(), &self.actions, 0, act.size());
+        let mut passes = vec![(&self.act_pipeline, &self.act_group), (&e.step_pipeline, &e.step_group), (&self.reward_pipeline, &self.reward_group)];
+        passes.extend([(&e.reset_pipeline, &e.reset_group), (&self.observe_pipeline, &self.observe_group)]);
+        let mut enc = e.ctx.encode_passes(&passes, e.workgroups());
+        let mut from = 0u64;
+        for o in &outs {
+            enc.copy_buffer_to_buffer(&self.out, from, o.buffer(), o.offset(), o.size());
+            from += o.size();
+        }
+        // what burn recorded (the actions, the zero fills) runs first (learn::gpu_io)
+        flush(device)?;
+        e.ctx.submit_all(vec![copy_in, enc], "task step (device-resident)")?;
+        let [obs, priv_obs, misc] = outs;
+        Ok(DeviceStep { obs: obs.tensor, priv_obs: priv_obs.tensor, misc: misc.tensor })
     }
 
     fn set_final_observations(&mut self, on: bool) -> Result<()> {

@@ -195,6 +195,18 @@ impl StepBatch {
     }
 }
 
+/// One env step's outputs left on the device ([`TaskBatch::step_on_device`]): tensors of burn's
+/// wgpu learner, on the simulator's own device.
+pub struct DeviceStep {
+    /// `[N, obs_dim]` actor obs, as [`StepBatch::obs`].
+    pub obs: burn::prelude::Tensor<2>,
+    /// `[N, priv_dim]` critic obs, as [`StepBatch::priv_obs`].
+    pub priv_obs: burn::prelude::Tensor<2>,
+    /// `[N, OUT_MISC]` the per-env output records: reward, terms and flags at the columns
+    /// `task::OUT_*` (what [`StepBatch`] unpacks on the host; flags are 0 or 1).
+    pub misc: burn::prelude::Tensor<2>,
+}
+
 /// The backend-independent task contract (see the module documentation).
 pub trait TaskBatch: Send {
     /// Names and sizes.
@@ -211,6 +223,19 @@ pub trait TaskBatch: Send {
     /// targets, steps the physics, computes reward terms / terminations / time-outs on the post-step
     /// state, resets the done envs (next episode), then observes every env.
     fn step(&mut self, actions: &[f32]) -> Result<&StepBatch>;
+    /// Whether [`TaskBatch::step_on_device`] works here (the GPU backend).
+    fn can_step_on_device(&self) -> bool {
+        false
+    }
+    /// As [`TaskBatch::step`] without the host: `actions` `[N, action_dim]` is a tensor of burn's
+    /// wgpu learner on this task's own wgpu device (`device`), copied into the task's action buffer
+    /// on the device; the outputs come back as fresh tensors on `device`, copied there on the
+    /// device. No bytes cross to the host. Actions are clipped to [−1, 1] as in `step` but not
+    /// checked for finiteness (the caller counts non-finite actions on the device). Not with
+    /// [`TaskBatch::set_final_observations`] on.
+    fn step_on_device(&mut self, _actions: &burn::prelude::Tensor<2>, _device: &burn::prelude::Device) -> Result<DeviceStep> {
+        bail!("the {} backend cannot step with device-resident tensors (only the GPU backend can)", self.backend_name())
+    }
     /// From now on, [`TaskBatch::step`] also observes every env whose episode ends, on the state it
     /// ended in, into [`StepBatch::final_obs`] / [`StepBatch::final_priv_obs`] (between the reward
     /// and the resets: `task_observe_final`); off by default (it costs a dispatch and a larger

@@ -292,6 +292,50 @@ fn the_wgpu_learner_matches_the_cpu_learner() {
     assert!(fresh.iter().flatten().zip(p_cpu.iter().flatten()).any(|(a, b)| a != b));
 }
 
+/// The device-resident rollouts' parts on the wgpu device (lavapipe in CI) against their host
+/// twins: the action noise (shaders/noise.wgsl vs `host_normals`: the same draws, standard normal,
+/// a new draw each call) and the normaliser (tensor ops in f32 vs the f64 host statistics, after
+/// three batches, and the normalised values).
+#[test]
+fn device_noise_and_normaliser_match_their_host_twins() {
+    use dextrain::learn::noise::{DeviceNoise, host_normals};
+    use dextrain::learn::ppo::device::DeviceNormalizer;
+    let Some((ctx, gpu)) = crate::common::wgpu_learner("device_noise_and_normaliser_match_their_host_twins") else { return };
+    let (rows, cols) = (300, 22);
+    let noise = DeviceNoise::new(&ctx, &gpu, rows, cols).unwrap();
+    let (d0, d1) = (to_host(noise.normals(7, 3).unwrap()).unwrap(), to_host(noise.normals(7, 4).unwrap()).unwrap());
+    let h0 = host_normals(7, 3, rows, cols);
+    assert_eq!(d0.len(), rows * cols);
+    let worst = d0.iter().zip(&h0).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    assert!(worst < 1e-4, "device and host noise differ by {worst}");
+    let mean = h0.iter().map(|&x| x as f64).sum::<f64>() / h0.len() as f64;
+    let var = h0.iter().map(|&x| (x as f64 - mean).powi(2)).sum::<f64>() / h0.len() as f64;
+    assert!(mean.abs() < 0.05 && (var - 1.0).abs() < 0.08, "mean {mean}, var {var}");
+    assert!(d0.iter().zip(&d1).filter(|(a, b)| a == b).count() < 5, "a new draw gives new numbers");
+    assert_ne!(host_normals(8, 3, rows, cols), h0, "another seed gives other numbers");
+    // the normaliser: three batches of 50 rows of 5 components, offset and scaled per component
+    let mut rng = Rng::new(3, 3);
+    let mut host = Normalizer::new(5);
+    let mut dev = DeviceNormalizer::from_host(&host, &gpu);
+    let mut last = Vec::new();
+    for b in 0..3 {
+        let x: Vec<f32> = (0..50 * 5).map(|i| (rng.normal() * (1.0 + (i % 5) as f64) + 10.0 * b as f64) as f32).collect();
+        host.update(&x);
+        dev.update(&to_tensor(x.clone(), [50, 5], &gpu));
+        last = x;
+    }
+    let back = dev.to_host().unwrap();
+    assert_eq!(back.count, host.count);
+    for k in 0..5 {
+        assert!((back.mean[k] - host.mean[k]).abs() < 1e-4 * (1.0 + host.mean[k].abs()), "mean {k}: {} vs {}", back.mean[k], host.mean[k]);
+        assert!((back.m2[k] - host.m2[k]).abs() < 1e-4 * host.m2[k], "m2 {k}: {} vs {}", back.m2[k], host.m2[k]);
+    }
+    let want = host.normalized(&last, true);
+    let got = to_host(dev.normalized(to_tensor(last.clone(), [50, 5], &gpu), true)).unwrap();
+    let worst = want.iter().zip(&got).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    assert!(worst < 1e-4, "normalised values differ by {worst}");
+}
+
 /// The fused ELU (`learn::elu`): on the CPU (its vectorised exp) and on the wgpu device (tensor
 /// ops), the values and the gradient match an f64 reference over [−100, 10] — large negative
 /// inputs at −1, 0 and tiny inputs included — on a tensor shared with another (copy on write) and

@@ -165,6 +165,11 @@ fn shader_constants_match_rust() {
     for p in [dextrain::env::reset::PURPOSE_PARAMS, dextrain::env::reset::PURPOSE_INIT] {
         assert_ne!(p, task::PURPOSE_OBS_NOISE);
     }
+    // the learner's action noise has its own stream, the same in noise.wgsl
+    use dextrain::learn::noise::PURPOSE_ACTION_NOISE;
+    assert!(dextrain::env::gpu::SHADER_NOISE.contains(&format!("const PURPOSE_ACTION_NOISE: u32 = {PURPOSE_ACTION_NOISE}u;")));
+    let purposes = [dextrain::env::reset::PURPOSE_PARAMS, dextrain::env::reset::PURPOSE_INIT, task::PURPOSE_OBS_NOISE, task::PURPOSE_OBJ_DELAY, dextrain::env::reference::PURPOSE_REF];
+    assert!(!purposes.contains(&PURPOSE_ACTION_NOISE), "{purposes:?}");
     use dextrain::env::reference::*;
     for (name, v) in [
         ("PURPOSE_REF", PURPOSE_REF),
@@ -325,17 +330,18 @@ fn table(bindings: &[dextrain::env::gpu_bindings::Binding]) -> Vec<(u32, u32, St
 
 #[test]
 fn binding_tables_match_the_wgsl_globals() {
-    use dextrain::env::gpu_bindings::{BindingSpace, COLLIDERS, REF_CFG, REF_FRAMES, SIM_GROUP, TASK_GROUP};
-    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP)] {
+    use dextrain::env::gpu_bindings::{BindingSpace, COLLIDERS, NOISE_GROUP, REF_CFG, REF_FRAMES, SIM_GROUP, TASK_GROUP};
+    let noise = dextrain::env::gpu::noise_shader_source();
+    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP)] {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other
         assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu_bindings.rs (right)", group.shader);
-        // indices and names are unique, and indices from 22 up stay free for the test kernels
+        // indices and names are unique, and indices from 24 up stay free for the test kernels
         let mut ix: Vec<u32> = group.bindings.iter().map(|b| b.index).collect();
         ix.sort();
         ix.dedup();
         assert_eq!(ix.len(), group.bindings.len(), "{}: an index appears twice", group.shader);
-        assert!(ix.iter().all(|&i| i < 22), "{}: {ix:?}", group.shader);
+        assert!(ix.iter().all(|&i| i < 24), "{}: {ix:?}", group.shader);
         // each entry point's table lists exactly the globals it uses (its bind group binds these)
         for ep in group.entry_points {
             let (_, uses) = used.iter().find(|(n, _)| n == ep.entry_point).unwrap_or_else(|| panic!("{}: no entry point {}", group.shader, ep.entry_point));

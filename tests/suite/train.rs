@@ -245,24 +245,90 @@ fn bad_names_existing_runs_and_broken_checkpoints_are_one_line_errors() {
 }
 
 /// The whole loop on a GPU adapter (lavapipe in CI): the envs and burn's wgpu learner share one
-/// wgpu device; the run checkpoints and its policy evaluates.
+/// wgpu device.
+/// - The device-resident rollouts (the default there) give the host path's run to float rounding:
+///   every metric and every policy value;
+/// - their host traffic per iteration is exactly what the README says (no observation bytes: the
+///   noise parameters per env step, the metrics' sums, the minibatch indices, five scalars per
+///   minibatch and σ), where the host path moves every step's observations;
+/// - a device-resident run stopped and resumed continues bit for bit, and its policy evaluates.
 #[test]
 fn training_runs_with_env_and_learner_on_one_gpu_device() {
     let Some(ctx) = crate::common::gpu_context("training_runs_with_env_and_learner_on_one_gpu_device") else { return };
     let adapter = format!("gpu:{}", ctx.info.name.split_whitespace().next().unwrap_or("llvmpipe"));
     drop(ctx);
     let tmp = tempfile::tempdir().unwrap();
-    let mut a = args(tmp.path(), "gpu");
-    a.sets.retain(|s| !s.starts_with("sim.backend") && !s.starts_with("train.device"));
-    a.sets.extend([format!("sim.backend={adapter}"), format!("train.device={adapter}"), "train.iterations=2".into()]);
-    let dir = train(&a).expect("train on the GPU");
-    let (cols, rows) = metrics(&dir);
-    assert_eq!(rows.len(), 2);
-    let k = cols.iter().position(|c| c == "loss/value").unwrap();
-    assert!(rows.iter().all(|(_, v)| v[k].is_finite()));
-    let r = eval(&EvalArgs { run: dir, checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None, baseline: None }).expect("eval");
+    let gpu_args = |name: &str, extra: &[&str]| {
+        let mut a = args(tmp.path(), name);
+        a.sets.retain(|s| !s.starts_with("sim.backend") && !s.starts_with("train.device"));
+        a.sets.extend([format!("sim.backend={adapter}"), format!("train.device={adapter}"), "train.iterations=2".into(), "train.save_interval=1".into()]);
+        a.sets.extend(extra.iter().map(|s| s.to_string()));
+        a
+    };
+    let host = train(&gpu_args("host", &["train.device_rollouts=false"])).expect("train on the GPU, host path");
+    let dev = train(&gpu_args("dev", &[])).expect("train on the GPU, device-resident");
+    let mut half = gpu_args("half", &[]);
+    half.stop_after = Some(1);
+    let resumed = train(&half).expect("first half");
+    train(&TrainArgs { config: None, sets: vec![], name: None, resume: Some(resumed.clone()), ..args(tmp.path(), "unused") }).expect("resumed");
+
+    let (cols, rows_host) = metrics(&host);
+    let (_, rows_dev) = metrics(&dev);
+    assert_eq!((rows_host.len(), rows_dev.len()), (2, 2));
+    let bytes = cols.iter().position(|c| c == "time/host_bytes").unwrap();
+    for ((_, h), (_, d)) in rows_host.iter().zip(&rows_dev) {
+        for (k, c) in cols.iter().enumerate() {
+            if k != bytes {
+                assert!((h[k] - d[k]).abs() <= 1e-4 * (1.0 + h[k].abs()) || (h[k].is_nan() && d[k].is_nan()), "{c}: host path {} vs device-resident {}", h[k], d[k]);
+            }
+        }
+    }
+    // every value of the policy file (parameters and normalisers), tensors in name order
+    let policy = |dir: &Path| -> Vec<f64> {
+        let (_, learner, _) = checkpoint::load(&dir.join("checkpoints/2"), dims(dir), 8).expect("checkpoint");
+        let mut tensors: Vec<_> = learner.files.iter().filter(|f| f.name == "model").flat_map(|f| f.tensors.iter()).collect();
+        tensors.sort_by(|a, b| a.name.cmp(&b.name));
+        tensors.iter().flat_map(|t| match &t.values {
+            TensorValues::F32(v) => v.iter().map(|&x| x as f64).collect::<Vec<_>>(),
+            TensorValues::F64(v) => v.clone(),
+            TensorValues::U8(_) => Vec::new(),
+        }).collect()
+    };
+    let (p_host, p_dev) = (policy(&host), policy(&dev));
+    assert!(!p_host.is_empty() && p_host.len() == p_dev.len());
+    for (x, y) in p_host.iter().zip(&p_dev) {
+        assert!((x - y).abs() <= 1e-4 * (1.0 + x.abs()), "a policy value: host path {x} vs device-resident {y}");
+    }
+    // host traffic per iteration (the config's: 8 envs, 4 steps, obs O + P, 22 actions, PPO's defaults)
+    let cfg = dextrain::config::Config::load(&dev.join("config.toml")).unwrap();
+    let [o, p, a] = dims(&dev);
+    let (n, t) = (8u64, 4u64);
+    let (epochs, minibatches) = (cfg.ppo.epochs as u64, cfg.ppo.minibatches as u64);
+    let misc = dextrain::task::task::OUT_MISC as u64;
+    let expected = t * 16 // the noise parameters of each env step
+        + (2 * misc + 4) * 4 // the iteration's sums
+        + epochs * n * t * 4 // the minibatch indices (i32)
+        + epochs * minibatches * 5 * 4 // the losses, KL and gradient norm of each minibatch
+        + a as u64 * 4; // σ after the update
+    for (_, d) in &rows_dev {
+        assert_eq!(d[bytes], expected as f64, "host bytes of a device-resident iteration");
+        assert!(d[bytes] < (n * (o + p) as u64 * 4) as f64, "less than one step's observations");
+    }
+    for (_, h) in &rows_host {
+        assert!(h[bytes] >= (t * n * (o + p) as u64 * 4) as f64, "the host path reads every step's observations: {}", h[bytes]);
+    }
+    // stopped and resumed: the same run, bit for bit (host bytes included)
+    assert!(same_bits(&rows_dev, &metrics(&resumed).1), "the resumed device-resident run differs:\n{rows_dev:?}\n{:?}", metrics(&resumed).1);
+    assert_eq!(model_bytes(&dev, 2), model_bytes(&resumed, 2), "final model differs after resume");
+    let r = eval(&EvalArgs { run: dev, checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None, baseline: None }).expect("eval");
     assert!(r.env_backend.starts_with("gpu") && r.learner_device.starts_with("gpu (burn wgpu"), "{} / {}", r.env_backend, r.learner_device);
     assert_eq!(r.episodes, 3);
+}
+
+/// A run's [obs, critic obs, actions] sizes (from its first checkpoint's state).
+fn dims(dir: &Path) -> [usize; 3] {
+    let st: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("checkpoints/1/state.json")).unwrap()).unwrap();
+    ["obs_dim", "priv_dim", "action_dim"].map(|k| st[k].as_u64().unwrap() as usize)
 }
 
 /// `--force` replaces a run, and only a run: a directory that is not one, or a run with a file of

@@ -11,11 +11,16 @@
 //!   × entropy; gradients clipped to a global norm; Adam; the learning rate adapts to the KL between
 //!   the acting policy and the current one (÷1.5 above 2× the target, ×1.5 below ½×, clamped).
 //!
-//! Host RNG (action noise, minibatch shuffles) is one `Rng` whose state the checkpoint saves.
+//! The minibatch shuffles come from one host `Rng`; the action noise from the counter hash
+//! (`learn::noise`: draw number `noise_draw`), so the host and the device draw the same numbers.
 //! [`Ppo::state`] / [`Ppo::load_state`] hand the whole learner to `checkpoint.rs` as named tensors
 //! (file `model`: the networks and normalisers; file `optimizer`: Adam's moments) and scalars
-//! (`learning_rate`, `adam_step`, `rng_state`).
+//! (`learning_rate`, `adam_step`, `rng_state`, `noise_draw`).
+//!
+//! `device.rs`: the same rollouts and update with everything on the learner device (the envs and
+//! the learner on one GPU: `run/device_loop.rs`).
 
+pub mod device;
 pub mod storage;
 
 use anyhow::{Result, ensure};
@@ -25,6 +30,7 @@ use burn::tensor::{Int, TensorData};
 use self::storage::RolloutStorage;
 use super::adam::{Adam, clipped_grads};
 use super::nets::{Activation, init_mlp, mlp_forward, mlp_shapes, to_host, to_tensor};
+use super::noise::host_normals;
 use super::normalizer::Normalizer;
 use super::rng::Rng;
 use super::state::{LearnerState, TensorValues};
@@ -298,10 +304,16 @@ pub struct Ppo {
     pub storage: RolloutStorage,
     /// Current learning rate (adaptive).
     pub lr: f64,
-    /// Action noise and minibatch shuffles.
+    /// Minibatch shuffles.
     pub rng: Rng,
     /// Env steps recorded in the current rollout.
     step: usize,
+    /// The action noise's stream (`learn::noise`): from the seed.
+    noise_seed: u32,
+    /// Action draws so far (the noise's draw number; saved in checkpoints).
+    noise_draw: u32,
+    /// The device-resident rollout, once [`Ppo::start_device_rollouts`] made it (`device.rs`).
+    pub(crate) on_device: Option<device::DeviceRollout>,
 }
 
 impl Ppo {
@@ -324,6 +336,9 @@ impl Ppo {
             lr: cfg.learning_rate as f64,
             rng,
             step: 0,
+            noise_seed: (seed ^ (seed >> 32)) as u32 ^ 0xAC71_0A5E,
+            noise_draw: 0,
+            on_device: None,
         })
     }
 
@@ -341,8 +356,9 @@ impl Ppo {
         for ((n, s), v) in names.iter().zip(&shapes).zip(self.net.values()?) {
             state.push_tensor(MODEL_FILE, n, s.to_vec(), TensorValues::F32(v));
         }
-        self.obs_norm.save("obs_norm", state, MODEL_FILE);
-        self.priv_norm.save("priv_norm", state, MODEL_FILE);
+        let (obs_norm, priv_norm) = self.normalizers()?;
+        obs_norm.save("obs_norm", state, MODEL_FILE);
+        priv_norm.save("priv_norm", state, MODEL_FILE);
         let d = self.dims();
         let info = serde_json::json!({
             "format": "dextrain.policy.v1",
@@ -369,11 +385,23 @@ impl Ppo {
         let d = self.dims();
         self.obs_norm = Normalizer::load("obs_norm", d.obs, state, MODEL_FILE)?;
         self.priv_norm = Normalizer::load("priv_norm", d.priv_obs, state, MODEL_FILE)?;
+        if let Some(r) = &mut self.on_device {
+            r.load_normalizers(&self.obs_norm, &self.priv_norm, &self.device);
+        }
         Ok(())
     }
 
+    /// The observation normalisers as they stand (read from the device in a device-resident run).
+    pub fn normalizers(&self) -> Result<(Normalizer, Normalizer)> {
+        match &self.on_device {
+            Some(r) => r.normalizers(),
+            None => Ok((self.obs_norm.clone(), self.priv_norm.clone())),
+        }
+    }
+
     /// Everything a resumed run needs: the policy, Adam (moments in [`OPTIMIZER_FILE`], `adam_step`),
-    /// the learning rate (`learning_rate`, exact) and the RNG (`rng_state`). The rollout storage is
+    /// the learning rate (`learning_rate`, exact), the RNG (`rng_state`) and the noise's draw
+    /// number (`noise_draw`). The rollout storage is
     /// not saved: checkpoints are taken between iterations, when it is empty.
     pub fn state(&self) -> Result<LearnerState> {
         let mut state = LearnerState::default();
@@ -381,6 +409,7 @@ impl Ppo {
         self.adam.save(&self.net.names(), &self.net.shapes(), &mut state, OPTIMIZER_FILE)?;
         state.set_f64("learning_rate", self.lr);
         state.set_bits("rng_state", self.rng.state);
+        state.set_bits("noise_draw", self.noise_draw as u64);
         Ok(state)
     }
 
@@ -392,6 +421,7 @@ impl Ppo {
         self.adam.load(&self.net.names(), &self.net.shapes(), state, OPTIMIZER_FILE, &device)?;
         self.lr = state.f64("learning_rate")?;
         self.rng.state = state.bits("rng_state")?;
+        self.noise_draw = state.bits("noise_draw")? as u32;
         Ok(())
     }
 
@@ -426,8 +456,9 @@ impl Ppo {
         let log_std = to_host(self.net.log_std(&params))?; // [A]
         let sigma: Vec<f32> = log_std.iter().map(|l| l.exp()).collect();
         let sum_log_std: f64 = log_std.iter().map(|&l| l as f64).sum();
-        let mut eps = vec![0.0f32; n * d.act];
-        self.rng.fill_normal(&mut eps);
+        ensure!(self.on_device.is_none(), "act() in a device-resident run (act_device)");
+        let eps = host_normals(self.noise_seed, self.noise_draw, n, d.act); // ε ~ N(0, 1) [N, A]
+        self.noise_draw = self.noise_draw.wrapping_add(1);
         let t = self.step;
         let s = &mut self.storage;
         let mut actions = vec![0.0f32; n * d.act];
@@ -503,13 +534,25 @@ impl Ppo {
             returns: col(&s.returns),
             old_values: col(&s.values),
         };
+        self.storage.clear();
+        self.optimise(all, total)
+    }
+
+    /// `epochs` × `minibatches` gradient steps over the rollout `all` (`total` rows), shuffled by
+    /// the learner RNG; ends the rollout.
+    pub(crate) fn optimise(&mut self, all: Batch, total: usize) -> Result<UpdateStats> {
+        let dev = &self.device.clone();
+        let on_gpu = super::nets::is_gpu(dev);
         let mb_size = total / self.cfg.minibatches as usize;
         let mut sums = [0.0f64; 5];
         let mut count = 0usize;
         for _epoch in 0..self.cfg.epochs {
             let perm = self.rng.permutation(total);
             for m in 0..self.cfg.minibatches as usize {
-                let idx: Vec<i64> = perm[m * mb_size..(m + 1) * mb_size].iter().map(|&i| i as i64).collect();
+                let idx: Vec<i32> = perm[m * mb_size..(m + 1) * mb_size].iter().map(|&i| i as i32).collect();
+                if on_gpu {
+                    crate::host_traffic::add(4 * mb_size as u64);
+                }
                 let idx = Tensor::<1, Int>::from_data(TensorData::new(idx, [mb_size]), dev);
                 let pick = |t: &Tensor<2>| t.clone().select(0, idx.clone());
                 let b = Batch {
@@ -552,7 +595,6 @@ impl Ppo {
                 count += 1;
             }
         }
-        self.storage.clear();
         self.step = 0;
         let c = count.max(1) as f64;
         let log_std = to_host(self.net.log_std(&self.net.inference_params()))?;

@@ -1,0 +1,32 @@
+// ---- the learner's Gaussian action noise on the device (src/learn/noise.rs; CPU twin:
+// learn::noise::host_normals). Appended to common.wgsl (its counter hash and env_index). ----
+
+// the stream of the action noise in the counter hash (the env's purposes are 1–5)
+const PURPOSE_ACTION_NOISE: u32 = 6u;
+
+struct NoiseCfg {
+    seed: u32,
+    // the draw's number (the learner's act calls so far): the hash's episode slot
+    draw: u32,
+    rows: u32,
+    cols: u32,
+}
+
+@group(0) @binding(22) var<uniform> nc: NoiseCfg;
+// [rows, cols] standard normal draws, row-major
+@group(0) @binding(23) var<storage, read_write> noise_out: array<f32>;
+
+// ε[i, k] ~ N(0, 1) for row i (the env) and column k (the action) of draw nc.draw:
+// Box–Muller √(−2 ln u1) cos(2π u2) with u1 ∈ (0, 1] and u2 from the counter hash
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn learner_noise(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let e = env_index(gid, nwg);
+    if (e >= nc.rows * nc.cols) {
+        return;
+    }
+    let i = e / nc.cols;
+    let k = e % nc.cols;
+    let u1 = 1.0 - rand_uniform(nc.seed, i, nc.draw, PURPOSE_ACTION_NOISE, 2u * k);
+    let u2 = rand_uniform(nc.seed, i, nc.draw, PURPOSE_ACTION_NOISE, 2u * k + 1u);
+    noise_out[e] = sqrt(-2.0 * log(u1)) * cos(6.2831853 * u2);
+}
