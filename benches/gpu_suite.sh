@@ -15,9 +15,12 @@
 #   3. PPO training on configs/lift_cube_gpu.toml for TRAIN_PPO_S seconds (SIGINT: the run stops at
 #      the end of its iteration with a checkpoint), then SAC on configs/lift_cube_sac_gpu.toml for
 #      TRAIN_SAC_S seconds: env-steps/s with the learner, the best success rate and the wall time
-#      and env steps of the first iteration at >= 90 % success.
+#      and env steps of the first iteration at >= 90 % success, and the host<->GPU bytes of its last
+#      iteration (`time/host_bytes`: the PPO run keeps its rollouts on the device); then PPO again for
+#      TRAIN_PPO_HOST_S seconds with `train.device_rollouts = false` (observations through the host
+#      every env step: what the device-resident rollouts save).
 # --quick runs the same steps at tiny sizes (any adapter, lavapipe included) so that the script
-# can be checked anywhere. Environment: ENVS (space-separated env counts), TRAIN_PPO_S, TRAIN_SAC_S,
+# can be checked anywhere. Environment: ENVS (space-separated env counts), TRAIN_PPO_S, TRAIN_SAC_S, TRAIN_PPO_HOST_S,
 # BENCH_S (least timed seconds per env-only point), OBJ_ENVS, ADAPTER (gpu or gpu:NAME, default gpu),
 # STEPS (the steps to run, default "env objects learner train"; the others' JSON values are null).
 set -uo pipefail
@@ -36,12 +39,12 @@ done
 mkdir -p "$out"
 adapter=${ADAPTER:-gpu}
 if [ "$quick" = 1 ]; then
-    envs=${ENVS:-"64 128"}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; bench_s=${BENCH_S:-0.5}; obj_envs=${OBJ_ENVS:-64}
+    envs=${ENVS:-"64 128"}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; ppo_host_s=${TRAIN_PPO_HOST_S:-10}; bench_s=${BENCH_S:-0.5}; obj_envs=${OBJ_ENVS:-64}
     small=(--set sim.num_envs=64 --set train.steps_per_env=4 --set 'policy.actor_hidden=[32]' --set 'policy.critic_hidden=[32]')
     sac_small=(--set sac.batch_size=64 --set sac.learning_starts=8 --set sac.buffer_capacity=64)
     learner_sizes=(--envs 64 --iters 1)
 else
-    envs=${ENVS:-"4096 16384 65536 262144"}; ppo_s=${TRAIN_PPO_S:-240}; sac_s=${TRAIN_SAC_S:-120}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
+    envs=${ENVS:-"4096 16384 65536 262144"}; ppo_s=${TRAIN_PPO_S:-240}; sac_s=${TRAIN_SAC_S:-100}; ppo_host_s=${TRAIN_PPO_HOST_S:-40}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
     small=(); sac_small=(); learner_sizes=(--iters 3)
 fi
 runs=$out/runs
@@ -65,9 +68,10 @@ train_summary() {
     awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
         { rows++; steps = $col["env_steps"]; t = $col["time_s"]; fps = $col["fps"]; s = $col["episode/success_rate"] + 0
           if (s > best) best = s
-          if (s >= 0.9 && first_it == "") { first_it = $col["iteration"]; first_steps = steps; first_t = t } }
-        END { printf "{\"iterations\": %d, \"env_steps\": %s, \"time_s\": %s, \"env_steps_per_s_last\": %s, \"best_success\": %s, \"first_90_iteration\": %s, \"first_90_env_steps\": %s, \"first_90_time_s\": %s}",
-              rows, steps + 0, t + 0, fps + 0, best + 0, first_it == "" ? "null" : first_it, first_it == "" ? "null" : first_steps, first_it == "" ? "null" : first_t }' "$csv"
+          if (s >= 0.9 && first_it == "") { first_it = $col["iteration"]; first_steps = steps; first_t = t }
+          bytes = ("time/host_bytes" in col) ? $col["time/host_bytes"] : "null" }
+        END { printf "{\"iterations\": %d, \"env_steps\": %s, \"time_s\": %s, \"env_steps_per_s_last\": %s, \"best_success\": %s, \"first_90_iteration\": %s, \"first_90_env_steps\": %s, \"first_90_time_s\": %s, \"host_bytes_last_iteration\": %s}",
+              rows, steps + 0, t + 0, fps + 0, best + 0, first_it == "" ? "null" : first_it, first_it == "" ? "null" : first_steps, first_it == "" ? "null" : first_t, bytes == "" ? "null" : bytes }' "$csv"
 }
 
 # a training run stopped by SIGINT after $2 seconds (it writes its checkpoint and exits)
@@ -112,6 +116,8 @@ if runs_step train; then
     train_for gpu_ppo "$ppo_s" configs/lift_cube_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" "${small[@]}"
     echo "gpu_suite: SAC lift for ${sac_s}s" >&2
     train_for gpu_sac "$sac_s" configs/lift_cube_sac_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" "${small[@]}" "${sac_small[@]}"
+    echo "gpu_suite: PPO lift through the host for ${ppo_host_s}s" >&2
+    train_for gpu_ppo_host "$ppo_host_s" configs/lift_cube_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" --set train.device_rollouts=false "${small[@]}"
 fi
 driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader 2>/dev/null || echo unknown) | head -n 1)
 {
@@ -120,6 +126,6 @@ driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,
     printf ' "env_only": [%s],\n' "$env_json"
     printf ' "objects": [%s],\n' "$obj_json"
     printf ' "ppo_update": %s,\n "sac_update": %s,\n' "$(json_of "$out/ppo_update.json")" "$(json_of "$out/sac_update.json")"
-    printf ' "train_ppo": %s,\n "train_sac": %s}\n' "$(train_summary "$runs/gpu_ppo/metrics.csv")" "$(train_summary "$runs/gpu_sac/metrics.csv")"
+    printf ' "train_ppo": %s,\n "train_sac": %s,\n "train_ppo_host_path": %s}\n' "$(train_summary "$runs/gpu_ppo/metrics.csv")" "$(train_summary "$runs/gpu_sac/metrics.csv")" "$(train_summary "$runs/gpu_ppo_host/metrics.csv")"
 } >"$out/gpu_suite.json"
 cat "$out/gpu_suite.json"

@@ -310,7 +310,7 @@ fn gpu_suite_quick_writes_every_figure() {
         assert!(o["backend"].as_str().unwrap_or("").starts_with("gpu"), "{o}");
     }
     // the steps left out are null, not figures from an earlier run
-    for k in ["ppo_update", "sac_update", "train_ppo", "train_sac"] {
+    for k in ["ppo_update", "sac_update", "train_ppo", "train_sac", "train_ppo_host_path"] {
         assert!(j[k].is_null(), "{k}: {text}");
     }
 }

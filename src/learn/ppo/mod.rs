@@ -15,7 +15,7 @@
 //! (`learn::noise`: draw number `noise_draw`), so the host and the device draw the same numbers.
 //! [`Ppo::state`] / [`Ppo::load_state`] hand the whole learner to `checkpoint.rs` as named tensors
 //! (file `model`: the networks and normalisers; file `optimizer`: Adam's moments) and scalars
-//! (`learning_rate`, `adam_step`, `rng_state`, `noise_draw`).
+//! (`learning_rate`, `adam_step`, `rng_state`, `noise_seed`, `noise_draw`).
 //!
 //! `device.rs`: the same rollouts and update with everything on the learner device (the envs and
 //! the learner on one GPU: `run/device_loop.rs`).
@@ -400,8 +400,8 @@ impl Ppo {
     }
 
     /// Everything a resumed run needs: the policy, Adam (moments in [`OPTIMIZER_FILE`], `adam_step`),
-    /// the learning rate (`learning_rate`, exact), the RNG (`rng_state`) and the noise's draw
-    /// number (`noise_draw`). The rollout storage is
+    /// the learning rate (`learning_rate`, exact), the RNG (`rng_state`) and the noise's stream and
+    /// draw number (`noise_seed`, `noise_draw`). The rollout storage is
     /// not saved: checkpoints are taken between iterations, when it is empty.
     pub fn state(&self) -> Result<LearnerState> {
         let mut state = LearnerState::default();
@@ -409,6 +409,7 @@ impl Ppo {
         self.adam.save(&self.net.names(), &self.net.shapes(), &mut state, OPTIMIZER_FILE)?;
         state.set_f64("learning_rate", self.lr);
         state.set_bits("rng_state", self.rng.state);
+        state.set_bits("noise_seed", self.noise_seed as u64);
         state.set_bits("noise_draw", self.noise_draw as u64);
         Ok(state)
     }
@@ -421,6 +422,7 @@ impl Ppo {
         self.adam.load(&self.net.names(), &self.net.shapes(), state, OPTIMIZER_FILE, &device)?;
         self.lr = state.f64("learning_rate")?;
         self.rng.state = state.bits("rng_state")?;
+        self.noise_seed = state.bits("noise_seed")? as u32;
         self.noise_draw = state.bits("noise_draw")? as u32;
         Ok(())
     }
