@@ -8,7 +8,7 @@
 # It writes results/gpu_suite.json (one JSON object) and one log per step beside it. Steps:
 #   1. env-only throughput of the contact-rich bench scene (`dextrain bench --backend gpu`) at
 #      4 k, 16 k, 64 k and 256 k envs (every env step uploads the targets and reads the step
-#      statistics back, as an RL loop does);
+#      statistics back, as an RL loop does), with the simulator's device bytes per env;
 #   1b. the same scene at OBJ_ENVS (65536) envs with the cube, the 3-piece bottle and the 16-piece mug
 #      (configs/bench_{cube,bottle,mug16}.toml): what a compound object costs per env step;
 #   2. the learner updates on the GPU at the peers' shapes (`bench --ppo` / `bench --sac --device gpu`);
@@ -18,7 +18,8 @@
 #      and env steps of the first iteration at >= 90 % success, and the host<->GPU bytes of its last
 #      iteration (`time/host_bytes`: the PPO run keeps its rollouts on the device); then PPO again for
 #      TRAIN_PPO_HOST_S seconds with `train.device_rollouts = false` (observations through the host
-#      every env step: what the device-resident rollouts save).
+#      every env step: what the device-resident rollouts save). Each run's summary line gives its
+#      device memory (the simulator's buffers and burn's reserved pool, and their sum per env).
 # --quick runs the same steps at tiny sizes (any adapter, lavapipe included) so that the script
 # can be checked anywhere. Environment: ENVS (space-separated env counts), TRAIN_PPO_S, TRAIN_SAC_S, TRAIN_PPO_HOST_S,
 # BENCH_S (least timed seconds per env-only point), OBJ_ENVS, ADAPTER (gpu or gpu:NAME, default gpu),
@@ -42,10 +43,10 @@ if [ "$quick" = 1 ]; then
     envs=${ENVS:-"64 128"}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; ppo_host_s=${TRAIN_PPO_HOST_S:-10}; bench_s=${BENCH_S:-0.5}; obj_envs=${OBJ_ENVS:-64}
     small=(--set sim.num_envs=64 --set train.steps_per_env=4 --set 'policy.actor_hidden=[32]' --set 'policy.critic_hidden=[32]')
     sac_small=(--set sac.batch_size=64 --set sac.learning_starts=8 --set sac.buffer_capacity=64)
-    learner_sizes=(--envs 64 --iters 1)
+    ppo_sizes=(--envs 64 --iters 1); sac_sizes=(--envs 64 --iters 1 --batch 256 --gradient-steps 2)
 else
-    envs=${ENVS:-"4096 16384 65536 262144"}; ppo_s=${TRAIN_PPO_S:-240}; sac_s=${TRAIN_SAC_S:-100}; ppo_host_s=${TRAIN_PPO_HOST_S:-40}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
-    small=(); sac_small=(); learner_sizes=(--iters 3)
+    envs=${ENVS:-"4096 16384 65536 262144"}; ppo_s=${TRAIN_PPO_S:-210}; sac_s=${TRAIN_SAC_S:-90}; ppo_host_s=${TRAIN_PPO_HOST_S:-30}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
+    small=(); sac_small=(); ppo_sizes=(--iters 3); sac_sizes=(--iters 3)
 fi
 runs=$out/runs
 mkdir -p "$runs"
@@ -54,6 +55,17 @@ mkdir -p "$runs"
 json_of() {
     local line
     line=$(tail -n 1 "$1" 2>/dev/null)
+    case "$line" in
+        \{*\}) printf '%s' "$line" ;;
+        *) printf 'null' ;;
+    esac
+}
+
+# the summary line a training run printed (its last JSON line: env backend, learner device, device
+# memory), or null
+run_json() {
+    local line
+    line=$(grep '^{' "$1" 2>/dev/null | tail -n 1)
     case "$line" in
         \{*\}) printf '%s' "$line" ;;
         *) printf 'null' ;;
@@ -74,12 +86,15 @@ train_summary() {
               rows, steps + 0, t + 0, fps + 0, best + 0, first_it == "" ? "null" : first_it, first_it == "" ? "null" : first_steps, first_it == "" ? "null" : first_t, bytes == "" ? "null" : bytes }' "$csv"
 }
 
-# a training run stopped by SIGINT after $2 seconds (it writes its checkpoint and exits)
+# a training run stopped by SIGINT $2 seconds after it started training (it finishes its iteration,
+# writes its checkpoint and exits)
 train_for() {
     local name=$1 secs=$2 cfg=$3; shift 3
     "$bin" train "$cfg" --name "$name" --runs-dir "$runs" --force --quiet "$@" >"$out/$name.log" 2>&1 &
     local pid=$!
     local waited=0
+    # the seconds count from the run's banner (its set-up done and its Ctrl-C handler installed)
+    while kill -0 "$pid" 2>/dev/null && ! grep -q '^dextrain train:' "$out/$name.log"; do sleep 0.2; done
     while kill -0 "$pid" 2>/dev/null && [ "$waited" -lt "$secs" ]; do sleep 1; waited=$((waited + 1)); done
     kill -INT "$pid" 2>/dev/null
     wait "$pid"
@@ -106,10 +121,13 @@ for o in $objects; do
     "$bin" bench configs/bench_$o.toml --backend "$adapter" --envs "$obj_envs" --chunks 5 --seconds "$bench_s" >"$out/object_$o.json" 2>"$out/object_$o.log"
     obj_json="$obj_json${obj_json:+, }$(json_of "$out/object_$o.json")"
 done
+# a step that did not run reports null, never an earlier run's files
+ppo_json=null; sac_json=null; train_ppo=null; train_sac=null; train_host=null; ppo_run=null; sac_run=null
 if runs_step learner; then
     echo "gpu_suite: learner updates" >&2
-    "$bin" bench --ppo --device "$adapter" "${learner_sizes[@]}" >"$out/ppo_update.json" 2>"$out/ppo_update.log"
-    "$bin" bench --sac --device "$adapter" "${learner_sizes[@]}" >"$out/sac_update.json" 2>"$out/sac_update.log"
+    "$bin" bench --ppo --device "$adapter" "${ppo_sizes[@]}" >"$out/ppo_update.json" 2>"$out/ppo_update.log"
+    "$bin" bench --sac --device "$adapter" "${sac_sizes[@]}" >"$out/sac_update.json" 2>"$out/sac_update.log"
+    ppo_json=$(json_of "$out/ppo_update.json"); sac_json=$(json_of "$out/sac_update.json")
 fi
 if runs_step train; then
     echo "gpu_suite: PPO lift for ${ppo_s}s" >&2
@@ -118,6 +136,9 @@ if runs_step train; then
     train_for gpu_sac "$sac_s" configs/lift_cube_sac_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" "${small[@]}" "${sac_small[@]}"
     echo "gpu_suite: PPO lift through the host for ${ppo_host_s}s" >&2
     train_for gpu_ppo_host "$ppo_host_s" configs/lift_cube_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" --set train.device_rollouts=false "${small[@]}"
+    train_ppo=$(train_summary "$runs/gpu_ppo/metrics.csv"); train_sac=$(train_summary "$runs/gpu_sac/metrics.csv")
+    train_host=$(train_summary "$runs/gpu_ppo_host/metrics.csv")
+    ppo_run=$(run_json "$out/gpu_ppo.log"); sac_run=$(run_json "$out/gpu_sac.log")
 fi
 driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader 2>/dev/null || echo unknown) | head -n 1)
 {
@@ -125,7 +146,8 @@ driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,
         "$([ "$quick" = 1 ] && echo true || echo false)" "$(date -u +%FT%TZ)" "$driver" "$(($(date +%s) - start))"
     printf ' "env_only": [%s],\n' "$env_json"
     printf ' "objects": [%s],\n' "$obj_json"
-    printf ' "ppo_update": %s,\n "sac_update": %s,\n' "$(json_of "$out/ppo_update.json")" "$(json_of "$out/sac_update.json")"
-    printf ' "train_ppo": %s,\n "train_sac": %s,\n "train_ppo_host_path": %s}\n' "$(train_summary "$runs/gpu_ppo/metrics.csv")" "$(train_summary "$runs/gpu_sac/metrics.csv")" "$(train_summary "$runs/gpu_ppo_host/metrics.csv")"
+    printf ' "ppo_update": %s,\n "sac_update": %s,\n' "$ppo_json" "$sac_json"
+    printf ' "train_ppo": %s,\n "train_sac": %s,\n "train_ppo_host_path": %s,\n' "$train_ppo" "$train_sac" "$train_host"
+    printf ' "train_ppo_run": %s,\n "train_sac_run": %s}\n' "$ppo_run" "$sac_run"
 } >"$out/gpu_suite.json"
 cat "$out/gpu_suite.json"

@@ -176,6 +176,8 @@ pub fn run_bench(env: &mut dyn EnvBatch, model: &SimModel, opts: &BenchOptions) 
         "contacts_per_physics_step": contacts as f64 / (samples as f64 * phys_per_env_step).max(1.0),
         "hand_object_contacts_per_physics_step": contacts_ho as f64 / (samples as f64 * phys_per_env_step).max(1.0),
         "bad_resets": bad,
+        // the simulator's buffers per env (0 on the CPU)
+        "device_bytes_per_env": env.device_bytes() as f64 / n.max(1) as f64,
         "wall_s": start.elapsed().as_secs_f64(),
     }))
 }

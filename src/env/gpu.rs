@@ -601,6 +601,10 @@ impl EnvBatch for GpuEnvBatch {
         &self.model.spec
     }
 
+    fn device_bytes(&self) -> u64 {
+        [&self.globals, &self.joints, &self.states, &self.params, &self.targets, &self.stats, &self.reset_mask, &self.springs, &self.readback].iter().map(|b| b.size()).sum()
+    }
+
     fn backend_name(&self) -> String {
         format!("gpu ({})", self.ctx.describe())
     }

@@ -59,6 +59,11 @@ pub trait EnvBatch: Send {
     fn spec(&self) -> &EnvSpec;
     /// Human-readable backend: "cpu (rayon, N threads)" or "gpu (ADAPTER, API)".
     fn backend_name(&self) -> String;
+    /// Bytes of device memory the batch's own buffers hold (every per-env buffer, the constants
+    /// and the readback staging); 0 on the CPU.
+    fn device_bytes(&self) -> u64 {
+        0
+    }
     /// Starts episode 0 of every env.
     fn reset_all(&mut self) -> Result<()>;
     /// Starts the next episode of every env whose mask entry is true.

@@ -429,8 +429,13 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
     bar.finish();
     time_base = time_base + started.elapsed().as_secs_f64();
     crate::plot::plot_run(&dir.join("metrics.csv"), &dir.join("plots"))?;
+    // device memory at the end: the simulator's buffers and what burn's allocator has reserved
+    // (its pools keep their pages, so this is about the run's peak)
+    let sim_bytes = task.device_bytes();
+    let learner_bytes = if crate::learn::nets::is_gpu(&device) { device.memory_pool_usage().map_or(0, |u| u.bytes_reserved) } else { 0 };
     let summary = json!({
         "run": dir.display().to_string(),
+        "device_memory": { "sim_bytes": sim_bytes, "learner_bytes": learner_bytes, "bytes_per_env": (sim_bytes + learner_bytes) as f64 / n as f64 },
         "iterations": iteration,
         "env_steps": env_steps,
         "time_s": time_base,

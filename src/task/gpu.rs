@@ -275,6 +275,11 @@ impl TaskBatch for GpuTaskBatch {
         true
     }
 
+    fn device_bytes(&self) -> u64 {
+        let own = [&self.actions, &self.task_states, &self.out, &self.readback, &self.task_cfg, &self.tips, &self.ref_frames, &self.ref_info, &self.ref_cfg, &self.final_out];
+        self.env.device_bytes() + own.iter().map(|b| b.size()).sum::<u64>() + self.final_readback.as_ref().map_or(0, |b| b.size())
+    }
+
     fn step_on_device(&mut self, actions: &burn::prelude::Tensor<2>, device: &burn::prelude::Device) -> Result<DeviceStep> {
         use crate::learn::gpu_io::{flush, tensor_buffer, zeros_buffer};
         let (n, od, pd, ad) = (self.spec.num_envs, self.spec.obs_dim, self.spec.priv_dim, self.spec.action_dim);

@@ -223,6 +223,10 @@ pub trait TaskBatch: Send {
     /// targets, steps the physics, computes reward terms / terminations / time-outs on the post-step
     /// state, resets the done envs (next episode), then observes every env.
     fn step(&mut self, actions: &[f32]) -> Result<&StepBatch>;
+    /// Bytes of device memory the env batch's and the task's buffers hold; 0 on the CPU.
+    fn device_bytes(&self) -> u64 {
+        0
+    }
     /// Whether [`TaskBatch::step_on_device`] works here (the GPU backend).
     fn can_step_on_device(&self) -> bool {
         false

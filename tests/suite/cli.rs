@@ -279,38 +279,59 @@ fn sigterm_stops_a_training_run_with_a_checkpoint() {
     assert!(dir.path().join(format!("term/checkpoints/{last}")).is_dir(), "no checkpoint at iteration {last}");
 }
 
-/// `benches/gpu_suite.sh --quick` (issue 16: the one command of a GPU window cannot rot): its
-/// env-only steps (the bench scene, and the cube, bottle and mug of issue 17) run on the adapter the
-/// GPU tests use, lavapipe included, and the JSON holds their figures. The learner and training
-/// steps are left out (STEPS): on lavapipe they took 12 of the 13 minutes this test took with them
-/// (burn's kernels compiled and tuned on a software adapter); `bench --ppo/--sac` and GPU training
-/// have their own tests.
+/// `benches/gpu_suite.sh --quick` (issue 16: the one command of a GPU window cannot rot): every step
+/// runs at tiny sizes on the adapter the GPU tests use, lavapipe included, and the JSON holds each
+/// figure: env-only rates with the simulator's bytes per env (the bench scene; the cube, bottle and
+/// mug of issue 17), the PPO and SAC updates on the GPU, PPO training with the rollouts on the
+/// device and through the host (fewer host bytes per iteration on the device), SAC training, and
+/// the runs' device memory. Run again in the same folder with only some steps, the others are null,
+/// not the first run's figures.
 #[test]
 fn gpu_suite_quick_writes_every_figure() {
     let Some(ctx) = crate::common::gpu_context("gpu_suite_quick_writes_every_figure") else { return };
     let adapter = format!("gpu:{}", ctx.info.name.split(" (").next().unwrap_or(&ctx.info.name));
     drop(ctx);
     let tmp = tempfile::tempdir().unwrap();
-    let out = Command::new("bash")
-        .args(["benches/gpu_suite.sh", "--quick", "--bin", env!("CARGO_BIN_EXE_dextrain"), "--out"])
-        .arg(tmp.path())
-        .envs([("ADAPTER", adapter.as_str()), ("ENVS", "64"), ("BENCH_S", "0.2"), ("STEPS", "env objects")])
-        .current_dir(ROOT)
-        .output()
-        .unwrap();
-    let text = std::fs::read_to_string(tmp.path().join("gpu_suite.json")).unwrap_or_else(|e| panic!("no gpu_suite.json ({e}): {}", String::from_utf8_lossy(&out.stderr)));
-    let j: serde_json::Value = serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}"));
+    let suite = |steps: &str| -> (serde_json::Value, String) {
+        let out = Command::new("bash")
+            .args(["benches/gpu_suite.sh", "--quick", "--bin", env!("CARGO_BIN_EXE_dextrain"), "--out"])
+            .arg(tmp.path())
+            .envs([("ADAPTER", adapter.as_str()), ("ENVS", "64"), ("BENCH_S", "0.2"), ("STEPS", steps)])
+            .envs([("TRAIN_PPO_S", "14"), ("TRAIN_SAC_S", "12"), ("TRAIN_PPO_HOST_S", "10")])
+            .current_dir(ROOT)
+            .output()
+            .unwrap();
+        let text = std::fs::read_to_string(tmp.path().join("gpu_suite.json")).unwrap_or_else(|e| panic!("no gpu_suite.json ({e}): {}", String::from_utf8_lossy(&out.stderr)));
+        (serde_json::from_str(&text).unwrap_or_else(|e| panic!("{e}: {text}")), text)
+    };
+    let (j, text) = suite("env objects learner train");
     assert_eq!(j["quick"], true);
     let rate = |v: &serde_json::Value| v["env_steps_per_s"]["median"].as_f64().unwrap_or(0.0);
     assert!(rate(&j["env_only"][0]) > 0.0, "{text}");
+    assert!(j["env_only"][0]["device_bytes_per_env"].as_f64().unwrap_or(0.0) > 1000.0, "{text}");
     let objects = j["objects"].as_array().unwrap();
     assert_eq!(objects.len(), 3, "{text}");
     for (o, name) in objects.iter().zip(["bench_cube", "bench_bottle", "bench_mug16"]) {
         assert!(rate(o) > 0.0 && o["config"].as_str().unwrap_or("").contains(name), "{o}");
         assert!(o["backend"].as_str().unwrap_or("").starts_with("gpu"), "{o}");
     }
-    // the steps left out are null, not figures from an earlier run
-    for k in ["ppo_update", "sac_update", "train_ppo", "train_sac", "train_ppo_host_path"] {
+    assert!(j["ppo_update"]["update_ms"]["median"].as_f64().unwrap_or(0.0) > 0.0, "{text}");
+    assert!(j["ppo_update"]["device"].as_str().unwrap_or("").starts_with("gpu"), "{text}");
+    assert!(j["sac_update"]["ms_per_gradient_step"]["median"].as_f64().unwrap_or(0.0) > 0.0, "{text}");
+    for k in ["train_ppo", "train_sac", "train_ppo_host_path"] {
+        assert!(j[k]["iterations"].as_u64().unwrap_or(0) >= 1 && j[k]["env_steps_per_s_last"].as_f64().unwrap_or(0.0) > 0.0, "{k}: {text}");
+    }
+    let bytes = |k: &str| j[k]["host_bytes_last_iteration"].as_f64().unwrap_or(f64::NAN);
+    assert!(bytes("train_ppo") > 0.0 && bytes("train_ppo") * 10.0 < bytes("train_ppo_host_path"), "{text}");
+    for k in ["train_ppo_run", "train_sac_run"] {
+        let m = &j[k]["device_memory"];
+        assert!(m["sim_bytes"].as_u64().unwrap_or(0) > 0 && m["learner_bytes"].as_u64().unwrap_or(0) > 0 && m["bytes_per_env"].as_f64().unwrap_or(0.0) > 0.0, "{k}: {text}");
+    }
+    // the steps left out are null, not figures from the run before in the same folder
+    let (j, text) = suite("objects");
+    assert_eq!(j["objects"].as_array().map(|a| a.len()), Some(3), "{text}");
+    assert_eq!(j["env_only"].as_array().map(|a| a.len()), Some(0), "{text}");
+    for k in ["ppo_update", "sac_update", "train_ppo", "train_sac", "train_ppo_host_path", "train_ppo_run", "train_sac_run"] {
         assert!(j[k].is_null(), "{k}: {text}");
     }
 }
