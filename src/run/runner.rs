@@ -361,6 +361,10 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
                 dl.collect(task.as_mut(), algo.as_mut(), steps)?;
                 // reading the sums waits for the envs' steps: the collection's time ends here
                 let sums = dl.take_sums(spec.term_names.len())?;
+                if let Some(ctx) = task.gpu_context() {
+                    // a device lost or an error outside any call's scope, as the host path's readbacks check
+                    ctx.check_uncaptured("the iteration's device-resident env steps")?;
+                }
                 let collect_s = t0.elapsed().as_secs_f64();
                 (sums, algo.update_device(&dl.obs, &dl.priv_obs)?, collect_s)
             }
