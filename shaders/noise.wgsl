@@ -1,5 +1,6 @@
-// ---- the learner's Gaussian action noise on the device (src/learn/noise.rs; CPU twin:
-// learn::noise::host_normals). Appended to common.wgsl (its counter hash and env_index). ----
+// ---- the learner's action noise on the device, Gaussian or uniform (src/learn/noise.rs; CPU twins:
+// learn::noise::host_normals, host_uniforms). Appended to common.wgsl (its counter hash and
+// env_index). ----
 
 // the stream of the action noise in the counter hash (the env's purposes are 1–5)
 const PURPOSE_ACTION_NOISE: u32 = 6u;
@@ -29,4 +30,17 @@ fn learner_noise(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_wor
     let u1 = 1.0 - rand_uniform(nc.seed, i, nc.draw, PURPOSE_ACTION_NOISE, 2u * k);
     let u2 = rand_uniform(nc.seed, i, nc.draw, PURPOSE_ACTION_NOISE, 2u * k + 1u);
     noise_out[e] = sqrt(-2.0 * log(u1)) * cos(6.2831853 * u2);
+}
+
+// u[i, k] ~ U[−1, 1) for row i and column k of draw nc.draw: 2 u − 1 with u the hash's uniform of
+// key 2k (a draw is either normal or uniform, never both)
+@compute @workgroup_size(WORKGROUP_SIZE)
+fn learner_uniform(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let e = env_index(gid, nwg);
+    if (e >= nc.rows * nc.cols) {
+        return;
+    }
+    let i = e / nc.cols;
+    let k = e % nc.cols;
+    noise_out[e] = 2.0 * rand_uniform(nc.seed, i, nc.draw, PURPOSE_ACTION_NOISE, 2u * k) - 1.0;
 }

@@ -361,6 +361,13 @@ impl GpuContext {
         self.scoped(|| format!("uploading {} bytes to GPU buffer `{name}`", data.len()), || self.queue.write_buffer(buffer, 0, data))
     }
 
+    /// Writes `data` at byte `offset` of `buffer` (named `name` in errors) through the queue.
+    pub fn upload_at(&self, name: &str, buffer: &wgpu::Buffer, offset: u64, data: &[u8]) -> Result<()> {
+        ensure!(offset + data.len() as u64 <= buffer.size(), "uploading {} bytes at {offset} to GPU buffer `{name}` of {} bytes", data.len(), buffer.size());
+        crate::host_traffic::add(data.len() as u64);
+        self.scoped(|| format!("uploading {} bytes to GPU buffer `{name}`", data.len()), || self.queue.write_buffer(buffer, offset, data))
+    }
+
     /// A command encoder with one compute pass that dispatches `passes` in order (pipeline, its
     /// bind group 0), each over `workgroups` (x, y); wgpu orders dispatches that share buffers.
     pub fn encode_passes(&self, passes: &[(&wgpu::ComputePipeline, &wgpu::BindGroup)], workgroups: (u32, u32)) -> wgpu::CommandEncoder {

@@ -174,10 +174,12 @@ pub const TASK_GROUP: ShaderGroup = ShaderGroup {
 
 /// `learner_noise`: standard normal draws for the learner's actions.
 pub const LEARNER_NOISE: EntryBindings = EntryBindings { entry_point: "learner_noise", bindings: &[NOISE_CFG, NOISE_OUT] };
+/// `learner_uniform`: uniform draws in [−1, 1) (SAC's random actions).
+pub const LEARNER_UNIFORM: EntryBindings = EntryBindings { entry_point: "learner_uniform", bindings: &[NOISE_CFG, NOISE_OUT] };
 
 /// The action-noise module (`gpu::noise_shader_source`: common + noise).
 pub const NOISE_GROUP: ShaderGroup = ShaderGroup {
     shader: "dextrain action noise",
     bindings: &[GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS, NOISE_CFG, NOISE_OUT],
-    entry_points: &[LEARNER_NOISE],
+    entry_points: &[LEARNER_NOISE, LEARNER_UNIFORM],
 };

@@ -1,20 +1,22 @@
-//! The learner's Gaussian action noise, drawn from the counter hash the simulator uses (common.wgsl's
-//! `rand_uniform`), so the host and the device draw the same numbers: ε[i, k] for row i (the env),
-//! column k (the action) and draw d (the learner's act calls so far) is Box–Muller of the hash's
-//! uniforms (seed, env i, episode slot d, purpose [`PURPOSE_ACTION_NOISE`], keys 2k and 2k + 1).
+//! The learners' action noise, drawn from the counter hash the simulator uses (common.wgsl's
+//! `rand_uniform`), so the host and the device draw the same numbers. Draw d (a learner's count of
+//! draws so far) of stream `seed` is a `[rows, cols]` matrix; entry (i, k) uses the hash's uniforms
+//! (seed, row i, episode slot d, purpose [`PURPOSE_ACTION_NOISE`], keys 2k and 2k + 1):
+//! - normal: Box–Muller of the two (PPO's and SAC's ε);
+//! - uniform in [−1, 1): 2u − 1 of the first (SAC's random actions).
 //!
-//! - [`host_normals`]: on the host (PPO's host rollouts);
-//! - [`DeviceNoise`]: `shaders/noise.wgsl` on the simulator's wgpu device, written into a tensor of
-//!   burn's wgpu learner on that device (PPO's device-resident rollouts): no host traffic but the
-//!   16-byte parameters of each draw.
+//! [`host_normals`] / [`host_uniforms`] draw on the host (the host paths); [`DeviceNoise`] runs
+//! `shaders/noise.wgsl` on the simulator's wgpu device and writes into a tensor of burn's wgpu
+//! learner on that device (the device-resident rollouts): no host traffic but the 16-byte
+//! parameters of each draw.
 
-use anyhow::{Context, Result};
+use anyhow::{Context, Result, ensure};
 use burn::prelude::{Device, Tensor};
 
 use super::gpu_io::{flush, zeros_buffer};
 use crate::env::common::rand_uniform;
 use crate::env::gpu::{GpuContext, WORKGROUP_SIZE, noise_shader_source};
-use crate::env::gpu_bindings::{LEARNER_NOISE, NOISE_CFG, NOISE_GROUP, NOISE_OUT};
+use crate::env::gpu_bindings::{LEARNER_NOISE, LEARNER_UNIFORM, NOISE_CFG, NOISE_GROUP, NOISE_OUT};
 
 /// The action noise's stream in the counter hash (the env's purposes are 1–5; noise.wgsl's twin).
 pub const PURPOSE_ACTION_NOISE: u32 = 6;
@@ -32,6 +34,11 @@ pub fn host_normals(seed: u32, draw: u32, rows: usize, cols: usize) -> Vec<f32> 
     out
 }
 
+/// Uniform draws in [−1, 1) `[rows, cols]` (row-major) of draw `draw`.
+pub fn host_uniforms(seed: u32, draw: u32, rows: usize, cols: usize) -> Vec<f32> {
+    (0..rows * cols).map(|e| 2.0 * rand_uniform(seed, (e / cols) as u32, draw, PURPOSE_ACTION_NOISE, 2 * (e % cols) as u32) - 1.0).collect()
+}
+
 /// `NoiseCfg` of noise.wgsl.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -42,40 +49,55 @@ struct NoiseCfg {
     cols: u32,
 }
 
-/// noise.wgsl's pipeline and buffers for draws of `[rows, cols]`, on the simulator's device.
+/// noise.wgsl's pipelines and buffers for draws of up to `capacity` numbers, on the simulator's
+/// device.
 pub struct DeviceNoise {
     ctx: GpuContext,
-    pipeline: wgpu::ComputePipeline,
-    group: wgpu::BindGroup,
+    normal: wgpu::ComputePipeline,
+    uniform: wgpu::ComputePipeline,
+    normal_group: wgpu::BindGroup,
+    uniform_group: wgpu::BindGroup,
     cfg: wgpu::Buffer,
     out: wgpu::Buffer,
-    rows: usize,
-    cols: usize,
+    capacity: usize,
     /// burn's wgpu device on `ctx` (the tensors' device).
     device: Device,
 }
 
 impl DeviceNoise {
-    /// The kernel for draws of `[rows, cols]` into tensors on `device` (burn's wgpu runtime on `ctx`'s device).
-    pub fn new(ctx: &GpuContext, device: &Device, rows: usize, cols: usize) -> Result<DeviceNoise> {
-        let [pipeline] = ctx.compute_pipelines(NOISE_GROUP.shader, &noise_shader_source(), [LEARNER_NOISE.entry_point])?;
-        let cfg = ctx.create_binding_buffer(NOISE_CFG, &[NoiseCfg { seed: 0, draw: 0, rows: rows as u32, cols: cols as u32 }], wgpu::BufferUsages::empty())?;
+    /// The kernels for draws of up to `capacity` numbers into tensors on `device` (burn's wgpu
+    /// runtime on `ctx`'s device).
+    pub fn new(ctx: &GpuContext, device: &Device, capacity: usize) -> Result<DeviceNoise> {
+        let [normal, uniform] = ctx.compute_pipelines(NOISE_GROUP.shader, &noise_shader_source(), [LEARNER_NOISE.entry_point, LEARNER_UNIFORM.entry_point])?;
+        let cfg = ctx.create_binding_buffer(NOISE_CFG, &[NoiseCfg { seed: 0, draw: 0, rows: 0, cols: 0 }], wgpu::BufferUsages::empty())?;
         let out = ctx
-            .create_binding_buffer(NOISE_OUT, &vec![0f32; rows * cols], wgpu::BufferUsages::empty())
-            .with_context(|| format!("the action noise of {rows} envs × {cols} actions"))?;
-        let group = ctx.bind_group(&pipeline, &LEARNER_NOISE, &[(NOISE_CFG, &cfg), (NOISE_OUT, &out)])?;
-        Ok(DeviceNoise { ctx: ctx.clone(), pipeline, group, cfg, out, rows, cols, device: device.clone() })
+            .create_binding_buffer(NOISE_OUT, &vec![0f32; capacity.max(1)], wgpu::BufferUsages::empty())
+            .with_context(|| format!("the action noise ({capacity} numbers per draw)"))?;
+        let buffers = [(NOISE_CFG, &cfg), (NOISE_OUT, &out)];
+        let normal_group = ctx.bind_group(&normal, &LEARNER_NOISE, &buffers)?;
+        let uniform_group = ctx.bind_group(&uniform, &LEARNER_UNIFORM, &buffers)?;
+        Ok(DeviceNoise { ctx: ctx.clone(), normal, uniform, normal_group, uniform_group, cfg, out, capacity, device: device.clone() })
     }
 
-    /// Draw `draw` of stream `seed` as a `[rows, cols]` tensor on the learner device: the same
-    /// numbers as [`host_normals`] to the GPU's `log`/`cos` rounding.
-    pub fn normals(&self, seed: u32, draw: u32) -> Result<Tensor<2>> {
-        let (rows, cols) = (self.rows, self.cols);
-        self.ctx.upload(NOISE_CFG.name, &self.cfg, bytemuck::bytes_of(&NoiseCfg { seed, draw, rows: rows as u32, cols: cols as u32 }))?;
+    /// Draw `draw` of stream `seed` as a `[rows, cols]` tensor of standard normal numbers on the
+    /// learner device: [`host_normals`]' numbers to the GPU's `log`/`cos` rounding.
+    pub fn normals(&self, seed: u32, draw: u32, rows: usize, cols: usize) -> Result<Tensor<2>> {
+        self.run(&self.normal, &self.normal_group, NoiseCfg { seed, draw, rows: rows as u32, cols: cols as u32 })
+    }
+
+    /// As [`DeviceNoise::normals`] with uniform numbers in [−1, 1) ([`host_uniforms`]' numbers).
+    pub fn uniforms(&self, seed: u32, draw: u32, rows: usize, cols: usize) -> Result<Tensor<2>> {
+        self.run(&self.uniform, &self.uniform_group, NoiseCfg { seed, draw, rows: rows as u32, cols: cols as u32 })
+    }
+
+    fn run(&self, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, c: NoiseCfg) -> Result<Tensor<2>> {
+        let (rows, cols) = (c.rows as usize, c.cols as usize);
+        ensure!(rows * cols <= self.capacity, "a draw of {rows} × {cols} numbers from a noise kernel made for {}", self.capacity);
+        self.ctx.upload(NOISE_CFG.name, &self.cfg, bytemuck::bytes_of(&c))?;
         let dst = zeros_buffer(rows, cols, &self.device)?;
         let wg = ((rows * cols) as u32).div_ceil(WORKGROUP_SIZE);
         let x = wg.clamp(1, 65535);
-        let mut enc = self.ctx.encode_passes(&[(&self.pipeline, &self.group)], (x, wg.div_ceil(x).max(1)));
+        let mut enc = self.ctx.encode_passes(&[(pipeline, group)], (x, wg.div_ceil(x).max(1)));
         enc.copy_buffer_to_buffer(&self.out, 0, dst.buffer(), dst.offset(), dst.size());
         // burn's zero fill of dst runs before this copy (module doc of gpu_io)
         flush(&self.device)?;

@@ -4,9 +4,13 @@
 //! The statistics are kept in f64 on the host and merged batch by batch with Chan et al.'s parallel
 //! formula, so the result equals a two-pass mean/variance over all the data (tests/learn.rs checks
 //! it). They are saved with the model: a policy is only meaningful with its normaliser.
+//! [`DeviceNormalizer`] is the same merge in f32 tensors on the learner device, for the
+//! device-resident rollouts (README "The GPU loop").
 
 use anyhow::Result;
+use burn::prelude::*;
 
+use super::nets::{to_host, to_tensor};
 use super::state::{LearnerState, TensorValues};
 
 /// Running mean and (population) variance of a vector-valued observation.
@@ -117,5 +121,68 @@ impl Normalizer {
             m2: state.f64s(file, &format!("{prefix}.m2"), Some(dim))?,
             eps: state.f64s(file, &format!("{prefix}.eps"), Some(1))?[0],
         })
+    }
+}
+
+/// [`Normalizer`]'s statistics on the device (device-resident rollouts): mean and Σ(x − μ)² as `[1, D]` f32 tensors; the count
+/// (rows merged so far) on the host.
+pub struct DeviceNormalizer {
+    /// Rows merged so far.
+    pub count: f64,
+    /// Running mean `[1, D]`.
+    pub mean: Tensor<2>,
+    /// Σ (x − μ)² `[1, D]`.
+    pub m2: Tensor<2>,
+    /// ε added to σ in the denominator.
+    pub eps: f64,
+}
+
+impl DeviceNormalizer {
+    /// The host statistics `h` on `device`.
+    pub fn from_host(h: &Normalizer, device: &Device) -> DeviceNormalizer {
+        let d = h.dim();
+        let f = |v: &[f64]| to_tensor(v.iter().map(|&x| x as f32).collect(), [1, d], device);
+        DeviceNormalizer { count: h.count, mean: f(&h.mean), m2: f(&h.m2), eps: h.eps }
+    }
+
+    /// The statistics on the host (f32 values widened: a save and a load give them back exactly).
+    pub fn to_host(&self) -> Result<Normalizer> {
+        let f = |t: &Tensor<2>| -> Result<Vec<f64>> { Ok(to_host(t.clone())?.into_iter().map(|x| x as f64).collect()) };
+        Ok(Normalizer { count: self.count, mean: f(&self.mean)?, m2: f(&self.m2)?, eps: self.eps })
+    }
+
+    /// Merges the rows of `x` `[B, D]` ([`Normalizer::update`] as tensor ops).
+    pub fn update(&mut self, x: &Tensor<2>) {
+        let [b, d] = x.dims();
+        if b == 0 || d == 0 {
+            return;
+        }
+        let nb = b as f64;
+        // the batch mean about the first row, μ_b = x₀ + mean(x − x₀): exact for a constant column
+        // (a drawn parameter without randomisation), whose normalised value must stay exactly 0 as
+        // on the host (÷ (0 + ε) would blow an f32 rounding of its mean up 100 times)
+        let first = x.clone().slice([0..1, 0..d]);
+        let bmean = first.clone() + (x.clone() - first).mean_dim(0); // [1, D]
+        let bm2 = (x.clone() - bmean.clone()).square().sum_dim(0); // Σ (x − μ_b)² [1, D]
+        // Chan: n = na + nb, δ = μb − μa, μ = μa + δ nb / n, M2 = M2a + M2b + δ² na nb / n
+        let na = self.count;
+        let n = na + nb;
+        let delta = bmean - self.mean.clone();
+        self.mean = self.mean.clone() + delta.clone().mul_scalar(nb / n);
+        self.m2 = self.m2.clone() + bm2 + delta.square().mul_scalar(na * nb / n);
+        self.count = n;
+    }
+
+    /// `(x − μ) / (σ + ε)` of `x` `[B, D]` when `on` (μ = 0, σ = 1 before any update), else `x`.
+    pub fn normalized(&self, x: Tensor<2>, on: bool) -> Tensor<2> {
+        if !on || x.dims()[1] == 0 {
+            return x;
+        }
+        let scale = if self.count > 0.0 {
+            self.m2.clone().div_scalar(self.count).sqrt().add_scalar(self.eps).recip() // 1 / (√(M2 / n) + ε)
+        } else {
+            self.mean.ones_like().div_scalar(1.0 + self.eps)
+        };
+        (x - self.mean.clone()) * scale
     }
 }

@@ -51,6 +51,10 @@ pub struct DeviceOutcome<'a> {
     /// Raw actor / critic observations after the step `[N, O]` / `[N, P]`.
     pub obs: &'a Tensor<2>,
     pub priv_obs: &'a Tensor<2>,
+    /// With [`Algorithm::wants_final_observations`]: the observations each ended episode ended in
+    /// (`[N, O]` / `[N, P]`; rows of the other envs are stale).
+    pub final_obs: Option<&'a Tensor<2>>,
+    pub final_priv_obs: Option<&'a Tensor<2>>,
 }
 
 /// A learning algorithm that the runner drives.

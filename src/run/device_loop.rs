@@ -64,7 +64,15 @@ impl DeviceLoop {
             let bad = (actions.clone() - actions.clone()).is_nan().float().sum().reshape([1, 1]);
             let out = task.step_on_device(&actions, &self.device)?;
             let (reward, terminated, time_out) = (column(&out.misc, OUT_REWARD), column(&out.misc, OUT_TERMINATED), column(&out.misc, OUT_TIME_OUT));
-            algo.observe_device(&DeviceOutcome { reward: &reward, terminated: &terminated, time_out: &time_out, obs: &out.obs, priv_obs: &out.priv_obs })?;
+            algo.observe_device(&DeviceOutcome {
+                reward: &reward,
+                terminated: &terminated,
+                time_out: &time_out,
+                obs: &out.obs,
+                priv_obs: &out.priv_obs,
+                final_obs: out.final_obs.as_ref(),
+                final_priv_obs: out.final_priv_obs.as_ref(),
+            })?;
             let done = (terminated + time_out).clamp(0.0, 1.0); // [N, 1]
             self.ep_ret = self.ep_ret.clone() + reward;
             self.ep_len = self.ep_len.clone().add_scalar(1.0);

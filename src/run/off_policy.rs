@@ -1,11 +1,14 @@
 //! SAC's part of the runner (an off-policy runner in the FastTD3 shape): every env step of all envs
 //! pushes one transition per env into the replay buffer and takes `sac.updates_per_step` gradient
 //! steps; an iteration is `train.steps_per_env` env steps and writes one metrics row with the
-//! means of its gradient steps. The loop itself is `runner.rs`.
+//! means of its gradient steps. The loop itself is `runner.rs` (`device_loop.rs` when the envs and
+//! the learner share a GPU: the replay buffer then lives on the device).
 
 use anyhow::Result;
+use burn::prelude::Tensor;
 
-use super::algorithm::{Algorithm, StepOutcome};
+use super::algorithm::{Algorithm, DeviceOutcome, StepOutcome};
+use crate::env::gpu::GpuContext;
 use super::runner::RunContext;
 use crate::console;
 use crate::learn::ppo::Dims;
@@ -120,6 +123,34 @@ impl Algorithm for OffPolicy {
     }
 
     fn update(&mut self, _obs: &[f32], _priv_obs: &[f32]) -> Result<Vec<f64>> {
+        Ok(stat_values(&self.sac.take_stats()?))
+    }
+
+    fn can_run_on_device(&self) -> bool {
+        true
+    }
+
+    fn start_device_rollouts(&mut self, ctx: &GpuContext) -> Result<()> {
+        let bytes = self.sac.start_device_rollouts(ctx)?;
+        console::status(&format!("replay buffer: on the device ({:.3} GiB of device memory; the host keeps its counters)", gib(bytes)));
+        Ok(())
+    }
+
+    fn act_device(&mut self, obs: &Tensor<2>, priv_obs: &Tensor<2>) -> Result<Tensor<2>> {
+        self.sac.act_device(obs, priv_obs)
+    }
+
+    fn observe_device(&mut self, step: &DeviceOutcome<'_>) -> Result<()> {
+        let (Some(fo), Some(fp)) = (step.final_obs, step.final_priv_obs) else {
+            anyhow::bail!("SAC's device-resident step needs the final observations");
+        };
+        let t0 = std::time::Instant::now();
+        let r = self.sac.observe_device(step.reward, step.terminated, step.time_out, step.obs, step.priv_obs, fo, fp);
+        self.learn_seconds += t0.elapsed().as_secs_f64();
+        r
+    }
+
+    fn update_device(&mut self, _obs: &Tensor<2>, _priv_obs: &Tensor<2>) -> Result<Vec<f64>> {
         Ok(stat_values(&self.sac.take_stats()?))
     }
 

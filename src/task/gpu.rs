@@ -283,28 +283,41 @@ impl TaskBatch for GpuTaskBatch {
     fn step_on_device(&mut self, actions: &burn::prelude::Tensor<2>, device: &burn::prelude::Device) -> Result<DeviceStep> {
         use crate::learn::gpu_io::{flush, tensor_buffer, zeros_buffer};
         let (n, od, pd, ad) = (self.spec.num_envs, self.spec.obs_dim, self.spec.priv_dim, self.spec.action_dim);
-        ensure!(self.final_readback.is_none(), "device-resident steps do not return final observations (set_final_observations is on)");
         ensure!(actions.dims() == [n, ad], "actions of shape {:?} for {n} envs × {ad} actions", actions.dims());
         let act = tensor_buffer(actions)?;
         let outs = [zeros_buffer(n, od, device)?, zeros_buffer(n, pd, device)?, zeros_buffer(n, OUT_MISC, device)?];
+        let finals = match self.final_readback {
+            Some(_) => Some([zeros_buffer(n, od, device)?, zeros_buffer(n, pd, device)?]),
+            None => None,
+        };
         let e = &self.env;
-        // the actions into the task's action buffer, then the step's kernels, then the outputs
-        // ([N, od] obs, [N, pd] priv obs, [N, OUT_MISC] records, back to back in `out`) into the tensors
+        // the actions into the task's action buffer, then the step's kernels (as run_step's), then
+        // the outputs ([N, od] obs, [N, pd] priv obs, [N, OUT_MISC] records, back to back in `out`;
+        // the final observations [N, od], [N, pd] back to back in `final_out`) into the tensors
         let mut copy_in = e.ctx.device.create_command_encoder(&Default::default());
         copy_in.copy_buffer_to_buffer(act.buffer(), act.offset(), &self.actions, 0, act.size());
         let mut passes = vec![(&self.act_pipeline, &self.act_group), (&e.step_pipeline, &e.step_group), (&self.reward_pipeline, &self.reward_group)];
+        if finals.is_some() {
+            passes.push((&self.final_pipeline, &self.final_group));
+        }
         passes.extend([(&e.reset_pipeline, &e.reset_group), (&self.observe_pipeline, &self.observe_group)]);
         let mut enc = e.ctx.encode_passes(&passes, e.workgroups());
-        let mut from = 0u64;
-        for o in &outs {
-            enc.copy_buffer_to_buffer(&self.out, from, o.buffer(), o.offset(), o.size());
-            from += o.size();
+        for (src, dsts) in [(&self.out, &outs[..]), (&self.final_out, finals.as_ref().map_or(&[][..], |f| &f[..]))] {
+            let mut from = 0u64;
+            for o in dsts {
+                enc.copy_buffer_to_buffer(src, from, o.buffer(), o.offset(), o.size());
+                from += o.size();
+            }
         }
         // what burn recorded (the actions, the zero fills) runs first (learn::gpu_io)
         flush(device)?;
         e.ctx.submit_all(vec![copy_in, enc], "task step (device-resident)")?;
         let [obs, priv_obs, misc] = outs;
-        Ok(DeviceStep { obs: obs.tensor, priv_obs: priv_obs.tensor, misc: misc.tensor })
+        let (final_obs, final_priv_obs) = match finals {
+            Some([o, p]) => (Some(o.tensor), Some(p.tensor)),
+            None => (None, None),
+        };
+        Ok(DeviceStep { obs: obs.tensor, priv_obs: priv_obs.tensor, misc: misc.tensor, final_obs, final_priv_obs })
     }
 
     fn set_final_observations(&mut self, on: bool) -> Result<()> {

@@ -205,6 +205,11 @@ pub struct DeviceStep {
     /// `[N, OUT_MISC]` the per-env output records: reward, terms and flags at the columns
     /// `task::OUT_*` (what [`StepBatch`] unpacks on the host; flags are 0 or 1).
     pub misc: burn::prelude::Tensor<2>,
+    /// With [`TaskBatch::set_final_observations`] on: `[N, obs_dim]` / `[N, priv_dim]`, the
+    /// observations of the state each env that ended in this step ended in (rows of the other envs
+    /// are stale: select them by the done flags), as [`StepBatch::final_obs`].
+    pub final_obs: Option<burn::prelude::Tensor<2>>,
+    pub final_priv_obs: Option<burn::prelude::Tensor<2>>,
 }
 
 /// The backend-independent task contract (see the module documentation).
@@ -235,8 +240,7 @@ pub trait TaskBatch: Send {
     /// wgpu learner on this task's own wgpu device (`device`), copied into the task's action buffer
     /// on the device; the outputs come back as fresh tensors on `device`, copied there on the
     /// device. No bytes cross to the host. Actions are clipped to [−1, 1] as in `step` but not
-    /// checked for finiteness (the caller counts non-finite actions on the device). Not with
-    /// [`TaskBatch::set_final_observations`] on.
+    /// checked for finiteness (the caller counts non-finite actions on the device).
     fn step_on_device(&mut self, _actions: &burn::prelude::Tensor<2>, _device: &burn::prelude::Device) -> Result<DeviceStep> {
         bail!("the {} backend cannot step with device-resident tensors (only the GPU backend can)", self.backend_name())
     }

@@ -298,12 +298,12 @@ fn the_wgpu_learner_matches_the_cpu_learner() {
 /// three batches, and the normalised values).
 #[test]
 fn device_noise_and_normaliser_match_their_host_twins() {
-    use dextrain::learn::noise::{DeviceNoise, host_normals};
-    use dextrain::learn::ppo::device::DeviceNormalizer;
+    use dextrain::learn::noise::{DeviceNoise, host_normals, host_uniforms};
+    use dextrain::learn::normalizer::DeviceNormalizer;
     let Some((ctx, gpu)) = crate::common::wgpu_learner("device_noise_and_normaliser_match_their_host_twins") else { return };
     let (rows, cols) = (300, 22);
-    let noise = DeviceNoise::new(&ctx, &gpu, rows, cols).unwrap();
-    let (d0, d1) = (to_host(noise.normals(7, 3).unwrap()).unwrap(), to_host(noise.normals(7, 4).unwrap()).unwrap());
+    let noise = DeviceNoise::new(&ctx, &gpu, rows * cols).unwrap();
+    let (d0, d1) = (to_host(noise.normals(7, 3, rows, cols).unwrap()).unwrap(), to_host(noise.normals(7, 4, rows, cols).unwrap()).unwrap());
     let h0 = host_normals(7, 3, rows, cols);
     assert_eq!(d0.len(), rows * cols);
     let worst = d0.iter().zip(&h0).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
@@ -313,6 +313,14 @@ fn device_noise_and_normaliser_match_their_host_twins() {
     assert!(mean.abs() < 0.05 && (var - 1.0).abs() < 0.08, "mean {mean}, var {var}");
     assert!(d0.iter().zip(&d1).filter(|(a, b)| a == b).count() < 5, "a new draw gives new numbers");
     assert_ne!(host_normals(8, 3, rows, cols), h0, "another seed gives other numbers");
+    // uniform draws (SAC's random actions): the same numbers, in [−1, 1), mean 0 and variance 1/3
+    let (du, hu) = (to_host(noise.uniforms(7, 5, 40, 3).unwrap()).unwrap(), host_uniforms(7, 5, 40, 3));
+    assert_eq!(du, hu, "device and host uniform draws differ");
+    let hu = host_uniforms(7, 5, rows, cols);
+    let mean = hu.iter().map(|&x| x as f64).sum::<f64>() / hu.len() as f64;
+    let var = hu.iter().map(|&x| (x as f64 - mean).powi(2)).sum::<f64>() / hu.len() as f64;
+    assert!(hu.iter().all(|&x| (-1.0..1.0).contains(&x)) && mean.abs() < 0.03 && (var - 1.0 / 3.0).abs() < 0.02, "mean {mean}, var {var}");
+    assert!(noise.normals(7, 6, rows + 1, cols).is_err(), "a draw larger than the kernel was made for");
     // the normaliser: three batches of 50 rows of 5 components, offset and scaled per component
     let mut rng = Rng::new(3, 3);
     let mut host = Normalizer::new(5);

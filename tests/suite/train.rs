@@ -341,6 +341,85 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     assert_eq!(r.episodes, 3);
 }
 
+/// SAC with its replay buffer on the GPU (lavapipe in CI): the device-resident run gives the host
+/// path's run to float rounding (every metric, every policy value), its host traffic per iteration
+/// is exactly the README's (noise parameters, the batches' rows, the loss scalars; no observation),
+/// and stopped and resumed (the buffer read from the device into the checkpoint and written back)
+/// it continues as the straight run.
+#[test]
+fn sac_trains_with_its_replay_buffer_on_one_gpu_device() {
+    let Some(ctx) = crate::common::gpu_context("sac_trains_with_its_replay_buffer_on_one_gpu_device") else { return };
+    let adapter = format!("gpu:{}", ctx.info.name.split_whitespace().next().unwrap_or("llvmpipe"));
+    drop(ctx);
+    let tmp = tempfile::tempdir().unwrap();
+    let (batch, n_step, updates) = (32u64, 2u64, 2u64);
+    let sac_args = |name: &str, extra: &[&str]| {
+        let mut a = args(tmp.path(), name);
+        a.sets.retain(|s| !s.starts_with("sim.backend") && !s.starts_with("train.device"));
+        a.sets.extend([format!("sim.backend={adapter}"), format!("train.device={adapter}"), "train.iterations=3".into(), "train.save_interval=1".into()]);
+        a.sets.extend(["train.algorithm=\"sac\"", "sac.learning_starts=3", "sac.random_steps=2", "sac.buffer_capacity=6", "sac.policy_frequency=1"].iter().map(|s| s.to_string()));
+        a.sets.extend([format!("sac.batch_size={batch}"), format!("sac.n_step={n_step}"), format!("sac.updates_per_step={updates}")]);
+        a.sets.extend(extra.iter().map(|s| s.to_string()));
+        a
+    };
+    let host = train(&sac_args("host", &["train.device_rollouts=false"])).expect("SAC on the GPU, host path");
+    let dev = train(&sac_args("dev", &[])).expect("SAC on the GPU, device-resident");
+    let mut half = sac_args("half", &[]);
+    half.stop_after = Some(2);
+    let resumed = train(&half).expect("first part");
+    assert!(resumed.join("checkpoints/2/replay.safetensors").is_file(), "the checkpoint holds the buffer read from the device");
+    train(&TrainArgs { config: None, sets: vec![], name: None, resume: Some(resumed.clone()), ..args(tmp.path(), "unused") }).expect("resumed");
+    let (cols, rows_host) = metrics(&host);
+    let (_, rows_dev) = metrics(&dev);
+    let rows_resumed = metrics(&resumed).1;
+    assert_eq!((rows_host.len(), rows_dev.len(), rows_resumed.len()), (3, 3, 3));
+    let col = |c: &str| cols.iter().position(|x| x == c).unwrap();
+    let bytes = col("time/host_bytes");
+    let close = |a: &[(u64, Vec<f64>)], b: &[(u64, Vec<f64>)], tol: f64, what: &str| {
+        for ((_, x), (_, y)) in a.iter().zip(b) {
+            for (k, c) in cols.iter().enumerate() {
+                if k != bytes {
+                    assert!((x[k] - y[k]).abs() <= tol * (1.0 + x[k].abs()) || (x[k].is_nan() && y[k].is_nan()), "{what}: {c}: {} vs {}", x[k], y[k]);
+                }
+            }
+        }
+    };
+    close(&rows_host, &rows_dev, 1e-4, "host path vs device-resident");
+    close(&rows_dev, &rows_resumed, 1e-6, "straight vs resumed");
+    assert!(rows_dev.iter().all(|(_, v)| v[col("loss/critic")].is_finite() && v[col("updates")] > 0.0));
+    let policy = |dir: &Path| -> Vec<f64> {
+        let (_, learner, _) = checkpoint::load(&dir.join("checkpoints/3"), dims(dir), 8).expect("checkpoint");
+        let mut tensors: Vec<_> = learner.files.iter().filter(|f| f.name == "model").flat_map(|f| f.tensors.iter()).collect();
+        tensors.sort_by(|a, b| a.name.cmp(&b.name));
+        tensors.iter().flat_map(|t| match &t.values {
+            TensorValues::F32(v) => v.iter().map(|&x| x as f64).collect::<Vec<_>>(),
+            TensorValues::F64(v) => v.clone(),
+            TensorValues::U8(_) => Vec::new(),
+        }).collect()
+    };
+    let (p_host, p_dev, p_res) = (policy(&host), policy(&dev), policy(&resumed));
+    assert!(!p_host.is_empty() && p_host.len() == p_dev.len() && p_dev.len() == p_res.len());
+    for ((x, y), z) in p_host.iter().zip(&p_dev).zip(&p_res) {
+        assert!((x - y).abs() <= 1e-4 * (1.0 + x.abs()), "a policy value: host path {x} vs device-resident {y}");
+        assert!((y - z).abs() <= 1e-6 * (1.0 + y.abs()), "a policy value: straight {y} vs resumed {z}");
+    }
+    // host traffic of an iteration with gradient steps: per env step the noise parameters; per
+    // gradient step two noise draws' parameters, the rows (i32) and window flags (f32) of n_step × B
+    // transitions and four loss scalars (an actor step each: policy_frequency = 1); the sums; α
+    let [o, p, _] = dims(&dev);
+    let (n, t) = (8u64, 4u64);
+    let misc = dextrain::task::task::OUT_MISC as u64;
+    for (it, d) in &rows_dev {
+        let g = d[col("updates")] as u64;
+        let expected = t * 16 + g * (2 * 16 + n_step * batch * 8 + 4 * 4) + (2 * misc + 4) * 4 + 4;
+        assert_eq!(d[bytes], expected as f64, "host bytes of device-resident iteration {it} ({g} gradient steps)");
+    }
+    for (_, h) in &rows_host {
+        assert!(h[bytes] >= (t * n * (o + p) as u64 * 4) as f64, "the host path reads every step's observations: {}", h[bytes]);
+    }
+    assert_eq!(rows_dev.iter().map(|(_, v)| v[col("updates")]).collect::<Vec<_>>(), vec![4.0, 8.0, 8.0], "gradient steps from the 3rd env step on, {updates} per env step");
+}
+
 /// A run's [obs, critic obs, actions] sizes (from its first checkpoint's state).
 fn dims(dir: &Path) -> [usize; 3] {
     let st: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(dir.join("checkpoints/1/state.json")).unwrap()).unwrap();

@@ -1,7 +1,7 @@
 //! PPO's device-resident rollouts (README "The GPU loop"): with the envs and burn's wgpu learner on
 //! one wgpu device, observations arrive as tensors ([`crate::task::TaskBatch::step_on_device`]) and
 //! everything the host path does with them happens on the device instead:
-//! - the empirical normalisers ([`DeviceNormalizer`]: normalizer.rs's Chan merge in f32 tensors;
+//! - the empirical normalisers (`normalizer::DeviceNormalizer`: the Chan merge in f32 tensors;
 //!   the host keeps only the count, which it knows);
 //! - the action noise ([`crate::learn::noise::DeviceNoise`]: the host path's draws, drawn by a
 //!   shader), the actions, their log-probabilities and the values;
@@ -19,72 +19,8 @@ use burn::prelude::*;
 
 use super::{Batch, LN_2PI, Ppo, UpdateStats};
 use crate::env::gpu::GpuContext;
-use crate::learn::nets::{to_host, to_tensor};
 use crate::learn::noise::DeviceNoise;
-use crate::learn::normalizer::Normalizer;
-
-/// normalizer.rs's statistics on the device: mean and Σ(x − μ)² as `[1, D]` f32 tensors; the count
-/// (rows merged so far) on the host.
-pub struct DeviceNormalizer {
-    /// Rows merged so far.
-    pub count: f64,
-    /// Running mean `[1, D]`.
-    pub mean: Tensor<2>,
-    /// Σ (x − μ)² `[1, D]`.
-    pub m2: Tensor<2>,
-    /// ε added to σ in the denominator.
-    pub eps: f64,
-}
-
-impl DeviceNormalizer {
-    /// The host statistics `h` on `device`.
-    pub fn from_host(h: &Normalizer, device: &Device) -> DeviceNormalizer {
-        let d = h.dim();
-        let f = |v: &[f64]| to_tensor(v.iter().map(|&x| x as f32).collect(), [1, d], device);
-        DeviceNormalizer { count: h.count, mean: f(&h.mean), m2: f(&h.m2), eps: h.eps }
-    }
-
-    /// The statistics on the host (f32 values widened: a save and a load give them back exactly).
-    pub fn to_host(&self) -> Result<Normalizer> {
-        let f = |t: &Tensor<2>| -> Result<Vec<f64>> { Ok(to_host(t.clone())?.into_iter().map(|x| x as f64).collect()) };
-        Ok(Normalizer { count: self.count, mean: f(&self.mean)?, m2: f(&self.m2)?, eps: self.eps })
-    }
-
-    /// Merges the rows of `x` `[B, D]` (normalizer.rs's `update`, as tensor ops).
-    pub fn update(&mut self, x: &Tensor<2>) {
-        let [b, d] = x.dims();
-        if b == 0 || d == 0 {
-            return;
-        }
-        let nb = b as f64;
-        // the batch mean about the first row, μ_b = x₀ + mean(x − x₀): exact for a constant column
-        // (a drawn parameter without randomisation), whose normalised value must stay exactly 0 as
-        // on the host (÷ (0 + ε) would blow an f32 rounding of its mean up 100 times)
-        let first = x.clone().slice([0..1, 0..d]);
-        let bmean = first.clone() + (x.clone() - first).mean_dim(0); // [1, D]
-        let bm2 = (x.clone() - bmean.clone()).square().sum_dim(0); // Σ (x − μ_b)² [1, D]
-        // Chan: n = na + nb, δ = μb − μa, μ = μa + δ nb / n, M2 = M2a + M2b + δ² na nb / n
-        let na = self.count;
-        let n = na + nb;
-        let delta = bmean - self.mean.clone();
-        self.mean = self.mean.clone() + delta.clone().mul_scalar(nb / n);
-        self.m2 = self.m2.clone() + bm2 + delta.square().mul_scalar(na * nb / n);
-        self.count = n;
-    }
-
-    /// `(x − μ) / (σ + ε)` of `x` `[B, D]` when `on` (μ = 0, σ = 1 before any update), else `x`.
-    pub fn normalized(&self, x: Tensor<2>, on: bool) -> Tensor<2> {
-        if !on || x.dims()[1] == 0 {
-            return x;
-        }
-        let scale = if self.count > 0.0 {
-            self.m2.clone().div_scalar(self.count).sqrt().add_scalar(self.eps).recip() // 1 / (√(M2 / n) + ε)
-        } else {
-            self.mean.ones_like().div_scalar(1.0 + self.eps)
-        };
-        (x - self.mean.clone()) * scale
-    }
-}
+use crate::learn::normalizer::{DeviceNormalizer, Normalizer};
 
 /// One env step of the rollout, every tensor `[N, ·]` (the host storage's rows of that step).
 struct StepRecord {
@@ -131,7 +67,7 @@ impl Ppo {
     pub fn start_device_rollouts(&mut self, ctx: &GpuContext) -> Result<()> {
         ensure!(self.step == 0, "device-resident rollouts must start between iterations");
         ensure!(crate::learn::nets::is_gpu(&self.device), "device-resident rollouts need burn's wgpu learner (train.device = gpu)");
-        let noise = DeviceNoise::new(ctx, &self.device, self.storage.envs, self.dims().act)?;
+        let noise = DeviceNoise::new(ctx, &self.device, self.storage.envs * self.dims().act)?;
         let (obs_norm, priv_norm) = (DeviceNormalizer::from_host(&self.obs_norm, &self.device), DeviceNormalizer::from_host(&self.priv_norm, &self.device));
         self.on_device = Some(DeviceRollout { noise, obs_norm, priv_norm, steps: Vec::with_capacity(self.storage.steps) });
         Ok(())
@@ -158,7 +94,7 @@ impl Ppo {
         let values = self.net.critic(&params, priv_n.clone()); // [N, 1]
         let log_std = self.net.log_std(&params); // [1, A]
         let sigma = log_std.clone().exp(); // [1, A]
-        let eps = r.noise.normals(seed, draw)?; // ε ~ N(0, 1) [N, A]
+        let eps = r.noise.normals(seed, draw, n, d.act)?; // ε ~ N(0, 1) [N, A]
         self.noise_draw = draw.wrapping_add(1);
         let actions = mu.clone() + sigma.clone() * eps.clone(); // a = μ + σ ε
         // log π(a|s) = −½ Σ ε² − Σ log σ − ½ A ln 2π            [N, 1]

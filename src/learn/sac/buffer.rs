@@ -88,6 +88,20 @@ pub struct Sample {
     pub rows: Vec<(usize, usize)>,
 }
 
+/// The rows a sampled batch of B transitions reads ([`ReplayBuffer::draw`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Draw {
+    /// [B] (env, slot) of each batch row (its window's first transition).
+    pub rows: Vec<(usize, usize)>,
+    /// [n_step, B] the row (`slot · N + env`) of window step w of batch row k at `w · B + k`
+    /// (0 where not valid).
+    pub window: Vec<usize>,
+    /// [n_step, B] whether that slot is written (the window stops at the newest transition).
+    pub valid: Vec<bool>,
+    /// B.
+    pub batch: usize,
+}
+
 fn copy_row(dst: &mut Vec<f32>, src: &[f32], row: usize, dim: usize) {
     dst.extend_from_slice(&src[row * dim..(row + 1) * dim]);
 }
@@ -143,20 +157,47 @@ impl ReplayBuffer {
             self.done[j * n + i] = (t.done[i] || t.terminated[i]) as u8;
             self.terminated[j * n + i] = t.terminated[i] as u8;
         }
-        self.pos = (j + 1) % self.capacity;
-        self.len = (self.len + 1).min(self.capacity);
+        self.advance();
         Ok(())
     }
 
-    /// Draws `batch` transitions with their `n_step` returns (discount `gamma`). Env of row k:
-    /// `(k + o) mod N` for a random offset o (every env gives ⌊B/N⌋ or ⌈B/N⌉ rows); its slot:
-    /// uniform over the written ones.
-    pub fn sample(&self, batch: usize, n_step: usize, gamma: f32, rng: &mut Rng) -> Result<Sample> {
+    /// Moves to the next slot after a push (the device-resident buffer keeps its data on the
+    /// device and only these counters here).
+    pub fn advance(&mut self) {
+        self.pos = (self.pos + 1) % self.capacity;
+        self.len = (self.len + 1).min(self.capacity);
+    }
+
+    /// Which rows a batch of `batch` transitions with windows of `n_step` reads: env of row k
+    /// `(k + o) mod N` for a random offset o (every env gives ⌊B/N⌋ or ⌈B/N⌉ rows); its slot
+    /// uniform over the written ones; the window's rows are the env's next slots, as far as they
+    /// are written. Only the RNG and the buffer's counters decide it (no data), so a buffer on the
+    /// device samples the rows the host's would.
+    pub fn draw(&self, batch: usize, n_step: usize, rng: &mut Rng) -> Result<Draw> {
         ensure!(self.len > 0, "replay buffer: sampling from an empty buffer");
         let (n, c) = (self.envs, self.capacity);
-        let (od, pd, ad) = (self.obs_dim, self.priv_dim, self.act_dim);
         let oldest = (self.pos + c - self.len) % c;
         let offset = rng.below(n);
+        let mut d = Draw { rows: Vec::with_capacity(batch), window: vec![0; n_step * batch], valid: vec![false; n_step * batch], batch };
+        for k in 0..batch {
+            let env = (k + offset) % n;
+            let age = rng.below(self.len); // 0 = the oldest written slot
+            for w in 0..n_step {
+                if age + w < self.len {
+                    d.window[w * batch + k] = ((oldest + age + w) % c) * n + env;
+                    d.valid[w * batch + k] = true;
+                }
+            }
+            d.rows.push((env, (oldest + age) % c));
+        }
+        Ok(d)
+    }
+
+    /// Draws `batch` transitions with their `n_step` returns (discount `gamma`): the rows of
+    /// [`ReplayBuffer::draw`], then the window's return, stopping at an episode's end.
+    pub fn sample(&self, batch: usize, n_step: usize, gamma: f32, rng: &mut Rng) -> Result<Sample> {
+        let draw = self.draw(batch, n_step, rng)?;
+        let (od, pd, ad) = (self.obs_dim, self.priv_dim, self.act_dim);
         let mut s = Sample {
             obs: Vec::with_capacity(batch * od),
             priv_obs: Vec::with_capacity(batch * pd),
@@ -165,23 +206,20 @@ impl ReplayBuffer {
             bootstrap: Vec::with_capacity(batch),
             next_obs: Vec::with_capacity(batch * od),
             next_priv_obs: Vec::with_capacity(batch * pd),
-            rows: Vec::with_capacity(batch),
+            rows: draw.rows.clone(),
         };
         for k in 0..batch {
-            let env = (k + offset) % n;
-            let age = rng.below(self.len); // 0 = the oldest written slot
-            let slot = (oldest + age) % c;
-            let row = slot * n + env;
+            let row = draw.window[k];
             copy_row(&mut s.obs, &self.obs, row, od);
             copy_row(&mut s.priv_obs, &self.priv_obs, row, pd);
             copy_row(&mut s.actions, &self.actions, row, ad);
             // R = Σ_{k<m} γᵏ r_{t+k}, stopping at an episode's end or at the newest transition
             let (mut ret, mut disc, mut last) = (0.0f32, 1.0f32, row);
             for w in 0..n_step {
-                if age + w >= self.len {
+                if !draw.valid[w * batch + k] {
                     break;
                 }
-                let r = ((oldest + age + w) % c) * n + env;
+                let r = draw.window[w * batch + k];
                 ret += disc * self.rewards[r];
                 disc *= gamma;
                 last = r;
@@ -196,7 +234,6 @@ impl ReplayBuffer {
             s.bootstrap.push(disc);
             copy_row(&mut s.next_obs, &self.next_obs, last, od);
             copy_row(&mut s.next_priv_obs, &self.next_priv_obs, last, pd);
-            s.rows.push((env, slot));
         }
         Ok(s)
     }

@@ -16,11 +16,17 @@
 //!   α grows while the entropy −log π is below H̄.
 //! - Adam (AdamW with `weight_decay`) per network group, optional gradient-norm clipping.
 //!
-//! Host RNG (random actions, action noise, batch draws) is one `Rng` saved in checkpoints; with the
-//! networks, targets, optimisers, log α, normalisers, counters and (`sac.checkpoint_buffer`) the
-//! replay buffer, a resumed run continues bit for bit.
+//! The batch draws come from one host `Rng`, the random actions and the action noise from the
+//! counter hash (`learn::noise`: draw number `noise_draw`; one draw per env step, two per gradient
+//! step), so the host and the device draw the same numbers. Saved in checkpoints with the networks,
+//! targets, optimisers, log α, normalisers, counters and (`sac.checkpoint_buffer`) the replay
+//! buffer: a resumed run continues bit for bit (on the CPU).
+//!
+//! `device.rs`: the same learner with the replay buffer and the env loop's tensors on the learner
+//! device (the envs and the learner on one GPU: `run/device_loop.rs`).
 
 pub mod buffer;
+pub mod device;
 
 use anyhow::{Result, ensure};
 use burn::prelude::*;
@@ -28,6 +34,7 @@ use burn::prelude::*;
 use self::buffer::{ReplayBuffer, Sample, Transitions};
 use super::adam::{Adam, grads_of};
 use super::nets::{Activation, MlpLayout, to_host, to_tensor};
+use super::noise::{host_normals, host_uniforms};
 use super::normalizer::Normalizer;
 use super::ppo::Dims;
 use super::rng::Rng;
@@ -147,7 +154,7 @@ pub struct Sac {
     pub priv_norm: Normalizer,
     /// The replay buffer.
     pub buffer: ReplayBuffer,
-    /// Random actions, action noise, batch draws.
+    /// Batch draws.
     pub rng: Rng,
     /// Env steps of every env taken so far (transitions pushed).
     pub env_steps: u64,
@@ -157,6 +164,27 @@ pub struct Sac {
     pub target_entropy: f64,
     pending: Option<Pending>,
     sums: StatSums,
+    /// The random actions' and the action noise's stream (`learn::noise`): from the seed.
+    noise_seed: u32,
+    /// Draws so far (saved in checkpoints).
+    noise_draw: u32,
+    /// The device-resident loop's state, once [`Sac::start_device_rollouts`] made it (`device.rs`).
+    pub(crate) on_device: Option<device::DeviceSac>,
+}
+
+/// One gradient step's inputs on the learner device: normalised observations and the next ones
+/// `[B, O]` / `[B, P]`, actions `[B, A]`, the n-step return and bootstrap factor `[B, 1]`, and the
+/// noise of the actor's and the target's actions `[B, A]`.
+struct GradBatch {
+    obs: Tensor<2>,
+    next_obs: Tensor<2>,
+    priv_obs: Tensor<2>,
+    next_priv: Tensor<2>,
+    actions: Tensor<2>,
+    returns: Tensor<2>,
+    bootstrap: Tensor<2>,
+    eps_actor: Tensor<2>,
+    eps_next: Tensor<2>,
 }
 
 impl Sac {
@@ -211,6 +239,9 @@ impl Sac {
             target_entropy: -(cfg.target_entropy_scale as f64) * dims.act as f64,
             pending: None,
             sums: StatSums::default(),
+            noise_seed: (seed ^ (seed >> 32)) as u32 ^ 0x5AC0_0A5E,
+            noise_draw: 0,
+            on_device: None,
             device,
         })
     }
@@ -266,15 +297,17 @@ impl Sac {
             self.obs_norm.update(obs);
             self.priv_norm.update(priv_obs);
         }
+        ensure!(self.on_device.is_none(), "act() in a device-resident run (act_device)");
+        let draw = self.noise_draw;
+        self.noise_draw = draw.wrapping_add(1);
         let actions: Vec<f32> = if self.env_steps < self.cfg.random_steps as u64 {
-            (0..n * d.act).map(|_| (2.0 * self.rng.uniform() - 1.0) as f32).collect()
+            host_uniforms(self.noise_seed, draw, n, d.act) // a ~ U[−1, 1)
         } else {
             let x = to_tensor(self.obs_norm.normalized(obs, self.normalize), [n, d.obs], &self.device);
             let params: Vec<Tensor<2>> = self.actor.iter().map(|p| p.clone().inner()).collect();
             let (mu, log_std) = self.policy(&params, x);
             let (mu, log_std) = (to_host(mu)?, to_host(log_std)?);
-            let mut eps = vec![0.0f32; n * d.act];
-            self.rng.fill_normal(&mut eps);
+            let eps = host_normals(self.noise_seed, draw, n, d.act); // ε ~ N(0, 1) [N, A]
             (0..n * d.act).map(|k| (mu[k] + log_std[k].exp() * eps[k]).tanh()).collect() // a = tanh(μ + σ ε)
         };
         self.pending = Some(Pending { obs: obs.to_vec(), priv_obs: priv_obs.to_vec(), actions: actions.clone() });
@@ -340,21 +373,38 @@ impl Sac {
     /// One gradient step: a critic update and its Polyak step, and every `policy_frequency`-th
     /// time an actor and temperature update.
     pub fn gradient_step(&mut self) -> Result<()> {
+        // two noise draws: the target's actions, then the actor's
+        let draws = (self.noise_draw, self.noise_draw.wrapping_add(1));
+        self.noise_draw = self.noise_draw.wrapping_add(2);
+        let batch = match self.on_device {
+            Some(_) => self.device_batch(draws)?,
+            None => self.host_batch(draws)?,
+        };
+        self.gradient_step_on(batch)
+    }
+
+    /// A gradient step's batch from the host buffer (noise draws `draws`: the target's, the actor's).
+    fn host_batch(&mut self, draws: (u32, u32)) -> Result<GradBatch> {
         let d = self.dims;
         let b = self.cfg.batch_size as usize;
         let s = self.buffer.sample(b, self.cfg.n_step as usize, self.cfg.gamma, &mut self.rng)?;
         let dev = self.device.clone();
-        let obs = to_tensor(self.obs_norm.normalized(&self.actor_rows(&s, false), self.normalize), [b, d.obs], &dev);
-        let next_obs = to_tensor(self.obs_norm.normalized(&self.actor_rows(&s, true), self.normalize), [b, d.obs], &dev);
-        let priv_obs = to_tensor(self.priv_norm.normalized(&s.priv_obs, self.normalize), [b, d.priv_obs], &dev);
-        let next_priv = to_tensor(self.priv_norm.normalized(&s.next_priv_obs, self.normalize), [b, d.priv_obs], &dev);
-        let actions = to_tensor(s.actions.clone(), [b, d.act], &dev);
-        let returns = to_tensor(s.returns.clone(), [b, 1], &dev).inner();
-        let bootstrap = to_tensor(s.bootstrap.clone(), [b, 1], &dev).inner();
-        let mut eps = vec![0.0f32; 2 * b * d.act];
-        self.rng.fill_normal(&mut eps);
-        let eps_actor = to_tensor(eps.split_off(b * d.act), [b, d.act], &dev);
-        let eps_next = to_tensor(eps, [b, d.act], &dev).inner();
+        Ok(GradBatch {
+            obs: to_tensor(self.obs_norm.normalized(&self.actor_rows(&s, false), self.normalize), [b, d.obs], &dev),
+            next_obs: to_tensor(self.obs_norm.normalized(&self.actor_rows(&s, true), self.normalize), [b, d.obs], &dev),
+            priv_obs: to_tensor(self.priv_norm.normalized(&s.priv_obs, self.normalize), [b, d.priv_obs], &dev),
+            next_priv: to_tensor(self.priv_norm.normalized(&s.next_priv_obs, self.normalize), [b, d.priv_obs], &dev),
+            actions: to_tensor(s.actions.clone(), [b, d.act], &dev),
+            returns: to_tensor(s.returns.clone(), [b, 1], &dev).inner(),
+            bootstrap: to_tensor(s.bootstrap.clone(), [b, 1], &dev).inner(),
+            eps_actor: to_tensor(host_normals(self.noise_seed, draws.1, b, d.act), [b, d.act], &dev),
+            eps_next: to_tensor(host_normals(self.noise_seed, draws.0, b, d.act), [b, d.act], &dev).inner(),
+        })
+    }
+
+    /// One gradient step on `batch` (see [`Sac::gradient_step`]).
+    fn gradient_step_on(&mut self, batch: GradBatch) -> Result<()> {
+        let GradBatch { obs, next_obs, priv_obs, next_priv, actions, returns, bootstrap, eps_actor, eps_next } = batch;
         let log_alpha = self.log_alpha.clone().inner(); // [1, 1]
         let alpha = log_alpha.clone().exp();
 
@@ -458,8 +508,9 @@ impl Sac {
         let target_names: Vec<String> = (0..self.targets.len()).flat_map(|j| self.critic_layout.names(&format!("q{j}_target"))).collect();
         push_all(state, &target_names, &self.critic_shapes(), &self.targets.concat())?;
         state.push_tensor(MODEL_FILE, "log_alpha", vec![1, 1], TensorValues::F32(to_host(self.log_alpha.clone().inner())?));
-        self.obs_norm.save("obs_norm", state, MODEL_FILE);
-        self.priv_norm.save("priv_norm", state, MODEL_FILE);
+        let (obs_norm, priv_norm) = self.normalizers()?;
+        obs_norm.save("obs_norm", state, MODEL_FILE);
+        priv_norm.save("priv_norm", state, MODEL_FILE);
         let d = self.dims;
         let info = serde_json::json!({
             "format": "dextrain.policy.v1",
@@ -500,12 +551,24 @@ impl Sac {
         self.log_alpha = to_tensor(state.f32s(MODEL_FILE, "log_alpha", Some(1))?, [1, 1], &self.device).require_grad();
         self.obs_norm = Normalizer::load("obs_norm", self.dims.obs, state, MODEL_FILE)?;
         self.priv_norm = Normalizer::load("priv_norm", self.dims.priv_obs, state, MODEL_FILE)?;
+        if let Some(dv) = &mut self.on_device {
+            dv.load_normalizers(&self.obs_norm, &self.priv_norm, &self.device);
+        }
         Ok(())
+    }
+
+    /// The observation normalisers as they stand (read from the device in a device-resident run).
+    pub fn normalizers(&self) -> Result<(Normalizer, Normalizer)> {
+        match &self.on_device {
+            Some(dv) => dv.normalizers(),
+            None => Ok((self.obs_norm.clone(), self.priv_norm.clone())),
+        }
     }
 
     /// Everything a resumed run needs: the policy file, the three optimisers (moments in
     /// [`OPTIMIZER_FILE`], steps `actor_adam_step` / `critic_adam_step` / `alpha_adam_step`), the
-    /// RNG, the counters and (with `sac.checkpoint_buffer`) the replay buffer ([`BUFFER_FILE`]).
+    /// RNG, the noise's stream and draw number, the counters and (with `sac.checkpoint_buffer`)
+    /// the replay buffer ([`BUFFER_FILE`]; read from the device in a device-resident run).
     pub fn state(&self) -> Result<LearnerState> {
         ensure!(self.pending.is_none(), "state() between act() and observe()");
         let mut state = LearnerState::default();
@@ -514,10 +577,15 @@ impl Sac {
         self.critic_adam.save_as(&self.critic_names(), &self.critic_shapes(), &mut state, OPTIMIZER_FILE, "critic_adam_step")?;
         self.alpha_adam.save_as(&["log_alpha".to_string()], &[[1, 1]], &mut state, OPTIMIZER_FILE, "alpha_adam_step")?;
         state.set_bits("rng_state", self.rng.state);
+        state.set_bits("noise_seed", self.noise_seed as u64);
+        state.set_bits("noise_draw", self.noise_draw as u64);
         state.set_u64("sac_env_steps", self.env_steps);
         state.set_u64("sac_critic_updates", self.critic_updates);
         if self.cfg.checkpoint_buffer {
-            self.buffer.save(&mut state, BUFFER_FILE);
+            match &self.on_device {
+                Some(dv) => dv.buffer_on_host(&self.buffer)?.save(&mut state, BUFFER_FILE),
+                None => self.buffer.save(&mut state, BUFFER_FILE),
+            }
         }
         Ok(state)
     }
@@ -531,17 +599,23 @@ impl Sac {
         self.critic_adam.load_as(&self.critic_names(), &self.critic_shapes(), state, OPTIMIZER_FILE, &dev, "critic_adam_step")?;
         self.alpha_adam.load_as(&["log_alpha".to_string()], &[[1, 1]], state, OPTIMIZER_FILE, &dev, "alpha_adam_step")?;
         self.rng.state = state.bits("rng_state")?;
+        self.noise_seed = state.bits("noise_seed")? as u32;
+        self.noise_draw = state.bits("noise_draw")? as u32;
         self.env_steps = state.u64("sac_env_steps")?;
         self.critic_updates = state.u64("sac_critic_updates")?;
         self.pending = None;
         self.sums = StatSums::default();
-        if state.file(BUFFER_FILE).is_some() {
+        let restored = if state.file(BUFFER_FILE).is_some() {
             self.buffer.load(state, BUFFER_FILE)?;
-            Ok(true)
+            true
         } else {
             self.buffer.clear();
-            Ok(false)
+            false
+        };
+        if let Some(dv) = &mut self.on_device {
+            dv.load_buffer(&self.buffer)?;
         }
+        Ok(restored)
     }
 }
 

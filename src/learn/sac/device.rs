@@ -1,0 +1,384 @@
+//! SAC's device-resident loop (README "The GPU loop"): with the envs and burn's wgpu learner on one
+//! wgpu device, the replay buffer lives in device memory and the env loop's observations, actions
+//! and rewards never cross to the host:
+//! - [`DeviceReplay`]: buffer.rs's rings as `[C·N, dim]` tensors of burn's; a push is one
+//!   `copy_buffer_to_buffer` per array from the step's tensors into slot `pos` (`learn::gpu_io`);
+//!   a sample reads the rows that the host buffer's [`ReplayBuffer::draw`] picks (the host RNG, as
+//!   the host path) and computes the n-step windows with gathers and masks;
+//! - the normalisers (`normalizer::DeviceNormalizer`), the random actions and the action noise
+//!   (`learn::noise::DeviceNoise`: the host path's draws) on the device.
+//!
+//! What crosses per env step: 16 bytes of noise parameters; per gradient step: the batch's rows
+//! (`8 · n_step · B` bytes: row indices and window flags), another 32 bytes of noise parameters
+//! and the step's four loss scalars read back (as on the host path). The buffer comes to the host
+//! when a checkpoint holds it.
+
+use anyhow::{Context, Result, ensure};
+use burn::prelude::*;
+use burn::tensor::{Int, TensorData};
+
+use super::buffer::{Draw, ReplayBuffer};
+use super::{GradBatch, Sac};
+use crate::env::gpu::{BufferRole, GpuContext};
+use crate::learn::gpu_io::{TensorBuffer, flush, zeros_buffer};
+use crate::learn::nets::{to_host, to_tensor};
+use crate::learn::noise::DeviceNoise;
+use crate::learn::normalizer::{DeviceNormalizer, Normalizer};
+
+/// One array of the device buffer: `[C·N, dim]` (row `slot · N + env`).
+struct Ring {
+    name: &'static str,
+    dim: usize,
+    mem: TensorBuffer,
+}
+
+/// The replay buffer's arrays on the device; the slot counters stay in the host [`ReplayBuffer`].
+pub struct DeviceReplay {
+    ctx: GpuContext,
+    device: Device,
+    envs: usize,
+    /// Actor observations before / after (absent when `sac.store_actor_obs` is off).
+    obs: Option<Ring>,
+    next_obs: Option<Ring>,
+    priv_obs: Ring,
+    next_priv_obs: Ring,
+    actions: Ring,
+    /// The learner's rewards, done (termination or time-out) and terminated flags `[C·N, 1]`.
+    rewards: Ring,
+    done: Ring,
+    terminated: Ring,
+    /// One push's data on its way (wgpu copies no buffer into itself, and burn's tensors may share
+    /// one): every array's `[N, dim]` back to back.
+    scratch: wgpu::Buffer,
+}
+
+/// One push: every env's transition, `[N, dim]` tensors (flags 0 or 1, `[N, 1]`).
+pub struct DeviceTransitions<'a> {
+    pub obs: Option<&'a Tensor<2>>,
+    pub priv_obs: &'a Tensor<2>,
+    pub actions: &'a Tensor<2>,
+    pub rewards: &'a Tensor<2>,
+    pub done: &'a Tensor<2>,
+    pub terminated: &'a Tensor<2>,
+    pub next_obs: Option<&'a Tensor<2>>,
+    pub next_priv_obs: &'a Tensor<2>,
+}
+
+impl DeviceReplay {
+    /// Zeroed rings shaped as `host`'s (its sizes; its data is not copied), on `device` (burn's wgpu
+    /// runtime on `ctx`'s device). A ring larger than one device buffer may be is a one-line error.
+    pub fn new(ctx: &GpuContext, device: &Device, host: &ReplayBuffer) -> Result<DeviceReplay> {
+        let rows = host.capacity * host.envs;
+        let ring = |name: &'static str, dim: usize| -> Result<Ring> {
+            ctx.check_buffer_size(name, (4 * rows * dim.max(1)) as u64, BufferRole::Storage)
+                .with_context(|| format!("key `sac.buffer_capacity` = {}: the replay buffer's `{name}` on the device ({} envs)", host.capacity, host.envs))?;
+            Ok(Ring { name, dim, mem: zeros_buffer(rows, dim, device)? })
+        };
+        let od = host.obs_dim;
+        let per_env = 2 * od + 2 * host.priv_dim + host.act_dim + 3;
+        let scratch = ctx.create_buffer_with("replay push", &vec![0u8; 4 * host.envs * per_env], BufferRole::Storage, wgpu::BufferUsages::COPY_SRC | wgpu::BufferUsages::COPY_DST)?;
+        Ok(DeviceReplay {
+            scratch,
+            obs: if od > 0 { Some(ring("obs", od)?) } else { None },
+            next_obs: if od > 0 { Some(ring("next_obs", od)?) } else { None },
+            priv_obs: ring("priv_obs", host.priv_dim)?,
+            next_priv_obs: ring("next_priv_obs", host.priv_dim)?,
+            actions: ring("actions", host.act_dim)?,
+            rewards: ring("rewards", 1)?,
+            done: ring("done", 1)?,
+            terminated: ring("terminated", 1)?,
+            ctx: ctx.clone(),
+            device: device.clone(),
+            envs: host.envs,
+        })
+    }
+
+    fn rings(&self) -> Vec<&Ring> {
+        let mut r: Vec<&Ring> = self.obs.iter().chain(self.next_obs.iter()).collect();
+        r.extend([&self.priv_obs, &self.next_priv_obs, &self.actions, &self.rewards, &self.done, &self.terminated]);
+        r
+    }
+
+    /// Writes every env's transition into slot `slot` (the host buffer's `pos`; the caller then
+    /// advances it): one copy per array, on the device.
+    pub fn push(&self, slot: usize, t: &DeviceTransitions<'_>) -> Result<()> {
+        use crate::learn::gpu_io::tensor_buffer;
+        let n = self.envs;
+        let mut pairs: Vec<(&Ring, &Tensor<2>)> = vec![
+            (&self.priv_obs, t.priv_obs),
+            (&self.next_priv_obs, t.next_priv_obs),
+            (&self.actions, t.actions),
+            (&self.rewards, t.rewards),
+            (&self.done, t.done),
+            (&self.terminated, t.terminated),
+        ];
+        match (&self.obs, t.obs, &self.next_obs, t.next_obs) {
+            (Some(o), Some(x), Some(no), Some(nx)) => pairs.extend([(o, x), (no, nx)]),
+            (None, None, None, None) => {}
+            _ => anyhow::bail!("replay buffer: actor observations given to a buffer that keeps none, or missing"),
+        }
+        // each array into the scratch buffer, then from there into its ring's slot
+        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
+        let mut sources = Vec::with_capacity(pairs.len());
+        let mut at = 0u64;
+        let mut moves = Vec::with_capacity(pairs.len());
+        for (ring, x) in pairs {
+            ensure!(x.dims() == [n, ring.dim], "replay buffer: `{}` of shape {:?} for {n} envs × {}", ring.name, x.dims(), ring.dim);
+            let src = tensor_buffer(x)?;
+            let bytes = (4 * n * ring.dim) as u64;
+            enc.copy_buffer_to_buffer(src.buffer(), src.offset(), &self.scratch, at, bytes);
+            moves.push((at, ring, bytes));
+            at += bytes;
+            sources.push(src);
+        }
+        for (from, ring, bytes) in moves {
+            enc.copy_buffer_to_buffer(&self.scratch, from, ring.mem.buffer(), ring.mem.offset() + slot as u64 * bytes, bytes);
+        }
+        // the step's tensors are computed, and earlier samples read the rings, before these copies
+        flush(&self.device)?;
+        self.ctx.submit(enc, "replay buffer push (device-resident)")
+    }
+
+    /// The rows `draw` picks and their n-step windows (discount `gamma`): raw actor observations
+    /// (None without them), critic observations and actions of the first transition, the return
+    /// and bootstrap factor `[B, 1]`, and the raw observations after the window.
+    #[allow(clippy::type_complexity)]
+    pub fn sample(&self, draw: &Draw, gamma: f64) -> Result<(Option<Tensor<2>>, Tensor<2>, Tensor<2>, Tensor<2>, Tensor<2>, Option<Tensor<2>>, Tensor<2>)> {
+        let b = draw.batch;
+        let n_step = draw.valid.len() / b.max(1);
+        let dev = &self.device;
+        let rows = |w: usize| -> Tensor<1, Int> {
+            let idx: Vec<i32> = draw.window[w * b..(w + 1) * b].iter().map(|&r| r as i32).collect();
+            crate::host_traffic::add(4 * b as u64);
+            Tensor::<1, Int>::from_data(TensorData::new(idx, [b]), dev)
+        };
+        let valid = |w: usize| to_tensor(draw.valid[w * b..(w + 1) * b].iter().map(|&v| v as u8 as f32).collect(), [b, 1], dev);
+        let gather = |r: &Ring, idx: &Tensor<1, Int>| r.mem.tensor.clone().select(0, idx.clone());
+        let first = rows(0);
+        // buffer.rs's window walk as masks: `ok` while the window goes on and the slot is written
+        let mut ret = Tensor::<2>::zeros([b, 1], dev);
+        let mut disc = Tensor::<2>::ones([b, 1], dev);
+        let mut alive = Tensor::<2>::ones([b, 1], dev);
+        let mut last = first.clone();
+        for w in 0..n_step {
+            let idx = if w == 0 { first.clone() } else { rows(w) };
+            let ok = alive.clone() * valid(w); // [B, 1]
+            let (r, done, term) = (gather(&self.rewards, &idx), gather(&self.done, &idx), gather(&self.terminated, &idx));
+            ret = ret + ok.clone() * disc.clone() * r; // R += γᵏ r
+            last = last.mask_where(ok.clone().reshape([b]).greater_elem(0.5), idx);
+            disc = disc * ok.clone().mul_scalar(gamma - 1.0).add_scalar(1.0); // γᵏ⁺¹ where the window went on
+            disc = disc * (ok.ones_like() - ok.clone() * term); // 0 after a termination (no bootstrap)
+            alive = alive * (ok.ones_like() - ok * done); // the window stops at an episode's end
+        }
+        let obs = self.obs.as_ref().map(|r| gather(r, &first));
+        let next_obs = self.next_obs.as_ref().map(|r| gather(r, &last));
+        Ok((obs, gather(&self.priv_obs, &first), gather(&self.actions, &first), ret, disc, next_obs, gather(&self.next_priv_obs, &last)))
+    }
+
+    /// A host buffer with `host`'s counters and the written rows of the device rings (for a
+    /// checkpoint).
+    pub fn to_host(&self, host: &ReplayBuffer) -> Result<ReplayBuffer> {
+        let mut out = ReplayBuffer::new(host.envs, host.capacity, host.obs_dim, host.priv_dim, host.act_dim);
+        let rows = host.len * host.envs;
+        out.pos = host.pos;
+        out.len = host.len;
+        if rows == 0 {
+            return Ok(out);
+        }
+        let read = |r: &Ring| to_host(r.mem.tensor.clone().slice([0..rows, 0..r.dim]));
+        let copy = |dst: &mut Vec<f32>, v: Vec<f32>| dst[..v.len()].copy_from_slice(&v);
+        if let (Some(o), Some(no)) = (&self.obs, &self.next_obs) {
+            copy(&mut out.obs, read(o)?);
+            copy(&mut out.next_obs, read(no)?);
+        }
+        copy(&mut out.priv_obs, read(&self.priv_obs)?);
+        copy(&mut out.next_priv_obs, read(&self.next_priv_obs)?);
+        copy(&mut out.actions, read(&self.actions)?);
+        copy(&mut out.rewards, read(&self.rewards)?);
+        for (dst, ring) in [(&mut out.done, &self.done), (&mut out.terminated, &self.terminated)] {
+            for (d, v) in dst.iter_mut().zip(read(ring)?) {
+                *d = (v != 0.0) as u8;
+            }
+        }
+        Ok(out)
+    }
+
+    /// Writes the written rows of `host` into the device rings (a resumed run).
+    pub fn load(&self, host: &ReplayBuffer) -> Result<()> {
+        let rows = host.len * host.envs;
+        if rows == 0 {
+            return Ok(());
+        }
+        // burn's zero fills of the rings land before these writes
+        flush(&self.device)?;
+        let write = |r: &Ring, v: &[f32]| self.ctx.upload_at(r.name, r.mem.buffer(), r.mem.offset(), bytemuck::cast_slice(&v[..rows * r.dim]));
+        if let (Some(o), Some(no)) = (&self.obs, &self.next_obs) {
+            write(o, &host.obs)?;
+            write(no, &host.next_obs)?;
+        }
+        write(&self.priv_obs, &host.priv_obs)?;
+        write(&self.next_priv_obs, &host.next_priv_obs)?;
+        write(&self.actions, &host.actions)?;
+        write(&self.rewards, &host.rewards)?;
+        let flags = |v: &[u8]| v[..rows].iter().map(|&x| x as f32).collect::<Vec<f32>>();
+        write(&self.done, &flags(&host.done))?;
+        write(&self.terminated, &flags(&host.terminated))
+    }
+
+    /// Bytes of device memory the rings hold.
+    pub fn bytes(&self) -> u64 {
+        self.rings().iter().map(|r| r.mem.size()).sum()
+    }
+}
+
+/// The first half of a transition, kept from `act_device` to `observe_device` (raw, `[N, ·]`).
+struct DevicePending {
+    obs: Tensor<2>,
+    priv_obs: Tensor<2>,
+    actions: Tensor<2>,
+}
+
+/// What a device-resident SAC holds beside [`Sac`]'s networks.
+pub struct DeviceSac {
+    noise: DeviceNoise,
+    obs_norm: DeviceNormalizer,
+    priv_norm: DeviceNormalizer,
+    replay: DeviceReplay,
+    pending: Option<DevicePending>,
+}
+
+impl DeviceSac {
+    /// Both normalisers on the host.
+    pub fn normalizers(&self) -> Result<(Normalizer, Normalizer)> {
+        Ok((self.obs_norm.to_host()?, self.priv_norm.to_host()?))
+    }
+
+    /// Replaces the device normalisers with host ones (a resumed run).
+    pub fn load_normalizers(&mut self, obs: &Normalizer, priv_obs: &Normalizer, device: &Device) {
+        self.obs_norm = DeviceNormalizer::from_host(obs, device);
+        self.priv_norm = DeviceNormalizer::from_host(priv_obs, device);
+    }
+
+    /// The replay buffer on the host, with `host`'s counters (for a checkpoint).
+    pub fn buffer_on_host(&self, host: &ReplayBuffer) -> Result<ReplayBuffer> {
+        self.replay.to_host(host)
+    }
+
+    /// Writes `host`'s written rows into the device buffer (a resumed run).
+    pub fn load_buffer(&mut self, host: &ReplayBuffer) -> Result<()> {
+        self.pending = None;
+        self.replay.load(host)
+    }
+}
+
+impl Sac {
+    /// From now on the replay buffer and the env loop's tensors stay on the learner device, which
+    /// must be burn's wgpu runtime on `ctx`'s device (the simulator's): [`Sac::act_device`] and
+    /// [`Sac::observe_device`] replace `act` and `observe`. The host buffer keeps the slot counters
+    /// (its arrays are never written: the OS gives their pages only when written). Returns the
+    /// device buffer's bytes.
+    pub fn start_device_rollouts(&mut self, ctx: &GpuContext) -> Result<u64> {
+        ensure!(self.pending.is_none(), "device-resident rollouts must start between env steps");
+        ensure!(crate::learn::nets::is_gpu(&self.device), "device-resident rollouts need burn's wgpu learner (train.device = gpu)");
+        let dims = self.dims;
+        let b = self.cfg.batch_size as usize;
+        let noise = DeviceNoise::new(ctx, &self.device, (self.buffer.envs * dims.act).max(b * dims.act))?;
+        let replay = DeviceReplay::new(ctx, &self.device, &self.buffer)?;
+        replay.load(&self.buffer)?;
+        let bytes = replay.bytes();
+        let (obs_norm, priv_norm) = (DeviceNormalizer::from_host(&self.obs_norm, &self.device), DeviceNormalizer::from_host(&self.priv_norm, &self.device));
+        self.on_device = Some(DeviceSac { noise, obs_norm, priv_norm, replay, pending: None });
+        Ok(bytes)
+    }
+
+    /// As [`Sac::act`] on the device: training actions `[N, A]` for raw observations `obs` `[N, O]`
+    /// and `priv_obs` `[N, P]` (the normalisers merge them first).
+    pub fn act_device(&mut self, obs: &Tensor<2>, priv_obs: &Tensor<2>) -> Result<Tensor<2>> {
+        let d = self.dims;
+        let n = self.buffer.envs;
+        ensure!(obs.dims() == [n, d.obs] && priv_obs.dims() == [n, d.priv_obs], "observation sizes do not match the learner");
+        let (seed, draw, normalize, random) = (self.noise_seed, self.noise_draw, self.normalize, self.env_steps < self.cfg.random_steps as u64);
+        self.noise_draw = draw.wrapping_add(1);
+        let dv = self.on_device.as_mut().ok_or_else(|| anyhow::anyhow!("act_device() before start_device_rollouts()"))?;
+        if normalize {
+            dv.obs_norm.update(obs);
+            dv.priv_norm.update(priv_obs);
+        }
+        let actions = if random {
+            dv.noise.uniforms(seed, draw, n, d.act)? // a ~ U[−1, 1)
+        } else {
+            let x = Tensor::from_inner(dv.obs_norm.normalized(obs.clone(), normalize));
+            let params: Vec<Tensor<2>> = self.actor.iter().map(|p| p.clone().inner()).collect();
+            let eps = dv.noise.normals(seed, draw, n, d.act)?; // ε ~ N(0, 1) [N, A]
+            let (mu, log_std) = self.policy(&params, x);
+            (mu.inner() + log_std.inner().exp() * eps).tanh() // a = tanh(μ + σ ε)
+        };
+        let dv = self.on_device.as_mut().expect("checked above");
+        dv.pending = Some(DevicePending { obs: obs.clone(), priv_obs: priv_obs.clone(), actions: actions.clone() });
+        Ok(actions)
+    }
+
+    /// As [`Sac::observe`] on the device: rewards, terminations and time-outs `[N, 1]` (flags 0 or
+    /// 1), the observations after the step and the final ones of the envs that ended.
+    #[allow(clippy::too_many_arguments)]
+    pub fn observe_device(&mut self, rewards: &Tensor<2>, terminated: &Tensor<2>, time_outs: &Tensor<2>, next_obs: &Tensor<2>, next_priv_obs: &Tensor<2>, final_obs: &Tensor<2>, final_priv_obs: &Tensor<2>) -> Result<()> {
+        let (scale, store) = (self.cfg.reward_scale as f64, self.cfg.store_actor_obs);
+        let slot = self.buffer.pos;
+        let dv = self.on_device.as_mut().ok_or_else(|| anyhow::anyhow!("observe_device() before start_device_rollouts()"))?;
+        let p = dv.pending.take().ok_or_else(|| anyhow::anyhow!("observe_device() without act_device()"))?;
+        let done = (terminated.clone() + time_outs.clone()).clamp(0.0, 1.0); // [N, 1]
+        // the observation after the step: an ended episode's final one, else the next step's
+        // (x (1 − d) + f d is exact for d ∈ {0, 1})
+        let keep = done.ones_like() - done.clone();
+        let pick = |next: &Tensor<2>, fin: &Tensor<2>| next.clone() * keep.clone() + fin.clone() * done.clone();
+        let next_p = pick(next_priv_obs, final_priv_obs);
+        let next_o = store.then(|| pick(next_obs, final_obs));
+        let scaled = rewards.clone().mul_scalar(scale);
+        dv.replay.push(
+            slot,
+            &super::device::DeviceTransitions {
+                obs: store.then_some(&p.obs),
+                priv_obs: &p.priv_obs,
+                actions: &p.actions,
+                rewards: &scaled,
+                done: &done,
+                terminated,
+                next_obs: next_o.as_ref(),
+                next_priv_obs: &next_p,
+            },
+        )?;
+        self.buffer.advance();
+        self.env_steps += 1;
+        if self.env_steps >= self.cfg.learning_starts.max(1) as u64 {
+            for _ in 0..self.cfg.updates_per_step {
+                self.gradient_step()?;
+            }
+        }
+        Ok(())
+    }
+
+    /// A gradient step's batch from the device buffer (noise draws `draws`: the target's, the
+    /// actor's): the host buffer's draw of rows, the windows on the device.
+    pub(super) fn device_batch(&mut self, draws: (u32, u32)) -> Result<GradBatch> {
+        let (d, b, n_step) = (self.dims, self.cfg.batch_size as usize, self.cfg.n_step as usize);
+        let draw = self.buffer.draw(b, n_step, &mut self.rng)?;
+        let (seed, normalize) = (self.noise_seed, self.normalize);
+        let dv = self.on_device.as_ref().ok_or_else(|| anyhow::anyhow!("a device batch before start_device_rollouts()"))?;
+        let (obs, priv_obs, actions, returns, bootstrap, next_obs, next_priv) = dv.replay.sample(&draw, self.cfg.gamma as f64)?;
+        // the actor's observations: kept, or the clean ones at the head of the critic's
+        let actor_rows = |kept: Option<Tensor<2>>, critic: &Tensor<2>| kept.unwrap_or_else(|| critic.clone().slice([0..b, 0..d.obs]));
+        let (obs, next_obs) = (actor_rows(obs, &priv_obs), actor_rows(next_obs, &next_priv));
+        let lift = Tensor::from_inner; // untracked, on the autodiff device, as the host path's uploads
+        Ok(GradBatch {
+            obs: lift(dv.obs_norm.normalized(obs, normalize)),
+            next_obs: lift(dv.obs_norm.normalized(next_obs, normalize)),
+            priv_obs: lift(dv.priv_norm.normalized(priv_obs, normalize)),
+            next_priv: lift(dv.priv_norm.normalized(next_priv, normalize)),
+            actions: lift(actions),
+            returns,
+            bootstrap,
+            eps_actor: lift(dv.noise.normals(seed, draws.1, b, d.act)?),
+            eps_next: dv.noise.normals(seed, draws.0, b, d.act)?,
+        })
+    }
+}
