@@ -33,11 +33,11 @@ pub struct TrainConfig {
     /// (`task.reference.time_scale` spreads their ends).
     pub init_at_random_ep_len: bool,
     /// With the envs and the learner on one GPU (`sim.backend` and `train.device` the same wgpu
-    /// device) and PPO: keep the rollouts on the device — observations, actions, rewards, the
-    /// rollout storage, GAE and the metrics' sums never cross to the host during an iteration
-    /// (README "The GPU loop"). `false`: observations are read back and uploaded to the learner
-    /// every env step (the host path, for comparisons). Ignored elsewhere (the host path is the
-    /// only one).
+    /// device), PPO or SAC: keep the rollouts on the device — observations, actions, rewards, PPO's
+    /// rollout storage and GAE, SAC's replay buffer and the metrics' sums never cross to the host
+    /// during an iteration (README "The GPU loop"). `false`: observations are read back and
+    /// uploaded to the learner every env step (the host path, for comparisons). Ignored elsewhere
+    /// (the host path is the only one).
     pub device_rollouts: bool,
 }
 

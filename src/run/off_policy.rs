@@ -61,7 +61,7 @@ pub fn make(ctx: &RunContext) -> Result<Box<dyn Algorithm>> {
     let cfg = &ctx.cfg.sac;
     let (per, total) = check_buffer(&ctx.cfg, &ctx.spec)?;
     console::status(&format!(
-        "replay buffer: {per} B per transition × {} envs × {} per env = {:.3} GiB (host memory){}",
+        "replay buffer: {per} B per transition × {} envs × {} per env = {:.3} GiB (host memory, or device memory when the envs and the learner share a GPU){}",
         ctx.num_envs,
         cfg.buffer_capacity,
         gib(total),
