@@ -110,7 +110,7 @@ pub fn clipped_grads(params: &[Tensor<2>], grads: &burn::tensor::Gradients, max_
         .collect::<Result<_>>()?;
     let mut sq: Option<Tensor<1>> = None;
     for g in &gs {
-        let s = g.clone().square().sum(); // [1]
+        let s = super::nets::sum_all(g.clone().square()); // [1], the same bits every run
         sq = Some(match sq {
             Some(acc) => acc + s,
             None => s,

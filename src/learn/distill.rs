@@ -453,7 +453,7 @@ impl Distill {
                     }
                 }
                 // global norm clip: coef = min(1, max / (‖g‖ + 1e-6))
-                let norm = gs.iter().map(|g| to_host(g.clone().square().sum()).map(|v| v[0] as f64)).sum::<Result<f64>>()?.sqrt();
+                let norm = gs.iter().map(|g| to_host(super::nets::sum_all(g.clone().square())).map(|v| v[0] as f64)).sum::<Result<f64>>()?.sqrt();
                 let coef = (self.cfg.max_grad_norm as f64 / (norm + 1e-6)).min(1.0);
                 let gs = gs.into_iter().map(|g| g.mul_scalar(coef)).collect();
                 self.student.params = self.adam.step(params, gs, self.cfg.learning_rate as f64);

@@ -123,6 +123,18 @@ pub fn to_host<const D: usize>(t: Tensor<D>) -> Result<Vec<f32>> {
     t.into_data().try_to_vec::<f32>().map_err(|e| anyhow!("cannot read a tensor back: {e:?}"))
 }
 
+/// Σ of every entry of `t` `[R, C]` as a `[1]` tensor, in an order that does not change from run
+/// to run. On a GPU, burn's whole-tensor `sum` adds the partial sums of its workgroups with float
+/// atomics, in whatever order they finish (lavapipe: 3 outcomes ~1e-8 apart in 13 runs of the same
+/// training); the sums over each dimension in turn are fixed reductions. The CPU keeps `sum`.
+pub fn sum_all(t: Tensor<2>) -> Tensor<1> {
+    if is_gpu(&t.device()) {
+        t.sum_dim(0).sum_dim(1).reshape([1])
+    } else {
+        t.sum()
+    }
+}
+
 /// Whether `device` is a GPU (burn's cubecl backend: wgpu), i.e. not host memory.
 pub fn is_gpu(device: &Device) -> bool {
     matches!(device.clone().inner().as_dispatch(), burn::backend::DispatchDevice::Cube(_))

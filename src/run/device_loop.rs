@@ -10,7 +10,7 @@ use burn::prelude::*;
 
 use super::algorithm::{Algorithm, DeviceOutcome};
 use super::runner::{Episodes, RolloutSums};
-use crate::learn::nets::{to_host, to_tensor};
+use crate::learn::nets::{sum_all, to_host, to_tensor};
 use crate::task::TaskBatch;
 use crate::task::task::{OUT_BAD_RESET, OUT_LIFT, OUT_MISC, OUT_OBJ_POS_ERR, OUT_OBJ_ROT_ERR, OUT_REWARD, OUT_SUCCESS, OUT_TERMINATED, OUT_TERMS, OUT_TIME_OUT};
 
@@ -61,7 +61,7 @@ impl DeviceLoop {
         for _ in 0..steps {
             let actions = algo.act_device(&self.obs, &self.priv_obs)?;
             // a non-finite action: x − x is NaN exactly for ±∞ and NaN
-            let bad = (actions.clone() - actions.clone()).is_nan().float().sum().reshape([1, 1]);
+            let bad = sum_all((actions.clone() - actions.clone()).is_nan().float()).reshape([1, 1]);
             let out = task.step_on_device(&actions, &self.device)?;
             let (reward, terminated, time_out) = (column(&out.misc, OUT_REWARD), column(&out.misc, OUT_TERMINATED), column(&out.misc, OUT_TIME_OUT));
             algo.observe_device(&DeviceOutcome {
@@ -80,9 +80,9 @@ impl DeviceLoop {
             self.ended = self.ended.clone() + (out.misc * done.clone()).sum_dim(0);
             let ended_eps = Tensor::cat(
                 vec![
-                    (self.ep_ret.clone() * done.clone()).sum().reshape([1, 1]),
-                    (self.ep_len.clone() * done.clone()).sum().reshape([1, 1]),
-                    done.clone().sum().reshape([1, 1]),
+                    sum_all(self.ep_ret.clone() * done.clone()).reshape([1, 1]),
+                    sum_all(self.ep_len.clone() * done.clone()).reshape([1, 1]),
+                    sum_all(done.clone()).reshape([1, 1]),
                     bad,
                 ],
                 1,

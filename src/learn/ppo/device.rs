@@ -168,7 +168,7 @@ impl Ppo {
         let total = adv.dims()[0];
         let mean = adv.clone().mean();
         let centred = adv - mean.unsqueeze::<2>();
-        let var = centred.clone().square().sum().div_scalar((total as f64 - 1.0).max(1.0));
+        let var = crate::learn::nets::sum_all(centred.clone().square()).div_scalar((total as f64 - 1.0).max(1.0));
         let advantages = centred / var.sqrt().add_scalar(1e-8).unsqueeze::<2>();
         let all = Batch {
             obs: cat(&|s| s.obs.clone()),
