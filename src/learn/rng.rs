@@ -41,13 +41,6 @@ impl Rng {
         (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
     }
 
-    /// Fills `out` with standard normal f32s.
-    pub fn fill_normal(&mut self, out: &mut [f32]) {
-        for x in out {
-            *x = self.normal() as f32;
-        }
-    }
-
     /// A uniformly random permutation of 0..n (Fisher–Yates).
     pub fn permutation(&mut self, n: usize) -> Vec<usize> {
         let mut p: Vec<usize> = (0..n).collect();
