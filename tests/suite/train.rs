@@ -277,29 +277,8 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     let (_, rows_dev) = metrics(&dev);
     assert_eq!((rows_host.len(), rows_dev.len()), (2, 2));
     let bytes = cols.iter().position(|c| c == "time/host_bytes").unwrap();
-    for ((_, h), (_, d)) in rows_host.iter().zip(&rows_dev) {
-        for (k, c) in cols.iter().enumerate() {
-            if k != bytes {
-                assert!((h[k] - d[k]).abs() <= 1e-4 * (1.0 + h[k].abs()) || (h[k].is_nan() && d[k].is_nan()), "{c}: host path {} vs device-resident {}", h[k], d[k]);
-            }
-        }
-    }
-    // every value of the policy file (parameters and normalisers), tensors in name order
-    let policy = |dir: &Path| -> Vec<f64> {
-        let (_, learner, _) = checkpoint::load(&dir.join("checkpoints/2"), dims(dir), 8).expect("checkpoint");
-        let mut tensors: Vec<_> = learner.files.iter().filter(|f| f.name == "model").flat_map(|f| f.tensors.iter()).collect();
-        tensors.sort_by(|a, b| a.name.cmp(&b.name));
-        tensors.iter().flat_map(|t| match &t.values {
-            TensorValues::F32(v) => v.iter().map(|&x| x as f64).collect::<Vec<_>>(),
-            TensorValues::F64(v) => v.clone(),
-            TensorValues::U8(_) => Vec::new(),
-        }).collect()
-    };
-    let (p_host, p_dev) = (policy(&host), policy(&dev));
-    assert!(!p_host.is_empty() && p_host.len() == p_dev.len());
-    for (x, y) in p_host.iter().zip(&p_dev) {
-        assert!((x - y).abs() <= 1e-4 * (1.0 + x.abs()), "a policy value: host path {x} vs device-resident {y}");
-    }
+    assert_rows_close(&cols, &rows_host, &rows_dev, bytes, "host path vs device-resident");
+    assert_policies_close(&host, &dev, 2);
     // host traffic per iteration (the config's: 8 envs, 4 steps, obs O + P, 22 actions, PPO's defaults)
     let cfg = dextrain::config::Config::load(&dev.join("config.toml")).unwrap();
     let [o, p, a] = dims(&dev);
@@ -360,34 +339,11 @@ fn sac_trains_with_its_replay_buffer_on_one_gpu_device() {
     assert_eq!((rows_host.len(), rows_dev.len(), rows_resumed.len()), (3, 3, 3));
     let col = |c: &str| cols.iter().position(|x| x == c).unwrap();
     let bytes = col("time/host_bytes");
-    let close = |a: &[(u64, Vec<f64>)], b: &[(u64, Vec<f64>)], tol: f64, what: &str| {
-        for ((_, x), (_, y)) in a.iter().zip(b) {
-            for (k, c) in cols.iter().enumerate() {
-                if k != bytes {
-                    assert!((x[k] - y[k]).abs() <= tol * (1.0 + x[k].abs()) || (x[k].is_nan() && y[k].is_nan()), "{what}: {c}: {} vs {}", x[k], y[k]);
-                }
-            }
-        }
-    };
-    close(&rows_host, &rows_dev, 1e-4, "host path vs device-resident");
+    assert_rows_close(&cols, &rows_host, &rows_dev, bytes, "host path vs device-resident");
     assert!(same_bits(&rows_dev, &rows_resumed), "the resumed device-resident SAC run differs:\n{rows_dev:?}\n{rows_resumed:?}");
     assert_eq!(model_bytes(&dev, 3), model_bytes(&resumed, 3), "final model differs after resume");
     assert!(rows_dev.iter().all(|(_, v)| v[col("loss/critic")].is_finite() && v[col("updates")] > 0.0));
-    let policy = |dir: &Path| -> Vec<f64> {
-        let (_, learner, _) = checkpoint::load(&dir.join("checkpoints/3"), dims(dir), 8).expect("checkpoint");
-        let mut tensors: Vec<_> = learner.files.iter().filter(|f| f.name == "model").flat_map(|f| f.tensors.iter()).collect();
-        tensors.sort_by(|a, b| a.name.cmp(&b.name));
-        tensors.iter().flat_map(|t| match &t.values {
-            TensorValues::F32(v) => v.iter().map(|&x| x as f64).collect::<Vec<_>>(),
-            TensorValues::F64(v) => v.clone(),
-            TensorValues::U8(_) => Vec::new(),
-        }).collect()
-    };
-    let (p_host, p_dev) = (policy(&host), policy(&dev));
-    assert!(!p_host.is_empty() && p_host.len() == p_dev.len());
-    for (x, y) in p_host.iter().zip(&p_dev) {
-        assert!((x - y).abs() <= 1e-4 * (1.0 + x.abs()), "a policy value: host path {x} vs device-resident {y}");
-    }
+    assert_policies_close(&host, &dev, 3);
     // host traffic of an iteration with gradient steps: per env step the noise parameters; per
     // gradient step two noise draws' parameters, the rows (i32) and window flags (f32) of n_step × B
     // transitions and four loss scalars (an actor step each: policy_frequency = 1); the sums; α
@@ -403,6 +359,39 @@ fn sac_trains_with_its_replay_buffer_on_one_gpu_device() {
         assert!(h[bytes] >= (t * n * (o + p) as u64 * 4) as f64, "the host path reads every step's observations: {}", h[bytes]);
     }
     assert_eq!(rows_dev.iter().map(|(_, v)| v[col("updates")]).collect::<Vec<_>>(), vec![4.0, 8.0, 8.0], "gradient steps from the 3rd env step on, {updates} per env step");
+}
+
+/// Every metric of two runs' rows within 1e-4 (relative above 1; NaN matching NaN), column `skip`
+/// (the host bytes) aside.
+fn assert_rows_close(cols: &[String], a: &[(u64, Vec<f64>)], b: &[(u64, Vec<f64>)], skip: usize, what: &str) {
+    assert_eq!(a.len(), b.len(), "{what}: row counts");
+    for ((_, x), (_, y)) in a.iter().zip(b) {
+        for (k, c) in cols.iter().enumerate() {
+            if k != skip {
+                assert!((x[k] - y[k]).abs() <= 1e-4 * (1.0 + x[k].abs()) || (x[k].is_nan() && y[k].is_nan()), "{what}: {c}: {} vs {}", x[k], y[k]);
+            }
+        }
+    }
+}
+
+/// Every value of two runs' policy files at checkpoint `it` (parameters and normalisers, tensors in
+/// name order) within 1e-4 (relative above 1).
+fn assert_policies_close(a: &Path, b: &Path, it: u64) {
+    let values = |dir: &Path| -> Vec<f64> {
+        let (_, learner, _) = checkpoint::load(&dir.join(format!("checkpoints/{it}")), dims(dir), 8).expect("checkpoint");
+        let mut tensors: Vec<_> = learner.files.iter().filter(|f| f.name == "model").flat_map(|f| f.tensors.iter()).collect();
+        tensors.sort_by(|x, y| x.name.cmp(&y.name));
+        tensors.iter().flat_map(|t| match &t.values {
+            TensorValues::F32(v) => v.iter().map(|&x| x as f64).collect::<Vec<_>>(),
+            TensorValues::F64(v) => v.clone(),
+            TensorValues::U8(_) => Vec::new(),
+        }).collect()
+    };
+    let (va, vb) = (values(a), values(b));
+    assert!(!va.is_empty() && va.len() == vb.len(), "policy sizes {} vs {}", va.len(), vb.len());
+    for (x, y) in va.iter().zip(&vb) {
+        assert!((x - y).abs() <= 1e-4 * (1.0 + x.abs()), "a policy value: {x} (host path) vs {y} (device-resident)");
+    }
 }
 
 /// A run's [obs, critic obs, actions] sizes (from its first checkpoint's state).
