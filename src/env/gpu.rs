@@ -54,6 +54,14 @@ pub fn task_shader_source() -> String {
     [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_REFERENCE, SHADER_IK, SHADER_TASK].join("\n")
 }
 
+/// Workgroups (x, y) of a dispatch of `invocations` invocations (one per env, or per number drawn):
+/// 2-D past 65,535 workgroups, as `env_index` in common.wgsl reads them; at least one.
+pub fn workgroups_for(invocations: u32) -> (u32, u32) {
+    let wg = invocations.div_ceil(WORKGROUP_SIZE).max(1);
+    let x = wg.min(65535);
+    (x, wg.div_ceil(x))
+}
+
 /// The WGSL module of the learner's action noise: common.wgsl (the counter hash) and noise.wgsl.
 pub fn noise_shader_source() -> String {
     [SHADER_COMMON, SHADER_NOISE].join("\n")
@@ -356,9 +364,7 @@ impl GpuContext {
 
     /// Writes `data` to the start of `buffer` (named `name` in errors) through the queue.
     pub fn upload(&self, name: &str, buffer: &wgpu::Buffer, data: &[u8]) -> Result<()> {
-        ensure!(data.len() as u64 <= buffer.size(), "uploading {} bytes to GPU buffer `{name}` of {} bytes", data.len(), buffer.size());
-        crate::host_traffic::add(data.len() as u64);
-        self.scoped(|| format!("uploading {} bytes to GPU buffer `{name}`", data.len()), || self.queue.write_buffer(buffer, 0, data))
+        self.upload_at(name, buffer, 0, data)
     }
 
     /// Writes `data` at byte `offset` of `buffer` (named `name` in errors) through the queue.
@@ -563,9 +569,7 @@ impl GpuEnvBatch {
 
     /// Workgroups of a dispatch over all envs (x, y: 2-D past 65535 workgroups).
     pub(crate) fn workgroups(&self) -> (u32, u32) {
-        let wg = (self.model.spec.num_envs as u32).div_ceil(WORKGROUP_SIZE);
-        let x = wg.min(65535);
-        (x, wg.div_ceil(x))
+        workgroups_for(self.model.spec.num_envs as u32)
     }
 
     fn dispatch(&self, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, what: &str) -> Result<()> {

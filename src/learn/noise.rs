@@ -15,7 +15,7 @@ use burn::prelude::{Device, Tensor};
 
 use super::gpu_io::{flush, zeros_buffer};
 use crate::env::common::rand_uniform;
-use crate::env::gpu::{GpuContext, WORKGROUP_SIZE, noise_shader_source};
+use crate::env::gpu::{GpuContext, noise_shader_source, workgroups_for};
 use crate::env::gpu_bindings::{LEARNER_NOISE, LEARNER_UNIFORM, NOISE_CFG, NOISE_GROUP, NOISE_OUT};
 
 /// The action noise's stream in the counter hash (the env's purposes are 1–5; noise.wgsl's twin).
@@ -95,9 +95,7 @@ impl DeviceNoise {
         ensure!(rows * cols <= self.capacity, "a draw of {rows} × {cols} numbers from a noise kernel made for {}", self.capacity);
         self.ctx.upload(NOISE_CFG.name, &self.cfg, bytemuck::bytes_of(&c))?;
         let dst = zeros_buffer(rows, cols, &self.device)?;
-        let wg = ((rows * cols) as u32).div_ceil(WORKGROUP_SIZE);
-        let x = wg.clamp(1, 65535);
-        let mut enc = self.ctx.encode_passes(&[(pipeline, group)], (x, wg.div_ceil(x).max(1)));
+        let mut enc = self.ctx.encode_passes(&[(pipeline, group)], workgroups_for((rows * cols) as u32));
         enc.copy_buffer_to_buffer(&self.out, 0, dst.buffer(), dst.offset(), dst.size());
         // burn's zero fill of dst runs before this copy (module doc of gpu_io)
         flush(&self.device)?;

@@ -186,3 +186,23 @@ impl DeviceNormalizer {
         (x - self.mean.clone()) * scale
     }
 }
+
+/// The actor's and the critic's [`DeviceNormalizer`]s of a device-resident learner (PPO's, SAC's).
+pub struct DeviceNormalizers {
+    /// Actor observations.
+    pub obs: DeviceNormalizer,
+    /// Critic observations.
+    pub priv_obs: DeviceNormalizer,
+}
+
+impl DeviceNormalizers {
+    /// The host statistics `obs` and `priv_obs` on `device`.
+    pub fn from_host(obs: &Normalizer, priv_obs: &Normalizer, device: &Device) -> DeviceNormalizers {
+        DeviceNormalizers { obs: DeviceNormalizer::from_host(obs, device), priv_obs: DeviceNormalizer::from_host(priv_obs, device) }
+    }
+
+    /// Both on the host (actor's, critic's).
+    pub fn to_host(&self) -> Result<(Normalizer, Normalizer)> {
+        Ok((self.obs.to_host()?, self.priv_obs.to_host()?))
+    }
+}

@@ -259,13 +259,7 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     let adapter = format!("gpu:{}", ctx.info.name.split_whitespace().next().unwrap_or("llvmpipe"));
     drop(ctx);
     let tmp = tempfile::tempdir().unwrap();
-    let gpu_args = |name: &str, extra: &[&str]| {
-        let mut a = args(tmp.path(), name);
-        a.sets.retain(|s| !s.starts_with("sim.backend") && !s.starts_with("train.device"));
-        a.sets.extend([format!("sim.backend={adapter}"), format!("train.device={adapter}"), "train.iterations=2".into(), "train.save_interval=1".into()]);
-        a.sets.extend(extra.iter().map(|s| s.to_string()));
-        a
-    };
+    let gpu_args = |name: &str, extra: &[&str]| gpu_run_args(tmp.path(), name, &adapter, 2, extra);
     let host = train(&gpu_args("host", &["train.device_rollouts=false"])).expect("train on the GPU, host path");
     let dev = train(&gpu_args("dev", &[])).expect("train on the GPU, device-resident");
     let mut half = gpu_args("half", &[]);
@@ -318,12 +312,9 @@ fn sac_trains_with_its_replay_buffer_on_one_gpu_device() {
     let tmp = tempfile::tempdir().unwrap();
     let (batch, n_step, updates) = (32u64, 2u64, 2u64);
     let sac_args = |name: &str, extra: &[&str]| {
-        let mut a = args(tmp.path(), name);
-        a.sets.retain(|s| !s.starts_with("sim.backend") && !s.starts_with("train.device"));
-        a.sets.extend([format!("sim.backend={adapter}"), format!("train.device={adapter}"), "train.iterations=3".into(), "train.save_interval=1".into()]);
+        let mut a = gpu_run_args(tmp.path(), name, &adapter, 3, extra);
         a.sets.extend(["train.algorithm=\"sac\"", "sac.learning_starts=3", "sac.random_steps=2", "sac.buffer_capacity=6", "sac.policy_frequency=1"].iter().map(|s| s.to_string()));
         a.sets.extend([format!("sac.batch_size={batch}"), format!("sac.n_step={n_step}"), format!("sac.updates_per_step={updates}")]);
-        a.sets.extend(extra.iter().map(|s| s.to_string()));
         a
     };
     let host = train(&sac_args("host", &["train.device_rollouts=false"])).expect("SAC on the GPU, host path");
@@ -359,6 +350,16 @@ fn sac_trains_with_its_replay_buffer_on_one_gpu_device() {
         assert!(h[bytes] >= (t * n * (o + p) as u64 * 4) as f64, "the host path reads every step's observations: {}", h[bytes]);
     }
     assert_eq!(rows_dev.iter().map(|(_, v)| v[col("updates")]).collect::<Vec<_>>(), vec![4.0, 8.0, 8.0], "gradient steps from the 3rd env step on, {updates} per env step");
+}
+
+/// The tiny run of [`args`] with the envs and the learner on `adapter` (`gpu:NAME`), `iterations`
+/// iterations, a checkpoint after each, and the `extra` overrides last.
+fn gpu_run_args(runs: &Path, name: &str, adapter: &str, iterations: u32, extra: &[&str]) -> TrainArgs {
+    let mut a = args(runs, name);
+    a.sets.retain(|s| !s.starts_with("sim.backend") && !s.starts_with("train.device"));
+    a.sets.extend([format!("sim.backend={adapter}"), format!("train.device={adapter}"), format!("train.iterations={iterations}"), "train.save_interval=1".into()]);
+    a.sets.extend(extra.iter().map(|s| s.to_string()));
+    a
 }
 
 /// Every metric of two runs' rows within 1e-4 (relative above 1; NaN matching NaN), column `skip`

@@ -1,7 +1,7 @@
 //! PPO's device-resident rollouts (README "The GPU loop"): with the envs and burn's wgpu learner on
 //! one wgpu device, observations arrive as tensors ([`crate::task::TaskBatch::step_on_device`]) and
 //! everything the host path does with them happens on the device instead:
-//! - the empirical normalisers (`normalizer::DeviceNormalizer`: the Chan merge in f32 tensors;
+//! - the empirical normalisers (`normalizer::DeviceNormalizers`: the Chan merge in f32 tensors;
 //!   the host keeps only the count, which it knows);
 //! - the action noise ([`crate::learn::noise::DeviceNoise`]: the host path's draws, drawn by a
 //!   shader), the actions, their log-probabilities and the values;
@@ -20,7 +20,7 @@ use burn::prelude::*;
 use super::{Batch, LN_2PI, Ppo, UpdateStats};
 use crate::env::gpu::GpuContext;
 use crate::learn::noise::DeviceNoise;
-use crate::learn::normalizer::{DeviceNormalizer, Normalizer};
+use crate::learn::normalizer::DeviceNormalizers;
 
 /// One env step of the rollout, every tensor `[N, ·]` (the host storage's rows of that step).
 struct StepRecord {
@@ -42,22 +42,9 @@ struct StepRecord {
 /// What a device-resident rollout holds beside [`Ppo`]'s networks.
 pub struct DeviceRollout {
     noise: DeviceNoise,
-    obs_norm: DeviceNormalizer,
-    priv_norm: DeviceNormalizer,
+    /// The observation normalisers.
+    pub(crate) norms: DeviceNormalizers,
     steps: Vec<StepRecord>,
-}
-
-impl DeviceRollout {
-    /// Both normalisers on the host.
-    pub fn normalizers(&self) -> Result<(Normalizer, Normalizer)> {
-        Ok((self.obs_norm.to_host()?, self.priv_norm.to_host()?))
-    }
-
-    /// Replaces the device normalisers with host ones (a resumed run).
-    pub fn load_normalizers(&mut self, obs: &Normalizer, priv_obs: &Normalizer, device: &Device) {
-        self.obs_norm = DeviceNormalizer::from_host(obs, device);
-        self.priv_norm = DeviceNormalizer::from_host(priv_obs, device);
-    }
 }
 
 impl Ppo {
@@ -68,8 +55,8 @@ impl Ppo {
         ensure!(self.step == 0, "device-resident rollouts must start between iterations");
         ensure!(crate::learn::nets::is_gpu(&self.device), "device-resident rollouts need burn's wgpu learner (train.device = gpu)");
         let noise = DeviceNoise::new(ctx, &self.device, self.storage.envs * self.dims().act)?;
-        let (obs_norm, priv_norm) = (DeviceNormalizer::from_host(&self.obs_norm, &self.device), DeviceNormalizer::from_host(&self.priv_norm, &self.device));
-        self.on_device = Some(DeviceRollout { noise, obs_norm, priv_norm, steps: Vec::with_capacity(self.storage.steps) });
+        let norms = DeviceNormalizers::from_host(&self.obs_norm, &self.priv_norm, &self.device);
+        self.on_device = Some(DeviceRollout { noise, norms, steps: Vec::with_capacity(self.storage.steps) });
         Ok(())
     }
 
@@ -84,11 +71,11 @@ impl Ppo {
         let (seed, draw, normalize) = (self.noise_seed, self.noise_draw, self.normalize);
         let r = self.on_device.as_mut().ok_or_else(|| anyhow::anyhow!("act_device() before start_device_rollouts()"))?;
         if normalize {
-            r.obs_norm.update(obs);
-            r.priv_norm.update(priv_obs);
+            r.norms.obs.update(obs);
+            r.norms.priv_obs.update(priv_obs);
         }
-        let obs_n = r.obs_norm.normalized(obs.clone(), normalize);
-        let priv_n = r.priv_norm.normalized(priv_obs.clone(), normalize);
+        let obs_n = r.norms.obs.normalized(obs.clone(), normalize);
+        let priv_n = r.norms.priv_obs.normalized(priv_obs.clone(), normalize);
         let params = self.net.inference_params();
         let mu = self.net.actor(&params, obs_n.clone(), priv_n.clone()); // [N, A]
         let values = self.net.critic(&params, priv_n.clone()); // [N, 1]
@@ -136,7 +123,7 @@ impl Ppo {
         let (gamma, lam, normalize) = (self.cfg.gamma as f64, self.cfg.lam as f64, self.normalize);
         let r = self.on_device.as_mut().ok_or_else(|| anyhow::anyhow!("update_device() before start_device_rollouts()"))?;
         let steps = std::mem::take(&mut r.steps);
-        let priv_n = r.priv_norm.normalized(last_priv_obs.clone(), normalize);
+        let priv_n = r.norms.priv_obs.normalized(last_priv_obs.clone(), normalize);
         let last_values = self.net.critic(&self.net.inference_params(), priv_n); // [N, 1]
         // GAE backwards in time (storage.rs's `gae`, as [N, 1] tensor ops):
         // δ_t = r_t + γ V(s_{t+1}) (1 − d_t) − V(s_t), A_t = δ_t + γλ (1 − d_t) A_{t+1}, R_t = A_t + V(s_t)

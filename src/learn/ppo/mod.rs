@@ -386,7 +386,7 @@ impl Ppo {
         self.obs_norm = Normalizer::load("obs_norm", d.obs, state, MODEL_FILE)?;
         self.priv_norm = Normalizer::load("priv_norm", d.priv_obs, state, MODEL_FILE)?;
         if let Some(r) = &mut self.on_device {
-            r.load_normalizers(&self.obs_norm, &self.priv_norm, &self.device);
+            r.norms = super::normalizer::DeviceNormalizers::from_host(&self.obs_norm, &self.priv_norm, &self.device);
         }
         Ok(())
     }
@@ -394,7 +394,7 @@ impl Ppo {
     /// The observation normalisers as they stand (read from the device in a device-resident run).
     pub fn normalizers(&self) -> Result<(Normalizer, Normalizer)> {
         match &self.on_device {
-            Some(r) => r.normalizers(),
+            Some(r) => r.norms.to_host(),
             None => Ok((self.obs_norm.clone(), self.priv_norm.clone())),
         }
     }

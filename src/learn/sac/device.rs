@@ -5,7 +5,7 @@
 //!   `copy_buffer_to_buffer` per array from the step's tensors into slot `pos` (`learn::gpu_io`);
 //!   a sample reads the rows that the host buffer's [`ReplayBuffer::draw`] picks (the host RNG, as
 //!   the host path) and computes the n-step windows with gathers and masks;
-//! - the normalisers (`normalizer::DeviceNormalizer`), the random actions and the action noise
+//! - the normalisers (`normalizer::DeviceNormalizers`), the random actions and the action noise
 //!   (`learn::noise::DeviceNoise`: the host path's draws) on the device.
 //!
 //! What crosses per env step: 16 bytes of noise parameters; per gradient step: the batch's rows
@@ -23,7 +23,7 @@ use crate::env::gpu::{BufferRole, GpuContext};
 use crate::learn::gpu_io::{TensorBuffer, flush, zeros_buffer};
 use crate::learn::nets::{to_host, to_tensor};
 use crate::learn::noise::DeviceNoise;
-use crate::learn::normalizer::{DeviceNormalizer, Normalizer};
+use crate::learn::normalizer::DeviceNormalizers;
 
 /// One array of the device buffer: `[C·N, dim]` (row `slot · N + env`).
 struct Ring {
@@ -241,24 +241,13 @@ struct DevicePending {
 /// What a device-resident SAC holds beside [`Sac`]'s networks.
 pub struct DeviceSac {
     noise: DeviceNoise,
-    obs_norm: DeviceNormalizer,
-    priv_norm: DeviceNormalizer,
+    /// The observation normalisers.
+    pub(crate) norms: DeviceNormalizers,
     replay: DeviceReplay,
     pending: Option<DevicePending>,
 }
 
 impl DeviceSac {
-    /// Both normalisers on the host.
-    pub fn normalizers(&self) -> Result<(Normalizer, Normalizer)> {
-        Ok((self.obs_norm.to_host()?, self.priv_norm.to_host()?))
-    }
-
-    /// Replaces the device normalisers with host ones (a resumed run).
-    pub fn load_normalizers(&mut self, obs: &Normalizer, priv_obs: &Normalizer, device: &Device) {
-        self.obs_norm = DeviceNormalizer::from_host(obs, device);
-        self.priv_norm = DeviceNormalizer::from_host(priv_obs, device);
-    }
-
     /// The replay buffer on the host, with `host`'s counters (for a checkpoint).
     pub fn buffer_on_host(&self, host: &ReplayBuffer) -> Result<ReplayBuffer> {
         self.replay.to_host(host)
@@ -286,8 +275,8 @@ impl Sac {
         let replay = DeviceReplay::new(ctx, &self.device, &self.buffer)?;
         replay.load(&self.buffer)?;
         let bytes = replay.bytes();
-        let (obs_norm, priv_norm) = (DeviceNormalizer::from_host(&self.obs_norm, &self.device), DeviceNormalizer::from_host(&self.priv_norm, &self.device));
-        self.on_device = Some(DeviceSac { noise, obs_norm, priv_norm, replay, pending: None });
+        let norms = DeviceNormalizers::from_host(&self.obs_norm, &self.priv_norm, &self.device);
+        self.on_device = Some(DeviceSac { noise, norms, replay, pending: None });
         Ok(bytes)
     }
 
@@ -301,13 +290,13 @@ impl Sac {
         self.noise_draw = draw.wrapping_add(1);
         let dv = self.on_device.as_mut().ok_or_else(|| anyhow::anyhow!("act_device() before start_device_rollouts()"))?;
         if normalize {
-            dv.obs_norm.update(obs);
-            dv.priv_norm.update(priv_obs);
+            dv.norms.obs.update(obs);
+            dv.norms.priv_obs.update(priv_obs);
         }
         let actions = if random {
             dv.noise.uniforms(seed, draw, n, d.act)? // a ~ U[−1, 1)
         } else {
-            let x = Tensor::from_inner(dv.obs_norm.normalized(obs.clone(), normalize));
+            let x = Tensor::from_inner(dv.norms.obs.normalized(obs.clone(), normalize));
             let params: Vec<Tensor<2>> = self.actor.iter().map(|p| p.clone().inner()).collect();
             let eps = dv.noise.normals(seed, draw, n, d.act)?; // ε ~ N(0, 1) [N, A]
             let (mu, log_std) = self.policy(&params, x);
@@ -370,10 +359,10 @@ impl Sac {
         let (obs, next_obs) = (actor_rows(obs, &priv_obs), actor_rows(next_obs, &next_priv));
         let lift = Tensor::from_inner; // untracked, on the autodiff device, as the host path's uploads
         Ok(GradBatch {
-            obs: lift(dv.obs_norm.normalized(obs, normalize)),
-            next_obs: lift(dv.obs_norm.normalized(next_obs, normalize)),
-            priv_obs: lift(dv.priv_norm.normalized(priv_obs, normalize)),
-            next_priv: lift(dv.priv_norm.normalized(next_priv, normalize)),
+            obs: lift(dv.norms.obs.normalized(obs, normalize)),
+            next_obs: lift(dv.norms.obs.normalized(next_obs, normalize)),
+            priv_obs: lift(dv.norms.priv_obs.normalized(priv_obs, normalize)),
+            next_priv: lift(dv.norms.priv_obs.normalized(next_priv, normalize)),
             actions: lift(actions),
             returns,
             bootstrap,

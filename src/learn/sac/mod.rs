@@ -552,7 +552,7 @@ impl Sac {
         self.obs_norm = Normalizer::load("obs_norm", self.dims.obs, state, MODEL_FILE)?;
         self.priv_norm = Normalizer::load("priv_norm", self.dims.priv_obs, state, MODEL_FILE)?;
         if let Some(dv) = &mut self.on_device {
-            dv.load_normalizers(&self.obs_norm, &self.priv_norm, &self.device);
+            dv.norms = super::normalizer::DeviceNormalizers::from_host(&self.obs_norm, &self.priv_norm, &self.device);
         }
         Ok(())
     }
@@ -560,7 +560,7 @@ impl Sac {
     /// The observation normalisers as they stand (read from the device in a device-resident run).
     pub fn normalizers(&self) -> Result<(Normalizer, Normalizer)> {
         match &self.on_device {
-            Some(dv) => dv.normalizers(),
+            Some(dv) => dv.norms.to_host(),
             None => Ok((self.obs_norm.clone(), self.priv_norm.clone())),
         }
     }
