@@ -376,7 +376,9 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
 
 /// The CPU's model name, whether it has AVX-512 and AVX2 (from /proc/cpuinfo), and which kernels the
 /// learner runs on it: gemm's (AVX-512 when built with the `x86-v4` feature and the CPU has it, else
-/// AVX2 + FMA) and the fused ELU's ([`crate::learn::elu::isa`], capped by `DEXTRAIN_SIMD`).
+/// AVX2 + FMA), whether the dense layers' `x W` and `g Wᵀ` run dextrain's own AVX2 product instead
+/// ([`crate::learn::sgemm::runs`]), and the fused ELU's ([`crate::learn::isa::isa`], capped by
+/// `DEXTRAIN_SIMD`).
 pub fn cpu_model() -> serde_json::Value {
     let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
     let model = info.lines().find(|l| l.starts_with("model name")).and_then(|l| l.split(':').nth(1)).map(|s| s.trim().to_string());
@@ -384,5 +386,6 @@ pub fn cpu_model() -> serde_json::Value {
     let avx512f = flags.split_whitespace().any(|f| f == "avx512f");
     let gemm = if cfg!(feature = "x86-v4") && avx512f { "avx512" } else { "avx2" };
     json!({"model": model, "avx512f": avx512f, "avx2": flags.split_whitespace().any(|f| f == "avx2"),
-           "kernels": {"gemm": gemm, "elu": format!("{:?}", crate::learn::elu::isa()).to_lowercase()}})
+           "kernels": {"gemm": gemm, "own_avx2_product": crate::learn::sgemm::runs(),
+                       "elu": format!("{:?}", crate::learn::isa::isa()).to_lowercase()}})
 }

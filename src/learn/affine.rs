@@ -10,7 +10,8 @@
 //! - burn flex (the CPU): the output is a `Vec<f32>` handed to the tensor without a copy; the
 //!   forward writes the bias rows and lets gemm accumulate `x W` onto them (`dst = dst + x W`), the
 //!   backward products write their outputs directly (gemm without reading dst), and `∂b` is one
-//!   read pass;
+//!   read pass; where the learner's kernels are AVX2 (`sgemm::runs`), `x W` and `g Wᵀ` run
+//!   dextrain's own AVX2 product (`learn::sgemm`) instead of gemm's;
 //! - cubecl (the GPU): the same formulas as tensor ops (the trait's default bodies);
 //! - autodiff: the gradients above, for the inputs that are tracked only (the first layer's
 //!   observations are not: no `∂x` there).
@@ -25,6 +26,8 @@ use burn::prelude::Tensor;
 use burn::tensor::{Bytes, DType, Shape};
 use burn_flex::{FlexTensor, Layout};
 use rayon::prelude::*;
+
+use crate::learn::sgemm;
 
 /// `x W + b` as tensor ops of `B`.
 fn affine_ops<B: Backend>(x: FloatTensor<B>, w: FloatTensor<B>, b: FloatTensor<B>) -> FloatTensor<B> {
@@ -113,13 +116,19 @@ fn product(lhs: (*const f32, [usize; 2], isize, isize), rhs: (*const f32, [usize
     let (lp, [m, k], lrs, lcs) = lhs;
     let (rp, [_, n], rrs, rcs) = rhs;
     let mut out = Vec::<f32>::with_capacity(m * n);
-    // SAFETY: the views describe live storage of the operands' shapes; gemm writes all m·n outputs
-    // without reading them (read_dst = false), after which they are initialised
+    // SAFETY: the views describe live storage of the operands' shapes; both kernels write all m·n
+    // outputs without reading them (accumulate / read_dst = false), after which they are
+    // initialised; sgemm::runs() means the CPU has AVX2 + FMA
     unsafe {
-        gemm::gemm(
-            m, n, k, out.as_mut_ptr(), 1, n as isize, false, lp, lcs, lrs, rp, rcs, rrs, 0.0f32, 1.0f32, false, false,
-            false, parallelism(m, n, k),
-        );
+        if sgemm::runs() && lcs == 1 {
+            let parallel = matches!(parallelism(m, n, k), gemm::Parallelism::Rayon(_));
+            sgemm::matmul(m, n, k, lp, lrs as usize, rp, rrs, rcs, out.as_mut_ptr(), false, parallel);
+        } else {
+            gemm::gemm(
+                m, n, k, out.as_mut_ptr(), 1, n as isize, false, lp, lcs, lrs, rp, rcs, rrs, 0.0f32, 1.0f32, false,
+                false, false, parallelism(m, n, k),
+            );
+        }
         out.set_len(m * n);
     }
     from_rows(out, m, n)
@@ -144,12 +153,18 @@ impl AffineOps for Flex {
         for _ in 0..m {
             out.extend_from_slice(&bias);
         }
-        // SAFETY: x and W views describe live storage of [m, k] and [k, n]; out holds m·n values
+        // SAFETY: x and W views describe live storage of [m, k] and [k, n]; out holds m·n values;
+        // sgemm::runs() means the CPU has AVX2 + FMA
         unsafe {
-            gemm::gemm(
-                m, n, k, out.as_mut_ptr(), 1, n as isize, true, xp, xcs, xrs, wp, wcs, wrs, 1.0f32, 1.0f32, false,
-                false, false, parallelism(m, n, k),
-            ); // y = 1 · y + 1 · x W
+            if sgemm::runs() && xcs == 1 {
+                let parallel = matches!(parallelism(m, n, k), gemm::Parallelism::Rayon(_));
+                sgemm::matmul(m, n, k, xp, xrs as usize, wp, wrs, wcs, out.as_mut_ptr(), true, parallel); // y += x W
+            } else {
+                gemm::gemm(
+                    m, n, k, out.as_mut_ptr(), 1, n as isize, true, xp, xcs, xrs, wp, wcs, wrs, 1.0f32, 1.0f32, false,
+                    false, false, parallelism(m, n, k),
+                ); // y = 1 · y + 1 · x W
+            }
         }
         from_rows(out, m, n)
     }

@@ -7,7 +7,7 @@
 //! on one core; BENCHMARKS.md). Here, through burn's backend extensions:
 //! - burn flex (the CPU): one pass each way, in place where the tensor is not shared, with a
 //!   vectorised `exp` (Cephes' expf polynomial, ≤ 2 ulp on [−87, 0]) compiled for AVX-512 and for
-//!   AVX2 + FMA and picked at run time ([`isa`]), split over the rayon pool for large tensors;
+//!   AVX2 + FMA and picked at run time ([`crate::learn::isa::isa`]), split over the rayon pool for large tensors;
 //! - cubecl (the GPU): the same formulas as tensor ops (the trait's default bodies);
 //! - autodiff: the backward pass above, from the saved output.
 
@@ -20,6 +20,8 @@ use burn::backend::{Autodiff, Backend, Cube, Flex, backend_extension};
 use burn::prelude::Tensor;
 use burn::tensor::DType;
 use rayon::prelude::*;
+
+use crate::learn::isa::{Isa, detected_isa, isa};
 
 /// `ELU(x) = relu(x) + exp(−relu(−x)) − 1` as tensor ops of `B`.
 fn elu_ops<B: Backend>(x: FloatTensor<B>) -> FloatTensor<B> {
@@ -109,52 +111,6 @@ mod simd {
     pub unsafe fn backward_avx2(ys: &[f32], gs: &mut [f32]) {
         super::elu_backward_loop(ys, gs)
     }
-}
-
-/// The vector instruction sets the CPU kernels here are compiled for.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
-pub enum Isa {
-    /// Plain Rust (whatever the target's baseline gives).
-    Scalar,
-    /// AVX2 + FMA (x86-64-v3).
-    Avx2,
-    /// AVX-512F (x86-64-v4).
-    Avx512,
-}
-
-/// The widest [`Isa`] this CPU has, capped by the environment variable `DEXTRAIN_SIMD`
-/// (`avx512`, `avx2` or `scalar`; another value is ignored with a warning): `DEXTRAIN_SIMD=avx2` runs the AVX2 kernels on an AVX-512 CPU,
-/// which with a build without the `x86-v4` feature (gemm's AVX-512 kernels) is how an AVX2-only
-/// CPU's learner is measured here (BENCHMARKS.md). Read once.
-pub fn isa() -> Isa {
-    static ISA: std::sync::OnceLock<Isa> = std::sync::OnceLock::new();
-    *ISA.get_or_init(|| {
-        let cap = match std::env::var("DEXTRAIN_SIMD").as_deref() {
-            Ok("scalar") => Isa::Scalar,
-            Ok("avx2") => Isa::Avx2,
-            Ok("avx512") | Err(_) => Isa::Avx512,
-            Ok(other) => {
-                // a typo must not pass for a measured cap: say so once (bench prints what ran)
-                eprintln!("dextrain: DEXTRAIN_SIMD={other} is not avx512, avx2 or scalar; ignored");
-                Isa::Avx512
-            }
-        };
-        detected_isa().min(cap)
-    })
-}
-
-/// The widest [`Isa`] this CPU has.
-fn detected_isa() -> Isa {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            return Isa::Avx512;
-        }
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma") {
-            return Isa::Avx2;
-        }
-    }
-    Isa::Scalar
 }
 
 /// ELU of every element, in place, with the kernel of `isa` (at most what this CPU has: a wider

@@ -210,18 +210,46 @@ impl MlpLayout {
 
     /// x [B, input] → [B, output]: `h = act(LN(h W + b))` per hidden layer, then `h W + b`.
     pub fn forward(&self, params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tensor<2> {
-        let k = self.per_hidden();
         let split = row_split(&x.device(), x.dims()[0]);
+        self.forward_from(params, x, None, split, act)
+    }
+
+    /// [`MlpLayout::forward`] of the input `[x_head | x_tail]` ([B, input] in two column blocks)
+    /// without forming it: the first layer is `x_head W[..h] + x_tail W[h..] + b` (W's first h
+    /// rows, then the rest). The same values to rounding; where only `x_tail` is tracked (SAC's
+    /// actor update: the critic's state columns are data, its action columns the actor's output)
+    /// the input gradient is `g W[h..]ᵀ` [B, tail] where the concatenated input's would be
+    /// `g Wᵀ` [B, input] — for SAC's critics 22 of 152 columns.
+    pub fn forward_split_input(&self, params: &[Tensor<2>], x_head: Tensor<2>, x_tail: Tensor<2>, act: Activation) -> Tensor<2> {
+        let split = row_split(&x_head.device(), x_head.dims()[0]);
+        self.forward_from(params, x_head, Some(x_tail), split, act)
+    }
+
+    /// The layers, the first one's input given as `x` or as the column blocks `[x | tail]`.
+    fn forward_from(&self, params: &[Tensor<2>], x: Tensor<2>, tail: Option<Tensor<2>>, split: usize, act: Activation) -> Tensor<2> {
+        let k = self.per_hidden();
         let mut h = x;
+        let mut tail = tail;
         for l in 0..self.hidden.len() {
             let p = &params[l * k..(l + 1) * k];
-            h = affine(h, p[0].clone(), p[1].clone(), split); // [B, out]
+            h = first_or_affine(h, tail.take(), p[0].clone(), p[1].clone(), split); // [B, out]
             if self.layer_norm {
                 h = super::layer_norm::layer_norm(h, p[2].clone(), p[3].clone()); // (h − μ)/√(σ² + ε) · g + s per row
             }
             h = act.apply(h);
         }
         let o = self.hidden.len() * k;
-        affine(h, params[o].clone(), params[o + 1].clone(), split)
+        first_or_affine(h, tail, params[o].clone(), params[o + 1].clone(), split)
     }
+}
+
+/// `x W + b`, or with `tail` (the input's last columns) `x W[..h] + tail W[h..] + b` for h the
+/// width of x: x [B, h], tail [B, t], W [h + t, out], b [1, out] → [B, out].
+fn first_or_affine(x: Tensor<2>, tail: Option<Tensor<2>>, w: Tensor<2>, b: Tensor<2>, split: usize) -> Tensor<2> {
+    let Some(tail) = tail else {
+        return affine(x, w, b, split);
+    };
+    let (head, t) = (x.dims()[1], tail.dims()[1]);
+    let w_tail = w.clone().narrow(0, head, t); // [t, out]
+    affine(x, w.narrow(0, 0, head), b, split) + matmul_rows(tail, w_tail, split)
 }

@@ -378,7 +378,8 @@ fn fused_elu_and_its_gradient_match_the_reference() {
     check(cpu(), "cpu");
     // every CPU kernel, whichever the op picked: AVX-512, AVX2 + FMA (what an AVX2-only CPU runs)
     // and the plain loop; a kernel this CPU lacks runs the next narrower one
-    use dextrain::learn::elu::{Isa, elu_backward_slice_with, elu_slice_with};
+    use dextrain::learn::elu::{elu_backward_slice_with, elu_slice_with};
+    use dextrain::learn::isa::Isa;
     for isa in [Isa::Avx512, Isa::Avx2, Isa::Scalar] {
         let mut y = xs.clone();
         elu_slice_with(isa, &mut y);
@@ -453,6 +454,89 @@ fn fused_affine_and_its_gradients_match_the_reference() {
     check(cpu(), "cpu");
     if let Some((_ctx, gpu)) = crate::common::wgpu_learner("fused_affine_and_its_gradients_match_the_reference") {
         check(gpu, "wgpu");
+    }
+}
+
+/// dextrain's own AVX2 matrix product (`learn::sgemm`, what the dense layers' `x W` and `g Wᵀ` run
+/// where the learner's kernels are AVX2): against an f64 reference, over shapes that leave partial
+/// tiles (rows not a multiple of 6, columns not a multiple of 16, fewer than 16 columns), depths
+/// over one block (256) and over one packed slab of B, B given transposed (strided), A rows with a
+/// stride above their length, accumulation onto C, and split over the rayon pool.
+#[test]
+fn own_avx2_product_matches_the_reference() {
+    use dextrain::learn::isa::{Isa, detected_isa};
+    use dextrain::learn::sgemm::matmul_slices;
+    if detected_isa() < Isa::Avx2 {
+        eprintln!("own_avx2_product_matches_the_reference: not run, this CPU has no AVX2 + FMA (the kernel never runs here)");
+        return;
+    }
+    let mut rng = Rng::new(9, 10);
+    // (m, n, k, B transposed, accumulate, parallel)
+    let cases = [
+        (13, 37, 5, false, false, false),
+        (250, 512, 96, false, false, true),
+        (97, 22, 300, true, true, true),
+        (6, 16, 256, false, true, false),
+        (7, 5, 16_500, false, false, false), // one panel: a slab of B is 16,384 deep
+        (1, 1, 1, true, false, false),
+        (40, 33, 0, false, false, false),
+    ];
+    for (m, n, k, transposed, accumulate, parallel) in cases {
+        let a_row = k + 3; // A rows padded: the stride is not the width
+        let a: Vec<f32> = (0..m * a_row).map(|_| rng.normal() as f32).collect();
+        let b: Vec<f32> = (0..k * n).map(|_| rng.normal() as f32).collect();
+        let (b_row, b_col) = if transposed { (1, k) } else { (n, 1) }; // B(p, j) = b[p·b_row + j·b_col]
+        let c0: Vec<f32> = (0..m * n).map(|_| rng.normal() as f32).collect();
+        let mut c = if accumulate { c0.clone() } else { vec![f32::NAN; m * n] };
+        matmul_slices(m, n, k, &a, a_row, &b, b_row, b_col, &mut c, accumulate, parallel).unwrap();
+        for i in 0..m {
+            for j in 0..n {
+                let dot: f64 = (0..k).map(|p| a[i * a_row + p] as f64 * b[p * b_row + j * b_col] as f64).sum();
+                let want = dot + if accumulate { c0[i * n + j] as f64 } else { 0.0 };
+                // k products of N(0, 1) values summed in f32: error ~ 1e-7 · k
+                let tol = 1e-5 * (k as f64).max(1.0);
+                assert!((c[i * n + j] as f64 - want).abs() < tol, "[{m}, {k}]·[{k}, {n}] at ({i}, {j}): {} vs {want}", c[i * n + j]);
+            }
+        }
+    }
+    // a slice too short for the shape is an error, not a read out of bounds
+    let mut c = vec![0.0; 4];
+    assert!(matmul_slices(2, 2, 3, &[0.0; 5], 3, &[0.0; 6], 2, 1, &mut c, false, false).is_err());
+}
+
+/// An MLP fed its input as two column blocks (`forward_split_input`, SAC's actor update through the
+/// critics) gives the values of the concatenated input's forward, and the tracked block's gradient
+/// is the concatenated input's gradient in those columns — with and without LayerNorm.
+#[test]
+fn split_input_forward_matches_the_concatenated_input() {
+    use dextrain::learn::nets::{Activation, MlpLayout};
+    let mut rng = Rng::new(11, 12);
+    let (b, head, tail) = (37, 13, 5);
+    for layer_norm in [false, true] {
+        let layout = MlpLayout { input: head + tail, hidden: vec![24, 16], output: 3, layer_norm };
+        let params: Vec<Tensor<2>> = layout.init(&mut rng).into_iter().zip(layout.shapes()).map(|(v, s)| to_tensor(v, s, &cpu())).collect();
+        let xh = to_tensor((0..b * head).map(|_| rng.normal() as f32).collect(), [b, head], &cpu());
+        let xt: Vec<f32> = (0..b * tail).map(|_| rng.normal() as f32).collect();
+        let g = to_tensor((0..b * 3).map(|_| rng.normal() as f32).collect(), [b, 3], &cpu());
+        // the concatenated input, tracked as a whole
+        let cat = Tensor::cat(vec![xh.clone(), to_tensor(xt.clone(), [b, tail], &cpu())], 1).require_grad();
+        let y_cat = layout.forward(&params, cat.clone(), Activation::Elu);
+        let grads = (y_cat.clone() * g.clone()).sum().backward();
+        let d_cat = to_host(cat.grad(&grads).unwrap()).unwrap(); // [b, head + tail]
+        // the two blocks, the tail tracked
+        let t = to_tensor(xt, [b, tail], &cpu()).require_grad();
+        let y = layout.forward_split_input(&params, xh, t.clone(), Activation::Elu);
+        let grads = (y.clone() * g).sum().backward();
+        let d_t = to_host(t.grad(&grads).unwrap()).unwrap(); // [b, tail]
+        let (y, y_cat) = (to_host(y.inner()).unwrap(), to_host(y_cat.inner()).unwrap());
+        let worst = y.iter().zip(&y_cat).map(|(a, c)| (a - c).abs()).fold(0.0f32, f32::max);
+        assert!(worst < 1e-5, "layer_norm {layer_norm}: outputs differ by {worst}");
+        for r in 0..b {
+            for c in 0..tail {
+                let (got, want) = (d_t[r * tail + c], d_cat[r * (head + tail) + head + c]);
+                assert!((got - want).abs() < 1e-5, "layer_norm {layer_norm}: ∂tail[{r}, {c}] = {got} vs {want}");
+            }
+        }
     }
 }
 

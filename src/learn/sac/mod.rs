@@ -452,7 +452,8 @@ impl Sac {
             let (mu, ls) = self.policy(&self.actor, obs);
             let (a_new, logp) = squashed_sample(mu, ls, eps_actor);
             let frozen: Vec<Vec<Tensor<2>>> = self.critics.iter().map(|c| c.iter().map(|p| p.clone().inner().autodiff()).collect()).collect();
-            let qs: Vec<Tensor<2>> = frozen.iter().map(|c| self.q(c, priv_obs.clone(), a_new.clone())).collect();
+            // the critic's first layer as ĉ W_c + a W_a + b: its input gradient is only a's columns
+            let qs: Vec<Tensor<2>> = frozen.iter().map(|c| self.critic_layout.forward_split_input(c, priv_obs.clone(), a_new.clone(), self.activation)).collect();
             let q_pi = reduce(qs, self.cfg.q_reduction);
             let alpha_c = alpha.clone().autodiff();
             let actor_loss = (logp.clone() * alpha_c - q_pi).mean(); // mean(α log π − Q)
