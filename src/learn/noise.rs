@@ -12,6 +12,7 @@
 
 use anyhow::{Context, Result, ensure};
 use burn::prelude::{Device, Tensor};
+use rayon::prelude::*;
 
 use super::gpu_io::{flush, zeros_buffer};
 use crate::env::common::rand_uniform;
@@ -21,16 +22,26 @@ use crate::env::gpu_bindings::{LEARNER_NOISE, LEARNER_UNIFORM, NOISE_CFG, NOISE_
 /// The action noise's stream in the counter hash (the env's purposes are 1–5; noise.wgsl's twin).
 pub const PURPOSE_ACTION_NOISE: u32 = 6;
 
-/// Standard normal draws `[rows, cols]` (row-major) of draw `draw` (the module documentation).
+/// Rows per rayon task of [`host_normals`] (each number costs two hashes, a `ln` and a `cos`).
+const NOISE_ROWS_PER_TASK: usize = 256;
+
+/// Standard normal draws `[rows, cols]` (row-major) of draw `draw` (the module documentation),
+/// blocks of rows over the rayon pool (each entry depends on its indices only: the same numbers
+/// for any number of threads).
 pub fn host_normals(seed: u32, draw: u32, rows: usize, cols: usize) -> Vec<f32> {
     let mut out = vec![0.0f32; rows * cols];
-    for (e, v) in out.iter_mut().enumerate() {
-        let (i, k) = ((e / cols) as u32, (e % cols) as u32);
-        let u1 = 1.0 - rand_uniform(seed, i, draw, PURPOSE_ACTION_NOISE, 2 * k);
-        let u2 = rand_uniform(seed, i, draw, PURPOSE_ACTION_NOISE, 2 * k + 1);
-        // √(−2 ln u1) cos(2π u2), 2π as the shader's 6.2831853 (the same f32)
-        *v = (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos();
+    if cols == 0 {
+        return out;
     }
+    out.par_chunks_mut(NOISE_ROWS_PER_TASK * cols).enumerate().for_each(|(block, chunk)| {
+        for (e, v) in chunk.iter_mut().enumerate() {
+            let (i, k) = ((block * NOISE_ROWS_PER_TASK + e / cols) as u32, (e % cols) as u32);
+            let u1 = 1.0 - rand_uniform(seed, i, draw, PURPOSE_ACTION_NOISE, 2 * k);
+            let u2 = rand_uniform(seed, i, draw, PURPOSE_ACTION_NOISE, 2 * k + 1);
+            // √(−2 ln u1) cos(2π u2), 2π as the shader's 6.2831853 (the same f32)
+            *v = (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos();
+        }
+    });
     out
 }
 
