@@ -102,7 +102,12 @@ fn view_2d(t: &FlexTensor) -> Option<(*const f32, [usize; 2], isize, isize)> {
 
 /// gemm's thread split for an m×n×k product.
 fn parallelism(m: usize, n: usize, k: usize) -> gemm::Parallelism {
-    if m.saturating_mul(n).saturating_mul(k) >= PARALLEL_MACS { gemm::Parallelism::Rayon(0) } else { gemm::Parallelism::None }
+    if split_over_threads(m, n, k) { gemm::Parallelism::Rayon(0) } else { gemm::Parallelism::None }
+}
+
+/// Whether an m×n×k product is split over the rayon pool (either kernel).
+fn split_over_threads(m: usize, n: usize, k: usize) -> bool {
+    m.saturating_mul(n).saturating_mul(k) >= PARALLEL_MACS
 }
 
 /// A row-major [rows, cols] f32 tensor owning `data`, without a copy.
@@ -121,8 +126,7 @@ fn product(lhs: (*const f32, [usize; 2], isize, isize), rhs: (*const f32, [usize
     // initialised; sgemm::runs() means the CPU has AVX2 + FMA
     unsafe {
         if sgemm::runs() && lcs == 1 {
-            let parallel = matches!(parallelism(m, n, k), gemm::Parallelism::Rayon(_));
-            sgemm::matmul(m, n, k, lp, lrs as usize, rp, rrs, rcs, out.as_mut_ptr(), false, parallel);
+            sgemm::matmul(m, n, k, lp, lrs as usize, rp, rrs, rcs, out.as_mut_ptr(), false, split_over_threads(m, n, k));
         } else {
             gemm::gemm(
                 m, n, k, out.as_mut_ptr(), 1, n as isize, false, lp, lcs, lrs, rp, rcs, rrs, 0.0f32, 1.0f32, false,
@@ -157,8 +161,7 @@ impl AffineOps for Flex {
         // sgemm::runs() means the CPU has AVX2 + FMA
         unsafe {
             if sgemm::runs() && xcs == 1 {
-                let parallel = matches!(parallelism(m, n, k), gemm::Parallelism::Rayon(_));
-                sgemm::matmul(m, n, k, xp, xrs as usize, wp, wrs, wcs, out.as_mut_ptr(), true, parallel); // y += x W
+                sgemm::matmul(m, n, k, xp, xrs as usize, wp, wrs, wcs, out.as_mut_ptr(), true, split_over_threads(m, n, k)); // y += x W
             } else {
                 gemm::gemm(
                     m, n, k, out.as_mut_ptr(), 1, n as isize, true, xp, xcs, xrs, wp, wcs, wrs, 1.0f32, 1.0f32, false,

@@ -226,10 +226,9 @@ impl MlpLayout {
     }
 
     /// The layers, the first one's input given as `x` or as the column blocks `[x | tail]`.
-    fn forward_from(&self, params: &[Tensor<2>], x: Tensor<2>, tail: Option<Tensor<2>>, split: usize, act: Activation) -> Tensor<2> {
+    fn forward_from(&self, params: &[Tensor<2>], x: Tensor<2>, mut tail: Option<Tensor<2>>, split: usize, act: Activation) -> Tensor<2> {
         let k = self.per_hidden();
         let mut h = x;
-        let mut tail = tail;
         for l in 0..self.hidden.len() {
             let p = &params[l * k..(l + 1) * k];
             h = first_or_affine(h, tail.take(), p[0].clone(), p[1].clone(), split); // [B, out]
