@@ -81,9 +81,12 @@ train_summary() {
         { rows++; steps = $col["env_steps"]; t = $col["time_s"]; fps = $col["fps"]; s = $col["episode/success_rate"] + 0
           if (s > best) best = s
           if (s >= 0.9 && first_it == "") { first_it = $col["iteration"]; first_steps = steps; first_t = t }
-          bytes = ("time/host_bytes" in col) ? $col["time/host_bytes"] : "null" }
-        END { printf "{\"iterations\": %d, \"env_steps\": %s, \"time_s\": %s, \"env_steps_per_s_last\": %s, \"best_success\": %s, \"first_90_iteration\": %s, \"first_90_env_steps\": %s, \"first_90_time_s\": %s, \"host_bytes_last_iteration\": %s}",
-              rows, steps + 0, t + 0, fps + 0, best + 0, first_it == "" ? "null" : first_it, first_it == "" ? "null" : first_steps, first_it == "" ? "null" : first_t, bytes == "" ? "null" : bytes }' "$csv"
+          bytes = ("time/host_bytes" in col) ? $col["time/host_bytes"] : "null"
+          gpu = ""
+          n = split("gpu/kernels_per_step gpu/submissions_per_step gpu/syncs_per_step gpu/kernels_per_update gpu/submissions_per_update gpu/syncs_per_update", names, " ")
+          for (k = 1; k <= n; k++) { key = names[k]; sub("gpu/", "", key); gpu = gpu sprintf("%s\"%s\": %s", k > 1 ? ", " : "", key, (names[k] in col) ? $col[names[k]] : "null") } }
+        END { printf "{\"iterations\": %d, \"env_steps\": %s, \"time_s\": %s, \"env_steps_per_s_last\": %s, \"best_success\": %s, \"first_90_iteration\": %s, \"first_90_env_steps\": %s, \"first_90_time_s\": %s, \"host_bytes_last_iteration\": %s, \"gpu_counts_last_iteration\": {%s}}",
+              rows, steps + 0, t + 0, fps + 0, best + 0, first_it == "" ? "null" : first_it, first_it == "" ? "null" : first_steps, first_it == "" ? "null" : first_t, bytes == "" ? "null" : bytes, gpu }' "$csv"
 }
 
 # a training run stopped by SIGINT $2 seconds after it started training (it finishes its iteration,

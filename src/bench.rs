@@ -128,8 +128,10 @@ pub fn run_bench(env: &mut dyn EnvBatch, model: &SimModel, opts: &BenchOptions) 
     let phys_per_env_step = (g.decimation * g.substeps) as f64;
     let (mut rates, mut cpu_us) = (Vec::new(), Vec::new());
     let (mut contacts, mut contacts_ho, mut samples, mut bad) = (0u64, 0u64, 0u64, 0u64);
+    let mut step_counts = crate::gpu_counts::GpuCounts::default();
     let mut run_chunk = |env: &mut dyn EnvBatch, c: usize, record: bool| -> Result<(f64, f64)> {
         env.set_states(&grasp_state)?;
+        let counts0 = crate::gpu_counts::GpuCounts::now();
         let (c0, t0) = (process_cpu_time(), Instant::now());
         for targets in &chunks[c % chunks.len()] {
             env.step(targets)?;
@@ -144,7 +146,9 @@ pub fn run_bench(env: &mut dyn EnvBatch, model: &SimModel, opts: &BenchOptions) 
                 samples += stats.len() as u64;
             }
         }
-        Ok((t0.elapsed().as_secs_f64(), process_cpu_time() - c0))
+        let out = (t0.elapsed().as_secs_f64(), process_cpu_time() - c0);
+        step_counts = crate::gpu_counts::GpuCounts::now().since(&counts0);
+        Ok(out)
     };
     run_chunk(env, 0, false)?; // warm-up
     let start = Instant::now();
@@ -178,6 +182,9 @@ pub fn run_bench(env: &mut dyn EnvBatch, model: &SimModel, opts: &BenchOptions) 
         "bad_resets": bad,
         // the simulator's buffers per env (0 on the CPU)
         "device_bytes_per_env": env.device_bytes() as f64 / n.max(1) as f64,
+        // per env step of all envs: the step and the statistics read (the simulator's own
+        // submissions are all of the queue's)
+        "gpu_counts_per_env_step": if env.device_bytes() > 0 { step_counts.to_json(CHUNK_STEPS as f64, Some(step_counts.total(crate::gpu_counts::Event::Submission))) } else { serde_json::Value::Null },
         "wall_s": start.elapsed().as_secs_f64(),
     }))
 }
@@ -214,14 +221,22 @@ fn stats(xs: &[f64]) -> serde_json::Value {
 /// a rollout of `steps` × [act + process_step] with pre-generated observations, rewards and dones
 /// (1/250 of transitions end an episode, half of those by time-out), then `update` (GAE +
 /// `epochs` × `minibatches` gradient steps with the adaptive-KL learning rate). Prints one JSON line.
-pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_name: &str) -> Result<serde_json::Value> {
+///
+/// With `ctx` (the wgpu context of a GPU learner device), the same iterations again with the
+/// rollout on the device (`act_device`, `process_step_device`, `update_device`: the training
+/// loop's path when the envs share the GPU), and `gpu_counts`: the kernels, submissions and host
+/// synchronisations of one policy inference, one rollout step and one update on each path
+/// ([`crate::gpu_counts`]; the same on any adapter).
+pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_name: &str, ctx: Option<&crate::env::gpu::GpuContext>) -> Result<serde_json::Value> {
     use crate::config::{PolicyConfig, PpoConfig};
+    use crate::gpu_counts::{GpuCounts, queue_submissions, submissions_between};
+    use crate::learn::nets::to_tensor;
     use crate::learn::ppo::{Dims, Ppo};
     use crate::learn::rng::Rng;
     let cfg = PpoConfig { learning_rate: 1e-3, epochs: o.epochs, minibatches: o.minibatches, ..PpoConfig::default() };
     let pol = PolicyConfig { actor_hidden: o.hidden.clone(), critic_hidden: o.hidden.clone(), ..PolicyConfig::default() };
     let dims = Dims { obs: o.obs, priv_obs: o.priv_obs, act: o.actions };
-    let mut ppo = Ppo::new(dims, o.envs, o.steps, &cfg, &pol, &[], device, 0)?;
+    let mut ppo = Ppo::new(dims, o.envs, o.steps, &cfg, &pol, &[], device.clone(), 0)?;
     let mut rng = Rng::new(1, 1);
     let mut draw = |len: usize| -> Vec<f32> { (0..len).map(|_| rng.normal() as f32).collect() };
     let obs: Vec<(Vec<f32>, Vec<f32>)> = (0..2).map(|_| (draw(o.envs * o.obs), draw(o.envs * o.priv_obs))).collect();
@@ -234,46 +249,110 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
         let term: Vec<bool> = d.iter().zip(&to).map(|(&x, &t)| x && !t).collect();
         dones.push((term, to));
     }
+    // the counts of a phase: what this thread asked of the GPU, and the queue's submissions
+    let mark = || (GpuCounts::now(), ctx.and_then(|c| queue_submissions(&c.queue)));
+    let counted = |m: &(GpuCounts, Option<u64>), per: f64| {
+        let (c, q) = mark();
+        c.since(&m.0).to_json(per, submissions_between(m.1, q))
+    };
     let (mut rollout_ms, mut update_ms, mut update_cpu_s) = (Vec::new(), Vec::new(), Vec::new());
+    let (mut step_counts, mut update_counts) = (serde_json::Value::Null, serde_json::Value::Null);
     let mut last = None;
     for it in 0..o.warmup + o.iters {
+        let m0 = mark();
         let t0 = Instant::now();
         for k in 0..o.steps {
             let (ob, pr) = &obs[k % 2];
             ppo.act(ob, pr)?;
             ppo.process_step(&rewards[k], &dones[k].0, &dones[k].1);
         }
-        let t1 = Instant::now();
-        let c1 = process_cpu_time();
+        let rollout_s = t0.elapsed().as_secs_f64();
+        step_counts = counted(&m0, o.steps as f64);
+        let m1 = mark();
+        let (t1, c1) = (Instant::now(), process_cpu_time());
         let u = ppo.update(&obs[o.steps % 2].1)?;
-        let t2 = Instant::now();
-        let c2 = process_cpu_time();
+        let (update_s, c2) = (t1.elapsed().as_secs_f64(), process_cpu_time());
+        update_counts = counted(&m1, 1.0);
         crate::console::status(&format!(
             "  iter {it}{}: rollout {:.0} ms, update {:.0} ms (cpu {:.1} s), lr {:.2e}",
             if it < o.warmup { " (warm-up)" } else { "" },
-            1e3 * (t1 - t0).as_secs_f64(),
-            1e3 * (t2 - t1).as_secs_f64(),
+            1e3 * rollout_s,
+            1e3 * update_s,
             c2 - c1,
             u.lr
         ));
         if it >= o.warmup {
-            rollout_ms.push(1e3 * (t1 - t0).as_secs_f64());
-            update_ms.push(1e3 * (t2 - t1).as_secs_f64());
+            rollout_ms.push(1e3 * rollout_s);
+            update_ms.push(1e3 * update_s);
             update_cpu_s.push(c2 - c1);
         }
         last = Some(u);
     }
     let mut inf_ms = Vec::new();
+    let mut inference_counts = serde_json::Value::Null;
     for _ in 0..10 {
+        let m = mark();
         let t0 = Instant::now();
         ppo.act_mean(&obs[0].0, &obs[0].1)?;
         inf_ms.push(1e3 * t0.elapsed().as_secs_f64());
+        inference_counts = counted(&m, 1.0);
+    }
+    // the device-resident path: observations, rewards and dones as tensors made once
+    let mut device_path = serde_json::Value::Null;
+    if let Some(ctx) = ctx.filter(|_| crate::learn::nets::is_gpu(&device)) {
+        ppo.start_device_rollouts(ctx)?;
+        let dev = device.clone().inner();
+        let obs_t: Vec<(burn::prelude::Tensor<2>, burn::prelude::Tensor<2>)> =
+            obs.iter().map(|(ob, pr)| (to_tensor(ob.clone(), [o.envs, o.obs], &dev), to_tensor(pr.clone(), [o.envs, o.priv_obs], &dev))).collect();
+        let col = |v: Vec<f32>| to_tensor(v, [o.envs, 1], &dev);
+        let flags = |v: &[bool]| col(v.iter().map(|&b| b as u8 as f32).collect());
+        let rew_t: Vec<_> = rewards.iter().map(|r| col(r.clone())).collect();
+        let done_t: Vec<_> = dones.iter().map(|(t, to)| (flags(t), flags(to))).collect();
+        let (mut d_rollout_ms, mut d_update_ms) = (Vec::new(), Vec::new());
+        let (mut d_step_counts, mut d_update_counts) = (serde_json::Value::Null, serde_json::Value::Null);
+        for it in 0..o.warmup + o.iters {
+            let m0 = mark();
+            let t0 = Instant::now();
+            for k in 0..o.steps {
+                let (ob, pr) = &obs_t[k % 2];
+                ppo.act_device(ob, pr)?;
+                ppo.process_step_device(&rew_t[k], &done_t[k].0, &done_t[k].1)?;
+            }
+            // the rollout's kernels have run when the device is idle
+            // (counted before the bench's wait for the device: the training loop reads once per iteration)
+            let (before_sync, queue_now) = mark();
+            crate::learn::gpu_io::sync(&device)?;
+            let rollout_s = t0.elapsed().as_secs_f64();
+            d_step_counts = before_sync.since(&m0.0).to_json(o.steps as f64, submissions_between(m0.1, queue_now));
+            let m1 = mark();
+            let t1 = Instant::now();
+            let u = ppo.update_device(&obs_t[o.steps % 2].1)?;
+            let update_s = t1.elapsed().as_secs_f64();
+            d_update_counts = counted(&m1, 1.0);
+            crate::console::status(&format!(
+                "  device-resident iter {it}{}: rollout {:.0} ms, update {:.0} ms, lr {:.2e}",
+                if it < o.warmup { " (warm-up)" } else { "" },
+                1e3 * rollout_s,
+                1e3 * update_s,
+                u.lr
+            ));
+            if it >= o.warmup {
+                d_rollout_ms.push(1e3 * rollout_s);
+                d_update_ms.push(1e3 * update_s);
+            }
+        }
+        device_path = json!({
+            "update_ms": stats(&d_update_ms),
+            "rollout_policy_ms_24_steps": stats(&d_rollout_ms),
+            "gpu_counts": {"per_rollout_step": d_step_counts, "per_update": d_update_counts},
+        });
     }
     let transitions = (o.envs * o.steps) as f64;
     let mut upd_sorted = update_ms.clone();
     upd_sorted.sort_by(f64::total_cmp);
     let upd_median_s = upd_sorted.get(upd_sorted.len() / 2).copied().unwrap_or(f64::NAN) / 1e3;
     let u = last.unwrap_or_default();
+    let on_gpu = crate::learn::nets::is_gpu(&device);
     Ok(json!({
         "bench": "dextrain_ppo_bench",
         "device": device_name,
@@ -288,6 +367,8 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
         "update_transitions_per_s_median": transitions / upd_median_s,
         "rollout_policy_ms_24_steps": stats(&rollout_ms),
         "policy_inference_ms": stats(&inf_ms),
+        "gpu_counts": if on_gpu { json!({"per_policy_inference": inference_counts, "per_rollout_step": step_counts, "per_update": update_counts}) } else { serde_json::Value::Null },
+        "device_resident": device_path,
         "last_losses": {"surrogate": u.surrogate, "value": u.value, "entropy": u.entropy, "kl": u.kl, "lr": u.lr},
         "cpu": cpu_model(),
     }))
@@ -324,7 +405,11 @@ impl Default for SacBenchOptions {
 /// (target from the target critics and a fresh next action), an actor update, a temperature update
 /// and a Polyak step of both targets (n = 1, clipped double-Q, ELU, no LayerNorm: skrl's SAC).
 /// Returns one JSON object with `ms_per_gradient_step` (median, min, max over the timed updates).
-pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_name: &str) -> Result<serde_json::Value> {
+///
+/// On a GPU, `gpu_counts`: the kernels, submissions and host synchronisations per gradient step
+/// ([`crate::gpu_counts`]; `ctx`, the learner's wgpu context, gives the queue's submissions).
+pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_name: &str, ctx: Option<&crate::env::gpu::GpuContext>) -> Result<serde_json::Value> {
+    use crate::gpu_counts::{GpuCounts, queue_submissions, submissions_between};
     use crate::config::{PolicyConfig, SacConfig};
     use crate::learn::ppo::Dims;
     use crate::learn::rng::Rng;
@@ -344,12 +429,16 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
         sac.buffer.push(&Transitions { obs: &ob, priv_obs: &pr, actions: &act, rewards: &rew, done: &term, terminated: &term, next_obs: &next_ob, next_priv_obs: &next_pr })?;
     }
     let (mut per_step_ms, mut cpu_s) = (Vec::new(), Vec::new());
+    let mut counts = serde_json::Value::Null;
     for it in 0..o.warmup + o.iters {
+        let (m0, q0) = (GpuCounts::now(), ctx.and_then(|c| queue_submissions(&c.queue)));
         let (t0, c0) = (Instant::now(), process_cpu_time());
         for _ in 0..o.gradient_steps {
             sac.gradient_step()?;
         }
         let (dt, dc) = (t0.elapsed().as_secs_f64(), process_cpu_time() - c0);
+        let q1 = ctx.and_then(|c| queue_submissions(&c.queue));
+        counts = GpuCounts::now().since(&m0).to_json(o.gradient_steps as f64, submissions_between(q0, q1));
         crate::console::status(&format!("  update {it}{}: {:.0} ms ({:.1} ms per gradient step)", if it < o.warmup { " (warm-up)" } else { "" }, 1e3 * dt, 1e3 * dt / o.gradient_steps as f64));
         if it >= o.warmup {
             per_step_ms.push(1e3 * dt / o.gradient_steps as f64);
@@ -369,6 +458,7 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
         "gradient_steps_per_s": 1e3 / median,
         "transitions_per_s": o.batch as f64 * 1e3 / median,
         "update_process_cpu_s": stats(&cpu_s),
+        "gpu_counts": if crate::learn::nets::is_gpu(&sac.device) { json!({"per_gradient_step": counts}) } else { serde_json::Value::Null },
         "last": {"critic_loss": s.critic_loss, "actor_loss": s.actor_loss, "alpha": s.alpha, "entropy": s.entropy},
         "cpu": cpu_model(),
     }))

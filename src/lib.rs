@@ -12,6 +12,7 @@ pub mod eval;
 pub mod export;
 pub mod geom;
 pub mod hand;
+pub mod gpu_counts;
 pub mod host_traffic;
 pub mod learn;
 pub mod mesh;

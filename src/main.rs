@@ -146,16 +146,16 @@ fn run(cli: Cli) -> Result<()> {
                 rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot size the thread pool")?;
             }
             if ppo {
-                let (dev, name) = dextrain::learn::device::learner_device(&device, None)?;
+                let (dev, name, ctx) = dextrain::learn::device::learner_device_and_context(&device)?;
                 let opts = dextrain::bench::PpoBenchOptions { envs: envs.unwrap_or(4096), iters: iters.max(1), ..Default::default() };
-                let report = dextrain::bench::run_ppo_bench(&opts, dev, &name)?;
+                let report = dextrain::bench::run_ppo_bench(&opts, dev, &name, ctx.as_ref())?;
                 console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
                 return Ok(());
             }
             if sac {
-                let (dev, name) = dextrain::learn::device::learner_device(&device, None)?;
+                let (dev, name, ctx) = dextrain::learn::device::learner_device_and_context(&device)?;
                 let opts = dextrain::bench::SacBenchOptions { envs: envs.unwrap_or(4096), iters: iters.max(1), batch: batch.max(1), gradient_steps: gradient_steps.max(1), ..Default::default() };
-                let report = dextrain::bench::run_sac_bench(&opts, dev, &name)?;
+                let report = dextrain::bench::run_sac_bench(&opts, dev, &name, ctx.as_ref())?;
                 console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
                 return Ok(());
             }

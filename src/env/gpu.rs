@@ -21,6 +21,8 @@ use anyhow::{Context, Result, anyhow, bail, ensure};
 use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
+use crate::gpu_counts::{self, Event};
+
 use super::gpu_bindings::{Binding, BindingSpace, EntryBindings, RESET_MAIN, SIM_GROUP, SPRINGS, STEP_MAIN};
 use super::gpu_bindings::{COLLIDERS, GLOBALS, HULLS, JOINTS, OBJECTS, PARAMS, PIECES, REF_OBJECTS, RESET_MASK, STATES, STATS, TARGETS};
 use super::gpu_layout::*;
@@ -40,6 +42,11 @@ pub const SHADER_REFERENCE: &str = include_str!("../../shaders/reference.wgsl");
 pub const SHADER_IK: &str = include_str!("../../shaders/ik.wgsl");
 /// The learner's action noise (appended to common.wgsl; `learn::noise`).
 pub const SHADER_NOISE: &str = include_str!("../../shaders/noise.wgsl");
+/// The learner's optimiser (a module of its own; `learn::fused_adam`).
+pub const SHADER_ADAM: &str = include_str!("../../shaders/adam.wgsl");
+/// The device-resident learners' observation normalisers (a module of its own;
+/// `learn::fused_normalizer`).
+pub const SHADER_NORMALIZER: &str = include_str!("../../shaders/normalizer.wgsl");
 /// Invocations per workgroup (keep in sync with `WORKGROUP_SIZE` in common.wgsl).
 pub const WORKGROUP_SIZE: u32 = 64;
 
@@ -362,6 +369,31 @@ impl GpuContext {
         )
     }
 
+    /// As [`GpuContext::bind_group`], each binding a slice `(buffer, offset, bytes)` (a burn tensor's
+    /// memory in cubecl's buffer, or a slot of a buffer of ours; offsets aligned to the adapter's
+    /// binding-offset alignment, sizes rounded up to 4 bytes).
+    pub fn bind_group_slices(&self, pipeline: &wgpu::ComputePipeline, uses: &EntryBindings, slices: &[(Binding, (&wgpu::Buffer, u64, u64))]) -> Result<wgpu::BindGroup> {
+        let mut entries = Vec::with_capacity(uses.bindings.len());
+        for b in uses.bindings {
+            let (_, (buffer, offset, size)) = slices
+                .iter()
+                .find(|(have, _)| have == b)
+                .ok_or_else(|| anyhow!("bind group of entry point `{}`: no buffer for binding {} `{}`", uses.entry_point, b.index, b.name))?;
+            let size = std::num::NonZeroU64::new(size.next_multiple_of(4)).ok_or_else(|| anyhow!("bind group of entry point `{}`: binding `{}` is empty", uses.entry_point, b.name))?;
+            entries.push(wgpu::BindGroupEntry { binding: b.index, resource: wgpu::BindingResource::Buffer(wgpu::BufferBinding { buffer, offset: *offset, size: Some(size) }) });
+        }
+        self.scoped(
+            || format!("creating the bind group of entry point `{}`", uses.entry_point),
+            || {
+                self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                    label: Some(uses.entry_point),
+                    layout: &pipeline.get_bind_group_layout(0),
+                    entries: &entries,
+                })
+            },
+        )
+    }
+
     /// Writes `data` to the start of `buffer` (named `name` in errors) through the queue.
     pub fn upload(&self, name: &str, buffer: &wgpu::Buffer, data: &[u8]) -> Result<()> {
         self.upload_at(name, buffer, 0, data)
@@ -371,12 +403,15 @@ impl GpuContext {
     pub fn upload_at(&self, name: &str, buffer: &wgpu::Buffer, offset: u64, data: &[u8]) -> Result<()> {
         ensure!(offset + data.len() as u64 <= buffer.size(), "uploading {} bytes at {offset} to GPU buffer `{name}` of {} bytes", data.len(), buffer.size());
         crate::host_traffic::add(data.len() as u64);
+        gpu_counts::add(Event::Upload, &format!("dextrain:{name}"));
         self.scoped(|| format!("uploading {} bytes to GPU buffer `{name}`", data.len()), || self.queue.write_buffer(buffer, offset, data))
     }
 
     /// A command encoder with one compute pass that dispatches `passes` in order (pipeline, its
     /// bind group 0), each over `workgroups` (x, y); wgpu orders dispatches that share buffers.
-    pub fn encode_passes(&self, passes: &[(&wgpu::ComputePipeline, &wgpu::BindGroup)], workgroups: (u32, u32)) -> wgpu::CommandEncoder {
+    /// The dispatches are counted as kernels of `what` ([`crate::gpu_counts`]).
+    pub fn encode_passes(&self, passes: &[(&wgpu::ComputePipeline, &wgpu::BindGroup)], workgroups: (u32, u32), what: &str) -> wgpu::CommandEncoder {
+        gpu_counts::add_n(Event::Kernel, &format!("dextrain:{what}"), passes.len() as u64);
         let mut enc = self.device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
@@ -391,11 +426,13 @@ impl GpuContext {
 
     /// Submits `encs` in order as one submission; an error of their commands comes back naming `what`.
     pub fn submit_all(&self, encs: Vec<wgpu::CommandEncoder>, what: &str) -> Result<()> {
+        gpu_counts::add(Event::Submission, &format!("dextrain:{what}"));
         self.scoped(|| what.to_string(), || self.queue.submit(encs.into_iter().map(|e| e.finish()))).map(|_| ())
     }
 
     /// Submits `enc`; an error of its commands comes back naming `what`.
     pub fn submit(&self, enc: wgpu::CommandEncoder, what: &str) -> Result<()> {
+        gpu_counts::add(Event::Submission, &format!("dextrain:{what}"));
         self.scoped(|| what.to_string(), || self.queue.submit([enc.finish()])).map(|_| ())
     }
 
@@ -417,6 +454,11 @@ impl GpuContext {
             );
         }
         crate::host_traffic::add(copies.iter().map(|c| c.bytes).sum());
+        let source = format!("dextrain:{what}");
+        for kind in [Event::Submission, Event::Read, Event::Wait] {
+            gpu_counts::add(kind, &source);
+        }
+        gpu_counts::add_n(Event::Map, &source, copies.len() as u64);
         let receivers = self.scoped(
             || format!("{what}: submitting"),
             || {
@@ -489,6 +531,11 @@ pub struct GpuEnvBatch {
     pub(crate) step_group: wgpu::BindGroup,
     pub(crate) reset_group: wgpu::BindGroup,
     mask_host: Vec<u32>,
+    /// The last `step`'s dispatch, recorded but not yet submitted: the next readback appends its
+    /// copy and submits both at once (one submission per env step of a loop that reads each
+    /// step's statistics); anything else that uses the queue submits it first
+    /// ([`GpuEnvBatch::flush_pending`]), so the queue runs the work in program order.
+    pending: std::sync::Mutex<Option<wgpu::CommandEncoder>>,
 }
 
 impl GpuEnvBatch {
@@ -557,6 +604,7 @@ impl GpuEnvBatch {
             step_group,
             reset_group,
             mask_host: vec![0; n],
+            pending: std::sync::Mutex::new(None),
         };
         b.reset_all()?;
         Ok(b)
@@ -573,11 +621,29 @@ impl GpuEnvBatch {
     }
 
     fn dispatch(&self, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, what: &str) -> Result<()> {
-        let enc = self.ctx.encode_passes(&[(pipeline, group)], self.workgroups());
+        self.flush_pending()?;
+        let enc = self.ctx.encode_passes(&[(pipeline, group)], self.workgroups(), what);
         self.ctx.submit(enc, what)
     }
 
+    /// The recorded but unsubmitted step, taken (None when there is none).
+    fn take_pending(&self) -> Option<wgpu::CommandEncoder> {
+        self.pending.lock().unwrap_or_else(std::sync::PoisonError::into_inner).take()
+    }
+
+    /// Submits the step that [`EnvBatch::step`] recorded, if any. Every use of the queue other
+    /// than a readback of this batch calls it first: a `queue.write_buffer` runs before the next
+    /// submission, so an upload must not overtake a step recorded before it. The task layer,
+    /// which records its own command buffers on the same queue, calls it too.
+    pub fn flush_pending(&self) -> Result<()> {
+        match self.take_pending() {
+            Some(enc) => self.ctx.submit(enc, "dispatching step_main"),
+            None => Ok(()),
+        }
+    }
+
     fn run_reset(&mut self) -> Result<()> {
+        self.flush_pending()?;
         self.ctx.upload(RESET_MASK.name, &self.reset_mask, bytemuck::cast_slice(&self.mask_host))?;
         self.dispatch(&self.reset_pipeline, &self.reset_group, "dispatching reset_main")
     }
@@ -585,6 +651,7 @@ impl GpuEnvBatch {
     /// Overwrites the parameters (checkpoint restore).
     pub fn set_params(&mut self, params: &[EnvParams]) -> Result<()> {
         ensure!(params.len() == self.model.spec.num_envs, "{} parameter sets for {} envs", params.len(), self.model.spec.num_envs);
+        self.flush_pending()?;
         self.ctx.upload(PARAMS.name, &self.params, bytemuck::cast_slice(params))
     }
 
@@ -592,7 +659,8 @@ impl GpuEnvBatch {
     /// the batch's staging buffer or, for a larger read, a staging buffer made for it.
     pub(crate) fn read<T: Pod>(&self, src: &wgpu::Buffer, name: &str, count: usize) -> Result<Vec<T>> {
         let bytes = (count * std::mem::size_of::<T>()) as u64;
-        let enc = self.ctx.device.create_command_encoder(&Default::default());
+        // the recorded step, if any, and the copy in one submission
+        let enc = self.take_pending().unwrap_or_else(|| self.ctx.device.create_command_encoder(&Default::default()));
         let mut out = Vec::new();
         let larger;
         let staging = if bytes <= self.readback.size() {
@@ -635,8 +703,12 @@ impl EnvBatch for GpuEnvBatch {
 
     fn step(&mut self, targets: &[Targets]) -> Result<()> {
         ensure!(targets.len() == self.model.spec.num_envs, "{} targets for {} envs", targets.len(), self.model.spec.num_envs);
+        self.flush_pending()?;
         self.ctx.upload(TARGETS.name, &self.targets, bytemuck::cast_slice(targets))?;
-        self.dispatch(&self.step_pipeline, &self.step_group, "dispatching step_main")
+        // recorded now, submitted with the next readback or before the next use of the queue
+        let enc = self.ctx.encode_passes(&[(&self.step_pipeline, &self.step_group)], self.workgroups(), "dispatching step_main");
+        *self.pending.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(enc);
+        Ok(())
     }
 
     fn states(&mut self) -> Result<Vec<EnvState>> {
@@ -645,6 +717,7 @@ impl EnvBatch for GpuEnvBatch {
 
     fn set_states(&mut self, states: &[EnvState]) -> Result<()> {
         ensure!(states.len() == self.model.spec.num_envs, "{} states for {} envs", states.len(), self.model.spec.num_envs);
+        self.flush_pending()?;
         self.ctx.upload(STATES.name, &self.states, bytemuck::cast_slice(states))
     }
 
@@ -655,6 +728,7 @@ impl EnvBatch for GpuEnvBatch {
     fn set_springs(&mut self, springs: &[[f32; 4]]) -> Result<()> {
         let want = self.model.spec.num_envs * self.model.globals.n_springs as usize;
         ensure!(springs.len() == want, "{} contact springs for {want} (N × n_springs)", springs.len());
+        self.flush_pending()?;
         self.ctx.upload(SPRINGS.name, &self.springs, bytemuck::cast_slice(springs))
     }
 
@@ -713,7 +787,7 @@ pub fn run_kernel(ctx: &GpuContext, source: &str, entry_point: &str, bindings: &
         .zip(&names)
         .map(|((i, _, staging), name)| ReadbackCopy { name, src: &buffers[*i], staging, bytes: buffers[*i].size() })
         .collect();
-    let enc = ctx.encode_passes(&[(&pipeline, &group)], (invocations.div_ceil(WORKGROUP_SIZE).max(1), 1));
+    let enc = ctx.encode_passes(&[(&pipeline, &group)], (invocations.div_ceil(WORKGROUP_SIZE).max(1), 1), entry_point);
     let mut out = vec![Vec::new(); rw.len()];
     ctx.submit_and_read(enc, &copies, &format!("running kernel `{entry_point}`"), |k, bytes| out[k] = bytes[..rw[k].1].to_vec())?;
     Ok(out)

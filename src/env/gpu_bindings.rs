@@ -183,3 +183,69 @@ pub const NOISE_GROUP: ShaderGroup = ShaderGroup {
     bindings: &[GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS, NOISE_CFG, NOISE_OUT],
     entry_points: &[LEARNER_NOISE, LEARNER_UNIFORM],
 };
+
+// ---- the learner's optimiser on the device (adam.wgsl, a module of its own; bound by
+// learn/fused_adam.rs with slices of burn's tensors, all read_write: two of them may share one of
+// cubecl's buffers, and wgpu allows a buffer one kind of use per dispatch) ----
+
+/// `AdamStep`: the step's constants (one upload per step).
+pub const ADAM_STEP: Binding = binding(0, "ac", Uniform);
+/// `AdamParam`: one parameter's sizes (a slot of a buffer written once).
+pub const ADAM_PARAM_CFG: Binding = binding(1, "ap", Uniform);
+/// `array<f32>`: the parameter (updated in place).
+pub const ADAM_PARAM: Binding = binding(2, "adam_p", StorageReadWrite);
+/// `array<f32>`: its gradient.
+pub const ADAM_GRAD: Binding = binding(3, "adam_g", StorageReadWrite);
+/// `array<f32>`: its first moment (updated in place).
+pub const ADAM_M: Binding = binding(4, "adam_m", StorageReadWrite);
+/// `array<f32>`: its second moment (updated in place).
+pub const ADAM_V: Binding = binding(5, "adam_v", StorageReadWrite);
+/// `array<f32>` `[n_params · 64]`: the squared gradient norm's partial sums.
+pub const ADAM_PARTIALS: Binding = binding(6, "adam_partials", StorageReadWrite);
+/// `array<f32>` `[2]`: the gradient norm and the clip coefficient.
+pub const ADAM_NORM: Binding = binding(7, "adam_norm", StorageReadWrite);
+/// `array<f32>` `[1]`: the learning rate.
+pub const ADAM_LR: Binding = binding(8, "adam_lr", StorageReadWrite);
+
+/// `adam_norm_partial`: one parameter's slices of Σ g².
+pub const ADAM_NORM_PARTIAL: EntryBindings = EntryBindings { entry_point: "adam_norm_partial", bindings: &[ADAM_PARAM_CFG, ADAM_GRAD, ADAM_PARTIALS] };
+/// `adam_norm_final`: ‖g‖ and the clip coefficient.
+pub const ADAM_NORM_FINAL: EntryBindings = EntryBindings { entry_point: "adam_norm_final", bindings: &[ADAM_STEP, ADAM_PARAM_CFG, ADAM_PARTIALS, ADAM_NORM] };
+/// `adam_update`: one parameter's Adam step.
+pub const ADAM_UPDATE: EntryBindings =
+    EntryBindings { entry_point: "adam_update", bindings: &[ADAM_STEP, ADAM_PARAM_CFG, ADAM_PARAM, ADAM_GRAD, ADAM_M, ADAM_V, ADAM_NORM, ADAM_LR] };
+
+/// The optimiser's module (shaders/adam.wgsl alone).
+pub const ADAM_GROUP: ShaderGroup = ShaderGroup {
+    shader: "dextrain adam",
+    bindings: &[ADAM_STEP, ADAM_PARAM_CFG, ADAM_PARAM, ADAM_GRAD, ADAM_M, ADAM_V, ADAM_PARTIALS, ADAM_NORM, ADAM_LR],
+    entry_points: &[ADAM_NORM_PARTIAL, ADAM_NORM_FINAL, ADAM_UPDATE],
+};
+
+// ---- the device-resident learners' observation normalisers (normalizer.wgsl, a module of its
+// own; bound by learn/fused_normalizer.rs with slices of burn's tensors) ----
+
+/// `NormCfg`: the batch's shape and the merge's weights (a slot of the step's uniform buffer).
+pub const NORM_CFG: Binding = binding(0, "nc", Uniform);
+/// `array<f32>` `[B, D]`: the raw observations.
+pub const NORM_X: Binding = binding(1, "norm_x", StorageReadWrite);
+/// `array<f32>` `[D]`: the running mean (updated in place).
+pub const NORM_MEAN: Binding = binding(2, "norm_mean", StorageReadWrite);
+/// `array<f32>` `[D]`: Σ (x − μ)² (updated in place).
+pub const NORM_M2: Binding = binding(3, "norm_m2", StorageReadWrite);
+/// `array<f32>` `[D]`: 1 / (σ + ε).
+pub const NORM_SCALE: Binding = binding(4, "norm_scale", StorageReadWrite);
+/// `array<f32>` `[B, D]`: the normalised observations.
+pub const NORM_OUT: Binding = binding(5, "norm_out", StorageReadWrite);
+
+/// `norm_update`: a batch merged into the statistics.
+pub const NORM_UPDATE: EntryBindings = EntryBindings { entry_point: "norm_update", bindings: &[NORM_CFG, NORM_X, NORM_MEAN, NORM_M2, NORM_SCALE] };
+/// `norm_apply`: the batch normalised.
+pub const NORM_APPLY: EntryBindings = EntryBindings { entry_point: "norm_apply", bindings: &[NORM_CFG, NORM_X, NORM_MEAN, NORM_SCALE, NORM_OUT] };
+
+/// The normalisers' module (shaders/normalizer.wgsl alone).
+pub const NORM_GROUP: ShaderGroup = ShaderGroup {
+    shader: "dextrain normalizers",
+    bindings: &[NORM_CFG, NORM_X, NORM_MEAN, NORM_M2, NORM_SCALE, NORM_OUT],
+    entry_points: &[NORM_UPDATE, NORM_APPLY],
+};

@@ -5,10 +5,13 @@
 use anyhow::{Context, Result, ensure};
 use burn::prelude::*;
 
+use super::fused_adam::{FusedAdam, StepConstants};
 use super::nets::{to_host, to_tensor};
 use super::state::{LearnerState, TensorValues};
 
-/// Adam with torch's update rule, over a flat list of `Tensor<2>` parameters.
+/// Adam with torch's update rule, over a flat list of `Tensor<2>` parameters. On burn's wgpu
+/// runtime [`Adam::step_clipped`] runs adam.wgsl's kernels (`fused_adam.rs`); elsewhere, and for
+/// [`Adam::step`], tensor ops.
 pub struct Adam {
     /// Decay of the first moment (β1).
     pub beta1: f64,
@@ -24,22 +27,70 @@ pub struct Adam {
     pub m: Vec<Tensor<2>>,
     /// Second moment estimates (same shapes as `m`).
     pub v: Vec<Tensor<2>>,
+    /// The kernels of a GPU learner (None on the CPU).
+    fused: Option<FusedAdam>,
 }
 
 impl Adam {
     /// torch's defaults: β = (0.9, 0.999), ε = 1e-8; moments start at zero.
     pub fn new(shapes: &[[usize; 2]], device: &Device) -> Adam {
         let zeros = || shapes.iter().map(|s| Tensor::zeros(*s, device).inner()).collect::<Vec<_>>();
-        Adam { beta1: 0.9, beta2: 0.999, eps: 1e-8, weight_decay: 0.0, t: 0, m: zeros(), v: zeros() }
+        // (a kernel that cannot be built leaves the tensor ops, which give the same step)
+        let fused = super::device::gpu_context_of(device).and_then(|ctx| FusedAdam::new(&ctx, device, shapes).ok());
+        Adam { beta1: 0.9, beta2: 0.999, eps: 1e-8, weight_decay: 0.0, t: 0, m: zeros(), v: zeros(), fused }
+    }
+
+    /// One step from a backward pass, with torch's global-norm gradient clipping: the gradients
+    /// of `params` (in order) scaled by `min(1, max_norm / (‖g‖ + 1e-6))` (not scaled when
+    /// `max_norm` is 0), then [`Adam::step`] at learning rate `lr` (`[1, 1]` on the learner
+    /// device, so that a schedule can change it without a host read). Returns the new leaves and
+    /// `‖g‖` before clipping (`[1]`, read lazily). On burn's wgpu runtime this is adam.wgsl's three
+    /// kernels in place (`fused_adam.rs`), elsewhere tensor ops: the same maths.
+    pub fn step_clipped(&mut self, params: &[Tensor<2>], grads: &burn::tensor::Gradients, max_norm: f64, lr: &Tensor<2>) -> Result<(Vec<Tensor<2>>, Tensor<1>)> {
+        let gs: Vec<Tensor<2>> = params
+            .iter()
+            .enumerate()
+            .map(|(i, p)| p.grad(grads).with_context(|| format!("parameter {i} got no gradient")))
+            .collect::<Result<_>>()?;
+        let lr = lr.clone().inner();
+        if let Some(fused) = &self.fused {
+            let t = self.t + 1;
+            let c = StepConstants {
+                beta1: self.beta1,
+                beta2: self.beta2,
+                eps: self.eps,
+                bc1: 1.0 - self.beta1.powi(t as i32),
+                bc2_sqrt: (1.0 - self.beta2.powi(t as i32)).sqrt(),
+                weight_decay: self.weight_decay,
+                max_norm,
+            };
+            let inner: Vec<Tensor<2>> = params.iter().map(|p| p.clone().inner()).collect();
+            if let Some(norm) = fused.step(&inner, &gs, &self.m, &self.v, &lr, &c)? {
+                self.t = t;
+                let out = inner.into_iter().map(|p| p.autodiff().require_grad()).collect();
+                return Ok((out, norm.slice([0..1, 0..1]).reshape([1])));
+            }
+        }
+        let (gs, norm) = clip_to_norm(gs, max_norm)?;
+        if !super::nets::is_gpu(&lr.device()) {
+            // on the CPU a read costs nothing, and a number multiplies faster than a broadcast tensor
+            let value = to_host(lr)?[0] as f64;
+            return Ok((self.step_at(params, gs, LearningRate::Value(value)), norm));
+        }
+        Ok((self.step_at(params, gs, LearningRate::Tensor(&lr)), norm))
     }
 
     /// One step: `params[i] ← params[i] − lr/(1−β1ᵗ) · m / (√v/√(1−β2ᵗ) + ε)`. `params` are the
     /// autodiff leaves; the returned list holds new leaves (require_grad) with the updated values.
     pub fn step(&mut self, params: &[Tensor<2>], grads: Vec<Tensor<2>>, lr: f64) -> Vec<Tensor<2>> {
+        self.step_at(params, grads, LearningRate::Value(lr))
+    }
+
+    /// [`Adam::step`] as tensor ops at a learning rate given as a number or as a `[1, 1]` tensor.
+    fn step_at(&mut self, params: &[Tensor<2>], grads: Vec<Tensor<2>>, lr: LearningRate) -> Vec<Tensor<2>> {
         self.t += 1;
         let bc1 = 1.0 - self.beta1.powi(self.t as i32);
         let bc2_sqrt = (1.0 - self.beta2.powi(self.t as i32)).sqrt();
-        let step_size = lr / bc1;
         let mut out = Vec::with_capacity(params.len());
         for (i, g) in grads.into_iter().enumerate() {
             // m = β1 m + (1 − β1) g;  v = β2 v + (1 − β2) g²
@@ -47,10 +98,21 @@ impl Adam {
             self.v[i] = self.v[i].clone().mul_scalar(self.beta2) + g.square().mul_scalar(1.0 - self.beta2);
             let denom = self.v[i].clone().sqrt().div_scalar(bc2_sqrt).add_scalar(self.eps);
             let mut p = params[i].clone().inner();
-            if self.weight_decay > 0.0 {
-                p = p.mul_scalar(1.0 - lr * self.weight_decay); // AdamW: p ← p (1 − lr λ)
-            }
-            let p = p - self.m[i].clone().div(denom).mul_scalar(step_size);
+            let step = self.m[i].clone().div(denom);
+            let p = match &lr {
+                LearningRate::Value(lr) => {
+                    if self.weight_decay > 0.0 {
+                        p = p.mul_scalar(1.0 - lr * self.weight_decay); // AdamW: p ← p (1 − lr λ)
+                    }
+                    p - step.mul_scalar(lr / bc1) // p − lr/(1 − β1ᵗ) · m / (√v̂ + ε)
+                }
+                LearningRate::Tensor(lr) => {
+                    if self.weight_decay > 0.0 {
+                        p = p * (*lr).clone().mul_scalar(-self.weight_decay).add_scalar(1.0); // AdamW: p ← p (1 − lr λ)
+                    }
+                    p - step * (*lr).clone().div_scalar(bc1) // p − lr/(1 − β1ᵗ) · m / (√v̂ + ε)
+                }
+            };
             out.push(p.autodiff().require_grad());
         }
         out
@@ -90,6 +152,33 @@ impl Adam {
     }
 }
 
+/// A learning rate: a number, or a `[1, 1]` tensor on the learner device.
+enum LearningRate<'a> {
+    Value(f64),
+    Tensor(&'a Tensor<2>),
+}
+
+/// `gs` scaled so that their global L2 norm is at most `max_norm` (unscaled when it is 0), and the
+/// norm before scaling `[1]` (torch's `clip_grad_norm_`: coef = min(1, max_norm / (‖g‖ + 1e-6))).
+fn clip_to_norm(gs: Vec<Tensor<2>>, max_norm: f64) -> Result<(Vec<Tensor<2>>, Tensor<1>)> {
+    let mut sq: Option<Tensor<1>> = None;
+    for g in &gs {
+        let s = super::nets::sum_all(g.clone().square()); // [1], the same bits every run
+        sq = Some(match sq {
+            Some(acc) => acc + s,
+            None => s,
+        });
+    }
+    let norm = sq.context("no parameters")?.sqrt(); // [1]
+    if max_norm <= 0.0 {
+        return Ok((gs, norm));
+    }
+    let coef = norm.clone().add_scalar(1e-6).recip().mul_scalar(max_norm).clamp_max(1.0); // [1]
+    let coef2: Tensor<2> = coef.unsqueeze(); // [1, 1]
+    let out = gs.into_iter().map(|g| g * coef2.clone()).collect();
+    Ok((out, norm))
+}
+
 /// The gradients of `params` (in order) from a backward pass, clipped to a global norm of
 /// `max_norm` as [`clipped_grads`] does when `max_norm > 0`, unclipped when it is 0.
 pub fn grads_of(params: &[Tensor<2>], grads: &burn::tensor::Gradients, max_norm: f64) -> Result<Vec<Tensor<2>>> {
@@ -108,17 +197,5 @@ pub fn clipped_grads(params: &[Tensor<2>], grads: &burn::tensor::Gradients, max_
         .enumerate()
         .map(|(i, p)| p.grad(grads).with_context(|| format!("parameter {i} got no gradient")))
         .collect::<Result<_>>()?;
-    let mut sq: Option<Tensor<1>> = None;
-    for g in &gs {
-        let s = super::nets::sum_all(g.clone().square()); // [1], the same bits every run
-        sq = Some(match sq {
-            Some(acc) => acc + s,
-            None => s,
-        });
-    }
-    let norm = sq.context("no parameters")?.sqrt(); // [1]
-    let coef = norm.clone().add_scalar(1e-6).recip().mul_scalar(max_norm).clamp_max(1.0); // [1]
-    let coef2: Tensor<2> = coef.unsqueeze(); // [1, 1]
-    let out = gs.into_iter().map(|g| g * coef2.clone()).collect();
-    Ok((out, norm))
+    clip_to_norm(gs, max_norm)
 }

@@ -38,6 +38,18 @@ pub fn learner_device(choice: &BackendChoice, sim_gpu: Option<&GpuContext>) -> R
     }
 }
 
+/// As [`learner_device`] without a simulator, also returning the wgpu context of a GPU learner
+/// (the benches read its queue's submission count and run device-resident rollouts on it).
+pub fn learner_device_and_context(choice: &BackendChoice) -> Result<(Device, String, Option<GpuContext>)> {
+    let ctx = match choice {
+        BackendChoice::Cpu => None,
+        BackendChoice::Gpu(name) => Some(GpuContext::new(name.as_deref())?),
+        BackendChoice::Auto => GpuContext::new(None).ok(),
+    };
+    let (device, name) = learner_device(choice, ctx.as_ref())?;
+    Ok((device, name, ctx))
+}
+
 /// Whether [`learner_device`] puts the learner on the simulator's own wgpu device `sim_gpu`.
 pub fn shares_sim_device(choice: &BackendChoice, sim_gpu: Option<&GpuContext>) -> bool {
     match (choice, sim_gpu) {
@@ -45,6 +57,16 @@ pub fn shares_sim_device(choice: &BackendChoice, sim_gpu: Option<&GpuContext>) -
         (BackendChoice::Auto, Some(_)) => true,
         _ => false,
     }
+}
+
+/// The wgpu contexts that burn's wgpu devices run on (their non-autodiff devices), so that the
+/// learner's own kernels (`fused_adam`) find the queue and device of a tensor's device.
+static CONTEXTS: std::sync::Mutex<Vec<(Device, GpuContext)>> = std::sync::Mutex::new(Vec::new());
+
+/// The wgpu context of burn's wgpu `device` (autodiff or not), if [`learner_device`] made it.
+pub fn gpu_context_of(device: &Device) -> Option<GpuContext> {
+    let inner = device.clone().inner();
+    CONTEXTS.lock().unwrap_or_else(std::sync::PoisonError::into_inner).iter().find(|(d, _)| *d == inner).map(|(_, c)| c.clone())
 }
 
 /// burn's wgpu runtime on an existing wgpu device.
@@ -56,9 +78,16 @@ fn wgpu_on(ctx: &GpuContext) -> Result<(Device, String)> {
         queue: ctx.queue.clone(),
         backend: ctx.info.backend,
     };
+    crate::gpu_counts::observe_burn_launches();
     let device = Device::wgpu_options()
         .setup(setup)
         .init()
         .map_err(|e| anyhow!("cannot start burn's wgpu runtime on {}: {e}", ctx.describe()))?;
+    {
+        let mut all = CONTEXTS.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
+        let inner = device.clone().inner();
+        all.retain(|(d, _)| *d != inner);
+        all.push((inner, ctx.clone()));
+    }
     Ok((device.autodiff(), format!("gpu (burn wgpu, {})", ctx.describe())))
 }

@@ -41,6 +41,11 @@ impl TensorBuffer {
     pub fn size(&self) -> u64 {
         4 * self.tensor.shape().num_elements() as u64
     }
+
+    /// (buffer, offset, bytes): the slice a bind group binds (`GpuContext::bind_group_slices`).
+    pub fn slice(&self) -> (&wgpu::Buffer, u64, u64) {
+        (self.buffer(), self.offset(), self.size())
+    }
 }
 
 /// The device memory of `t`, a contiguous f32 tensor on burn's wgpu device (the autodiff wrapper,
@@ -49,7 +54,9 @@ pub fn tensor_buffer(t: &Tensor<2>) -> Result<TensorBuffer> {
     let tensor = t.clone().inner();
     let prim = tensor.clone().try_into_primitive::<Cube>().map_err(|e| anyhow!("not a tensor of burn's wgpu device: {e:?}"))?;
     ensure!(prim.dtype == DType::F32, "a device-resident tensor must be f32, not {:?}", prim.dtype);
-    ensure!(prim.is_contiguous() && prim.is_contiguous_buffer(), "a device-resident tensor must be contiguous (shape {:?})", t.dims());
+    // row-major strides from the handle's first byte (cubecl may pad the allocation past the
+    // last element: only `size()` bytes are ever bound or copied)
+    ensure!(prim.is_contiguous(), "a device-resident tensor must be contiguous (shape {:?})", t.dims());
     let resource = prim
         .client
         .get_resource::<WgpuServer<AutoCompiler>>(prim.handle.clone())
@@ -66,7 +73,20 @@ pub fn zeros_buffer(rows: usize, cols: usize, device: &Device) -> Result<TensorB
     tensor_buffer(&Tensor::zeros([rows, cols], &device.clone().inner()))
 }
 
+/// A fresh `[rows, cols]` tensor on `device` and its memory, for a copy or a kernel of ours to
+/// fill: not initialised (no fill kernel runs; every byte must be written before burn reads it),
+/// and never memory the learner still holds.
+pub fn empty_buffer(rows: usize, cols: usize, device: &Device) -> Result<TensorBuffer> {
+    tensor_buffer(&Tensor::empty([rows, cols], &device.clone().inner()))
+}
+
 /// Submits the work burn has recorded on `device` to the queue (see the module documentation).
 pub fn flush(device: &Device) -> Result<()> {
     device.flush().map_err(|e| anyhow!("burn's wgpu device: {e:?}"))
+}
+
+/// Waits until the work recorded on `device` has run (a host synchronisation, counted as a wait).
+pub fn sync(device: &Device) -> Result<()> {
+    crate::gpu_counts::add(crate::gpu_counts::Event::Wait, "burn:sync");
+    device.sync().map_err(|e| anyhow!("burn's wgpu device: {e:?}"))
 }

@@ -22,6 +22,8 @@ pub mod affine;
 pub mod device;
 pub mod distill;
 pub mod elu;
+pub mod fused_adam;
+pub mod fused_normalizer;
 pub mod gpu_io;
 pub mod gru;
 pub mod isa;

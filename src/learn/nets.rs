@@ -92,10 +92,17 @@ pub fn affine(x: Tensor<2>, w: Tensor<2>, b: Tensor<2>, split: usize) -> Tensor<
     matmul_rows(x, w, split) + matmul_rows(ones, b, split)
 }
 
+/// The row split of a forward pass of `params` over `rows` rows: [`row_split`] when the
+/// parameters are autodiff leaves (the split is for the backward pass's weight gradients), else 1
+/// (acting: one product per layer, `affine`'s fused op).
+fn forward_split(params: &[Tensor<2>], device: &Device, rows: usize) -> usize {
+    if params.first().is_some_and(|p| p.is_autodiff()) { row_split(device, rows) } else { 1 }
+}
+
 /// `h = act(h W + b)` for every layer but the last: x [B, in] → [B, out].
 pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tensor<2> {
     let layers = params.len() / 2;
-    let split = row_split(&x.device(), x.dims()[0]);
+    let split = forward_split(params, &x.device(), x.dims()[0]);
     let mut h = x;
     for l in 0..layers {
         h = affine(h, params[2 * l].clone(), params[2 * l + 1].clone(), split); // [B, out]
@@ -106,19 +113,22 @@ pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tenso
     h
 }
 
-/// A host matrix → a tensor on `device` (counted in [`crate::host_traffic`] on a GPU device).
+/// A host matrix → a tensor on `device` (counted in [`crate::host_traffic`] and
+/// [`crate::gpu_counts`] on a GPU device).
 pub fn to_tensor(data: Vec<f32>, shape: [usize; 2], device: &Device) -> Tensor<2> {
     if is_gpu(device) {
         crate::host_traffic::add(4 * data.len() as u64);
+        crate::gpu_counts::add(crate::gpu_counts::Event::Upload, "burn:from_data");
     }
     Tensor::from_data(TensorData::new(data, shape), device)
 }
 
-/// A tensor → its values on the host (row-major; counted in [`crate::host_traffic`] from a GPU
-/// device).
+/// A tensor → its values on the host (row-major; counted in [`crate::host_traffic`] and, as a
+/// host synchronisation, in [`crate::gpu_counts`] from a GPU device).
 pub fn to_host<const D: usize>(t: Tensor<D>) -> Result<Vec<f32>> {
     if is_gpu(&t.device()) {
         crate::host_traffic::add(4 * t.shape().num_elements() as u64);
+        crate::gpu_counts::add(crate::gpu_counts::Event::Read, "burn:into_data");
     }
     t.into_data().try_to_vec::<f32>().map_err(|e| anyhow!("cannot read a tensor back: {e:?}"))
 }
@@ -210,7 +220,7 @@ impl MlpLayout {
 
     /// x [B, input] → [B, output]: `h = act(LN(h W + b))` per hidden layer, then `h W + b`.
     pub fn forward(&self, params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tensor<2> {
-        let split = row_split(&x.device(), x.dims()[0]);
+        let split = forward_split(params, &x.device(), x.dims()[0]);
         self.forward_from(params, x, None, split, act)
     }
 
@@ -221,7 +231,7 @@ impl MlpLayout {
     /// the input gradient is `g W[h..]ᵀ` [B, tail] where the concatenated input's would be
     /// `g Wᵀ` [B, input] — for SAC's critics 22 of 152 columns.
     pub fn forward_split_input(&self, params: &[Tensor<2>], x_head: Tensor<2>, x_tail: Tensor<2>, act: Activation) -> Tensor<2> {
-        let split = row_split(&x_head.device(), x_head.dims()[0]);
+        let split = forward_split(params, &x_head.device(), x_head.dims()[0]);
         self.forward_from(params, x_head, Some(x_tail), split, act)
     }
 

@@ -7,17 +7,17 @@
 //!
 //! [`host_normals`] / [`host_uniforms`] draw on the host (the host paths); [`DeviceNoise`] runs
 //! `shaders/noise.wgsl` on the simulator's wgpu device and writes into a tensor of burn's wgpu
-//! learner on that device (the device-resident rollouts): no host traffic but the 16-byte
-//! parameters of each draw.
+//! learner on that device (the device-resident rollouts): no host traffic but the 32-byte
+//! parameters of each kernel, which may draw several draws at once ([`DeviceNoise::normals_block`]).
 
-use anyhow::{Context, Result, ensure};
+use anyhow::{Result, ensure};
 use burn::prelude::{Device, Tensor};
 use rayon::prelude::*;
 
-use super::gpu_io::{flush, zeros_buffer};
+use super::gpu_io::{empty_buffer, flush};
 use crate::env::common::rand_uniform;
 use crate::env::gpu::{GpuContext, noise_shader_source, workgroups_for};
-use crate::env::gpu_bindings::{LEARNER_NOISE, LEARNER_UNIFORM, NOISE_CFG, NOISE_GROUP, NOISE_OUT};
+use crate::env::gpu_bindings::{EntryBindings, LEARNER_NOISE, LEARNER_UNIFORM, NOISE_CFG, NOISE_GROUP, NOISE_OUT};
 
 /// The action noise's stream in the counter hash (the env's purposes are 1–5; noise.wgsl's twin).
 pub const PURPOSE_ACTION_NOISE: u32 = 6;
@@ -50,7 +50,7 @@ pub fn host_uniforms(seed: u32, draw: u32, rows: usize, cols: usize) -> Vec<f32>
     (0..rows * cols).map(|e| 2.0 * rand_uniform(seed, (e / cols) as u32, draw, PURPOSE_ACTION_NOISE, 2 * (e % cols) as u32) - 1.0).collect()
 }
 
-/// `NoiseCfg` of noise.wgsl.
+/// `NoiseCfg` of noise.wgsl (keep in sync).
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct NoiseCfg {
@@ -58,18 +58,17 @@ struct NoiseCfg {
     draw: u32,
     rows: u32,
     cols: u32,
+    envs: u32,
+    _pad: [u32; 3],
 }
 
-/// noise.wgsl's pipelines and buffers for draws of up to `capacity` numbers, on the simulator's
-/// device.
+/// noise.wgsl's pipelines for draws of up to `capacity` numbers, on the simulator's device; each
+/// draw is written by the kernel straight into a fresh tensor of burn's wgpu learner.
 pub struct DeviceNoise {
     ctx: GpuContext,
     normal: wgpu::ComputePipeline,
     uniform: wgpu::ComputePipeline,
-    normal_group: wgpu::BindGroup,
-    uniform_group: wgpu::BindGroup,
     cfg: wgpu::Buffer,
-    out: wgpu::Buffer,
     capacity: usize,
     /// burn's wgpu device on `ctx` (the tensors' device).
     device: Device,
@@ -80,35 +79,41 @@ impl DeviceNoise {
     /// runtime on `ctx`'s device).
     pub fn new(ctx: &GpuContext, device: &Device, capacity: usize) -> Result<DeviceNoise> {
         let [normal, uniform] = ctx.compute_pipelines(NOISE_GROUP.shader, &noise_shader_source(), [LEARNER_NOISE.entry_point, LEARNER_UNIFORM.entry_point])?;
-        let cfg = ctx.create_binding_buffer(NOISE_CFG, &[NoiseCfg { seed: 0, draw: 0, rows: 0, cols: 0 }], wgpu::BufferUsages::empty())?;
-        let out = ctx
-            .create_binding_buffer(NOISE_OUT, &vec![0f32; capacity.max(1)], wgpu::BufferUsages::empty())
-            .with_context(|| format!("the action noise ({capacity} numbers per draw)"))?;
-        let buffers = [(NOISE_CFG, &cfg), (NOISE_OUT, &out)];
-        let normal_group = ctx.bind_group(&normal, &LEARNER_NOISE, &buffers)?;
-        let uniform_group = ctx.bind_group(&uniform, &LEARNER_UNIFORM, &buffers)?;
-        Ok(DeviceNoise { ctx: ctx.clone(), normal, uniform, normal_group, uniform_group, cfg, out, capacity, device: device.clone() })
+        let zero = NoiseCfg { seed: 0, draw: 0, rows: 0, cols: 0, envs: 1, _pad: [0; 3] };
+        let cfg = ctx.create_binding_buffer(NOISE_CFG, &[zero], wgpu::BufferUsages::empty())?;
+        Ok(DeviceNoise { ctx: ctx.clone(), normal, uniform, cfg, capacity, device: device.clone().inner() })
     }
 
     /// Draw `draw` of stream `seed` as a `[rows, cols]` tensor of standard normal numbers on the
     /// learner device: [`host_normals`]' numbers to the GPU's `log`/`cos` rounding.
     pub fn normals(&self, seed: u32, draw: u32, rows: usize, cols: usize) -> Result<Tensor<2>> {
-        self.run(&self.normal, &self.normal_group, NoiseCfg { seed, draw, rows: rows as u32, cols: cols as u32 })
+        self.normals_block(seed, draw, 1, rows, cols)
+    }
+
+    /// Draws `draw`, `draw + 1`, … (`draws` of them) of stream `seed`, each `[rows, cols]`, stacked
+    /// as one `[draws · rows, cols]` tensor by one kernel: rows `t · rows ..` are draw `draw + t`
+    /// (PPO draws a rollout's noise at its first step).
+    pub fn normals_block(&self, seed: u32, draw: u32, draws: usize, rows: usize, cols: usize) -> Result<Tensor<2>> {
+        self.run(&self.normal, &LEARNER_NOISE, NoiseCfg { seed, draw, rows: (draws * rows) as u32, cols: cols as u32, envs: rows.max(1) as u32, _pad: [0; 3] })
     }
 
     /// As [`DeviceNoise::normals`] with uniform numbers in [−1, 1) ([`host_uniforms`]' numbers).
     pub fn uniforms(&self, seed: u32, draw: u32, rows: usize, cols: usize) -> Result<Tensor<2>> {
-        self.run(&self.uniform, &self.uniform_group, NoiseCfg { seed, draw, rows: rows as u32, cols: cols as u32 })
+        self.run(&self.uniform, &LEARNER_UNIFORM, NoiseCfg { seed, draw, rows: rows as u32, cols: cols as u32, envs: rows.max(1) as u32, _pad: [0; 3] })
     }
 
-    fn run(&self, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, c: NoiseCfg) -> Result<Tensor<2>> {
+    fn run(&self, pipeline: &wgpu::ComputePipeline, entry: &EntryBindings, c: NoiseCfg) -> Result<Tensor<2>> {
         let (rows, cols) = (c.rows as usize, c.cols as usize);
         ensure!(rows * cols <= self.capacity, "a draw of {rows} × {cols} numbers from a noise kernel made for {}", self.capacity);
+        if rows * cols == 0 {
+            return Ok(Tensor::empty([rows, cols], &self.device));
+        }
         self.ctx.upload(NOISE_CFG.name, &self.cfg, bytemuck::bytes_of(&c))?;
-        let dst = zeros_buffer(rows, cols, &self.device)?;
-        let mut enc = self.ctx.encode_passes(&[(pipeline, group)], workgroups_for((rows * cols) as u32));
-        enc.copy_buffer_to_buffer(&self.out, 0, dst.buffer(), dst.offset(), dst.size());
-        // burn's zero fill of dst runs before this copy (module doc of gpu_io)
+        let dst = empty_buffer(rows, cols, &self.device)?; // the kernel writes every number
+        let cfg_bytes = std::mem::size_of::<NoiseCfg>() as u64;
+        let group = self.ctx.bind_group_slices(pipeline, entry, &[(NOISE_CFG, (&self.cfg, 0, cfg_bytes)), (NOISE_OUT, dst.slice())])?;
+        let enc = self.ctx.encode_passes(&[(pipeline, &group)], workgroups_for((rows * cols) as u32), "the learner's action noise");
+        // work burn recorded before (which may still use this memory under its former owner) runs first
         flush(&self.device)?;
         self.ctx.submit(enc, "the learner's action noise")?;
         Ok(dst.tensor)

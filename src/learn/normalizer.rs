@@ -10,6 +10,7 @@
 use anyhow::Result;
 use burn::prelude::*;
 
+use super::fused_normalizer::NormalizerKernels;
 use super::nets::{to_host, to_tensor};
 use super::state::{LearnerState, TensorValues};
 
@@ -133,6 +134,8 @@ pub struct DeviceNormalizer {
     pub mean: Tensor<2>,
     /// Σ (x − μ)² `[1, D]`.
     pub m2: Tensor<2>,
+    /// 1 / (√(M2 / n) + ε) `[1, D]` as of the last merge (normalizer.wgsl's `norm_apply` reads it).
+    pub scale: Tensor<2>,
     /// ε added to σ in the denominator.
     pub eps: f64,
 }
@@ -142,7 +145,19 @@ impl DeviceNormalizer {
     pub fn from_host(h: &Normalizer, device: &Device) -> DeviceNormalizer {
         let d = h.dim();
         let f = |v: &[f64]| to_tensor(v.iter().map(|&x| x as f32).collect(), [1, d], device);
-        DeviceNormalizer { count: h.count, mean: f(&h.mean), m2: f(&h.m2), eps: h.eps }
+        let mean = f(&h.mean);
+        let m2 = f(&h.m2);
+        let scale = DeviceNormalizer::scale_of(&m2, h.count, h.eps);
+        DeviceNormalizer { count: h.count, mean, m2, scale, eps: h.eps }
+    }
+
+    /// 1 / (√(M2 / n) + ε) `[1, D]` (1 / (1 + ε) before any merge: n = 0).
+    fn scale_of(m2: &Tensor<2>, count: f64, eps: f64) -> Tensor<2> {
+        if count > 0.0 {
+            m2.clone().div_scalar(count).sqrt().add_scalar(eps).recip()
+        } else {
+            m2.ones_like().div_scalar(1.0 + eps)
+        }
     }
 
     /// The statistics on the host (f32 values widened: a save and a load give them back exactly).
@@ -171,6 +186,7 @@ impl DeviceNormalizer {
         self.mean = self.mean.clone() + delta.clone().mul_scalar(nb / n);
         self.m2 = self.m2.clone() + bm2 + delta.square().mul_scalar(na * nb / n);
         self.count = n;
+        self.scale = DeviceNormalizer::scale_of(&self.m2, self.count, self.eps);
     }
 
     /// `(x − μ) / (σ + ε)` of `x` `[B, D]` when `on` (μ = 0, σ = 1 before any update), else `x`.
@@ -178,12 +194,7 @@ impl DeviceNormalizer {
         if !on || x.dims()[1] == 0 {
             return x;
         }
-        let scale = if self.count > 0.0 {
-            self.m2.clone().div_scalar(self.count).sqrt().add_scalar(self.eps).recip() // 1 / (√(M2 / n) + ε)
-        } else {
-            self.mean.ones_like().div_scalar(1.0 + self.eps)
-        };
-        (x - self.mean.clone()) * scale
+        (x - self.mean.clone()) * self.scale.clone() // scale = 1 / (√(M2 / n) + ε)
     }
 }
 
@@ -193,12 +204,44 @@ pub struct DeviceNormalizers {
     pub obs: DeviceNormalizer,
     /// Critic observations.
     pub priv_obs: DeviceNormalizer,
+    /// normalizer.wgsl's kernels on burn's wgpu runtime (None elsewhere: tensor ops).
+    kernels: Option<NormalizerKernels>,
 }
 
 impl DeviceNormalizers {
     /// The host statistics `obs` and `priv_obs` on `device`.
     pub fn from_host(obs: &Normalizer, priv_obs: &Normalizer, device: &Device) -> DeviceNormalizers {
-        DeviceNormalizers { obs: DeviceNormalizer::from_host(obs, device), priv_obs: DeviceNormalizer::from_host(priv_obs, device) }
+        // (kernels that cannot be built leave the tensor ops: the same statistics)
+        let kernels = super::device::gpu_context_of(device).and_then(|ctx| NormalizerKernels::new(&ctx, device).ok());
+        DeviceNormalizers { obs: DeviceNormalizer::from_host(obs, device), priv_obs: DeviceNormalizer::from_host(priv_obs, device), kernels }
+    }
+
+    /// An env step's observations `obs` `[N, O]` and `priv_obs` `[N, P]`: merged into the
+    /// statistics, then normalised with them (when `on`; else returned as they are). On burn's wgpu
+    /// runtime one submission of normalizer.wgsl's four dispatches (`fused_normalizer.rs`), else
+    /// [`DeviceNormalizer::update`] and [`DeviceNormalizer::normalized`].
+    pub fn update_and_normalize(&mut self, obs: &Tensor<2>, priv_obs: &Tensor<2>, on: bool) -> Result<(Tensor<2>, Tensor<2>)> {
+        if !on {
+            return Ok((obs.clone(), priv_obs.clone()));
+        }
+        let mut work: Vec<(&mut DeviceNormalizer, &Tensor<2>)> = Vec::with_capacity(2);
+        if obs.dims()[1] > 0 {
+            work.push((&mut self.obs, obs));
+        }
+        if priv_obs.dims()[1] > 0 {
+            work.push((&mut self.priv_obs, priv_obs));
+        }
+        if let Some(k) = &self.kernels
+            && let Some(mut out) = k.update_and_normalize(&mut work)?
+        {
+            // (an empty observation is its own normalised value)
+            let p = if priv_obs.dims()[1] > 0 { out.pop().expect("one output per normaliser") } else { priv_obs.clone() };
+            let o = if obs.dims()[1] > 0 { out.pop().expect("one output per normaliser") } else { obs.clone() };
+            return Ok((o, p));
+        }
+        self.obs.update(obs);
+        self.priv_obs.update(priv_obs);
+        Ok((self.obs.normalized(obs.clone(), true), self.priv_obs.normalized(priv_obs.clone(), true)))
     }
 
     /// Both on the host (actor's, critic's).

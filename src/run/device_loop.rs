@@ -10,25 +10,31 @@ use burn::prelude::*;
 
 use super::algorithm::{Algorithm, DeviceOutcome};
 use super::runner::{Episodes, RolloutSums};
-use crate::learn::nets::{sum_all, to_host, to_tensor};
+use crate::learn::nets::{to_host, to_tensor};
 use crate::task::TaskBatch;
 use crate::task::task::{OUT_BAD_RESET, OUT_LIFT, OUT_MISC, OUT_OBJ_POS_ERR, OUT_OBJ_ROT_ERR, OUT_REWARD, OUT_SUCCESS, OUT_TERMINATED, OUT_TERMS, OUT_TIME_OUT};
 
-/// The loop's tensors on the learner device.
+/// The loop's tensors on the learner device. The iteration's sums are kept per env and reduced
+/// over the envs once, when the host reads them ([`DeviceLoop::take_sums`]): an env step adds a
+/// handful of element-wise kernels and no reduction.
 pub(super) struct DeviceLoop {
     device: Device,
     /// Raw observations of the current state `[N, O]` / `[N, P]`.
     pub obs: Tensor<2>,
     pub priv_obs: Tensor<2>,
-    /// The running episodes' return and length `[N, 1]`.
-    ep_ret: Tensor<2>,
-    ep_len: Tensor<2>,
-    /// Σ over the iteration's env steps and envs of every output-record column `[1, OUT_MISC]`.
+    /// The running episodes' [return, length] `[N, 2]`.
+    episode: Tensor<2>,
+    /// Ones `[N, 1]`: each env step adds [reward, 1] to `episode`.
+    ones: Tensor<2>,
+    /// Σ over the iteration's env steps of every output-record column, per env `[N, OUT_MISC]`.
     all_steps: Tensor<2>,
-    /// The same sums over the envs whose episode ended at the step `[1, OUT_MISC]`.
+    /// The same sums over the steps at which the env's episode ended `[N, OUT_MISC]`.
     ended: Tensor<2>,
-    /// [Σ return, Σ length, count] of the episodes that ended, and the non-finite actions `[1, 4]`.
+    /// Σ of the ended episodes' [return, length], and of the ended flags, per env `[N, 3]`.
     episodes: Tensor<2>,
+    /// Σ over the iteration's steps of each env's actions minus themselves `[N, 1]`: 0, or NaN once
+    /// an action was not finite (x − x is NaN exactly for ±∞ and NaN).
+    bad: Tensor<2>,
     /// Env steps of all envs in the iteration so far.
     steps: u64,
 }
@@ -39,15 +45,16 @@ impl DeviceLoop {
     pub(super) fn new(obs: &[f32], priv_obs: &[f32], eps: &Episodes, dims: [usize; 3], device: &Device) -> DeviceLoop {
         let n = eps.ret.len();
         let dev = device.clone().inner();
-        let col = |v: &[f64]| to_tensor(v.iter().map(|&x| x as f32).collect(), [n, 1], &dev);
+        let episode: Vec<f32> = eps.ret.iter().zip(&eps.len).flat_map(|(&r, &l)| [r as f32, l as f32]).collect();
         DeviceLoop {
             obs: to_tensor(obs.to_vec(), [n, dims[0]], &dev),
             priv_obs: to_tensor(priv_obs.to_vec(), [n, dims[1]], &dev),
-            ep_ret: col(&eps.ret),
-            ep_len: col(&eps.len),
-            all_steps: Tensor::zeros([1, OUT_MISC], &dev),
-            ended: Tensor::zeros([1, OUT_MISC], &dev),
-            episodes: Tensor::zeros([1, 4], &dev),
+            episode: to_tensor(episode, [n, 2], &dev),
+            ones: Tensor::ones([n, 1], &dev),
+            all_steps: Tensor::zeros([n, OUT_MISC], &dev),
+            ended: Tensor::zeros([n, OUT_MISC], &dev),
+            episodes: Tensor::zeros([n, 3], &dev),
+            bad: Tensor::zeros([n, 1], &dev),
             steps: 0,
             device: dev,
         }
@@ -60,8 +67,8 @@ impl DeviceLoop {
         let column = |m: &Tensor<2>, k: usize| m.clone().slice([0..n, k..k + 1]); // [N, 1]
         for _ in 0..steps {
             let actions = algo.act_device(&self.obs, &self.priv_obs)?;
-            // a non-finite action: x − x is NaN exactly for ±∞ and NaN
-            let bad = sum_all((actions.clone() - actions.clone()).is_nan().float()).reshape([1, 1]);
+            // Σ_k (a − a): NaN for an env with a non-finite action
+            self.bad = self.bad.clone() + (actions.clone() - actions.clone()).sum_dim(1);
             let out = task.step_on_device(&actions, &self.device)?;
             let (reward, terminated, time_out) = (column(&out.misc, OUT_REWARD), column(&out.misc, OUT_TERMINATED), column(&out.misc, OUT_TIME_OUT));
             algo.observe_device(&DeviceOutcome {
@@ -73,24 +80,14 @@ impl DeviceLoop {
                 final_obs: out.final_obs.as_ref(),
                 final_priv_obs: out.final_priv_obs.as_ref(),
             })?;
-            let done = (terminated + time_out).clamp(0.0, 1.0); // [N, 1]
-            self.ep_ret = self.ep_ret.clone() + reward;
-            self.ep_len = self.ep_len.clone().add_scalar(1.0);
-            self.all_steps = self.all_steps.clone() + out.misc.clone().sum_dim(0);
-            self.ended = self.ended.clone() + (out.misc * done.clone()).sum_dim(0);
-            let ended_eps = Tensor::cat(
-                vec![
-                    sum_all(self.ep_ret.clone() * done.clone()).reshape([1, 1]),
-                    sum_all(self.ep_len.clone() * done.clone()).reshape([1, 1]),
-                    sum_all(done.clone()).reshape([1, 1]),
-                    bad,
-                ],
-                1,
-            );
-            self.episodes = self.episodes.clone() + ended_eps;
-            let keep = done.ones_like() - done; // the ended episodes restart from 0
-            self.ep_ret = self.ep_ret.clone() * keep.clone();
-            self.ep_len = self.ep_len.clone() * keep;
+            let done = terminated.max_pair(time_out); // [N, 1], flags 0 or 1
+            // the episodes' return and length, then what ended: [return, length] · done
+            self.episode = self.episode.clone() + Tensor::cat(vec![reward, self.ones.clone()], 1);
+            let ended_episode = self.episode.clone() * done.clone(); // [N, 2]
+            self.episodes = self.episodes.clone() + Tensor::cat(vec![ended_episode.clone(), done.clone()], 1);
+            self.episode = self.episode.clone() - ended_episode; // the ended episodes restart from 0
+            self.all_steps = self.all_steps.clone() + out.misc.clone();
+            self.ended = self.ended.clone() + out.misc * done;
             self.obs = out.obs;
             self.priv_obs = out.priv_obs;
             self.steps += n as u64;
@@ -98,13 +95,15 @@ impl DeviceLoop {
         Ok(())
     }
 
-    /// The iteration's sums (one readback of `2 · OUT_MISC + 4` floats), then zeroed. A non-finite
-    /// action in the iteration is an error, as the host path's check of each step's actions.
+    /// The iteration's sums (one readback of `2 · OUT_MISC + 4` floats: the per-env sums reduced
+    /// over the envs), then zeroed. A non-finite action in the iteration is an error, as the host
+    /// path's check of each step's actions.
     pub(super) fn take_sums(&mut self, n_terms: usize) -> Result<RolloutSums> {
-        let v = to_host(Tensor::cat(vec![self.all_steps.clone(), self.ended.clone(), self.episodes.clone()], 1))?;
+        let per_env = Tensor::cat(vec![self.all_steps.clone(), self.ended.clone(), self.episodes.clone(), self.bad.clone().is_nan().float()], 1);
+        let v = to_host(per_env.sum_dim(0))?; // [1, 2 · OUT_MISC + 4]: Σ over the envs
         let (all, ended, eps) = (&v[..OUT_MISC], &v[OUT_MISC..2 * OUT_MISC], &v[2 * OUT_MISC..]);
         if eps[3] > 0.0 {
-            bail!("the policy gave {} non-finite actions in this iteration (actions must be finite)", eps[3]);
+            bail!("the policy gave non-finite actions in {} envs in this iteration (actions must be finite)", eps[3]);
         }
         let s = RolloutSums {
             reward: all[OUT_REWARD] as f64,
@@ -123,13 +122,16 @@ impl DeviceLoop {
         self.all_steps = self.all_steps.zeros_like();
         self.ended = self.ended.zeros_like();
         self.episodes = self.episodes.zeros_like();
+        self.bad = self.bad.zeros_like();
         self.steps = 0;
         Ok(s)
     }
 
     /// The observations and the running episodes' accumulators on the host (for a checkpoint).
     pub(super) fn to_host(&self) -> Result<(Vec<f32>, Vec<f32>, Episodes)> {
-        let wide = |t: &Tensor<2>| -> Result<Vec<f64>> { Ok(to_host(t.clone())?.into_iter().map(|x| x as f64).collect()) };
-        Ok((to_host(self.obs.clone())?, to_host(self.priv_obs.clone())?, Episodes { ret: wide(&self.ep_ret)?, len: wide(&self.ep_len)? }))
+        let episode = to_host(self.episode.clone())?; // [N, 2]: return, length
+        let ret = episode.iter().step_by(2).map(|&x| x as f64).collect();
+        let len = episode.iter().skip(1).step_by(2).map(|&x| x as f64).collect();
+        Ok((to_host(self.obs.clone())?, to_host(self.priv_obs.clone())?, Episodes { ret, len }))
     }
 }

@@ -73,7 +73,9 @@ extern "C" fn on_stop_signal(_: libc::c_int) {
 /// The metrics columns of a run, in order (after "iteration"): the env's, the algorithm's
 /// (`learner`, e.g. PPO's losses, kl, lr…), then the reference kinds' tracking errors.
 pub fn metric_columns(spec: &TaskSpec, learner: &[String]) -> Vec<String> {
-    let mut c: Vec<String> = ["env_steps", "time_s", "fps", "time/collect_s", "time/learn_s", "time/host_bytes", "reward/mean"].iter().map(|s| s.to_string()).collect();
+    let mut c: Vec<String> = ["env_steps", "time_s", "fps", "time/collect_s", "time/learn_s", "time/host_bytes"].iter().map(|s| s.to_string()).collect();
+    c.extend(GPU_COUNT_COLUMNS.iter().map(|s| s.to_string()));
+    c.push("reward/mean".into());
     c.extend(spec.term_names.iter().map(|t| format!("reward/{t}")));
     c.extend(
         ["episode/count", "episode/return", "episode/length", "episode/success_rate", "episode/lift_height", "episode/terminated_frac", "episode/bad_reset_frac"]
@@ -87,6 +89,14 @@ pub fn metric_columns(spec: &TaskSpec, learner: &[String]) -> Vec<String> {
     }
     c
 }
+
+/// What the iteration asked of the GPU ([`crate::gpu_counts`]; 0 without a GPU): kernels, queue
+/// submissions and host synchronisations per env step of the collection (an env step of all envs;
+/// for SAC it includes the gradient steps taken inside the env loop) and of the learner's update
+/// at the end of the iteration (PPO's whole update). Submissions are those of the simulator's
+/// queue (burn's included when the learner shares the GPU), else dextrain's own.
+pub const GPU_COUNT_COLUMNS: [&str; 6] =
+    ["gpu/kernels_per_step", "gpu/submissions_per_step", "gpu/syncs_per_step", "gpu/kernels_per_update", "gpu/submissions_per_update", "gpu/syncs_per_update"];
 
 /// A fraction of episodes ended by bad-state resets above which `train` warns: a healthy sim has
 /// none, so one in a hundred means exploding envs (too large a time step, gains or randomisation).
@@ -196,10 +206,12 @@ fn collect(task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, obs: &mut [f32], 
 /// One metrics row in `metric_columns` order (`learner`: the algorithm's update values;
 /// `host_bytes`: the iteration's host↔GPU traffic; `tracking`: the reference kinds' extra columns).
 #[allow(clippy::too_many_arguments)]
-fn metric_row(s: &RolloutSums, learner: &[f64], env_steps: u64, time_s: f64, fps: f64, collect_s: f64, learn_s: f64, host_bytes: u64, tracking: bool) -> Vec<f64> {
+fn metric_row(s: &RolloutSums, learner: &[f64], env_steps: u64, time_s: f64, fps: f64, collect_s: f64, learn_s: f64, host_bytes: u64, gpu: [f64; 6], tracking: bool) -> Vec<f64> {
     let per_step = |x: f64| if s.steps > 0 { x / s.steps as f64 } else { f64::NAN };
     let per_ep = |x: f64| if s.episodes > 0 { x / s.episodes as f64 } else { f64::NAN };
-    let mut row = vec![env_steps as f64, time_s, fps, collect_s, learn_s, host_bytes as f64, per_step(s.reward)];
+    let mut row = vec![env_steps as f64, time_s, fps, collect_s, learn_s, host_bytes as f64];
+    row.extend(gpu);
+    row.push(per_step(s.reward));
     row.extend(s.terms.iter().map(|&t| per_step(t)));
     row.extend([
         s.episodes as f64,
@@ -356,7 +368,8 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
     while iteration < stop_at {
         let t0 = Instant::now();
         let bytes0 = crate::host_traffic::total();
-        let (sums, upd, collect_and_learn_s) = match &mut device_loop {
+        let counts0 = GpuCounter::start(task.gpu_context());
+        let (sums, upd, collect_and_learn_s, counts1) = match &mut device_loop {
             Some(dl) => {
                 dl.collect(task.as_mut(), algo.as_mut(), steps)?;
                 // reading the sums waits for the envs' steps: the collection's time ends here
@@ -366,15 +379,28 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
                     ctx.check_uncaptured("the iteration's device-resident env steps")?;
                 }
                 let collect_s = t0.elapsed().as_secs_f64();
-                (sums, algo.update_device(&dl.obs, &dl.priv_obs)?, collect_s)
+                let counts1 = GpuCounter::start(task.gpu_context());
+                (sums, algo.update_device(&dl.obs, &dl.priv_obs)?, collect_s, counts1)
             }
             None => {
                 let sums = collect(task.as_mut(), algo.as_mut(), &mut obs, &mut priv_obs, &mut eps, steps)?;
                 let collect_s = t0.elapsed().as_secs_f64();
-                (sums, algo.update(&obs, &priv_obs)?, collect_s)
+                let counts1 = GpuCounter::start(task.gpu_context());
+                (sums, algo.update(&obs, &priv_obs)?, collect_s, counts1)
             }
         };
         let host_bytes = crate::host_traffic::total() - bytes0;
+        let counts2 = GpuCounter::start(task.gpu_context());
+        let (per_step, per_update) = (counts0.until(&counts1), counts1.until(&counts2));
+        let env_step_count = steps.max(1) as f64;
+        let gpu = [
+            per_step[0] / env_step_count,
+            per_step[1] / env_step_count,
+            per_step[2] / env_step_count,
+            per_update[0],
+            per_update[1],
+            per_update[2],
+        ];
         // an off-policy learner's gradient steps ran inside the env loop: they count as learning
         let inner_learn_s = algo.take_learn_seconds().min(collect_and_learn_s);
         let collect_s = collect_and_learn_s - inner_learn_s;
@@ -384,7 +410,7 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
         let dt = t0.elapsed().as_secs_f64();
         let time_s = time_base + started.elapsed().as_secs_f64();
         let fps = sums.steps as f64 / dt.max(1e-9);
-        let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s, host_bytes, spec.kind.follows_reference());
+        let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s, host_bytes, gpu, spec.kind.follows_reference());
         metrics.append(iteration, &row)?;
         let success = row[columns.iter().position(|c| c == "episode/success_rate").unwrap_or(0)];
         let reward = row[columns.iter().position(|c| c == "reward/mean").unwrap_or(0)];
@@ -450,6 +476,27 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
     });
     console::result(&summary.to_string());
     Ok(dir)
+}
+
+/// A reading of [`crate::gpu_counts`] and of the simulator's queue (see [`GPU_COUNT_COLUMNS`]).
+struct GpuCounter {
+    counts: crate::gpu_counts::GpuCounts,
+    queue: Option<u64>,
+}
+
+impl GpuCounter {
+    fn start(ctx: Option<&crate::env::gpu::GpuContext>) -> GpuCounter {
+        GpuCounter { counts: crate::gpu_counts::GpuCounts::now(), queue: ctx.and_then(|c| crate::gpu_counts::queue_submissions(&c.queue)) }
+    }
+
+    /// [kernels, submissions, host syncs] from this reading to `later`.
+    fn until(&self, later: &GpuCounter) -> [f64; 3] {
+        use crate::gpu_counts::Event;
+        let d = later.counts.since(&self.counts);
+        let own = d.total(Event::Submission);
+        let submissions = crate::gpu_counts::submissions_between(self.queue, later.queue).unwrap_or(own);
+        [d.total(Event::Kernel) as f64, submissions as f64, d.host_syncs() as f64]
+    }
 }
 
 /// Removes all but the newest `keep` checkpoints (0 = keep all).

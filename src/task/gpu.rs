@@ -185,6 +185,7 @@ impl GpuTaskBatch {
     /// targets are already in place), then the readback into the batch.
     fn run_step(&mut self, act: bool) -> Result<&StepBatch> {
         let e = &self.env;
+        e.flush_pending()?;
         let mut passes = Vec::with_capacity(5);
         if act {
             passes.push((&self.act_pipeline, &self.act_group));
@@ -197,7 +198,7 @@ impl GpuTaskBatch {
         match &self.final_readback {
             None => dispatch_and_read(e, &passes, &self.out, &self.readback, self.out_bytes, &mut self.host, "task step")?,
             Some(final_readback) => {
-                let enc = e.ctx.encode_passes(&passes, e.workgroups());
+                let enc = e.ctx.encode_passes(&passes, e.workgroups(), "task step");
                 let (od, pd) = (self.spec.obs_dim, self.spec.priv_dim);
                 let n = self.spec.num_envs;
                 let fin_bytes = (n * (od + pd) * 4) as u64;
@@ -267,6 +268,7 @@ impl TaskBatch for GpuTaskBatch {
 
     fn step(&mut self, actions: &[f32]) -> Result<&StepBatch> {
         check_actions(&self.spec, actions)?;
+        self.env.flush_pending()?; // a step recorded through env() runs before these uploads
         self.env.ctx.upload(ACTIONS.name, &self.actions, bytemuck::cast_slice(actions))?;
         self.run_step(true)
     }
@@ -281,13 +283,15 @@ impl TaskBatch for GpuTaskBatch {
     }
 
     fn step_on_device(&mut self, actions: &burn::prelude::Tensor<2>, device: &burn::prelude::Device) -> Result<DeviceStep> {
-        use crate::learn::gpu_io::{flush, tensor_buffer, zeros_buffer};
+        use crate::learn::gpu_io::{empty_buffer, flush, tensor_buffer};
         let (n, od, pd, ad) = (self.spec.num_envs, self.spec.obs_dim, self.spec.priv_dim, self.spec.action_dim);
         ensure!(actions.dims() == [n, ad], "actions of shape {:?} for {n} envs × {ad} actions", actions.dims());
+        self.env.flush_pending()?;
         let act = tensor_buffer(actions)?;
-        let outs = [zeros_buffer(n, od, device)?, zeros_buffer(n, pd, device)?, zeros_buffer(n, OUT_MISC, device)?];
+        // (fresh, unfilled tensors: the copies below write every byte)
+        let outs = [empty_buffer(n, od, device)?, empty_buffer(n, pd, device)?, empty_buffer(n, OUT_MISC, device)?];
         let finals = match self.final_readback {
-            Some(_) => Some([zeros_buffer(n, od, device)?, zeros_buffer(n, pd, device)?]),
+            Some(_) => Some([empty_buffer(n, od, device)?, empty_buffer(n, pd, device)?]),
             None => None,
         };
         let e = &self.env;
@@ -301,7 +305,7 @@ impl TaskBatch for GpuTaskBatch {
             passes.push((&self.final_pipeline, &self.final_group));
         }
         passes.extend([(&e.reset_pipeline, &e.reset_group), (&self.observe_pipeline, &self.observe_group)]);
-        let mut enc = e.ctx.encode_passes(&passes, e.workgroups());
+        let mut enc = e.ctx.encode_passes(&passes, e.workgroups(), "task step (device-resident)");
         for (src, dsts) in [(&self.out, &outs[..]), (&self.final_out, finals.as_ref().map_or(&[][..], |f| &f[..]))] {
             let mut from = 0u64;
             for o in dsts {
@@ -309,7 +313,7 @@ impl TaskBatch for GpuTaskBatch {
                 from += o.size();
             }
         }
-        // what burn recorded (the actions, the zero fills) runs first (learn::gpu_io)
+        // what burn recorded (the actions) runs first (learn::gpu_io)
         flush(device)?;
         e.ctx.submit_all(vec![copy_in, enc], "task step (device-resident)")?;
         let [obs, priv_obs, misc] = outs;
@@ -342,11 +346,12 @@ impl TaskBatch for GpuTaskBatch {
     fn step_with_targets(&mut self, actions: &[f32], targets: &[Targets]) -> Result<&StepBatch> {
         check_actions(&self.spec, actions)?;
         check_targets(&self.spec, targets)?;
+        self.env.flush_pending()?; // a step recorded through env() runs before these uploads
         self.env.ctx.upload(ACTIONS.name, &self.actions, bytemuck::cast_slice(actions))?;
         let e = &self.env;
         // task_act records the actions; then the controller's targets replace the mapped ones in the
         // task states and in the buffer the physics reads (uploads land before the next submit)
-        e.ctx.submit(e.ctx.encode_passes(&[(&self.act_pipeline, &self.act_group)], e.workgroups()), "task act")?;
+        e.ctx.submit(e.ctx.encode_passes(&[(&self.act_pipeline, &self.act_group)], e.workgroups(), "task act"), "task act")?;
         let mut ts = self.task_states()?;
         for (t, g) in ts.iter_mut().zip(targets) {
             t.targets = *g;
@@ -392,6 +397,7 @@ impl TaskBatch for GpuTaskBatch {
         self.env.set_states(&env.states)?;
         self.env.set_springs(&env.springs)?;
         self.env.set_params(&env.params)?;
+        self.env.flush_pending()?;
         self.env.ctx.upload(TASK_STATES.name, &self.task_states, bytemuck::cast_slice(&task))
     }
 }
@@ -440,7 +446,8 @@ fn dispatch_and_read(
     host: &mut [f32],
     what: &str,
 ) -> Result<()> {
-    let enc = env.ctx.encode_passes(passes, env.workgroups());
+    env.flush_pending()?;
+    let enc = env.ctx.encode_passes(passes, env.workgroups(), what);
     let copy = ReadbackCopy { name: TASK_OUT.name, src: out, staging: readback, bytes: out_bytes };
     // host as bytes: any f32 slice is a valid byte slice, so no alignment question arises
     env.ctx.submit_and_read(enc, &[copy], what, |_, bytes| bytemuck::cast_slice_mut::<f32, u8>(host).copy_from_slice(bytes))

@@ -321,6 +321,11 @@ fn device_noise_and_normaliser_match_their_host_twins() {
     let var = hu.iter().map(|&x| (x as f64 - mean).powi(2)).sum::<f64>() / hu.len() as f64;
     assert!(hu.iter().all(|&x| (-1.0..1.0).contains(&x)) && mean.abs() < 0.03 && (var - 1.0 / 3.0).abs() < 0.02, "mean {mean}, var {var}");
     assert!(noise.normals(7, 6, rows + 1, cols).is_err(), "a draw larger than the kernel was made for");
+    // a block of consecutive draws (PPO's rollout, SAC's two draws of a gradient step) is the draws
+    // one after the other, bit for bit
+    let block = to_host(noise.normals_block(7, 3, 2, rows / 2, cols).unwrap()).unwrap();
+    let (b0, b1) = (to_host(noise.normals(7, 3, rows / 2, cols).unwrap()).unwrap(), to_host(noise.normals(7, 4, rows / 2, cols).unwrap()).unwrap());
+    assert_eq!(block, [b0, b1].concat(), "a block of draws differs from its draws");
     // the normaliser: three batches of 50 rows of 5 components, offset and scaled per component
     let mut rng = Rng::new(3, 3);
     let mut host = Normalizer::new(5);
@@ -769,5 +774,89 @@ fn the_learners_tcn_matches_the_exported_formulation() {
     for (k, p) in params.iter().enumerate() {
         let g = to_host(p.grad(&grads).expect("a gradient")).unwrap();
         assert!(g.iter().all(|v| v.is_finite()) && g.iter().any(|v| *v != 0.0), "parameter {k}");
+    }
+}
+
+/// adam.wgsl and normalizer.wgsl (`learn::fused_adam`, `learn::fused_normalizer`: what a learner on
+/// burn's wgpu runtime runs) against their tensor-op twins on the CPU backend:
+/// - two clipped AdamW steps of three parameters (one large enough that each of the norm's 64
+///   slices adds several blocks), the norm (also against an f64 sum), and an unclipped step: the
+///   parameters agree to float rounding, and the GPU ran the 2 P + 1 kernels of adam.wgsl per step;
+/// - the normalisers over three batches (a constant column included, which must normalise to
+///   exactly 0, as on the host): the statistics and the normalised values agree with the host's
+///   f64 `Normalizer`, in one submission of four dispatches per step.
+#[test]
+fn optimiser_and_normaliser_kernels_match_their_tensor_twins() {
+    use dextrain::gpu_counts::{Event, GpuCounts};
+    use dextrain::learn::normalizer::DeviceNormalizers;
+    let Some((_ctx, gpu)) = crate::common::wgpu_learner("optimiser_and_normaliser_kernels_match_their_tensor_twins") else { return };
+    let shapes = [[200usize, 200usize], [1, 200], [3, 5]];
+    let mut rng = Rng::new(4, 4);
+    let mut draw = |len: usize, scale: f64| -> Vec<f32> { (0..len).map(|_| (rng.normal() * scale) as f32).collect() };
+    let init: Vec<Vec<f32>> = shapes.iter().map(|s| draw(s[0] * s[1], 1.0)).collect();
+    let coefs: Vec<Vec<Vec<f32>>> = (0..3).map(|_| shapes.iter().map(|s| draw(s[0] * s[1], 0.01)).collect()).collect();
+    // three steps of loss = Σ p ⊙ c_k (∂loss/∂p = c_k): clipped to 1.0, clipped to 1.0, unclipped
+    let run = |device: Device| -> (Vec<Vec<f32>>, Vec<f32>, GpuCounts) {
+        let mut adam = Adam::new(&shapes, &device);
+        adam.weight_decay = 0.01;
+        let lr = to_tensor(vec![0.003], [1, 1], &device.clone().inner());
+        let mut params: Vec<Tensor<2>> = init.iter().zip(&shapes).map(|(v, s)| to_tensor(v.clone(), *s, &device).require_grad()).collect();
+        let mut norms = Vec::new();
+        let before = GpuCounts::now();
+        for (k, c) in coefs.iter().enumerate() {
+            let loss = params.iter().zip(c).zip(&shapes).map(|((p, c), s)| (p.clone() * to_tensor(c.clone(), *s, &device)).sum()).reduce(|a, b| a + b).unwrap();
+            let grads = loss.backward();
+            let (new, norm) = adam.step_clipped(&params, &grads, if k < 2 { 1.0 } else { 0.0 }, &lr).unwrap();
+            params = new;
+            norms.push(to_host(norm).unwrap()[0]);
+        }
+        let counts = GpuCounts::now().since(&before);
+        (params.iter().map(|p| to_host(p.clone().inner()).unwrap()).collect(), norms, counts)
+    };
+    let (p_cpu, n_cpu, _) = run(cpu());
+    let (p_gpu, n_gpu, counts) = run(gpu.clone());
+    assert_eq!(counts.total_from(Event::Kernel, "dextrain:adam"), 3 * (2 * 3 + 1), "adam.wgsl's kernels per step: {counts:?}");
+    for (k, c) in coefs.iter().enumerate() {
+        let want = c.iter().flatten().map(|&x| (x as f64).powi(2)).sum::<f64>().sqrt();
+        for (name, got) in [("cpu", n_cpu[k]), ("gpu", n_gpu[k])] {
+            assert!((got as f64 - want).abs() < 1e-5 * want, "step {k}: the {name} gradient norm {got} vs {want}");
+        }
+        assert!(want > 1.0, "the test's gradients must be clipped (norm {want})");
+    }
+    let worst = p_cpu.iter().flatten().zip(p_gpu.iter().flatten()).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    assert!(worst < 1e-5, "parameters after three steps differ by {worst}");
+    let moved = init.iter().flatten().zip(p_gpu.iter().flatten()).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+    assert!(moved > 5e-3, "the steps moved the parameters by {moved} only");
+
+    // the normalisers: actor observations of 5 components (the last constant), critic ones of 3
+    let mut host = [Normalizer::new(5), Normalizer::new(3)];
+    let mut dev = DeviceNormalizers::from_host(&host[0], &host[1], &gpu);
+    for b in 0..3 {
+        let rows = 300 + 37 * b;
+        let obs: Vec<f32> = (0..rows * 5).map(|i| if i % 5 == 4 { 0.37 } else { (rng.normal() * (1.0 + (i % 5) as f64) + 10.0 * b as f64) as f32 }).collect();
+        let priv_obs: Vec<f32> = (0..rows * 3).map(|_| (rng.normal() * 3.0 - 1.0) as f32).collect();
+        let before = GpuCounts::now();
+        let (o, p) = dev.update_and_normalize(&to_tensor(obs.clone(), [rows, 5], &gpu), &to_tensor(priv_obs.clone(), [rows, 3], &gpu), true).unwrap();
+        let counts = GpuCounts::now().since(&before);
+        assert_eq!((counts.total_from(Event::Kernel, "dextrain:normalizers"), counts.total(Event::Submission)), (4, 1), "{counts:?}");
+        host[0].update(&obs);
+        host[1].update(&priv_obs);
+        for (h, x, got) in [(&host[0], &obs, to_host(o).unwrap()), (&host[1], &priv_obs, to_host(p).unwrap())] {
+            let want = h.normalized(x, true);
+            let worst = want.iter().zip(&got).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+            assert!(worst < 1e-4, "batch {b}: normalised values differ by {worst}");
+        }
+        let o_got = to_host(dev.update_and_normalize(&to_tensor(obs.clone(), [rows, 5], &gpu), &to_tensor(priv_obs.clone(), [rows, 3], &gpu), false).unwrap().0).unwrap();
+        assert_eq!(o_got, obs, "normalisation off: the observations as they are");
+        let normalised = to_host(dev.obs.normalized(to_tensor(obs.clone(), [rows, 5], &gpu), true)).unwrap();
+        assert!(normalised.iter().skip(4).step_by(5).all(|&x| x == 0.0), "a constant column normalises to exactly 0");
+    }
+    let (o, p) = dev.to_host().unwrap();
+    for (h, d) in [(&host[0], &o), (&host[1], &p)] {
+        assert_eq!(d.count, h.count);
+        for k in 0..h.mean.len() {
+            assert!((d.mean[k] - h.mean[k]).abs() < 1e-4 * (1.0 + h.mean[k].abs()), "mean {k}: {} vs {}", d.mean[k], h.mean[k]);
+            assert!((d.m2[k] - h.m2[k]).abs() <= 1e-4 * h.m2[k] + 1e-6, "m2 {k}: {} vs {}", d.m2[k], h.m2[k]);
+        }
     }
 }

@@ -50,10 +50,12 @@ fn args(runs: &Path, name: &str) -> TrainArgs {
     }
 }
 
-/// metrics.csv without the wall-clock columns.
+/// metrics.csv without the wall-clock columns and the GPU counts (`gpu/*`: cubecl batches its
+/// submissions by what the process did before, and a resumed run's first iteration may launch a
+/// kernel or two more; the device-resident tests check the counts on their own).
 fn metrics(dir: &Path) -> (Vec<String>, Vec<(u64, Vec<f64>)>) {
     let (cols, rows) = read_csv(&dir.join("metrics.csv")).expect("metrics.csv");
-    let keep: Vec<usize> = (0..cols.len()).filter(|&i| !CLOCK.contains(&cols[i].as_str())).collect();
+    let keep: Vec<usize> = (0..cols.len()).filter(|&i| !CLOCK.contains(&cols[i].as_str()) && !cols[i].starts_with("gpu/")).collect();
     let names = keep.iter().map(|&i| cols[i].clone()).collect();
     let rows = rows.into_iter().map(|(it, v)| (it, keep.iter().map(|&i| v[i]).collect::<Vec<f64>>())).collect();
     (names, rows)
@@ -249,8 +251,8 @@ fn bad_names_existing_runs_and_broken_checkpoints_are_one_line_errors() {
 /// - The device-resident rollouts (the default there) give the host path's run to float rounding:
 ///   every metric and every policy value;
 /// - their host traffic per iteration is exactly what the README says (no observation bytes: the
-///   noise parameters per env step, the metrics' sums, the minibatch indices, five scalars per
-///   minibatch and σ), where the host path moves every step's observations;
+///   kernels' parameters, the metrics' sums, the minibatch indices, the learning rate and the
+///   update's one read), where the host path moves every step's observations;
 /// - a device-resident run stopped and resumed continues bit for bit (whole-tensor sums on the GPU
 ///   are `nets::sum_all`'s fixed reductions, not burn's atomic ones), and its policy evaluates.
 #[test]
@@ -260,8 +262,13 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     drop(ctx);
     let tmp = tempfile::tempdir().unwrap();
     let gpu_args = |name: &str, extra: &[&str]| gpu_run_args(tmp.path(), name, &adapter, 2, extra);
-    let host = train(&gpu_args("host", &["train.device_rollouts=false"])).expect("train on the GPU, host path");
-    let dev = train(&gpu_args("dev", &[])).expect("train on the GPU, device-resident");
+    // the two paths compared under a fixed learning rate: the adaptive schedule turns a float
+    // rounding of a minibatch's KL at its thresholds into a factor 1.5 (the adaptive runs below
+    // are compared bit for bit with each other)
+    let fixed = "ppo.schedule=\"fixed\"";
+    let host = train(&gpu_args("host", &["train.device_rollouts=false", fixed])).expect("train on the GPU, host path");
+    let dev = train(&gpu_args("dev", &[fixed])).expect("train on the GPU, device-resident");
+    let adaptive = train(&gpu_args("adaptive", &[])).expect("train on the GPU, device-resident, adaptive learning rate");
     let mut half = gpu_args("half", &[]);
     half.stop_after = Some(1);
     let resumed = train(&half).expect("first half");
@@ -279,11 +286,13 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     let (n, t) = (8u64, 4u64);
     let (epochs, minibatches) = (cfg.ppo.epochs as u64, cfg.ppo.minibatches as u64);
     let misc = dextrain::task::task::OUT_MISC as u64;
-    let expected = t * 16 // the noise parameters of each env step
+    let expected = 32 // the noise kernel's parameters (one kernel draws the rollout's noise)
+        + t * 2 * 32 // the two normalisers' parameters of each env step
         + (2 * misc + 4) * 4 // the iteration's sums
-        + epochs * n * t * 4 // the minibatch indices (i32)
-        + epochs * minibatches * 5 * 4 // the losses, KL and gradient norm of each minibatch
-        + a as u64 * 4; // σ after the update
+        + epochs * n * t * 4 // the minibatch indices (i32, one upload)
+        + 4 // the learning rate up
+        + epochs * minibatches * 32 // each optimiser step's constants (adam.wgsl)
+        + (1 + 5 + a as u64) * 4; // the update's one read: learning rate, the sums of the losses, KL and gradient norms, log σ
     for (_, d) in &rows_dev {
         assert_eq!(d[bytes], expected as f64, "host bytes of a device-resident iteration");
         assert!(d[bytes] < (n * (o + p) as u64 * 4) as f64, "less than one step's observations");
@@ -292,12 +301,33 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
         assert!(h[bytes] >= (t * n * (o + p) as u64 * 4) as f64, "the host path reads every step's observations: {}", h[bytes]);
     }
     // stopped and resumed: the same run, bit for bit (host bytes included)
-    assert!(same_bits(&rows_dev, &metrics(&resumed).1), "the resumed device-resident run differs:\n{rows_dev:?}\n{:?}", metrics(&resumed).1);
-    assert_eq!(model_bytes(&dev, 2), model_bytes(&resumed, 2), "final model differs after resume");
+    let rows_adaptive = metrics(&adaptive).1;
+    assert!(same_bits(&rows_adaptive, &metrics(&resumed).1), "the resumed device-resident run differs:\n{rows_adaptive:?}\n{:?}", metrics(&resumed).1);
+    assert_eq!(model_bytes(&adaptive, 2), model_bytes(&resumed, 2), "final model differs after resume");
+    // what the GPU is asked to do, pinned (the same on any adapter; README "What the GPU is asked
+    // to do"): per env step of the device-resident loop, the policy's kernels (the normalisers'
+    // 4 of normalizer.wgsl, two MLPs of 3 layers, the actions), the task step's 5 of task.wgsl and
+    // the loop's sums, and one host read per iteration (the sums); per PPO update of 5 × 4
+    // minibatches, adam.wgsl's optimiser steps and one read. A change that adds kernels or reads
+    // fails here: measure it, then update the figures here and in BENCHMARKS.md.
+    let (all_cols, all_rows) = read_csv(&adaptive.join("metrics.csv")).unwrap();
+    let gpu = |name: &str| all_rows[1].1[all_cols.iter().position(|c| c == name).unwrap()];
+    assert_eq!(gpu("gpu/syncs_per_step"), 1.0 / t as f64, "host reads per env step");
+    assert_eq!(gpu("gpu/syncs_per_update"), 1.0, "host reads per update");
+    assert_eq!(gpu("gpu/kernels_per_step"), PINNED_KERNELS_PER_STEP, "kernels per env step (device-resident PPO)");
+    assert_eq!(gpu("gpu/kernels_per_update"), PINNED_KERNELS_PER_UPDATE, "kernels per PPO update");
+    assert!(gpu("gpu/submissions_per_step") <= 7.0 && gpu("gpu/submissions_per_update") <= 200.0, "submissions: {} per step, {} per update", gpu("gpu/submissions_per_step"), gpu("gpu/submissions_per_update"));
     let r = eval(&EvalArgs { run: dev, checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None, baseline: None }).expect("eval");
     assert!(r.env_backend.starts_with("gpu") && r.learner_device.starts_with("gpu (burn wgpu"), "{} / {}", r.env_backend, r.learner_device);
     assert_eq!(r.episodes, 3);
 }
+
+/// Kernels per env step of the tiny device-resident PPO run of
+/// `training_runs_with_env_and_learner_on_one_gpu_device` (lift, actor and critic [32, 16], 8 envs
+/// × 4 steps), its second iteration: 149.5 before issue 33's work.
+const PINNED_KERNELS_PER_STEP: f64 = 72.75;
+/// Kernels per PPO update of the same run (5 epochs × 4 minibatches): 9,306 before issue 33's work.
+const PINNED_KERNELS_PER_UPDATE: f64 = 4912.0;
 
 /// SAC with its replay buffer on the GPU (lavapipe in CI): the device-resident run gives the host
 /// path's run to float rounding (every metric, every policy value), its host traffic per iteration
@@ -335,15 +365,17 @@ fn sac_trains_with_its_replay_buffer_on_one_gpu_device() {
     assert_eq!(model_bytes(&dev, 3), model_bytes(&resumed, 3), "final model differs after resume");
     assert!(rows_dev.iter().all(|(_, v)| v[col("loss/critic")].is_finite() && v[col("updates")] > 0.0));
     assert_policies_close(&host, &dev, 3);
-    // host traffic of an iteration with gradient steps: per env step the noise parameters; per
-    // gradient step two noise draws' parameters, the rows (i32) and window flags (f32) of n_step × B
-    // transitions and four loss scalars (an actor step each: policy_frequency = 1); the sums; α
+    // host traffic of an iteration with gradient steps: per env step the noise kernel's and the
+    // two normalisers' parameters; per gradient step one noise kernel's parameters, the rows (i32)
+    // and window flags (f32) of n_step × B transitions and three optimiser steps' constants (an
+    // actor and a temperature step each: policy_frequency = 1); the sums; the learner's statistics
+    // and log α (one read)
     let [o, p, _] = dims(&dev);
     let (n, t) = (8u64, 4u64);
     let misc = dextrain::task::task::OUT_MISC as u64;
     for (it, d) in &rows_dev {
         let g = d[col("updates")] as u64;
-        let expected = t * 16 + g * (2 * 16 + n_step * batch * 8 + 4 * 4) + (2 * misc + 4) * 4 + 4;
+        let expected = t * (32 + 2 * 32) + g * (32 + n_step * batch * 8 + 3 * 32) + (2 * misc + 4) * 4 + 5 * 4;
         assert_eq!(d[bytes], expected as f64, "host bytes of device-resident iteration {it} ({g} gradient steps)");
     }
     for (_, h) in &rows_host {

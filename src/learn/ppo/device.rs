@@ -4,15 +4,17 @@
 //! - the empirical normalisers (`normalizer::DeviceNormalizers`: the Chan merge in f32 tensors;
 //!   the host keeps only the count, which it knows);
 //! - the action noise ([`crate::learn::noise::DeviceNoise`]: the host path's draws, drawn by a
-//!   shader), the actions, their log-probabilities and the values;
+//!   shader, the whole rollout's at its first step), the actions, their log-probabilities and the
+//!   values;
 //! - the rollout storage (one record of tensors per env step) and GAE, a backward loop of
 //!   `[N, 1]` tensor ops over the rollout's steps, then the advantage normalisation;
 //! - the update: the host path's [`Ppo::optimise`], on the concatenated records.
 //!
 //! What still crosses: the minibatch indices (from the learner RNG on the host, as the host path
-//! draws them), four loss scalars and the gradient norm per minibatch (the adaptive learning rate
-//! decides on the host, as rsl_rl's does), σ after the update, and 16 bytes of noise parameters
-//! per env step. The normalisers and the parameters come to the host when a checkpoint is taken.
+//! draws them: one upload per update), the learning rate up and, once per update, the sums of the
+//! losses, KL and gradient norms, the learning rate and log σ back (the adaptive learning rate
+//! changes on the device: `adapt_learning_rate`), and the noise kernel's 32 bytes of parameters
+//! per rollout. The normalisers and the parameters come to the host when a checkpoint is taken.
 
 use anyhow::{Result, ensure};
 use burn::prelude::*;
@@ -27,7 +29,7 @@ struct StepRecord {
     /// Normalised actor / critic observations.
     obs: Tensor<2>,
     priv_obs: Tensor<2>,
-    /// Sampled actions, the policy mean and σ (`[N, A]`).
+    /// Sampled actions and the policy mean (`[N, A]`), σ (`[1, A]`: the same for every env).
     actions: Tensor<2>,
     mu: Tensor<2>,
     sigma: Tensor<2>,
@@ -39,9 +41,19 @@ struct StepRecord {
     dones: Option<Tensor<2>>,
 }
 
+/// A rollout's action noise: ε `[T · N, A]` (rows `t · N ..` are env step t's draw), σ `[1, A]`
+/// and the log-probabilities of the actions it makes `[T · N, 1]`.
+struct RolloutNoise {
+    eps: Tensor<2>,
+    sigma: Tensor<2>,
+    log_prob: Tensor<2>,
+}
+
 /// What a device-resident rollout holds beside [`Ppo`]'s networks.
 pub struct DeviceRollout {
     noise: DeviceNoise,
+    /// The rollout's action noise and what follows from it, made at its first step.
+    noise_block: Option<RolloutNoise>,
     /// The observation normalisers.
     pub(crate) norms: DeviceNormalizers,
     steps: Vec<StepRecord>,
@@ -54,9 +66,9 @@ impl Ppo {
     pub fn start_device_rollouts(&mut self, ctx: &GpuContext) -> Result<()> {
         ensure!(self.step == 0, "device-resident rollouts must start between iterations");
         ensure!(crate::learn::nets::is_gpu(&self.device), "device-resident rollouts need burn's wgpu learner (train.device = gpu)");
-        let noise = DeviceNoise::new(ctx, &self.device, self.storage.envs * self.dims().act)?;
+        let noise = DeviceNoise::new(ctx, &self.device, self.storage.steps * self.storage.envs * self.dims().act)?;
         let norms = DeviceNormalizers::from_host(&self.obs_norm, &self.priv_norm, &self.device);
-        self.on_device = Some(DeviceRollout { noise, norms, steps: Vec::with_capacity(self.storage.steps) });
+        self.on_device = Some(DeviceRollout { noise, noise_block: None, norms, steps: Vec::with_capacity(self.storage.steps) });
         Ok(())
     }
 
@@ -70,29 +82,33 @@ impl Ppo {
         ensure!(self.step < self.storage.steps, "rollout storage is full: call update_device()");
         let (seed, draw, normalize) = (self.noise_seed, self.noise_draw, self.normalize);
         let r = self.on_device.as_mut().ok_or_else(|| anyhow::anyhow!("act_device() before start_device_rollouts()"))?;
-        if normalize {
-            r.norms.obs.update(obs);
-            r.norms.priv_obs.update(priv_obs);
-        }
-        let obs_n = r.norms.obs.normalized(obs.clone(), normalize);
-        let priv_n = r.norms.priv_obs.normalized(priv_obs.clone(), normalize);
+        let (obs_n, priv_n) = r.norms.update_and_normalize(obs, priv_obs, normalize)?; // merged first, then applied
         let params = self.net.inference_params();
         let mu = self.net.actor(&params, obs_n.clone(), priv_n.clone()); // [N, A]
         let values = self.net.critic(&params, priv_n.clone()); // [N, 1]
-        let log_std = self.net.log_std(&params); // [1, A]
-        let sigma = log_std.clone().exp(); // [1, A]
-        let eps = r.noise.normals(seed, draw, n, d.act)?; // ε ~ N(0, 1) [N, A]
+        if self.step == 0 {
+            // what the parameters fix for the whole rollout, once: every step's noise in one kernel
+            // (draws draw, draw + 1, …: the host path draws the same numbers one step at a time),
+            // σ, and every step's log-probability, which depends on ε and σ only:
+            // log π(a|s) = −½ Σ ε² − (Σ log σ + ½ A ln 2π)             [T · N, 1]
+            let block = r.noise.normals_block(seed, draw, self.storage.steps, n, d.act)?; // ε ~ N(0, 1) [T · N, A]
+            let log_std = self.net.log_std(&params); // [1, A]
+            let norm_const = log_std.clone().sum_dim(1).add_scalar(0.5 * d.act as f64 * LN_2PI); // [1, 1]
+            let log_prob = block.clone().square().sum_dim(1).mul_scalar(-0.5) - norm_const;
+            r.noise_block = Some(RolloutNoise { eps: block, sigma: log_std.exp(), log_prob });
+        }
+        let noise = r.noise_block.as_ref().ok_or_else(|| anyhow::anyhow!("act_device(): the rollout's noise was not drawn"))?;
+        let eps = noise.eps.clone().narrow(0, self.step * n, n); // this step's ε [N, A]
+        let log_prob = noise.log_prob.clone().narrow(0, self.step * n, n); // [N, 1]
+        let sigma = noise.sigma.clone(); // [1, A]
         self.noise_draw = draw.wrapping_add(1);
-        let actions = mu.clone() + sigma.clone() * eps.clone(); // a = μ + σ ε
-        // log π(a|s) = −½ Σ ε² − Σ log σ − ½ A ln 2π            [N, 1]
-        let log_prob = eps.square().sum_dim(1).mul_scalar(-0.5) - log_std.sum_dim(1);
-        let log_prob = log_prob.sub_scalar(0.5 * d.act as f64 * LN_2PI);
+        let actions = mu.clone() + sigma.clone() * eps; // a = μ + σ ε
         r.steps.push(StepRecord {
             obs: obs_n,
             priv_obs: priv_n,
             actions: actions.clone(),
             mu,
-            sigma: sigma.repeat_dim(0, n),
+            sigma,
             log_prob,
             values,
             rewards: None,
@@ -107,10 +123,12 @@ impl Ppo {
         let (scale, gamma) = (self.cfg.reward_scale as f64, self.cfg.gamma as f64);
         let r = self.on_device.as_mut().ok_or_else(|| anyhow::anyhow!("process_step_device() before start_device_rollouts()"))?;
         let rec = r.steps.last_mut().filter(|s| s.rewards.is_none()).ok_or_else(|| anyhow::anyhow!("process_step_device() without act_device()"))?;
-        // r = scale · r_env + γ V(s_t) on a time-out that is not a termination (bootstrap through it)
-        let timeout_only = time_outs.clone() * terminated.ones_like().sub(terminated.clone());
+        // flags 0 or 1: done = max(terminated, time-out); a time-out that is not a termination is
+        // done − terminated. r = scale · r_env + γ V(s_t) on it (bootstrap through the time-out)
+        let done = terminated.clone().max_pair(time_outs.clone());
+        let timeout_only = done.clone() - terminated.clone();
         rec.rewards = Some(rewards.clone().mul_scalar(scale) + rec.values.clone().mul_scalar(gamma) * timeout_only);
-        rec.dones = Some((terminated.clone() + time_outs.clone()).clamp(0.0, 1.0));
+        rec.dones = Some(done);
         self.step += 1;
         self.storage.len = self.step * self.storage.envs;
         Ok(())
@@ -123,6 +141,7 @@ impl Ppo {
         let (gamma, lam, normalize) = (self.cfg.gamma as f64, self.cfg.lam as f64, self.normalize);
         let r = self.on_device.as_mut().ok_or_else(|| anyhow::anyhow!("update_device() before start_device_rollouts()"))?;
         let steps = std::mem::take(&mut r.steps);
+        r.noise_block = None;
         let priv_n = r.norms.priv_obs.normalized(last_priv_obs.clone(), normalize);
         let last_values = self.net.critic(&self.net.inference_params(), priv_n); // [N, 1]
         // GAE backwards in time (storage.rs's `gae`, as [N, 1] tensor ops):
@@ -163,7 +182,7 @@ impl Ppo {
             actions: cat(&|s| s.actions.clone()),
             old_log_prob: cat(&|s| s.log_prob.clone()),
             old_mu: cat(&|s| s.mu.clone()),
-            old_sigma: cat(&|s| s.sigma.clone()),
+            old_sigma: steps.first().map(|s| s.sigma.clone()).ok_or_else(|| anyhow::anyhow!("update_device(): an empty rollout"))?, // [1, A]: the parameters did not change during the rollout
             advantages,
             returns,
             old_values: values,

@@ -28,7 +28,7 @@ use burn::prelude::*;
 use burn::tensor::{Int, TensorData};
 
 use self::storage::RolloutStorage;
-use super::adam::{Adam, clipped_grads};
+use super::adam::Adam;
 use super::nets::{Activation, init_mlp, mlp_forward, mlp_shapes, to_host, to_tensor};
 use super::noise::host_normals;
 use super::normalizer::Normalizer;
@@ -209,7 +209,7 @@ pub struct Batch {
     pub actions: Tensor<2>,   // [B, A]
     pub old_log_prob: Tensor<2>, // [B, 1]
     pub old_mu: Tensor<2>,    // [B, A]
-    pub old_sigma: Tensor<2>, // [B, A]
+    pub old_sigma: Tensor<2>, // [1, A]: the acting policy's σ (state-independent, fixed over a rollout)
     pub advantages: Tensor<2>, // [B, 1]
     pub returns: Tensor<2>,   // [B, 1]
     pub old_values: Tensor<2>, // [B, 1]
@@ -453,9 +453,17 @@ impl Ppo {
         let obs_n = self.obs_norm.normalized(obs, self.normalize);
         let priv_n = self.priv_norm.normalized(priv_obs, self.normalize);
         let params = self.net.inference_params();
-        let mu = to_host(self.net.actor(&params, to_tensor(obs_n.clone(), [n, d.obs], &self.device), to_tensor(priv_n.clone(), [n, d.priv_obs], &self.device)))?; // [N, A]
-        let values = to_host(self.net.critic(&params, to_tensor(priv_n.clone(), [n, d.priv_obs], &self.device)))?; // [N, 1]
-        let log_std = to_host(self.net.log_std(&params))?; // [A]
+        let priv_t = to_tensor(priv_n.clone(), [n, d.priv_obs], &self.device);
+        let mu = self.net.actor(&params, to_tensor(obs_n.clone(), [n, d.obs], &self.device), priv_t.clone()); // [N, A]
+        let values = self.net.critic(&params, priv_t); // [N, 1]
+        let log_std = self.net.log_std(&params); // [1, A]
+        // one read: rows [μ | V] [N, A + 1], then [log σ | 0] [1, A + 1]
+        let last = Tensor::cat(vec![log_std.clone(), log_std.zeros_like().narrow(1, 0, 1)], 1);
+        let read = to_host(Tensor::cat(vec![Tensor::cat(vec![mu, values], 1), last], 0))?;
+        let w = d.act + 1;
+        let mu: Vec<f32> = read[..n * w].chunks(w).flat_map(|r| r[..d.act].iter().copied()).collect(); // [N, A]
+        let values: Vec<f32> = read[..n * w].chunks(w).map(|r| r[d.act]).collect(); // [N]
+        let log_std: Vec<f32> = read[n * w..n * w + d.act].to_vec(); // [A]
         let sigma: Vec<f32> = log_std.iter().map(|l| l.exp()).collect();
         let sum_log_std: f64 = log_std.iter().map(|&l| l as f64).sum();
         ensure!(self.on_device.is_none(), "act() in a device-resident run (act_device)");
@@ -531,7 +539,7 @@ impl Ppo {
             actions: to_tensor(s.actions.clone(), [total, d.act], dev),
             old_log_prob: col(&s.log_prob),
             old_mu: to_tensor(s.mu.clone(), [total, d.act], dev),
-            old_sigma: to_tensor(s.sigma.clone(), [total, d.act], dev),
+            old_sigma: to_tensor(s.sigma[..d.act].to_vec(), [1, d.act], dev), // every row's σ is the first's
             advantages: col(&s.advantages),
             returns: col(&s.returns),
             old_values: col(&s.values),
@@ -542,72 +550,99 @@ impl Ppo {
 
     /// `epochs` × `minibatches` gradient steps over the rollout `all` (`total` rows), shuffled by
     /// the learner RNG; ends the rollout.
+    ///
+    /// Nothing is read back inside the minibatch loop: the minibatches' rows are one upload (every
+    /// epoch's permutation, drawn as before), the adaptive learning rate is a `[1, 1]` tensor that
+    /// [`adapt_learning_rate`] changes from each minibatch's KL on the device, and the losses, KL
+    /// and gradient norms add up in a `[1, 5]` tensor; the update reads them, the learning rate and
+    /// log σ once at its end.
     pub(crate) fn optimise(&mut self, all: Batch, total: usize) -> Result<UpdateStats> {
         let dev = &self.device.clone();
+        let inner = dev.clone().inner();
         let on_gpu = super::nets::is_gpu(dev);
-        let mb_size = total / self.cfg.minibatches as usize;
-        let mut sums = [0.0f64; 5];
-        let mut count = 0usize;
-        for _epoch in 0..self.cfg.epochs {
+        let (epochs, minibatches) = (self.cfg.epochs as usize, self.cfg.minibatches as usize);
+        let mb_size = total / minibatches;
+        // every minibatch's rows, in order: epoch e's permutation, cut into minibatches
+        let mut rows: Vec<i32> = Vec::with_capacity(epochs * minibatches * mb_size);
+        for _epoch in 0..epochs {
             let perm = self.rng.permutation(total);
-            for m in 0..self.cfg.minibatches as usize {
-                let idx: Vec<i32> = perm[m * mb_size..(m + 1) * mb_size].iter().map(|&i| i as i32).collect();
-                if on_gpu {
-                    crate::host_traffic::add(4 * mb_size as u64);
-                }
-                let idx = Tensor::<1, Int>::from_data(TensorData::new(idx, [mb_size]), dev);
-                let pick = |t: &Tensor<2>| t.clone().select(0, idx.clone());
-                let b = Batch {
-                    obs: pick(&all.obs),
-                    priv_obs: pick(&all.priv_obs),
-                    actions: pick(&all.actions),
-                    old_log_prob: pick(&all.old_log_prob),
-                    old_mu: pick(&all.old_mu),
-                    old_sigma: pick(&all.old_sigma),
-                    advantages: pick(&all.advantages),
-                    returns: pick(&all.returns),
-                    old_values: pick(&all.old_values),
-                };
-                let params = &self.net.params;
-                let mu = self.net.actor(params, b.obs.clone(), b.priv_obs.clone());
-                let v = self.net.critic(params, b.priv_obs.clone());
-                let losses = ppo_losses(mu, self.net.log_std(params), v, &b, &self.cfg);
-                // one readback per minibatch: kl, surrogate, value, entropy
-                let scalars = to_host(Tensor::cat(
-                    vec![losses.kl.clone().inner(), losses.surrogate.clone().detach().inner(), losses.value.clone().detach().inner(), losses.entropy.clone().detach().inner()],
-                    0,
-                ))?;
-                let kl = scalars[0] as f64;
-                if self.cfg.schedule == LrSchedule::Adaptive && kl.is_finite() {
-                    let target = self.cfg.desired_kl as f64;
-                    if kl > 2.0 * target {
-                        self.lr = (self.lr / 1.5).max(self.cfg.min_learning_rate as f64);
-                    } else if kl < 0.5 * target && kl > 0.0 {
-                        self.lr = (self.lr * 1.5).min(self.cfg.max_learning_rate as f64);
-                    }
-                }
-                let grads = losses.total.backward();
-                let (gs, norm) = clipped_grads(params, &grads, self.cfg.max_grad_norm as f64)?;
-                let new_params = self.adam.step(params, gs, self.lr);
-                self.net.params = new_params;
-                let norm = to_host(norm)?[0] as f64;
-                for (acc, v) in sums.iter_mut().zip([scalars[1] as f64, scalars[2] as f64, scalars[3] as f64, kl, norm]) {
-                    *acc += v;
-                }
-                count += 1;
+            rows.extend(perm[..minibatches * mb_size].iter().map(|&i| i as i32));
+        }
+        if on_gpu {
+            crate::host_traffic::add(4 * rows.len() as u64);
+            crate::gpu_counts::add(crate::gpu_counts::Event::Upload, "burn:from_data (minibatch indices)");
+        }
+        let n_rows = rows.len();
+        let rows = Tensor::<1, Int>::from_data(TensorData::new(rows, [n_rows]), dev);
+        let mut lr = to_tensor(vec![self.lr as f32], [1, 1], &inner);
+        let mut sums: Option<Tensor<2>> = None; // Σ [surrogate, value, entropy, kl, ‖g‖] [1, 5]
+        let count = epochs * minibatches;
+        for k in 0..count {
+            let idx = rows.clone().narrow(0, k * mb_size, mb_size);
+            let pick = |t: &Tensor<2>| t.clone().select(0, idx.clone());
+            let b = Batch {
+                obs: pick(&all.obs),
+                priv_obs: pick(&all.priv_obs),
+                actions: pick(&all.actions),
+                old_log_prob: pick(&all.old_log_prob),
+                old_mu: pick(&all.old_mu),
+                old_sigma: all.old_sigma.clone(), // [1, A]: σ is the same for every row of a rollout
+                advantages: pick(&all.advantages),
+                returns: pick(&all.returns),
+                old_values: pick(&all.old_values),
+            };
+            let params = &self.net.params;
+            let mu = self.net.actor(params, b.obs.clone(), b.priv_obs.clone());
+            let v = self.net.critic(params, b.priv_obs.clone());
+            let losses = ppo_losses(mu, self.net.log_std(params), v, &b, &self.cfg);
+            if self.cfg.schedule == LrSchedule::Adaptive {
+                lr = adapt_learning_rate(lr, losses.kl.clone().inner(), &self.cfg);
             }
+            let grads = losses.total.backward();
+            let (new_params, norm) = self.adam.step_clipped(params, &grads, self.cfg.max_grad_norm as f64, &lr)?;
+            self.net.params = new_params;
+            let row = Tensor::cat(
+                vec![losses.surrogate.detach().inner(), losses.value.detach().inner(), losses.entropy.detach().inner(), losses.kl.inner(), norm.inner()],
+                0,
+            )
+            .reshape([1, 5]);
+            sums = Some(match sums {
+                Some(acc) => acc + row,
+                None => row,
+            });
         }
         self.step = 0;
+        // the update's one read: the sums, the learning rate, log σ
+        let log_std = self.net.log_std(&self.net.inference_params()); // [1, A]
+        let mut parts = vec![lr];
+        parts.extend(sums);
+        parts.push(log_std);
+        let v = to_host(Tensor::cat(parts, 1))?;
+        self.lr = v[0] as f64;
+        let (s, log_std) = if count > 0 { (&v[1..6], &v[6..]) } else { (&[0.0f32; 5][..], &v[1..]) };
         let c = count.max(1) as f64;
-        let log_std = to_host(self.net.log_std(&self.net.inference_params()))?;
         Ok(UpdateStats {
-            surrogate: sums[0] / c,
-            value: sums[1] / c,
-            entropy: sums[2] / c,
-            kl: sums[3] / c,
-            grad_norm: sums[4] / c,
+            surrogate: s[0] as f64 / c,
+            value: s[1] as f64 / c,
+            entropy: s[2] as f64 / c,
+            kl: s[3] as f64 / c,
+            grad_norm: s[4] as f64 / c,
             lr: self.lr,
             mean_std: log_std.iter().map(|l| (*l as f64).exp()).sum::<f64>() / log_std.len().max(1) as f64,
         })
     }
+}
+
+/// rsl_rl's adaptive learning rate from a minibatch's KL, as `[1, 1]` tensor ops (no host read):
+/// `lr / 1.5` (at least `min_learning_rate`) when `kl > 2 · desired_kl`, `lr · 1.5` (at most
+/// `max_learning_rate`) when `0 < kl < desired_kl / 2`, else unchanged (a non-finite KL too).
+pub fn adapt_learning_rate(lr: Tensor<2>, kl: Tensor<1>, cfg: &PpoConfig) -> Tensor<2> {
+    let kl: Tensor<2> = kl.reshape([1, 1]);
+    let target = cfg.desired_kl as f64;
+    let finite = kl.clone().is_finite();
+    let down = kl.clone().greater_elem(2.0 * target).bool_and(finite.clone());
+    let up = kl.clone().lower_elem(0.5 * target).bool_and(kl.greater_elem(0.0)).bool_and(finite);
+    let lower = lr.clone().div_scalar(1.5).clamp_min(cfg.min_learning_rate as f64);
+    let higher = lr.clone().mul_scalar(1.5).clamp_max(cfg.max_learning_rate as f64);
+    lr.mask_where(down, lower).mask_where(up, higher)
 }

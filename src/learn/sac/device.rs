@@ -150,6 +150,7 @@ impl DeviceReplay {
         let rows = |w: usize| -> Tensor<1, Int> {
             let idx: Vec<i32> = draw.window[w * b..(w + 1) * b].iter().map(|&r| r as i32).collect();
             crate::host_traffic::add(4 * b as u64);
+            crate::gpu_counts::add(crate::gpu_counts::Event::Upload, "burn:from_data (replay rows)");
             Tensor::<1, Int>::from_data(TensorData::new(idx, [b]), dev)
         };
         let valid = |w: usize| to_tensor(draw.valid[w * b..(w + 1) * b].iter().map(|&v| v as u8 as f32).collect(), [b, 1], dev);
@@ -271,7 +272,7 @@ impl Sac {
         ensure!(crate::learn::nets::is_gpu(&self.device), "device-resident rollouts need burn's wgpu learner (train.device = gpu)");
         let dims = self.dims;
         let b = self.cfg.batch_size as usize;
-        let noise = DeviceNoise::new(ctx, &self.device, (self.buffer.envs * dims.act).max(b * dims.act))?;
+        let noise = DeviceNoise::new(ctx, &self.device, (self.buffer.envs * dims.act).max(2 * b * dims.act))?;
         let replay = DeviceReplay::new(ctx, &self.device, &self.buffer)?;
         replay.load(&self.buffer)?;
         let bytes = replay.bytes();
@@ -289,14 +290,12 @@ impl Sac {
         let (seed, draw, normalize, random) = (self.noise_seed, self.noise_draw, self.normalize, self.env_steps < self.cfg.random_steps as u64);
         self.noise_draw = draw.wrapping_add(1);
         let dv = self.on_device.as_mut().ok_or_else(|| anyhow::anyhow!("act_device() before start_device_rollouts()"))?;
-        if normalize {
-            dv.norms.obs.update(obs);
-            dv.norms.priv_obs.update(priv_obs);
-        }
+        // merged first, then applied (the critic's normalised observations are not needed here)
+        let (obs_n, _) = dv.norms.update_and_normalize(obs, priv_obs, normalize)?;
         let actions = if random {
             dv.noise.uniforms(seed, draw, n, d.act)? // a ~ U[−1, 1)
         } else {
-            let x = Tensor::from_inner(dv.norms.obs.normalized(obs.clone(), normalize));
+            let x = Tensor::from_inner(obs_n);
             let params: Vec<Tensor<2>> = self.actor.iter().map(|p| p.clone().inner()).collect();
             let eps = dv.noise.normals(seed, draw, n, d.act)?; // ε ~ N(0, 1) [N, A]
             let (mu, log_std) = self.policy(&params, x);
@@ -358,6 +357,9 @@ impl Sac {
         let actor_rows = |kept: Option<Tensor<2>>, critic: &Tensor<2>| kept.unwrap_or_else(|| critic.clone().slice([0..b, 0..d.obs]));
         let (obs, next_obs) = (actor_rows(obs, &priv_obs), actor_rows(next_obs, &next_priv));
         let lift = Tensor::from_inner; // untracked, on the autodiff device, as the host path's uploads
+        // both draws in one kernel: rows 0..B the target's (draws.0), B..2B the actor's (draws.1)
+        ensure!(draws.1 == draws.0.wrapping_add(1), "a gradient step's noise draws must be consecutive");
+        let noise = dv.noise.normals_block(seed, draws.0, 2, b, d.act)?; // [2B, A]
         Ok(GradBatch {
             obs: lift(dv.norms.obs.normalized(obs, normalize)),
             next_obs: lift(dv.norms.obs.normalized(next_obs, normalize)),
@@ -366,8 +368,8 @@ impl Sac {
             actions: lift(actions),
             returns,
             bootstrap,
-            eps_actor: lift(dv.noise.normals(seed, draws.1, b, d.act)?),
-            eps_next: dv.noise.normals(seed, draws.0, b, d.act)?,
+            eps_actor: lift(noise.clone().narrow(0, b, b)),
+            eps_next: noise.narrow(0, 0, b),
         })
     }
 }

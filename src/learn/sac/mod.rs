@@ -32,7 +32,7 @@ use anyhow::{Result, ensure};
 use burn::prelude::*;
 
 use self::buffer::{ReplayBuffer, Sample, Transitions};
-use super::adam::{Adam, grads_of};
+use super::adam::Adam;
 use super::nets::{Activation, MlpLayout, to_host, to_tensor};
 use super::noise::{host_normals, host_uniforms};
 use super::normalizer::Normalizer;
@@ -103,12 +103,21 @@ pub struct SacStats {
 /// Sums behind [`SacStats`].
 #[derive(Clone, Debug, Default)]
 struct StatSums {
-    critic_loss: f64,
-    q_mean: f64,
+    /// Σ [critic loss, mean Q] over the critic steps `[1, 2]` (on the learner device: read by
+    /// `take_stats`, not by each gradient step).
+    critic: Option<Tensor<2>>,
     critic_steps: u64,
-    actor_loss: f64,
-    entropy: f64,
+    /// Σ [actor loss, entropy estimate] over the actor steps `[1, 2]`.
+    actor: Option<Tensor<2>>,
     actor_steps: u64,
+}
+
+/// `acc + row`, or `row` for the first.
+fn accumulate(acc: Option<Tensor<2>>, row: Tensor<2>) -> Option<Tensor<2>> {
+    Some(match acc {
+        Some(a) => a + row,
+        None => row,
+    })
 }
 
 /// The first half of a transition, kept from `act` to `observe`.
@@ -170,6 +179,8 @@ pub struct Sac {
     noise_draw: u32,
     /// The device-resident loop's state, once [`Sac::start_device_rollouts`] made it (`device.rs`).
     pub(crate) on_device: Option<device::DeviceSac>,
+    /// The critics', the actor's and the temperature's learning rates `[1, 1]` on the learner device.
+    learning_rates: [Tensor<2>; 3],
 }
 
 /// One gradient step's inputs on the learner device: normalised observations and the next ones
@@ -238,6 +249,7 @@ impl Sac {
             critic_updates: 0,
             target_entropy: -(cfg.target_entropy_scale as f64) * dims.act as f64,
             pending: None,
+            learning_rates: [cfg.critic_learning_rate, cfg.actor_learning_rate, cfg.alpha_learning_rate].map(|lr| to_tensor(vec![lr], [1, 1], &device.clone().inner())),
             sums: StatSums::default(),
             noise_seed: (seed ^ (seed >> 32)) as u32 ^ 0x5AC0_0A5E,
             noise_draw: 0,
@@ -429,8 +441,8 @@ impl Sac {
         let q_mean = q_sum.expect("at least one critic").div_scalar(self.critics.len() as f64);
         let all: Vec<Tensor<2>> = self.critics.iter().flatten().cloned().collect();
         let grads = critic_loss.clone().backward();
-        let gs = grads_of(&all, &grads, self.cfg.max_grad_norm as f64)?;
-        let mut updated = self.critic_adam.step(&all, gs, self.cfg.critic_learning_rate as f64).into_iter();
+        let [critic_lr, actor_lr, alpha_lr] = self.learning_rates.clone();
+        let mut updated = self.critic_adam.step_clipped(&all, &grads, self.cfg.max_grad_norm as f64, &critic_lr)?.0.into_iter();
         for c in &mut self.critics {
             for p in c.iter_mut() {
                 *p = updated.next().expect("one updated tensor per critic parameter");
@@ -444,7 +456,8 @@ impl Sac {
             }
         }
         self.critic_updates += 1;
-        let mut scalars = vec![critic_loss.detach().inner(), q_mean.inner()];
+        self.sums.critic = accumulate(self.sums.critic.take(), Tensor::cat(vec![critic_loss.detach().inner(), q_mean.inner()], 0).reshape([1, 2]));
+        self.sums.critic_steps += 1;
 
         // actor and temperature
         let actor_turn = self.critic_updates % self.cfg.policy_frequency as u64 == 0;
@@ -458,43 +471,37 @@ impl Sac {
             let alpha_c = alpha.clone().autodiff();
             let actor_loss = (logp.clone() * alpha_c - q_pi).mean(); // mean(α log π − Q)
             let grads = actor_loss.clone().backward();
-            let gs = grads_of(&self.actor, &grads, self.cfg.max_grad_norm as f64)?;
-            self.actor = self.actor_adam.step(&self.actor, gs, self.cfg.actor_learning_rate as f64);
+            self.actor = self.actor_adam.step_clipped(&self.actor, &grads, self.cfg.max_grad_norm as f64, &actor_lr)?.0;
             let logp_d = logp.detach().inner(); // [B, 1]
             if self.cfg.learn_alpha {
                 // L = −mean(log α · (log π + H̄)): ∂L/∂log α = −mean(log π + H̄)
                 let coef = logp_d.clone().add_scalar(self.target_entropy).mean().neg().reshape([1, 1]).autodiff();
                 let alpha_loss = (self.log_alpha.clone() * coef).sum();
                 let grads = alpha_loss.backward();
-                let gs = grads_of(std::slice::from_ref(&self.log_alpha), &grads, 0.0)?;
-                self.log_alpha = self.alpha_adam.step(std::slice::from_ref(&self.log_alpha), gs, self.cfg.alpha_learning_rate as f64).remove(0);
+                self.log_alpha = self.alpha_adam.step_clipped(std::slice::from_ref(&self.log_alpha), &grads, 0.0, &alpha_lr)?.0.remove(0);
             }
-            scalars.push(actor_loss.detach().inner());
-            scalars.push(logp_d.mean().neg()); // entropy estimate −mean log π
-        }
-        // one readback per gradient step
-        let v = to_host(Tensor::cat(scalars, 0))?;
-        self.sums.critic_loss += v[0] as f64;
-        self.sums.q_mean += v[1] as f64;
-        self.sums.critic_steps += 1;
-        if actor_turn {
-            self.sums.actor_loss += v[2] as f64;
-            self.sums.entropy += v[3] as f64;
+            // [actor loss, entropy estimate −mean log π]
+            let row = Tensor::cat(vec![actor_loss.detach().inner(), logp_d.mean().neg()], 0).reshape([1, 2]);
+            self.sums.actor = accumulate(self.sums.actor.take(), row);
             self.sums.actor_steps += 1;
         }
         Ok(())
     }
 
     /// The means of the gradient steps since the last call (NaN where none was taken), and resets them.
+    /// One read of the device: the sums of the gradient steps and log α.
     pub fn take_stats(&mut self) -> Result<SacStats> {
         let s = std::mem::take(&mut self.sums);
-        let per = |x: f64, k: u64| if k > 0 { x / k as f64 } else { f64::NAN };
+        let dev = self.device.clone().inner();
+        let sums = |t: Option<Tensor<2>>| t.unwrap_or_else(|| Tensor::zeros([1, 2], &dev));
+        let v = to_host(Tensor::cat(vec![sums(s.critic), sums(s.actor), self.log_alpha.clone().inner()], 1))?;
+        let per = |x: f32, k: u64| if k > 0 { x as f64 / k as f64 } else { f64::NAN };
         Ok(SacStats {
-            critic_loss: per(s.critic_loss, s.critic_steps),
-            actor_loss: per(s.actor_loss, s.actor_steps),
-            alpha: self.alpha()?,
-            entropy: per(s.entropy, s.actor_steps),
-            q_mean: per(s.q_mean, s.critic_steps),
+            critic_loss: per(v[0], s.critic_steps),
+            actor_loss: per(v[2], s.actor_steps),
+            alpha: v[4].exp() as f64,
+            entropy: per(v[3], s.actor_steps),
+            q_mean: per(v[1], s.critic_steps),
             updates: s.critic_steps,
             buffer_transitions: self.buffer.transitions() as u64,
         })

@@ -1,0 +1,189 @@
+//! What the GPU is asked to do, counted on the thread that asks (README "The GPU loop", "What the
+//! GPU is asked to do"): kernels, queue submissions and host synchronisations, each by where it
+//! comes from. The counts do not depend on the adapter (lavapipe counts what an H100 would run),
+//! so they are the figures a 2-core machine without a GPU can improve.
+//!
+//! - **Kernels**: every launch of burn's wgpu runtime (cubecl's launch observer, named as the
+//!   kernel names itself, shortened to its type name: `burn:matmul_entry`, `burn:elemwise_fuse`,
+//!   …), and every dispatch of dextrain's own shaders (`dextrain:<what>`, counted where the
+//!   compute pass is recorded).
+//! - **Submissions**: dextrain's own `queue.submit` calls by what they submit; the queue's total
+//!   (dextrain's and burn's together: cubecl submits before each upload, at each read, at each
+//!   flush and every few dozen kernels) is read from wgpu's submission index by
+//!   [`queue_submissions`], which costs one empty submission per reading.
+//! - **Host synchronisations**: `reads` (a blocking readback of device memory: burn's
+//!   `into_data` through `learn::nets::to_host`, or dextrain's staging-buffer reads), `maps` (the
+//!   staging buffers mapped by those reads) and `waits` (blocking `device.poll` calls). Uploads
+//!   (`queue.write_buffer`, burn's `from_data`) are counted beside them: they do not wait, but each
+//!   of burn's makes cubecl submit what it has recorded first.
+//!
+//! Counts are per thread (a run's loop is one thread; tests run runs side by side), read as a
+//! [`GpuCounts`] snapshot; the difference of two snapshots is what happened between them.
+
+use std::cell::RefCell;
+use std::collections::BTreeMap;
+use std::sync::{Arc, OnceLock};
+
+/// The kinds of events counted.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Event {
+    /// A kernel launch (burn's) or a compute dispatch (dextrain's).
+    Kernel,
+    /// A `queue.submit` by dextrain.
+    Submission,
+    /// A blocking readback of device memory.
+    Read,
+    /// A staging buffer mapped for reading.
+    Map,
+    /// A blocking wait for the device (`device.poll(wait)`).
+    Wait,
+    /// A host → device write.
+    Upload,
+}
+
+impl Event {
+    /// Every kind, in report order.
+    pub const ALL: [Event; 6] = [Event::Kernel, Event::Submission, Event::Read, Event::Map, Event::Wait, Event::Upload];
+
+    /// The name in reports (`kernels`, `submissions`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            Event::Kernel => "kernels",
+            Event::Submission => "submissions",
+            Event::Read => "reads",
+            Event::Map => "maps",
+            Event::Wait => "waits",
+            Event::Upload => "uploads",
+        }
+    }
+}
+
+thread_local! {
+    static COUNTS: RefCell<BTreeMap<(Event, String), u64>> = const { RefCell::new(BTreeMap::new()) };
+}
+
+/// Counts one event of `kind` from `source` on this thread.
+pub fn add(kind: Event, source: &str) {
+    add_n(kind, source, 1);
+}
+
+/// Counts `n` events of `kind` from `source` on this thread.
+pub fn add_n(kind: Event, source: &str, n: u64) {
+    if n == 0 {
+        return;
+    }
+    COUNTS.with(|c| {
+        let mut c = c.borrow_mut();
+        match c.get_mut(&(kind, source.to_string())) {
+            Some(v) => *v += n,
+            None => {
+                c.insert((kind, source.to_string()), n);
+            }
+        }
+    });
+}
+
+/// A snapshot of this thread's counts (or the difference of two: [`GpuCounts::since`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GpuCounts {
+    /// Events by (kind, source).
+    pub by_source: BTreeMap<(Event, String), u64>,
+}
+
+impl GpuCounts {
+    /// This thread's counts so far.
+    pub fn now() -> GpuCounts {
+        GpuCounts { by_source: COUNTS.with(|c| c.borrow().clone()) }
+    }
+
+    /// What was counted after `earlier` (a snapshot of the same thread).
+    pub fn since(&self, earlier: &GpuCounts) -> GpuCounts {
+        let mut by_source = BTreeMap::new();
+        for (k, &v) in &self.by_source {
+            let d = v - earlier.by_source.get(k).copied().unwrap_or(0);
+            if d > 0 {
+                by_source.insert(k.clone(), d);
+            }
+        }
+        GpuCounts { by_source }
+    }
+
+    /// Events of `kind`, from every source.
+    pub fn total(&self, kind: Event) -> u64 {
+        self.by_source.iter().filter(|((k, _), _)| *k == kind).map(|(_, v)| v).sum()
+    }
+
+    /// Events of `kind` from sources that start with `prefix` (`"burn:"`, `"dextrain:"`).
+    pub fn total_from(&self, kind: Event, prefix: &str) -> u64 {
+        self.by_source.iter().filter(|((k, s), _)| *k == kind && s.starts_with(prefix)).map(|(_, v)| v).sum()
+    }
+
+    /// Host synchronisations: the blocking reads (each of dextrain's readbacks maps its staging
+    /// buffers and waits once inside it; burn's reads wait inside cubecl).
+    pub fn host_syncs(&self) -> u64 {
+        self.total(Event::Read)
+    }
+
+    /// The report: per kind the total and the sources (`{"kernels": {"total": 41, "by_source":
+    /// {"burn:matmul_entry": 12, …}}, …}`), every count divided by `per` (e.g. the env steps the
+    /// snapshot covers), and `"queue_submissions"` (all submissions, burn's included) when known.
+    pub fn to_json(&self, per: f64, queue_submissions: Option<u64>) -> serde_json::Value {
+        let per = per.max(1e-12);
+        let mut out = serde_json::Map::new();
+        for kind in Event::ALL {
+            let sources: serde_json::Map<String, serde_json::Value> = self
+                .by_source
+                .iter()
+                .filter(|((k, _), _)| *k == kind)
+                .map(|((_, s), &v)| (s.clone(), serde_json::json!(v as f64 / per)))
+                .collect();
+            out.insert(kind.name().to_string(), serde_json::json!({ "total": self.total(kind) as f64 / per, "by_source": sources }));
+        }
+        out.insert("host_syncs".into(), serde_json::json!(self.host_syncs() as f64 / per));
+        out.insert("queue_submissions".into(), queue_submissions.map_or(serde_json::Value::Null, |q| serde_json::json!(q as f64 / per)));
+        serde_json::Value::Object(out)
+    }
+}
+
+/// The submissions made on `queue` so far (wgpu's submission index, which counts every
+/// `queue.submit` on the device, burn's included): the reading itself submits an empty command
+/// list, so the submissions between two readings `a`, `b` are `b − a − 1`. None if wgpu's index
+/// cannot be read (its only public form is its `Debug` text).
+pub fn queue_submissions(queue: &wgpu::Queue) -> Option<u64> {
+    let index = queue.submit(std::iter::empty());
+    let text = format!("{index:?}"); // "SubmissionIndex { index: 42 }"
+    let digits: String = text.chars().skip_while(|c| !c.is_ascii_digit()).take_while(|c| c.is_ascii_digit()).collect();
+    digits.parse().ok()
+}
+
+/// The submissions between two [`queue_submissions`] readings `a` then `b` (the second reading's
+/// own empty submission not counted).
+pub fn submissions_between(a: Option<u64>, b: Option<u64>) -> Option<u64> {
+    Some(b?.checked_sub(a?)?.saturating_sub(1))
+}
+
+/// burn's kernel names are Rust type names (`burn_cubecl::kernel::binary::BinaryOp<…>`, or a
+/// fused kernel's id): the last path segment before any generic arguments.
+fn short_kernel_name(name: &str) -> &str {
+    let base = name.split('<').next().unwrap_or(name);
+    base.rsplit("::").next().unwrap_or(base).trim()
+}
+
+/// cubecl's launch observer: counts each launch on the issuing thread.
+struct CountLaunches;
+
+impl cubecl_runtime::logging::LaunchObserver for CountLaunches {
+    fn launched(&self, kernel: &'static str) {
+        add(Event::Kernel, &format!("burn:{}", short_kernel_name(kernel)));
+    }
+}
+
+/// Installs the counter of burn's kernel launches (once per process; idempotent). Called where
+/// burn's wgpu runtime is started (`learn::device`).
+pub fn observe_burn_launches() {
+    static INSTALLED: OnceLock<()> = OnceLock::new();
+    INSTALLED.get_or_init(|| {
+        // the observation lasts as long as the process: it is never dropped
+        std::mem::forget(cubecl_runtime::logging::LaunchObservation::new(Arc::new(CountLaunches)));
+    });
+}
