@@ -4,9 +4,9 @@
 //! so they are the figures a 2-core machine without a GPU can improve.
 //!
 //! - **Kernels**: every launch of burn's wgpu runtime (cubecl's launch observer, named as the
-//!   kernel names itself, shortened to its type name: `burn:matmul_entry`, `burn:elemwise_fuse`,
-//!   …), and every dispatch of dextrain's own shaders (`dextrain:<what>`, counted where the
-//!   compute pass is recorded).
+//!   kernel names itself, shortened to its type name: `burn:MatmulEntry`, `burn:KernelBinop`, …),
+//!   and every dispatch of dextrain's own shaders (`dextrain:<what>`, counted where the compute
+//!   pass is recorded).
 //! - **Submissions**: dextrain's own `queue.submit` calls by what they submit; the queue's total
 //!   (dextrain's and burn's together: cubecl submits before each upload, at each read, at each
 //!   flush and every few dozen kernels) is read from wgpu's submission index by

@@ -284,8 +284,8 @@ fn sigterm_stops_a_training_run_with_a_checkpoint() {
 /// figure: env-only rates with the simulator's bytes per env (the bench scene; the cube, bottle and
 /// mug of issue 17), the PPO and SAC updates on the GPU, PPO training with the rollouts on the
 /// device and through the host (fewer host bytes per iteration on the device), SAC training, and
-/// the runs' device memory. Run again in the same folder with only some steps, the others are null,
-/// not the first run's figures.
+/// the runs' device memory, and the GPU's work (kernels, submissions, reads) of each. Run again in
+/// the same folder with only some steps, the others are null, not the first run's figures.
 #[test]
 fn gpu_suite_quick_writes_every_figure() {
     let Some(ctx) = crate::common::gpu_context("gpu_suite_quick_writes_every_figure") else { return };
@@ -321,6 +321,21 @@ fn gpu_suite_quick_writes_every_figure() {
     for k in ["train_ppo", "train_sac", "train_ppo_host_path"] {
         assert!(j[k]["iterations"].as_u64().unwrap_or(0) >= 1 && j[k]["env_steps_per_s_last"].as_f64().unwrap_or(0.0) > 0.0, "{k}: {text}");
     }
+    // what the GPU is asked to do (README "What the GPU is asked to do"): the benches report it, and
+    // the reads are pinned: an env step with its statistics read is one submission and one read; a
+    // PPO update reads once on the device (twice on the host path: the last values too), a
+    // device-resident rollout step never, a SAC gradient step never
+    let counts = |v: &serde_json::Value, kind: &str| v[kind]["total"].as_f64().unwrap_or(f64::NAN);
+    let env_counts = &j["env_only"][0]["gpu_counts_per_env_step"];
+    assert_eq!((counts(env_counts, "reads"), env_counts["queue_submissions"].as_f64()), (1.0, Some(1.0)), "{env_counts}");
+    let ppo_counts = &j["ppo_update"]["gpu_counts"];
+    assert_eq!(counts(&ppo_counts["per_update"], "reads"), 2.0, "{ppo_counts}");
+    assert_eq!(counts(&ppo_counts["per_policy_inference"], "reads"), 1.0, "{ppo_counts}");
+    assert!(counts(&ppo_counts["per_update"], "kernels") > 0.0 && ppo_counts["per_update"]["kernels"]["by_source"]["dextrain:adam"].as_f64().unwrap_or(0.0) > 0.0, "{ppo_counts}");
+    let dev_counts = &j["ppo_update"]["device_resident"]["gpu_counts"];
+    assert_eq!((counts(&dev_counts["per_update"], "reads"), counts(&dev_counts["per_rollout_step"], "reads")), (1.0, 0.0), "{dev_counts}");
+    assert_eq!(counts(&j["sac_update"]["gpu_counts"]["per_gradient_step"], "reads"), 0.0, "{text}");
+    assert_eq!(j["train_ppo"]["gpu_counts_last_iteration"]["syncs_per_update"].as_f64(), Some(1.0), "{text}");
     let bytes = |k: &str| j[k]["host_bytes_last_iteration"].as_f64().unwrap_or(f64::NAN);
     assert!(bytes("train_ppo") > 0.0 && bytes("train_ppo") * 10.0 < bytes("train_ppo_host_path"), "{text}");
     for k in ["train_ppo_run", "train_sac_run"] {

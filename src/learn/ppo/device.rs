@@ -41,9 +41,13 @@ struct StepRecord {
     dones: Option<Tensor<2>>,
 }
 
-/// A rollout's action noise: ε `[T · N, A]` (rows `t · N ..` are env step t's draw), σ `[1, A]`
-/// and the log-probabilities of the actions it makes `[T · N, 1]`.
+/// A block of a rollout's action noise: ε `[K · N, A]` for env steps `first .. first + K` (rows
+/// `k · N ..` are step `first + k`'s draw), σ `[1, A]` and the log-probabilities of the actions
+/// it makes `[K · N, 1]`. K is the whole rollout unless its noise would not fit one binding of the
+/// adapter.
 struct RolloutNoise {
+    first: usize,
+    steps: usize,
     eps: Tensor<2>,
     sigma: Tensor<2>,
     log_prob: Tensor<2>,
@@ -52,8 +56,10 @@ struct RolloutNoise {
 /// What a device-resident rollout holds beside [`Ppo`]'s networks.
 pub struct DeviceRollout {
     noise: DeviceNoise,
-    /// The rollout's action noise and what follows from it, made at its first step.
+    /// The rollout's action noise and what follows from it, made at its first step (in blocks of
+    /// `block_steps` env steps).
     noise_block: Option<RolloutNoise>,
+    block_steps: usize,
     /// The observation normalisers.
     pub(crate) norms: DeviceNormalizers,
     steps: Vec<StepRecord>,
@@ -66,9 +72,13 @@ impl Ppo {
     pub fn start_device_rollouts(&mut self, ctx: &GpuContext) -> Result<()> {
         ensure!(self.step == 0, "device-resident rollouts must start between iterations");
         ensure!(crate::learn::nets::is_gpu(&self.device), "device-resident rollouts need burn's wgpu learner (train.device = gpu)");
-        let noise = DeviceNoise::new(ctx, &self.device, self.storage.steps * self.storage.envs * self.dims().act)?;
+        // a rollout's noise in as few kernels as one storage binding of the adapter allows
+        let per_step = (self.storage.envs * self.dims().act).max(1);
+        let limit = ctx.device.limits().max_storage_buffer_binding_size as usize / 4;
+        let block_steps = (limit / per_step).clamp(1, self.storage.steps.max(1));
+        let noise = DeviceNoise::new(ctx, &self.device, block_steps * per_step)?;
         let norms = DeviceNormalizers::from_host(&self.obs_norm, &self.priv_norm, &self.device);
-        self.on_device = Some(DeviceRollout { noise, noise_block: None, norms, steps: Vec::with_capacity(self.storage.steps) });
+        self.on_device = Some(DeviceRollout { noise, noise_block: None, block_steps, norms, steps: Vec::with_capacity(self.storage.steps) });
         Ok(())
     }
 
@@ -86,20 +96,23 @@ impl Ppo {
         let params = self.net.inference_params();
         let mu = self.net.actor(&params, obs_n.clone(), priv_n.clone()); // [N, A]
         let values = self.net.critic(&params, priv_n.clone()); // [N, 1]
-        if self.step == 0 {
-            // what the parameters fix for the whole rollout, once: every step's noise in one kernel
-            // (draws draw, draw + 1, …: the host path draws the same numbers one step at a time),
-            // σ, and every step's log-probability, which depends on ε and σ only:
-            // log π(a|s) = −½ Σ ε² − (Σ log σ + ½ A ln 2π)             [T · N, 1]
-            let block = r.noise.normals_block(seed, draw, self.storage.steps, n, d.act)?; // ε ~ N(0, 1) [T · N, A]
+        let t = self.step;
+        if r.noise_block.as_ref().is_none_or(|b| t < b.first || t >= b.first + b.steps) {
+            // what the parameters fix for the rollout, once (per block): every step's noise in one
+            // kernel (draws draw, draw + 1, …: the host path draws the same numbers one step at a
+            // time), σ, and every step's log-probability, which depends on ε and σ only:
+            // log π(a|s) = −½ Σ ε² − (Σ log σ + ½ A ln 2π)             [K · N, 1]
+            let k = r.block_steps.min(self.storage.steps - t);
+            let block = r.noise.normals_block(seed, draw, k, n, d.act)?; // ε ~ N(0, 1) [K · N, A]
             let log_std = self.net.log_std(&params); // [1, A]
             let norm_const = log_std.clone().sum_dim(1).add_scalar(0.5 * d.act as f64 * LN_2PI); // [1, 1]
             let log_prob = block.clone().square().sum_dim(1).mul_scalar(-0.5) - norm_const;
-            r.noise_block = Some(RolloutNoise { eps: block, sigma: log_std.exp(), log_prob });
+            r.noise_block = Some(RolloutNoise { first: t, steps: k, eps: block, sigma: log_std.exp(), log_prob });
         }
         let noise = r.noise_block.as_ref().ok_or_else(|| anyhow::anyhow!("act_device(): the rollout's noise was not drawn"))?;
-        let eps = noise.eps.clone().narrow(0, self.step * n, n); // this step's ε [N, A]
-        let log_prob = noise.log_prob.clone().narrow(0, self.step * n, n); // [N, 1]
+        let row = (t - noise.first) * n;
+        let eps = noise.eps.clone().narrow(0, row, n); // this step's ε [N, A]
+        let log_prob = noise.log_prob.clone().narrow(0, row, n); // [N, 1]
         let sigma = noise.sigma.clone(); // [1, A]
         self.noise_draw = draw.wrapping_add(1);
         let actions = mu.clone() + sigma.clone() * eps; // a = μ + σ ε

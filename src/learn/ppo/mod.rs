@@ -435,7 +435,9 @@ impl Ppo {
         let n = obs.len() / d.obs;
         ensure!(obs.len() == n * d.obs && priv_obs.len() == n * d.priv_obs, "observation sizes do not match the learner");
         let x = to_tensor(self.obs_norm.normalized(obs, self.normalize), [n, d.obs], &self.device);
-        let p = to_tensor(self.priv_norm.normalized(priv_obs, self.normalize), [n, d.priv_obs], &self.device);
+        // the critic observation goes up only for a privileged encoder (the actor reads it for
+        // nothing else): without one, x stands in for it
+        let p = if self.net.encoder_shapes.is_empty() { x.clone() } else { to_tensor(self.priv_norm.normalized(priv_obs, self.normalize), [n, d.priv_obs], &self.device) };
         to_host(self.net.actor(&self.net.inference_params(), x, p))
     }
 

@@ -214,11 +214,15 @@ impl Sac {
             }
         }
         let actor = leaves(actor_values, &actor_layout.shapes(), &device)?;
-        let mut critics = Vec::new();
+        let (mut critics, mut targets) = (Vec::new(), Vec::new());
         for _ in 0..cfg.num_critics {
-            critics.push(leaves(critic_layout.init(&mut rng), &critic_layout.shapes(), &device)?);
+            let values = critic_layout.init(&mut rng);
+            // the targets start as copies in memory of their own: on a GPU the optimiser writes
+            // the critics in place (fused_adam.rs), which must not move the targets
+            let target: Vec<Tensor<2>> = values.iter().zip(critic_layout.shapes()).map(|(v, s)| to_tensor(v.clone(), s, &device).inner()).collect();
+            critics.push(leaves(values, &critic_layout.shapes(), &device)?);
+            targets.push(target);
         }
-        let targets = critics.iter().map(|c| c.iter().map(|p| p.clone().inner()).collect()).collect();
         let log_alpha = to_tensor(vec![cfg.init_alpha.ln()], [1, 1], &device).require_grad();
         let critic_shapes: Vec<[usize; 2]> = (0..cfg.num_critics).flat_map(|_| critic_layout.shapes()).collect();
         let mut actor_adam = Adam::new(&actor_layout.shapes(), &device);
@@ -452,6 +456,8 @@ impl Sac {
         let tau = self.cfg.tau as f64;
         for (t, c) in self.targets.iter_mut().zip(&self.critics) {
             for (tp, p) in t.iter_mut().zip(c) {
+                // (τ = 1: the target shares the critic's memory, which the next optimiser step
+                // writes in place on a GPU — after the step's targets were read: the same values)
                 *tp = if tau >= 1.0 { p.clone().inner() } else { p.clone().inner().mul_scalar(tau) + tp.clone().mul_scalar(1.0 - tau) };
             }
         }
