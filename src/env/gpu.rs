@@ -349,24 +349,8 @@ impl GpuContext {
     /// The bind group of entry point `uses` on `pipeline`'s derived layout: for each binding the
     /// entry point uses, the buffer that `buffers` (the module's buffers, by binding) gives for it.
     pub fn bind_group(&self, pipeline: &wgpu::ComputePipeline, uses: &EntryBindings, buffers: &[(Binding, &wgpu::Buffer)]) -> Result<wgpu::BindGroup> {
-        let mut entries = Vec::with_capacity(uses.bindings.len());
-        for b in uses.bindings {
-            let (_, buffer) = buffers
-                .iter()
-                .find(|(have, _)| have == b)
-                .ok_or_else(|| anyhow!("bind group of entry point `{}`: no buffer for binding {} `{}`", uses.entry_point, b.index, b.name))?;
-            entries.push(wgpu::BindGroupEntry { binding: b.index, resource: buffer.as_entire_binding() });
-        }
-        self.scoped(
-            || format!("creating the bind group of entry point `{}`", uses.entry_point),
-            || {
-                self.device.create_bind_group(&wgpu::BindGroupDescriptor {
-                    label: Some(uses.entry_point),
-                    layout: &pipeline.get_bind_group_layout(0),
-                    entries: &entries,
-                })
-            },
-        )
+        let whole: Vec<(Binding, (&wgpu::Buffer, u64, u64))> = buffers.iter().map(|&(b, buffer)| (b, (buffer, 0, buffer.size()))).collect();
+        self.bind_group_slices(pipeline, uses, &whole)
     }
 
     /// As [`GpuContext::bind_group`], each binding a slice `(buffer, offset, bytes)` (a burn tensor's
