@@ -64,7 +64,13 @@ pub fn task_shader_source() -> String {
 /// Workgroups (x, y) of a dispatch of `invocations` invocations (one per env, or per number drawn):
 /// 2-D past 65,535 workgroups, as `env_index` in common.wgsl reads them; at least one.
 pub fn workgroups_for(invocations: u32) -> (u32, u32) {
-    let wg = invocations.div_ceil(WORKGROUP_SIZE).max(1);
+    workgroups_of(invocations, WORKGROUP_SIZE)
+}
+
+/// Workgroups (x, y) of `size` invocations each for `invocations` invocations: 2-D past 65,535
+/// workgroups (the shader's index is `gid.x + gid.y · nwg.x · size`); at least one.
+pub fn workgroups_of(invocations: u32, size: u32) -> (u32, u32) {
+    let wg = invocations.div_ceil(size).max(1);
     let x = wg.min(65535);
     (x, wg.div_ceil(x))
 }

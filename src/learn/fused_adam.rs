@@ -20,8 +20,8 @@ use anyhow::{Context, Result, ensure};
 use burn::prelude::{Device, Tensor};
 
 use super::gpu_io::{TensorBuffer, flush, tensor_buffer};
-use crate::env::gpu::{GpuContext, SHADER_ADAM};
-use crate::env::gpu_bindings::{ADAM_GRAD, ADAM_GROUP, ADAM_LR, ADAM_M, ADAM_NORM, ADAM_NORM_FINAL, ADAM_NORM_PARTIAL, ADAM_PARAM, ADAM_PARAM_CFG, ADAM_PARTIALS as ADAM_PARTIALS_BUF, ADAM_STEP, ADAM_UPDATE, ADAM_V, Binding, EntryBindings};
+use crate::env::gpu::{GpuContext, SHADER_ADAM, workgroups_of};
+use crate::env::gpu_bindings::{ADAM_GRAD, ADAM_GROUP, ADAM_LR, ADAM_M, ADAM_NORM, ADAM_NORM_FINAL, ADAM_NORM_PARTIAL, ADAM_PARAM, ADAM_PARAM_CFG, ADAM_PARTIALS as ADAM_PARTIALS_BUF, ADAM_STEP, ADAM_UPDATE, ADAM_V};
 use crate::gpu_counts::{self, Event};
 
 /// Invocations per workgroup (adam.wgsl's `ADAM_WORKGROUP`).
@@ -141,9 +141,9 @@ impl FusedAdam {
         let partials = (&self.partials, 0u64, self.partials.size());
         let mut groups = Vec::with_capacity(2 * n + 1);
         for i in 0..n {
-            groups.push(self.group(&self.partial, &ADAM_NORM_PARTIAL, &[(ADAM_PARAM_CFG, cfg_slot(i)), (ADAM_GRAD, g[i].slice()), (ADAM_PARTIALS_BUF, partials)])?);
+            groups.push(self.ctx.bind_group_slices(&self.partial, &ADAM_NORM_PARTIAL, &[(ADAM_PARAM_CFG, cfg_slot(i)), (ADAM_GRAD, g[i].slice()), (ADAM_PARTIALS_BUF, partials)])?);
         }
-        groups.push(self.group(&self.fin, &ADAM_NORM_FINAL, &[(ADAM_STEP, step_cfg), (ADAM_PARAM_CFG, cfg_slot(0)), (ADAM_PARTIALS_BUF, partials), (ADAM_NORM, norm.slice())])?);
+        groups.push(self.ctx.bind_group_slices(&self.fin, &ADAM_NORM_FINAL, &[(ADAM_STEP, step_cfg), (ADAM_PARAM_CFG, cfg_slot(0)), (ADAM_PARTIALS_BUF, partials), (ADAM_NORM, norm.slice())])?);
         for i in 0..n {
             let uses = [
                 (ADAM_STEP, step_cfg),
@@ -155,7 +155,7 @@ impl FusedAdam {
                 (ADAM_NORM, norm.slice()),
                 (ADAM_LR, lrb.slice()),
             ];
-            groups.push(self.group(&self.update, &ADAM_UPDATE, &uses)?);
+            groups.push(self.ctx.bind_group_slices(&self.update, &ADAM_UPDATE, &uses)?);
         }
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         {
@@ -171,7 +171,7 @@ impl FusedAdam {
             for (i, group) in groups[n + 1..].iter().enumerate() {
                 pass.set_pipeline(&self.update);
                 pass.set_bind_group(0, group, &[]);
-                let (x, y) = update_workgroups(self.sizes[i]);
+                let (x, y) = workgroups_of(self.sizes[i], ADAM_WORKGROUP);
                 pass.dispatch_workgroups(x, y, 1);
             }
         }
@@ -181,16 +181,4 @@ impl FusedAdam {
         self.ctx.submit(enc, "the optimiser step (adam.wgsl)")?;
         Ok(Some(norm.tensor))
     }
-
-    /// A bind group of `uses` on `pipeline`, each binding a (buffer, offset, size) slice.
-    fn group(&self, pipeline: &wgpu::ComputePipeline, uses: &EntryBindings, slices: &[(Binding, (&wgpu::Buffer, u64, u64))]) -> Result<wgpu::BindGroup> {
-        self.ctx.bind_group_slices(pipeline, uses, slices)
-    }
-}
-
-/// Workgroups (x, y) of `adam_update` over `n` elements: 2-D past 65,535 (the shader's index
-/// `gid.x + gid.y · nwg.x · ADAM_WORKGROUP`).
-fn update_workgroups(n: u32) -> (u32, u32) {
-    let wg = n.div_ceil(ADAM_WORKGROUP).max(1);
-    if wg <= 65_535 { (wg, 1) } else { (65_535, wg.div_ceil(65_535)) }
 }

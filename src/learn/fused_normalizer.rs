@@ -14,7 +14,7 @@ use burn::prelude::{Device, Tensor};
 
 use super::gpu_io::{TensorBuffer, empty_buffer, flush, tensor_buffer};
 use super::normalizer::DeviceNormalizer;
-use crate::env::gpu::{GpuContext, SHADER_NORMALIZER};
+use crate::env::gpu::{GpuContext, SHADER_NORMALIZER, workgroups_of};
 use crate::env::gpu_bindings::{NORM_APPLY, NORM_CFG, NORM_GROUP, NORM_M2, NORM_MEAN, NORM_OUT, NORM_SCALE, NORM_UPDATE, NORM_X};
 use crate::gpu_counts::{self, Event};
 
@@ -105,8 +105,7 @@ impl NormalizerKernels {
                 pass.dispatch_workgroups(d as u32, 1, 1);
                 pass.set_pipeline(&self.apply);
                 pass.set_bind_group(0, &groups[2 * k + 1], &[]);
-                let wg = ((b * d) as u32).div_ceil(NORM_WORKGROUP).max(1);
-                let (gx, gy) = if wg <= 65_535 { (wg, 1) } else { (65_535, wg.div_ceil(65_535)) };
+                let (gx, gy) = workgroups_of((b * d) as u32, NORM_WORKGROUP);
                 pass.dispatch_workgroups(gx, gy, 1);
             }
         }
