@@ -5,13 +5,15 @@
 # target/release/dextrain, configs/ and this script to the machine, then, from the folder holding
 # configs/,
 #     benches/gpu_suite.sh --bin ./dextrain --out results/
-# It writes results/gpu_suite.json (one JSON object) and one log per step beside it. Steps:
+# It writes results/gpu_suite.json (one JSON object) and one log per step beside it. It stops at
+# once, with dextrain's account of what Vulkan found, when the adapter does not start. Steps:
 #   1. env-only throughput of the contact-rich bench scene (`dextrain bench --backend gpu`) at
 #      4 k, 16 k, 64 k and 256 k envs (every env step uploads the targets and reads the step
 #      statistics back, as an RL loop does), with the simulator's device bytes per env;
 #   1b. the same scene at OBJ_ENVS (65536) envs with the cube, the 3-piece bottle and the 16-piece mug
 #      (configs/bench_{cube,bottle,mug16}.toml): what a compound object costs per env step;
-#   2. the learner updates on the GPU at the peers' shapes (`bench --ppo` / `bench --sac --device gpu`);
+#   2. the learner updates on the GPU at the peers' shapes (`bench --ppo` / `bench --sac --device gpu`)
+#      and the PPO minibatch's products with each matmul routine (`bench --matmul`);
 #   3. PPO training on configs/lift_cube_gpu.toml for TRAIN_PPO_S seconds (SIGINT: the run stops at
 #      the end of its iteration with a checkpoint), then SAC on configs/lift_cube_sac_gpu.toml for
 #      TRAIN_SAC_S seconds: env-steps/s with the learner, the best success rate and the wall time
@@ -43,10 +45,10 @@ if [ "$quick" = 1 ]; then
     envs=${ENVS:-"64 128"}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; ppo_host_s=${TRAIN_PPO_HOST_S:-10}; bench_s=${BENCH_S:-0.5}; obj_envs=${OBJ_ENVS:-64}
     small=(--set sim.num_envs=64 --set train.steps_per_env=4 --set 'policy.actor_hidden=[32]' --set 'policy.critic_hidden=[32]')
     sac_small=(--set sac.batch_size=64 --set sac.learning_starts=8 --set sac.buffer_capacity=64)
-    ppo_sizes=(--envs 64 --iters 1); sac_sizes=(--envs 64 --iters 1 --batch 256 --gradient-steps 2)
+    ppo_sizes=(--envs 64 --iters 1); sac_sizes=(--envs 64 --iters 1 --batch 256 --gradient-steps 2); matmul_sizes=()  # (every routine compiles its kernels: minutes on lavapipe)
 else
     envs=${ENVS:-"4096 16384 65536 262144"}; ppo_s=${TRAIN_PPO_S:-210}; sac_s=${TRAIN_SAC_S:-90}; ppo_host_s=${TRAIN_PPO_HOST_S:-30}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
-    small=(); sac_small=(); ppo_sizes=(--iters 3); sac_sizes=(--iters 3)
+    small=(); sac_small=(); ppo_sizes=(--iters 3); sac_sizes=(--iters 3); matmul_sizes=(--iters 3)
 fi
 runs=$out/runs
 mkdir -p "$runs"
@@ -109,6 +111,13 @@ runs_step() { case "$steps" in *" $1 "*) return 0 ;; *) return 1 ;; esac; }
 
 start=$(date +%s)
 echo "gpu_suite: adapter $adapter, env counts $envs, quick=$quick" >&2
+# the adapter first: without it every step would fail and the JSON would be all nulls; dextrain's
+# message says what Vulkan found (the loader, the drivers, the packages that usually fix it)
+if ! "$bin" bench --backend "$adapter" --envs 64 --chunks 1 --seconds 0 >"$out/adapter_probe.json" 2>"$out/adapter_probe.log"; then
+    echo "gpu_suite: stopped: no usable GPU adapter ($adapter):" >&2
+    grep -v XDG_RUNTIME_DIR "$out/adapter_probe.log" >&2
+    exit 1
+fi
 env_json=""
 runs_step env || envs=""
 for n in $envs; do
@@ -125,12 +134,15 @@ for o in $objects; do
     obj_json="$obj_json${obj_json:+, }$(json_of "$out/object_$o.json")"
 done
 # a step that did not run reports null, never an earlier run's files
-ppo_json=null; sac_json=null; train_ppo=null; train_sac=null; train_host=null; ppo_run=null; sac_run=null
+ppo_json=null; sac_json=null; matmul_json=null; train_ppo=null; train_sac=null; train_host=null; ppo_run=null; sac_run=null
 if runs_step learner; then
     echo "gpu_suite: learner updates" >&2
     "$bin" bench --ppo --device "$adapter" "${ppo_sizes[@]}" >"$out/ppo_update.json" 2>"$out/ppo_update.log"
+    if [ ${#matmul_sizes[@]} -gt 0 ]; then
+        "$bin" bench --matmul --device "$adapter" "${matmul_sizes[@]}" >"$out/matmul.json" 2>"$out/matmul.log"
+    fi
     "$bin" bench --sac --device "$adapter" "${sac_sizes[@]}" >"$out/sac_update.json" 2>"$out/sac_update.log"
-    ppo_json=$(json_of "$out/ppo_update.json"); sac_json=$(json_of "$out/sac_update.json")
+    ppo_json=$(json_of "$out/ppo_update.json"); sac_json=$(json_of "$out/sac_update.json"); [ ${#matmul_sizes[@]} -gt 0 ] && matmul_json=$(json_of "$out/matmul.json")
 fi
 if runs_step train; then
     echo "gpu_suite: PPO lift for ${ppo_s}s" >&2
@@ -149,7 +161,7 @@ driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,
         "$([ "$quick" = 1 ] && echo true || echo false)" "$(date -u +%FT%TZ)" "$driver" "$(($(date +%s) - start))"
     printf ' "env_only": [%s],\n' "$env_json"
     printf ' "objects": [%s],\n' "$obj_json"
-    printf ' "ppo_update": %s,\n "sac_update": %s,\n' "$ppo_json" "$sac_json"
+    printf ' "ppo_update": %s,\n "sac_update": %s,\n "matmul_routines": %s,\n' "$ppo_json" "$sac_json" "$matmul_json"
     printf ' "train_ppo": %s,\n "train_sac": %s,\n "train_ppo_host_path": %s,\n' "$train_ppo" "$train_sac" "$train_host"
     printf ' "train_ppo_run": %s,\n "train_sac_run": %s}\n' "$ppo_run" "$sac_run"
 } >"$out/gpu_suite.json"

@@ -356,6 +356,8 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
     Ok(json!({
         "bench": "dextrain_ppo_bench",
         "device": device_name,
+        // products that fell back from the chosen GPU matmul routine to burn's (0: all ran the chosen one)
+        "gpu_matmul_fallbacks": crate::learn::gpu_matmul::fallbacks(),
         "threads": rayon::current_num_threads(),
         "config": {"num_envs": o.envs, "num_steps_per_env": o.steps, "obs_dim": o.obs, "critic_obs_dim": o.priv_obs,
                    "action_dim": o.actions, "hidden": o.hidden, "activation": "elu", "epochs": o.epochs,
@@ -451,6 +453,8 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
     Ok(json!({
         "bench": "dextrain_sac_bench",
         "device": device_name,
+        // products that fell back from the chosen GPU matmul routine to burn's (0: all ran the chosen one)
+        "gpu_matmul_fallbacks": crate::learn::gpu_matmul::fallbacks(),
         "threads": rayon::current_num_threads(),
         "batch": o.batch, "gradient_steps": o.gradient_steps, "hidden": o.hidden, "activation": "elu",
         "obs": o.obs, "state": o.priv_obs, "actions": o.actions, "num_envs": o.envs, "memory_size": o.memory,

@@ -4,6 +4,7 @@
 //! [`env::EnvBatch`]), `hand` the URDF loader, `object` the manipulated objects, `traj` reference trajectories, `record` MCAP rollouts.
 
 pub mod bench;
+pub mod bench_matmul;
 pub mod checkpoint;
 pub mod config;
 pub mod console;

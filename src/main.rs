@@ -35,12 +35,16 @@ enum Command {
     Bench {
         /// Time a PPO update (4096 envs × 24 steps, obs 96, critic obs 130, 22 actions, [512, 256, 128]
         /// ELU, 5 epochs × 4 minibatches) on synthetic data instead of the simulator.
-        #[arg(long, conflicts_with = "sac")]
+        #[arg(long, conflicts_with_all = ["sac", "matmul"])]
         ppo: bool,
         /// Time SAC's gradient step (replay of --envs × 64 transitions, obs 96, critic obs 130, 22
         /// actions, [512, 256, 128] ELU, 2 critics, learned α) on synthetic data.
-        #[arg(long)]
+        #[arg(long, conflicts_with = "matmul")]
         sac: bool,
+        /// Time the GPU learner's matrix products (one PPO minibatch of --envs × 24 / 4 rows through
+        /// the peer networks) with each matmul routine (`DEXTRAIN_GPU_MATMUL` names one for a run).
+        #[arg(long)]
+        matmul: bool,
         /// SAC bench: transitions per gradient step.
         #[arg(long, default_value_t = 4096)]
         batch: usize,
@@ -50,10 +54,10 @@ enum Command {
         /// Worker threads of the CPU backends (default: one per core).
         #[arg(long)]
         threads: Option<usize>,
-        /// PPO / SAC bench: learner device (cpu, gpu, gpu:NAME, auto).
+        /// PPO / SAC / matmul bench: learner device (cpu, gpu, gpu:NAME, auto).
         #[arg(long, default_value = "cpu")]
         device: dextrain::config::BackendChoice,
-        /// PPO / SAC bench: timed iterations (after one warm-up).
+        /// PPO / SAC bench: timed iterations (after one warm-up); matmul bench: timed rounds per product.
         #[arg(long, default_value_t = 5)]
         iters: usize,
         /// A config file (default: the built-in scene of configs/bench_cube.toml).
@@ -141,7 +145,7 @@ fn run(cli: Cli) -> Result<()> {
             console::status(dextrain::task::spec::layout_table(&task.priv_layout, "critic observation").trim_end());
             Ok(())
         }
-        Command::Bench { ppo, sac, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds } => {
+        Command::Bench { ppo, sac, matmul, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds } => {
             if let Some(t) = threads {
                 rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot size the thread pool")?;
             }
@@ -149,6 +153,14 @@ fn run(cli: Cli) -> Result<()> {
                 let (dev, name, ctx) = dextrain::learn::device::learner_device_and_context(&device)?;
                 let opts = dextrain::bench::PpoBenchOptions { envs: envs.unwrap_or(4096), iters: iters.max(1), ..Default::default() };
                 let report = dextrain::bench::run_ppo_bench(&opts, dev, &name, ctx.as_ref())?;
+                console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
+                return Ok(());
+            }
+            if matmul {
+                let (dev, name, _ctx) = dextrain::learn::device::learner_device_and_context(&device)?;
+                anyhow::ensure!(dextrain::learn::nets::is_gpu(&dev), "bench --matmul: --device must be a GPU (got {name})");
+                let rows = envs.unwrap_or(4096) * 24 / 4;
+                let report = dextrain::bench_matmul::run_matmul_bench(rows, 10, iters.max(1), dev, &name)?;
                 console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
                 return Ok(());
             }

@@ -3,8 +3,8 @@
 //!
 //! A run name is one path component of letters, digits, `-`, `_` and `.` (not `.` or `..`), so a
 //! run cannot escape `runs/`. An existing run directory is never overwritten unless `--force` is
-//! given, and `--force` only ever replaces a run directory: one with a `config.toml` and a
-//! `metrics.csv` that holds
+//! given, and `--force` only ever replaces a run directory: one with a `config.toml` (what dextrain
+//! writes first, so a run that failed to start has one) that holds
 //! nothing but what dextrain writes into a run ([`RUN_ENTRIES`], TensorBoard event files). Anything
 //! else — a directory that is not a run, a run with a file of the user's in it — is refused with a
 //! one-line error and left untouched: nothing a user wrote is deleted.
@@ -62,10 +62,10 @@ fn not_replaceable(dir: &Path) -> Result<Option<String>> {
     if !meta.is_dir() {
         return Ok(Some("it is not a directory".into()));
     }
-    for need in ["config.toml", "metrics.csv"] {
-        if !dir.join(need).is_file() {
-            return Ok(Some(format!("it is not a run directory (no {need})")));
-        }
+    // dextrain writes config.toml first: a run that failed to start (no adapter, a buffer too
+    // large) may hold nothing else, or an empty or partial metrics.csv
+    if !dir.join("config.toml").is_file() {
+        return Ok(Some("it is not a run directory (no config.toml)".into()));
     }
     let rd = std::fs::read_dir(dir).with_context(|| format!("cannot list {}", dir.display()))?;
     for e in rd {
@@ -94,6 +94,17 @@ pub fn create(runs_root: &Path, name: &str, force: bool) -> Result<PathBuf> {
     }
     std::fs::create_dir_all(&dir).with_context(|| format!("cannot create the run directory {}", dir.display()))?;
     Ok(dir)
+}
+
+/// Removes the directory of a new run that failed before its first iteration, when it holds only
+/// what dextrain wrote (config.toml, an empty or partial metrics.csv, TensorBoard files): a failed
+/// start leaves nothing behind that `--force` or a new run would trip on. Anything else is kept.
+pub fn remove_failed_start(dir: &Path) -> Result<()> {
+    let metrics_rows = std::fs::read_to_string(dir.join("metrics.csv")).map(|t| t.lines().count().saturating_sub(1)).unwrap_or(0);
+    if metrics_rows == 0 && !dir.join("checkpoints").exists() && not_replaceable(dir)?.is_none() {
+        std::fs::remove_dir_all(dir).with_context(|| format!("cannot remove {}", dir.display()))?;
+    }
+    Ok(())
 }
 
 /// Checks that `dir` is a run directory (it has `config.toml`).

@@ -86,6 +86,11 @@ pub struct SacConfig {
     pub actor_layer_norm: bool,
     /// Factor on the rewards before the critics' targets (logged rewards are unscaled).
     pub reward_scale: f32,
+    /// The most bytes of one piece of a device-resident replay array (0: the adapter's largest
+    /// storage binding). An array larger than that is stored as several pieces of whole slots
+    /// (every env's transitions of a step stay in one piece), so a buffer of any size starts on any
+    /// adapter; a smaller value only forces the split (the tests do, on lavapipe).
+    pub device_piece_bytes: u64,
 }
 
 impl Default for SacConfig {
@@ -117,6 +122,7 @@ impl Default for SacConfig {
             critic_layer_norm: false,
             actor_layer_norm: false,
             reward_scale: 1.0,
+            device_piece_bytes: 0,
         }
     }
 }

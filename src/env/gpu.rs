@@ -186,8 +186,9 @@ impl GpuContext {
             }
             None => adapters.into_iter().find(|a| !is_software(&a.get_info())).ok_or_else(|| {
                 anyhow!(
-                    "no hardware GPU adapter (adapters: {}); name a software one with backend = \"gpu:llvmpipe\"",
-                    if listed.is_empty() { "none".into() } else { listed.join(", ") }
+                    "no hardware GPU adapter (adapters: {}); name a software one with backend = \"gpu:llvmpipe\". {}",
+                    if listed.is_empty() { "none".into() } else { listed.join(", ") },
+                    super::vulkan_probe::diagnose()
                 )
             })?,
         };

@@ -31,6 +31,7 @@ pub mod gpu_layout;
 pub mod physics;
 pub mod reference;
 pub mod reset;
+pub mod vulkan_probe;
 
 use anyhow::{Result, bail};
 use glam::{Mat3, Quat, Vec3};

@@ -79,6 +79,7 @@ fn wgpu_on(ctx: &GpuContext) -> Result<(Device, String)> {
         backend: ctx.info.backend,
     };
     crate::gpu_counts::observe_burn_launches();
+    let matmul = crate::learn::gpu_matmul::configure()?;
     let device = Device::wgpu_options()
         .setup(setup)
         .init()
@@ -89,5 +90,5 @@ fn wgpu_on(ctx: &GpuContext) -> Result<(Device, String)> {
         all.retain(|(d, _)| *d != inner);
         all.push((inner, ctx.clone()));
     }
-    Ok((device.autodiff(), format!("gpu (burn wgpu, {})", ctx.describe())))
+    Ok((device.autodiff(), format!("gpu (burn wgpu, {}, matmul {})", ctx.describe(), matmul.name())))
 }

@@ -64,6 +64,12 @@ pub fn row_split(device: &Device, rows: usize) -> usize {
     if device.identity().is_none() {
         return 1;
     }
+    split_for_rows(rows)
+}
+
+/// [`row_split`]'s slice count on a GPU: the largest S ≤ 32 that divides `rows` with at least 2,048
+/// rows per slice (1 for fewer rows).
+pub fn split_for_rows(rows: usize) -> usize {
     (1..=MAX_SPLIT.min(rows / SPLIT_ROWS).max(1)).rev().find(|s| rows % s == 0).unwrap_or(1)
 }
 
@@ -85,8 +91,10 @@ pub fn matmul_rows(x: Tensor<2>, w: Tensor<2>, split: usize) -> Tensor<2> {
 /// gradient `1ᵀ g` is then a split product and a sum over S, where the broadcast add's gradient
 /// is a sum over the B rows of [B, out], which cubecl runs as a reduction per output column.
 pub fn affine(x: Tensor<2>, w: Tensor<2>, b: Tensor<2>, split: usize) -> Tensor<2> {
-    if split <= 1 {
-        return super::affine::fused_affine(x, w, b); // [B, out]: one op with its own gradient (affine.rs)
+    if split <= 1 || super::gpu_matmul::chosen().splits_inside() {
+        // [B, out]: one op with its own gradient (affine.rs; on a GPU with a cubek routine the
+        // weight gradient is split over row slices inside it)
+        return super::affine::fused_affine(x, w, b);
     }
     let ones = Tensor::<2>::ones([x.dims()[0], 1], &x.device()); // [B, 1]
     matmul_rows(x, w, split) + matmul_rows(ones, b, split)
@@ -139,10 +147,29 @@ pub fn to_host<const D: usize>(t: Tensor<D>) -> Result<Vec<f32>> {
 /// training); the sums over each dimension in turn are fixed reductions. The CPU keeps `sum`.
 pub fn sum_all(t: Tensor<2>) -> Tensor<1> {
     if is_gpu(&t.device()) {
-        t.sum_dim(0).sum_dim(1).reshape([1])
+        crate::learn::row_sums::sum_all_two_stage(t) // a long axis in two stages: many threads, fixed order
     } else {
         t.sum()
     }
+}
+
+/// The mean of every entry of `t` `[R, C]` as a `[1]` tensor: on a GPU, for as many entries as
+/// `learn::row_sums` cuts in blocks, [`sum_all`] / (R·C) (a fixed order on many threads, where
+/// burn's `mean` sums all entries on one thread); elsewhere `mean`.
+pub fn mean_all(t: Tensor<2>) -> Tensor<1> {
+    let n = t.shape().num_elements();
+    if is_gpu(&t.device()) && crate::learn::row_sums::blocks_for(n).is_some() {
+        sum_all(t).div_scalar(n as f64)
+    } else {
+        t.mean() // the CPU, or too few entries for a second stage to pay
+    }
+}
+
+/// `x` [1, C] to meet a batch of `rows` rows: on a GPU repeated over the rows with a two-stage
+/// column sum as its gradient (`learn::row_sums::rows_of`), on the CPU `x` itself (broadcast by
+/// the operation that uses it, as before).
+pub fn batch_row(x: Tensor<2>, rows: usize) -> Tensor<2> {
+    if is_gpu(&x.device()) { crate::learn::row_sums::rows_of(x, rows) } else { x }
 }
 
 /// Whether `device` is a GPU (burn's cubecl backend: wgpu), i.e. not host memory.

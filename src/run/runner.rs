@@ -282,6 +282,20 @@ fn absolute(p: &Path) -> String {
 /// Runs (or resumes) a training run with the algorithm that `make` builds; returns its directory.
 pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
     let (cfg, dir, resume) = setup(args)?;
+    let fresh = resume.is_none();
+    let result = train_in(args, make, cfg, dir.clone(), resume);
+    if result.is_err() && fresh {
+        // a new run that failed before its first iteration (no adapter, a buffer too large, …)
+        // leaves no directory behind; one with iterations or checkpoints stays
+        if let Err(e) = run_dir::remove_failed_start(&dir) {
+            console::status(&format!("warning: {e:#}"));
+        }
+    }
+    result
+}
+
+/// The training loop of [`run`] in `dir`, from `resume`'s checkpoint or from the start.
+fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, dir: PathBuf, resume: Option<PathBuf>) -> Result<PathBuf> {
     let model = SimModel::from_config(&cfg)?;
     let mut task = make_task_batch(&cfg, model)?;
     let spec = task.spec().clone();

@@ -286,6 +286,24 @@ fn sigterm_stops_a_training_run_with_a_checkpoint() {
 /// device and through the host (fewer host bytes per iteration on the device), SAC training, and
 /// the runs' device memory, and the GPU's work (kernels, submissions, reads) of each. Run again in
 /// the same folder with only some steps, the others are null, not the first run's figures.
+/// `benches/gpu_suite.sh` stops at once, with dextrain's account of the adapter, when the adapter
+/// it is given does not start (no JSON full of nulls, no step run).
+#[test]
+fn gpu_suite_stops_first_without_an_adapter() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = Command::new("bash")
+        .args(["benches/gpu_suite.sh", "--quick", "--bin", env!("CARGO_BIN_EXE_dextrain"), "--out"])
+        .arg(tmp.path())
+        .envs([("ADAPTER", "gpu:no-such-adapter")])
+        .current_dir(ROOT)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("stopped: no usable GPU adapter") && err.contains("no-such-adapter"), "{err}");
+    assert!(!tmp.path().join("gpu_suite.json").exists() && !tmp.path().join("env_64.json").exists(), "a step ran: {err}");
+}
+
 #[test]
 fn gpu_suite_quick_writes_every_figure() {
     let Some(ctx) = crate::common::gpu_context("gpu_suite_quick_writes_every_figure") else { return };

@@ -860,3 +860,89 @@ fn optimiser_and_normaliser_kernels_match_their_tensor_twins() {
         }
     }
 }
+
+/// The GPU learner's sums over the batch's rows in two stages (`learn::row_sums`) and its products
+/// with each matmul routine (`learn::gpu_matmul`) against plain tensor ops: the same values, the
+/// same bits run to run, the two-stage path taken where the rows allow it, and a broadcast
+/// parameter's gradient through `rows_of` equal to burn's broadcast gradient.
+#[test]
+fn row_sums_and_matmul_routines_match_their_tensor_twins() {
+    use dextrain::learn::gpu_matmul::{self, GpuMatmul};
+    use dextrain::learn::row_sums::{blocks_for, column_sums, rows_of, sum_all_two_stage};
+    assert_eq!(blocks_for(24_576), Some(256));
+    assert_eq!(blocks_for(6_144), Some(256));
+    assert_eq!(blocks_for(2_048 + 8), Some(8), "2056 = 8 · 257");
+    assert_eq!(blocks_for(4_097), None, "an odd count has no blocks");
+    assert_eq!(blocks_for(1_024), None, "too few rows to pay");
+    let Some((_ctx, gpu)) = crate::common::wgpu_learner("row_sums_and_matmul_routines_match_their_tensor_twins") else { return };
+    let dev = gpu.clone().inner();
+    let mut rng = Rng::new(9, 9);
+    let mut draw = |len: usize| -> Vec<f32> { (0..len).map(|_| rng.normal() as f32).collect() };
+    for (rows, cols) in [(4096usize, 22usize), (4096, 1), (3001, 5)] {
+        let host = draw(rows * cols);
+        let g = to_tensor(host.clone(), [rows, cols], &dev);
+        let got = to_host(column_sums(g.clone())).unwrap();
+        let again = to_host(column_sums(g.clone())).unwrap();
+        assert_eq!(got, again, "{rows}×{cols}: the column sums repeat bit for bit");
+        for c in 0..cols {
+            let want: f64 = (0..rows).map(|r| host[r * cols + c] as f64).sum();
+            assert!((got[c] as f64 - want).abs() < 1e-4 * (1.0 + want.abs()), "{rows}×{cols} column {c}: {} vs {want}", got[c]);
+        }
+        let all = to_host(sum_all_two_stage(g)).unwrap()[0] as f64;
+        let want: f64 = host.iter().map(|&v| v as f64).sum();
+        assert!((all - want).abs() < 1e-3 * (1.0 + want.abs()), "{rows}×{cols} Σ all: {all} vs {want}");
+    }
+    // ∂/∂x of Σ (rows_of(x) ⊙ y) = 1ᵀ y, as burn's broadcast gives it
+    let (rows, cols) = (4096, 22);
+    let x0 = draw(cols);
+    let y = to_tensor(draw(rows * cols), [rows, cols], &gpu);
+    let grad_of = |expand: bool| -> Vec<f32> {
+        let x = to_tensor(x0.clone(), [1, cols], &gpu).require_grad();
+        let xr = if expand { rows_of(x.clone(), rows) } else { x.clone() };
+        let loss = (xr * y.clone()).sum();
+        let grads = loss.backward();
+        to_host(x.grad(&grads).expect("x has a gradient")).unwrap()
+    };
+    let (ours, burns) = (grad_of(true), grad_of(false));
+    for c in 0..cols {
+        assert!((ours[c] - burns[c]).abs() < 1e-3 * (1.0 + burns[c].abs()), "∂x[{c}]: rows_of {} vs broadcast {}", ours[c], burns[c]);
+    }
+    // every routine that takes the shapes gives burn's products (transposed views included)
+    let (m, k, n) = (300, 70, 45);
+    let a = to_tensor(draw(m * k), [m, k], &dev);
+    let b = to_tensor(draw(k * n), [k, n], &dev);
+    let bt = to_tensor(draw(n * k), [n, k], &dev).transpose(); // [k, n], a strided view
+    let prim = |t: &Tensor<2>| t.clone().try_into_primitive::<burn::backend::Cube>().unwrap();
+    for rhs in [&b, &bt] {
+        let want = to_host(a.clone().matmul(rhs.clone())).unwrap();
+        let mut ran = 0;
+        for (routine, name) in GpuMatmul::NAMES {
+            let before = gpu_matmul::fallbacks();
+            let got = to_host(Tensor::<2>::from_primitive::<burn::backend::Cube>(gpu_matmul::matmul_with(routine, prim(&a), prim(rhs)))).unwrap();
+            ran += usize::from(gpu_matmul::fallbacks() == before);
+            let worst = got.iter().zip(&want).map(|(g, w)| (g - w).abs() / (1.0 + w.abs())).fold(0.0f32, f32::max);
+            assert!(worst < 1e-4, "{name}: products differ from burn's by {worst}");
+        }
+        assert!(ran >= 4, "the unit routines run on any adapter: {ran} of {} ran", GpuMatmul::NAMES.len());
+    }
+    // the dense layer's gradients on the GPU (the weight gradient split over 2 row slices of
+    // 2,048 inside the op, ∂b two-stage) against the CPU's
+    let (rows, i, o) = (4096, 24, 40);
+    let (xv, wv, bv, cv) = (draw(rows * i), draw(i * o), draw(o), draw(rows * o));
+    let grads_on = |device: &Device| -> Vec<Vec<f32>> {
+        let x = to_tensor(xv.clone(), [rows, i], device).require_grad();
+        let w = to_tensor(wv.clone(), [i, o], device).require_grad();
+        let b = to_tensor(bv.clone(), [1, o], device).require_grad();
+        let y = dextrain::learn::affine::fused_affine(x.clone(), w.clone(), b.clone());
+        let grads = (y * to_tensor(cv.clone(), [rows, o], device)).sum().backward();
+        [x, w, b].iter().map(|t| to_host(t.grad(&grads).expect("a gradient")).unwrap()).collect()
+    };
+    assert_eq!(dextrain::learn::nets::split_for_rows(rows), 2);
+    for (k, (g, c)) in grads_on(&gpu).iter().zip(grads_on(&cpu())).enumerate() {
+        let worst = g.iter().zip(&c).map(|(a, b)| (a - b).abs() / (1.0 + b.abs())).fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "gradient {k} (x, W, b) differs from the CPU's by {worst}");
+    }
+    assert!(GpuMatmul::parse("double_unit").is_ok());
+    let err = GpuMatmul::parse("fastest").unwrap_err().to_string();
+    assert!(err.contains("DEXTRAIN_GPU_MATMUL") && err.contains("simple_unit"), "{err}");
+}

@@ -349,7 +349,15 @@ fn sac_trains_with_its_replay_buffer_on_one_gpu_device() {
     };
     let host = train(&sac_args("host", &["train.device_rollouts=false"])).expect("SAC on the GPU, host path");
     let dev = train(&sac_args("dev", &[])).expect("SAC on the GPU, device-resident");
-    let mut half = sac_args("half", &[]);
+    // the rings in pieces of a few slots (as an adapter's binding limit would cut a large buffer:
+    // here 9,000 bytes, 2 slots of the 8 envs' critic observations, 3 of the actor's): the same
+    // run bit for bit; the half run below and its resume keep pieces too (read into the checkpoint
+    // and written back piece by piece)
+    let pieces = "sac.device_piece_bytes=9000";
+    let split = train(&sac_args("split", &[pieces])).expect("SAC with its rings in pieces");
+    assert!(same_bits(&metrics(&dev).1, &metrics(&split).1), "the rings in pieces changed the run:\n{:?}\n{:?}", metrics(&dev).1, metrics(&split).1);
+    assert_eq!(model_bytes(&dev, 3), model_bytes(&split, 3), "the rings in pieces changed the model");
+    let mut half = sac_args("half", &[pieces]);
     half.stop_after = Some(2);
     let resumed = train(&half).expect("first part");
     assert!(resumed.join("checkpoints/2/replay.safetensors").is_file(), "the checkpoint holds the buffer read from the device");
@@ -468,6 +476,53 @@ fn force_only_ever_replaces_a_run_directory() {
     train(&force_r).expect("--force replaces a run");
     assert_eq!(metrics(&run).1.len(), 2);
     assert!(!run.join("checkpoints/4").exists());
+}
+
+/// A new run that fails to start (here: no such GPU adapter) removes the directory it made, and
+/// `--force` replaces what a failed start left (config.toml and a metrics.csv without rows).
+#[test]
+fn a_failed_start_leaves_nothing_that_force_refuses() {
+    let tmp = tempfile::tempdir().unwrap();
+    let runs = tmp.path();
+    let mut failing = args(runs, "f");
+    failing.sets.push("sim.backend=gpu:no-such-adapter".into());
+    let err = format!("{:#}", train(&failing).unwrap_err());
+    assert!(err.contains("no-such-adapter"), "{err}");
+    assert!(!runs.join("f").exists(), "the failed start left its directory behind");
+    // what a failed start of an older dextrain left behind
+    let old = runs.join("f");
+    std::fs::create_dir_all(&old).unwrap();
+    std::fs::write(old.join("config.toml"), "seed = 0\n").unwrap();
+    std::fs::write(old.join("metrics.csv"), "iteration,env_steps\n").unwrap();
+    let err = format!("{:#}", train(&args(runs, "f")).unwrap_err());
+    assert!(err.contains("--force"), "without --force the directory is kept: {err}");
+    let mut force = args(runs, "f");
+    force.force = true;
+    let run = train(&force).expect("--force replaces a failed start's directory");
+    assert!(!metrics(&run).1.is_empty() && run.join("checkpoints").is_dir());
+    // a run with iterations that then fails (here: resumed past its end) keeps its directory
+    let err = format!("{:#}", train(&TrainArgs { resume: Some(run.clone()), config: None, sets: Vec::new(), ..args(runs, "f") }).unwrap_err());
+    assert!(err.contains("finished"), "{err}");
+    assert!(run.join("checkpoints").is_dir());
+}
+
+/// With no hardware adapter, the error says what Vulkan found: the loader, each driver manifest
+/// and why its library does not load, the packages that usually fix it and the next step.
+#[test]
+fn the_no_adapter_message_names_the_loader_and_the_drivers() {
+    let tmp = tempfile::tempdir().unwrap();
+    let icd = tmp.path().join("broken_icd.json");
+    std::fs::write(&icd, r#"{"file_format_version": "1.0.0", "ICD": {"library_path": "/nonexistent/libGLX_broken.so.0", "api_version": "1.3.0"}}"#).unwrap();
+    std::fs::write(tmp.path().join("no_path.json"), r#"{"ICD": {}}"#).unwrap();
+    let msg = dextrain::env::vulkan_probe::diagnose_with(Some(&tmp.path().display().to_string()));
+    assert!(msg.contains("libvulkan.so.1"), "{msg}");
+    assert!(msg.contains("broken_icd.json") && msg.contains("libGLX_broken.so.0: does not load") && msg.contains("No such file"), "{msg}");
+    assert!(msg.contains("no_path.json: no ICD.library_path"), "{msg}");
+    assert!(msg.contains("libvulkan1") && msg.contains("libglvnd0") && msg.contains("libegl1") && msg.contains("VK_LOADER_DEBUG=error"), "{msg}");
+    assert!(!msg.contains('\n'), "one line: {msg}");
+    let empty = tempfile::tempdir().unwrap();
+    let msg = dextrain::env::vulkan_probe::diagnose_with(Some(&empty.path().display().to_string()));
+    assert!(msg.contains("no driver manifest"), "{msg}");
 }
 
 /// XXH64 against the reference implementation's published values (xxhsum / twox-hash's tests).

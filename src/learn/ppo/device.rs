@@ -185,7 +185,7 @@ impl Ppo {
         let returns = adv.clone() + values.clone();
         // normalised over the rollout: zero mean, unit (unbiased, as torch's .std()) std
         let total = adv.dims()[0];
-        let mean = adv.clone().mean();
+        let mean = crate::learn::nets::mean_all(adv.clone());
         let centred = adv - mean.unsqueeze::<2>();
         let var = crate::learn::nets::sum_all(centred.clone().square()).div_scalar((total as f64 - 1.0).max(1.0));
         let advantages = centred / var.sqrt().add_scalar(1e-8).unsqueeze::<2>();

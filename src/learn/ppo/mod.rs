@@ -29,7 +29,7 @@ use burn::tensor::{Int, TensorData};
 
 use self::storage::RolloutStorage;
 use super::adam::Adam;
-use super::nets::{Activation, init_mlp, mlp_forward, mlp_shapes, to_host, to_tensor};
+use super::nets::{self, Activation, init_mlp, mlp_forward, mlp_shapes, to_host, to_tensor};
 use super::noise::host_normals;
 use super::normalizer::Normalizer;
 use super::rng::Rng;
@@ -233,24 +233,25 @@ pub struct Losses {
 /// - `total = surrogate + c_v · value − c_e · entropy`;
 /// - `kl = mean Σ_a [ln(σ/σ_old) + (σ_old² + (μ_old − μ)²) / (2σ²) − ½]`.
 pub fn ppo_losses(mu: Tensor<2>, log_std: Tensor<2>, v: Tensor<2>, b: &Batch, cfg: &PpoConfig) -> Losses {
-    let [_, a] = mu.dims();
+    let [rows, a] = mu.dims();
     let sigma = log_std.clone().exp(); // [1, A]
     // log π(a|s) = −½ Σ ((a − μ)/σ)² − Σ log σ − ½ A ln 2π          [B, 1]
-    let z = (b.actions.clone() - mu.clone()) / sigma.clone();
-    let log_prob = z.square().sum_dim(1).mul_scalar(-0.5) - log_std.clone().sum_dim(1);
+    // (σ and Σ log σ meet the rows through nets::batch_row: on a GPU their gradients are two-stage sums)
+    let z = (b.actions.clone() - mu.clone()) / nets::batch_row(sigma.clone(), rows);
+    let log_prob = z.square().sum_dim(1).mul_scalar(-0.5) - nets::batch_row(log_std.clone().sum_dim(1), rows);
     let log_prob = log_prob.sub_scalar(0.5 * a as f64 * LN_2PI);
     let ratio = (log_prob - b.old_log_prob.clone()).exp(); // [B, 1]
     let eps = cfg.clip_param as f64;
     let surr = -(b.advantages.clone() * ratio.clone());
     let surr_clipped = -(b.advantages.clone() * ratio.clamp(1.0 - eps, 1.0 + eps));
-    let surrogate = surr.max_pair(surr_clipped).mean();
+    let surrogate = nets::mean_all(surr.max_pair(surr_clipped));
     let value = if cfg.clipped_value_loss {
         let v_clipped = b.old_values.clone() + (v.clone() - b.old_values.clone()).clamp(-eps, eps);
         let l1 = (v - b.returns.clone()).square();
         let l2 = (v_clipped - b.returns.clone()).square();
-        l1.max_pair(l2).mean()
+        nets::mean_all(l1.max_pair(l2))
     } else {
-        (v - b.returns.clone()).square().mean()
+        nets::mean_all((v - b.returns.clone()).square())
     };
     let entropy = log_std.clone().sum_dim(1).add_scalar(0.5 * a as f64 * (1.0 + LN_2PI)).reshape([1]); // [1]
     let total = surrogate.clone() + value.clone().mul_scalar(cfg.value_loss_coef as f64) - entropy.clone().mul_scalar(cfg.entropy_coef as f64);
@@ -261,7 +262,7 @@ pub fn ppo_losses(mu: Tensor<2>, log_std: Tensor<2>, v: Tensor<2>, b: &Batch, cf
     let kl_rows = (ls_d - b.old_sigma.clone().log())
         + (b.old_sigma.clone().square() + (b.old_mu.clone() - mu_d).square()) / (sig_d.square().mul_scalar(2.0))
         - 0.5; // [B, A]
-    let kl = kl_rows.sum_dim(1).mean();
+    let kl = nets::mean_all(kl_rows.sum_dim(1));
     Losses { total, surrogate, value, entropy, kl }
 }
 

@@ -25,11 +25,51 @@ use crate::learn::nets::{to_host, to_tensor};
 use crate::learn::noise::DeviceNoise;
 use crate::learn::normalizer::DeviceNormalizers;
 
-/// One array of the device buffer: `[C·N, dim]` (row `slot · N + env`).
+/// One array of the device buffer: `[C·N, dim]` (row `slot · N + env`), stored as pieces of
+/// `slots_per_piece` whole slots (`[slots_per_piece · N, dim]` each, the last one shorter) so that
+/// no piece is larger than one storage binding of the adapter (`sac.device_piece_bytes` lowers it).
 struct Ring {
     name: &'static str,
     dim: usize,
-    mem: TensorBuffer,
+    /// Rows of one slot (the envs).
+    envs: usize,
+    slots_per_piece: usize,
+    pieces: Vec<TensorBuffer>,
+}
+
+impl Ring {
+    /// Rows of one full piece.
+    fn rows_per_piece(&self) -> usize {
+        self.slots_per_piece * self.envs
+    }
+
+    /// Bytes of device memory.
+    fn size(&self) -> u64 {
+        self.pieces.iter().map(TensorBuffer::size).sum()
+    }
+
+    /// The rows `idx` `[B]` (of the whole ring) → `[B, dim]`: one gather from a single piece; from
+    /// several, each piece's gather of the rows it holds (other rows clamped into it and masked
+    /// out), added: exact copies either way.
+    fn gather(&self, idx: &Tensor<1, Int>) -> Tensor<2> {
+        if self.pieces.len() == 1 {
+            return self.pieces[0].tensor.clone().select(0, idx.clone());
+        }
+        let rpp = self.rows_per_piece() as i64;
+        let mut out: Option<Tensor<2>> = None;
+        for (k, piece) in self.pieces.iter().enumerate() {
+            let start = k as i64 * rpp;
+            let rows = piece.tensor.dims()[0] as i64;
+            let local = idx.clone().sub_scalar(start).clamp(0, rows - 1); // [B], inside the piece
+            let inside = idx.clone().greater_equal_elem(start).bool_and(idx.clone().lower_elem(start + rows)); // [B]
+            let picked = piece.tensor.clone().select(0, local) * inside.float().unsqueeze_dim::<2>(1); // [B, dim]
+            out = Some(match out {
+                Some(o) => o + picked,
+                None => picked,
+            });
+        }
+        out.expect("a ring has a piece")
+    }
 }
 
 /// The replay buffer's arrays on the device; the slot counters stay in the host [`ReplayBuffer`].
@@ -66,13 +106,26 @@ pub struct DeviceTransitions<'a> {
 
 impl DeviceReplay {
     /// Zeroed rings shaped as `host`'s (its sizes; its data is not copied), on `device` (burn's wgpu
-    /// runtime on `ctx`'s device). A ring larger than one device buffer may be is a one-line error.
-    pub fn new(ctx: &GpuContext, device: &Device, host: &ReplayBuffer) -> Result<DeviceReplay> {
-        let rows = host.capacity * host.envs;
+    /// runtime on `ctx`'s device), each in pieces of at most `piece_bytes` (0: the adapter's
+    /// largest storage binding). A slot's rows larger than a piece is a one-line error.
+    pub fn new(ctx: &GpuContext, device: &Device, host: &ReplayBuffer, piece_bytes: u64) -> Result<DeviceReplay> {
+        let l = ctx.device.limits();
+        let binding = (l.max_storage_buffer_binding_size as u64).min(l.max_buffer_size);
+        let limit = if piece_bytes > 0 { piece_bytes.min(binding) } else { binding };
+        let (envs, capacity) = (host.envs, host.capacity);
         let ring = |name: &'static str, dim: usize| -> Result<Ring> {
-            ctx.check_buffer_size(name, (4 * rows * dim.max(1)) as u64, BufferRole::Storage)
-                .with_context(|| format!("key `sac.buffer_capacity` = {}: the replay buffer's `{name}` on the device ({} envs)", host.capacity, host.envs))?;
-            Ok(Ring { name, dim, mem: zeros_buffer(rows, dim, device)? })
+            let slot_bytes = (4 * envs * dim.max(1)) as u64;
+            let slots_per_piece = ((limit / slot_bytes) as usize).min(capacity);
+            if slots_per_piece == 0 {
+                // one slot (every env's transition of a step) does not fit one binding: the error names the limit
+                ctx.check_buffer_size(name, slot_bytes, BufferRole::Storage)
+                    .and_then(|_| Err(anyhow::anyhow!("GPU buffer `{name}`: one slot needs {slot_bytes} bytes, over `sac.device_piece_bytes` = {piece_bytes}")))
+                    .with_context(|| format!("key `sim.num_envs` = {envs}: the replay buffer's `{name}` on the device"))?;
+            }
+            let pieces = (0..capacity.div_ceil(slots_per_piece))
+                .map(|k| zeros_buffer(slots_per_piece.min(capacity - k * slots_per_piece) * envs, dim, device))
+                .collect::<Result<Vec<_>>>()?;
+            Ok(Ring { name, dim, envs, slots_per_piece, pieces })
         };
         let od = host.obs_dim;
         let per_env = 2 * od + 2 * host.priv_dim + host.act_dim + 3;
@@ -132,7 +185,9 @@ impl DeviceReplay {
             sources.push(src);
         }
         for (from, ring, bytes) in moves {
-            enc.copy_buffer_to_buffer(&self.scratch, from, ring.mem.buffer(), ring.mem.offset() + slot as u64 * bytes, bytes);
+            // the slot's piece, and the slot inside it
+            let piece = &ring.pieces[slot / ring.slots_per_piece];
+            enc.copy_buffer_to_buffer(&self.scratch, from, piece.buffer(), piece.offset() + (slot % ring.slots_per_piece) as u64 * bytes, bytes);
         }
         // the step's tensors are computed, and earlier samples read the rings, before these copies
         flush(&self.device)?;
@@ -154,7 +209,7 @@ impl DeviceReplay {
             Tensor::<1, Int>::from_data(TensorData::new(idx, [b]), dev)
         };
         let valid = |w: usize| to_tensor(draw.valid[w * b..(w + 1) * b].iter().map(|&v| v as u8 as f32).collect(), [b, 1], dev);
-        let gather = |r: &Ring, idx: &Tensor<1, Int>| r.mem.tensor.clone().select(0, idx.clone());
+        let gather = |r: &Ring, idx: &Tensor<1, Int>| r.gather(idx);
         let first = rows(0);
         // buffer.rs's window walk as masks: `ok` while the window goes on and the slot is written
         let mut ret = Tensor::<2>::zeros([b, 1], dev);
@@ -186,7 +241,18 @@ impl DeviceReplay {
         if rows == 0 {
             return Ok(out);
         }
-        let read = |r: &Ring| to_host(r.mem.tensor.clone().slice([0..rows, 0..r.dim]));
+        // the written rows, piece by piece
+        let read = |r: &Ring| -> Result<Vec<f32>> {
+            let mut all = Vec::with_capacity(rows * r.dim);
+            for (k, piece) in r.pieces.iter().enumerate() {
+                let start = k * r.rows_per_piece();
+                let take = rows.saturating_sub(start).min(piece.tensor.dims()[0]);
+                if take > 0 {
+                    all.extend(to_host(piece.tensor.clone().slice([0..take, 0..r.dim]))?);
+                }
+            }
+            Ok(all)
+        };
         let copy = |dst: &mut Vec<f32>, v: Vec<f32>| dst[..v.len()].copy_from_slice(&v);
         if let (Some(o), Some(no)) = (&self.obs, &self.next_obs) {
             copy(&mut out.obs, read(o)?);
@@ -212,7 +278,16 @@ impl DeviceReplay {
         }
         // burn's zero fills of the rings land before these writes
         flush(&self.device)?;
-        let write = |r: &Ring, v: &[f32]| self.ctx.upload_at(r.name, r.mem.buffer(), r.mem.offset(), bytemuck::cast_slice(&v[..rows * r.dim]));
+        let write = |r: &Ring, v: &[f32]| -> Result<()> {
+            for (k, piece) in r.pieces.iter().enumerate() {
+                let start = k * r.rows_per_piece();
+                let take = rows.saturating_sub(start).min(piece.tensor.dims()[0]);
+                if take > 0 {
+                    self.ctx.upload_at(r.name, piece.buffer(), piece.offset(), bytemuck::cast_slice(&v[start * r.dim..(start + take) * r.dim]))?;
+                }
+            }
+            Ok(())
+        };
         if let (Some(o), Some(no)) = (&self.obs, &self.next_obs) {
             write(o, &host.obs)?;
             write(no, &host.next_obs)?;
@@ -228,7 +303,7 @@ impl DeviceReplay {
 
     /// Bytes of device memory the rings hold.
     pub fn bytes(&self) -> u64 {
-        self.rings().iter().map(|r| r.mem.size()).sum()
+        self.rings().iter().map(|r| r.size()).sum()
     }
 }
 
@@ -273,7 +348,7 @@ impl Sac {
         let dims = self.dims;
         let b = self.cfg.batch_size as usize;
         let noise = DeviceNoise::new(ctx, &self.device, (self.buffer.envs * dims.act).max(2 * b * dims.act))?;
-        let replay = DeviceReplay::new(ctx, &self.device, &self.buffer)?;
+        let replay = DeviceReplay::new(ctx, &self.device, &self.buffer, self.cfg.device_piece_bytes)?;
         replay.load(&self.buffer)?;
         let bytes = replay.bytes();
         let norms = DeviceNormalizers::from_host(&self.obs_norm, &self.priv_norm, &self.device);

@@ -33,7 +33,7 @@ use burn::prelude::*;
 
 use self::buffer::{ReplayBuffer, Sample, Transitions};
 use super::adam::Adam;
-use super::nets::{Activation, MlpLayout, to_host, to_tensor};
+use super::nets::{self, Activation, MlpLayout, to_host, to_tensor};
 use super::noise::{host_normals, host_uniforms};
 use super::normalizer::Normalizer;
 use super::ppo::Dims;
@@ -436,8 +436,8 @@ impl Sac {
         let mut q_sum: Option<Tensor<1>> = None;
         for c in &self.critics {
             let q = self.q(c, priv_obs.clone(), actions.clone()); // [B, 1]
-            let l = (q.clone() - y.clone()).square().mean(); // mean((Q_j − y)²)
-            let qm = q.detach().mean();
+            let l = nets::mean_all((q.clone() - y.clone()).square()); // mean((Q_j − y)²)
+            let qm = nets::mean_all(q.detach());
             critic_loss = Some(match critic_loss { Some(acc) => acc + l, None => l });
             q_sum = Some(match q_sum { Some(acc) => acc + qm, None => qm });
         }
@@ -475,19 +475,19 @@ impl Sac {
             let qs: Vec<Tensor<2>> = frozen.iter().map(|c| self.critic_layout.forward_split_input(c, priv_obs.clone(), a_new.clone(), self.activation)).collect();
             let q_pi = reduce(qs, self.cfg.q_reduction);
             let alpha_c = alpha.clone().autodiff();
-            let actor_loss = (logp.clone() * alpha_c - q_pi).mean(); // mean(α log π − Q)
+            let actor_loss = nets::mean_all(logp.clone() * alpha_c - q_pi); // mean(α log π − Q)
             let grads = actor_loss.clone().backward();
             self.actor = self.actor_adam.step_clipped(&self.actor, &grads, self.cfg.max_grad_norm as f64, &actor_lr)?.0;
             let logp_d = logp.detach().inner(); // [B, 1]
             if self.cfg.learn_alpha {
                 // L = −mean(log α · (log π + H̄)): ∂L/∂log α = −mean(log π + H̄)
-                let coef = logp_d.clone().add_scalar(self.target_entropy).mean().neg().reshape([1, 1]).autodiff();
+                let coef = nets::mean_all(logp_d.clone().add_scalar(self.target_entropy)).neg().reshape([1, 1]).autodiff();
                 let alpha_loss = (self.log_alpha.clone() * coef).sum();
                 let grads = alpha_loss.backward();
                 self.log_alpha = self.alpha_adam.step_clipped(std::slice::from_ref(&self.log_alpha), &grads, 0.0, &alpha_lr)?.0.remove(0);
             }
             // [actor loss, entropy estimate −mean log π]
-            let row = Tensor::cat(vec![actor_loss.detach().inner(), logp_d.mean().neg()], 0).reshape([1, 2]);
+            let row = Tensor::cat(vec![actor_loss.detach().inner(), nets::mean_all(logp_d).neg()], 0).reshape([1, 2]);
             self.sums.actor = accumulate(self.sums.actor.take(), row);
             self.sums.actor_steps += 1;
         }

@@ -1,0 +1,200 @@
+//! The learner's matrix products on burn's wgpu backend, launched with a matmul routine of cubek
+//! (burn's kernel library) chosen by measurement rather than the one burn takes by default.
+//!
+//! Without its `autotune` feature (off here: autotune times every candidate in every process and
+//! may pick another one in the next, so a run and its resume could differ in the last bits), burn
+//! runs every product through cubek's `Auto` routine: cooperative matrices where the adapter has
+//! them, else `SimpleUnit` (one thread per output tile, no shared-memory staging). On WGSL adapters
+//! (no cooperative matrices) that is `SimpleUnit` everywhere; on an NVIDIA H200 it ran the PPO
+//! update's products at ~5 TFLOP/s, 65 % of the update's GPU time (BENCHMARKS.md, issue 33). Here
+//! the routine is a fixed choice per process, so the products are the same kernels run to run
+//! (deterministic, as before) and the choice is measured, not guessed: `DEXTRAIN_GPU_MATMUL`
+//! names another routine for a measurement (`GpuMatmul::NAMES`), `dextrain bench --matmul` times
+//! them all. Measured on an H200 (2026-11-26, BENCHMARKS.md): with the dense layers as one op
+//! (`affine.rs`, the weight gradient split over row slices inside it) the PPO bench's update took
+//! 160 ms with `simple_unit_small_tiles`, 205 ms with `double_unit`, 219 ms with `simple_unit`,
+//! and 275 ms as burn's products of row slices (`burn`); the plane routines need cooperative
+//! matrices or subgroup features WGSL does not give here and fall back to burn's.
+
+use std::sync::OnceLock;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use anyhow::{Result, bail};
+use burn::backend::Cube;
+use burn::backend::tensor::FloatTensor;
+use burn::backend::ops::FloatTensorOps;
+use burn::tensor::DType;
+use burn_cubecl::cubecl::ir::{ElemType, FloatKind};
+use burn_cubecl::kernel::matmul::init_matmul_output;
+use cubek::matmul::definition::{MatmulElems, MatmulGlobalElems};
+use cubek::matmul::launch::launch_ref;
+use cubek::matmul::multi_level::Strategy as Routine;
+use cubek::matmul::multi_level::components::tile::TileMatmulKind;
+use cubek::matmul::multi_level::routines::TileSizeSelection;
+use cubek::matmul::multi_level::routines::batch::double_buffering::DoubleBufferingArgs;
+use cubek::matmul::multi_level::routines::batch::double_unit::DoubleUnitSelectionArgs;
+use cubek::matmul::multi_level::routines::batch::ordered_double_buffering::OrderedSelectionArgs;
+use cubek::matmul::multi_level::routines::batch::simple::SimpleArgs;
+use cubek::matmul::multi_level::routines::batch::simple_unit::SimpleUnitSelectionArgs;
+use cubek::matmul::routine::BlueprintStrategy;
+use cubek::matmul::strategy::Strategy;
+use cubek::std::InputBinding;
+
+/// The environment variable that names the routine for a measurement.
+pub const ENV_VAR: &str = "DEXTRAIN_GPU_MATMUL";
+
+/// A matmul routine of cubek for the learner's f32 products.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum GpuMatmul {
+    /// burn's own choice (`float_matmul`: cubek's `Auto`).
+    Burn,
+    /// One thread per output tile, the largest tile (what `Auto` runs on WGSL).
+    SimpleUnit,
+    /// One thread per output tile, the smallest tile, more tiles per workgroup.
+    SimpleUnitSmallTiles,
+    /// One thread per output tile, operands double-buffered through shared memory.
+    DoubleUnit,
+    /// `DoubleUnit` with the smallest tile.
+    DoubleUnitSmallTiles,
+    /// A subgroup (plane) per tile, register tile products, operands staged in shared memory.
+    SimplePlane,
+    /// `SimplePlane` double-buffered.
+    DoublePlane,
+    /// `DoublePlane` with ordered loading.
+    OrderedDoublePlane,
+}
+
+impl GpuMatmul {
+    /// Every routine with its name (`DEXTRAIN_GPU_MATMUL`, the bench JSON).
+    pub const NAMES: [(GpuMatmul, &'static str); 8] = [
+        (GpuMatmul::Burn, "burn"),
+        (GpuMatmul::SimpleUnit, "simple_unit"),
+        (GpuMatmul::SimpleUnitSmallTiles, "simple_unit_small_tiles"),
+        (GpuMatmul::DoubleUnit, "double_unit"),
+        (GpuMatmul::DoubleUnitSmallTiles, "double_unit_small_tiles"),
+        (GpuMatmul::SimplePlane, "simple_plane"),
+        (GpuMatmul::DoublePlane, "double_plane"),
+        (GpuMatmul::OrderedDoublePlane, "ordered_double_plane"),
+    ];
+
+    /// The routine a run uses unless `DEXTRAIN_GPU_MATMUL` names another.
+    pub const DEFAULT: GpuMatmul = GpuMatmul::SimpleUnitSmallTiles;
+
+    /// The routine's name.
+    pub fn name(self) -> &'static str {
+        Self::NAMES.iter().find(|(m, _)| *m == self).map(|(_, n)| *n).unwrap_or("?")
+    }
+
+    /// The routine called `name`, or an error listing the names.
+    pub fn parse(name: &str) -> Result<GpuMatmul> {
+        match Self::NAMES.iter().find(|(_, n)| *n == name) {
+            Some((m, _)) => Ok(*m),
+            None => {
+                let names: Vec<&str> = Self::NAMES.iter().map(|(_, n)| *n).collect();
+                bail!("{ENV_VAR}={name:?}: expected one of {}", names.join(", "))
+            }
+        }
+    }
+
+    /// Whether the learner's dense layers run as `affine.rs`'s one op on the GPU, its weight gradient
+    /// split over row slices inside it (`affine.rs`), rather than as burn's products of row slices
+    /// (`nets::affine`): every routine but `Burn`, which keeps burn's products and their gradients.
+    pub fn splits_inside(self) -> bool {
+        self != GpuMatmul::Burn
+    }
+
+    /// cubek's strategy for the routine (None: burn's own `float_matmul`).
+    fn strategy(self) -> Option<Strategy> {
+        let unit = |tile_size| SimpleUnitSelectionArgs { tile_size };
+        let double_unit = |tile_size| DoubleUnitSelectionArgs { tile_size };
+        let routine = match self {
+            GpuMatmul::Burn => return None,
+            GpuMatmul::SimpleUnit => Routine::SimpleUnit(BlueprintStrategy::Inferred(unit(TileSizeSelection::MaxTileSize))),
+            GpuMatmul::SimpleUnitSmallTiles => {
+                Routine::SimpleUnit(BlueprintStrategy::Inferred(unit(TileSizeSelection::MinTileSize)))
+            }
+            GpuMatmul::DoubleUnit => Routine::DoubleUnit(BlueprintStrategy::Inferred(double_unit(TileSizeSelection::MaxTileSize))),
+            GpuMatmul::DoubleUnitSmallTiles => {
+                Routine::DoubleUnit(BlueprintStrategy::Inferred(double_unit(TileSizeSelection::MinTileSize)))
+            }
+            GpuMatmul::SimplePlane => Routine::SimpleCyclicCmma(BlueprintStrategy::Inferred(SimpleArgs {
+                tile_matmul: TileMatmulKind::Register,
+                multi_rows: false,
+            })),
+            GpuMatmul::DoublePlane => Routine::DoubleCyclicCmma(BlueprintStrategy::Inferred(DoubleBufferingArgs {
+                tile_matmul: TileMatmulKind::Register,
+                specialized: false,
+            })),
+            GpuMatmul::OrderedDoublePlane => Routine::OrderedDoubleCmma(BlueprintStrategy::Inferred(OrderedSelectionArgs {
+                tile_matmul: TileMatmulKind::Register,
+                ..Default::default()
+            })),
+        };
+        Some(Strategy::MultiLevel(routine))
+    }
+}
+
+/// The routine of this process (read from `DEXTRAIN_GPU_MATMUL` once).
+static CHOSEN: OnceLock<GpuMatmul> = OnceLock::new();
+
+/// Products that fell back to burn's own routine because the chosen one refused their shape or
+/// the adapter (cubek's `MatmulSetupError`).
+static FALLBACKS: AtomicU64 = AtomicU64::new(0);
+
+/// Reads `DEXTRAIN_GPU_MATMUL` (once per process): the routine, or an error naming the variable and
+/// the routines there are. Called where a GPU learner device is set up, so that a wrong name stops
+/// the command with a one-line error before anything runs.
+pub fn configure() -> Result<GpuMatmul> {
+    if let Some(m) = CHOSEN.get() {
+        return Ok(*m);
+    }
+    let m = match std::env::var(ENV_VAR) {
+        Ok(name) if !name.is_empty() => GpuMatmul::parse(&name)?,
+        _ => GpuMatmul::DEFAULT,
+    };
+    Ok(*CHOSEN.get_or_init(|| m))
+}
+
+/// The routine the learner's products run with.
+pub fn chosen() -> GpuMatmul {
+    *CHOSEN.get().unwrap_or(&GpuMatmul::DEFAULT)
+}
+
+/// How many products fell back to burn's routine so far.
+pub fn fallbacks() -> u64 {
+    FALLBACKS.load(Ordering::Relaxed)
+}
+
+/// `lhs · rhs` for f32 lhs [m, k], rhs [k, n] (either may be a strided view, e.g. a transpose) on
+/// burn's wgpu backend, with the chosen routine → [m, n].
+pub fn matmul(lhs: FloatTensor<Cube>, rhs: FloatTensor<Cube>) -> FloatTensor<Cube> {
+    matmul_with(chosen(), lhs, rhs)
+}
+
+/// `lhs · rhs` as [`matmul`] with `routine` (the matmul bench compares the routines in one process).
+pub fn matmul_with(routine: GpuMatmul, lhs: FloatTensor<Cube>, rhs: FloatTensor<Cube>) -> FloatTensor<Cube> {
+    let strategy = match routine.strategy() {
+        Some(s) if lhs.dtype == DType::F32 && rhs.dtype == DType::F32 && lhs.qparams.is_none() && rhs.qparams.is_none() => s,
+        _ => return Cube::float_matmul(lhs, rhs),
+    };
+    let out = init_matmul_output(&lhs, &rhs, DType::F32);
+    let f32_elem = ElemType::Float(FloatKind::F32);
+    let mut dtypes = MatmulElems::from_globals(&MatmulGlobalElems { lhs: f32_elem, rhs: f32_elem, out: f32_elem });
+    let client = out.client.clone();
+    let launched = launch_ref(
+        &strategy,
+        &client,
+        InputBinding::new(lhs.clone().binding(), f32_elem),
+        InputBinding::new(rhs.clone().binding(), f32_elem),
+        out.clone().binding(),
+        &mut dtypes,
+    );
+    match launched {
+        Ok(()) => out,
+        Err(_) => {
+            // the routine does not take this shape or adapter: burn's own (nothing was launched)
+            FALLBACKS.fetch_add(1, Ordering::Relaxed);
+            Cube::float_matmul(lhs, rhs)
+        }
+    }
+}
