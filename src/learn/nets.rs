@@ -86,10 +86,12 @@ pub fn matmul_rows(x: Tensor<2>, w: Tensor<2>, split: usize) -> Tensor<2> {
     y.reshape([b, o])
 }
 
-/// `x W + b` [B, out] for x [B, in], W [in, out], b [1, out], in `split` row slices
-/// ([`matmul_rows`]). Split, the bias enters as a product too, `1 b` ([B, 1] · [1, out]): its
-/// gradient `1ᵀ g` is then a split product and a sum over S, where the broadcast add's gradient
-/// is a sum over the B rows of [B, out], which cubecl runs as a reduction per output column.
+/// `x W + b` [B, out] for x [B, in], W [in, out], b [1, out]. On a GPU with a cubek matmul routine
+/// (`learn::gpu_matmul`, the default) and on the CPU: `affine.rs`'s one op (on the GPU its weight
+/// gradient is split over row slices inside it, its bias gradient a two-stage column sum). With
+/// `DEXTRAIN_GPU_MATMUL=burn`: burn's products in `split` row slices ([`matmul_rows`]), the bias
+/// entering as a product too, `1 b` ([B, 1] · [1, out]), so that its gradient `1ᵀ g` is a split
+/// product and a sum over S rather than burn's one-thread-per-column reduction over the B rows.
 pub fn affine(x: Tensor<2>, w: Tensor<2>, b: Tensor<2>, split: usize) -> Tensor<2> {
     if split <= 1 || super::gpu_matmul::chosen().splits_inside() {
         // [B, out]: one op with its own gradient (affine.rs; on a GPU with a cubek routine the
