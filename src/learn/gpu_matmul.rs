@@ -62,11 +62,14 @@ pub enum GpuMatmul {
     DoublePlane,
     /// `DoublePlane` with ordered loading.
     OrderedDoublePlane,
+    /// dextrain's own WGSL kernel (`learn::wgsl_matmul`: 64 × 64 tiles staged in workgroup memory;
+    /// one submission per product).
+    DextrainTiled,
 }
 
 impl GpuMatmul {
     /// Every routine with its name (`DEXTRAIN_GPU_MATMUL`, the bench JSON).
-    pub const NAMES: [(GpuMatmul, &'static str); 8] = [
+    pub const NAMES: [(GpuMatmul, &'static str); 9] = [
         (GpuMatmul::Burn, "burn"),
         (GpuMatmul::SimpleUnit, "simple_unit"),
         (GpuMatmul::SimpleUnitSmallTiles, "simple_unit_small_tiles"),
@@ -75,6 +78,7 @@ impl GpuMatmul {
         (GpuMatmul::SimplePlane, "simple_plane"),
         (GpuMatmul::DoublePlane, "double_plane"),
         (GpuMatmul::OrderedDoublePlane, "ordered_double_plane"),
+        (GpuMatmul::DextrainTiled, "dextrain_tiled"),
     ];
 
     /// The routine a run uses unless `DEXTRAIN_GPU_MATMUL` names another.
@@ -103,12 +107,12 @@ impl GpuMatmul {
         self != GpuMatmul::Burn
     }
 
-    /// cubek's strategy for the routine (None: burn's own `float_matmul`).
+    /// cubek's strategy for the routine (None: burn's own `float_matmul`, or ours).
     fn strategy(self) -> Option<Strategy> {
         let unit = |tile_size| SimpleUnitSelectionArgs { tile_size };
         let double_unit = |tile_size| DoubleUnitSelectionArgs { tile_size };
         let routine = match self {
-            GpuMatmul::Burn => return None,
+            GpuMatmul::Burn | GpuMatmul::DextrainTiled => return None,
             GpuMatmul::SimpleUnit => Routine::SimpleUnit(BlueprintStrategy::Inferred(unit(TileSizeSelection::MaxTileSize))),
             GpuMatmul::SimpleUnitSmallTiles => {
                 Routine::SimpleUnit(BlueprintStrategy::Inferred(unit(TileSizeSelection::MinTileSize)))
@@ -173,6 +177,16 @@ pub fn matmul(lhs: FloatTensor<Cube>, rhs: FloatTensor<Cube>) -> FloatTensor<Cub
 
 /// `lhs · rhs` as [`matmul`] with `routine` (the matmul bench compares the routines in one process).
 pub fn matmul_with(routine: GpuMatmul, lhs: FloatTensor<Cube>, rhs: FloatTensor<Cube>) -> FloatTensor<Cube> {
+    if routine == GpuMatmul::DextrainTiled {
+        return match crate::learn::wgsl_matmul::matmul(&lhs, &rhs) {
+            Ok(out) => out,
+            Err(_) => {
+                // shapes or a device the kernel does not take: burn's own
+                FALLBACKS.fetch_add(1, Ordering::Relaxed);
+                Cube::float_matmul(lhs, rhs)
+            }
+        };
+    }
     let strategy = match routine.strategy() {
         Some(s) if lhs.dtype == DType::F32 && rhs.dtype == DType::F32 && lhs.qparams.is_none() && rhs.qparams.is_none() => s,
         _ => return Cube::float_matmul(lhs, rhs),

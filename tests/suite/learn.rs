@@ -920,10 +920,26 @@ fn row_sums_and_matmul_routines_match_their_tensor_twins() {
             let before = gpu_matmul::fallbacks();
             let got = to_host(Tensor::<2>::from_primitive::<burn::backend::Cube>(gpu_matmul::matmul_with(routine, prim(&a), prim(rhs)))).unwrap();
             ran += usize::from(gpu_matmul::fallbacks() == before);
+            if routine == GpuMatmul::DextrainTiled {
+                assert_eq!(gpu_matmul::fallbacks(), before, "matmul.wgsl fell back to burn's product");
+            }
             let worst = got.iter().zip(&want).map(|(g, w)| (g - w).abs() / (1.0 + w.abs())).fold(0.0f32, f32::max);
             assert!(worst < 1e-4, "{name}: products differ from burn's by {worst}");
         }
-        assert!(ran >= 4, "the unit routines run on any adapter: {ran} of {} ran", GpuMatmul::NAMES.len());
+        assert!(ran >= 5, "the unit routines and ours run on any adapter: {ran} of {} ran", GpuMatmul::NAMES.len());
+    }
+    // batched, as the weight gradient split over row slices multiplies: [S, in, B/S] (a view with
+    // its last two dimensions swapped) · [S, B/S, out]
+    let (s3, r3, i3, o3) = (3, 200, 70, 45);
+    let x3 = Tensor::<3>::from_data(TensorData::new(draw(s3 * r3 * i3), [s3, r3, i3]), &dev).swap_dims(1, 2); // [S, in, B/S]
+    let g3 = Tensor::<3>::from_data(TensorData::new(draw(s3 * r3 * o3), [s3, r3, o3]), &dev); // [S, B/S, out]
+    let want = x3.clone().matmul(g3.clone()).into_data().try_to_vec::<f32>().unwrap();
+    let prim3 = |t: &Tensor<3>| t.clone().try_into_primitive::<burn::backend::Cube>().unwrap();
+    for (routine, name) in GpuMatmul::NAMES {
+        let got = Tensor::<3>::from_primitive::<burn::backend::Cube>(gpu_matmul::matmul_with(routine, prim3(&x3), prim3(&g3))).into_data().try_to_vec::<f32>().unwrap();
+        assert_eq!(got.len(), s3 * i3 * o3, "{name}: batched product's size");
+        let worst = got.iter().zip(&want).map(|(g, w)| (g - w).abs() / (1.0 + w.abs())).fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "{name}: batched products differ from burn's by {worst}");
     }
     // the dense layer's gradients on the GPU (the weight gradient split over 2 row slices of
     // 2,048 inside the op, ∂b two-stage) against the CPU's

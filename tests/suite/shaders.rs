@@ -115,6 +115,11 @@ fn pod_structs_match_their_wgsl_twins() {
     assert!(size_of::<RefCursor>() <= 128 && size_of::<RefCursor>() % 16 == 0);
     // a uniform struct's size must be a multiple of 16
     assert_eq!(size_of::<TaskGlobals>() % 16, 0);
+    // the learner's matrix product (a module of its own)
+    use dextrain::learn::wgsl_matmul::MatmulCfg;
+    let mm = validate(dextrain::env::gpu::SHADER_MATMUL);
+    check(&mm, "MatmulCfg", size_of::<MatmulCfg>(), rust_fields!(MatmulCfg; m, n, k, batches, a_row, a_col, a_batch, b_row, b_col, b_batch, c_batch, _pad));
+    assert_eq!(size_of::<MatmulCfg>() % 16, 0);
 }
 
 #[test]
@@ -330,10 +335,11 @@ fn table(bindings: &[dextrain::env::gpu_bindings::Binding]) -> Vec<(u32, u32, St
 
 #[test]
 fn binding_tables_match_the_wgsl_globals() {
-    use dextrain::env::gpu_bindings::{ADAM_GROUP, BindingSpace, COLLIDERS, NOISE_GROUP, NORM_GROUP, REF_CFG, REF_FRAMES, SIM_GROUP, TASK_GROUP};
+    use dextrain::env::gpu_bindings::{ADAM_GROUP, BindingSpace, COLLIDERS, MM_GROUP, NOISE_GROUP, NORM_GROUP, REF_CFG, REF_FRAMES, SIM_GROUP, TASK_GROUP};
     let noise = dextrain::env::gpu::noise_shader_source();
     let (adam, norm) = (dextrain::env::gpu::SHADER_ADAM.to_string(), dextrain::env::gpu::SHADER_NORMALIZER.to_string());
-    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (adam, ADAM_GROUP), (norm, NORM_GROUP)] {
+    let matmul = dextrain::env::gpu::SHADER_MATMUL.to_string();
+    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (adam, ADAM_GROUP), (norm, NORM_GROUP), (matmul, MM_GROUP)] {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other
         assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu_bindings.rs (right)", group.shader);
