@@ -15,6 +15,7 @@ use burn::tensor::Distribution;
 use serde_json::json;
 
 use crate::learn::gpu_matmul::{self, GpuMatmul};
+use crate::learn::nets::to_host;
 
 /// The actor's layer widths of the peer benchmark.
 const ACTOR: [usize; 5] = [96, 512, 256, 128, 22];
@@ -67,8 +68,7 @@ fn product_with(routine: GpuMatmul, lhs: &Tensor<2>, rhs: &Tensor<2>) -> Result<
 
 /// Waits for the device by reading one entry of `t`.
 fn wait_for(t: &Tensor<2>) -> Result<f32> {
-    let v = t.clone().slice([0..1, 0..1]).into_data().try_to_vec::<f32>().map_err(|e| anyhow!("cannot read a tensor back: {e:?}"))?;
-    Ok(v[0])
+    Ok(to_host(t.clone().slice([0..1, 0..1]))?[0])
 }
 
 /// Times every routine on the products of one minibatch of `rows` rows: per routine the
@@ -83,7 +83,7 @@ pub fn run_matmul_bench(rows: usize, reps: usize, rounds: usize, device: Device,
     let reference: Vec<Tensor<2>> = prods.iter().map(|p| product_with(GpuMatmul::Burn, &p.lhs, &p.rhs)).collect::<Result<_>>()?;
     let scale: Vec<f32> = reference
         .iter()
-        .map(|r| r.clone().abs().max().into_data().try_to_vec::<f32>().map(|v| v[0]).map_err(|e| anyhow!("{e:?}")))
+        .map(|r| to_host(r.clone().abs().max()).map(|v| v[0]))
         .collect::<Result<_>>()?;
     let mut routines = Vec::new();
     let mut best: Option<(f64, &str)> = None;
@@ -92,7 +92,7 @@ pub fn run_matmul_bench(rows: usize, reps: usize, rounds: usize, device: Device,
         let mut worst_diff = 0.0f32;
         for (p, (r, s)) in prods.iter().zip(reference.iter().zip(&scale)) {
             let out = product_with(routine, &p.lhs, &p.rhs)?;
-            let d = (out - r.clone()).abs().max().into_data().try_to_vec::<f32>().map_err(|e| anyhow!("{e:?}"))?[0];
+            let d = to_host((out - r.clone()).abs().max())?[0];
             worst_diff = worst_diff.max(d / s.max(f32::MIN_POSITIVE));
         }
         let mut per_product = Vec::new();

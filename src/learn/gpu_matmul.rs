@@ -180,11 +180,7 @@ pub fn matmul_with(routine: GpuMatmul, lhs: FloatTensor<Cube>, rhs: FloatTensor<
     if routine == GpuMatmul::DextrainTiled {
         return match crate::learn::wgsl_matmul::matmul(&lhs, &rhs) {
             Ok(out) => out,
-            Err(_) => {
-                // shapes or a device the kernel does not take: burn's own
-                FALLBACKS.fetch_add(1, Ordering::Relaxed);
-                Cube::float_matmul(lhs, rhs)
-            }
+            Err(_) => fall_back(lhs, rhs), // shapes or a device the kernel does not take
         };
     }
     let strategy = match routine.strategy() {
@@ -205,10 +201,12 @@ pub fn matmul_with(routine: GpuMatmul, lhs: FloatTensor<Cube>, rhs: FloatTensor<
     );
     match launched {
         Ok(()) => out,
-        Err(_) => {
-            // the routine does not take this shape or adapter: burn's own (nothing was launched)
-            FALLBACKS.fetch_add(1, Ordering::Relaxed);
-            Cube::float_matmul(lhs, rhs)
-        }
+        Err(_) => fall_back(lhs, rhs), // the routine does not take this shape or adapter (nothing was launched)
     }
+}
+
+/// burn's own product, for one the chosen routine did not take (counted in [`fallbacks`]).
+fn fall_back(lhs: FloatTensor<Cube>, rhs: FloatTensor<Cube>) -> FloatTensor<Cube> {
+    FALLBACKS.fetch_add(1, Ordering::Relaxed);
+    Cube::float_matmul(lhs, rhs)
 }

@@ -43,6 +43,16 @@ impl Ring {
         self.slots_per_piece * self.envs
     }
 
+    /// The pieces holding the ring's first `rows` rows: (piece, its first row in the ring, how many
+    /// of those rows it holds), the pieces past them left out.
+    fn written(&self, rows: usize) -> impl Iterator<Item = (&TensorBuffer, usize, usize)> {
+        self.pieces.iter().enumerate().filter_map(move |(k, piece)| {
+            let start = k * self.rows_per_piece();
+            let take = rows.saturating_sub(start).min(piece.tensor.dims()[0]);
+            (take > 0).then_some((piece, start, take))
+        })
+    }
+
     /// Bytes of device memory.
     fn size(&self) -> u64 {
         self.pieces.iter().map(TensorBuffer::size).sum()
@@ -244,12 +254,8 @@ impl DeviceReplay {
         // the written rows, piece by piece
         let read = |r: &Ring| -> Result<Vec<f32>> {
             let mut all = Vec::with_capacity(rows * r.dim);
-            for (k, piece) in r.pieces.iter().enumerate() {
-                let start = k * r.rows_per_piece();
-                let take = rows.saturating_sub(start).min(piece.tensor.dims()[0]);
-                if take > 0 {
-                    all.extend(to_host(piece.tensor.clone().slice([0..take, 0..r.dim]))?);
-                }
+            for (piece, _, take) in r.written(rows) {
+                all.extend(to_host(piece.tensor.clone().slice([0..take, 0..r.dim]))?);
             }
             Ok(all)
         };
@@ -279,12 +285,8 @@ impl DeviceReplay {
         // burn's zero fills of the rings land before these writes
         flush(&self.device)?;
         let write = |r: &Ring, v: &[f32]| -> Result<()> {
-            for (k, piece) in r.pieces.iter().enumerate() {
-                let start = k * r.rows_per_piece();
-                let take = rows.saturating_sub(start).min(piece.tensor.dims()[0]);
-                if take > 0 {
-                    self.ctx.upload_at(r.name, piece.buffer(), piece.offset(), bytemuck::cast_slice(&v[start * r.dim..(start + take) * r.dim]))?;
-                }
+            for (piece, start, take) in r.written(rows) {
+                self.ctx.upload_at(r.name, piece.buffer(), piece.offset(), bytemuck::cast_slice(&v[start * r.dim..(start + take) * r.dim]))?;
             }
             Ok(())
         };
