@@ -1,8 +1,18 @@
-// The GPU learner's matrix product of our own (learn/wgsl_matmul.rs binds it over burn's tensors):
-// C[b] = A[b] · B[b] for A [M, K] and B [K, N] given by their strides (a transposed view is a
-// strided one), C [M, N] row-major, b < batches. A workgroup of 16 × 16 threads computes a
-// 64 × 64 tile of C, 4 × 4 entries per thread, staging 16-deep slices of A's rows and B's columns
-// in workgroup memory; each entry sums its K products in increasing k (the same order every run).
+// The GPU learner's matrix product of our own, launched on burn's command stream by
+// learn/wgsl_matmul.rs: C[b] = A[b] · B[b] for A [M, K] and B [K, N] given by their strides (a
+// transposed view is a strided one), C [M, N] row-major, b < batches. Split over k (a product
+// with few tiles of C and a long k, as the weight gradient over a batch's rows): workgroup layer z
+// sums k in [s·k_chunk, (s + 1)·k_chunk) for s = z mod k_splits into its own [M, N] partial, which
+// the caller sums over s (one batch only then).
+//
+// A template: learn/wgsl_matmul.rs writes in the tile shape (the markers that begin with a dollar
+// sign: numbers) and the per-thread accumulation, unrolled (the ACC blocks), so that every
+// accumulator is a named register. A workgroup of TX × TY = 256 threads computes a BM × BN tile of C, TM × TN entries
+// per thread (TM rows in groups of 4 spaced 4·TY apart, TN columns in groups of 4 spaced 4·TX
+// apart, so that neighbouring threads read neighbouring vec4s of workgroup memory). Each
+// BK-deep slice of A's rows and B's columns is staged in workgroup memory; the next slice's
+// values are fetched into registers while the current one is multiplied. Each entry sums its K
+// products in increasing k with fused multiply-adds (the same order every run).
 
 struct MatmulCfg {
     m: u32,
@@ -17,94 +27,133 @@ struct MatmulCfg {
     b_col: u32,
     b_batch: u32,
     c_batch: u32,
-    _pad: u32,
+    // k per split and the splits (1: no split)
+    k_splits: u32,
+    k_chunk: u32,
+    _pad0: u32,
+    _pad1: u32,
+    _pad2: u32,
 }
 
-@group(0) @binding(0) var<uniform> mc: MatmulCfg;
-// every operand read_write: burn's tensors may share one buffer, and wgpu forbids one buffer bound
-// read-only and writable in one dispatch
-@group(0) @binding(1) var<storage, read_write> mm_a: array<f32>;
-@group(0) @binding(2) var<storage, read_write> mm_b: array<f32>;
-@group(0) @binding(3) var<storage, read_write> mm_c: array<f32>;
+// bound by cubecl in this order: the buffers, then the launch's constants as a uniform.
+// Every operand read_write: burn's tensors may share one buffer, and wgpu forbids one buffer bound
+// read-only and writable in one dispatch.
+@group(0) @binding(0) var<storage, read_write> mm_a: array<f32>;
+@group(0) @binding(1) var<storage, read_write> mm_b: array<f32>;
+@group(0) @binding(2) var<storage, read_write> mm_c: array<f32>;
+@group(0) @binding(3) var<uniform> mc: MatmulCfg;
 
-const MM_TILE: u32 = 64u;   // C rows and columns per workgroup
-const MM_DEPTH: u32 = 16u;  // k per staged slice
-const MM_THREADS: u32 = 256u;
+const BM: u32 = $BMu; // C rows per workgroup
+const BN: u32 = $BNu; // C columns per workgroup
+const BK: u32 = $BKu; // k per staged slice
+const TX: u32 = $TXu; // threads along C's columns: BN / TN
+const TY: u32 = $TYu; // threads along C's rows: BM / TM
+const THREADS: u32 = $THREADSu; // TX · TY
+const A_LOADS: u32 = $A_LOADSu; // A values each thread stages per slice: BK · BM / THREADS
+const B_LOADS: u32 = $B_LOADSu; // B values likewise: BK · BN / THREADS
 
-var<workgroup> mm_sa: array<f32, 1024>; // [MM_DEPTH][MM_TILE]: A's 64 rows at 16 k, k-major
-var<workgroup> mm_sb: array<f32, 1024>; // [MM_DEPTH][MM_TILE]: B's 64 columns at 16 k, k-major
+var<workgroup> mm_sa: array<vec4<f32>, $SA_LENu>; // [BK][BM / 4]: A's tile rows at each k, 4 rows a vec4
+var<workgroup> mm_sb: array<vec4<f32>, $SB_LENu>; // [BK][BN / 4]: B's tile columns at each k, 4 a vec4
 
-@compute @workgroup_size(16, 16, 1)
+// the tile's (row, k) position of the e-th staged A value: k runs fastest over the threads where
+// A's columns are contiguous (a row-major A), the row where its rows are (a transposed view),
+// so that neighbouring threads read neighbouring memory
+fn a_slot(e: u32, rows_fast: bool) -> vec2<u32> {
+    if rows_fast {
+        return vec2<u32>(e % BM, e / BM);
+    }
+    return vec2<u32>(e / BK, e % BK);
+}
+
+// the tile's (column, k) position of the e-th staged B value, likewise
+fn b_slot(e: u32, cols_fast: bool) -> vec2<u32> {
+    if cols_fast {
+        return vec2<u32>(e % BN, e / BN);
+    }
+    return vec2<u32>(e / BK, e % BK);
+}
+
+@compute @workgroup_size($TXu, $TYu, 1)
 fn matmul_tiled(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>) {
-    let row0 = wg.y * MM_TILE;
-    let col0 = wg.x * MM_TILE;
-    let batch = wg.z;
-    let tid = lid.y * 16u + lid.x;
+    let row0 = wg.y * BM;
+    let col0 = wg.x * BN;
+    let batch = wg.z / mc.k_splits;
+    let k_begin = (wg.z % mc.k_splits) * mc.k_chunk; // this layer's k range
+    let k_end = min(mc.k, k_begin + mc.k_chunk);
+    let tx = lid.x;
+    let ty = lid.y;
+    let tid = ty * TX + tx;
     let a_base = batch * mc.a_batch;
     let b_base = batch * mc.b_batch;
-    // which index runs fastest over the threads when loading: the one with stride 1 (coalesced reads)
     let a_rows_fast = mc.a_row == 1u && mc.a_col != 1u;
     let b_cols_fast = mc.b_col == 1u || mc.b_row != 1u;
-    var acc: array<f32, 16>;
-    for (var i = 0u; i < 16u; i++) {
-        acc[i] = 0.0;
+    var ra: array<f32, $A_LOADSu>; // this thread's share of the next A slice
+    var rb: array<f32, $B_LOADSu>; // and of the next B slice
+$ACC_DECL
+    // the first slice into registers
+    for (var s = 0u; s < A_LOADS; s++) {
+        let p = a_slot(tid + s * THREADS, a_rows_fast); // (row, k) in the tile
+        let r = row0 + p.x;
+        let kk = k_begin + p.y;
+        var v = 0.0;
+        if r < mc.m && kk < k_end {
+            v = mm_a[a_base + r * mc.a_row + kk * mc.a_col];
+        }
+        ra[s] = v;
     }
-    for (var k0 = 0u; k0 < mc.k; k0 += MM_DEPTH) {
-        for (var s = 0u; s < 4u; s++) {
-            let e = tid + s * MM_THREADS; // 0..1023: one staged value of A and one of B
-            // A: row r of the tile at depth d
-            var r = e / MM_DEPTH;
-            var d = e % MM_DEPTH;
-            if a_rows_fast {
-                r = e % MM_TILE;
-                d = e / MM_TILE;
-            }
-            let ga = row0 + r;
-            let ka = k0 + d;
-            var va = 0.0;
-            if ga < mc.m && ka < mc.k {
-                va = mm_a[a_base + ga * mc.a_row + ka * mc.a_col];
-            }
-            mm_sa[d * MM_TILE + r] = va;
-            // B: column c of the tile at depth d
-            var c = e % MM_TILE;
-            var db = e / MM_TILE;
-            if !b_cols_fast {
-                c = e / MM_DEPTH;
-                db = e % MM_DEPTH;
-            }
-            let gb = col0 + c;
-            let kb = k0 + db;
-            var vb = 0.0;
-            if gb < mc.n && kb < mc.k {
-                vb = mm_b[b_base + kb * mc.b_row + gb * mc.b_col];
-            }
-            mm_sb[db * MM_TILE + c] = vb;
+    for (var s = 0u; s < B_LOADS; s++) {
+        let p = b_slot(tid + s * THREADS, b_cols_fast); // (column, k) in the tile
+        let c = col0 + p.x;
+        let kk = k_begin + p.y;
+        var v = 0.0;
+        if c < mc.n && kk < k_end {
+            v = mm_b[b_base + kk * mc.b_row + c * mc.b_col];
+        }
+        rb[s] = v;
+    }
+    for (var k0 = k_begin; k0 < k_end; k0 += BK) {
+        // the fetched slice into workgroup memory
+        for (var s = 0u; s < A_LOADS; s++) {
+            let p = a_slot(tid + s * THREADS, a_rows_fast);
+            mm_sa[p.y * (BM / 4u) + p.x / 4u][p.x % 4u] = ra[s];
+        }
+        for (var s = 0u; s < B_LOADS; s++) {
+            let p = b_slot(tid + s * THREADS, b_cols_fast);
+            mm_sb[p.y * (BN / 4u) + p.x / 4u][p.x % 4u] = rb[s];
         }
         workgroupBarrier();
-        for (var d = 0u; d < MM_DEPTH; d++) {
-            var av: array<f32, 4>;
-            var bv: array<f32, 4>;
-            for (var i = 0u; i < 4u; i++) {
-                av[i] = mm_sa[d * MM_TILE + lid.y * 4u + i];
-                bv[i] = mm_sb[d * MM_TILE + lid.x * 4u + i];
-            }
-            for (var i = 0u; i < 4u; i++) {
-                for (var j = 0u; j < 4u; j++) {
-                    acc[i * 4u + j] = acc[i * 4u + j] + av[i] * bv[j]; // C[r, c] += A[r, k] B[k, c]
+        // the next slice into registers while this one is multiplied
+        let k1 = k0 + BK;
+        if k1 < k_end {
+            for (var s = 0u; s < A_LOADS; s++) {
+                let p = a_slot(tid + s * THREADS, a_rows_fast);
+                let r = row0 + p.x;
+                let kk = k1 + p.y;
+                var v = 0.0;
+                if r < mc.m && kk < k_end {
+                    v = mm_a[a_base + r * mc.a_row + kk * mc.a_col];
                 }
+                ra[s] = v;
             }
+            for (var s = 0u; s < B_LOADS; s++) {
+                let p = b_slot(tid + s * THREADS, b_cols_fast);
+                let c = col0 + p.x;
+                let kk = k1 + p.y;
+                var v = 0.0;
+                if c < mc.n && kk < k_end {
+                    v = mm_b[b_base + kk * mc.b_row + c * mc.b_col];
+                }
+                rb[s] = v;
+            }
+        }
+        for (var d = 0u; d < BK; d++) {
+            // C[r, c] += A[r, k0 + d] · B[k0 + d, c] for this thread's rows and columns
+$ACC_FMA
         }
         workgroupBarrier();
     }
-    let c_base = batch * mc.c_batch;
-    for (var i = 0u; i < 4u; i++) {
-        let r = row0 + lid.y * 4u + i;
-        for (var j = 0u; j < 4u; j++) {
-            let c = col0 + lid.x * 4u + j;
-            if r < mc.m && c < mc.n {
-                mm_c[c_base + r * mc.n + c] = acc[i * 4u + j];
-            }
-        }
-    }
+    let c_base = wg.z * mc.c_batch; // [batches · k_splits] outputs of [M, N]
+    var r = 0u;
+    var c = 0u;
+$ACC_STORE
 }

@@ -4,7 +4,8 @@
 //! so they are the figures a 2-core machine without a GPU can improve.
 //!
 //! - **Kernels**: every launch of burn's wgpu runtime (cubecl's launch observer, named as the
-//!   kernel names itself, shortened to its type name: `burn:MatmulEntry`, `burn:KernelBinop`, …),
+//!   kernel names itself, shortened to its type name: `burn:MatmulEntry`, `burn:KernelBinop`, …;
+//!   dextrain's own kernels launched on burn's stream name themselves `dextrain_<what>`),
 //!   and every dispatch of dextrain's own shaders (`dextrain:<what>`, counted where the compute
 //!   pass is recorded).
 //! - **Submissions**: dextrain's own `queue.submit` calls by what they submit; the queue's total
@@ -174,7 +175,11 @@ struct CountLaunches;
 
 impl cubecl_runtime::logging::LaunchObserver for CountLaunches {
     fn launched(&self, kernel: &'static str) {
-        add(Event::Kernel, &format!("burn:{}", short_kernel_name(kernel)));
+        let name = short_kernel_name(kernel);
+        match name.strip_prefix("dextrain_") {
+            Some(ours) => add(Event::Kernel, &format!("dextrain:{ours}")), // dextrain's kernels on burn's stream
+            None => add(Event::Kernel, &format!("burn:{name}")),
+        }
     }
 }
 

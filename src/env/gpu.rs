@@ -47,8 +47,6 @@ pub const SHADER_ADAM: &str = include_str!("../../shaders/adam.wgsl");
 /// The device-resident learners' observation normalisers (a module of its own;
 /// `learn::fused_normalizer`).
 pub const SHADER_NORMALIZER: &str = include_str!("../../shaders/normalizer.wgsl");
-/// The GPU learner's matrix product of our own (a module of its own; `learn::wgsl_matmul`).
-pub const SHADER_MATMUL: &str = include_str!("../../shaders/matmul.wgsl");
 /// Invocations per workgroup (keep in sync with `WORKGROUP_SIZE` in common.wgsl).
 pub const WORKGROUP_SIZE: u32 = 64;
 

@@ -222,23 +222,23 @@ pub const ADAM_GROUP: ShaderGroup = ShaderGroup {
     entry_points: &[ADAM_NORM_PARTIAL, ADAM_NORM_FINAL, ADAM_UPDATE],
 };
 
-// ---- the GPU learner's matrix product of our own (matmul.wgsl, a module of its own; bound by
-// learn/wgsl_matmul.rs with burn's tensors' memory) ----
+// ---- the GPU learner's matrix product of our own (matmul.wgsl, a module of its own, launched
+// by learn/wgsl_matmul.rs on burn's stream: cubecl binds the buffers in order, then the uniform) ----
 
-/// `MatmulCfg`: the product's sizes and the operands' strides.
-pub const MM_CFG: Binding = binding(0, "mc", Uniform);
 /// `array<f32>`: A's memory (any strides).
-pub const MM_A: Binding = binding(1, "mm_a", StorageReadWrite);
+pub const MM_A: Binding = binding(0, "mm_a", StorageReadWrite);
 /// `array<f32>`: B's memory (any strides).
-pub const MM_B: Binding = binding(2, "mm_b", StorageReadWrite);
+pub const MM_B: Binding = binding(1, "mm_b", StorageReadWrite);
 /// `array<f32>` `[batches, M, N]`: the product, row-major.
-pub const MM_C: Binding = binding(3, "mm_c", StorageReadWrite);
+pub const MM_C: Binding = binding(2, "mm_c", StorageReadWrite);
+/// `MatmulCfg`: the product's sizes and the operands' strides (cubecl's launch constants).
+pub const MM_CFG: Binding = binding(3, "mc", Uniform);
 
-/// `matmul_tiled`: one 64 × 64 tile of C per workgroup.
-pub const MM_TILED: EntryBindings = EntryBindings { entry_point: "matmul_tiled", bindings: &[MM_CFG, MM_A, MM_B, MM_C] };
+/// `matmul_tiled`: one tile of C per workgroup.
+pub const MM_TILED: EntryBindings = EntryBindings { entry_point: "matmul_tiled", bindings: &[MM_A, MM_B, MM_C, MM_CFG] };
 
-/// The matrix product's module (shaders/matmul.wgsl alone).
-pub const MM_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain matmul", bindings: &[MM_CFG, MM_A, MM_B, MM_C], entry_points: &[MM_TILED] };
+/// The matrix product's module (shaders/matmul.wgsl alone, any tile shape).
+pub const MM_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain matmul", bindings: &[MM_A, MM_B, MM_C, MM_CFG], entry_points: &[MM_TILED] };
 
 // ---- the device-resident learners' observation normalisers (normalizer.wgsl, a module of its
 // own; bound by learn/fused_normalizer.rs with slices of burn's tensors) ----

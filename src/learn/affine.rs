@@ -92,7 +92,9 @@ impl AffineOps for Cube {
     fn affine_grad_w(x: FloatTensor<Self>, g: FloatTensor<Self>) -> FloatTensor<Self> {
         let (shape_x, shape_g) = (x.shape(), g.shape());
         let (rows, inputs, outputs) = (shape_x[0], shape_x[1], shape_g[1]);
-        let split = crate::learn::nets::split_for_rows(rows);
+        // dextrain's kernel splits a long k itself (`wgsl_matmul::plan`), into as many slices as
+        // the shapes need, without S dividing the rows
+        let split = if gpu_matmul::chosen().splits_k_itself() { 1 } else { crate::learn::nets::split_for_rows(rows) };
         if split <= 1 {
             return gpu_matmul::matmul(Cube::float_transpose(x), g); // [in, B] · [B, out]
         }

@@ -40,6 +40,8 @@ use cubek::matmul::routine::BlueprintStrategy;
 use cubek::matmul::strategy::Strategy;
 use cubek::std::InputBinding;
 
+use crate::learn::wgsl_matmul::Tile;
+
 /// The environment variable that names the routine for a measurement.
 pub const ENV_VAR: &str = "DEXTRAIN_GPU_MATMUL";
 
@@ -62,14 +64,20 @@ pub enum GpuMatmul {
     DoublePlane,
     /// `DoublePlane` with ordered loading.
     OrderedDoublePlane,
-    /// dextrain's own WGSL kernel (`learn::wgsl_matmul`: 64 × 64 tiles staged in workgroup memory;
-    /// one submission per product).
+    /// dextrain's own WGSL kernel (`learn::wgsl_matmul`: tiles staged in workgroup memory, on
+    /// burn's command stream), the tile shape per product (`Tile::for_product`).
     DextrainTiled,
+    /// dextrain's kernel, 64 × 64 tiles (4 × 4 per thread) for every product.
+    DextrainTiledSmall,
+    /// dextrain's kernel, 128 × 128 tiles (8 × 8 per thread) for every product.
+    DextrainTiledLarge,
+    /// dextrain's kernel, 128 × 64 tiles (8 × 4 per thread) for every product.
+    DextrainTiledTall,
 }
 
 impl GpuMatmul {
     /// Every routine with its name (`DEXTRAIN_GPU_MATMUL`, the bench JSON).
-    pub const NAMES: [(GpuMatmul, &'static str); 9] = [
+    pub const NAMES: [(GpuMatmul, &'static str); 12] = [
         (GpuMatmul::Burn, "burn"),
         (GpuMatmul::SimpleUnit, "simple_unit"),
         (GpuMatmul::SimpleUnitSmallTiles, "simple_unit_small_tiles"),
@@ -79,10 +87,13 @@ impl GpuMatmul {
         (GpuMatmul::DoublePlane, "double_plane"),
         (GpuMatmul::OrderedDoublePlane, "ordered_double_plane"),
         (GpuMatmul::DextrainTiled, "dextrain_tiled"),
+        (GpuMatmul::DextrainTiledSmall, "dextrain_tiled_64"),
+        (GpuMatmul::DextrainTiledLarge, "dextrain_tiled_128"),
+        (GpuMatmul::DextrainTiledTall, "dextrain_tiled_128x64"),
     ];
 
     /// The routine a run uses unless `DEXTRAIN_GPU_MATMUL` names another.
-    pub const DEFAULT: GpuMatmul = GpuMatmul::SimpleUnitSmallTiles;
+    pub const DEFAULT: GpuMatmul = GpuMatmul::DextrainTiled;
 
     /// The routine's name.
     pub fn name(self) -> &'static str {
@@ -107,12 +118,34 @@ impl GpuMatmul {
         self != GpuMatmul::Burn
     }
 
+    /// Whether the routine splits a product with a long k and few output tiles over k itself
+    /// (dextrain's kernel, `wgsl_matmul::plan`), so the weight gradient needs no row slices.
+    pub fn splits_k_itself(self) -> bool {
+        self.ours().is_some()
+    }
+
+    /// Whether the routine is dextrain's own kernel, and with which tile shape (None inside: the
+    /// shape per product).
+    fn ours(self) -> Option<Option<Tile>> {
+        match self {
+            GpuMatmul::DextrainTiled => Some(None),
+            GpuMatmul::DextrainTiledSmall => Some(Some(Tile::SMALL)),
+            GpuMatmul::DextrainTiledLarge => Some(Some(Tile::LARGE)),
+            GpuMatmul::DextrainTiledTall => Some(Some(Tile::TALL)),
+            _ => None,
+        }
+    }
+
     /// cubek's strategy for the routine (None: burn's own `float_matmul`, or ours).
     fn strategy(self) -> Option<Strategy> {
         let unit = |tile_size| SimpleUnitSelectionArgs { tile_size };
         let double_unit = |tile_size| DoubleUnitSelectionArgs { tile_size };
         let routine = match self {
-            GpuMatmul::Burn | GpuMatmul::DextrainTiled => return None,
+            GpuMatmul::Burn
+            | GpuMatmul::DextrainTiled
+            | GpuMatmul::DextrainTiledSmall
+            | GpuMatmul::DextrainTiledLarge
+            | GpuMatmul::DextrainTiledTall => return None,
             GpuMatmul::SimpleUnit => Routine::SimpleUnit(BlueprintStrategy::Inferred(unit(TileSizeSelection::MaxTileSize))),
             GpuMatmul::SimpleUnitSmallTiles => {
                 Routine::SimpleUnit(BlueprintStrategy::Inferred(unit(TileSizeSelection::MinTileSize)))
@@ -177,8 +210,8 @@ pub fn matmul(lhs: FloatTensor<Cube>, rhs: FloatTensor<Cube>) -> FloatTensor<Cub
 
 /// `lhs · rhs` as [`matmul`] with `routine` (the matmul bench compares the routines in one process).
 pub fn matmul_with(routine: GpuMatmul, lhs: FloatTensor<Cube>, rhs: FloatTensor<Cube>) -> FloatTensor<Cube> {
-    if routine == GpuMatmul::DextrainTiled {
-        return match crate::learn::wgsl_matmul::matmul(&lhs, &rhs) {
+    if let Some(tile) = routine.ours() {
+        return match crate::learn::wgsl_matmul::matmul(&lhs, &rhs, tile) {
             Ok(out) => out,
             Err(_) => fall_back(lhs, rhs), // shapes or a device the kernel does not take
         };

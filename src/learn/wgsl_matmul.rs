@@ -1,28 +1,121 @@
-//! The GPU learner's matrix product of our own: `shaders/matmul.wgsl` (64 × 64 tiles of the
-//! product per workgroup, 4 × 4 per thread, operands staged in workgroup memory) over burn's
-//! tensors' memory, the `dextrain_tiled` routine of `learn::gpu_matmul`.
+//! The GPU learner's matrix product of our own: `shaders/matmul.wgsl`, a tiled product with the
+//! operands staged in workgroup memory, the `dextrain_tiled*` routines of `learn::gpu_matmul`.
 //!
 //! cubek's routines on WGSL adapters are unit routines (one thread per output tile, operands read
 //! from global memory); its shared-memory routines need cooperative matrices. This kernel stages
-//! the operands in workgroup memory as a plain WGSL kernel can. Each product is one dispatch and
-//! one submission of ours (what burn recorded before is flushed first, as `fused_normalizer.rs`
-//! does), so it pays where a product is large; `bench --matmul` measures it beside cubek's.
+//! the operands in workgroup memory as a plain WGSL kernel can, each thread accumulating a
+//! TM × TN block in registers. The shader is a template: [`shader_source`] writes the tile shape
+//! in and unrolls the per-thread accumulation (one named register per accumulator; an indexed
+//! array could be left in slow per-thread memory by the driver's compiler).
+//!
+//! It is launched as a hand-written kernel of cubecl (`CubeKernel::source`): on burn's own
+//! command stream, between burn's kernels, with no flush or submission of ours, the launch's
+//! constants ([`MatmulCfg`]) in the uniform cubecl binds after the buffers (and caches per value).
 
 use anyhow::{Result, anyhow, ensure};
 use burn::backend::Cube;
 use burn::backend::tensor::FloatTensor;
-use burn::prelude::Tensor;
-use burn::tensor::DType;
+use burn::backend::ops::FloatTensorOps;
+use burn::tensor::{DType, FloatDType, Shape};
+use burn_cubecl::cubecl::ir::metadata::Info;
+use burn_cubecl::cubecl::ir::settings::{Dim3, ExecutionMode, KernelSettings};
+use burn_cubecl::cubecl::ir::{AddressType, ElemType, Scope, UIntKind};
 use burn_cubecl::kernel::matmul::init_matmul_output;
-use cubecl_wgpu::{AutoCompiler, WgpuServer};
-use std::sync::Mutex;
+use cubecl_runtime::id::KernelId;
+use cubecl_runtime::kernel::{CubeKernel, KernelDefinition, KernelMetadata, PrecompiledSource};
+use cubecl_runtime::server::{CubeCount, KernelArguments, MetadataBindingInfo};
 
-use crate::env::gpu::{GpuContext, SHADER_MATMUL};
-use crate::env::gpu_bindings::{MM_A, MM_B, MM_C, MM_CFG, MM_GROUP, MM_TILED};
-use crate::gpu_counts::{self, Event};
+/// The template (`$NAME` markers filled in by [`shader_source`]).
+const TEMPLATE: &str = include_str!("../../shaders/matmul.wgsl");
 
-/// C rows and columns per workgroup (matmul.wgsl's `MM_TILE`).
-const TILE: usize = 64;
+/// The shader's entry point.
+pub const ENTRY_POINT: &str = "matmul_tiled";
+
+/// Threads per workgroup, every tile shape.
+const THREADS: usize = 256;
+
+/// Workgroups a product must fill before [`Tile::LARGE`] is taken over [`Tile::SMALL`]
+/// ([`Tile::for_product`]): two per multiprocessor of an H100/H200 (132), so that larger tiles do
+/// not leave most of the GPU idle on a product with few of them.
+pub const LARGE_TILE_MIN_GROUPS: usize = 264;
+
+/// Workgroups a product with few tiles of C is split over k to fill (four per multiprocessor of an
+/// H100/H200): the weight gradients `xᵀ g` of the learner, [in, out] summed over a batch's rows.
+pub const SPLIT_TARGET_GROUPS: usize = 528;
+
+/// The least k per split of a product split over k.
+pub const MIN_K_PER_SPLIT: usize = 256;
+
+/// A tile shape of the kernel: what a workgroup and each of its threads compute.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Tile {
+    /// C rows per workgroup (BM).
+    pub rows: usize,
+    /// C columns per workgroup (BN).
+    pub cols: usize,
+    /// k per slice staged in workgroup memory (BK).
+    pub depth: usize,
+    /// C rows per thread (TM, a multiple of 4).
+    pub thread_rows: usize,
+    /// C columns per thread (TN, a multiple of 4).
+    pub thread_cols: usize,
+}
+
+impl Tile {
+    /// 64 × 64 per workgroup, 4 × 4 per thread, 16 deep.
+    pub const SMALL: Tile = Tile { rows: 64, cols: 64, depth: 16, thread_rows: 4, thread_cols: 4 };
+    /// 128 × 128 per workgroup, 8 × 8 per thread, 8 deep.
+    pub const LARGE: Tile = Tile { rows: 128, cols: 128, depth: 8, thread_rows: 8, thread_cols: 8 };
+    /// 128 × 64 per workgroup, 8 × 4 per thread, 16 deep.
+    pub const TALL: Tile = Tile { rows: 128, cols: 64, depth: 16, thread_rows: 8, thread_cols: 4 };
+    /// Every shape the routines use.
+    pub const ALL: [Tile; 3] = [Tile::SMALL, Tile::LARGE, Tile::TALL];
+
+    /// Threads along C's columns (TX) and rows (TY).
+    fn threads(self) -> (usize, usize) {
+        (self.cols / self.thread_cols, self.rows / self.thread_rows)
+    }
+
+    /// Workgroups for an m × n product of `batches` batches.
+    pub fn groups(self, m: usize, n: usize, batches: usize) -> [usize; 3] {
+        [n.div_ceil(self.cols), m.div_ceil(self.rows), batches]
+    }
+
+    /// The shape for an m × n product of `batches` batches: [`Tile::LARGE`] where it still fills
+    /// [`LARGE_TILE_MIN_GROUPS`] workgroups, [`Tile::TALL`] where that does, else [`Tile::SMALL`].
+    pub fn for_product(m: usize, n: usize, batches: usize) -> Tile {
+        let fills = |t: Tile| t.groups(m, n, batches).iter().product::<usize>() >= LARGE_TILE_MIN_GROUPS;
+        [Tile::LARGE, Tile::TALL].into_iter().find(|t| fills(*t)).unwrap_or(Tile::SMALL)
+    }
+
+    /// The shape for a product split over k (the splits fill the GPU, so the tile is the one
+    /// that does the most work per value staged): 128 × 128 where C has 128 rows and columns,
+    /// 128 × 64 where it has 128 rows, else 64 × 64.
+    pub fn for_split(m: usize, n: usize) -> Tile {
+        match (m >= 128, n >= 128) {
+            (true, true) => Tile::LARGE,
+            (true, false) => Tile::TALL,
+            _ => Tile::SMALL,
+        }
+    }
+}
+
+/// How an m × n × k product of `batches` batches is launched: the tile shape (`forced`, or chosen
+/// from the shape) and (splits, k per split). A single product whose tiles leave the GPU mostly
+/// idle and whose k is long is split over k into about [`SPLIT_TARGET_GROUPS`] workgroups, at
+/// least [`MIN_K_PER_SPLIT`] k each, each k per split a multiple of the tile's depth. The choice
+/// depends on the shapes alone, so a run's products are the same kernels every time.
+pub fn plan(m: usize, n: usize, k: usize, batches: usize, forced: Option<Tile>) -> (Tile, usize, usize) {
+    let unsplit = forced.unwrap_or_else(|| Tile::for_product(m, n, batches));
+    let groups = |t: Tile| t.groups(m, n, 1).iter().product::<usize>();
+    if batches != 1 || k < 2 * MIN_K_PER_SPLIT || groups(unsplit) * batches >= SPLIT_TARGET_GROUPS {
+        return (unsplit, 1, k.max(1));
+    }
+    let tile = forced.unwrap_or_else(|| Tile::for_split(m, n));
+    let wanted = SPLIT_TARGET_GROUPS.div_ceil(groups(tile)).min(k / MIN_K_PER_SPLIT).max(1);
+    let chunk = k.div_ceil(wanted).next_multiple_of(tile.depth); // k per split
+    (tile, k.div_ceil(chunk), chunk)
+}
 
 /// `MatmulCfg` of matmul.wgsl (keep in sync): sizes and strides in f32 elements.
 #[repr(C)]
@@ -39,21 +132,108 @@ pub struct MatmulCfg {
     pub b_col: u32,
     pub b_batch: u32,
     pub c_batch: u32,
-    pub _pad: u32,
+    pub k_splits: u32,
+    pub k_chunk: u32,
+    pub _pad0: u32,
+    pub _pad1: u32,
+    pub _pad2: u32,
 }
 
-/// The kernel on one device: its context, pipeline and constants' buffer.
-struct Kernel {
-    ctx: GpuContext,
-    pipeline: wgpu::ComputePipeline,
-    cfg: wgpu::Buffer,
+/// matmul.wgsl for `tile`: the template with the shape's numbers and the unrolled accumulation.
+pub fn shader_source(tile: Tile) -> String {
+    let Tile { rows, cols, depth, thread_rows, thread_cols } = tile;
+    let (tx, ty) = tile.threads();
+    assert!(
+        thread_rows % 4 == 0 && thread_cols % 4 == 0 && tx * ty == THREADS && (depth * rows) % THREADS == 0 && (depth * cols) % THREADS == 0,
+        "matmul.wgsl: tile {tile:?} does not give 256 threads whole vec4s and whole loads"
+    );
+    let (row_groups, col_groups) = (thread_rows / 4, thread_cols / 4);
+    let lane = ["x", "y", "z", "w"];
+    let mut decl = String::new();
+    let mut fma = String::new();
+    let mut store = String::new();
+    // accumulator c{row}_{h}: this thread's row `row` (group row/4, lane row%4) at its column group h
+    for row in 0..thread_rows {
+        for h in 0..col_groups {
+            decl += &format!("    var c{row}_{h} = vec4<f32>(0.0);\n");
+        }
+    }
+    for g in 0..row_groups {
+        fma += &format!("            let a{g} = mm_sa[d * (BM / 4u) + {g}u * TY + ty]; // rows ({g}·TY + ty)·4 .. +4 at k0 + d\n");
+    }
+    for h in 0..col_groups {
+        fma += &format!("            let b{h} = mm_sb[d * (BN / 4u) + {h}u * TX + tx]; // columns ({h}·TX + tx)·4 .. +4\n");
+    }
+    for row in 0..thread_rows {
+        let (g, i) = (row / 4, row % 4);
+        for h in 0..col_groups {
+            fma += &format!("            c{row}_{h} = fma(vec4<f32>(a{g}.{}), b{h}, c{row}_{h});\n", lane[i]);
+        }
+    }
+    for row in 0..thread_rows {
+        let (g, i) = (row / 4, row % 4);
+        store += &format!("    r = row0 + ({g}u * TY + ty) * 4u + {i}u;\n    if r < mc.m {{\n");
+        for h in 0..col_groups {
+            store += &format!("        c = col0 + ({h}u * TX + tx) * 4u;\n");
+            for (j, l) in lane.iter().enumerate() {
+                store += &format!("        if c + {j}u < mc.n {{ mm_c[c_base + r * mc.n + c + {j}u] = c{row}_{h}.{l}; }}\n");
+            }
+        }
+        store += "    }\n";
+    }
+    let number = |v: usize| v.to_string();
+    TEMPLATE
+        .replace("$ACC_DECL", decl.trim_end())
+        .replace("$ACC_FMA", fma.trim_end())
+        .replace("$ACC_STORE", store.trim_end())
+        .replace("$BM", &number(rows))
+        .replace("$BN", &number(cols))
+        .replace("$BK", &number(depth))
+        .replace("$TX", &number(tx))
+        .replace("$TY", &number(ty))
+        .replace("$THREADS", &number(THREADS))
+        .replace("$A_LOADS", &number(depth * rows / THREADS))
+        .replace("$B_LOADS", &number(depth * cols / THREADS))
+        .replace("$SA_LEN", &number(depth * rows / 4))
+        .replace("$SB_LEN", &number(depth * cols / 4))
 }
 
-/// One kernel per wgpu device the process uses (found by the context's device).
-static KERNELS: Mutex<Vec<Kernel>> = Mutex::new(Vec::new());
+/// The kernel for one tile shape, as a hand-written cubecl kernel.
+struct TiledKernel {
+    tile: Tile,
+}
 
-/// (rows, columns, batch) strides and the batch count of a rank-2 or rank-3 operand; a batch of
-/// one is broadcast (stride 0).
+impl KernelMetadata for TiledKernel {
+    fn name(&self) -> &'static str {
+        "dextrain_matmul" // counted as dextrain's own (gpu_counts)
+    }
+
+    fn id(&self) -> KernelId {
+        let (tx, ty) = self.tile.threads();
+        // the id covers the text: one per tile shape; unchecked: no loop-bound guards added by naga
+        KernelId::new::<Self>().info(self.tile).cube_dim(Dim3::new_2d(tx as u32, ty as u32)).mode(ExecutionMode::Unchecked)
+    }
+
+    fn address_type(&self) -> ElemType {
+        ElemType::UInt(UIntKind::U32)
+    }
+}
+
+impl CubeKernel for TiledKernel {
+    fn define(&self) -> KernelDefinition {
+        // nothing to compile (the source below is the kernel); what the launch path reads
+        let (tx, ty) = self.tile.threads();
+        let settings = KernelSettings::new(Dim3::new_2d(tx as u32, ty as u32), ExecutionMode::Unchecked, AddressType::U32);
+        KernelDefinition { body: Scope::root(settings.clone()), settings, info: Info::default() }
+    }
+
+    fn source(&self) -> Option<PrecompiledSource> {
+        Some(PrecompiledSource { source: shader_source(self.tile), entrypoint_name: ENTRY_POINT.to_string(), lang: "wgsl" })
+    }
+}
+
+/// (rows, columns) of the operand as multiplied, its (row, column, batch) strides and its batch
+/// count, for a rank-2 or rank-3 operand; a batch of one is broadcast (stride 0).
 fn strides_of(t: &FloatTensor<Cube>) -> Result<([usize; 2], [usize; 3], usize)> {
     let shape = t.meta.shape().to_vec();
     let strides = t.meta.strides().to_vec();
@@ -64,68 +244,62 @@ fn strides_of(t: &FloatTensor<Cube>) -> Result<([usize; 2], [usize; 3], usize)> 
     }
 }
 
-/// `lhs · rhs` for f32 lhs [(S,) M, K], rhs [(S,) K, N] (any strides) with matmul.wgsl → [(S,) M, N]
-/// row-major; an error where the operands do not fit it (the caller falls back to cubek's).
-pub fn matmul(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>) -> Result<FloatTensor<Cube>> {
+/// `lhs · rhs` for f32 lhs [(S,) M, K], rhs [(S,) K, N] (any strides) with matmul.wgsl in `tile`
+/// (None: chosen by shape, [`plan`]) → [(S,) M, N] row-major; an error where the operands do not
+/// fit it (the caller falls back to another routine). A product split over k ([`plan`]) writes
+/// its partial sums [splits, M, N] and sums them with burn's `sum_dim` (a fixed order).
+pub fn matmul(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, tile: Option<Tile>) -> Result<FloatTensor<Cube>> {
     ensure!(lhs.dtype == DType::F32 && rhs.dtype == DType::F32, "matmul.wgsl multiplies f32 tensors");
     let (([m, k], [a_row, a_col, a_batch], a_batches), ([k2, n], [b_row, b_col, b_batch], b_batches)) = (strides_of(lhs)?, strides_of(rhs)?);
     ensure!(k == k2 && (a_batches == b_batches || a_batches == 1 || b_batches == 1), "matmul.wgsl: shapes do not multiply");
     let batches = a_batches.max(b_batches);
-    let fits = |v: usize| u32::try_from(v).ok();
+    let (tile, splits, k_chunk) = plan(m, n, k, batches, tile);
+    let fits = |v: usize| u32::try_from(v).map_err(|_| anyhow!("matmul.wgsl: {v} does not fit 32 bits"));
+    // every index the kernel forms stays under 2^32
+    fits(a_batch * batches + a_row * m + a_col * k)?;
+    fits(b_batch * batches + b_row * k + b_col * n)?;
+    fits(m * n * batches * splits)?;
     let cfg = MatmulCfg {
-        m: fits(m).ok_or_else(|| anyhow!("too large"))?,
-        n: fits(n).ok_or_else(|| anyhow!("too large"))?,
-        k: fits(k).ok_or_else(|| anyhow!("too large"))?,
-        batches: batches as u32,
-        a_row: a_row as u32,
-        a_col: a_col as u32,
-        a_batch: a_batch as u32,
-        b_row: b_row as u32,
-        b_col: b_col as u32,
-        b_batch: b_batch as u32,
-        c_batch: fits(m * n).ok_or_else(|| anyhow!("too large"))?,
-        _pad: 0,
+        m: fits(m)?,
+        n: fits(n)?,
+        k: fits(k)?,
+        batches: fits(batches)?,
+        a_row: fits(a_row)?,
+        a_col: fits(a_col)?,
+        a_batch: fits(a_batch)?,
+        b_row: fits(b_row)?,
+        b_col: fits(b_col)?,
+        b_batch: fits(b_batch)?,
+        c_batch: fits(m * n)?,
+        k_splits: fits(splits)?,
+        k_chunk: fits(k_chunk)?,
+        _pad0: 0,
+        _pad1: 0,
+        _pad2: 0,
     };
-    let (gx, gy) = (n.div_ceil(TILE), m.div_ceil(TILE));
-    ensure!(gx <= 65_535 && gy <= 65_535 && batches <= 65_535 && m * n > 0 && k > 0, "matmul.wgsl: a grid of {gx} × {gy} × {batches}");
-    // the context of the tensors' device, and its kernel
-    let device = match lhs.meta.shape().len() {
-        2 => Tensor::<2>::from_primitive::<Cube>(lhs.clone()).device(),
-        _ => Tensor::<3>::from_primitive::<Cube>(lhs.clone()).device(),
+    let [gx, gy, gz] = tile.groups(m, n, batches * splits);
+    ensure!(gx <= 65_535 && gy <= 65_535 && gz <= 65_535 && m * n > 0 && k > 0, "matmul.wgsl: a grid of {gx} × {gy} × {gz}");
+    // [(S,) M, N], or the partials [splits, M, N]; written whole by the kernel
+    let out = if splits == 1 {
+        init_matmul_output(lhs, rhs, DType::F32)
+    } else {
+        Cube::float_empty(Shape::new([splits, m, n]), &lhs.device, FloatDType::F32)
     };
-    let ctx = crate::learn::device::gpu_context_of(&device).ok_or_else(|| anyhow!("matmul.wgsl: no wgpu context of this device"))?;
-    let out = init_matmul_output(lhs, rhs, DType::F32); // [(S,) M, N], written whole below
-    let resource = |t: &FloatTensor<Cube>| t.client.get_resource::<WgpuServer<AutoCompiler>>(t.handle.clone()).map_err(|e| anyhow!("cannot reach a tensor's memory: {e:?}"));
-    let (ra, rb, rc) = (resource(lhs)?, resource(rhs)?, resource(&out)?);
-    let mut kernels = KERNELS.lock().unwrap_or_else(std::sync::PoisonError::into_inner);
-    let at = match kernels.iter().position(|kn| kn.ctx.device == ctx.device) {
-        Some(i) => i,
-        None => {
-            let [pipeline] = ctx.compute_pipelines(MM_GROUP.shader, SHADER_MATMUL, [MM_TILED.entry_point])?;
-            let cfg_buffer = ctx.create_buffer_with(MM_CFG.name, &[0u8; std::mem::size_of::<MatmulCfg>()], MM_CFG.space.into(), MM_CFG.space.usage())?;
-            kernels.push(Kernel { ctx: ctx.clone(), pipeline, cfg: cfg_buffer });
-            kernels.len() - 1
-        }
-    };
-    let kn = &kernels[at];
-    // (written before the submission below, which is the next on the queue to read it)
-    kn.ctx.upload_at(MM_CFG.name, &kn.cfg, 0, bytemuck::bytes_of(&cfg))?;
-    fn slice(r: &cubecl_runtime::storage::ManagedResource<cubecl_wgpu::WgpuResource>) -> (&wgpu::Buffer, u64, u64) {
-        let r = r.resource();
-        (&r.buffer, r.offset, r.size)
+    // the constants as the u64 words cubecl stages into the uniform (two u32 fields per word, in
+    // memory order on a little-endian host and GPU)
+    let words: Vec<u64> = bytemuck::cast_slice::<MatmulCfg, u32>(std::slice::from_ref(&cfg))
+        .chunks_exact(2)
+        .map(|p| u64::from(p[0]) | (u64::from(p[1]) << 32))
+        .collect();
+    let args = KernelArguments::new()
+        .with_buffer(lhs.handle.clone().binding())
+        .with_buffer(rhs.handle.clone().binding())
+        .with_buffer(out.handle.clone().binding())
+        .with_info(MetadataBindingInfo::custom(words));
+    // (counted by gpu_counts' launch observer as `dextrain:matmul`, [`TiledKernel`]'s name)
+    out.client.launch(Box::new(TiledKernel { tile }), CubeCount::Static(gx as u32, gy as u32, gz as u32), args);
+    if splits == 1 {
+        return Ok(out);
     }
-    let cfg_slice = (&kn.cfg, 0u64, std::mem::size_of::<MatmulCfg>() as u64);
-    let group = kn.ctx.bind_group_slices(&kn.pipeline, &MM_TILED, &[(MM_CFG, cfg_slice), (MM_A, slice(&ra)), (MM_B, slice(&rb)), (MM_C, slice(&rc))])?;
-    let mut enc = kn.ctx.device.create_command_encoder(&Default::default());
-    {
-        let mut pass = enc.begin_compute_pass(&Default::default());
-        pass.set_pipeline(&kn.pipeline);
-        pass.set_bind_group(0, &group, &[]);
-        pass.dispatch_workgroups(gx as u32, gy as u32, batches as u32);
-    }
-    gpu_counts::add(Event::Kernel, "dextrain:matmul");
-    // what burn recorded (the operands) runs first; burn's later work (reading C) after ours
-    crate::learn::gpu_io::flush(&device)?;
-    kn.ctx.submit(enc, "the learner's matrix product (matmul.wgsl)")?;
-    Ok(out)
+    Ok(Cube::float_reshape(Cube::float_sum_dim(out, 0), Shape::new([m, n]))) // Σ_s partial_s: [M, N]
 }

@@ -920,13 +920,33 @@ fn row_sums_and_matmul_routines_match_their_tensor_twins() {
             let before = gpu_matmul::fallbacks();
             let got = to_host(Tensor::<2>::from_primitive::<burn::backend::Cube>(gpu_matmul::matmul_with(routine, prim(&a), prim(rhs)))).unwrap();
             ran += usize::from(gpu_matmul::fallbacks() == before);
-            if routine == GpuMatmul::DextrainTiled {
-                assert_eq!(gpu_matmul::fallbacks(), before, "matmul.wgsl fell back to burn's product");
+            if name.starts_with("dextrain_tiled") {
+                assert_eq!(gpu_matmul::fallbacks(), before, "{name}: matmul.wgsl fell back to burn's product");
             }
             let worst = got.iter().zip(&want).map(|(g, w)| (g - w).abs() / (1.0 + w.abs())).fold(0.0f32, f32::max);
             assert!(worst < 1e-4, "{name}: products differ from burn's by {worst}");
         }
         assert!(ran >= 5, "the unit routines and ours run on any adapter: {ran} of {} ran", GpuMatmul::NAMES.len());
+    }
+    // a long k over few output tiles (a weight gradient xᵀ g over 2,100 rows): dextrain's kernel
+    // splits it over k (plan) and sums the partials; every routine gives burn's product
+    use dextrain::learn::wgsl_matmul::{MIN_K_PER_SPLIT, Tile, plan};
+    assert_eq!(plan(512, 256, 24_576, 1, None), (Tile::LARGE, 66, 376), "the PPO bench's widest weight gradient");
+    assert_eq!(plan(24_576, 512, 256, 1, None).1, 1, "a forward product fills the GPU unsplit");
+    assert_eq!(plan(40, 30, 2_100, 3, None).1, 1, "batched products are not split");
+    let (rows_k, i2, o2) = (2_100, 40, 30);
+    let (tile, splits, chunk) = plan(i2, o2, rows_k, 1, None);
+    assert!(splits == rows_k.div_ceil(chunk) && splits >= 8 && chunk >= MIN_K_PER_SPLIT && chunk % tile.depth == 0, "{splits} splits of {chunk}");
+    let xk = to_tensor(draw(rows_k * i2), [rows_k, i2], &dev).transpose(); // [in, B], a strided view
+    let gk = to_tensor(draw(rows_k * o2), [rows_k, o2], &dev); // [B, out]
+    let want = to_host(xk.clone().matmul(gk.clone())).unwrap();
+    for (routine, name) in GpuMatmul::NAMES {
+        let got = to_host(Tensor::<2>::from_primitive::<burn::backend::Cube>(gpu_matmul::matmul_with(routine, prim(&xk), prim(&gk)))).unwrap();
+        assert_eq!(got.len(), i2 * o2, "{name}: the split product's size");
+        let worst = got.iter().zip(&want).map(|(g, w)| (g - w).abs() / (1.0 + w.abs())).fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "{name}: the product over a long k differs from burn's by {worst}");
+        let again = to_host(Tensor::<2>::from_primitive::<burn::backend::Cube>(gpu_matmul::matmul_with(routine, prim(&xk), prim(&gk)))).unwrap();
+        assert_eq!(got, again, "{name}: the product over a long k repeats bit for bit");
     }
     // batched, as the weight gradient split over row slices multiplies: [S, in, B/S] (a view with
     // its last two dimensions swapped) · [S, B/S, out]

@@ -116,9 +116,14 @@ fn pod_structs_match_their_wgsl_twins() {
     // a uniform struct's size must be a multiple of 16
     assert_eq!(size_of::<TaskGlobals>() % 16, 0);
     // the learner's matrix product (a module of its own)
-    use dextrain::learn::wgsl_matmul::MatmulCfg;
-    let mm = validate(dextrain::env::gpu::SHADER_MATMUL);
-    check(&mm, "MatmulCfg", size_of::<MatmulCfg>(), rust_fields!(MatmulCfg; m, n, k, batches, a_row, a_col, a_batch, b_row, b_col, b_batch, c_batch, _pad));
+    use dextrain::learn::wgsl_matmul::{MatmulCfg, Tile, shader_source as matmul_source};
+    for tile in Tile::ALL {
+        // each tile shape's text is valid WGSL, its constants filled in
+        let src = matmul_source(tile);
+        assert!(!src.contains('$'), "{tile:?}: a template marker left in matmul.wgsl");
+        let mm = validate(&src);
+        check(&mm, "MatmulCfg", size_of::<MatmulCfg>(), rust_fields!(MatmulCfg; m, n, k, batches, a_row, a_col, a_batch, b_row, b_col, b_batch, c_batch, k_splits, k_chunk, _pad0, _pad1, _pad2));
+    }
     assert_eq!(size_of::<MatmulCfg>() % 16, 0);
 }
 
@@ -338,7 +343,7 @@ fn binding_tables_match_the_wgsl_globals() {
     use dextrain::env::gpu_bindings::{ADAM_GROUP, BindingSpace, COLLIDERS, MM_GROUP, NOISE_GROUP, NORM_GROUP, REF_CFG, REF_FRAMES, SIM_GROUP, TASK_GROUP};
     let noise = dextrain::env::gpu::noise_shader_source();
     let (adam, norm) = (dextrain::env::gpu::SHADER_ADAM.to_string(), dextrain::env::gpu::SHADER_NORMALIZER.to_string());
-    let matmul = dextrain::env::gpu::SHADER_MATMUL.to_string();
+    let matmul = dextrain::learn::wgsl_matmul::shader_source(dextrain::learn::wgsl_matmul::Tile::LARGE);
     for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (adam, ADAM_GROUP), (norm, NORM_GROUP), (matmul, MM_GROUP)] {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other
