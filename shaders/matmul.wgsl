@@ -3,7 +3,8 @@
 // transposed view is a strided one), C [M, N] row-major, b < batches. Split over k (a product
 // with few tiles of C and a long k, as the weight gradient over a batch's rows): workgroup layer z
 // sums k in [s·k_chunk, (s + 1)·k_chunk) for s = z mod k_splits into its own [M, N] partial, which
-// the caller sums over s (one batch only then).
+// the caller sums over s (one batch only then). An epilogue on C's entries (unsplit products):
+// + b[c] (a dense layer's bias), or ELU(· + b[c]) (with its activation, α = 1).
 //
 // A template: learn/wgsl_matmul.rs writes in the tile shape (the markers that begin with a dollar
 // sign: numbers) and the per-thread accumulation, unrolled (the ACC blocks), so that every
@@ -30,7 +31,8 @@ struct MatmulCfg {
     // k per split and the splits (1: no split)
     k_splits: u32,
     k_chunk: u32,
-    _pad0: u32,
+    // 0: C = A · B; 1: C = A · B + b (b [N] in mm_bias); 2: C = ELU(A · B + b)
+    epilogue: u32,
     _pad1: u32,
     _pad2: u32,
 }
@@ -41,7 +43,8 @@ struct MatmulCfg {
 @group(0) @binding(0) var<storage, read_write> mm_a: array<f32>;
 @group(0) @binding(1) var<storage, read_write> mm_b: array<f32>;
 @group(0) @binding(2) var<storage, read_write> mm_c: array<f32>;
-@group(0) @binding(3) var<uniform> mc: MatmulCfg;
+@group(0) @binding(3) var<storage, read_write> mm_bias: array<f32>; // [N] (any buffer without an epilogue)
+@group(0) @binding(4) var<uniform> mc: MatmulCfg;
 
 const BM: u32 = $BMu; // C rows per workgroup
 const BN: u32 = $BNu; // C columns per workgroup
@@ -71,6 +74,18 @@ fn b_slot(e: u32, cols_fast: bool) -> vec2<u32> {
         return vec2<u32>(e % BN, e / BN);
     }
     return vec2<u32>(e / BK, e % BK);
+}
+
+// C's entry `v` at column `c` after the epilogue
+fn finish(v: f32, c: u32) -> f32 {
+    if mc.epilogue == 0u {
+        return v;
+    }
+    let z = v + mm_bias[c]; // x W + b
+    if mc.epilogue == 1u {
+        return z;
+    }
+    return select(exp(min(z, 0.0)) - 1.0, z, z > 0.0); // ELU: z for z > 0, e^z − 1 otherwise
 }
 
 @compute @workgroup_size($TXu, $TYu, 1)

@@ -231,14 +231,16 @@ pub const MM_A: Binding = binding(0, "mm_a", StorageReadWrite);
 pub const MM_B: Binding = binding(1, "mm_b", StorageReadWrite);
 /// `array<f32>` `[batches, M, N]`: the product, row-major.
 pub const MM_C: Binding = binding(2, "mm_c", StorageReadWrite);
-/// `MatmulCfg`: the product's sizes and the operands' strides (cubecl's launch constants).
-pub const MM_CFG: Binding = binding(3, "mc", Uniform);
+/// `array<f32>` `[N]`: the bias of an epilogue (any buffer without one).
+pub const MM_BIAS: Binding = binding(3, "mm_bias", StorageReadWrite);
+/// `MatmulCfg`: the product's sizes, the operands' strides, the epilogue (cubecl's launch constants).
+pub const MM_CFG: Binding = binding(4, "mc", Uniform);
 
 /// `matmul_tiled`: one tile of C per workgroup.
-pub const MM_TILED: EntryBindings = EntryBindings { entry_point: "matmul_tiled", bindings: &[MM_A, MM_B, MM_C, MM_CFG] };
+pub const MM_TILED: EntryBindings = EntryBindings { entry_point: "matmul_tiled", bindings: &[MM_A, MM_B, MM_C, MM_BIAS, MM_CFG] };
 
 /// The matrix product's module (shaders/matmul.wgsl alone, any tile shape).
-pub const MM_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain matmul", bindings: &[MM_A, MM_B, MM_C, MM_CFG], entry_points: &[MM_TILED] };
+pub const MM_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain matmul", bindings: &[MM_A, MM_B, MM_C, MM_BIAS, MM_CFG], entry_points: &[MM_TILED] };
 
 // ---- the device-resident learners' observation normalisers (normalizer.wgsl, a module of its
 // own; bound by learn/fused_normalizer.rs with slices of burn's tensors) ----

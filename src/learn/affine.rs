@@ -13,9 +13,15 @@
 //!   read pass; where the learner's kernels are AVX2 (`sgemm::runs`), `x W` and `g Wᵀ` run
 //!   dextrain's own AVX2 product (`learn::sgemm`) instead of gemm's;
 //! - cubecl (the GPU): the products with the matmul routine chosen by measurement
-//!   (`learn::gpu_matmul`), `∂b` as a two-stage column sum (`learn::row_sums`);
+//!   (`learn::gpu_matmul`); with dextrain's kernel (the default) `x W + b` is one kernel, the bias
+//!   added as the product is written; `∂b` as a two-stage column sum (`learn::row_sums`);
 //! - autodiff: the gradients above, for the inputs that are tracked only (the first layer's
 //!   observations are not: no `∂x` there).
+//!
+//! A hidden layer with its ELU, `ELU(x W + b)`, is one op too (`affine_elu_fused`): on the GPU
+//! with dextrain's kernel one kernel (bias and ELU as the product is written, where a layer was
+//! the product, a bias add and ELU's five kernels); on the CPU the two ops' values unchanged; its
+//! gradient is ELU's then the dense layer's, as the two ops compute them.
 
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
@@ -31,6 +37,8 @@ use rayon::prelude::*;
 use burn::backend::TensorMetadata;
 use burn::backend::ops::FloatTensorOps;
 
+use crate::learn::elu::EluOps;
+use crate::learn::wgsl_matmul::Epilogue;
 use crate::learn::{gpu_matmul, row_sums, sgemm};
 
 /// `x W + b` as tensor ops of `B`.
@@ -61,6 +69,11 @@ pub trait AffineOps: Backend {
         affine_ops::<Self>(x, w, b)
     }
 
+    /// `ELU(x W + b)`, α = 1: a hidden layer with its activation, x [B, in] → [B, out].
+    fn affine_elu_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
+        crate::learn::elu::elu_ops::<Self>(affine_ops::<Self>(x, w, b))
+    }
+
     /// `∂x = g Wᵀ`: g [B, out], W [in, out] → [B, in].
     fn affine_grad_x(g: FloatTensor<Self>, w: FloatTensor<Self>) -> FloatTensor<Self> {
         grad_x_ops::<Self>(g, w)
@@ -82,7 +95,20 @@ pub trait AffineOps: Backend {
 /// alone: 1.3 ms for the policy's 22 outputs on an H200).
 impl AffineOps for Cube {
     fn affine_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
-        Cube::float_add(gpu_matmul::matmul(x, w), b) // x W [B, out] + b [1, out]
+        // dextrain's kernel adds b as it writes the product (one kernel); else a second one
+        match gpu_matmul::matmul_then(&x, &w, Epilogue::Bias(&b)) {
+            Some(y) => y,
+            None => Cube::float_add(gpu_matmul::matmul(x, w), b), // x W [B, out] + b [1, out]
+        }
+    }
+
+    fn affine_elu_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
+        // dextrain's kernel: the bias and the ELU as it writes the product (one kernel where the
+        // layer and its activation were six); the same values as the ops below
+        match gpu_matmul::matmul_then(&x, &w, Epilogue::BiasElu(&b)) {
+            Some(y) => y,
+            None => <Cube as EluOps>::elu_fused(Self::affine_fused(x, w, b)),
+        }
     }
 
     fn affine_grad_x(g: FloatTensor<Self>, w: FloatTensor<Self>) -> FloatTensor<Self> {
@@ -181,6 +207,10 @@ fn transposed(v: (*const f32, [usize; 2], isize, isize)) -> (*const f32, [usize;
 }
 
 impl AffineOps for Flex {
+    fn affine_elu_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
+        <Flex as EluOps>::elu_fused(Self::affine_fused(x, w, b)) // the two ops' values, unchanged
+    }
+
     fn affine_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
         let (Some(xv), Some(wv), Some(bv)) = (view_2d(&x), view_2d(&w), view_2d(&b)) else {
             return affine_ops::<Self>(x, w, b);
@@ -252,7 +282,49 @@ impl AffineOps for Flex {
     }
 }
 
-impl<B: Backend + AffineOps, C: CheckpointStrategy> AffineOps for Autodiff<B, C> {
+impl<B: Backend + AffineOps + EluOps, C: CheckpointStrategy> AffineOps for Autodiff<B, C> {
+    fn affine_elu_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
+        /// `y = ELU(x W + b)`: the gradient before the activation `g' = elu_backward(y, g)`, then
+        /// the dense layer's gradients of g' (what the two ops' backward passes compute, in the
+        /// same order).
+        #[derive(Debug)]
+        struct AffineElu;
+
+        impl<B: Backend + AffineOps + EluOps> Backward<B, 3> for AffineElu {
+            /// x when W is tracked (for ∂W), W when x is tracked (for ∂x), and the output y.
+            type State = (Option<FloatTensor<B>>, Option<FloatTensor<B>>, FloatTensor<B>);
+
+            fn backward(self, ops: Ops<Self::State, 3>, grads: &mut Gradients, _checkpointer: &mut Checkpointer) {
+                let (x, w, y) = ops.state;
+                let [node_x, node_w, node_b] = ops.parents;
+                let g = B::elu_fused_backward(y, grads.consume::<B>(&ops.node)); // ∂L/∂(x W + b) [B, out]
+                if let Some(node) = node_b {
+                    grads.register::<B>(node.id, B::affine_grad_b(g.clone()));
+                }
+                if let (Some(node), Some(x)) = (node_w, x) {
+                    grads.register::<B>(node.id, B::affine_grad_w(x, g.clone()));
+                }
+                if let (Some(node), Some(w)) = (node_x, w) {
+                    grads.register::<B>(node.id, B::affine_grad_x(g, w));
+                }
+            }
+        }
+
+        let x_tracked = x.is_tracked();
+        let w_tracked = w.is_tracked();
+        match AffineElu.prepare::<C>([x.node(), w.node(), b.node()]).compute_bound().stateful() {
+            OpsKind::Tracked(prep) => {
+                let (x, w, b) = (x.into_primitive(), w.into_primitive(), b.into_primitive());
+                let (xs, ws) = (w_tracked.then(|| x.clone()), x_tracked.then(|| w.clone()));
+                let y = B::affine_elu_fused(x, w, b);
+                prep.finish((xs, ws, y.clone()), y)
+            }
+            OpsKind::UnTracked(prep) => {
+                prep.finish(B::affine_elu_fused(x.into_primitive(), w.into_primitive(), b.into_primitive()))
+            }
+        }
+    }
+
     fn affine_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
         #[derive(Debug)]
         struct Affine;
@@ -290,6 +362,16 @@ impl<B: Backend + AffineOps, C: CheckpointStrategy> AffineOps for Autodiff<B, C>
             }
         }
     }
+}
+
+/// `ELU(x W + b)` for x [B, in], W [in, out], b [1, out] on any learner device, differentiable:
+/// [`fused_affine`] then `elu::elu`, as one op (on the GPU with dextrain's matmul, one kernel).
+pub fn fused_affine_elu(x: Tensor<2>, w: Tensor<2>, b: Tensor<2>) -> Tensor<2> {
+    Tensor::from_dispatch(<burn::backend::Dispatch as AffineOps>::affine_elu_fused(
+        x.into_dispatch(),
+        w.into_dispatch(),
+        b.into_dispatch(),
+    ))
 }
 
 /// `x W + b` for x [B, in], W [in, out], b [1, out] on any learner device, differentiable.

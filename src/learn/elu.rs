@@ -24,7 +24,7 @@ use rayon::prelude::*;
 use crate::learn::isa::{Isa, detected_isa, isa};
 
 /// `ELU(x) = relu(x) + exp(−relu(−x)) − 1` as tensor ops of `B`.
-fn elu_ops<B: Backend>(x: FloatTensor<B>) -> FloatTensor<B> {
+pub(crate) fn elu_ops<B: Backend>(x: FloatTensor<B>) -> FloatTensor<B> {
     let pos = B::relu(x.clone());
     let neg = B::float_neg(B::relu(B::float_neg(x)));
     B::float_add(pos, B::float_sub_scalar(B::float_exp(neg), 1.0f64.into()))

@@ -1,19 +1,19 @@
-//! The learner's matrix products on burn's wgpu backend, launched with a matmul routine of cubek
-//! (burn's kernel library) chosen by measurement rather than the one burn takes by default.
+//! The learner's matrix products on burn's wgpu backend, launched with a routine chosen by
+//! measurement rather than the one burn takes by default: dextrain's own tiled kernel
+//! (`learn::wgsl_matmul`, the default) or one of cubek's (burn's kernel library).
 //!
 //! Without its `autotune` feature (off here: autotune times every candidate in every process and
 //! may pick another one in the next, so a run and its resume could differ in the last bits), burn
 //! runs every product through cubek's `Auto` routine: cooperative matrices where the adapter has
 //! them, else `SimpleUnit` (one thread per output tile, no shared-memory staging). On WGSL adapters
 //! (no cooperative matrices) that is `SimpleUnit` everywhere; on an NVIDIA H200 it ran the PPO
-//! update's products at ~5 TFLOP/s, 65 % of the update's GPU time (BENCHMARKS.md, issue 33). Here
+//! update's products at ~1–5 TFLOP/s, 65 % of the update's GPU time (BENCHMARKS.md, issue 33). Here
 //! the routine is a fixed choice per process, so the products are the same kernels run to run
 //! (deterministic, as before) and the choice is measured, not guessed: `DEXTRAIN_GPU_MATMUL`
 //! names another routine for a measurement (`GpuMatmul::NAMES`), `dextrain bench --matmul` times
-//! them all. Measured on an H200 (2026-11-26, BENCHMARKS.md): with the dense layers as one op
-//! (`affine.rs`, the weight gradient split over row slices inside it) the PPO bench's update took
-//! 160 ms with `simple_unit_small_tiles`, 205 ms with `double_unit`, 219 ms with `simple_unit`,
-//! and 275 ms as burn's products of row slices (`burn`); the plane routines need cooperative
+//! them all. Measured on an H200 (2026-11-26, BENCHMARKS.md): one PPO minibatch's products took
+//! 4.0 ms with `dextrain_tiled` against 28 ms with cubek's fastest (`simple_unit_small_tiles`), and
+//! the PPO bench's update 99 against 145 ms device-resident; the plane routines need cooperative
 //! matrices or subgroup features WGSL does not give here and fall back to burn's.
 
 use std::sync::OnceLock;
@@ -40,7 +40,7 @@ use cubek::matmul::routine::BlueprintStrategy;
 use cubek::matmul::strategy::Strategy;
 use cubek::std::InputBinding;
 
-use crate::learn::wgsl_matmul::Tile;
+use crate::learn::wgsl_matmul::{Epilogue, Tile};
 
 /// The environment variable that names the routine for a measurement.
 pub const ENV_VAR: &str = "DEXTRAIN_GPU_MATMUL";
@@ -112,7 +112,8 @@ impl GpuMatmul {
     }
 
     /// Whether the learner's dense layers run as `affine.rs`'s one op on the GPU, its weight gradient
-    /// split over row slices inside it (`affine.rs`), rather than as burn's products of row slices
+    /// split inside it (over k by dextrain's kernel, over row slices with cubek's), rather than as
+    /// burn's products of row slices
     /// (`nets::affine`): every routine but `Burn`, which keeps burn's products and their gradients.
     pub fn splits_inside(self) -> bool {
         self != GpuMatmul::Burn
@@ -236,6 +237,14 @@ pub fn matmul_with(routine: GpuMatmul, lhs: FloatTensor<Cube>, rhs: FloatTensor<
         Ok(()) => out,
         Err(_) => fall_back(lhs, rhs), // the routine does not take this shape or adapter (nothing was launched)
     }
+}
+
+/// `lhs · rhs` with an epilogue (a dense layer's bias, and its ELU) in the same kernel, where the
+/// chosen routine is dextrain's kernel and it takes the operands; None otherwise (the caller adds
+/// the epilogue with tensor ops).
+pub fn matmul_then(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, epilogue: Epilogue<'_>) -> Option<FloatTensor<Cube>> {
+    let tile = chosen().ours()?;
+    crate::learn::wgsl_matmul::matmul_then(lhs, rhs, tile, epilogue).ok()
 }
 
 /// burn's own product, for one the chosen routine did not take (counted in [`fallbacks`]).

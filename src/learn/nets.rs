@@ -86,16 +86,17 @@ pub fn matmul_rows(x: Tensor<2>, w: Tensor<2>, split: usize) -> Tensor<2> {
     y.reshape([b, o])
 }
 
-/// `x W + b` [B, out] for x [B, in], W [in, out], b [1, out]. On a GPU with a cubek matmul routine
-/// (`learn::gpu_matmul`, the default) and on the CPU: `affine.rs`'s one op (on the GPU its weight
-/// gradient is split over row slices inside it, its bias gradient a two-stage column sum). With
+/// `x W + b` [B, out] for x [B, in], W [in, out], b [1, out]. On a GPU with dextrain's or a cubek
+/// matmul routine (`learn::gpu_matmul`; dextrain's is the default) and on the CPU: `affine.rs`'s
+/// one op (on the GPU its weight gradient is split over k by dextrain's kernel, or over row slices
+/// inside the op with cubek's, its bias gradient a two-stage column sum). With
 /// `DEXTRAIN_GPU_MATMUL=burn`: burn's products in `split` row slices ([`matmul_rows`]), the bias
 /// entering as a product too, `1 b` ([B, 1] · [1, out]), so that its gradient `1ᵀ g` is a split
 /// product and a sum over S rather than burn's one-thread-per-column reduction over the B rows.
 pub fn affine(x: Tensor<2>, w: Tensor<2>, b: Tensor<2>, split: usize) -> Tensor<2> {
     if split <= 1 || super::gpu_matmul::chosen().splits_inside() {
-        // [B, out]: one op with its own gradient (affine.rs; on a GPU with a cubek routine the
-        // weight gradient is split over row slices inside it)
+        // [B, out]: one op with its own gradient (affine.rs; on a GPU its weight gradient is split
+        // over k by dextrain's kernel, or over row slices inside the op with a cubek routine)
         return super::affine::fused_affine(x, w, b);
     }
     let ones = Tensor::<2>::ones([x.dims()[0], 1], &x.device()); // [B, 1]
@@ -114,11 +115,16 @@ pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tenso
     let layers = params.len() / 2;
     let split = forward_split(params, &x.device(), x.dims()[0]);
     let mut h = x;
+    let one_op = split <= 1 || super::gpu_matmul::chosen().splits_inside();
     for l in 0..layers {
-        h = affine(h, params[2 * l].clone(), params[2 * l + 1].clone(), split); // [B, out]
-        if l + 1 < layers {
-            h = act.apply(h);
-        }
+        let (w, b) = (params[2 * l].clone(), params[2 * l + 1].clone());
+        h = if l + 1 < layers && act == Activation::Elu && one_op {
+            super::affine::fused_affine_elu(h, w, b) // ELU(h W + b) [B, out] as one op (affine.rs)
+        } else if l + 1 < layers {
+            act.apply(affine(h, w, b, split))
+        } else {
+            affine(h, w, b, split) // [B, out]
+        };
     }
     h
 }

@@ -103,7 +103,8 @@ impl Tile {
 /// How an m × n × k product of `batches` batches is launched: the tile shape (`forced`, or chosen
 /// from the shape) and (splits, k per split). A single product whose tiles leave the GPU mostly
 /// idle and whose k is long is split over k into about [`SPLIT_TARGET_GROUPS`] workgroups, at
-/// least [`MIN_K_PER_SPLIT`] k each, each k per split a multiple of the tile's depth. The choice
+/// least [`MIN_K_PER_SPLIT`] k each, each k per split a multiple of the tile's depth, with
+/// [`Tile::for_split`]'s tile where those splits fill the GPU, else [`Tile::SMALL`]. The choice
 /// depends on the shapes alone, so a run's products are the same kernels every time.
 pub fn plan(m: usize, n: usize, k: usize, batches: usize, forced: Option<Tile>) -> (Tile, usize, usize) {
     let unsplit = forced.unwrap_or_else(|| Tile::for_product(m, n, batches));
@@ -111,7 +112,13 @@ pub fn plan(m: usize, n: usize, k: usize, batches: usize, forced: Option<Tile>) 
     if batches != 1 || k < 2 * MIN_K_PER_SPLIT || groups(unsplit) * batches >= SPLIT_TARGET_GROUPS {
         return (unsplit, 1, k.max(1));
     }
-    let tile = forced.unwrap_or_else(|| Tile::for_split(m, n));
+    // the larger tile where the splits its k allows still fill the GPU (a 24,576-row weight
+    // gradient), else 64 × 64 (a 4,096-row one: measured faster on an H200)
+    let most_splits = k / MIN_K_PER_SPLIT;
+    let tile = forced.unwrap_or_else(|| {
+        let larger = Tile::for_split(m, n);
+        if groups(larger) * most_splits >= SPLIT_TARGET_GROUPS { larger } else { Tile::SMALL }
+    });
     let wanted = SPLIT_TARGET_GROUPS.div_ceil(groups(tile)).min(k / MIN_K_PER_SPLIT).max(1);
     let chunk = k.div_ceil(wanted).next_multiple_of(tile.depth); // k per split
     (tile, k.div_ceil(chunk), chunk)
@@ -134,7 +141,7 @@ pub struct MatmulCfg {
     pub c_batch: u32,
     pub k_splits: u32,
     pub k_chunk: u32,
-    pub _pad0: u32,
+    pub epilogue: u32,
     pub _pad1: u32,
     pub _pad2: u32,
 }
@@ -176,7 +183,7 @@ pub fn shader_source(tile: Tile) -> String {
         for h in 0..col_groups {
             store += &format!("        c = col0 + ({h}u * TX + tx) * 4u;\n");
             for (j, l) in lane.iter().enumerate() {
-                store += &format!("        if c + {j}u < mc.n {{ mm_c[c_base + r * mc.n + c + {j}u] = c{row}_{h}.{l}; }}\n");
+                store += &format!("        if c + {j}u < mc.n {{ mm_c[c_base + r * mc.n + c + {j}u] = finish(c{row}_{h}.{l}, c + {j}u); }}\n");
             }
         }
         store += "    }\n";
@@ -232,6 +239,28 @@ impl CubeKernel for TiledKernel {
     }
 }
 
+/// What the kernel does to C's entries after the product (matmul.wgsl's `epilogue`).
+#[derive(Clone, Copy, Debug)]
+pub enum Epilogue<'a> {
+    /// C = A · B.
+    None,
+    /// C = A · B + b for a bias b [1, N] (a dense layer).
+    Bias(&'a FloatTensor<Cube>),
+    /// C = ELU(A · B + b), α = 1 (a hidden layer with its activation).
+    BiasElu(&'a FloatTensor<Cube>),
+}
+
+impl Epilogue<'_> {
+    /// matmul.wgsl's code for it.
+    fn code(self) -> u32 {
+        match self {
+            Epilogue::None => 0,
+            Epilogue::Bias(_) => 1,
+            Epilogue::BiasElu(_) => 2,
+        }
+    }
+}
+
 /// (rows, columns) of the operand as multiplied, its (row, column, batch) strides and its batch
 /// count, for a rank-2 or rank-3 operand; a batch of one is broadcast (stride 0).
 fn strides_of(t: &FloatTensor<Cube>) -> Result<([usize; 2], [usize; 3], usize)> {
@@ -249,11 +278,28 @@ fn strides_of(t: &FloatTensor<Cube>) -> Result<([usize; 2], [usize; 3], usize)> 
 /// fit it (the caller falls back to another routine). A product split over k ([`plan`]) writes
 /// its partial sums [splits, M, N] and sums them with burn's `sum_dim` (a fixed order).
 pub fn matmul(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, tile: Option<Tile>) -> Result<FloatTensor<Cube>> {
+    matmul_then(lhs, rhs, tile, Epilogue::None)
+}
+
+/// [`matmul`] with an epilogue on C's entries (the product is not split over k then): a dense
+/// layer `x W + b`, or with its ELU, in one kernel. The bias must be f32 [1, N] or [N] with
+/// contiguous columns.
+pub fn matmul_then(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, tile: Option<Tile>, epilogue: Epilogue<'_>) -> Result<FloatTensor<Cube>> {
     ensure!(lhs.dtype == DType::F32 && rhs.dtype == DType::F32, "matmul.wgsl multiplies f32 tensors");
     let (([m, k], [a_row, a_col, a_batch], a_batches), ([k2, n], [b_row, b_col, b_batch], b_batches)) = (strides_of(lhs)?, strides_of(rhs)?);
     ensure!(k == k2 && (a_batches == b_batches || a_batches == 1 || b_batches == 1), "matmul.wgsl: shapes do not multiply");
     let batches = a_batches.max(b_batches);
-    let (tile, splits, k_chunk) = plan(m, n, k, batches, tile);
+    let bias = match epilogue {
+        Epilogue::None => None,
+        Epilogue::Bias(b) | Epilogue::BiasElu(b) => Some(b),
+    };
+    if let Some(b) = bias {
+        let (shape, strides) = (b.meta.shape().to_vec(), b.meta.strides().to_vec());
+        let columns_ok = shape.last() == Some(&n) && strides.last() == Some(&1) && shape.iter().rev().skip(1).all(|&d| d == 1);
+        ensure!(b.dtype == DType::F32 && columns_ok && batches == 1, "matmul.wgsl: a bias of shape {shape:?} for {n} columns");
+    }
+    // with an epilogue, unsplit (it applies to the sums)
+    let (tile, splits, k_chunk) = if bias.is_some() { (tile.unwrap_or_else(|| Tile::for_product(m, n, batches)), 1, k.max(1)) } else { plan(m, n, k, batches, tile) };
     let fits = |v: usize| u32::try_from(v).map_err(|_| anyhow!("matmul.wgsl: {v} does not fit 32 bits"));
     // every index the kernel forms stays under 2^32
     fits(a_batch * batches + a_row * m + a_col * k)?;
@@ -273,7 +319,7 @@ pub fn matmul(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, tile: Option<Til
         c_batch: fits(m * n)?,
         k_splits: fits(splits)?,
         k_chunk: fits(k_chunk)?,
-        _pad0: 0,
+        epilogue: epilogue.code(),
         _pad1: 0,
         _pad2: 0,
     };
@@ -295,6 +341,7 @@ pub fn matmul(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, tile: Option<Til
         .with_buffer(lhs.handle.clone().binding())
         .with_buffer(rhs.handle.clone().binding())
         .with_buffer(out.handle.clone().binding())
+        .with_buffer(bias.unwrap_or(lhs).handle.clone().binding()) // (read only with an epilogue)
         .with_info(MetadataBindingInfo::custom(words));
     // (counted by gpu_counts' launch observer as `dextrain:matmul`, [`TiledKernel`]'s name)
     out.client.launch(Box::new(TiledKernel { tile }), CubeCount::Static(gx as u32, gy as u32, gz as u32), args);

@@ -932,6 +932,7 @@ fn row_sums_and_matmul_routines_match_their_tensor_twins() {
     // splits it over k (plan) and sums the partials; every routine gives burn's product
     use dextrain::learn::wgsl_matmul::{MIN_K_PER_SPLIT, Tile, plan};
     assert_eq!(plan(512, 256, 24_576, 1, None), (Tile::LARGE, 66, 376), "the PPO bench's widest weight gradient");
+    assert_eq!(plan(512, 256, 4_096, 1, None), (Tile::SMALL, 16, 256), "SAC's: 128 × 128 tiles would not fill the GPU");
     assert_eq!(plan(24_576, 512, 256, 1, None).1, 1, "a forward product fills the GPU unsplit");
     assert_eq!(plan(40, 30, 2_100, 3, None).1, 1, "batched products are not split");
     let (rows_k, i2, o2) = (2_100, 40, 30);
@@ -977,6 +978,30 @@ fn row_sums_and_matmul_routines_match_their_tensor_twins() {
     for (k, (g, c)) in grads_on(&gpu).iter().zip(grads_on(&cpu())).enumerate() {
         let worst = g.iter().zip(&c).map(|(a, b)| (a - b).abs() / (1.0 + b.abs())).fold(0.0f32, f32::max);
         assert!(worst < 1e-4, "gradient {k} (x, W, b) differs from the CPU's by {worst}");
+    }
+    // a hidden layer with its ELU as one op (on the GPU one kernel with dextrain's matmul): the
+    // values and gradients of the two ops, on the GPU against the CPU, and on the CPU bit for bit
+    let layer_on = |device: &Device, one_op: bool| -> Vec<Vec<f32>> {
+        let x = to_tensor(xv.clone(), [rows, i], device).require_grad();
+        let w = to_tensor(wv.clone(), [i, o], device).require_grad();
+        let b = to_tensor(bv.clone(), [1, o], device).require_grad();
+        let y = if one_op {
+            dextrain::learn::affine::fused_affine_elu(x.clone(), w.clone(), b.clone())
+        } else {
+            dextrain::learn::elu::elu(dextrain::learn::affine::fused_affine(x.clone(), w.clone(), b.clone()))
+        };
+        let values = to_host(y.clone()).unwrap();
+        let grads = (y * to_tensor(cv.clone(), [rows, o], device)).sum().backward();
+        let mut out = vec![values];
+        out.extend([x, w, b].iter().map(|t| to_host(t.grad(&grads).expect("a gradient")).unwrap()));
+        out
+    };
+    assert_eq!(layer_on(&cpu(), true), layer_on(&cpu(), false), "the CPU's ELU layer as one op changes nothing");
+    let (gpu_layer, gpu_ops) = (layer_on(&gpu, true), layer_on(&gpu, false));
+    assert_eq!(gpu_layer[0], gpu_ops[0], "the GPU's ELU layer as one kernel gives the ops' values bit for bit");
+    for (k, (g, c)) in gpu_layer.iter().zip(layer_on(&cpu(), false)).enumerate() {
+        let worst = g.iter().zip(&c).map(|(a, b)| (a - b).abs() / (1.0 + b.abs())).fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "ELU layer {k} (y, ∂x, ∂W, ∂b) differs from the CPU's by {worst}");
     }
     assert!(GpuMatmul::parse("double_unit").is_ok());
     let err = GpuMatmul::parse("fastest").unwrap_err().to_string();

@@ -122,7 +122,7 @@ fn pod_structs_match_their_wgsl_twins() {
         let src = matmul_source(tile);
         assert!(!src.contains('$'), "{tile:?}: a template marker left in matmul.wgsl");
         let mm = validate(&src);
-        check(&mm, "MatmulCfg", size_of::<MatmulCfg>(), rust_fields!(MatmulCfg; m, n, k, batches, a_row, a_col, a_batch, b_row, b_col, b_batch, c_batch, k_splits, k_chunk, _pad0, _pad1, _pad2));
+        check(&mm, "MatmulCfg", size_of::<MatmulCfg>(), rust_fields!(MatmulCfg; m, n, k, batches, a_row, a_col, a_batch, b_row, b_col, b_batch, c_batch, k_splits, k_chunk, epilogue, _pad1, _pad2));
     }
     assert_eq!(size_of::<MatmulCfg>() % 16, 0);
 }
