@@ -242,6 +242,24 @@ pub const MM_TILED: EntryBindings = EntryBindings { entry_point: "matmul_tiled",
 /// The matrix product's module (shaders/matmul.wgsl alone, any tile shape).
 pub const MM_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain matmul", bindings: &[MM_A, MM_B, MM_C, MM_BIAS, MM_CFG], entry_points: &[MM_TILED] };
 
+// ---- ELU's gradient (elu_backward.wgsl, a module of its own, launched by learn/elu.rs on burn's
+// stream: cubecl binds the buffers in order, then the uniform) ----
+
+/// `array<f32>` `[count]`: ELU's output y.
+pub const ELU_Y: Binding = binding(0, "elu_y", StorageReadWrite);
+/// `array<f32>` `[count]`: ∂L/∂y.
+pub const ELU_GRAD: Binding = binding(1, "elu_grad", StorageReadWrite);
+/// `array<f32>` `[count]`: ∂L/∂x.
+pub const ELU_OUT: Binding = binding(2, "elu_out", StorageReadWrite);
+/// `EluCfg`: the entry count and the grid's row length.
+pub const ELU_CFG: Binding = binding(3, "ec", Uniform);
+
+/// `elu_backward`: one entry per invocation.
+pub const ELU_BACKWARD: EntryBindings = EntryBindings { entry_point: "elu_backward", bindings: &[ELU_Y, ELU_GRAD, ELU_OUT, ELU_CFG] };
+
+/// ELU's gradient module (shaders/elu_backward.wgsl alone).
+pub const ELU_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain elu backward", bindings: &[ELU_Y, ELU_GRAD, ELU_OUT, ELU_CFG], entry_points: &[ELU_BACKWARD] };
+
 // ---- the device-resident learners' observation normalisers (normalizer.wgsl, a module of its
 // own; bound by learn/fused_normalizer.rs with slices of burn's tensors) ----
 

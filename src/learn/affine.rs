@@ -25,6 +25,7 @@
 
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
+use burn::backend::autodiff::NodeId;
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::backend::tensor::FloatTensor;
@@ -282,6 +283,27 @@ impl AffineOps for Flex {
     }
 }
 
+/// A dense layer's gradients from g = ∂L/∂(x W + b) [B, out], registered for the parents (x, W, b)
+/// that are tracked: `∂b = 1ᵀ g`, `∂W = xᵀ g` (x kept when W is tracked), `∂x = g Wᵀ` (W kept when
+/// x is tracked).
+fn register_layer_grads<B: Backend + AffineOps>(
+    grads: &mut Gradients,
+    [node_x, node_w, node_b]: [Option<NodeId>; 3],
+    x: Option<FloatTensor<B>>,
+    w: Option<FloatTensor<B>>,
+    g: FloatTensor<B>,
+) {
+    if let Some(id) = node_b {
+        grads.register::<B>(id, B::affine_grad_b(g.clone()));
+    }
+    if let (Some(id), Some(x)) = (node_w, x) {
+        grads.register::<B>(id, B::affine_grad_w(x, g.clone()));
+    }
+    if let (Some(id), Some(w)) = (node_x, w) {
+        grads.register::<B>(id, B::affine_grad_x(g, w));
+    }
+}
+
 impl<B: Backend + AffineOps + EluOps, C: CheckpointStrategy> AffineOps for Autodiff<B, C> {
     fn affine_elu_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
         /// `y = ELU(x W + b)`: the gradient before the activation `g' = elu_backward(y, g)`, then
@@ -296,17 +318,8 @@ impl<B: Backend + AffineOps + EluOps, C: CheckpointStrategy> AffineOps for Autod
 
             fn backward(self, ops: Ops<Self::State, 3>, grads: &mut Gradients, _checkpointer: &mut Checkpointer) {
                 let (x, w, y) = ops.state;
-                let [node_x, node_w, node_b] = ops.parents;
                 let g = B::elu_fused_backward(y, grads.consume::<B>(&ops.node)); // ∂L/∂(x W + b) [B, out]
-                if let Some(node) = node_b {
-                    grads.register::<B>(node.id, B::affine_grad_b(g.clone()));
-                }
-                if let (Some(node), Some(x)) = (node_w, x) {
-                    grads.register::<B>(node.id, B::affine_grad_w(x, g.clone()));
-                }
-                if let (Some(node), Some(w)) = (node_x, w) {
-                    grads.register::<B>(node.id, B::affine_grad_x(g, w));
-                }
+                register_layer_grads::<B>(grads, ops.parents.map(|p| p.map(|n| n.id)), x, w, g);
             }
         }
 
@@ -335,17 +348,8 @@ impl<B: Backend + AffineOps + EluOps, C: CheckpointStrategy> AffineOps for Autod
 
             fn backward(self, ops: Ops<Self::State, 3>, grads: &mut Gradients, _checkpointer: &mut Checkpointer) {
                 let (x, w) = ops.state;
-                let [node_x, node_w, node_b] = ops.parents;
                 let g = grads.consume::<B>(&ops.node); // [B, out]
-                if let Some(node) = node_b {
-                    grads.register::<B>(node.id, B::affine_grad_b(g.clone()));
-                }
-                if let (Some(node), Some(x)) = (node_w, x) {
-                    grads.register::<B>(node.id, B::affine_grad_w(x, g.clone()));
-                }
-                if let (Some(node), Some(w)) = (node_x, w) {
-                    grads.register::<B>(node.id, B::affine_grad_x(g, w));
-                }
+                register_layer_grads::<B>(grads, ops.parents.map(|p| p.map(|n| n.id)), x, w, g);
             }
         }
 

@@ -8,7 +8,8 @@
 //! - burn flex (the CPU): one pass each way, in place where the tensor is not shared, with a
 //!   vectorised `exp` (Cephes' expf polynomial, ≤ 2 ulp on [−87, 0]) compiled for AVX-512 and for
 //!   AVX2 + FMA and picked at run time ([`crate::learn::isa::isa`]), split over the rayon pool for large tensors;
-//! - cubecl (the GPU): the same values as tensor ops in fewer kernels (`impl EluOps for Cube`);
+//! - cubecl (the GPU): the same values as tensor ops in fewer kernels (`impl EluOps for Cube`),
+//!   the backward pass one kernel of ours (shaders/elu_backward.wgsl);
 //! - autodiff: the backward pass above, from the saved output.
 
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
@@ -22,6 +23,7 @@ use burn::tensor::DType;
 use rayon::prelude::*;
 
 use crate::learn::isa::{Isa, detected_isa, isa};
+use crate::learn::wgsl_kernel::{WgslKernel, launch};
 
 /// `ELU(x) = relu(x) + exp(−relu(−x)) − 1` as tensor ops of `B`.
 pub(crate) fn elu_ops<B: Backend>(x: FloatTensor<B>) -> FloatTensor<B> {
@@ -62,8 +64,40 @@ impl EluOps for Cube {
     }
 
     fn elu_fused_backward(y: FloatTensor<Self>, grad: FloatTensor<Self>) -> FloatTensor<Self> {
-        elu_clamp_backward_ops::<Self>(y, grad)
+        // one kernel of ours (shaders/elu_backward.wgsl) where the tensors are plain contiguous
+        // f32 of one shape, the same values as the ops below
+        match elu_backward_kernel(&y, &grad) {
+            Some(out) => out,
+            None => elu_clamp_backward_ops::<Self>(y, grad),
+        }
     }
+}
+
+/// shaders/elu_backward.wgsl.
+const SHADER_ELU_BACKWARD: &str = include_str!("../../shaders/elu_backward.wgsl");
+
+/// The text of shaders/elu_backward.wgsl (the kernel has one variant).
+pub fn elu_backward_source(_: ()) -> String {
+    SHADER_ELU_BACKWARD.to_string()
+}
+
+/// `∂L/∂x = grad · min(y + 1, 1)` as one kernel on burn's stream, or None where the tensors are not
+/// f32, contiguous, of one shape, or too many entries for 32-bit indices.
+fn elu_backward_kernel(y: &FloatTensor<Cube>, grad: &FloatTensor<Cube>) -> Option<FloatTensor<Cube>> {
+    use burn::backend::TensorMetadata;
+    use burn::backend::ops::FloatTensorOps;
+    use burn::tensor::FloatDType;
+    let plain = |t: &FloatTensor<Cube>| t.dtype == DType::F32 && t.is_contiguous() && t.is_contiguous_buffer();
+    if !plain(y) || !plain(grad) || y.shape() != grad.shape() {
+        return None;
+    }
+    let count = u32::try_from(y.shape().num_elements()).ok().filter(|&c| c > 0 && c < u32::MAX - 65_535 * 256)?;
+    let (gx, gy) = crate::env::gpu::workgroups_of(count, 256);
+    let out = Cube::float_empty(y.shape(), &y.device, FloatDType::F32); // written whole below
+    let kernel = WgslKernel { name: "dextrain_elu_backward", key: (), source: elu_backward_source, entry_point: "elu_backward", workgroup: [256, 1] };
+    // EluCfg: count, entries per row of the grid
+    launch(kernel, [gx, gy, 1], &[y, grad, &out], &[count, gx * 256, 0, 0]);
+    Some(out)
 }
 
 /// `ELU(x) = clamp(x, 0, ∞) + (exp(clamp(x, −∞, 0)) − 1)` as tensor ops of `B` (∞: f32's largest).

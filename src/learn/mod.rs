@@ -6,7 +6,8 @@
 //! - `layer_norm.rs`: LayerNorm over the features as one operation with its own gradient;
 //! - `elu.rs`: ELU as one operation with its own gradient (a vectorised one on the CPU);
 //! - `gpu_matmul.rs`: the matmul routine of the GPU learner's products (chosen by measurement);
-//!   `wgsl_matmul.rs`: a tiled product of our own (shaders/matmul.wgsl), one of the routines;
+//!   `wgsl_matmul.rs`: a tiled product of our own (shaders/matmul.wgsl), the default routine;
+//!   `wgsl_kernel.rs`: how our own WGSL kernels are launched on burn's command stream;
 //! - `row_sums.rs`: sums over the batch's rows in two stages on the GPU (losses, ∂b, ∂ log σ);
 //! - `adam.rs`: Adam and global gradient-norm clipping;
 //! - `normalizer.rs`: empirical observation normalisation;
@@ -42,4 +43,5 @@ pub mod sac;
 pub mod sgemm;
 pub mod state;
 pub mod tcn;
+pub mod wgsl_kernel;
 pub mod wgsl_matmul;

@@ -8,7 +8,7 @@
 //! in and unrolls the per-thread accumulation (one named register per accumulator; an indexed
 //! array could be left in slow per-thread memory by the driver's compiler).
 //!
-//! It is launched as a hand-written kernel of cubecl (`CubeKernel::source`): on burn's own
+//! It is launched as a hand-written kernel of cubecl (`learn::wgsl_kernel`): on burn's own
 //! command stream, between burn's kernels, with no flush or submission of ours, the launch's
 //! constants ([`MatmulCfg`]) in the uniform cubecl binds after the buffers (and caches per value).
 
@@ -17,13 +17,9 @@ use burn::backend::Cube;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::ops::FloatTensorOps;
 use burn::tensor::{DType, FloatDType, Shape};
-use burn_cubecl::cubecl::ir::metadata::Info;
-use burn_cubecl::cubecl::ir::settings::{Dim3, ExecutionMode, KernelSettings};
-use burn_cubecl::cubecl::ir::{AddressType, ElemType, Scope, UIntKind};
 use burn_cubecl::kernel::matmul::init_matmul_output;
-use cubecl_runtime::id::KernelId;
-use cubecl_runtime::kernel::{CubeKernel, KernelDefinition, KernelMetadata, PrecompiledSource};
-use cubecl_runtime::server::{CubeCount, KernelArguments, MetadataBindingInfo};
+
+use crate::learn::wgsl_kernel::{WgslKernel, launch};
 
 /// The template (`$NAME` markers filled in by [`shader_source`]).
 const TEMPLATE: &str = include_str!("../../shaders/matmul.wgsl");
@@ -205,40 +201,6 @@ pub fn shader_source(tile: Tile) -> String {
         .replace("$SB_LEN", &number(depth * cols / 4))
 }
 
-/// The kernel for one tile shape, as a hand-written cubecl kernel.
-struct TiledKernel {
-    tile: Tile,
-}
-
-impl KernelMetadata for TiledKernel {
-    fn name(&self) -> &'static str {
-        "dextrain_matmul" // counted as dextrain's own (gpu_counts)
-    }
-
-    fn id(&self) -> KernelId {
-        let (tx, ty) = self.tile.threads();
-        // the id covers the text: one per tile shape; unchecked: no loop-bound guards added by naga
-        KernelId::new::<Self>().info(self.tile).cube_dim(Dim3::new_2d(tx as u32, ty as u32)).mode(ExecutionMode::Unchecked)
-    }
-
-    fn address_type(&self) -> ElemType {
-        ElemType::UInt(UIntKind::U32)
-    }
-}
-
-impl CubeKernel for TiledKernel {
-    fn define(&self) -> KernelDefinition {
-        // nothing to compile (the source below is the kernel); what the launch path reads
-        let (tx, ty) = self.tile.threads();
-        let settings = KernelSettings::new(Dim3::new_2d(tx as u32, ty as u32), ExecutionMode::Unchecked, AddressType::U32);
-        KernelDefinition { body: Scope::root(settings.clone()), settings, info: Info::default() }
-    }
-
-    fn source(&self) -> Option<PrecompiledSource> {
-        Some(PrecompiledSource { source: shader_source(self.tile), entrypoint_name: ENTRY_POINT.to_string(), lang: "wgsl" })
-    }
-}
-
 /// What the kernel does to C's entries after the product (matmul.wgsl's `epilogue`).
 #[derive(Clone, Copy, Debug)]
 pub enum Epilogue<'a> {
@@ -331,20 +293,11 @@ pub fn matmul_then(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, tile: Optio
     } else {
         Cube::float_empty(Shape::new([splits, m, n]), &lhs.device, FloatDType::F32)
     };
-    // the constants as the u64 words cubecl stages into the uniform (two u32 fields per word, in
-    // memory order on a little-endian host and GPU)
-    let words: Vec<u64> = bytemuck::cast_slice::<MatmulCfg, u32>(std::slice::from_ref(&cfg))
-        .chunks_exact(2)
-        .map(|p| u64::from(p[0]) | (u64::from(p[1]) << 32))
-        .collect();
-    let args = KernelArguments::new()
-        .with_buffer(lhs.handle.clone().binding())
-        .with_buffer(rhs.handle.clone().binding())
-        .with_buffer(out.handle.clone().binding())
-        .with_buffer(bias.unwrap_or(lhs).handle.clone().binding()) // (read only with an epilogue)
-        .with_info(MetadataBindingInfo::custom(words));
-    // (counted by gpu_counts' launch observer as `dextrain:matmul`, [`TiledKernel`]'s name)
-    out.client.launch(Box::new(TiledKernel { tile }), CubeCount::Static(gx as u32, gy as u32, gz as u32), args);
+    let (tx, ty) = tile.threads();
+    let kernel = WgslKernel { name: "dextrain_matmul", key: tile, source: shader_source, entry_point: ENTRY_POINT, workgroup: [tx as u32, ty as u32] };
+    // (counted by gpu_counts' launch observer as `dextrain:matmul`)
+    let constants: &[u32] = bytemuck::cast_slice(std::slice::from_ref(&cfg));
+    launch(kernel, [gx as u32, gy as u32, gz as u32], &[lhs, rhs, &out, bias.unwrap_or(lhs)], constants); // (the bias is read only with an epilogue)
     if splits == 1 {
         return Ok(out);
     }

@@ -340,11 +340,11 @@ fn table(bindings: &[dextrain::env::gpu_bindings::Binding]) -> Vec<(u32, u32, St
 
 #[test]
 fn binding_tables_match_the_wgsl_globals() {
-    use dextrain::env::gpu_bindings::{ADAM_GROUP, BindingSpace, COLLIDERS, MM_GROUP, NOISE_GROUP, NORM_GROUP, REF_CFG, REF_FRAMES, SIM_GROUP, TASK_GROUP};
+    use dextrain::env::gpu_bindings::{ADAM_GROUP, BindingSpace, COLLIDERS, ELU_GROUP, MM_GROUP, NOISE_GROUP, NORM_GROUP, REF_CFG, REF_FRAMES, SIM_GROUP, TASK_GROUP};
     let noise = dextrain::env::gpu::noise_shader_source();
     let (adam, norm) = (dextrain::env::gpu::SHADER_ADAM.to_string(), dextrain::env::gpu::SHADER_NORMALIZER.to_string());
     let matmul = dextrain::learn::wgsl_matmul::shader_source(dextrain::learn::wgsl_matmul::Tile::LARGE);
-    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (adam, ADAM_GROUP), (norm, NORM_GROUP), (matmul, MM_GROUP)] {
+    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (adam, ADAM_GROUP), (norm, NORM_GROUP), (matmul, MM_GROUP), (dextrain::learn::elu::elu_backward_source(()), ELU_GROUP)] {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other
         assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu_bindings.rs (right)", group.shader);
