@@ -8,12 +8,13 @@
 //
 // A template: learn/wgsl_matmul.rs writes in the tile shape (the markers that begin with a dollar
 // sign: numbers) and the per-thread accumulation, unrolled (the ACC blocks), so that every
-// accumulator is a named register. A workgroup of TX × TY = 256 threads computes a BM × BN tile of C, TM × TN entries
-// per thread (TM rows in groups of 4 spaced 4·TY apart, TN columns in groups of 4 spaced 4·TX
-// apart, so that neighbouring threads read neighbouring vec4s of workgroup memory). Each
-// BK-deep slice of A's rows and B's columns is staged in workgroup memory; the next slice's
-// values are fetched into registers while the current one is multiplied. Each entry sums its K
-// products in increasing k with fused multiply-adds (the same order every run).
+// accumulator is a named register. A workgroup of TX × TY = 256 threads computes a BM × BN tile
+// of C, TM × TN entries per thread (TM rows in groups of 4 spaced 4·TY apart, TN columns in
+// groups of 4 spaced 4·TX apart, so that neighbouring threads read neighbouring vec4s of
+// workgroup memory). Each BK-deep slice of A's rows and B's columns is staged in workgroup
+// memory; the next slice's values are fetched into registers while the current one is
+// multiplied. Each entry sums the products of its k range in increasing k with fused
+// multiply-adds (the same order every run).
 
 struct MatmulCfg {
     m: u32,

@@ -45,7 +45,7 @@ use crate::learn::wgsl_matmul::{Epilogue, Tile};
 /// The environment variable that names the routine for a measurement.
 pub const ENV_VAR: &str = "DEXTRAIN_GPU_MATMUL";
 
-/// A matmul routine of cubek for the learner's f32 products.
+/// A matmul routine for the learner's f32 products: burn's, cubek's or dextrain's own.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum GpuMatmul {
     /// burn's own choice (`float_matmul`: cubek's `Auto`).
@@ -65,7 +65,7 @@ pub enum GpuMatmul {
     /// `DoublePlane` with ordered loading.
     OrderedDoublePlane,
     /// dextrain's own WGSL kernel (`learn::wgsl_matmul`: tiles staged in workgroup memory, on
-    /// burn's command stream), the tile shape per product (`Tile::for_product`).
+    /// burn's command stream), the tile shape and any split over k per product (`wgsl_matmul::plan`).
     DextrainTiled,
     /// dextrain's kernel, 64 × 64 tiles (4 × 4 per thread) for every product.
     DextrainTiledSmall,
@@ -113,8 +113,8 @@ impl GpuMatmul {
 
     /// Whether the learner's dense layers run as `affine.rs`'s one op on the GPU, its weight gradient
     /// split inside it (over k by dextrain's kernel, over row slices with cubek's), rather than as
-    /// burn's products of row slices
-    /// (`nets::affine`): every routine but `Burn`, which keeps burn's products and their gradients.
+    /// burn's products of row slices (`nets::affine`): every routine but `Burn`, which keeps burn's
+    /// products and their gradients.
     pub fn splits_inside(self) -> bool {
         self != GpuMatmul::Burn
     }

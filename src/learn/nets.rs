@@ -273,9 +273,15 @@ impl MlpLayout {
     /// The layers, the first one's input given as `x` or as the column blocks `[x | tail]`.
     fn forward_from(&self, params: &[Tensor<2>], x: Tensor<2>, mut tail: Option<Tensor<2>>, split: usize, act: Activation) -> Tensor<2> {
         let k = self.per_hidden();
+        // without LayerNorm, an ELU layer whose input is one block is one op (affine.rs)
+        let one_op = !self.layer_norm && act == Activation::Elu && (split <= 1 || super::gpu_matmul::chosen().splits_inside());
         let mut h = x;
         for l in 0..self.hidden.len() {
             let p = &params[l * k..(l + 1) * k];
+            if one_op && tail.is_none() {
+                h = super::affine::fused_affine_elu(h, p[0].clone(), p[1].clone()); // ELU(h W + b) [B, out]
+                continue;
+            }
             h = first_or_affine(h, tail.take(), p[0].clone(), p[1].clone(), split); // [B, out]
             if self.layer_norm {
                 h = super::layer_norm::layer_norm(h, p[2].clone(), p[3].clone()); // (h − μ)/√(σ² + ε) · g + s per row
