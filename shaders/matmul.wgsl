@@ -77,6 +77,27 @@ fn b_slot(e: u32, cols_fast: bool) -> vec2<u32> {
     return vec2<u32>(e / BK, e % BK);
 }
 
+// A's value at tile position p = (row, k) of the slice that starts at k0 (0 outside A or past
+// this layer's k range), for the tile's first row row0 and the batch's A at a_base
+fn a_value(p: vec2<u32>, row0: u32, k0: u32, k_end: u32, a_base: u32) -> f32 {
+    let r = row0 + p.x;
+    let k = k0 + p.y;
+    if r < mc.m && k < k_end {
+        return mm_a[a_base + r * mc.a_row + k * mc.a_col];
+    }
+    return 0.0;
+}
+
+// B's value at tile position p = (column, k), likewise
+fn b_value(p: vec2<u32>, col0: u32, k0: u32, k_end: u32, b_base: u32) -> f32 {
+    let c = col0 + p.x;
+    let k = k0 + p.y;
+    if c < mc.n && k < k_end {
+        return mm_b[b_base + k * mc.b_row + c * mc.b_col];
+    }
+    return 0.0;
+}
+
 // C's entry `v` at column `c` after the epilogue
 fn finish(v: f32, c: u32) -> f32 {
     if mc.epilogue == 0u {
@@ -108,24 +129,10 @@ fn matmul_tiled(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
 $ACC_DECL
     // the first slice into registers
     for (var s = 0u; s < A_LOADS; s++) {
-        let p = a_slot(tid + s * THREADS, a_rows_fast); // (row, k) in the tile
-        let r = row0 + p.x;
-        let kk = k_begin + p.y;
-        var v = 0.0;
-        if r < mc.m && kk < k_end {
-            v = mm_a[a_base + r * mc.a_row + kk * mc.a_col];
-        }
-        ra[s] = v;
+        ra[s] = a_value(a_slot(tid + s * THREADS, a_rows_fast), row0, k_begin, k_end, a_base);
     }
     for (var s = 0u; s < B_LOADS; s++) {
-        let p = b_slot(tid + s * THREADS, b_cols_fast); // (column, k) in the tile
-        let c = col0 + p.x;
-        let kk = k_begin + p.y;
-        var v = 0.0;
-        if c < mc.n && kk < k_end {
-            v = mm_b[b_base + kk * mc.b_row + c * mc.b_col];
-        }
-        rb[s] = v;
+        rb[s] = b_value(b_slot(tid + s * THREADS, b_cols_fast), col0, k_begin, k_end, b_base);
     }
     for (var k0 = k_begin; k0 < k_end; k0 += BK) {
         // the fetched slice into workgroup memory
@@ -142,24 +149,10 @@ $ACC_DECL
         let k1 = k0 + BK;
         if k1 < k_end {
             for (var s = 0u; s < A_LOADS; s++) {
-                let p = a_slot(tid + s * THREADS, a_rows_fast);
-                let r = row0 + p.x;
-                let kk = k1 + p.y;
-                var v = 0.0;
-                if r < mc.m && kk < k_end {
-                    v = mm_a[a_base + r * mc.a_row + kk * mc.a_col];
-                }
-                ra[s] = v;
+                ra[s] = a_value(a_slot(tid + s * THREADS, a_rows_fast), row0, k1, k_end, a_base);
             }
             for (var s = 0u; s < B_LOADS; s++) {
-                let p = b_slot(tid + s * THREADS, b_cols_fast);
-                let c = col0 + p.x;
-                let kk = k1 + p.y;
-                var v = 0.0;
-                if c < mc.n && kk < k_end {
-                    v = mm_b[b_base + kk * mc.b_row + c * mc.b_col];
-                }
-                rb[s] = v;
+                rb[s] = b_value(b_slot(tid + s * THREADS, b_cols_fast), col0, k1, k_end, b_base);
             }
         }
         for (var d = 0u; d < BK; d++) {

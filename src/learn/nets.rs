@@ -94,13 +94,20 @@ pub fn matmul_rows(x: Tensor<2>, w: Tensor<2>, split: usize) -> Tensor<2> {
 /// entering as a product too, `1 b` ([B, 1] · [1, out]), so that its gradient `1ᵀ g` is a split
 /// product and a sum over S rather than burn's one-thread-per-column reduction over the B rows.
 pub fn affine(x: Tensor<2>, w: Tensor<2>, b: Tensor<2>, split: usize) -> Tensor<2> {
-    if split <= 1 || super::gpu_matmul::chosen().splits_inside() {
+    if affine_is_one_op(split) {
         // [B, out]: one op with its own gradient (affine.rs; on a GPU its weight gradient is split
         // over k by dextrain's kernel, or over row slices inside the op with a cubek routine)
         return super::affine::fused_affine(x, w, b);
     }
     let ones = Tensor::<2>::ones([x.dims()[0], 1], &x.device()); // [B, 1]
     matmul_rows(x, w, split) + matmul_rows(ones, b, split)
+}
+
+/// Whether [`affine`] with this row split is `affine.rs`'s one op (then an ELU layer can be one op
+/// with its activation, `affine::fused_affine_elu`): unsplit, or on a GPU with a routine that
+/// splits inside the op.
+fn affine_is_one_op(split: usize) -> bool {
+    split <= 1 || super::gpu_matmul::chosen().splits_inside()
 }
 
 /// The row split of a forward pass of `params` over `rows` rows: [`row_split`] when the
@@ -115,7 +122,7 @@ pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tenso
     let layers = params.len() / 2;
     let split = forward_split(params, &x.device(), x.dims()[0]);
     let mut h = x;
-    let one_op = split <= 1 || super::gpu_matmul::chosen().splits_inside();
+    let one_op = affine_is_one_op(split);
     for l in 0..layers {
         let (w, b) = (params[2 * l].clone(), params[2 * l + 1].clone());
         h = if l + 1 < layers && act == Activation::Elu && one_op {
@@ -274,7 +281,7 @@ impl MlpLayout {
     fn forward_from(&self, params: &[Tensor<2>], x: Tensor<2>, mut tail: Option<Tensor<2>>, split: usize, act: Activation) -> Tensor<2> {
         let k = self.per_hidden();
         // without LayerNorm, an ELU layer whose input is one block is one op (affine.rs)
-        let one_op = !self.layer_norm && act == Activation::Elu && (split <= 1 || super::gpu_matmul::chosen().splits_inside());
+        let one_op = !self.layer_norm && act == Activation::Elu && affine_is_one_op(split);
         let mut h = x;
         for l in 0..self.hidden.len() {
             let p = &params[l * k..(l + 1) * k];
