@@ -18,7 +18,7 @@ use dextrain::config::{PolicyConfig, PpoConfig};
 use dextrain::learn::adam::{Adam, clipped_grads};
 use dextrain::learn::nets::{Activation, to_host, to_tensor};
 use dextrain::learn::ppo::{ActorCritic, Batch, Dims, ppo_losses};
-use dextrain::learn::rng::Rng;
+use dextrain::rng::Rng;
 
 /// The actor-critic as burn modules: actor and critic MLPs of `Linear` layers and the log-std.
 #[derive(Module, Debug)]

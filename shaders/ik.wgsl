@@ -1,5 +1,5 @@
 // ik.wgsl — damped least-squares inverse kinematics of the fingertips, in the wrist frame.
-// CPU twin: src/env/ik.rs (same function names, same order, same arithmetic; its `IkScratch` is
+// CPU twin: src/task/ik.rs (same function names, same order, same arithmetic; its `IkScratch` is
 // the var<private> ik_* memory below). The algorithm is described at the top of the twin.
 // Needs common.wgsl before it (g: Globals, joints: binding 1, tips: binding 3, quaternion maths).
 

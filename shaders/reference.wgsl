@@ -2,8 +2,8 @@
 // cursor into the bank of reference frames, with an augmentation drawn at reset, and sampling of the
 // augmented reference at the current and look-ahead env steps. Plain functions, no entry points.
 // Appended after common.wgsl + reset.wgsl + physics.wgsl (uses g, joints and the quaternion maths).
-// CPU twin: src/env/reference.rs (same function names, same order, same arithmetic; the contract and
-// the augmentations are described at its top); the bank's record layout: src/traj/bank.rs.
+// CPU twin: src/task/reference.rs (same function names, same order, same arithmetic; the contract and
+// the augmentations are described at its top); the bank's record layout: src/task/bank.rs.
 
 const PURPOSE_REF: u32 = 4u;
 const REF_KEY_ID: u32 = 0u;
@@ -107,7 +107,7 @@ struct RefPose {
     rot: vec4<f32>,
 }
 
-// frame records [Σ n_frames, stride] (src/traj/bank.rs)
+// frame records [Σ n_frames, stride] (src/task/bank.rs)
 @group(0) @binding(13) var<storage, read> ref_frames: array<f32>;
 @group(0) @binding(14) var<storage, read> ref_info: array<RefInfo>;
 @group(0) @binding(15) var<uniform> rg: RefGlobals;

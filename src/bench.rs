@@ -39,8 +39,8 @@ pub fn bench_config(n: usize) -> Config {
 /// where synth puts it. (The peer's own finger targets curl under the cube in this contact model and
 /// hold it with the palm alone; the pinch keeps the hand in contact with the cube.)
 pub fn grasp_targets(model: &SimModel) -> Targets {
-    let q = crate::traj::synth::grasp_posture(model, 0.6);
-    let wrist = crate::traj::synth::grasp_wrist_pose(model, &q);
+    let q = crate::synth::grasp_posture(model, 0.6);
+    let wrist = crate::synth::grasp_wrist_pose(model, &q);
     let mut t = model.default_targets();
     t.wrist_pos = [wrist.pos.x, wrist.pos.y, wrist.pos.z, 0.0];
     t.wrist_rot = wrist.rot.to_array();
@@ -232,7 +232,7 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
     use crate::gpu_counts::{GpuCounts, queue_submissions, submissions_between};
     use crate::learn::nets::to_tensor;
     use crate::learn::ppo::{Dims, Ppo};
-    use crate::learn::rng::Rng;
+    use crate::rng::Rng;
     let cfg = PpoConfig { learning_rate: 1e-3, epochs: o.epochs, minibatches: o.minibatches, ..PpoConfig::default() };
     let pol = PolicyConfig { actor_hidden: o.hidden.clone(), critic_hidden: o.hidden.clone(), ..PolicyConfig::default() };
     let dims = Dims { obs: o.obs, priv_obs: o.priv_obs, act: o.actions };
@@ -321,7 +321,7 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
             // the rollout's kernels have run when the device is idle
             // (counted before the bench's wait for the device: the training loop reads once per iteration)
             let (before_sync, queue_now) = mark();
-            crate::learn::gpu_io::sync(&device)?;
+            crate::env::gpu_io::sync(&device)?;
             let rollout_s = t0.elapsed().as_secs_f64();
             d_step_counts = before_sync.since(&m0.0).to_json(o.steps as f64, submissions_between(m0.1, queue_now));
             let m1 = mark();
@@ -414,7 +414,7 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
     use crate::gpu_counts::{GpuCounts, queue_submissions, submissions_between};
     use crate::config::{PolicyConfig, SacConfig};
     use crate::learn::ppo::Dims;
-    use crate::learn::rng::Rng;
+    use crate::rng::Rng;
     use crate::learn::sac::Sac;
     use crate::learn::sac::buffer::Transitions;
     let cfg = SacConfig { batch_size: o.batch as u32, buffer_capacity: o.memory as u32, learning_starts: u32::MAX, tau: 0.005, init_alpha: 0.2, ..SacConfig::default() };

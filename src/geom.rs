@@ -1,6 +1,6 @@
 //! Geometry shared by the hand, the object, trajectories and recordings.
 //!
-//! Conventions (DESIGN §2): metres, radians; z up; quaternions stored x, y, z, w (glam's order).
+//! Conventions (docs/design.md §2): metres, radians; z up; quaternions stored x, y, z, w (glam's order).
 
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
@@ -61,14 +61,49 @@ pub enum ObjectShape {
     Cylinder { radius: f32, half_length: f32 },
 }
 
+/// Object shape codes (keep in sync with shaders/common.wgsl `SHAPE_*`).
+pub const SHAPE_SPHERE: u32 = 0;
+pub const SHAPE_BOX: u32 = 1;
+pub const SHAPE_CAPSULE: u32 = 2;
+pub const SHAPE_CYLINDER: u32 = 3;
+/// An object piece that collides as its convex hull (`PieceDesc::hull_first`).
+pub const SHAPE_HULL: u32 = 4;
+
+/// Principal moments of inertia (about the centre, along the shape's axes) of a solid primitive (`code`, scaled `size`) of mass `m`.
+pub fn object_inertia(code: u32, size: Vec3, m: f32) -> Vec3 {
+    let r = size.x;
+    if code == SHAPE_SPHERE {
+        return Vec3::splat(0.4 * m * r * r);
+    }
+    if code == SHAPE_BOX {
+        let (x, y, z) = (size.x, size.y, size.z);
+        // I_xx = m (b² + c²)/3 with half extents b, c
+        return Vec3::new(m * (y * y + z * z) / 3.0, m * (x * x + z * z) / 3.0, m * (x * x + y * y) / 3.0);
+    }
+    let h = size.y;
+    let l = 2.0 * h;
+    if code == SHAPE_CYLINDER {
+        let ixx = m * (3.0 * r * r + l * l) / 12.0;
+        return Vec3::new(ixx, ixx, 0.5 * m * r * r);
+    }
+    // capsule: a cylinder and two hemispheres sharing the mass by volume
+    let vc = 3.14159265 * r * r * l;
+    let vs = 4.0 / 3.0 * 3.14159265 * r * r * r;
+    let mc = m * vc / (vc + vs);
+    let ms = m - mc;
+    let izz = 0.5 * mc * r * r + 0.4 * ms * r * r;
+    let ixx = mc * (3.0 * r * r + l * l) / 12.0 + ms * (0.4 * r * r + h * h + 0.75 * h * r);
+    Vec3::new(ixx, ixx, izz)
+}
+
 impl ObjectShape {
-    /// Integer code used in the GPU/CPU layouts (keep in sync with shaders/common.wgsl `SHAPE_*`).
+    /// Integer code used in the GPU/CPU layouts ([`SHAPE_SPHERE`] …).
     pub fn code(&self) -> u32 {
         match self {
-            ObjectShape::Sphere { .. } => 0,
-            ObjectShape::Box { .. } => 1,
-            ObjectShape::Capsule { .. } => 2,
-            ObjectShape::Cylinder { .. } => 3,
+            ObjectShape::Sphere { .. } => SHAPE_SPHERE,
+            ObjectShape::Box { .. } => SHAPE_BOX,
+            ObjectShape::Capsule { .. } => SHAPE_CAPSULE,
+            ObjectShape::Cylinder { .. } => SHAPE_CYLINDER,
         }
     }
 
@@ -97,7 +132,7 @@ impl ObjectShape {
     /// Principal moments of inertia (kg·m²) of the solid of mass `mass`, about its centre (the same
     /// formulas the simulator uses at reset).
     pub fn inertia_diag(&self, mass: f32) -> Vec3 {
-        crate::object::object_inertia(self.code(), Vec3::from(self.size_params()), mass)
+        object_inertia(self.code(), Vec3::from(self.size_params()), mass)
     }
 
     /// The shape with every length multiplied by `scale` (an env's object scale).

@@ -1,4 +1,4 @@
-//! What the GPU is asked to do, counted on the thread that asks (README "The GPU loop", "What the
+//! What the GPU is asked to do, counted on the thread that asks (docs/gpu.md "The GPU loop", "What the
 //! GPU is asked to do"): kernels, queue submissions and host synchronisations, each by where it
 //! comes from. The counts do not depend on the adapter (lavapipe counts what an H100 would run),
 //! so they are the figures a 2-core machine without a GPU can improve.

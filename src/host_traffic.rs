@@ -1,5 +1,5 @@
 //! Bytes moved between host memory and a GPU by dextrain's own calls, for the `time/host_bytes`
-//! metric (README "The GPU loop").
+//! metric (docs/gpu.md "The GPU loop").
 //!
 //! Counted: every upload to and readback from the simulator's wgpu buffers (`env::gpu`; the action
 //! noise's parameters included), every tensor that `learn::nets::to_tensor` puts on, or `to_host`

@@ -1,30 +1,43 @@
 //! dextrain: a batched simulator and trainer for dexterous robot hands.
 //!
-//! See README.md for the architecture; `env` holds the simulator (CPU and GPU backends behind
+//! See docs/architecture.md for the layout and docs/design.md §11 for the layers; `env` holds the simulator (CPU and GPU backends behind
 //! [`env::EnvBatch`]), `hand` the URDF loader, `object` the manipulated objects, `traj` reference trajectories, `record` MCAP rollouts.
 
-pub mod bench;
-pub mod bench_matmul;
-pub mod checkpoint;
-pub mod config;
+// The modules by layer, lowest first (docs/design.md §11; tests/suite/layers.rs enforces it).
+
+// base helpers
+pub mod text;
+pub mod rng;
 pub mod console;
-pub mod env;
-pub mod eval;
-pub mod export;
-pub mod geom;
-pub mod hand;
+pub mod run_dir;
 pub mod gpu_counts;
 pub mod host_traffic;
-pub mod learn;
-pub mod mesh;
-pub mod metrics;
-pub mod object;
-pub mod plot;
-pub mod record;
-pub mod replay;
-pub mod run;
-pub mod run_dir;
-pub mod train;
-pub mod task;
 pub mod tensorboard;
+pub mod metrics;
+pub mod plot;
+// geometry and meshes
+pub mod geom;
+pub mod mesh;
+// the config: plain data
+pub mod config;
+// models: the hand, objects, reference trajectories, recordings
+pub mod hand;
+pub mod object;
 pub mod traj;
+pub mod record;
+// the simulator, its GPU context and shader ABI
+pub mod env;
+// the task layer
+pub mod task;
+// the learners
+pub mod learn;
+// export, eval (with play), the runner
+pub mod export;
+pub mod eval;
+pub mod run;
+// commands
+pub mod replay;
+pub mod synth;
+pub mod bench_matmul;
+pub mod bench;
+pub mod train;

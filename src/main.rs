@@ -84,7 +84,7 @@ enum Command {
     Export(dextrain::export::command::ExportArgs),
     /// Drive the simulator from an export alone (policy.json, policy.onnx, world.toml): eval's
     /// episodes and JSON report, the exported model and the contract's action mapping acting.
-    Play(dextrain::export::play::PlayArgs),
+    Play(dextrain::eval::play::PlayArgs),
     /// Draw a run's learning curves (PNG) from its metrics.csv into RUN/plots/.
     Plot {
         /// The run directory (runs/NAME).
@@ -102,7 +102,7 @@ enum Command {
 #[derive(Subcommand)]
 enum TrajCommand {
     /// Write a scripted approach–grasp–lift reference for a config's hand and object.
-    Synth(dextrain::traj::synth::SynthArgs),
+    Synth(dextrain::synth::SynthArgs),
 }
 
 fn load_config(path: &Path) -> Result<Config> {
@@ -202,7 +202,7 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Play(args) => {
-            let report = dextrain::export::play::run(&args)?;
+            let report = dextrain::eval::play::run(&args)?;
             console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
             Ok(())
         }
@@ -214,7 +214,7 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Replay(args) => dextrain::replay::run(&args),
-        Command::Traj { command: TrajCommand::Synth(args) } => dextrain::traj::synth::run(&args),
+        Command::Traj { command: TrajCommand::Synth(args) } => dextrain::synth::run(&args),
     }
 }
 
@@ -230,7 +230,7 @@ fn main() -> ExitCode {
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            console::status(&format!("error: {}", dextrain::config::one_line(&format!("{e:#}"))));
+            console::status(&format!("error: {}", dextrain::text::one_line(&format!("{e:#}"))));
             ExitCode::FAILURE
         }
     }

@@ -1,5 +1,5 @@
 //! Training metrics: one row per iteration, in `runs/NAME/metrics.csv` and in a TensorBoard event
-//! file in `runs/NAME/` (DESIGN.md §7).
+//! file in `runs/NAME/` (docs/design.md §7).
 //!
 //! `metrics.csv` is the record of a run: a header `iteration,<column>,...` and one row per
 //! iteration, numbers written with Rust's shortest round-trip formatting (`{}`; NaN as `nan`,

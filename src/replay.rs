@@ -19,7 +19,7 @@ use crate::env::{EnvBatch, EnvState, SimModel, Targets, contact_records, hand_li
 use crate::geom::Pose;
 use crate::record::{ContactKind, RolloutFrame, RolloutMeta, RolloutWriter};
 use crate::traj::Trajectory;
-use crate::traj::bank::MAX_REF_FRAMES;
+use crate::task::bank::{MAX_REF_FRAMES, targets_at};
 
 /// Arguments of `dextrain replay`.
 #[derive(clap::Args, Debug, Clone)]
@@ -99,22 +99,6 @@ pub fn rot_err_deg(a: Quat, b: Quat) -> f64 {
     (2.0 * (d.w.abs().min(1.0) as f64).acos()).to_degrees()
 }
 
-/// The targets of `model` at time `t` (s) of `traj`: the sampled wrist pose and, through `map`
-/// (model joint -> reference column, [`Trajectory::joint_map`]), its joint targets; joints the
-/// reference does not name hold their default.
-pub fn targets_at(model: &SimModel, traj: &Trajectory, map: &[Option<usize>], t: f64) -> Targets {
-    let f = traj.sample(t);
-    let mut out = model.default_targets();
-    out.wrist_pos = [f.wrist.pos.x, f.wrist.pos.y, f.wrist.pos.z, 0.0];
-    out.wrist_rot = f.wrist.rot.normalize().to_array();
-    for (j, m) in map.iter().enumerate() {
-        if let Some(k) = m {
-            out.q[j] = f.joints[*k];
-        }
-    }
-    out
-}
-
 /// The state of env `env` placed on the reference at time t (velocities zero).
 fn state_on_reference(model: &SimModel, base: &EnvState, tg: &Targets, object: Option<Pose>) -> EnvState {
     let mut s = *base;
@@ -168,7 +152,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
             let mut m = model.clone();
             let k = m.object_index(o).ok_or_else(|| {
                 let names: Vec<&str> = m.objects.iter().map(|x| x.name.as_str()).collect();
-                anyhow::anyhow!("the reference names object '{}': expected one of the config's objects ({})", crate::config::clip(o, 40), names.join(", "))
+                anyhow::anyhow!("the reference names object '{}': expected one of the config's objects ({})", crate::text::clip(o, 40), names.join(", "))
             })?;
             m.set_reference_objects(vec![k]);
             named = m;
@@ -201,7 +185,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
                 hand: model.hand.clone(),
                 object: {
                     let p0 = reset_params(&g, &model.object_descs, &model.ref_objects, 0, 0);
-                    model.objects[p0.obj_index as usize].parts(p0.obj_scale)
+                    crate::record::object_parts(&model.objects[p0.obj_index as usize], p0.obj_scale)
                 },
                 dt: ctrl_dt as f32,
                 info: serde_json::json!({ "command": "replay", "mode": if kinematic { "kinematic" } else { "dynamic" }, "config": cfg.source.display().to_string() }),

@@ -1,4 +1,4 @@
-//! Run directories (DESIGN §7): `runs/<name>/` with the exact resolved config, metrics, TensorBoard
+//! Run directories (docs/design.md §7): `runs/<name>/` with the exact resolved config, metrics, TensorBoard
 //! events, plots, checkpoints and eval reports.
 //!
 //! A run name is one path component of letters, digits, `-`, `_` and `.` (not `.` or `..`), so a

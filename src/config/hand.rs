@@ -1,5 +1,5 @@
 //! `[hand]` and `[wrist]`: the hand's URDF, its joint servos and contact friction, and the floating
-//! wrist's PD controller (DESIGN §4).
+//! wrist's PD controller (docs/design.md §4).
 
 use std::collections::BTreeMap;
 use std::fmt;
@@ -9,7 +9,30 @@ use serde::de::{self, MapAccess, Visitor, value::MapAccessDeserializer};
 use serde::{Deserialize, Deserializer, Serialize};
 
 use super::Check;
-use crate::hand::{MAX_EFFORT_NM, MAX_LENGTH_M, MAX_VELOCITY_RAD_S, MeshApprox};
+
+// Bounds shared with the URDF loader (the `hand` module checks a URDF's values against them; the config's
+// overrides are checked against the same ones).
+/// Largest |coordinate| (m) of an origin, and largest collision size or mesh extent (real: < 0.5 m).
+pub const MAX_LENGTH_M: f64 = 10.0;
+/// Largest effort limit (N·m) of a joint (real: ≤ 1000, SCHUNK SVH).
+pub const MAX_EFFORT_NM: f64 = 1e5;
+/// Largest velocity limit (rad/s) of a joint (real: ≤ 40).
+pub const MAX_VELOCITY_RAD_S: f64 = 1e4;
+
+/// What to do with a `<mesh>` collision element, which the simulator cannot represent: fit a
+/// primitive to it (`mesh::fit`: the smallest of that kind, by volume, that contains every vertex,
+/// in the mesh's principal axes or whatever frame is tighter; STL or OBJ files are read).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum MeshApprox {
+    /// A mesh collision is an error that names the link (the default).
+    #[default]
+    Error,
+    /// The smallest oriented box around the mesh.
+    Box,
+    /// The smallest capsule around the mesh, or the smallest sphere where that is tighter.
+    Capsule,
+}
 
 /// `[hand]`
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]

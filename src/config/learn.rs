@@ -1,5 +1,5 @@
 //! `[train]`, `[ppo]` and `[policy]`: the learner's device, the run's length and checkpoints, PPO's
-//! hyper-parameters (DESIGN §6, rsl_rl's names and defaults) and the networks.
+//! hyper-parameters (docs/design.md §6, rsl_rl's names and defaults) and the networks.
 
 use anyhow::Result;
 use serde::{Deserialize, Serialize};
@@ -35,7 +35,7 @@ pub struct TrainConfig {
     /// With the envs and the learner on one GPU (`sim.backend` and `train.device` the same wgpu
     /// device), PPO or SAC: keep the rollouts on the device — observations, actions, rewards, PPO's
     /// rollout storage and GAE, SAC's replay buffer and the metrics' sums never cross to the host
-    /// during an iteration (README "The GPU loop"). `false`: observations are read back and
+    /// during an iteration (docs/gpu.md "The GPU loop"). `false`: observations are read back and
     /// uploaded to the learner every env step (the host path, for comparisons). Ignored elsewhere
     /// (the host path is the only one).
     pub device_rollouts: bool,
@@ -179,11 +179,17 @@ impl Default for DistillConfig {
     }
 }
 
+/// The steps left of a `steps`-long window after the convolutions `(kernel, stride)`: T' = ⌊(T − k)
+/// / s⌋ + 1 per layer; None when a kernel is longer than its input.
+pub fn tcn_steps_out(steps: usize, convs: &[(usize, usize)]) -> Option<usize> {
+    convs.iter().try_fold(steps, |t, &(k, s)| (k >= 1 && s >= 1 && k <= t).then(|| (t - k) / s + 1))
+}
+
 impl DistillConfig {
     /// The steps the TCN's convolutions leave of the history window (None: a kernel longer than
     /// its input): T' = ⌊(T − k) / s⌋ + 1 per layer.
     pub fn tcn_steps_out(&self) -> Option<usize> {
-        crate::learn::tcn::steps_out(self.history_len as usize, &self.tcn_convs())
+        tcn_steps_out(self.history_len as usize, &self.tcn_convs())
     }
 
     /// `tcn_layers` as (kernel, stride) pairs.
@@ -252,7 +258,7 @@ pub enum LrSchedule {
     Fixed,
 }
 
-/// `[ppo]` (DESIGN §6; rsl_rl's names and defaults)
+/// `[ppo]` (docs/design.md §6; rsl_rl's names and defaults)
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct PpoConfig {

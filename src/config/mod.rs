@@ -13,6 +13,7 @@
 pub mod hand;
 pub mod learn;
 pub mod object;
+pub mod rewards;
 pub mod sac;
 pub mod sim;
 pub mod task;
@@ -22,6 +23,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use serde::{Deserialize, Serialize};
+
+use crate::text::{clip_quoted, one_line, quote_short};
 
 pub use hand::{HandConfig, WristConfig};
 pub use sac::{QReduction, SacConfig};
@@ -57,7 +60,7 @@ pub struct Config {
     pub task: TaskConfig,
     /// The training run: learner device, iterations, checkpoints.
     pub train: TrainConfig,
-    /// PPO hyper-parameters (DESIGN §6 defaults, rsl_rl conventions).
+    /// PPO hyper-parameters (docs/design.md §6 defaults, rsl_rl conventions).
     pub ppo: PpoConfig,
     /// Actor and critic networks.
     pub policy: PolicyConfig,
@@ -94,51 +97,6 @@ impl Default for Config {
             source: PathBuf::from("<default>"),
         }
     }
-}
-
-/// Longest value (characters) quoted in an error message; longer ones are cut and end in "…".
-pub const MAX_QUOTED_CHARS: usize = 80;
-
-/// `s` cut to `max` characters, with "…" where it was cut.
-pub fn clip(s: &str, max: usize) -> String {
-    if s.chars().count() > max { format!("{}…", s.chars().take(max).collect::<String>()) } else { s.to_string() }
-}
-
-/// A value for an error message: at most [`MAX_QUOTED_CHARS`] characters.
-pub fn quote_short(value: &str) -> String {
-    clip(value, MAX_QUOTED_CHARS)
-}
-
-/// Cuts every quoted value of a message ('…', "…", `…` or […], opening at the start of a word) to
-/// [`MAX_QUOTED_CHARS`] characters, so that a 5,000-character name or vector prints as 80 (serde's
-/// and urdf-rs's messages quote the offending value and list the allowed ones: the list stays).
-pub fn clip_quoted(msg: &str) -> String {
-    let chars: Vec<char> = msg.chars().collect();
-    let mut out = String::with_capacity(msg.len());
-    let mut i = 0;
-    while i < chars.len() {
-        let c = chars[i];
-        let close = match c {
-            '\'' | '"' | '`' => Some(c),
-            '[' => Some(']'),
-            _ => None,
-        };
-        let word_start = i == 0 || !chars[i - 1].is_alphanumeric();
-        if let (Some(close), true) = (close, word_start)
-            && let Some(len) = chars[i + 1..].iter().position(|&d| d == close)
-            && len > MAX_QUOTED_CHARS
-        {
-            out.push(c);
-            out.extend(&chars[i + 1..i + 1 + MAX_QUOTED_CHARS]);
-            out.push('…');
-            out.push(close);
-            i += len + 2;
-            continue;
-        }
-        out.push(c);
-        i += 1;
-    }
-    out
 }
 
 /// The validation context of one config file: builds the one-line errors
@@ -276,13 +234,8 @@ impl Config {
                 return Err(c.err("policy.encoder", "a table", "no [policy.encoder] with train.algorithm = \"sac\" (the privileged encoder is PPO's)"));
             }
         }
-        if let Some(e) = &self.policy.encoder {
-            // the encoder's inputs are fields of this task's critic observation
-            let names = crate::task::spec::critic_field_names(self.task.kind, self.task.track.lookahead);
-            if let Some(bad) = e.inputs.iter().find(|n| !names.contains(n)) {
-                return Err(c.err("policy.encoder.inputs", bad, &format!("field names of the {} task's critic observation: {}", self.task.kind, names.join(", "))));
-            }
-        }
+        // the encoder's inputs are checked against the task's observation spec by
+        // `task::setup::check_config` (the task layer, above the config)
         Ok(())
     }
 }
@@ -395,11 +348,6 @@ pub fn apply_override(table: &mut toml::Table, set: &str) -> Result<()> {
     }
     cur.insert(parts[parts.len() - 1].to_string(), parsed);
     Ok(())
-}
-
-/// Collapses a multi-line message to one line.
-pub fn one_line(s: &str) -> String {
-    s.split_whitespace().collect::<Vec<_>>().join(" ")
 }
 
 fn line_col(text: &str, offset: usize) -> String {

@@ -1,5 +1,5 @@
 //! `[object]`: the manipulated object (or the set of objects each env draws one from) and where it
-//! starts on the table. What each entry becomes (pieces, mass properties) is `crate::object`'s job.
+//! starts on the table. What each entry becomes (pieces, mass properties) is the `object` module's job.
 
 use anyhow::Result;
 use serde::{Deserialize, Serialize};

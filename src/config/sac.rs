@@ -1,5 +1,5 @@
 //! `[sac]`: Soft Actor-Critic as the massively parallel off-policy learners build it (FastTD3,
-//! FastSAC; DESIGN §6). The networks' widths, activation, observation normalisation and
+//! FastSAC; docs/design.md §6). The networks' widths, activation, observation normalisation and
 //! `zero_init_output` come from `[policy]`; the iteration length (env steps of every env per metrics
 //! row) is `train.steps_per_env`.
 

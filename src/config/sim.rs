@@ -1,4 +1,4 @@
-//! `[sim]`, `[table]`, `[contact]` and `[randomization]`: the batched physics (DESIGN §4)
+//! `[sim]`, `[table]`, `[contact]` and `[randomization]`: the batched physics (docs/design.md §4)
 //! and the backend it runs on.
 
 use std::fmt;

@@ -1,7 +1,7 @@
 //! `[task]`: the task kind, how actions become targets, observation noise, reward weights,
 //! terminations, the references of the reference-following kinds and their augmentation, and the
-//! residual kinds' parameters (DESIGN §5). The reward terms of each kind are named in one table,
-//! [`crate::task::spec::reward_terms`].
+//! residual kinds' parameters (docs/design.md §5). The reward terms of each kind are named in one table,
+//! [`super::rewards::reward_terms`].
 
 use std::collections::BTreeMap;
 
@@ -9,7 +9,11 @@ use anyhow::Result;
 use serde::{Deserialize, Serialize};
 
 use super::Check;
-use crate::task::spec::reward_terms;
+use super::rewards::reward_terms;
+
+/// The largest `task.obs_noise.object_delay` (control steps); the task state's object-pose ring
+/// (`env::gpu_layout::OBJ_HIST`) has one slot more.
+pub const MAX_OBJ_DELAY: u32 = 7;
 
 /// The task (`task.kind`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
@@ -17,7 +21,7 @@ use crate::task::spec::reward_terms;
 pub enum TaskKind {
     /// Grasp the object and lift it at least `task.lift.success_height`.
     Lift,
-    /// Follow reference trajectories (DESIGN §5, trajectory following).
+    /// Follow reference trajectories (docs/design.md §5, trajectory following).
     Track,
     /// A bounded joint-space correction of the reference's joint targets.
     ResidualJoint,
@@ -55,7 +59,7 @@ impl TaskKind {
         reward_terms(self).iter().map(|t| t.name).collect()
     }
 
-    /// The default weights of the kind's reward terms (the tables of [`crate::task::spec`]).
+    /// The default weights of the kind's reward terms (the tables of [`super::rewards`]).
     pub fn default_rewards(self) -> BTreeMap<String, f32> {
         reward_terms(self).iter().map(|t| (t.name.to_string(), t.default_weight)).collect()
     }
@@ -102,7 +106,7 @@ pub enum TrackAction {
 #[serde(deny_unknown_fields, default)]
 pub struct TaskConfig {
     /// The task: `"lift"` (grasp the object and lift it at least `lift.success_height`), `"track"`
-    /// (follow reference trajectories: DESIGN §5), `"residual_joint"` (a bounded joint-space
+    /// (follow reference trajectories: docs/design.md §5), `"residual_joint"` (a bounded joint-space
     /// correction of the reference's joint targets) or `"residual_task"` (a smoothed, integrated
     /// task-space correction of the reference's wrist pose and fingertips, mapped to joints by IK).
     pub kind: TaskKind,
@@ -114,8 +118,8 @@ pub struct TaskConfig {
     /// Standard deviations of the Gaussian noise added to the actor's observations (the critic's are clean).
     pub obs_noise: ObsNoiseConfig,
     /// Weight of each reward term (term name -> weight; 0 turns a term off, an unknown name is an
-    /// error). The terms of each kind and their formulas: README ("Reward terms") and
-    /// [`crate::task::spec::reward_terms`]. Penalties have negative weights (Isaac Lab's convention).
+    /// error). The terms of each kind and their formulas: docs/tasks.md ("Reward terms") and
+    /// [`super::rewards::reward_terms`]. Penalties have negative weights (Isaac Lab's convention).
     pub rewards: BTreeMap<String, f32>,
     /// The points and thresholds on the hand that every kind uses: the thumb, fingertip contact,
     /// the palm point.
@@ -179,7 +183,7 @@ pub struct ObsNoiseConfig {
     /// episode draws k uniformly from [min, max]; the actor's `obj_pos` / `obj_rot` (and what is
     /// computed from them: lift's `obj_rel`, the reference block's object errors) are the pose of k
     /// steps earlier (the episode's first pose before that), with the noise on top; the critic
-    /// sees the current pose. [0, 0] = none; at most [`crate::env::gpu_layout::MAX_OBJ_DELAY`].
+    /// sees the current pose. [0, 0] = none; at most [`MAX_OBJ_DELAY`].
     pub object_delay: [u32; 2],
 }
 
@@ -221,7 +225,7 @@ pub struct LiftConfig {
 }
 
 /// `[task.reference]`: the references a trajectory-following or residual task tracks and their
-/// augmentation (`env::reference`'s module documentation). Every augmentation is off by default.
+/// augmentation (`task::reference`'s module documentation). Every augmentation is off by default.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ReferenceConfig {
@@ -261,7 +265,7 @@ pub struct ReferenceConfig {
 }
 
 /// `[task.track]`: observations, tracking rewards and success of `track`, `residual_joint` and
-/// `residual_task` (DESIGN §5); the references themselves are `[task.reference]`.
+/// `residual_task` (docs/design.md §5); the references themselves are `[task.reference]`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct TrackConfig {
@@ -304,7 +308,7 @@ pub struct TrackConfig {
     pub max_object_error: f32,
 }
 
-/// `[task.residual]`: how residual actions correct the reference (DESIGN §1, §5).
+/// `[task.residual]`: how residual actions correct the reference (docs/design.md §1, §5).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ResidualConfig {
@@ -530,7 +534,7 @@ impl ObsNoiseConfig {
             c.non_neg(key, v)?;
         }
         let [lo, hi] = self.object_delay;
-        let max = crate::env::gpu_layout::MAX_OBJ_DELAY;
+        let max = MAX_OBJ_DELAY;
         if lo > hi || hi > max {
             return Err(c.err("task.obs_noise.object_delay", format!("[{lo}, {hi}]"), &format!("[min, max] control steps with min <= max <= {max}")));
         }

@@ -34,12 +34,6 @@ pub const SHADER_COMMON: &str = include_str!("../../shaders/common.wgsl");
 pub const SHADER_RESET: &str = include_str!("../../shaders/reset.wgsl");
 /// shaders/physics.wgsl: `step_main`, one control step.
 pub const SHADER_PHYSICS: &str = include_str!("../../shaders/physics.wgsl");
-/// shaders/task.wgsl: the task layer's entry points and bindings 9–12.
-pub const SHADER_TASK: &str = include_str!("../../shaders/task.wgsl");
-/// shaders/reference.wgsl: the reference sampler and bindings 13–15.
-pub const SHADER_REFERENCE: &str = include_str!("../../shaders/reference.wgsl");
-/// shaders/ik.wgsl: the fingertip inverse kinematics.
-pub const SHADER_IK: &str = include_str!("../../shaders/ik.wgsl");
 /// The learner's action noise (appended to common.wgsl; `learn::noise`).
 pub const SHADER_NOISE: &str = include_str!("../../shaders/noise.wgsl");
 /// The learner's optimiser (a module of its own; `learn::fused_adam`).
@@ -53,12 +47,6 @@ pub const WORKGROUP_SIZE: u32 = 64;
 /// The WGSL module the simulator runs: common, reset and physics concatenated.
 pub fn shader_source() -> String {
     [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS].join("\n")
-}
-
-/// The WGSL module of the task layer: the simulator's module with the reference layer, the
-/// fingertip IK and task.wgsl appended (task.wgsl reuses the physics' hand kinematics).
-pub fn task_shader_source() -> String {
-    [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_REFERENCE, SHADER_IK, SHADER_TASK].join("\n")
 }
 
 /// Workgroups (x, y) of a dispatch of `invocations` invocations (one per env, or per number drawn):
@@ -139,9 +127,9 @@ fn is_software(info: &wgpu::AdapterInfo) -> bool {
 /// A wgpu error on one line: its kind and description.
 fn wgpu_error_line(e: &wgpu::Error) -> String {
     match e {
-        wgpu::Error::OutOfMemory { source } => format!("out of memory ({})", crate::config::one_line(&source.to_string())),
-        wgpu::Error::Validation { description, .. } => format!("validation error: {}", crate::config::one_line(description)),
-        wgpu::Error::Internal { description, .. } => format!("internal error: {}", crate::config::one_line(description)),
+        wgpu::Error::OutOfMemory { source } => format!("out of memory ({})", crate::text::one_line(&source.to_string())),
+        wgpu::Error::Validation { description, .. } => format!("validation error: {}", crate::text::one_line(description)),
+        wgpu::Error::Internal { description, .. } => format!("internal error: {}", crate::text::one_line(description)),
     }
 }
 
@@ -220,7 +208,7 @@ impl GpuContext {
         }));
         let record = uncaptured.clone();
         device.set_device_lost_callback(move |reason, message| {
-            record.lock().unwrap_or_else(PoisonError::into_inner).push(format!("device lost ({reason:?}): {}", crate::config::one_line(&message)));
+            record.lock().unwrap_or_else(PoisonError::into_inner).push(format!("device lost ({reason:?}): {}", crate::text::one_line(&message)));
         });
         Ok(GpuContext { instance, adapter: chosen, device, queue, info, uncaptured })
     }
@@ -533,6 +521,12 @@ impl GpuEnvBatch {
     /// Uploads the model, builds the pipelines and starts episode 0 of every env. A batch whose
     /// buffers exceed the device's limits, and every wgpu error while building it, is an error.
     pub fn new(ctx: GpuContext, model: SimModel) -> Result<GpuEnvBatch> {
+        GpuEnvBatch::with_readback(ctx, model, 0)
+    }
+
+    /// [`GpuEnvBatch::new`] with a readback buffer of at least `min_readback_bytes_per_env` per env
+    /// (the task layer reads its per-env states through it).
+    pub fn with_readback(ctx: GpuContext, model: SimModel, min_readback_bytes_per_env: u64) -> Result<GpuEnvBatch> {
         let n = model.spec.num_envs;
         // the largest per-env buffer, checked before anything is allocated
         let state_bytes = (n * std::mem::size_of::<EnvState>()) as u64;
@@ -556,8 +550,8 @@ impl GpuEnvBatch {
         let stats = ctx.create_binding_buffer(STATS, &vec![<StepStats as bytemuck::Zeroable>::zeroed(); n], none).with_context(per_env)?;
         let reset_mask = ctx.create_binding_buffer(RESET_MASK, &vec![0u32; n], none).with_context(per_env)?;
         let springs = ctx.create_binding_buffer(SPRINGS, &vec![[0.0f32; 4]; n_springs.max(1)], none).with_context(per_env)?;
-        // the largest per-env readback: env states, contact springs or the task layer's states
-        let task_bytes = (n * std::mem::size_of::<TaskState>()) as u64;
+        // the largest per-env readback: env states, contact springs or what the caller reads (the task layer's states)
+        let task_bytes = n as u64 * min_readback_bytes_per_env;
         let readback = ctx.create_staging_buffer("env readback", state_bytes.max(spring_bytes).max(task_bytes)).with_context(per_env)?;
         let [step_pipeline, reset_pipeline] =
             ctx.compute_pipelines(SIM_GROUP.shader, &shader_source(), [STEP_MAIN.entry_point, RESET_MAIN.entry_point])?;

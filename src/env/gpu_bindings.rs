@@ -2,7 +2,7 @@
 //! `shaders/` declares, as named constants, and the bindings each entry point uses.
 //!
 //! The Rust side builds every bind group from these constants (`gpu::bind_group`), never from bare
-//! indices; `tests/shaders.rs` checks them with naga against the WGSL (name, index, address space of
+//! indices; `tests/suite/shaders.rs` checks them with naga against the WGSL (name, index, address space of
 //! every global, and the globals each entry point really uses), so a binding renamed or moved on one
 //! side only fails a test that needs no GPU instead of a pipeline at run time.
 //!

@@ -3,7 +3,7 @@
 //! # The env contract
 //!
 //! An [`EnvBatch`] holds `num_envs` independent environments, each one floating-wrist hand, one rigid
-//! object and the table (DESIGN §4). Every env has its own [`EnvState`] (wrist, object, joints,
+//! object and the table (docs/design.md §4). Every env has its own [`EnvState`] (wrist, object, joints,
 //! friction springs, counters) and [`EnvParams`] (physical parameters drawn at its last reset).
 //!
 //! - [`EnvBatch::reset_all`] starts episode 0 of every env; [`EnvBatch::reset`] starts the next episode
@@ -26,14 +26,14 @@ pub mod common;
 pub mod cpu;
 pub mod gpu;
 pub mod gpu_bindings;
-pub mod ik;
+pub mod gpu_io;
+pub mod object_desc;
 pub mod gpu_layout;
 pub mod physics;
-pub mod reference;
 pub mod reset;
 pub mod vulkan_probe;
 
-use anyhow::{Result, bail};
+use anyhow::{Context, Result, bail};
 use glam::{Mat3, Quat, Vec3};
 
 use crate::config::{BackendChoice, Config};
@@ -113,7 +113,12 @@ impl SimModel {
             effort: cfg.hand.effort.clone(),
             velocity: cfg.hand.velocity.clone(),
         };
-        let hand = HandModel::from_urdf_file(&path, &opts)?;
+        // a hand that does not load names the config's key too (an empty config's default hand
+        // is not next to it)
+        let hand = HandModel::from_urdf_file(&path, &opts).with_context(|| {
+            let default = if cfg.hand.urdf == crate::config::HandConfig::default().urdf { " (the default, relative to the config's directory)" } else { "" };
+            format!("{}: key `hand.urdf` = {:?}{default}", cfg.source.display(), cfg.hand.urdf)
+        })?;
         // the hand's warnings, once per process (a run builds its model more than once)
         static WARNED: std::sync::Mutex<Vec<String>> = std::sync::Mutex::new(Vec::new());
         if let Ok(mut warned) = WARNED.lock() {

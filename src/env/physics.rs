@@ -2,7 +2,7 @@
 //! Same function names, same order, same arithmetic as the shader; `Scratch` is the shader's
 //! `var<private>` memory.
 //!
-//! The model (DESIGN §4), per substep of length h:
+//! The model (docs/design.md §4), per substep of length h:
 //! 1. `hand_kinematics`: link poses and velocities from the wrist state and joint positions.
 //! 2. Contacts (penalty): hand–object (one per hand collider: the deepest over the object's pieces,
 //!    closest points by alternating projection between the collider and a piece — a primitive, or a

@@ -15,13 +15,14 @@ use serde::Serialize;
 
 use super::contract::{self, CONTRACT_FILE, ContractSource, PolicyContract, Source, TensorIo};
 use super::onnx::{self, Dense, LayerNorm, Mlp, Normalization, PolicyNet};
-use crate::checkpoint;
+use crate::learn::checkpoint;
 use crate::config::Config;
 use crate::env::SimModel;
 use crate::learn::normalizer::Normalizer;
 use crate::learn::distill::{Adaptation, StudentPolicy};
 use crate::learn::nets::to_host;
-use crate::learn::ppo::{Dims, Ppo};
+use crate::learn::ppo::Ppo;
+use crate::learn::policy::{LoadedPolicy, load_policy};
 use crate::learn::sac::Sac;
 use crate::run_dir;
 use crate::task::{make_task_batch, task_setup};
@@ -109,11 +110,9 @@ struct Loaded {
     policy: BurnPolicy,
 }
 
-/// Loads a PPO policy (with or without a privileged encoder) of `cfg`'s shape from a checkpoint.
-fn load(cfg: &Config, ckpt: &Path, dims: Dims, encoder_index: &[usize]) -> Result<Loaded> {
-    let device = burn::prelude::Device::flex();
-    let mut ppo = Ppo::new(dims, 1, 1, &cfg.ppo, &cfg.policy, encoder_index, device, cfg.seed as u64)?;
-    checkpoint::load_model(&ckpt.join("model.safetensors"), &mut ppo).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
+/// The network of a loaded PPO policy (with or without a privileged encoder reading
+/// `encoder_index` of the critic observation).
+fn ppo_net(ppo: Box<Ppo>, encoder_index: &[usize]) -> Result<Loaded> {
     let values = ppo.net.values()?;
     let n_actor = ppo.net.actor_shapes.len();
     let actor = mlp(&values[..n_actor], &ppo.net.actor_shapes, ppo.net.activation);
@@ -126,15 +125,13 @@ fn load(cfg: &Config, ckpt: &Path, dims: Dims, encoder_index: &[usize]) -> Resul
         let encoder = mlp(&values[start..], &ppo.net.encoder_shapes, ppo.net.encoder_activation);
         PolicyNet::Encoder { obs_norm, priv_norm: normalization(&ppo.priv_norm, ppo.normalize), priv_index: encoder_index.to_vec(), encoder, actor }
     };
-    Ok(Loaded { net, policy: BurnPolicy::Ppo(Box::new(ppo)) })
+    Ok(Loaded { net, policy: BurnPolicy::Ppo(ppo) })
 }
 
-/// Loads a SAC run's actor: its deterministic action `tanh(μ(ŝ))`, the first `A` of the actor's
-/// `2A` outputs (the rest are log σ, which the deterministic action does not use), with the
-/// actor's LayerNorms when `sac.actor_layer_norm` is on.
-fn load_sac(cfg: &Config, ckpt: &Path, dims: Dims) -> Result<Loaded> {
-    // the learner's parameters are autodiff leaves: an autodiff device
-    let sac = Sac::from_checkpoint(dims, 1, cfg, ckpt, burn::prelude::Device::flex().autodiff())?;
+/// The network of a loaded SAC actor: its deterministic action `tanh(μ(ŝ))`, the first `A` of the
+/// actor's `2A` outputs (the rest are log σ, which the deterministic action does not use), with
+/// the actor's LayerNorms when `sac.actor_layer_norm` is on.
+fn sac_net(sac: Box<Sac>, ckpt: &Path) -> Result<Loaded> {
     let values = sac.actor.iter().map(|p| to_host(p.clone().inner())).collect::<Result<Vec<Vec<f32>>>>()?;
     let shapes = sac.actor_layout.shapes();
     let per_hidden = sac.actor_layout.per_hidden();
@@ -151,13 +148,13 @@ fn load_sac(cfg: &Config, ckpt: &Path, dims: Dims) -> Result<Loaded> {
     // the output layer [h, 2A]: μ's columns 0..A of every row
     let k = hidden * per_hidden;
     let [h, two_a] = shapes[k];
-    let a = dims.act;
+    let a = sac.dims.act;
     ensure!(two_a == 2 * a, "{}: the SAC actor has {two_a} outputs; expected {} (μ and log σ for {a} actions)", ckpt.display(), 2 * a);
     let weight = values[k].chunks(two_a).flat_map(|row| row[..a].iter().copied()).collect();
     layers.push(Dense { weight, bias: values[k + 1][..a].to_vec(), inputs: h, outputs: a });
     let actor = Mlp { layers, activation: sac.activation, layer_norms, tanh_output: true };
     let net = PolicyNet::Mlp { obs_norm: normalization(&sac.obs_norm, sac.normalize), actor };
-    Ok(Loaded { net, policy: BurnPolicy::Sac(Box::new(sac)) })
+    Ok(Loaded { net, policy: BurnPolicy::Sac(sac) })
 }
 
 /// XXH64 (hex) of a checkpoint's manifest.
@@ -192,13 +189,14 @@ pub fn run(args: &ExportArgs) -> Result<ExportReport> {
     if cfg.train.algorithm == crate::config::AlgorithmChoice::Distill {
         return export_student(args, &cfg, &cfg_path, &ckpt, state.iteration, &model, &setup);
     }
-    let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
     let is_sac = cfg.train.algorithm == crate::config::AlgorithmChoice::Sac;
-    let (loaded, encoder_index) = if is_sac {
-        (load_sac(&cfg, &ckpt, dims)?, Vec::new())
-    } else {
-        let encoder_index = crate::learn::ppo::encoder_index(&cfg.policy, spec).with_context(|| cfg_path.display().to_string())?;
-        (load(&cfg, &ckpt, dims, &encoder_index)?, encoder_index)
+    // SAC's parameters are autodiff leaves: an autodiff device for it
+    let device = if is_sac { burn::prelude::Device::flex().autodiff() } else { burn::prelude::Device::flex() };
+    let encoder_index = if is_sac { Vec::new() } else { crate::learn::ppo::encoder_index(&cfg.policy, spec).with_context(|| cfg_path.display().to_string())? };
+    let loaded = match load_policy(&cfg, spec, &ckpt, 1, device)? {
+        LoadedPolicy::Ppo(ppo) => ppo_net(ppo, &encoder_index)?,
+        LoadedPolicy::Sac(sac) => sac_net(sac, &ckpt)?,
+        LoadedPolicy::Student(_) => bail!("{}: a distillation run's student is exported by export_student", ckpt.display()),
     };
     let has_encoder = !encoder_index.is_empty();
     let io = |name: &str, dims: Vec<serde_json::Value>, description: &str| TensorIo { name: name.into(), shape: dims, description: description.into() };

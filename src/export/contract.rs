@@ -1,6 +1,6 @@
 //! `policy.json`: the contract that comes with an exported policy — everything a robot's control
 //! loop needs to feed `policy.onnx` and to turn its output into joint and wrist targets, with
-//! nothing left to guess (DESIGN §7). `dextrain play` drives the simulator from this file and the
+//! nothing left to guess (docs/design.md §7). `dextrain play` drives the simulator from this file and the
 //! ONNX model alone, which is the proof that the contract is complete.
 //!
 //! Built from what the simulator itself uses: the task's observation layout (`task::spec`), the
@@ -16,7 +16,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::{Config, FingerMode, TaskKind};
 use crate::env::SimModel;
-use crate::env::gpu_layout::{NO_JOINT, TaskGlobals};
+use crate::env::gpu_layout::NO_JOINT;
+use crate::task::layout::TaskGlobals;
 use crate::task::spec::{Audience, ObsSlot, TaskSpec};
 
 /// The value of [`PolicyContract::format`].
@@ -580,14 +581,14 @@ pub fn build(cfg: &Config, spec: &TaskSpec, tc: &TaskGlobals, model: &SimModel, 
                 damping: tc.ik.damping,
                 max_step: tc.ik.max_step,
                 tol: tc.ik.tol,
-                damping_dist: crate::env::ik::IK_DAMPING_DIST,
-                damping_floor: crate::env::ik::IK_DAMPING_FLOOR,
-                damping_curvature: crate::env::ik::IK_DAMPING_CURV,
-                midrange_bias: crate::env::ik::IK_BIAS,
-                lock_rounds: crate::env::ik::IK_LOCK_ROUNDS,
-                residual_clamp: crate::env::ik::IK_ERR_CLAMP,
+                damping_dist: crate::task::ik::IK_DAMPING_DIST,
+                damping_floor: crate::task::ik::IK_DAMPING_FLOOR,
+                damping_curvature: crate::task::ik::IK_DAMPING_CURV,
+                midrange_bias: crate::task::ik::IK_BIAS,
+                lock_rounds: crate::task::ik::IK_LOCK_ROUNDS,
+                residual_clamp: crate::task::ik::IK_ERR_CLAMP,
                 method: "damped least squares over all fingertips together in the wrist frame, seeded at the reference's q̄, with joint-limit locking, \
-                         residual-dependent damping and a small step toward each joint's mid-range (dextrain src/env/ik.rs)"
+                         residual-dependent damping and a small step toward each joint's mid-range (dextrain src/task/ik.rs)"
                     .into(),
             },
             formulas: vec![
@@ -602,7 +603,7 @@ pub fn build(cfg: &Config, spec: &TaskSpec, tc: &TaskGlobals, model: &SimModel, 
     };
     let model_file = ModelFile {
         file: src.model_file.to_string(),
-        xxh64: hex(crate::checkpoint::xxh64(src.model_bytes, 0)),
+        xxh64: hex(crate::learn::checkpoint::xxh64(src.model_bytes, 0)),
         opset: 17,
         inputs: src.inputs,
         output: src.output,
@@ -640,7 +641,7 @@ pub fn build(cfg: &Config, spec: &TaskSpec, tc: &TaskGlobals, model: &SimModel, 
         hand: HandContract {
             urdf_name: hand.name.clone(),
             urdf_file: urdf_path.file_name().map(|f| f.to_string_lossy().into_owned()).unwrap_or_default(),
-            urdf_xxh64: hex(crate::checkpoint::xxh64(&urdf, 0)),
+            urdf_xxh64: hex(crate::learn::checkpoint::xxh64(&urdf, 0)),
             joints,
             actuated,
             fingertips,
@@ -686,7 +687,7 @@ impl PolicyContract {
         let text = std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
         let de = &mut serde_json::Deserializer::from_str(&text);
         let c: PolicyContract = serde_path_to_error::deserialize(de)
-            .map_err(|e| anyhow::anyhow!("{}: field `{}`: {}", path.display(), e.path(), crate::config::one_line(&e.inner().to_string())))?;
+            .map_err(|e| anyhow::anyhow!("{}: field `{}`: {}", path.display(), e.path(), crate::text::one_line(&e.inner().to_string())))?;
         c.check().with_context(|| format!("{}", path.display()))?;
         Ok(c)
     }

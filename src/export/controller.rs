@@ -21,8 +21,8 @@ use crate::config::FingerMode;
 use crate::env::SimModel;
 use crate::env::common::{quat_error, quat_from_axis_angle, quat_mul, quat_normalize};
 use crate::env::gpu_layout::Targets;
-use crate::env::ik::{IkParams, IkScratch, ik_solve, ik_tip_positions};
-use crate::env::reference::RefFrame;
+use crate::task::ik::{IkParams, IkScratch, ik_solve, ik_tip_positions};
+use crate::task::reference::RefFrame;
 use crate::hand::MAX_TIPS;
 use crate::task::TaskSpec;
 use crate::task::spec::ObsSlot;
@@ -127,9 +127,9 @@ impl Controller {
         let dir = contract_path.parent().unwrap_or(std::path::Path::new("."));
         let onnx_path = dir.join(&c.model.file);
         let bytes = std::fs::read(&onnx_path).with_context(|| format!("cannot read the policy model {} (field `model.file` of {file})", onnx_path.display()))?;
-        let hash = super::contract::hex(crate::checkpoint::xxh64(&bytes, 0));
+        let hash = super::contract::hex(crate::learn::checkpoint::xxh64(&bytes, 0));
         ensure!(hash == c.model.xxh64, "{}: XXH64 {hash}, but field `model.xxh64` of {file} says {}: the model is not the one the contract describes", onnx_path.display(), c.model.xxh64);
-        let urdf_hash = super::contract::hex(crate::checkpoint::xxh64(urdf_bytes, 0));
+        let urdf_hash = super::contract::hex(crate::learn::checkpoint::xxh64(urdf_bytes, 0));
         ensure!(urdf_hash == c.hand.urdf_xxh64, "{file}: field `hand.urdf_xxh64` is {}, but this world's hand URDF hashes to {urdf_hash}: another hand", c.hand.urdf_xxh64);
         ensure!(c.task.kind == spec.kind, "{file}: field `task.kind` is {}, this world's task is {}", c.task.kind, spec.kind);
         ensure!(c.actions.names == spec.action_names, "{file}: field `actions.names` differs from this world's actions ({})", spec.action_names.join(", "));
@@ -156,8 +156,8 @@ impl Controller {
         };
         let ik = match &c.action_mapping {
             ActionMapping::ResidualTask { ik, .. } => {
-                // the solver's fixed constants are this build's (src/env/ik.rs): they must be the exporter's
-                use crate::env::ik::*;
+                // the solver's fixed constants are this build's (src/task/ik.rs): they must be the exporter's
+                use crate::task::ik::*;
                 let ours = (IK_DAMPING_DIST, IK_DAMPING_FLOOR, IK_DAMPING_CURV, IK_BIAS, IK_LOCK_ROUNDS, IK_ERR_CLAMP);
                 let theirs = (ik.damping_dist, ik.damping_floor, ik.damping_curvature, ik.midrange_bias, ik.lock_rounds, ik.residual_clamp);
                 ensure!(ours == theirs, "{file}: field `action_mapping.ik`: the solver constants {theirs:?} are not this dextrain's {ours:?}");

@@ -7,4 +7,3 @@ pub mod command;
 pub mod contract;
 pub mod controller;
 pub mod onnx;
-pub mod play;

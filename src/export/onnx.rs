@@ -716,7 +716,7 @@ pub struct OnnxRunner {
 
 /// Errors of tract in one line.
 fn tract_error(what: &str, e: impl std::fmt::Display) -> anyhow::Error {
-    anyhow!("{what}: {}", crate::config::one_line(&e.to_string()))
+    anyhow!("{what}: {}", crate::text::one_line(&e.to_string()))
 }
 
 impl OnnxRunner {

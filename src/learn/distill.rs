@@ -28,8 +28,8 @@ use super::adam::Adam;
 use super::gru::{gru_forward, gru_shapes, init_gru};
 use super::tcn::{init_tcn, tcn_forward, tcn_names, tcn_shapes};
 use super::nets::{mlp_forward, to_host, to_tensor};
-use super::ppo::{Dims, Ppo, encoder_index};
-use super::rng::Rng;
+use super::ppo::Ppo;
+use crate::rng::Rng;
 use super::state::{LearnerState, TensorValues};
 use crate::config::{AdaptationModule, Config, DatasetMode, StudentActor};
 use crate::task::TaskSpec;
@@ -84,7 +84,7 @@ fn layout_difference(a: &[ObsSlot], b: &[ObsSlot]) -> Option<String> {
 pub fn load_teacher(cfg: &Config, spec: &TaskSpec, device: &Device) -> Result<Teacher> {
     let file = cfg.source.display();
     let run = cfg.resolve(&cfg.distill.teacher);
-    crate::run_dir::check_run(&run).map_err(|e| anyhow!("{file}: key `distill.teacher` = {:?}: {}", cfg.distill.teacher, crate::config::one_line(&format!("{e:#}"))))?;
+    crate::run_dir::check_run(&run).map_err(|e| anyhow!("{file}: key `distill.teacher` = {:?}: {}", cfg.distill.teacher, crate::text::one_line(&format!("{e:#}"))))?;
     let tpath = run.join("config.toml");
     let tcfg = Config::load(&tpath)?;
     if tcfg.train.algorithm != crate::config::AlgorithmChoice::Ppo {
@@ -98,15 +98,12 @@ pub fn load_teacher(cfg: &Config, spec: &TaskSpec, device: &Device) -> Result<Te
         }
     }
     ensure!(tspec.action_dim == spec.action_dim, "{file}: key `distill.teacher`: the teacher {} has {} actions, this task {}", tpath.display(), tspec.action_dim, spec.action_dim);
-    let ckpt = crate::checkpoint::find(&run, &cfg.distill.checkpoint)?;
-    let state = crate::checkpoint::read_state(&ckpt)?;
-    let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
-    let idx = encoder_index(&tcfg.policy, spec).with_context(|| tpath.display().to_string())?;
-    let mut ppo = Ppo::new(dims, 1, 1, &tcfg.ppo, &tcfg.policy, &idx, device.clone(), tcfg.seed as u64)?;
-    crate::checkpoint::load_model(&ckpt.join("model.safetensors"), &mut ppo).with_context(|| format!("cannot load the teacher's policy from {}", ckpt.display()))?;
-    let manifest = std::fs::read(ckpt.join(crate::checkpoint::MANIFEST)).with_context(|| format!("cannot read {}", ckpt.join(crate::checkpoint::MANIFEST).display()))?;
+    let ckpt = crate::learn::checkpoint::find(&run, &cfg.distill.checkpoint)?;
+    let state = crate::learn::checkpoint::read_state(&ckpt)?;
+    let ppo = crate::learn::policy::load_ppo(&tcfg, spec, &ckpt, 1, device.clone(), tcfg.seed as u64).context("the teacher's policy")?;
+    let manifest = std::fs::read(ckpt.join(crate::learn::checkpoint::MANIFEST)).with_context(|| format!("cannot read {}", ckpt.join(crate::learn::checkpoint::MANIFEST).display()))?;
     let latent = tcfg.policy.encoder.as_ref().map(|e| e.latent).unwrap_or(0);
-    Ok(Teacher { ppo, run, checkpoint: ckpt, iteration: state.iteration, manifest_xxh64: format!("{:016x}", crate::checkpoint::xxh64(&manifest, 0)), latent })
+    Ok(Teacher { ppo, run, checkpoint: ckpt, iteration: state.iteration, manifest_xxh64: format!("{:016x}", crate::learn::checkpoint::xxh64(&manifest, 0)), latent })
 }
 
 /// The student's adaptation module φ, beyond its parameters' shapes.
@@ -498,22 +495,22 @@ impl Distill {
         self.adam.save(&self.student.names, &self.student.shapes, &mut s, OPTIMIZER_FILE)?;
         s.set_u64("distill_iteration", self.iteration);
         s.set_bits("rng_state", self.rng.state);
-        let info = serde_json::json!({
-            "format": "dextrain.student.v1",
-            "teacher_run": self.teacher.run.display().to_string(),
-            "teacher_checkpoint": self.teacher.iteration,
-            "teacher_manifest_xxh64": self.teacher.manifest_xxh64,
-            "history_len": self.student.history_len,
-            "latent": self.student.latent,
-            "adaptation": self.student.adaptation.name(),
-            "tcn_layers": match &self.student.adaptation {
-                Adaptation::Tcn { convs } => serde_json::json!(convs.iter().map(|&(k, s)| [k, s]).collect::<Vec<_>>()),
-                Adaptation::Gru => serde_json::Value::Null,
+        let info = StudentInfo {
+            format: STUDENT_FORMAT.to_string(),
+            teacher_run: self.teacher.run.display().to_string(),
+            teacher_checkpoint: self.teacher.iteration,
+            teacher_manifest_xxh64: self.teacher.manifest_xxh64.clone(),
+            history_len: self.student.history_len,
+            latent: self.student.latent,
+            adaptation: self.student.adaptation.name().to_string(),
+            tcn_layers: match &self.student.adaptation {
+                Adaptation::Tcn { convs } => Some(convs.iter().map(|&(k, s)| [k, s]).collect()),
+                Adaptation::Gru => None,
             },
-            "activation": self.student.activation,
-            "obs_normalization": self.teacher.ppo.normalize,
-        });
-        s.set_info(STUDENT_FILE, info.to_string());
+            activation: self.student.activation,
+            obs_normalization: self.teacher.ppo.normalize,
+        };
+        s.set_info(STUDENT_FILE, serde_json::to_string(&info)?);
         Ok(s)
     }
 
@@ -561,18 +558,56 @@ pub struct StudentPolicy {
     start: Vec<bool>,
 }
 
+/// The metadata format of a student's policy file.
+pub const STUDENT_FORMAT: &str = "dextrain.student.v1";
+
+/// The student file's metadata (its safetensors `info`): what loading it needs beyond the tensors.
+#[derive(Debug, serde::Serialize, serde::Deserialize)]
+struct StudentInfo {
+    /// [`STUDENT_FORMAT`].
+    format: String,
+    /// The teacher's run directory, the checkpoint's iteration and its manifest's XXH64 (hex).
+    #[serde(default)]
+    teacher_run: String,
+    #[serde(default)]
+    teacher_checkpoint: u64,
+    #[serde(default)]
+    teacher_manifest_xxh64: String,
+    /// Steps of the history window.
+    history_len: usize,
+    /// Width of the latent (0: none).
+    latent: usize,
+    /// φ: "gru" or "tcn" (students written before the TCN have none: a GRU).
+    #[serde(default = "gru_name")]
+    adaptation: String,
+    /// The TCN's [kernel, stride] pairs (none for a GRU).
+    #[serde(default)]
+    tcn_layers: Option<Vec<[usize; 2]>>,
+    /// The hidden layers' activation.
+    activation: crate::config::Activation,
+    /// Whether the student normalises its observation (older files: yes).
+    #[serde(default = "yes")]
+    obs_normalization: bool,
+}
+
+fn gru_name() -> String {
+    Adaptation::Gru.name().to_string()
+}
+
+fn yes() -> bool {
+    true
+}
+
 impl StudentPolicy {
     /// Reads the student of checkpoint `ckpt` (`model.safetensors`) for an actor observation of
     /// `obs_dim` numbers.
     pub fn load(ckpt: &std::path::Path, obs_dim: usize, device: &Device) -> Result<StudentPolicy> {
         let path = ckpt.join(format!("{STUDENT_FILE}.safetensors"));
-        let st = crate::checkpoint::read_learner_file(&path, STUDENT_FILE)?;
+        let st = crate::learn::checkpoint::read_learner_file(&path, STUDENT_FILE)?;
         let file = st.file(STUDENT_FILE).context("no student file")?;
-        let info: serde_json::Value = serde_json::from_str(file.info.as_deref().unwrap_or("{}")).with_context(|| format!("{}: its metadata is not JSON", path.display()))?;
-        ensure!(info["format"] == "dextrain.student.v1", "{}: not a distilled student's policy file (metadata format {})", path.display(), info["format"]);
-        let activation: crate::config::Activation = serde_json::from_value(info["activation"].clone()).with_context(|| format!("{}: metadata `activation`", path.display()))?;
-        let history_len = info["history_len"].as_u64().with_context(|| format!("{}: metadata `history_len`", path.display()))? as usize;
-        let latent = info["latent"].as_u64().with_context(|| format!("{}: metadata `latent`", path.display()))? as usize;
+        let info: StudentInfo = serde_json::from_str(file.info.as_deref().unwrap_or("{}")).with_context(|| format!("{}: its metadata is not a student's", path.display()))?;
+        ensure!(info.format == STUDENT_FORMAT, "{}: not a distilled student's policy file (metadata format {:?})", path.display(), info.format);
+        let (activation, history_len, latent) = (info.activation, info.history_len, info.latent);
         let shape = |name: &str| -> Result<[usize; 2]> {
             let t = file.tensors.iter().find(|t| t.name == name).with_context(|| format!("{}: tensor `{name}` is missing", path.display()))?;
             Ok([t.shape[0], t.shape.get(1).copied().unwrap_or(1)])
@@ -581,10 +616,10 @@ impl StudentPolicy {
         let (obs_index, hist_index) = (idx("obs_index")?, idx("hist_index")?);
         ensure!(obs_index.iter().chain(&hist_index).all(|&i| i < obs_dim), "{}: input indices beyond the task's observation ({obs_dim} numbers)", path.display());
         // φ: a GRU unless the metadata names a TCN (students written before the TCN have no key)
-        let adaptation = match info["adaptation"].as_str().unwrap_or("gru") {
+        let adaptation = match info.adaptation.as_str() {
             "gru" => Adaptation::Gru,
             "tcn" => {
-                let convs: Vec<(usize, usize)> = serde_json::from_value::<Vec<[usize; 2]>>(info["tcn_layers"].clone()).with_context(|| format!("{}: metadata `tcn_layers`: expected [[kernel, stride], …]", path.display()))?.into_iter().map(|[k, s]| (k, s)).collect();
+                let convs: Vec<(usize, usize)> = info.tcn_layers.clone().with_context(|| format!("{}: metadata `tcn_layers`: expected [[kernel, stride], …]", path.display()))?.into_iter().map(|[k, s]| (k, s)).collect();
                 ensure!(crate::learn::tcn::steps_out(history_len, &convs).is_some(), "{}: metadata `tcn_layers` {convs:?} do not fit in history_len {history_len}", path.display());
                 Adaptation::Tcn { convs }
             }
@@ -608,14 +643,10 @@ impl StudentPolicy {
         ensure!(k > 0, "{}: no actor layers", path.display());
         let shapes: Vec<[usize; 2]> = names.iter().map(|n| shape(n)).collect::<Result<_>>()?;
         let params = names.iter().zip(&shapes).map(|(n, s)| Ok(to_tensor(st.f32s(STUDENT_FILE, n, Some(s[0] * s[1]))?, *s, device))).collect::<Result<_>>()?;
-        let norm = if info["obs_normalization"].as_bool().unwrap_or(true) { Some(crate::learn::normalizer::Normalizer::load("obs_norm", obs_dim, &st, STUDENT_FILE)?) } else { None };
+        let norm = if info.obs_normalization { Some(crate::learn::normalizer::Normalizer::load("obs_norm", obs_dim, &st, STUDENT_FILE)?) } else { None };
         let d = hist_index.len();
         let student = Student { params, shapes, names, n_adapt, adaptation, activation, history_len, step_dim: d, latent, obs_dim: obs_index.len() };
-        let teacher = (
-            info["teacher_run"].as_str().unwrap_or_default().to_string(),
-            info["teacher_checkpoint"].as_u64().unwrap_or(0),
-            info["teacher_manifest_xxh64"].as_str().unwrap_or_default().to_string(),
-        );
+        let teacher = (info.teacher_run, info.teacher_checkpoint, info.teacher_manifest_xxh64);
         Ok(StudentPolicy { student, obs_index, hist_index, norm, teacher, window: Vec::new(), last_latent: Vec::new(), start: Vec::new() })
     }
 

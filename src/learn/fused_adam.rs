@@ -19,7 +19,7 @@
 use anyhow::{Context, Result, ensure};
 use burn::prelude::{Device, Tensor};
 
-use super::gpu_io::{TensorBuffer, flush, tensor_buffer};
+use crate::env::gpu_io::{TensorBuffer, flush, tensor_buffer};
 use crate::env::gpu::{GpuContext, SHADER_ADAM, workgroups_of};
 use crate::env::gpu_bindings::{ADAM_GRAD, ADAM_GROUP, ADAM_LR, ADAM_M, ADAM_NORM, ADAM_NORM_FINAL, ADAM_NORM_PARTIAL, ADAM_PARAM, ADAM_PARAM_CFG, ADAM_PARTIALS as ADAM_PARTIALS_BUF, ADAM_STEP, ADAM_UPDATE, ADAM_V};
 use crate::gpu_counts::{self, Event};

@@ -12,7 +12,7 @@
 use anyhow::{Result, ensure};
 use burn::prelude::{Device, Tensor};
 
-use super::gpu_io::{TensorBuffer, empty_buffer, flush, tensor_buffer};
+use crate::env::gpu_io::{TensorBuffer, empty_buffer, flush, tensor_buffer};
 use super::normalizer::DeviceNormalizer;
 use crate::env::gpu::{GpuContext, SHADER_NORMALIZER, workgroups_of};
 use crate::env::gpu_bindings::{NORM_APPLY, NORM_CFG, NORM_GROUP, NORM_M2, NORM_MEAN, NORM_OUT, NORM_SCALE, NORM_UPDATE, NORM_X};

@@ -12,7 +12,7 @@
 use burn::prelude::*;
 use burn::tensor::activation::sigmoid;
 
-use super::rng::Rng;
+use crate::rng::Rng;
 
 /// Shapes of a GRU's parameters for input size `input` (D) and hidden size `hidden` (H).
 pub fn gru_shapes(input: usize, hidden: usize) -> Vec<[usize; 2]> {

@@ -11,7 +11,7 @@
 //! - `row_sums.rs`: sums over the batch's rows in two stages on the GPU (losses, ∂b, ∂ log σ);
 //! - `adam.rs`: Adam and global gradient-norm clipping;
 //! - `normalizer.rs`: empirical observation normalisation;
-//! - `rng.rs`: the host RNG (one `u64` of state, saved in checkpoints);
+//! - the host RNG is `crate::rng` (one `u64` of state, saved in checkpoints; base layer);
 //! - `device.rs`: choosing the learner device (`train.device`);
 //! - `state.rs`: a learner's checkpoint state (named tensors and exact scalars);
 //! - `gru.rs`: a GRU on flat tensors (the student's adaptation module; ONNX's GRU formulation).
@@ -22,22 +22,22 @@
 //! `run/`.
 
 pub mod adam;
+pub mod checkpoint;
 pub mod affine;
 pub mod device;
 pub mod distill;
 pub mod elu;
 pub mod fused_adam;
 pub mod fused_normalizer;
-pub mod gpu_io;
 pub mod gpu_matmul;
 pub mod gru;
 pub mod isa;
 pub mod layer_norm;
 pub mod nets;
+pub mod policy;
 pub mod noise;
 pub mod normalizer;
 pub mod ppo;
-pub mod rng;
 pub mod row_sums;
 pub mod sac;
 pub mod sgemm;

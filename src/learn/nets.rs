@@ -10,7 +10,7 @@ use anyhow::{Result, anyhow};
 use burn::prelude::*;
 use burn::tensor::{TensorData, activation};
 
-use super::rng::Rng;
+use crate::rng::Rng;
 
 /// Hidden-layer activation (`policy.activation`; the enum is the config's).
 pub use crate::config::Activation;

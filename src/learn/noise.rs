@@ -14,7 +14,7 @@ use anyhow::{Result, ensure};
 use burn::prelude::{Device, Tensor};
 use rayon::prelude::*;
 
-use super::gpu_io::{empty_buffer, flush};
+use crate::env::gpu_io::{empty_buffer, flush};
 use crate::env::common::rand_uniform;
 use crate::env::gpu::{GpuContext, noise_shader_source, workgroups_for};
 use crate::env::gpu_bindings::{EntryBindings, LEARNER_NOISE, LEARNER_UNIFORM, NOISE_CFG, NOISE_GROUP, NOISE_OUT};

@@ -5,7 +5,7 @@
 //! formula, so the result equals a two-pass mean/variance over all the data (tests/learn.rs checks
 //! it). They are saved with the model: a policy is only meaningful with its normaliser.
 //! [`DeviceNormalizer`] is the same merge in f32 tensors on the learner device, for the
-//! device-resident rollouts (README "The GPU loop").
+//! device-resident rollouts (docs/gpu.md "The GPU loop").
 
 use anyhow::Result;
 use burn::prelude::*;

@@ -16,16 +16,12 @@
 use burn::prelude::*;
 use burn::tensor::activation::relu;
 
-use super::rng::Rng;
+use crate::rng::Rng;
 
 /// Layers of the step embedding.
 pub const EMBED_LAYERS: usize = 2;
 
-/// The steps left of a `steps`-long window after the convolutions `(kernel, stride)`: T' = ⌊(T − k)
-/// / s⌋ + 1 per layer; None when a kernel is longer than its input.
-pub fn steps_out(steps: usize, convs: &[(usize, usize)]) -> Option<usize> {
-    convs.iter().try_fold(steps, |t, &(k, s)| (k >= 1 && s >= 1 && k <= t).then(|| (t - k) / s + 1))
-}
+pub use crate::config::learn::tcn_steps_out as steps_out;
 
 /// Shapes of a TCN's parameters for step size `input` (D) and `channels` (C).
 pub fn tcn_shapes(input: usize, channels: usize, convs: &[(usize, usize)]) -> Vec<[usize; 2]> {

@@ -8,8 +8,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{Result, anyhow};
 use glam::{DMat3, DQuat, DVec3};
 
-use super::{HullPiece, MAX_PIECES, MassSource, ObjectModel, ObjectPiece, PieceFit, object_inertia, shape_volume};
-use crate::env::gpu_layout::MAX_HULL_VERTICES;
+use super::{HullPiece, MAX_HULL_VERTICES, MAX_PIECES, MassSource, ObjectModel, ObjectPiece, PieceFit, object_inertia, shape_volume};
 use crate::config::object::{DEFAULT_DENSITY, DEFAULT_PRIMITIVE_MASS};
 use crate::config::{Config, ObjectItem, PieceKind};
 use crate::geom::{ObjectShape, Pose};
@@ -237,7 +236,7 @@ fn urdf_pieces(path: &Path, scale: f32, kinds: &PieceRule, whence: &str) -> Resu
     let text = String::from_utf8_lossy(&bytes);
     let robot = urdf_rs::read_from_string(&text).map_err(|e| {
         let msg = e.to_string().replace(['\n', '\r'], " ");
-        anyhow!("{f}: cannot parse the object URDF ({whence}): {}", crate::config::clip(msg.trim(), 200))
+        anyhow!("{f}: cannot parse the object URDF ({whence}): {}", crate::text::clip(msg.trim(), 200))
     })?;
     if robot.links.len() != 1 {
         return Err(anyhow!("{f}: {} links ({whence}); expected a single-link object URDF", robot.links.len()));

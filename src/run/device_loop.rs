@@ -1,4 +1,4 @@
-//! The runner's env loop with the rollouts on the device (README "The GPU loop"): the envs and the
+//! The runner's env loop with the rollouts on the device (docs/gpu.md "The GPU loop"): the envs and the
 //! learner share one wgpu device, observations and actions pass between them as tensors
 //! ([`crate::task::TaskBatch::step_on_device`], [`Algorithm::act_device`]), and the metrics' sums
 //! and the running episodes' accumulators are tensors too. The host reads one vector of sums per

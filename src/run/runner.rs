@@ -25,7 +25,7 @@ use serde_json::json;
 use super::algorithm::{Algorithm, StepOutcome};
 use super::device_loop::DeviceLoop;
 use crate::console;
-use crate::checkpoint::{self, CheckpointState, EnvSnapshot};
+use crate::learn::checkpoint::{self, CheckpointState, EnvSnapshot};
 use crate::config::{Config, TaskKind};
 use crate::env::SimModel;
 use crate::task::{TaskBatch, TaskSpec, make_task_batch};
@@ -147,6 +147,28 @@ pub(super) struct RolloutSums {
     pub obj_rot_err: f64,
 }
 
+impl RolloutSums {
+    /// `x` per env step (NaN without steps).
+    fn per_step(&self, x: f64) -> f64 {
+        if self.steps > 0 { x / self.steps as f64 } else { f64::NAN }
+    }
+
+    /// `x` per ended episode (NaN without one).
+    fn per_episode(&self, x: f64) -> f64 {
+        if self.episodes > 0 { x / self.episodes as f64 } else { f64::NAN }
+    }
+
+    /// The mean reward per env step (metrics.csv's `reward/mean`).
+    fn mean_reward(&self) -> f64 {
+        self.per_step(self.reward)
+    }
+
+    /// The fraction of the ended episodes that succeeded (`episode/success_rate`).
+    fn success_rate(&self) -> f64 {
+        self.per_episode(self.successes as f64)
+    }
+}
+
 /// Per-env accumulators of the running episodes.
 pub(super) struct Episodes {
     /// Return so far [N].
@@ -207,17 +229,17 @@ fn collect(task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, obs: &mut [f32], 
 /// `host_bytes`: the iteration's host↔GPU traffic; `tracking`: the reference kinds' extra columns).
 #[allow(clippy::too_many_arguments)]
 fn metric_row(s: &RolloutSums, learner: &[f64], env_steps: u64, time_s: f64, fps: f64, collect_s: f64, learn_s: f64, host_bytes: u64, gpu: [f64; 6], tracking: bool) -> Vec<f64> {
-    let per_step = |x: f64| if s.steps > 0 { x / s.steps as f64 } else { f64::NAN };
-    let per_ep = |x: f64| if s.episodes > 0 { x / s.episodes as f64 } else { f64::NAN };
+    let per_step = |x: f64| s.per_step(x);
+    let per_ep = |x: f64| s.per_episode(x);
     let mut row = vec![env_steps as f64, time_s, fps, collect_s, learn_s, host_bytes as f64];
     row.extend(gpu);
-    row.push(per_step(s.reward));
+    row.push(s.mean_reward());
     row.extend(s.terms.iter().map(|&t| per_step(t)));
     row.extend([
         s.episodes as f64,
         per_ep(s.ep_return),
         per_ep(s.ep_len),
-        per_ep(s.successes as f64),
+        s.success_rate(),
         per_ep(s.lift),
         per_ep(s.terminated as f64),
         per_ep(s.bad_resets as f64),
@@ -325,7 +347,7 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, dir: PathBuf, re
             // and a random step count would start the reference elsewhere than the hand and object)
             if cfg.train.init_at_random_ep_len && cfg.task.kind == TaskKind::Lift {
                 // desynchronise the episodes: each env's first episode starts at a random step count
-                let mut rng = crate::learn::rng::Rng::new(cfg.seed as u64, 0xE915_0DE5);
+                let mut rng = crate::rng::Rng::new(cfg.seed as u64, 0xE915_0DE5);
                 let mut states = task.env().states()?;
                 for s in &mut states {
                     s.step = rng.below(spec.episode_length as usize) as u32;
@@ -336,7 +358,7 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, dir: PathBuf, re
             (0, 0, 0.0, o, p, Episodes { ret: vec![0.0; n], len: vec![0.0; n] }, metrics)
         }
     };
-    // the rollouts stay on the device when the envs and the learner share a GPU (README "The GPU loop")
+    // the rollouts stay on the device when the envs and the learner share a GPU (docs/gpu.md "The GPU loop")
     let mut device_loop = None;
     if cfg.train.device_rollouts
         && task.can_step_on_device()
@@ -426,8 +448,7 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, dir: PathBuf, re
         let fps = sums.steps as f64 / dt.max(1e-9);
         let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s, host_bytes, gpu, spec.kind.follows_reference());
         metrics.append(iteration, &row)?;
-        let success = row[columns.iter().position(|c| c == "episode/success_rate").unwrap_or(0)];
-        let reward = row[columns.iter().position(|c| c == "reward/mean").unwrap_or(0)];
+        let (success, reward) = (sums.success_rate(), sums.mean_reward());
         let msg = format!("{fps:.0} steps/s (collect {collect_s:.2} s, learn {learn_s:.2} s), reward {reward:.3}, success {:.0}%", 100.0 * success);
         bar.set_message(msg.clone());
         bar.set_position(iteration);

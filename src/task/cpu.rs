@@ -11,9 +11,10 @@ use super::{StepBatch, TaskBatch, check_actions, check_targets, decode_snapshot,
 use crate::config::Config;
 use crate::env::cpu::CpuEnvBatch;
 use crate::env::gpu_layout::*;
-use crate::env::reference::{RefFrame, RefGlobals, RefModel, ref_sample};
+use super::layout::*;
+use crate::task::reference::{RefFrame, RefGlobals, RefModel, ref_sample};
 use crate::env::{EnvBatch, SimModel};
-use crate::traj::bank::RefBank;
+use crate::task::bank::RefBank;
 
 
 /// The task on the CPU: a [`CpuEnvBatch`] and the twins above, rayon over envs, in the GPU's order.

@@ -18,10 +18,12 @@ use super::setup::{TaskSetup, task_setup};
 use super::spec::TaskSpec;
 use super::task::OUT_MISC;
 use super::{DeviceStep, StepBatch, TaskBatch, check_actions, check_targets, decode_snapshot, encode_snapshot};
-use crate::env::gpu::{BufferRole, GpuContext, GpuEnvBatch, ReadbackCopy, task_shader_source};
+use super::shaders::task_shader_source;
+use crate::env::gpu::{BufferRole, GpuContext, GpuEnvBatch, ReadbackCopy};
 use crate::env::gpu_bindings::{ACTIONS, GLOBALS, JOINTS, PARAMS, REF_CFG, REF_FRAMES, REF_INFO, RESET_MASK, SPRINGS, STATES, STATS, TARGETS, TIPS};
 use crate::env::gpu_bindings::{Binding, FINAL_OUT, TASK_ACT, TASK_CFG, TASK_GROUP, TASK_OBSERVE, TASK_OBSERVE_FINAL, TASK_OUT, TASK_REWARD, TASK_STATES};
 use crate::env::gpu_layout::*;
+use super::layout::*;
 use crate::env::{EnvBatch, SimModel};
 use crate::config::Config;
 
@@ -31,8 +33,8 @@ pub struct GpuTaskBatch {
     spec: TaskSpec,
     tc: TaskGlobals,
     /// The reference bank's host copy and constants (to sample an env's reference on the host).
-    bank: Option<crate::traj::bank::RefBank>,
-    rg: crate::env::reference::RefGlobals,
+    bank: Option<crate::task::bank::RefBank>,
+    rg: crate::task::reference::RefGlobals,
     /// `[N, action_dim]` f32.
     actions: wgpu::Buffer,
     task_states: wgpu::Buffer,
@@ -83,7 +85,7 @@ impl GpuTaskBatch {
         ctx.check_buffer_size(REF_FRAMES.name, ref_bytes, BufferRole::Storage)
             .with_context(|| format!("{file}: key `task.reference.files`: the references"))?;
         let tips_host = model.tips.clone();
-        let env = GpuEnvBatch::new(ctx, model)?;
+        let env = GpuEnvBatch::with_readback(ctx, model, std::mem::size_of::<TaskState>() as u64)?;
         let ctx = &env.ctx;
         let none = wgpu::BufferUsages::empty();
         let task_cfg = ctx.create_binding_buffer(TASK_CFG, std::slice::from_ref(&tc), none)?;
@@ -283,7 +285,7 @@ impl TaskBatch for GpuTaskBatch {
     }
 
     fn step_on_device(&mut self, actions: &burn::prelude::Tensor<2>, device: &burn::prelude::Device) -> Result<DeviceStep> {
-        use crate::learn::gpu_io::{empty_buffer, flush, tensor_buffer};
+        use crate::env::gpu_io::{empty_buffer, flush, tensor_buffer};
         let (n, od, pd, ad) = (self.spec.num_envs, self.spec.obs_dim, self.spec.priv_dim, self.spec.action_dim);
         ensure!(actions.dims() == [n, ad], "actions of shape {:?} for {n} envs × {ad} actions", actions.dims());
         self.env.flush_pending()?;
@@ -362,21 +364,21 @@ impl TaskBatch for GpuTaskBatch {
         self.run_step(false)
     }
 
-    fn reference_frames(&mut self, k: u32) -> Result<Option<Vec<crate::env::reference::RefFrame>>> {
+    fn reference_frames(&mut self, k: u32) -> Result<Option<Vec<crate::task::reference::RefFrame>>> {
         if self.bank.is_none() {
             return Ok(None);
         }
         // the shader's sampler, run on the host (its CPU twin) with each env's cursor and step
         let (ts, states) = (self.task_states()?, self.env.states()?);
         let r = crate::task::ref_model(&self.env.model, self.bank.as_ref(), &self.rg);
-        Ok(Some(ts.iter().zip(&states).map(|(t, s)| crate::env::reference::ref_sample(&r, &t.cursor, s.step, k)).collect()))
+        Ok(Some(ts.iter().zip(&states).map(|(t, s)| crate::task::reference::ref_sample(&r, &t.cursor, s.step, k)).collect()))
     }
 
     fn targets(&mut self) -> Result<Vec<Targets>> {
         Ok(self.task_states()?.iter().map(|t| t.targets).collect())
     }
 
-    fn reference_now(&mut self, env: usize) -> Result<Option<crate::env::reference::RefFrame>> {
+    fn reference_now(&mut self, env: usize) -> Result<Option<crate::task::reference::RefFrame>> {
         if self.bank.is_none() {
             return Ok(None);
         }
@@ -384,7 +386,7 @@ impl TaskBatch for GpuTaskBatch {
         let cursor = self.task_states()?[env].cursor;
         let step = self.env.states()?[env].step;
         let r = crate::task::ref_model(&self.env.model, self.bank.as_ref(), &self.rg);
-        Ok(Some(crate::env::reference::ref_sample(&r, &cursor, step, 0)))
+        Ok(Some(crate::task::reference::ref_sample(&r, &cursor, step, 0)))
     }
 
     fn save_state(&mut self) -> Result<Vec<u8>> {

@@ -1,12 +1,12 @@
 //! The task layer: the lift task and the reference-following kinds (`track`, `residual_joint`,
-//! `residual_task`; DESIGN §5) on top of an [`EnvBatch`], on both backends.
+//! `residual_task`; docs/design.md §5) on top of an [`EnvBatch`], on both backends.
 //!
 //! The sections below describe the lift task (`task.kind = "lift"`). The reference kinds share the
 //! contract and the order of the kernels; their actions, observations, rewards, success and
 //! resets are documented on [`residual_targets`], [`task_act`], [`tracking_terms`],
-//! [`task_reward`], [`task_init`] and [`observe_reference`], and in the README ("The
+//! [`task_reward`], [`task_init`] and [`observe_reference`], and in docs/tasks.md ("The
 //! reference-following tasks"). Their per-env reference cursor lives in [`TaskState::cursor`]
-//! (`env::reference`), their bank in bindings 13–15.
+//! (`task::reference`), their bank in bindings 13–15.
 //!
 //! # The task contract
 //!
@@ -76,9 +76,14 @@
 //!   arithmetic; tests/suite/shaders.rs checks the order, tests/suite/task.rs the results).
 //! - [`cpu`] and [`gpu`]: the two [`TaskBatch`] backends.
 
+pub mod bank;
 pub mod cpu;
 pub mod gpu;
+pub mod ik;
+pub mod layout;
+pub mod reference;
 pub mod setup;
+pub mod shaders;
 pub mod spec;
 #[allow(clippy::module_inception)]
 pub mod task;
@@ -86,8 +91,9 @@ pub mod task;
 use anyhow::{Result, bail, ensure};
 
 use crate::config::Config;
-use crate::env::gpu_layout::{EnvParams, EnvState, Targets, TaskState};
-use crate::env::reference::RefFrame;
+use crate::env::gpu_layout::{EnvParams, EnvState, Targets};
+use layout::TaskState;
+use crate::task::reference::RefFrame;
 use crate::env::{EnvBatch, SimModel};
 
 pub use cpu::CpuTaskBatch;

@@ -8,11 +8,11 @@ use super::spec::{LayoutNames, TaskSpec, entry_names, obs_layout, reward_terms};
 use super::task::*;
 use crate::config::{Config, FingerMode, ReferenceConfig, ReferenceStart, TaskKind, TrackAction};
 use crate::env::SimModel;
-use crate::env::gpu_layout::*;
-use crate::env::ik::IkParams;
-use crate::env::reference::{RefGlobals, RefModel};
+use super::layout::*;
+use crate::task::ik::IkParams;
+use crate::task::reference::{RefGlobals, RefModel};
 use crate::hand::MAX_JOINTS;
-use crate::traj::bank::RefBank;
+use crate::task::bank::RefBank;
 
 /// Everything both backends build a task from: names and sizes, the constants, and (reference
 /// kinds) the reference bank and its constants.
@@ -73,8 +73,23 @@ pub fn apply_augmentation(aug: &ReferenceConfig, rg: &mut RefGlobals) {
     rg.joint_noise = aug.joint_noise;
 }
 
+/// The config's checks that need the task's observation spec (`Config::validate` holds the rest):
+/// the privileged encoder's inputs are fields of this task's critic observation. [`task_setup`]
+/// runs it first.
+pub fn check_config(cfg: &Config) -> Result<()> {
+    let c = crate::config::Check::new(&cfg.source);
+    if let Some(e) = &cfg.policy.encoder {
+        let names = super::spec::critic_field_names(cfg.task.kind, cfg.task.track.lookahead);
+        if let Some(bad) = e.inputs.iter().find(|n| !names.contains(n)) {
+            return Err(c.err("policy.encoder.inputs", bad, &format!("field names of the {} task's critic observation: {}", cfg.task.kind, names.join(", "))));
+        }
+    }
+    Ok(())
+}
+
 /// The task's spec, constants and references from the config's `[task]` and the hand (both backends).
 pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<TaskSetup> {
+    check_config(cfg)?;
     let file = cfg.source.display();
     let t = &cfg.task;
     let es = &model.spec;
@@ -107,7 +122,7 @@ pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<TaskSetup> {
         tips.iter().position(|n| n == thumb_name).ok_or_else(|| {
             anyhow::anyhow!(
                 "{file}: key `task.hand.thumb` = {:?}: expected one of the hand's fingertips: {}",
-                crate::config::quote_short(thumb_name),
+                crate::text::quote_short(thumb_name),
                 tips.join(", ")
             )
         })?

@@ -9,9 +9,10 @@ use super::spec::{LIFT_TERMS, RESIDUAL_JOINT_TERMS, RESIDUAL_TASK_TERMS, TRACK_T
 use crate::config::TaskKind;
 use crate::env::common::{quat_error, quat_from_axis_angle, quat_mul, quat_normalize, quat_rotate, rand_uniform};
 use crate::env::gpu_layout::*;
-use crate::env::ik::{IkScratch, ik_solve, ik_tip_positions};
+use super::layout::*;
+use crate::task::ik::{IkScratch, ik_solve, ik_tip_positions};
 use crate::env::physics::{Model, Scratch, hand_kinematics, v3};
-use crate::env::reference::{RefFrame, RefModel, ref_begin, ref_object_end, ref_object_start, ref_sample};
+use crate::task::reference::{RefFrame, RefModel, ref_begin, ref_object_end, ref_object_start, ref_sample};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 
 /// RNG purpose of the observation noise (keep in sync with task.wgsl; reset.rs uses 1 and 2).

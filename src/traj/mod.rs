@@ -1,5 +1,6 @@
 //! Reference trajectories: the file format (MCAP with JSON-schema'd messages, and CSV), keyframe
-//! interpolation (linear for positions and joints, slerp for rotations), and synthesis (`synth`).
+//! interpolation (linear for positions and joints, slerp for rotations) and perturbation (`perturb`);
+//! the reference bank is the task layer's (`task::bank`), synthesis a command (`synth`).
 //!
 //! CONTRACT (used by replay, synth and later the task layer):
 //! - A [`Trajectory`] is a list of keyframes sorted by strictly increasing time `t` (s).
@@ -8,7 +9,7 @@
 //!
 //! Files are read with [`Trajectory::load`] (`.mcap` or `.csv`) and written with
 //! [`Trajectory::save`], [`Trajectory::save_mcap`] or [`Trajectory::save_csv`]; the formats are
-//! described in `README.md (section "Reference trajectory format")` and implemented in [`io`]. Between keyframes
+//! described in `docs/references.md` (section "Reference trajectory format") and implemented in [`io`]. Between keyframes
 //! [`Trajectory::sample`] interpolates linearly (positions, joints, fingertips) and by shortest-arc
 //! slerp (wrist and object rotations); outside the keyframes it holds the first or last frame.
 
@@ -17,11 +18,8 @@ use glam::{Quat, Vec3};
 
 use crate::geom::Pose;
 
-pub mod bank;
 pub mod io;
 pub mod perturb;
-pub mod grasp;
-pub mod synth;
 
 pub use io::{FORMAT_VERSION, REFERENCE_JSON_SCHEMA, REFERENCE_METADATA_NAME, REFERENCE_SCHEMA_NAME, REFERENCE_TOPIC};
 

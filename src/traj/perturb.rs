@@ -26,7 +26,7 @@ use glam::{Quat, Vec3};
 
 use super::{Keyframe, Trajectory};
 use crate::hand::HandModel;
-use crate::learn::rng::Rng;
+use crate::rng::Rng;
 
 /// The sizes of the errors (see the module documentation); all zero = a clean resampled copy.
 #[derive(clap::Args, Debug, Clone, PartialEq)]

@@ -112,8 +112,8 @@ fn synth_and_replay_work_for_the_three_finger_mimic_hand() {
     let text = "[sim]\nbackend = \"cpu\"\nnum_envs = 2\n[hand]\nurdf = \"hands/tri3_mimic.urdf\"\n[wrist]\ninit_pos = [0.0, 0.0, 0.3]\n\
                 [object]\nshape = { type = \"cylinder\", radius = 0.03, half_length = 0.04 }\n";
     let cfg = Config::from_toml_str(text, &Path::new(ROOT).join("configs/tri3.toml")).unwrap();
-    let args = dextrain::traj::synth::SynthArgs::posture("configs/tri3.toml".into(), "unused.csv".into());
-    let traj = dextrain::traj::synth::synth(&cfg, &args).unwrap();
+    let args = dextrain::synth::SynthArgs::posture("configs/tri3.toml".into(), "unused.csv".into());
+    let traj = dextrain::synth::synth(&cfg, &args).unwrap();
     let model = dextrain::env::SimModel::from_config(&cfg).unwrap();
     assert_eq!(traj.joint_names, model.spec.joint_names);
     assert_eq!(traj.fingertip_names.len(), 3);
@@ -208,7 +208,7 @@ fn train_finishes_with_its_checkpoint_when_stdout_and_stderr_are_closed() {
     assert!(status.success(), "train stopped on a closed pipe: {status:?}");
     let run = tmp.path().join("piped");
     for it in [2, 3] {
-        dextrain::checkpoint::verify(&run.join(format!("checkpoints/{it}"))).unwrap_or_else(|e| panic!("checkpoint {it}: {e:#}"));
+        dextrain::learn::checkpoint::verify(&run.join(format!("checkpoints/{it}"))).unwrap_or_else(|e| panic!("checkpoint {it}: {e:#}"));
     }
     let (_, rows) = dextrain::metrics::read_csv(&run.join("metrics.csv")).unwrap();
     assert_eq!(rows.len(), 3);
@@ -339,7 +339,7 @@ fn gpu_suite_quick_writes_every_figure() {
     for k in ["train_ppo", "train_sac", "train_ppo_host_path"] {
         assert!(j[k]["iterations"].as_u64().unwrap_or(0) >= 1 && j[k]["env_steps_per_s_last"].as_f64().unwrap_or(0.0) > 0.0, "{k}: {text}");
     }
-    // what the GPU is asked to do (README "What the GPU is asked to do"): the benches report it, and
+    // what the GPU is asked to do (docs/gpu.md "What the GPU is asked to do"): the benches report it, and
     // the reads are pinned: an env step with its statistics read is one submission and one read; a
     // PPO update reads once on the device (twice on the host path: the last values too), a
     // device-resident rollout step never, a SAC gradient step never

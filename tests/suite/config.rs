@@ -118,6 +118,17 @@ fn out_of_range_values_say_what_is_allowed() {
 }
 
 #[test]
+fn an_empty_config_names_the_key_of_its_default_hand() {
+    // an empty config is valid; its default hand is looked for beside it, and the error says so
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("empty.toml");
+    std::fs::write(&path, "").unwrap();
+    let c = Config::load(&path).unwrap();
+    let e = format!("{:#}", dextrain::env::SimModel::from_config(&c).unwrap_err());
+    assert!(e.contains("empty.toml") && e.contains("`hand.urdf`") && e.contains("the default") && e.contains("dexhand16.urdf") && !e.contains('\n'), "{e}");
+}
+
+#[test]
 fn unknown_joint_names_and_missing_urdf_are_clear() {
     let mut c = Config::from_toml_str("[hand]\nurdf = \"hands/dexhand16.urdf\"\ninit_joints = { if_j9 = 0.1 }\n", Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/x.toml"))).unwrap();
     let e = format!("{:#}", dextrain::env::SimModel::from_config(&c).unwrap_err());
@@ -180,7 +191,7 @@ fn task_and_learner_keys_are_checked_with_one_line_errors() {
         let e = format!("{:#}", Config::from_toml_str(text, p).unwrap_err());
         assert!(e.contains("run.toml") && e.contains(key) && e.contains(hint) && !e.contains('\n'), "{text}: {e}");
     }
-    // the defaults are valid and match DESIGN §6
+    // the defaults are valid and match docs/design.md §6
     let c = Config::from_toml_str("", p).unwrap();
     assert_eq!((c.ppo.clip_param, c.ppo.entropy_coef, c.ppo.epochs, c.ppo.minibatches, c.ppo.desired_kl), (0.2, 0.005, 5, 4, 0.01));
     assert_eq!((c.ppo.gamma, c.ppo.lam, c.ppo.learning_rate, c.ppo.max_grad_norm), (0.99, 0.95, 5e-4, 1.0));

@@ -90,7 +90,7 @@ fn the_contract_of_each_task_kind_covers_its_inputs_and_reads_back() {
         assert_eq!(c.task.reference.is_some(), kind.follows_reference());
         // the URDF's hash is its bytes'
         let urdf = std::fs::read(cfg.resolve(&cfg.hand.urdf)).unwrap();
-        assert_eq!(c.hand.urdf_xxh64, format!("{:016x}", dextrain::checkpoint::xxh64(&urdf, 0)));
+        assert_eq!(c.hand.urdf_xxh64, format!("{:016x}", dextrain::learn::checkpoint::xxh64(&urdf, 0)));
         // round trip through the file
         let p = tmp.path().join(format!("{config}.json"));
         std::fs::write(&p, serde_json::to_string_pretty(&c).unwrap()).unwrap();

@@ -66,7 +66,7 @@ fn the_encoder_reads_the_named_privileged_fields() {
 #[test]
 fn an_unknown_encoder_input_is_a_one_line_error_listing_the_allowed_names() {
     let sets = vec!["policy.encoder.inputs=[\"obj_mass\", \"obj_colour\"]".to_string()];
-    let e = format!("{:#}", Config::load_with_overrides(Path::new(CONFIG), &sets).unwrap_err());
+    let e = format!("{:#}", Config::load_with_overrides(Path::new(CONFIG), &sets).and_then(|c| dextrain::task::setup::check_config(&c)).unwrap_err());
     assert!(e.contains("lift_cube_cpu.toml") && e.contains("policy.encoder.inputs") && e.contains("obj_colour") && e.contains("obj_friction") && !e.contains('\n'), "{e}");
 }
 

@@ -7,7 +7,7 @@ use std::process::Command;
 
 use dextrain::config::Activation;
 use dextrain::export::onnx::{Adaptation, Conv1d, Dense, Gru, LayerNorm, Mlp, Normalization, PolicyNet, Tcn, check, forward, read_metadata, run_onnx, to_onnx};
-use dextrain::learn::rng::Rng;
+use dextrain::rng::Rng;
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
@@ -219,7 +219,7 @@ fn export_writes_a_verified_model_and_its_contract() {
     let c = PolicyContract::read(&dir.join("policy.json")).unwrap();
     assert_eq!(c.source.checkpoint, 2);
     let bytes = std::fs::read(dir.join("policy.onnx")).unwrap();
-    assert_eq!(c.model.xxh64, format!("{:016x}", dextrain::checkpoint::xxh64(&bytes, 0)));
+    assert_eq!(c.model.xxh64, format!("{:016x}", dextrain::learn::checkpoint::xxh64(&bytes, 0)));
     let meta = read_metadata(&bytes).unwrap();
     assert!(meta.iter().any(|(k, v)| k == "dextrain.task" && v == "lift"));
     // the world file is the run's config

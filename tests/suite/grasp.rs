@@ -6,8 +6,8 @@ use std::path::{Path, PathBuf};
 
 use dextrain::config::Config;
 use dextrain::env::SimModel;
-use dextrain::traj::grasp::{GRASP_VARIANTS, HEIGHT_FRACTION, HOVER_M, PRE_CLEARANCES_M, hand_object_depth, object_centre, pad_points, plan_grasp};
-use dextrain::traj::synth::{GraspChoice, SynthArgs, synth};
+use dextrain::synth::grasp::{GRASP_VARIANTS, HEIGHT_FRACTION, HOVER_M, PRE_CLEARANCES_M, hand_object_depth, object_centre, pad_points, plan_grasp};
+use dextrain::synth::{GraspChoice, SynthArgs, synth};
 use dextrain::geom::Pose;
 use glam::Vec3;
 

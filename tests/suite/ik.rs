@@ -9,8 +9,9 @@
 use crate::common::*;
 use dextrain::env::SimModel;
 use dextrain::env::common::rand_uniform;
-use dextrain::env::gpu::{GpuContext, KernelBinding, SHADER_COMMON, SHADER_IK, SHADER_PHYSICS, SHADER_RESET, run_kernel};
-use dextrain::env::ik::*;
+use dextrain::env::gpu::{GpuContext, KernelBinding, SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET, run_kernel};
+use dextrain::task::shaders::SHADER_IK;
+use dextrain::task::ik::*;
 use dextrain::env::gpu_layout::NO_JOINT;
 use dextrain::env::physics::Model;
 use dextrain::env::{EnvState, hand_link_poses};
@@ -95,10 +96,10 @@ fn check_limits_and_mimic(m: &Model, q: &[f32; MAX_JOINTS], what: &str) {
 #[test]
 fn shader_validates_and_mirrors_its_twin() {
     // alone with common.wgsl, and after common + reset + physics as in the task module (whose
-    // full source tests/shaders.rs validates)
+    // full source tests/suite/shaders.rs validates)
     validate(&[SHADER_COMMON, SHADER_IK].join("\n"));
     validate(&[SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_IK].join("\n"));
-    // DESIGN §4: same function names in the same order
+    // docs/design.md §4: same function names in the same order
     let fns = |src: &str, prefix: &str| -> Vec<String> {
         src.lines()
             .filter_map(|l| l.trim_start().strip_prefix(prefix))
@@ -106,7 +107,7 @@ fn shader_validates_and_mirrors_its_twin() {
             .collect()
     };
     let w = fns(SHADER_IK, "fn ");
-    let r: Vec<String> = fns(include_str!("../../src/env/ik.rs"), "pub fn ").into_iter().filter(|n| w.contains(n)).collect();
+    let r: Vec<String> = fns(include_str!("../../src/task/ik.rs"), "pub fn ").into_iter().filter(|n| w.contains(n)).collect();
     assert!(w.len() >= 10 && w.iter().all(|n| n.starts_with("ik_")), "{w:?}");
     assert_eq!(w, r, "ik.wgsl functions and their CPU twins differ in names or order");
     // the constants agree

@@ -11,7 +11,7 @@ use dextrain::learn::nets::{to_host, to_tensor};
 use dextrain::learn::normalizer::Normalizer;
 use dextrain::learn::ppo::storage::gae;
 use dextrain::learn::ppo::{Batch, Dims, Ppo, ppo_losses};
-use dextrain::learn::rng::Rng;
+use dextrain::rng::Rng;
 
 fn cpu() -> Device {
     Device::flex().autodiff()

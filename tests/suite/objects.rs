@@ -478,13 +478,14 @@ fn references_name_their_objects() {
     let bad = Trajectory::from_csv_str("# object: \u{7}bell\nt,wrist_x\n", "bad.csv").unwrap_err().to_string();
     assert!(bad.contains("bad.csv") && bad.contains("object name") && !bad.contains('\n'), "{bad}");
     // the physics reset repeats the reference layer's draw: the same purpose and key on both sides
-    use dextrain::env::{gpu, reference, reset};
+    use dextrain::env::{gpu, reset};
+    use dextrain::task::{reference, shaders::SHADER_REFERENCE};
     assert_eq!((reset::PURPOSE_REF_DRAW, reset::REF_KEY_ID_DRAW), (reference::PURPOSE_REF, reference::REF_KEY_ID));
     for (src, line) in [
         (gpu::SHADER_RESET, format!("const PURPOSE_REF_DRAW: u32 = {}u;", reference::PURPOSE_REF)),
         (gpu::SHADER_RESET, format!("const REF_KEY_ID_DRAW: u32 = {}u;", reference::REF_KEY_ID)),
-        (gpu::SHADER_REFERENCE, format!("const PURPOSE_REF: u32 = {}u;", reference::PURPOSE_REF)),
-        (gpu::SHADER_REFERENCE, format!("const REF_KEY_ID: u32 = {}u;", reference::REF_KEY_ID)),
+        (SHADER_REFERENCE, format!("const PURPOSE_REF: u32 = {}u;", reference::PURPOSE_REF)),
+        (SHADER_REFERENCE, format!("const REF_KEY_ID: u32 = {}u;", reference::REF_KEY_ID)),
     ] {
         assert!(src.contains(&line), "{line}");
     }

@@ -361,7 +361,7 @@ fn scripted_grasp_and_lift_has_the_same_outcome_on_both_backends() {
     drop(ctx);
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml");
     let mut cfg = dextrain::config::Config::load(std::path::Path::new(path)).unwrap();
-    let traj = dextrain::traj::synth::synth(&cfg, &dextrain::traj::synth::SynthArgs::posture(path.into(), "unused.mcap".into())).unwrap();
+    let traj = dextrain::synth::synth(&cfg, &dextrain::synth::SynthArgs::posture(path.into(), "unused.mcap".into())).unwrap();
     cfg.sim.backend = "cpu".parse().unwrap();
     let cpu = dextrain::replay::replay(&cfg, &traj, false, None).unwrap();
     cfg.sim.backend = format!("gpu:{adapter}").parse().unwrap();
@@ -428,7 +428,7 @@ fn t_main(@builtin(global_invocation_id) gid: vec3<u32>) {
         // the hash is integer arithmetic: exactly the same draw
         assert_eq!(cpu[2].w, gpu[4 * i + 2].w, "rand_uniform of invocation {i}");
     }
-    // DESIGN §4: one evaluation agrees to about 1e-5 (values here are O(1); quat_error uses atan2)
+    // docs/design.md §4: one evaluation agrees to about 1e-5 (values here are O(1); quat_error uses atan2)
     assert!(worst < 1e-5, "largest difference between shader and CPU twin: {worst}");
 }
 

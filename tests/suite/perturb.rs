@@ -8,7 +8,7 @@ use dextrain::config::Config;
 use dextrain::env::SimModel;
 use dextrain::replay::{replay, rot_err_deg};
 use dextrain::traj::perturb::{PerturbArgs, perturb};
-use dextrain::traj::synth::{SynthArgs, synth, synth_set};
+use dextrain::synth::{SynthArgs, synth, synth_set};
 
 fn grasp_config() -> Config {
     let mut cfg = Config::load(&PathBuf::from(concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml"))).expect("config");

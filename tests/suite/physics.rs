@@ -169,7 +169,7 @@ fn exploding_env_is_reset_alone_and_counted() {
 }
 
 fn grasp_lift_replay() -> dextrain::replay::ReplayReport {
-    use dextrain::traj::synth::{SynthArgs, synth};
+    use dextrain::synth::{SynthArgs, synth};
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml");
     let mut cfg = dextrain::config::Config::load(std::path::Path::new(path)).unwrap();
     cfg.sim.backend = "cpu".parse().unwrap();
@@ -198,7 +198,7 @@ fn scripted_grasp_lifts_the_object_without_creep_or_deep_penetration() {
 
 #[test]
 fn kinematic_replay_measures_the_penetration_that_physics_prevents() {
-    use dextrain::traj::synth::{SynthArgs, synth};
+    use dextrain::synth::{SynthArgs, synth};
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/configs/grasp_lift.toml");
     let mut cfg = dextrain::config::Config::load(std::path::Path::new(path)).unwrap();
     cfg.sim.backend = "cpu".parse().unwrap();

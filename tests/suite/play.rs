@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use dextrain::eval::{EvalArgs, EvalReport, run as eval};
 use dextrain::export::command::{ExportArgs, run as export};
-use dextrain::export::play::{PlayArgs, run as play};
+use dextrain::eval::play::{PlayArgs, run as play};
 use dextrain::train::{TrainArgs, run as train};
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");

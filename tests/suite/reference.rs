@@ -1,5 +1,5 @@
-//! The reference layer: the bank (`traj::bank`: resampling, record layout, grasp flag, errors), the
-//! cursor and sampling (`env::reference`, CPU) against `replay` and `Trajectory::sample`, every
+//! The reference layer: the bank (`task::bank`: resampling, record layout, grasp flag, errors), the
+//! cursor and sampling (`task::reference`, CPU) against `replay` and `Trajectory::sample`, every
 //! augmentation's defining property, and the WGSL twin (`shaders/reference.wgsl`): it validates, its
 //! structs and functions match the CPU twin's, and it computes the same cursors and frames.
 
@@ -9,16 +9,17 @@ use std::path::PathBuf;
 
 use crate::common::{base_config, gpu_context};
 use dextrain::config::{Config, ReferenceConfig};
-use dextrain::env::gpu::{KernelBinding, SHADER_REFERENCE, run_kernel};
+use dextrain::env::gpu::{KernelBinding, run_kernel};
+use dextrain::task::shaders::SHADER_REFERENCE;
 use dextrain::env::gpu_layout::{EnvState, NO_JOINT};
-use dextrain::env::reference::*;
+use dextrain::task::reference::*;
 use dextrain::env::reset::{reset_params, reset_state};
 use dextrain::env::SimModel;
 use dextrain::geom::Pose;
-use dextrain::replay::targets_at;
+use dextrain::task::bank::targets_at;
 use dextrain::traj::Trajectory;
-use dextrain::traj::bank::{REC_Q, REC_WRIST_POS, REC_WRIST_ROT, RecordLayout, RefBank};
-use dextrain::traj::synth::{SynthArgs, synth};
+use dextrain::task::bank::{REC_Q, REC_WRIST_POS, REC_WRIST_ROT, RecordLayout, RefBank};
+use dextrain::synth::{SynthArgs, synth};
 use glam::{Quat, Vec3, Vec4};
 
 // ---------------------------------------------------------------------------------------------
@@ -756,7 +757,7 @@ fn shader_matches_its_cpu_twin() {
     let gpu = gpu_run(&ctx, &m, &bank, &rg, &st);
     compare("all off", &cpu, &gpu, true);
 
-    // DESIGN §4: one evaluation agrees to about 1e-5
+    // docs/design.md §4: one evaluation agrees to about 1e-5
     eprintln!("largest CPU/GPU differences: {w1:e} (reground), {w2:e} (translate/rotate)");
     assert!(w1 < 1e-5 && w2 < 1e-5, "largest difference between shader and CPU twin: {w1}, {w2}");
 }

@@ -6,7 +6,7 @@ use burn::prelude::*;
 use dextrain::config::{PolicyConfig, QReduction, SacConfig};
 use dextrain::learn::nets::{to_host, to_tensor};
 use dextrain::learn::ppo::Dims;
-use dextrain::learn::rng::Rng;
+use dextrain::rng::Rng;
 use dextrain::learn::sac::buffer::{ReplayBuffer, Transitions};
 use dextrain::learn::sac::{Sac, squashed_sample};
 

@@ -6,7 +6,9 @@
 
 
 use crate::common::validate;
-use dextrain::env::gpu::{SHADER_COMMON, SHADER_IK, SHADER_PHYSICS, SHADER_REFERENCE, SHADER_RESET, SHADER_TASK, shader_source, task_shader_source};
+use dextrain::env::gpu::{SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET, shader_source};
+use dextrain::task::layout::*;
+use dextrain::task::shaders::{SHADER_IK, SHADER_REFERENCE, SHADER_TASK, task_shader_source};
 use dextrain::env::gpu_layout::*;
 use std::mem::{offset_of, size_of};
 
@@ -102,8 +104,8 @@ fn pod_structs_match_their_wgsl_twins() {
     check(&m, "TaskState", size_of::<TaskState>(), rust_fields!(TaskState; targets, rest_pos, prev_action, tip_force,
         act_rate, act_mag, done, res_sq, link_contact, cursor, res_ema, res_delta, obj_hist_pos, obj_hist_rot,
         obj_delay, _pad3));
-    // the reference layer (reference.wgsl, src/env/reference.rs)
-    use dextrain::env::reference::{RefCursor, RefFrame, RefGlobals, RefInfo};
+    // the reference layer (reference.wgsl, src/task/reference.rs)
+    use dextrain::task::reference::{RefCursor, RefFrame, RefGlobals, RefInfo};
     check(&m, "RefInfo", size_of::<RefInfo>(), rust_fields!(RefInfo; obj0_pos, obj0_rot, bbox_min, bbox_max, first_frame, n_frames, first_segment_steps, flags));
     check(&m, "RefGlobals", size_of::<RefGlobals>(), rust_fields!(RefGlobals; n_refs, stride, n_joints, n_tips, off_wrist_pos, off_wrist_rot,
         off_q, off_tips, off_obj_pos, off_obj_rot, off_grasp, reground, reinterp, reinterp_steps, _pad0, _pad1, translate_xy, rotate_z,
@@ -143,7 +145,7 @@ fn shader_constants_match_rust() {
     for (name, v) in [
         ("PURPOSE_OBS_NOISE", task::PURPOSE_OBS_NOISE as usize),
         ("PURPOSE_OBJ_DELAY", task::PURPOSE_OBJ_DELAY as usize),
-        ("OBJ_HIST", dextrain::env::gpu_layout::OBJ_HIST),
+        ("OBJ_HIST", dextrain::task::layout::OBJ_HIST),
         ("OBS_KEY_STRIDE", task::OBS_KEY_STRIDE as usize),
         ("MAX_ACTIONS", MAX_ACTIONS),
         ("MAX_TERMS", task::MAX_TERMS),
@@ -178,9 +180,9 @@ fn shader_constants_match_rust() {
     // the learner's action noise has its own stream, the same in noise.wgsl
     use dextrain::learn::noise::PURPOSE_ACTION_NOISE;
     assert!(dextrain::env::gpu::SHADER_NOISE.contains(&format!("const PURPOSE_ACTION_NOISE: u32 = {PURPOSE_ACTION_NOISE}u;")));
-    let purposes = [dextrain::env::reset::PURPOSE_PARAMS, dextrain::env::reset::PURPOSE_INIT, task::PURPOSE_OBS_NOISE, task::PURPOSE_OBJ_DELAY, dextrain::env::reference::PURPOSE_REF];
+    let purposes = [dextrain::env::reset::PURPOSE_PARAMS, dextrain::env::reset::PURPOSE_INIT, task::PURPOSE_OBS_NOISE, task::PURPOSE_OBJ_DELAY, dextrain::task::reference::PURPOSE_REF];
     assert!(!purposes.contains(&PURPOSE_ACTION_NOISE), "{purposes:?}");
-    use dextrain::env::reference::*;
+    use dextrain::task::reference::*;
     for (name, v) in [
         ("PURPOSE_REF", PURPOSE_REF),
         ("REF_KEY_ID", REF_KEY_ID),
@@ -220,7 +222,7 @@ fn shader_constants_match_rust() {
 
 #[test]
 fn every_shader_function_has_its_cpu_twin_in_the_same_order() {
-    // DESIGN §4: same function names in the same order in shaders/x.wgsl and src/env/x.rs
+    // docs/design.md §4: same function names in the same order in shaders/x.wgsl and its twin (src/env/x.rs, src/task/x.rs)
     let fns = |src: &str, prefix: &str| -> Vec<String> {
         src.lines()
             .filter_map(|l| l.trim_start().strip_prefix(prefix))
@@ -231,8 +233,8 @@ fn every_shader_function_has_its_cpu_twin_in_the_same_order() {
         (SHADER_COMMON, include_str!("../../src/env/common.rs")),
         (SHADER_RESET, include_str!("../../src/env/reset.rs")),
         (SHADER_PHYSICS, include_str!("../../src/env/physics.rs")),
-        (SHADER_REFERENCE, include_str!("../../src/env/reference.rs")),
-        (SHADER_IK, include_str!("../../src/env/ik.rs")),
+        (SHADER_REFERENCE, include_str!("../../src/task/reference.rs")),
+        (SHADER_IK, include_str!("../../src/task/ik.rs")),
         (SHADER_TASK, include_str!("../../src/task/task.rs")),
     ] {
         let w: Vec<String> = fns(wgsl, "fn ").into_iter().filter(|n| !n.ends_with("_main") && n != "env_index").collect();

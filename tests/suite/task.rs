@@ -8,7 +8,8 @@ use crate::common::*;
 use dextrain::config::Config;
 use dextrain::task::spec::LIFT_TERMS;
 use dextrain::env::common::{quat_error, rand_uniform};
-use dextrain::env::gpu_layout::{StepStats, TaskState};
+use dextrain::env::gpu_layout::StepStats;
+use dextrain::task::layout::TaskState;
 use dextrain::env::physics::hand_kinematics;
 use dextrain::task::*;
 use dextrain::task::task::*;
@@ -90,7 +91,7 @@ fn cpu_and_gpu_agree_over_random_actions_with_resets_and_noise() {
             assert_ne!(a.final_priv_obs[i * pd..(i + 1) * pd], a.priv_obs[i * pd..(i + 1) * pd]);
             finals.set(finals.get() + 1);
         }
-        // contact-free rollouts agree to ~1e-4 (DESIGN §4); positions (and their noise draws) are
+        // contact-free rollouts agree to ~1e-4 (docs/design.md §4); positions (and their noise draws) are
         // compared relative to max(|x|, 0.1 m), velocities relative to max(|v|, 1) as in parity.rs
         let (d, at) = max_rel(&a.obs, &b.obs, 0.1, od, &spec.obs_names);
         assert!(d < 2e-4, "step {step}: actor obs differ by {d:e}: {at}");
@@ -270,7 +271,7 @@ fn reward_twin_on_exact_states_contact_and_bad_resets() {
     let model = SimModel::from_config(&c).unwrap();
     let TaskSetup { spec, tc, .. } = task_setup(&c, &model).unwrap();
     let m = model.view();
-    let rg = dextrain::env::reference::RefGlobals::default();
+    let rg = dextrain::task::reference::RefGlobals::default();
     let r = ref_model(&model, None, &rg);
     let params: dextrain::env::EnvParams = bytemuck::Zeroable::zeroed();
     let mut st = dextrain::env::EnvState::default();

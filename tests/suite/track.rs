@@ -7,9 +7,9 @@ use std::path::PathBuf;
 
 use crate::common::*;
 use dextrain::config::Config;
-use dextrain::env::ik::{IkScratch, ik_tip_positions};
-use dextrain::env::gpu_layout::TaskState;
-use dextrain::env::reference::RefFrame;
+use dextrain::task::ik::{IkScratch, ik_tip_positions};
+use dextrain::task::layout::TaskState;
+use dextrain::task::reference::RefFrame;
 use dextrain::task::*;
 use dextrain::task::task::*;
 use dextrain::task::GpuTaskBatch;
@@ -632,6 +632,6 @@ fn replay_bounds_the_frame_count_before_allocating() {
     let e = format!("{:#}", replay(&cfg, &traj, false, None).unwrap_err());
     assert!(e.contains("3600 s") && e.contains("frame 1") && e.contains("MAX_REF_FRAMES") && !e.contains('\n'), "{e}");
     // the bank says the same for training
-    let e = format!("{:#}", dextrain::traj::bank::RefBank::build(&[traj], &SimModel::from_config(&cfg).unwrap(), 0).unwrap_err());
+    let e = format!("{:#}", dextrain::task::bank::RefBank::build(&[traj], &SimModel::from_config(&cfg).unwrap(), 0).unwrap_err());
     assert!(e.contains("expected at most"), "{e}");
 }

@@ -7,7 +7,7 @@
 
 use std::path::{Path, PathBuf};
 
-use dextrain::checkpoint::{self, CheckpointState, EnvSnapshot, xxh64};
+use dextrain::learn::checkpoint::{self, CheckpointState, EnvSnapshot, xxh64};
 use dextrain::eval::{EvalArgs, run as eval};
 use dextrain::learn::state::{LearnerState, TensorValues};
 use dextrain::metrics::{event_files, read_csv};
@@ -304,7 +304,7 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     let rows_adaptive = metrics(&adaptive).1;
     assert!(same_bits(&rows_adaptive, &metrics(&resumed).1), "the resumed device-resident run differs:\n{rows_adaptive:?}\n{:?}", metrics(&resumed).1);
     assert_eq!(model_bytes(&adaptive, 2), model_bytes(&resumed, 2), "final model differs after resume");
-    // what the GPU is asked to do, pinned (the same on any adapter; README "What the GPU is asked
+    // what the GPU is asked to do, pinned (the same on any adapter; docs/gpu.md "What the GPU is asked
     // to do"): per env step of the device-resident loop, the policy's kernels (the normalisers'
     // 4 of normalizer.wgsl, two MLPs of 3 layers, the actions), the task step's 5 of task.wgsl and
     // the loop's sums, and one host read per iteration (the sums); per PPO update of 5 × 4
@@ -549,7 +549,7 @@ fn checkpoint_scalars_read_back_bit_for_bit() {
     const LOSSY: f64 = 0.001_125_000_000_000_000_1;
     let mut values = vec![LOSSY, 5e-4, 1e-5, 1e-2, f64::MIN_POSITIVE, 1.0 / 3.0];
     let mut lr = 5e-4f64;
-    let mut rng = dextrain::learn::rng::Rng::new(7, 7);
+    let mut rng = dextrain::rng::Rng::new(7, 7);
     for _ in 0..500 {
         lr = if rng.uniform() < 0.5 { (lr / 1.5).max(1e-5) } else { (lr * 1.5).min(1e-2) };
         values.push(lr);

@@ -955,18 +955,18 @@ fn docs_worked_example_midpoint_is_as_described() {
 // Docs
 // ---------------------------------------------------------------------------------------------
 
-/// README.md (section "Reference trajectory format") shows the schema, the example files and the Python writer
-/// verbatim; this keeps them true.
+/// docs/references.md (section "Reference trajectory format") shows the schema, the example files and the Python
+/// writer verbatim; this keeps them true.
 #[test]
 fn docs_match_the_code_and_the_fixtures() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let doc = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let doc = std::fs::read_to_string(root.join("docs/references.md")).unwrap();
     let dir = data_dir();
     let schema_file = std::fs::read_to_string(dir.join("reference_frame.schema.json")).unwrap();
     assert_eq!(schema_file, REFERENCE_JSON_SCHEMA);
     for file in ["reference_frame.schema.json", "example.csv", "example_messages.jsonl", "write_example.py"] {
         let text = std::fs::read_to_string(dir.join(file)).unwrap();
-        assert!(doc.contains(&text), "README.md (Reference trajectory format) does not show tests/data/traj/{file} verbatim");
+        assert!(doc.contains(&text), "docs/references.md (Reference trajectory format) does not show tests/data/traj/{file} verbatim");
     }
     for s in [REFERENCE_TOPIC, REFERENCE_SCHEMA_NAME, REFERENCE_METADATA_NAME] {
         assert!(doc.contains(s), "{s}");

@@ -1,4 +1,4 @@
-//! PPO's device-resident rollouts (README "The GPU loop"): with the envs and burn's wgpu learner on
+//! PPO's device-resident rollouts (docs/gpu.md "The GPU loop"): with the envs and burn's wgpu learner on
 //! one wgpu device, observations arrive as tensors ([`crate::task::TaskBatch::step_on_device`]) and
 //! everything the host path does with them happens on the device instead:
 //! - the empirical normalisers (`normalizer::DeviceNormalizers`: the Chan merge in f32 tensors;

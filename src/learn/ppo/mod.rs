@@ -32,7 +32,7 @@ use super::adam::Adam;
 use super::nets::{self, Activation, init_mlp, mlp_forward, mlp_shapes, to_host, to_tensor};
 use super::noise::host_normals;
 use super::normalizer::Normalizer;
-use super::rng::Rng;
+use crate::rng::Rng;
 use super::state::{LearnerState, TensorValues};
 use crate::config::{LrSchedule, PolicyConfig, PpoConfig};
 

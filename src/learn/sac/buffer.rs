@@ -17,7 +17,7 @@
 
 use anyhow::{Result, ensure};
 
-use super::super::rng::Rng;
+use crate::rng::Rng;
 use super::super::state::{LearnerState, TensorValues};
 
 /// Per-env ring buffers of transitions, on the host (the CPU learner's device).

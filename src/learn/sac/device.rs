@@ -1,4 +1,4 @@
-//! SAC's device-resident loop (README "The GPU loop"): with the envs and burn's wgpu learner on one
+//! SAC's device-resident loop (docs/gpu.md "The GPU loop"): with the envs and burn's wgpu learner on one
 //! wgpu device, the replay buffer lives in device memory and the env loop's observations, actions
 //! and rewards never cross to the host:
 //! - [`DeviceReplay`]: buffer.rs's rings as `[C·N, dim]` tensors of burn's; a push is one
@@ -20,7 +20,7 @@ use burn::tensor::{Int, TensorData};
 use super::buffer::{Draw, ReplayBuffer};
 use super::{GradBatch, Sac};
 use crate::env::gpu::{BufferRole, GpuContext};
-use crate::learn::gpu_io::{TensorBuffer, flush, zeros_buffer};
+use crate::env::gpu_io::{TensorBuffer, flush, zeros_buffer};
 use crate::learn::nets::{to_host, to_tensor};
 use crate::learn::noise::DeviceNoise;
 use crate::learn::normalizer::DeviceNormalizers;
@@ -165,7 +165,7 @@ impl DeviceReplay {
     /// Writes every env's transition into slot `slot` (the host buffer's `pos`; the caller then
     /// advances it): one copy per array, on the device.
     pub fn push(&self, slot: usize, t: &DeviceTransitions<'_>) -> Result<()> {
-        use crate::learn::gpu_io::tensor_buffer;
+        use crate::env::gpu_io::tensor_buffer;
         let n = self.envs;
         let mut pairs: Vec<(&Ring, &Tensor<2>)> = vec![
             (&self.priv_obs, t.priv_obs),

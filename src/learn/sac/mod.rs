@@ -37,7 +37,7 @@ use super::nets::{self, Activation, MlpLayout, to_host, to_tensor};
 use super::noise::{host_normals, host_uniforms};
 use super::normalizer::Normalizer;
 use super::ppo::Dims;
-use super::rng::Rng;
+use crate::rng::Rng;
 use super::state::{LearnerState, TensorValues};
 use crate::config::{PolicyConfig, QReduction, SacConfig};
 
@@ -548,7 +548,7 @@ impl Sac {
         use anyhow::Context;
         let cfg = SacConfig { buffer_capacity: run.sac.n_step.max(2), ..run.sac.clone() };
         let mut sac = Sac::new(dims, n, &cfg, &run.policy, device, run.seed as u64)?;
-        let state = crate::checkpoint::read_learner_file(&ckpt.join("model.safetensors"), MODEL_FILE)?;
+        let state = crate::learn::checkpoint::read_learner_file(&ckpt.join("model.safetensors"), MODEL_FILE)?;
         sac.load_policy(&state).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
         Ok(sac)
     }

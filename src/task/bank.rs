@@ -1,7 +1,7 @@
 //! The reference bank: every reference trajectory of a run, resampled at the control step and packed
 //! into one flat `Vec<f32>` of fixed-stride frame records (the GPU's `ref_frames` storage buffer),
 //! with one [`RefInfo`] per reference (the GPU's `ref_info`). The task layer samples it through
-//! `env::reference` (CPU) and `shaders/reference.wgsl` (GPU).
+//! `task::reference` (CPU) and `shaders/reference.wgsl` (GPU).
 //!
 //! # Resampling
 //!
@@ -25,7 +25,7 @@
 //! stride = `15 + J + 3T` ([`RecordLayout`]). Frame `i` of reference `r` starts at
 //! `(info[r].first_frame + i) · stride`.
 //!
-//! - Wrist and joints are exactly those of [`replay::targets_at`](crate::replay::targets_at) at `t`
+//! - Wrist and joints are exactly those of [`targets_at`] at `t`
 //!   (joints the reference does not name hold their default), then every mimic follower is set from
 //!   its leader, `q_f = mult · q_leader + offset` (as replay's kinematic states are), so that the record
 //!   can be compared with an env's full joint state.
@@ -45,12 +45,27 @@ use glam::{Quat, Vec3};
 
 use crate::env::SimModel;
 use crate::env::common::quat_from_axis_angle;
-use crate::env::gpu_layout::{NO_JOINT, NO_OBJECT};
-pub use crate::env::reference::{REF_HAS_OBJECT, REF_TIPS_FROM_FILE, RefGlobals, RefInfo};
+use crate::env::gpu_layout::{NO_JOINT, NO_OBJECT, Targets};
+pub use crate::task::reference::{REF_HAS_OBJECT, REF_TIPS_FROM_FILE, RefGlobals, RefInfo};
 use crate::geom::Pose;
-use crate::replay::targets_at;
 
-use super::Trajectory;
+use crate::traj::Trajectory;
+
+/// The targets of `model` at time `t` (s) of `traj`: the sampled wrist pose and, through `map`
+/// (model joint -> reference column, [`Trajectory::joint_map`]), its joint targets; joints the
+/// reference does not name hold their default.
+pub fn targets_at(model: &SimModel, traj: &Trajectory, map: &[Option<usize>], t: f64) -> Targets {
+    let f = traj.sample(t);
+    let mut out = model.default_targets();
+    out.wrist_pos = [f.wrist.pos.x, f.wrist.pos.y, f.wrist.pos.z, 0.0];
+    out.wrist_rot = f.wrist.rot.normalize().to_array();
+    for (j, m) in map.iter().enumerate() {
+        if let Some(k) = m {
+            out.q[j] = f.joints[*k];
+        }
+    }
+    out
+}
 
 /// Record offset of the wrist position (3 floats).
 pub const REC_WRIST_POS: usize = 0;
@@ -160,7 +175,7 @@ impl RefBank {
             None => NO_OBJECT,
             Some(o) => model.object_index(o).ok_or_else(|| {
                 let names: Vec<&str> = model.objects.iter().map(|x| x.name.as_str()).collect();
-                anyhow!("names object '{}': expected one of the config's objects ({})", crate::config::clip(o, 40), names.join(", "))
+                anyhow!("names object '{}': expected one of the config's objects ({})", crate::text::clip(o, 40), names.join(", "))
             })?,
         };
         self.objects.push(object);

@@ -34,9 +34,11 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use glam::{Quat, Vec3};
 
-use super::grasp::{GRASP_VARIANTS, HOVER_M, object_centre, plan_grasp};
-use super::perturb::{PerturbArgs, perturb};
-use super::{Keyframe, Trajectory};
+pub mod grasp;
+
+use grasp::{GRASP_VARIANTS, HOVER_M, object_centre, plan_grasp};
+use crate::traj::perturb::{PerturbArgs, perturb};
+use crate::traj::{Keyframe, Trajectory};
 use crate::config::Config;
 use crate::env::SimModel;
 use crate::geom::Pose;

@@ -1,6 +1,6 @@
 //! Tensors of burn's wgpu learner as wgpu buffers, so that the simulator's command buffers copy
 //! observations into them and actions out of them on the device (the device-resident rollouts of
-//! `run/runner.rs`; README "The GPU loop").
+//! `run/runner.rs`; docs/gpu.md "The GPU loop").
 //!
 //! burn's wgpu backend (cubecl) owns its tensors' memory: a tensor is a slice (offset, size) of a
 //! `wgpu::Buffer` of cubecl's pool, which cubecl hands out through its compute client

@@ -38,7 +38,7 @@
 use anyhow::{Result, bail};
 use glam::{Quat, Vec3};
 
-use crate::env::ik::{IkParams, ik_solve, ik_tip_positions};
+use crate::task::ik::{IkParams, ik_solve, ik_tip_positions};
 use crate::env::physics::{Scratch, collide_hand_object, hand_kinematics};
 use crate::env::reset::reset_params;
 use crate::env::{EnvState, SimModel};

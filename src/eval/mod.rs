@@ -11,19 +11,21 @@
 //! seed + 1,000,003 (`--seed` overrides it): the initial states and physical parameters are draws
 //! the policy never trained on. Observation noise stays as the config sets it.
 
+pub mod play;
+
 use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
 
-use crate::checkpoint;
+use crate::learn::checkpoint;
 use crate::config::{Config, TaskKind};
 use crate::task::{decode_snapshot, make_task_batch, reference_paths};
 use crate::env::gpu_layout::Targets;
 use crate::env::{SimModel, contact_records, hand_link_poses};
 use crate::geom::Pose;
 use crate::learn::device::learner_device;
-use crate::learn::ppo::{Dims, Ppo};
+use crate::learn::ppo::Ppo;
 use crate::record::{RolloutFrame, RolloutMeta, RolloutWriter};
 use crate::run_dir;
 
@@ -197,7 +199,7 @@ pub struct ObjectSummary {
 }
 
 /// What a set of episodes did (the policy's, or the open-loop baseline's). The metric names mean
-/// the same as in `dextrain replay`'s report (`crate::replay::ReplayReport`). The tracking metrics
+/// the same as in `dextrain replay`'s report (`dextrain replay`'s `ReplayReport`). The tracking metrics
 /// are `None` (left out of the JSON and of the Markdown table) for the lift task.
 #[derive(Clone, Debug, Serialize)]
 pub struct Summary {
@@ -512,7 +514,6 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
         let mut task = make_task_batch(&c, model.clone())?;
         let spec = task.spec().clone();
         env_backend = task.backend_name();
-        let dims = Dims { obs: spec.obs_dim, priv_obs: spec.priv_dim, act: spec.action_dim };
         // the learner device: where a checkpoint's policy is loaded (the other sources bring theirs)
         let device = match source {
             PolicySource::Checkpoint(_) => {
@@ -523,7 +524,7 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
             _ => None,
         };
         let mut actor = match source {
-            PolicySource::Checkpoint(ckpt) => load_actor(&c, ckpt, &spec, dims, n, device.clone().context("no learner device")?, driver)?,
+            PolicySource::Checkpoint(ckpt) => load_actor(&c, ckpt, &spec, n, device.clone().context("no learner device")?, driver)?,
             PolicySource::Distilling { student, teacher } => {
                 device_name = "the distillation run's learner".into();
                 match driver {
@@ -541,11 +542,11 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
         // a student's episodes: its teacher too, for the latent error ‖z − ẑ‖ on the same states
         // (a student whose teacher run is gone is still evaluated, without the latent error)
         let loaded_teacher = match (&actor, driver, source, device) {
-            (Actor::Student(s), Driver::Policy, PolicySource::Checkpoint(ckpt), Some(device)) if s.student.latent > 0 => match load_actor(&c, ckpt, &spec, dims, n, device, Driver::Teacher) {
+            (Actor::Student(s), Driver::Policy, PolicySource::Checkpoint(ckpt), Some(device)) if s.student.latent > 0 => match load_actor(&c, ckpt, &spec, n, device, Driver::Teacher) {
                 Ok(Actor::Ppo(p)) => Some(p),
                 Ok(Actor::Borrowed(_) | Actor::Sac(_) | Actor::Student(_) | Actor::Exported(_)) => None,
                 Err(e) => {
-                    crate::console::warn(&format!("warning: no latent error: cannot load the student's teacher: {}", crate::config::one_line(&format!("{e:#}"))));
+                    crate::console::warn(&format!("warning: no latent error: cannot load the student's teacher: {}", crate::text::one_line(&format!("{e:#}"))));
                     None
                 }
             },
@@ -574,7 +575,7 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
                 let p0 = &env_snap.params[0];
                 let meta = RolloutMeta {
                     hand: model.hand.clone(),
-                    object: model.objects[p0.obj_index as usize].parts(p0.obj_scale),
+                    object: crate::record::object_parts(&model.objects[p0.obj_index as usize], p0.obj_scale),
                     dt: spec.control_dt,
                     info: serde_json::json!({"run": args.run.display().to_string(), "checkpoint": source.describe(), "seed": c.seed}),
                 };
@@ -748,30 +749,25 @@ impl PolicySource<'_> {
     }
 }
 
-/// The policy that drives `driver`'s episodes: the run's (PPO or a distilled student), or a
-/// student's teacher (its run and the checkpoint the student's checkpoint names).
-fn load_actor(c: &Config, ckpt: &std::path::Path, spec: &crate::task::TaskSpec, dims: Dims, n: usize, device: burn::prelude::Device, driver: Driver) -> Result<Actor<'static>> {
-    let is_student = c.train.algorithm == crate::config::AlgorithmChoice::Distill;
-    if is_student && driver == Driver::Policy {
-        return Ok(Actor::Student(Box::new(crate::learn::distill::StudentPolicy::load(ckpt, spec.obs_dim, &device)?)));
+/// The policy that drives `driver`'s episodes: the run's (`learn::policy::load_policy`: PPO, SAC or
+/// a distilled student), or a student's teacher (its run and the checkpoint the student's
+/// checkpoint names). Open-loop episodes load the run's policy too, and do not use it.
+fn load_actor(c: &Config, ckpt: &std::path::Path, spec: &crate::task::TaskSpec, n: usize, device: burn::prelude::Device, driver: Driver) -> Result<Actor<'static>> {
+    use crate::learn::policy::{LoadedPolicy, load_policy, load_ppo};
+    if driver != Driver::Teacher {
+        return Ok(match load_policy(c, spec, ckpt, n, device)? {
+            LoadedPolicy::Ppo(p) => Actor::Ppo(p),
+            LoadedPolicy::Sac(s) => Actor::Sac(s),
+            LoadedPolicy::Student(s) => Actor::Student(s),
+        });
     }
-    let (run_cfg, ckpt) = if driver == Driver::Teacher {
-        let s = crate::learn::distill::StudentPolicy::load(ckpt, spec.obs_dim, &device)?;
-        let run = std::path::PathBuf::from(&s.teacher.0);
-        let tc = checkpoint::find(&run, &s.teacher.1.to_string()).with_context(|| format!("the teacher of {}", ckpt.display()))?;
-        (Config::load(&run.join("config.toml"))?, tc)
-    } else {
-        (c.clone(), ckpt.to_path_buf())
-    };
-    if run_cfg.train.algorithm == crate::config::AlgorithmChoice::Sac {
-        // (open-loop episodes load the run's policy too, and do not use it)
-        anyhow::ensure!(driver != Driver::Teacher, "{}: a SAC run cannot be a distillation teacher yet (the teacher must be a PPO run)", ckpt.display());
-        return Ok(Actor::Sac(Box::new(crate::learn::sac::Sac::from_checkpoint(dims, n, &run_cfg, &ckpt, device)?)));
-    }
-    let encoder_index = crate::learn::ppo::encoder_index(&run_cfg.policy, spec)?;
-    let mut ppo = Ppo::new(dims, n, 1, &run_cfg.ppo, &run_cfg.policy, &encoder_index, device, c.seed as u64)?;
-    checkpoint::load_model(&ckpt.join("model.safetensors"), &mut ppo).with_context(|| format!("cannot load the policy of {}", ckpt.display()))?;
-    Ok(Actor::Ppo(Box::new(ppo)))
+    let s = crate::learn::distill::StudentPolicy::load(ckpt, spec.obs_dim, &device)?;
+    let run = std::path::PathBuf::from(&s.teacher.0);
+    let tc = checkpoint::find(&run, &s.teacher.1.to_string()).with_context(|| format!("the teacher of {}", ckpt.display()))?;
+    let run_cfg = Config::load(&run.join("config.toml"))?;
+    anyhow::ensure!(run_cfg.train.algorithm != crate::config::AlgorithmChoice::Sac, "{}: a SAC run cannot be a distillation teacher yet (the teacher must be a PPO run)", tc.display());
+    // the learner's own random numbers: this evaluation's seed, as for the run's own policy
+    Ok(Actor::Ppo(Box::new(load_ppo(&run_cfg, spec, &tc, n, device, c.seed as u64)?)))
 }
 
 /// Writes env 0's current state as one recording frame.

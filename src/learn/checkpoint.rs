@@ -381,7 +381,7 @@ pub fn find(run_dir: &Path, which: &str) -> Result<PathBuf> {
             match verify(p) {
                 Ok(()) => return Ok(p.clone()),
                 Err(e) => {
-                    crate::console::warn(&format!("warning: skipping checkpoint {}: {}", p.display(), crate::config::one_line(&format!("{e:#}"))));
+                    crate::console::warn(&format!("warning: skipping checkpoint {}: {}", p.display(), crate::text::one_line(&format!("{e:#}"))));
                     failures.push(format!("{e:#}"));
                 }
             }

@@ -1,7 +1,7 @@
 //! The reference layer of the trajectory-following and residual tasks: a per-env cursor into the
 //! run's [`RefBank`] with an augmentation drawn at reset, and sampling of the augmented reference at
 //! the current env step and at look-ahead steps. CPU twin of `shaders/reference.wgsl`: the functions
-//! after [`RefModel`] have the shader's names, order and arithmetic (tests/reference.rs checks
+//! after [`RefModel`] have the shader's names, order and arithmetic (tests/suite/reference.rs checks
 //! the order and the results).
 //!
 //! # The contract
@@ -69,12 +69,12 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Vec3, Vec4};
 
 
-use super::SimModel;
-use super::common::{quat_conj, quat_from_axis_angle, quat_mul, quat_normalize, quat_rotate, rand_uniform};
-use super::gpu_layout::{EnvState, Globals, JointDesc, NO_JOINT};
-use super::physics::{put3, v3, v4};
+use crate::env::SimModel;
+use crate::env::common::{quat_conj, quat_from_axis_angle, quat_mul, quat_normalize, quat_rotate, rand_uniform};
+use crate::env::gpu_layout::{EnvState, Globals, JointDesc, NO_JOINT};
+use crate::env::physics::{put3, v3, v4};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
-use crate::traj::bank::RefBank;
+use crate::task::bank::RefBank;
 
 /// RNG purpose of the reference draws (keep in sync with reference.wgsl; reset uses 1 and 2, the
 /// observation noise 3).
@@ -145,7 +145,7 @@ pub struct RefGlobals {
     /// Joints J and fingertips T of a record (the model's).
     pub n_joints: u32,
     pub n_tips: u32,
-    /// Offsets (floats) of the record fields (`traj::bank` module documentation).
+    /// Offsets (floats) of the record fields (`task::bank` module documentation).
     pub off_wrist_pos: u32,
     pub off_wrist_rot: u32,
     pub off_q: u32,

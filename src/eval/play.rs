@@ -10,10 +10,10 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result};
 
-use super::command::WORLD_FILE;
-use super::contract::PolicyContract;
+use crate::export::command::WORLD_FILE;
+use crate::export::contract::PolicyContract;
 use crate::config::Config;
-use crate::eval::{Driver, EvalArgs, EvalReport, PolicySource, check_finite, run_episodes};
+use super::{Driver, EvalArgs, EvalReport, PolicySource, check_finite, run_episodes};
 
 /// `dextrain play`.
 #[derive(clap::Args, Debug, Clone)]

@@ -104,9 +104,9 @@
 use bytemuck::{Pod, Zeroable};
 use glam::{Mat3, Vec3, Vec4};
 
-use super::common::*;
-use super::gpu_layout::*;
-use super::physics::{MAX_LINKS, Model};
+use crate::env::common::*;
+use crate::env::gpu_layout::*;
+use crate::env::physics::{MAX_LINKS, Model};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 
 /// 3×3 blocks in the lower block triangle of the stacked system (keep in sync with ik.wgsl
