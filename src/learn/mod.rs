@@ -13,13 +13,15 @@
 //! - `normalizer.rs`: empirical observation normalisation;
 //! - the host RNG is `crate::rng` (one `u64` of state, saved in checkpoints; base layer);
 //! - `device.rs`: choosing the learner device (`train.device`);
-//! - `state.rs`: a learner's checkpoint state (named tensors and exact scalars);
+//! - `state.rs`: a learner's checkpoint state (named tensors and exact scalars); `checkpoint.rs`:
+//!   checkpoint directories on disk (atomic writes, manifests, finding the latest);
+//! - `policy.rs`: the one loader of a trained policy from a checkpoint (PPO, SAC or a student);
 //! - `gru.rs`: a GRU on flat tensors (the student's adaptation module; ONNX's GRU formulation).
 //! - `tcn.rs`: a temporal convolution on flat tensors (the student's other adaptation module; ONNX's Conv).
 //!
-//! One room per algorithm: `ppo/` (rollout storage, GAE, PPO), `distill.rs` (the GRU student and
-//! online DAgger from a teacher run); SAC (`sac/`) goes beside them; the loop that drives them is
-//! `run/`.
+//! One room per algorithm: `ppo/` (rollout storage, GAE, PPO), `sac/` (replay buffer, SAC),
+//! `distill.rs` (the student and online DAgger from a teacher run); the loop that drives them is
+//! `run/`. A burn tensor's wgpu buffer is reached through `crate::env::gpu_io`.
 
 pub mod adam;
 pub mod checkpoint;
