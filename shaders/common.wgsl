@@ -138,7 +138,7 @@ struct EnvParams {
     _pad1: u32,
 }
 
-// One collision piece of an object, in the object's frame, unscaled (twin: gpu_layout.rs PieceDesc).
+// One collision piece of an object, in the object's frame, unscaled (twin: src/gpu/layout.rs PieceDesc).
 struct PieceDesc {
     pos: vec4<f32>,
     rot: vec4<f32>,
@@ -149,7 +149,7 @@ struct PieceDesc {
     hull_faces: u32,
 }
 
-// One object of the run, unscaled (twin: gpu_layout.rs ObjectDesc).
+// One object of the run, unscaled (twin: src/gpu/layout.rs ObjectDesc).
 struct ObjectDesc {
     com: vec4<f32>,
     principal_rot: vec4<f32>,
@@ -250,7 +250,7 @@ fn rand_uniform(seed: u32, env: u32, episode: u32, purpose: u32, k: u32) -> f32 
     return f32(rand_u32(seed, env, episode, purpose, k) >> 8u) * (1.0 / 16777216.0);
 }
 
-// ---- resources (bound by src/env/gpu.rs; each pipeline uses the subset it needs) ----
+// ---- resources (bound by src/env/gpu.rs and src/task/gpu.rs; each pipeline uses the subset it needs) ----
 @group(0) @binding(0) var<uniform> g: Globals;
 @group(0) @binding(1) var<storage, read> joints: array<JointDesc>;
 @group(0) @binding(2) var<storage, read> colliders: array<ColliderDesc>;
@@ -265,7 +265,7 @@ fn rand_uniform(seed: u32, env: u32, episode: u32, purpose: u32, k: u32) -> f32 
 @group(0) @binding(8) var<storage, read_write> reset_mask: array<u32>;
 // contact springs [N, g.n_springs]: tangential spring (xyz, world), w = 1 while in contact; env e's
 // slots from e * g.n_springs: hand collider c vs object at c, vs table at n_colliders + c, object
-// support point k vs table at 2 n_colliders + k (twin: gpu_layout.rs spring_slot)
+// support point k vs table at 2 n_colliders + k (twin: src/gpu/layout.rs spring_slot)
 @group(0) @binding(16) var<storage, read_write> springs: array<vec4<f32>>;
 // the objects' collision pieces and the objects (twin: SimModel::pieces, SimModel::objects)
 @group(0) @binding(18) var<storage, read> pieces: array<PieceDesc>;

@@ -227,7 +227,7 @@ fn stats(xs: &[f64]) -> serde_json::Value {
 /// loop's path when the envs share the GPU), and `gpu_counts`: the kernels, submissions and host
 /// synchronisations of one policy inference, one rollout step and one update on each path
 /// ([`crate::gpu_counts`]; the same on any adapter).
-pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_name: &str, ctx: Option<&crate::env::gpu::GpuContext>) -> Result<serde_json::Value> {
+pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_name: &str, ctx: Option<&crate::gpu::context::GpuContext>) -> Result<serde_json::Value> {
     use crate::config::{PolicyConfig, PpoConfig};
     use crate::gpu_counts::{GpuCounts, queue_submissions, submissions_between};
     use crate::learn::nets::to_tensor;
@@ -321,7 +321,7 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
             // the rollout's kernels have run when the device is idle
             // (counted before the bench's wait for the device: the training loop reads once per iteration)
             let (before_sync, queue_now) = mark();
-            crate::env::gpu_io::sync(&device)?;
+            crate::gpu::io::sync(&device)?;
             let rollout_s = t0.elapsed().as_secs_f64();
             d_step_counts = before_sync.since(&m0.0).to_json(o.steps as f64, submissions_between(m0.1, queue_now));
             let m1 = mark();
@@ -410,7 +410,7 @@ impl Default for SacBenchOptions {
 ///
 /// On a GPU, `gpu_counts`: the kernels, submissions and host synchronisations per gradient step
 /// ([`crate::gpu_counts`]; `ctx`, the learner's wgpu context, gives the queue's submissions).
-pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_name: &str, ctx: Option<&crate::env::gpu::GpuContext>) -> Result<serde_json::Value> {
+pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_name: &str, ctx: Option<&crate::gpu::context::GpuContext>) -> Result<serde_json::Value> {
     use crate::gpu_counts::{GpuCounts, queue_submissions, submissions_between};
     use crate::config::{PolicyConfig, SacConfig};
     use crate::learn::ppo::Dims;

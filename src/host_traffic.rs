@@ -1,7 +1,7 @@
 //! Bytes moved between host memory and a GPU by dextrain's own calls, for the `time/host_bytes`
 //! metric (docs/gpu.md "The GPU loop").
 //!
-//! Counted: every upload to and readback from the simulator's wgpu buffers (`env::gpu`; the action
+//! Counted: every upload to and readback from the simulator's wgpu buffers (`env::gpu`, `gpu::context`; the action
 //! noise's parameters included), every tensor that `learn::nets::to_tensor` puts on, or `to_host`
 //! reads from, a GPU learner device, and the index tensors the PPO update uploads. Not counted:
 //! what a CPU learner copies (host to host), and the few bytes of kernel arguments that burn's

@@ -25,7 +25,9 @@ pub mod hand;
 pub mod object;
 pub mod traj;
 pub mod record;
-// the simulator, its GPU context and shader ABI
+// the GPU context and the shader ABI
+pub mod gpu;
+// the simulator
 pub mod env;
 // the task layer
 pub mod task;

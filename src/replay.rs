@@ -109,7 +109,7 @@ fn state_on_reference(model: &SimModel, base: &EnvState, tg: &Targets, object: O
     for (j, jd) in model.joints.iter().enumerate() {
         s.q[j] = tg.q[j];
         s.qd[j] = 0.0;
-        if jd.mimic_leader != crate::env::gpu_layout::NO_JOINT {
+        if jd.mimic_leader != crate::gpu::layout::NO_JOINT {
             s.q[j] = jd.mimic_mult * tg.q[jd.mimic_leader as usize] + jd.mimic_offset;
         }
     }
@@ -275,7 +275,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
                     if c.kind == ContactKind::HandObject {
                         pen[i] = pen[i].max(c.depth);
                         let tip = model.colliders[c.index as usize].tip;
-                        if tip != crate::env::gpu_layout::NO_JOINT {
+                        if tip != crate::gpu::layout::NO_JOINT {
                             tips[i][tip as usize] += c.force.dot(c.normal);
                         }
                     }

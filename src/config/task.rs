@@ -12,7 +12,7 @@ use super::Check;
 use super::rewards::reward_terms;
 
 /// The largest `task.obs_noise.object_delay` (control steps); the task state's object-pose ring
-/// (`env::gpu_layout::OBJ_HIST`) has one slot more.
+/// (`task::layout::OBJ_HIST`) has one slot more.
 pub const MAX_OBJ_DELAY: u32 = 7;
 
 /// The task (`task.kind`).

@@ -3,7 +3,7 @@
 use anyhow::{Result, ensure};
 use rayon::prelude::*;
 
-use super::gpu_layout::*;
+use crate::gpu::layout::*;
 use super::physics::env_step;
 use super::reset::{clear_springs, reset_params, reset_state};
 use super::{EnvBatch, EnvSpec, SimModel};
@@ -11,7 +11,7 @@ use super::{EnvBatch, EnvSpec, SimModel};
 pub struct CpuEnvBatch {
     model: SimModel,
     states: Vec<EnvState>,
-    /// `[N, n_springs]` contact springs (see `gpu_layout::spring_slot`).
+    /// `[N, n_springs]` contact springs (see `gpu::layout::spring_slot`).
     springs: Vec<[f32; 4]>,
     params: Vec<EnvParams>,
     stats: Vec<StepStats>,

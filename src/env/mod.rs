@@ -25,13 +25,9 @@
 pub mod common;
 pub mod cpu;
 pub mod gpu;
-pub mod gpu_bindings;
-pub mod gpu_io;
 pub mod object_desc;
-pub mod gpu_layout;
 pub mod physics;
 pub mod reset;
-pub mod vulkan_probe;
 
 use anyhow::{Context, Result, bail};
 use glam::{Mat3, Quat, Vec3};
@@ -39,8 +35,8 @@ use glam::{Mat3, Quat, Vec3};
 use crate::config::{BackendChoice, Config};
 use crate::hand::{ColliderShape, HandModel, MAX_TIPS};
 use crate::object::ObjectModel;
-pub use gpu_layout::{EnvParams, EnvState, StepStats, Targets};
-use gpu_layout::*;
+pub use crate::gpu::layout::{EnvParams, EnvState, StepStats, Targets};
+use crate::gpu::layout::*;
 
 /// Names and sizes of the env batch.
 #[derive(Clone, Debug)]
@@ -73,7 +69,7 @@ pub trait EnvBatch: Send {
     fn step(&mut self, targets: &[Targets]) -> Result<()>;
     fn states(&mut self) -> Result<Vec<EnvState>>;
     fn set_states(&mut self, states: &[EnvState]) -> Result<()>;
-    /// The contact springs of every env, `[N, n_springs]` (`gpu_layout::spring_slot`).
+    /// The contact springs of every env, `[N, n_springs]` (`crate::gpu::layout::spring_slot`).
     fn springs(&mut self) -> Result<Vec<[f32; 4]>>;
     /// Overwrites the contact springs (`[N, n_springs]`; checkpoint restore).
     fn set_springs(&mut self, springs: &[[f32; 4]]) -> Result<()>;
@@ -288,7 +284,7 @@ impl SimModel {
             decimation: cfg.sim.decimation,
             seed: cfg.seed,
             hand_table: cfg.table.hand_collision as u32,
-            n_springs: gpu_layout::spring_slot::per_env(colliders.len() as u32, n_obj_pts),
+            n_springs: crate::gpu::layout::spring_slot::per_env(colliders.len() as u32, n_obj_pts),
             dt: cfg.sim.dt,
             gravity: 9.81,
             contact_k: cfg.contact.stiffness,
@@ -370,11 +366,11 @@ pub fn make_env_batch(cfg: &Config, model: SimModel) -> Result<Box<dyn EnvBatch>
 /// The GPU the config's `sim.backend` asks for: `None` for `cpu`, the named or any hardware adapter
 /// for `gpu`/`gpu:NAME` (an error if there is none), and for `auto` a hardware adapter if there is
 /// one, else `None` (with a message saying why).
-pub fn sim_gpu_context(cfg: &Config) -> Result<Option<gpu::GpuContext>> {
+pub fn sim_gpu_context(cfg: &Config) -> Result<Option<crate::gpu::context::GpuContext>> {
     match cfg.backend() {
         BackendChoice::Cpu => Ok(None),
-        BackendChoice::Gpu(name) => Ok(Some(gpu::GpuContext::new(name.as_deref())?)),
-        BackendChoice::Auto => match gpu::GpuContext::new(None) {
+        BackendChoice::Gpu(name) => Ok(Some(crate::gpu::context::GpuContext::new(name.as_deref())?)),
+        BackendChoice::Auto => match crate::gpu::context::GpuContext::new(None) {
             Ok(ctx) => Ok(Some(ctx)),
             Err(e) => {
                 crate::console::warn(&format!("dextrain: {e:#}; using the CPU backend"));
@@ -397,7 +393,7 @@ pub fn hand_link_poses(model: &SimModel, st: &EnvState) -> Vec<crate::geom::Pose
 /// kinematic replay; evaluated on the host with the CPU twin's narrow phase and force law).
 /// `springs` are the env's `[n_springs]` contact springs.
 pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p: &EnvParams) -> Vec<crate::record::ContactRecord> {
-    use gpu_layout::spring_slot;
+    use crate::gpu::layout::spring_slot;
     use crate::record::{ContactKind, ContactRecord};
     let m = model.view();
     let g = &model.globals;

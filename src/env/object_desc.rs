@@ -8,7 +8,7 @@ use std::fmt::Write as _;
 
 use glam::Vec3;
 
-use super::gpu_layout::{ObjectDesc, PieceDesc, SHAPE_HULL};
+use crate::gpu::layout::{ObjectDesc, PieceDesc, SHAPE_HULL};
 use super::physics::{bounding_radius, object_num_support, object_support_point};
 use crate::geom::ObjectShape;
 use crate::object::{MassSource, ObjectModel, ObjectPiece};

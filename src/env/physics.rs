@@ -28,7 +28,7 @@
 use glam::{Vec3, Vec4};
 
 use super::common::*;
-use super::gpu_layout::*;
+use crate::gpu::layout::*;
 use super::reset::{clear_springs, reset_params, reset_state};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 

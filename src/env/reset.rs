@@ -4,7 +4,7 @@
 use glam::{Vec3, Vec4};
 
 use super::common::{quat_from_axis_angle, rand_uniform};
-use super::gpu_layout::*;
+use crate::gpu::layout::*;
 
 /// Purposes of the counter-based RNG (keep in sync with reset.wgsl `PURPOSE_*`).
 pub const PURPOSE_PARAMS: u32 = 1;

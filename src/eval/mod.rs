@@ -21,7 +21,7 @@ use serde::Serialize;
 use crate::learn::checkpoint;
 use crate::config::{Config, TaskKind};
 use crate::task::{decode_snapshot, make_task_batch, reference_paths};
-use crate::env::gpu_layout::Targets;
+use crate::gpu::layout::Targets;
 use crate::env::{SimModel, contact_records, hand_link_poses};
 use crate::geom::Pose;
 use crate::learn::device::learner_device;

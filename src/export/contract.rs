@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::config::{Config, FingerMode, TaskKind};
 use crate::env::SimModel;
-use crate::env::gpu_layout::NO_JOINT;
+use crate::gpu::layout::NO_JOINT;
 use crate::task::layout::TaskGlobals;
 use crate::task::spec::{Audience, ObsSlot, TaskSpec};
 

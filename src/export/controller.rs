@@ -20,7 +20,7 @@ use super::onnx::OnnxRunner;
 use crate::config::FingerMode;
 use crate::env::SimModel;
 use crate::env::common::{quat_error, quat_from_axis_angle, quat_mul, quat_normalize};
-use crate::env::gpu_layout::Targets;
+use crate::gpu::layout::Targets;
 use crate::task::ik::{IkParams, IkScratch, ik_solve, ik_tip_positions};
 use crate::task::reference::RefFrame;
 use crate::hand::MAX_TIPS;

@@ -62,7 +62,7 @@ use xml_scan::{ScanEnd, check_urdf_elements, owner_of, scan_xml};
 pub const MAX_JOINTS: usize = 32;
 /// Most collision shapes a hand may have: LEAP's 71 with room to spare. Nothing is sized by it:
 /// an env's contact springs take `2 · colliders + object support points` slots of a buffer sized
-/// from the hand at run time (`gpu_layout::spring_slot`), and the physics loops over the hand's own
+/// from the hand at run time (`gpu::layout::spring_slot`), and the physics loops over the hand's own
 /// colliders. It bounds the cost of a step (every collider is tested against the object each
 /// substep).
 pub const MAX_COLLIDERS: usize = 256;

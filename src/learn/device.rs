@@ -10,7 +10,7 @@ use anyhow::{Result, anyhow};
 use burn::prelude::Device;
 
 use crate::config::BackendChoice;
-use crate::env::gpu::GpuContext;
+use crate::gpu::context::GpuContext;
 
 /// The learner device and a description of it.
 pub fn learner_device(choice: &BackendChoice, sim_gpu: Option<&GpuContext>) -> Result<(Device, String)> {

@@ -92,7 +92,7 @@ fn elu_backward_kernel(y: &FloatTensor<Cube>, grad: &FloatTensor<Cube>) -> Optio
         return None;
     }
     let count = u32::try_from(y.shape().num_elements()).ok().filter(|&c| c > 0 && c < u32::MAX - 65_535 * 256)?;
-    let (gx, gy) = crate::env::gpu::workgroups_of(count, 256);
+    let (gx, gy) = crate::gpu::shaders::workgroups_of(count, 256);
     let out = Cube::float_empty(y.shape(), &y.device, FloatDType::F32); // written whole below
     let kernel = WgslKernel { name: "dextrain_elu_backward", key: (), source: elu_backward_source, entry_point: "elu_backward", workgroup: [256, 1] };
     // EluCfg: count, entries per row of the grid

@@ -10,7 +10,7 @@
 //! statistics), `adam_update` (the clipped gradient into m and v, then the parameter). The
 //! learning rate is a `[1, 1]` burn tensor, so PPO's adaptive schedule stays on the device.
 //!
-//! The kernels bind slices of cubecl's buffers (`learn::gpu_io`: cubecl aligns every tensor to the
+//! The kernels bind slices of cubecl's buffers (`gpu::io`: cubecl aligns every tensor to the
 //! adapter's binding-offset alignment, as its own kernels bind them) and write the parameters and
 //! moments in place. Ordering: what burn recorded (the backward pass) is flushed to the queue
 //! first, so the kernels read finished gradients, and burn's later work (the next forward pass)
@@ -19,9 +19,10 @@
 use anyhow::{Context, Result, ensure};
 use burn::prelude::{Device, Tensor};
 
-use crate::env::gpu_io::{TensorBuffer, flush, tensor_buffer};
-use crate::env::gpu::{GpuContext, SHADER_ADAM, workgroups_of};
-use crate::env::gpu_bindings::{ADAM_GRAD, ADAM_GROUP, ADAM_LR, ADAM_M, ADAM_NORM, ADAM_NORM_FINAL, ADAM_NORM_PARTIAL, ADAM_PARAM, ADAM_PARAM_CFG, ADAM_PARTIALS as ADAM_PARTIALS_BUF, ADAM_STEP, ADAM_UPDATE, ADAM_V};
+use crate::gpu::io::{TensorBuffer, flush, tensor_buffer};
+use crate::gpu::context::GpuContext;
+use crate::gpu::shaders::{SHADER_ADAM, workgroups_of};
+use crate::gpu::bindings::{ADAM_GRAD, ADAM_GROUP, ADAM_LR, ADAM_M, ADAM_NORM, ADAM_NORM_FINAL, ADAM_NORM_PARTIAL, ADAM_PARAM, ADAM_PARAM_CFG, ADAM_PARTIALS as ADAM_PARTIALS_BUF, ADAM_STEP, ADAM_UPDATE, ADAM_V};
 use crate::gpu_counts::{self, Event};
 
 /// Invocations per workgroup (adam.wgsl's `ADAM_WORKGROUP`).

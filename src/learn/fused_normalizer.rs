@@ -12,10 +12,11 @@
 use anyhow::{Result, ensure};
 use burn::prelude::{Device, Tensor};
 
-use crate::env::gpu_io::{TensorBuffer, empty_buffer, flush, tensor_buffer};
+use crate::gpu::io::{TensorBuffer, empty_buffer, flush, tensor_buffer};
 use super::normalizer::DeviceNormalizer;
-use crate::env::gpu::{GpuContext, SHADER_NORMALIZER, workgroups_of};
-use crate::env::gpu_bindings::{NORM_APPLY, NORM_CFG, NORM_GROUP, NORM_M2, NORM_MEAN, NORM_OUT, NORM_SCALE, NORM_UPDATE, NORM_X};
+use crate::gpu::context::GpuContext;
+use crate::gpu::shaders::{SHADER_NORMALIZER, workgroups_of};
+use crate::gpu::bindings::{NORM_APPLY, NORM_CFG, NORM_GROUP, NORM_M2, NORM_MEAN, NORM_OUT, NORM_SCALE, NORM_UPDATE, NORM_X};
 use crate::gpu_counts::{self, Event};
 
 /// Invocations per workgroup (normalizer.wgsl's `NORM_WORKGROUP`).

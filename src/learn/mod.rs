@@ -21,7 +21,7 @@
 //!
 //! One room per algorithm: `ppo/` (rollout storage, GAE, PPO), `sac/` (replay buffer, SAC),
 //! `distill.rs` (the student and online DAgger from a teacher run); the loop that drives them is
-//! `run/`. A burn tensor's wgpu buffer is reached through `crate::env::gpu_io`.
+//! `run/`. A burn tensor's wgpu buffer is reached through `crate::gpu::io`.
 
 pub mod adam;
 pub mod checkpoint;

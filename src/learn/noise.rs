@@ -14,10 +14,11 @@ use anyhow::{Result, ensure};
 use burn::prelude::{Device, Tensor};
 use rayon::prelude::*;
 
-use crate::env::gpu_io::{empty_buffer, flush};
+use crate::gpu::io::{empty_buffer, flush};
 use crate::env::common::rand_uniform;
-use crate::env::gpu::{GpuContext, noise_shader_source, workgroups_for};
-use crate::env::gpu_bindings::{EntryBindings, LEARNER_NOISE, LEARNER_UNIFORM, NOISE_CFG, NOISE_GROUP, NOISE_OUT};
+use crate::gpu::context::GpuContext;
+use crate::gpu::shaders::{noise_shader_source, workgroups_for};
+use crate::gpu::bindings::{EntryBindings, LEARNER_NOISE, LEARNER_UNIFORM, NOISE_CFG, NOISE_GROUP, NOISE_OUT};
 
 /// The action noise's stream in the counter hash (the env's purposes are 1–5; noise.wgsl's twin).
 pub const PURPOSE_ACTION_NOISE: u32 = 6;

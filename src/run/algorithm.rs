@@ -15,7 +15,7 @@
 use anyhow::{Result, bail};
 use burn::prelude::Tensor;
 
-use crate::env::gpu::GpuContext;
+use crate::gpu::context::GpuContext;
 use crate::learn::state::LearnerState;
 
 /// What one env step of all N envs gave, for the step that the last [`Algorithm::act`] started.

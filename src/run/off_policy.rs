@@ -8,7 +8,7 @@ use anyhow::Result;
 use burn::prelude::Tensor;
 
 use super::algorithm::{Algorithm, DeviceOutcome, StepOutcome};
-use crate::env::gpu::GpuContext;
+use crate::gpu::context::GpuContext;
 use super::runner::RunContext;
 use crate::console;
 use crate::learn::ppo::Dims;

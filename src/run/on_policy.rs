@@ -5,7 +5,7 @@ use anyhow::Result;
 use burn::prelude::Tensor;
 
 use super::algorithm::{Algorithm, DeviceOutcome, StepOutcome};
-use crate::env::gpu::GpuContext;
+use crate::gpu::context::GpuContext;
 use super::runner::RunContext;
 use crate::learn::ppo::{Dims, Ppo, UpdateStats};
 use crate::learn::state::LearnerState;

@@ -520,7 +520,7 @@ struct GpuCounter {
 }
 
 impl GpuCounter {
-    fn start(ctx: Option<&crate::env::gpu::GpuContext>) -> GpuCounter {
+    fn start(ctx: Option<&crate::gpu::context::GpuContext>) -> GpuCounter {
         GpuCounter { counts: crate::gpu_counts::GpuCounts::now(), queue: ctx.and_then(|c| crate::gpu_counts::queue_submissions(&c.queue)) }
     }
 

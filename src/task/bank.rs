@@ -45,7 +45,7 @@ use glam::{Quat, Vec3};
 
 use crate::env::SimModel;
 use crate::env::common::quat_from_axis_angle;
-use crate::env::gpu_layout::{NO_JOINT, NO_OBJECT, Targets};
+use crate::gpu::layout::{NO_JOINT, NO_OBJECT, Targets};
 pub use crate::task::reference::{REF_HAS_OBJECT, REF_TIPS_FROM_FILE, RefGlobals, RefInfo};
 use crate::geom::Pose;
 

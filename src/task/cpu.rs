@@ -10,7 +10,7 @@ use super::task::*;
 use super::{StepBatch, TaskBatch, check_actions, check_targets, decode_snapshot, encode_snapshot};
 use crate::config::Config;
 use crate::env::cpu::CpuEnvBatch;
-use crate::env::gpu_layout::*;
+use crate::gpu::layout::*;
 use super::layout::*;
 use crate::task::reference::{RefFrame, RefGlobals, RefModel, ref_sample};
 use crate::env::{EnvBatch, SimModel};
@@ -140,7 +140,7 @@ impl TaskBatch for CpuTaskBatch {
         &mut self.env
     }
 
-    fn gpu_context(&self) -> Option<&crate::env::gpu::GpuContext> {
+    fn gpu_context(&self) -> Option<&crate::gpu::context::GpuContext> {
         None
     }
 

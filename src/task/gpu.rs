@@ -19,10 +19,11 @@ use super::spec::TaskSpec;
 use super::task::OUT_MISC;
 use super::{DeviceStep, StepBatch, TaskBatch, check_actions, check_targets, decode_snapshot, encode_snapshot};
 use super::shaders::task_shader_source;
-use crate::env::gpu::{BufferRole, GpuContext, GpuEnvBatch, ReadbackCopy};
-use crate::env::gpu_bindings::{ACTIONS, GLOBALS, JOINTS, PARAMS, REF_CFG, REF_FRAMES, REF_INFO, RESET_MASK, SPRINGS, STATES, STATS, TARGETS, TIPS};
-use crate::env::gpu_bindings::{Binding, FINAL_OUT, TASK_ACT, TASK_CFG, TASK_GROUP, TASK_OBSERVE, TASK_OBSERVE_FINAL, TASK_OUT, TASK_REWARD, TASK_STATES};
-use crate::env::gpu_layout::*;
+use crate::env::gpu::GpuEnvBatch;
+use crate::gpu::context::{BufferRole, GpuContext, ReadbackCopy};
+use crate::gpu::bindings::{ACTIONS, GLOBALS, JOINTS, PARAMS, REF_CFG, REF_FRAMES, REF_INFO, RESET_MASK, SPRINGS, STATES, STATS, TARGETS, TIPS};
+use crate::gpu::bindings::{Binding, FINAL_OUT, TASK_ACT, TASK_CFG, TASK_GROUP, TASK_OBSERVE, TASK_OBSERVE_FINAL, TASK_OUT, TASK_REWARD, TASK_STATES};
+use crate::gpu::layout::*;
 use super::layout::*;
 use crate::env::{EnvBatch, SimModel};
 use crate::config::Config;
@@ -285,7 +286,7 @@ impl TaskBatch for GpuTaskBatch {
     }
 
     fn step_on_device(&mut self, actions: &burn::prelude::Tensor<2>, device: &burn::prelude::Device) -> Result<DeviceStep> {
-        use crate::env::gpu_io::{empty_buffer, flush, tensor_buffer};
+        use crate::gpu::io::{empty_buffer, flush, tensor_buffer};
         let (n, od, pd, ad) = (self.spec.num_envs, self.spec.obs_dim, self.spec.priv_dim, self.spec.action_dim);
         ensure!(actions.dims() == [n, ad], "actions of shape {:?} for {n} envs × {ad} actions", actions.dims());
         self.env.flush_pending()?;
@@ -315,7 +316,7 @@ impl TaskBatch for GpuTaskBatch {
                 from += o.size();
             }
         }
-        // what burn recorded (the actions) runs first (learn::gpu_io)
+        // what burn recorded (the actions) runs first (gpu::io)
         flush(device)?;
         e.ctx.submit_all(vec![copy_in, enc], "task step (device-resident)")?;
         let [obs, priv_obs, misc] = outs;

@@ -105,7 +105,7 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Mat3, Vec3, Vec4};
 
 use crate::env::common::*;
-use crate::env::gpu_layout::*;
+use crate::gpu::layout::*;
 use crate::env::physics::{MAX_LINKS, Model};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 

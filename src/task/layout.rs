@@ -3,7 +3,7 @@
 
 use bytemuck::{Pod, Zeroable};
 
-use crate::env::gpu_layout::Targets;
+use crate::gpu::layout::Targets;
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 
 /// Most actions (6 wrist + actuated joints) a `TaskState` holds (keep in sync with task.wgsl

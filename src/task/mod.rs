@@ -91,7 +91,7 @@ pub mod task;
 use anyhow::{Result, bail, ensure};
 
 use crate::config::Config;
-use crate::env::gpu_layout::{EnvParams, EnvState, Targets};
+use crate::gpu::layout::{EnvParams, EnvState, Targets};
 use layout::TaskState;
 use crate::task::reference::RefFrame;
 use crate::env::{EnvBatch, SimModel};
@@ -227,7 +227,7 @@ pub trait TaskBatch: Send {
     /// The env batch underneath (to read states for recordings; do not step it directly).
     fn env(&mut self) -> &mut dyn EnvBatch;
     /// The wgpu context when the envs run on a GPU (the learner may share the device), else None.
-    fn gpu_context(&self) -> Option<&crate::env::gpu::GpuContext>;
+    fn gpu_context(&self) -> Option<&crate::gpu::context::GpuContext>;
     /// Starts episode 0 of every env; returns the first observations (reward/terms 0, no dones).
     fn reset_all(&mut self) -> Result<&StepBatch>;
     /// actions: `[N, action_dim]` (clipped to [−1, 1] inside; must be finite). Maps actions to

@@ -71,7 +71,7 @@ use glam::{Vec3, Vec4};
 
 use crate::env::SimModel;
 use crate::env::common::{quat_conj, quat_from_axis_angle, quat_mul, quat_normalize, quat_rotate, rand_uniform};
-use crate::env::gpu_layout::{EnvState, Globals, JointDesc, NO_JOINT};
+use crate::gpu::layout::{EnvState, Globals, JointDesc, NO_JOINT};
 use crate::env::physics::{put3, v3, v4};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
 use crate::task::bank::RefBank;

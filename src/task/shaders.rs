@@ -1,7 +1,7 @@
 //! The task layer's WGSL: task.wgsl, the reference sampler and the fingertip IK, appended to the
 //! simulator's module (task.wgsl reuses the physics' hand kinematics).
 
-use crate::env::gpu::{SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET};
+use crate::gpu::shaders::{SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET};
 
 /// shaders/task.wgsl: the task layer's entry points and bindings 9–12.
 pub const SHADER_TASK: &str = include_str!("../../shaders/task.wgsl");

@@ -8,7 +8,7 @@ use glam::{Vec2, Vec3, Vec4};
 use super::spec::{LIFT_TERMS, RESIDUAL_JOINT_TERMS, RESIDUAL_TASK_TERMS, TRACK_TERMS, term_index};
 use crate::config::TaskKind;
 use crate::env::common::{quat_error, quat_from_axis_angle, quat_mul, quat_normalize, quat_rotate, rand_uniform};
-use crate::env::gpu_layout::*;
+use crate::gpu::layout::*;
 use super::layout::*;
 use crate::task::ik::{IkScratch, ik_solve, ik_tip_positions};
 use crate::env::physics::{Model, Scratch, hand_kinematics, v3};

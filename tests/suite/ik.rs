@@ -9,10 +9,11 @@
 use crate::common::*;
 use dextrain::env::SimModel;
 use dextrain::env::common::rand_uniform;
-use dextrain::env::gpu::{GpuContext, KernelBinding, SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET, run_kernel};
+use dextrain::gpu::context::{GpuContext, KernelBinding, run_kernel};
+use dextrain::gpu::shaders::{SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET};
 use dextrain::task::shaders::SHADER_IK;
 use dextrain::task::ik::*;
-use dextrain::env::gpu_layout::NO_JOINT;
+use dextrain::gpu::layout::NO_JOINT;
 use dextrain::env::physics::Model;
 use dextrain::env::{EnvState, hand_link_poses};
 use dextrain::hand::{MAX_JOINTS, MAX_TIPS};

@@ -389,13 +389,13 @@ fn bad_object_input_is_a_one_line_error() {
 /// 3 mm, so it collides as its hull.
 #[test]
 fn hull_pieces_project_like_the_exact_hull() {
-    use dextrain::env::gpu_layout::SHAPE_HULL;
+    use dextrain::gpu::layout::SHAPE_HULL;
     use dextrain::env::physics::{hull_project, segment_hull_push};
     let mut c = object_config(vec![ObjectItem { mass: Some(0.15), ..mesh_item(Path::new(BOTTLE)) }]);
     c.sim.num_envs = 1;
     let model = SimModel::from_config(&c).unwrap();
     let kinds: Vec<u32> = model.pieces.iter().map(|p| p.shape).collect();
-    assert_eq!(kinds, [dextrain::env::gpu_layout::SHAPE_CYLINDER, SHAPE_HULL, dextrain::env::gpu_layout::SHAPE_CYLINDER], "body, shoulder, neck");
+    assert_eq!(kinds, [dextrain::gpu::layout::SHAPE_CYLINDER, SHAPE_HULL, dextrain::gpu::layout::SHAPE_CYLINDER], "body, shoulder, neck");
     let piece = &model.objects[0].pieces[1];
     let h = piece.hull.as_ref().unwrap();
     assert_eq!((h.vertices.len(), model.pieces[1].n_support), (32, 32));
@@ -478,12 +478,12 @@ fn references_name_their_objects() {
     let bad = Trajectory::from_csv_str("# object: \u{7}bell\nt,wrist_x\n", "bad.csv").unwrap_err().to_string();
     assert!(bad.contains("bad.csv") && bad.contains("object name") && !bad.contains('\n'), "{bad}");
     // the physics reset repeats the reference layer's draw: the same purpose and key on both sides
-    use dextrain::env::{gpu, reset};
+    use dextrain::env::reset;
     use dextrain::task::{reference, shaders::SHADER_REFERENCE};
     assert_eq!((reset::PURPOSE_REF_DRAW, reset::REF_KEY_ID_DRAW), (reference::PURPOSE_REF, reference::REF_KEY_ID));
     for (src, line) in [
-        (gpu::SHADER_RESET, format!("const PURPOSE_REF_DRAW: u32 = {}u;", reference::PURPOSE_REF)),
-        (gpu::SHADER_RESET, format!("const REF_KEY_ID_DRAW: u32 = {}u;", reference::REF_KEY_ID)),
+        (dextrain::gpu::shaders::SHADER_RESET, format!("const PURPOSE_REF_DRAW: u32 = {}u;", reference::PURPOSE_REF)),
+        (dextrain::gpu::shaders::SHADER_RESET, format!("const REF_KEY_ID_DRAW: u32 = {}u;", reference::REF_KEY_ID)),
         (SHADER_REFERENCE, format!("const PURPOSE_REF: u32 = {}u;", reference::PURPOSE_REF)),
         (SHADER_REFERENCE, format!("const REF_KEY_ID: u32 = {}u;", reference::REF_KEY_ID)),
     ] {

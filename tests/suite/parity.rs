@@ -151,7 +151,7 @@ fn one_contact_rich_physics_step_agrees_for_a_hand_with_mimic_joints() {
 
 /// Drives the CPU batch of `c` into the bench grasp of its hand (0.9 s of approach), gives both
 /// backends that state (contact springs included), steps one physics step and compares.
-fn contact_rich_step_agrees(c: dextrain::config::Config, ctx: dextrain::env::gpu::GpuContext) {
+fn contact_rich_step_agrees(c: dextrain::config::Config, ctx: dextrain::gpu::context::GpuContext) {
     let mut cpu = cpu_batch(&c);
     let t = grasp_targets(&cpu);
     // drive the CPU into the bench scene's grasp (0.9 s of approach), then give both backends that state
@@ -302,7 +302,7 @@ fn contact_free_rollout_of_30_steps_agrees_to_1e_4_for_compound_objects() {
 }
 
 /// `steps` steps of `c`'s 8 envs with the objects in flight and the hand waving, far apart.
-fn contact_free_rollout_agrees(mut c: dextrain::config::Config, steps: usize, ctx: dextrain::env::gpu::GpuContext) {
+fn contact_free_rollout_agrees(mut c: dextrain::config::Config, steps: usize, ctx: dextrain::gpu::context::GpuContext) {
     let slack = parity_slack(&ctx);
     c.object.init_xy = [0.6, 0.0];
     c.wrist.init_pos = [0.0, 0.0, 0.6];
@@ -381,7 +381,8 @@ fn scripted_grasp_and_lift_has_the_same_outcome_on_both_backends() {
 #[test]
 fn common_functions_match_their_cpu_twins() {
     use dextrain::env::common::{quat_error, quat_from_axis_angle, quat_mul, quat_normalize, quat_rotate, rand_uniform};
-    use dextrain::env::gpu::{KernelBinding, SHADER_COMMON, run_kernel};
+    use dextrain::gpu::context::{KernelBinding, run_kernel};
+    use dextrain::gpu::shaders::SHADER_COMMON;
     use glam::Vec4;
     let Some(ctx) = gpu_context("common_functions_match_their_cpu_twins") else { return };
     let kernel = r#"
@@ -434,11 +435,11 @@ fn t_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 
 /// The adapter `gpu_context` picks, reopened with `max_storage_buffer_binding_size` lowered to
 /// `limit` bytes (None, and why printed, without an adapter).
-fn limited_context(test: &str, limit: u64) -> Option<dextrain::env::gpu::GpuContext> {
+fn limited_context(test: &str, limit: u64) -> Option<dextrain::gpu::context::GpuContext> {
     let probe = gpu_context(test)?;
     let adapter = probe.info.name.clone();
     drop(probe);
-    let ctx = dextrain::env::gpu::GpuContext::with_limits(Some(&adapter), |l| wgpu::Limits { max_storage_buffer_binding_size: limit, ..l })
+    let ctx = dextrain::gpu::context::GpuContext::with_limits(Some(&adapter), |l| wgpu::Limits { max_storage_buffer_binding_size: limit, ..l })
         .expect("a device with a lower storage-binding limit");
     assert_eq!(ctx.device.limits().max_storage_buffer_binding_size, limit);
     Some(ctx)
@@ -490,7 +491,7 @@ fn a_task_batch_beyond_the_storage_binding_limit_is_an_error_naming_the_buffer()
 
 #[test]
 fn a_shader_that_fails_validation_is_an_error_naming_the_shader_not_a_panic() {
-    use dextrain::env::gpu::{KernelBinding, run_kernel};
+    use dextrain::gpu::context::{KernelBinding, run_kernel};
     let Some(ctx) = gpu_context("a_shader_that_fails_validation_is_an_error_naming_the_shader_not_a_panic") else { return };
     // a u32 array assigned an f32: WGSL has no implicit conversion
     let broken = "@group(0) @binding(0) var<storage, read_write> t_out: array<u32>;\n\

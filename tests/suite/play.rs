@@ -59,7 +59,7 @@ fn mapping_is_exact(run: &Path, what: &str) {
             if b.done(i) {
                 continue;
             }
-            let bits = |t: &dextrain::env::gpu_layout::Targets| bytemuck::bytes_of(t).to_vec();
+            let bits = |t: &dextrain::gpu::layout::Targets| bytemuck::bytes_of(t).to_vec();
             assert_eq!(bits(&targets[i]), bits(&mapped[i]), "{what}: env {i} step {step}: the controller's targets are not the simulator's");
             moved += (bits(&before[i]) != bits(&mapped[i])) as usize;
         }

@@ -9,9 +9,9 @@ use std::path::PathBuf;
 
 use crate::common::{base_config, gpu_context};
 use dextrain::config::{Config, ReferenceConfig};
-use dextrain::env::gpu::{KernelBinding, run_kernel};
+use dextrain::gpu::context::{KernelBinding, run_kernel};
 use dextrain::task::shaders::SHADER_REFERENCE;
-use dextrain::env::gpu_layout::{EnvState, NO_JOINT};
+use dextrain::gpu::layout::{EnvState, NO_JOINT};
 use dextrain::task::reference::*;
 use dextrain::env::reset::{reset_params, reset_state};
 use dextrain::env::SimModel;
@@ -656,10 +656,10 @@ fn cpu_run(m: &SimModel, bank: &RefBank, rg: &RefGlobals, states: &[EnvState]) -
     out
 }
 
-fn gpu_run(ctx: &dextrain::env::gpu::GpuContext, m: &SimModel, bank: &RefBank, rg: &RefGlobals, states: &[EnvState]) -> Run {
+fn gpu_run(ctx: &dextrain::gpu::context::GpuContext, m: &SimModel, bank: &RefBank, rg: &RefGlobals, states: &[EnvState]) -> Run {
     let n = states.len();
     // the parity kernel, appended to the simulator's module and the reference layer
-    let src = format!("{}\n{SHADER_REFERENCE}\n{KERNEL}", dextrain::env::gpu::shader_source());
+    let src = format!("{}\n{SHADER_REFERENCE}\n{KERNEL}", dextrain::gpu::shaders::shader_source());
     let out = run_kernel(
         ctx,
         &src,

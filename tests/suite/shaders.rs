@@ -1,15 +1,15 @@
 //! Shader validation with naga (no GPU needed): every shader parses and validates as the module the
 //! GPU backend builds, each shader parses on its own with common.wgsl, every Pod struct in
-//! src/env/gpu_layout.rs has exactly the size and field offsets of its WGSL twin, and the binding tables
-//! of src/env/gpu_bindings.rs name every WGSL binding (index, name, address space) and what each
+//! src/gpu/layout.rs has exactly the size and field offsets of its WGSL twin, and the binding tables
+//! of src/gpu/bindings.rs name every WGSL binding (index, name, address space) and what each
 //! entry point uses.
 
 
 use crate::common::validate;
-use dextrain::env::gpu::{SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET, shader_source};
+use dextrain::gpu::shaders::{SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET, shader_source};
 use dextrain::task::layout::*;
 use dextrain::task::shaders::{SHADER_IK, SHADER_REFERENCE, SHADER_TASK, task_shader_source};
-use dextrain::env::gpu_layout::*;
+use dextrain::gpu::layout::*;
 use std::mem::{offset_of, size_of};
 
 #[test]
@@ -19,7 +19,7 @@ fn full_module_validates_with_both_entry_points() {
     assert!(names.contains(&"step_main"), "entry points: {names:?}");
     assert!(names.contains(&"reset_main"), "entry points: {names:?}");
     for ep in &m.entry_points {
-        assert_eq!(ep.workgroup_size, [dextrain::env::gpu::WORKGROUP_SIZE, 1, 1], "{}", ep.name);
+        assert_eq!(ep.workgroup_size, [dextrain::gpu::shaders::WORKGROUP_SIZE, 1, 1], "{}", ep.name);
     }
 }
 
@@ -31,7 +31,7 @@ fn task_module_validates_with_its_entry_points() {
         assert!(names.contains(&name), "{name} missing; entry points: {names:?}");
     }
     for ep in &m.entry_points {
-        assert_eq!(ep.workgroup_size, [dextrain::env::gpu::WORKGROUP_SIZE, 1, 1], "{}", ep.name);
+        assert_eq!(ep.workgroup_size, [dextrain::gpu::shaders::WORKGROUP_SIZE, 1, 1], "{}", ep.name);
     }
 }
 
@@ -179,7 +179,7 @@ fn shader_constants_match_rust() {
     }
     // the learner's action noise has its own stream, the same in noise.wgsl
     use dextrain::learn::noise::PURPOSE_ACTION_NOISE;
-    assert!(dextrain::env::gpu::SHADER_NOISE.contains(&format!("const PURPOSE_ACTION_NOISE: u32 = {PURPOSE_ACTION_NOISE}u;")));
+    assert!(dextrain::gpu::shaders::SHADER_NOISE.contains(&format!("const PURPOSE_ACTION_NOISE: u32 = {PURPOSE_ACTION_NOISE}u;")));
     let purposes = [dextrain::env::reset::PURPOSE_PARAMS, dextrain::env::reset::PURPOSE_INIT, task::PURPOSE_OBS_NOISE, task::PURPOSE_OBJ_DELAY, dextrain::task::reference::PURPOSE_REF];
     assert!(!purposes.contains(&PURPOSE_ACTION_NOISE), "{purposes:?}");
     use dextrain::task::reference::*;
@@ -295,8 +295,8 @@ fn reward_term_slots_agree_in_the_table_the_shader_and_the_config() {
 
 /// Every `@group(g) @binding(k) var<space> name` of a WGSL module, sorted by (group, index), and
 /// the binding indices that each entry point uses (reads, writes or queries), sorted.
-fn wgsl_bindings(src: &str) -> (Vec<(u32, u32, String, dextrain::env::gpu_bindings::BindingSpace)>, Vec<(String, Vec<u32>)>) {
-    use dextrain::env::gpu_bindings::BindingSpace;
+fn wgsl_bindings(src: &str) -> (Vec<(u32, u32, String, dextrain::gpu::bindings::BindingSpace)>, Vec<(String, Vec<u32>)>) {
+    use dextrain::gpu::bindings::BindingSpace;
     let module = validate(src);
     let info = naga::valid::Validator::new(naga::valid::ValidationFlags::all(), naga::valid::Capabilities::empty())
         .validate(&module)
@@ -334,7 +334,7 @@ fn wgsl_bindings(src: &str) -> (Vec<(u32, u32, String, dextrain::env::gpu_bindin
 }
 
 /// A binding table as (group 0, index, name, space), sorted by index.
-fn table(bindings: &[dextrain::env::gpu_bindings::Binding]) -> Vec<(u32, u32, String, dextrain::env::gpu_bindings::BindingSpace)> {
+fn table(bindings: &[dextrain::gpu::bindings::Binding]) -> Vec<(u32, u32, String, dextrain::gpu::bindings::BindingSpace)> {
     let mut t: Vec<_> = bindings.iter().map(|b| (0, b.index, b.name.to_string(), b.space)).collect();
     t.sort_by_key(|d| d.1);
     t
@@ -342,14 +342,14 @@ fn table(bindings: &[dextrain::env::gpu_bindings::Binding]) -> Vec<(u32, u32, St
 
 #[test]
 fn binding_tables_match_the_wgsl_globals() {
-    use dextrain::env::gpu_bindings::{ADAM_GROUP, BindingSpace, COLLIDERS, ELU_GROUP, MM_GROUP, NOISE_GROUP, NORM_GROUP, REF_CFG, REF_FRAMES, SIM_GROUP, TASK_GROUP};
-    let noise = dextrain::env::gpu::noise_shader_source();
-    let (adam, norm) = (dextrain::env::gpu::SHADER_ADAM.to_string(), dextrain::env::gpu::SHADER_NORMALIZER.to_string());
+    use dextrain::gpu::bindings::{ADAM_GROUP, BindingSpace, COLLIDERS, ELU_GROUP, MM_GROUP, NOISE_GROUP, NORM_GROUP, REF_CFG, REF_FRAMES, SIM_GROUP, TASK_GROUP};
+    let noise = dextrain::gpu::shaders::noise_shader_source();
+    let (adam, norm) = (dextrain::gpu::shaders::SHADER_ADAM.to_string(), dextrain::gpu::shaders::SHADER_NORMALIZER.to_string());
     let matmul = dextrain::learn::wgsl_matmul::shader_source(dextrain::learn::wgsl_matmul::Tile::LARGE);
     for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (adam, ADAM_GROUP), (norm, NORM_GROUP), (matmul, MM_GROUP), (dextrain::learn::elu::elu_backward_source(()), ELU_GROUP)] {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other
-        assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu_bindings.rs (right)", group.shader);
+        assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu/bindings.rs (right)", group.shader);
         // indices and names are unique, and indices from 24 up stay free for the test kernels
         let mut ix: Vec<u32> = group.bindings.iter().map(|b| b.index).collect();
         ix.sort();

@@ -8,7 +8,7 @@ use crate::common::*;
 use dextrain::config::Config;
 use dextrain::task::spec::LIFT_TERMS;
 use dextrain::env::common::{quat_error, rand_uniform};
-use dextrain::env::gpu_layout::StepStats;
+use dextrain::gpu::layout::StepStats;
 use dextrain::task::layout::TaskState;
 use dextrain::env::physics::hand_kinematics;
 use dextrain::task::*;

@@ -516,14 +516,14 @@ fn the_no_adapter_message_names_the_loader_and_the_drivers() {
     let icd = tmp.path().join("broken_icd.json");
     std::fs::write(&icd, r#"{"file_format_version": "1.0.0", "ICD": {"library_path": "/nonexistent/libGLX_broken.so.0", "api_version": "1.3.0"}}"#).unwrap();
     std::fs::write(tmp.path().join("no_path.json"), r#"{"ICD": {}}"#).unwrap();
-    let msg = dextrain::env::vulkan_probe::diagnose_with(Some(&tmp.path().display().to_string()));
+    let msg = dextrain::gpu::vulkan_probe::diagnose_with(Some(&tmp.path().display().to_string()));
     assert!(msg.contains("libvulkan.so.1"), "{msg}");
     assert!(msg.contains("broken_icd.json") && msg.contains("libGLX_broken.so.0: does not load") && msg.contains("No such file"), "{msg}");
     assert!(msg.contains("no_path.json: no ICD.library_path"), "{msg}");
     assert!(msg.contains("libvulkan1") && msg.contains("libglvnd0") && msg.contains("libegl1") && msg.contains("VK_LOADER_DEBUG=error"), "{msg}");
     assert!(!msg.contains('\n'), "one line: {msg}");
     let empty = tempfile::tempdir().unwrap();
-    let msg = dextrain::env::vulkan_probe::diagnose_with(Some(&empty.path().display().to_string()));
+    let msg = dextrain::gpu::vulkan_probe::diagnose_with(Some(&empty.path().display().to_string()));
     assert!(msg.contains("no driver manifest"), "{msg}");
 }
 

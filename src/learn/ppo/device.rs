@@ -20,7 +20,7 @@ use anyhow::{Result, ensure};
 use burn::prelude::*;
 
 use super::{Batch, LN_2PI, Ppo, UpdateStats};
-use crate::env::gpu::GpuContext;
+use crate::gpu::context::GpuContext;
 use crate::learn::noise::DeviceNoise;
 use crate::learn::normalizer::DeviceNormalizers;
 

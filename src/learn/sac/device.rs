@@ -2,7 +2,7 @@
 //! wgpu device, the replay buffer lives in device memory and the env loop's observations, actions
 //! and rewards never cross to the host:
 //! - [`DeviceReplay`]: buffer.rs's rings as `[C·N, dim]` tensors of burn's; a push is one
-//!   `copy_buffer_to_buffer` per array from the step's tensors into slot `pos` (`learn::gpu_io`);
+//!   `copy_buffer_to_buffer` per array from the step's tensors into slot `pos` (`gpu::io`);
 //!   a sample reads the rows that the host buffer's [`ReplayBuffer::draw`] picks (the host RNG, as
 //!   the host path) and computes the n-step windows with gathers and masks;
 //! - the normalisers (`normalizer::DeviceNormalizers`), the random actions and the action noise
@@ -19,8 +19,8 @@ use burn::tensor::{Int, TensorData};
 
 use super::buffer::{Draw, ReplayBuffer};
 use super::{GradBatch, Sac};
-use crate::env::gpu::{BufferRole, GpuContext};
-use crate::env::gpu_io::{TensorBuffer, flush, zeros_buffer};
+use crate::gpu::context::{BufferRole, GpuContext};
+use crate::gpu::io::{TensorBuffer, flush, zeros_buffer};
 use crate::learn::nets::{to_host, to_tensor};
 use crate::learn::noise::DeviceNoise;
 use crate::learn::normalizer::DeviceNormalizers;
@@ -165,7 +165,7 @@ impl DeviceReplay {
     /// Writes every env's transition into slot `slot` (the host buffer's `pos`; the caller then
     /// advances it): one copy per array, on the device.
     pub fn push(&self, slot: usize, t: &DeviceTransitions<'_>) -> Result<()> {
-        use crate::env::gpu_io::tensor_buffer;
+        use crate::gpu::io::tensor_buffer;
         let n = self.envs;
         let mut pairs: Vec<(&Ring, &Tensor<2>)> = vec![
             (&self.priv_obs, t.priv_obs),

@@ -3,7 +3,8 @@
 
 use dextrain::config::Config;
 use dextrain::env::cpu::CpuEnvBatch;
-use dextrain::env::gpu::{GpuContext, GpuEnvBatch};
+use dextrain::env::gpu::GpuEnvBatch;
+use dextrain::gpu::context::GpuContext;
 use dextrain::env::{EnvBatch, SimModel};
 
 /// The default config with the shipped hand, CPU backend, `n` envs, the wrist parked high above

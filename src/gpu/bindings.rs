@@ -70,7 +70,7 @@ pub const TARGETS: Binding = binding(6, "targets", StorageReadWrite);
 pub const STATS: Binding = binding(7, "stats", StorageReadWrite);
 /// `array<u32>` `[N]`: reset request per env (0 none, 1 next episode, 2 episode 0).
 pub const RESET_MASK: Binding = binding(8, "reset_mask", StorageReadWrite);
-/// `array<vec4<f32>>` `[N, n_springs]`: the contact springs (`gpu_layout::spring_slot`).
+/// `array<vec4<f32>>` `[N, n_springs]`: the contact springs (`gpu::layout::spring_slot`).
 pub const SPRINGS: Binding = binding(16, "springs", StorageReadWrite);
 /// `array<PieceDesc>`: the objects' collision pieces.
 pub const PIECES: Binding = binding(18, "pieces", StorageRead);

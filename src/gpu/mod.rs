@@ -1,0 +1,11 @@
+//! The GPU context and the shader ABI, below the simulator (docs/design.md §11): the wgpu device and
+//! its error handling (`context`), the Pod structs mirrored in WGSL (`layout`), the binding tables
+//! (`bindings`), the shader sources (`shaders`), a burn tensor's wgpu buffer (`io`) and why no
+//! hardware adapter was found (`vulkan_probe`).
+
+pub mod bindings;
+pub mod context;
+pub mod io;
+pub mod layout;
+pub mod shaders;
+pub mod vulkan_probe;
