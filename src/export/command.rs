@@ -111,8 +111,8 @@ struct Loaded {
 }
 
 /// The network of a loaded PPO policy (with or without a privileged encoder reading
-/// `encoder_index` of the critic observation).
-fn ppo_net(ppo: Box<Ppo>, encoder_index: &[usize]) -> Result<Loaded> {
+/// the critic observation's entries `ppo.net.encoder_index`).
+fn ppo_net(ppo: Box<Ppo>) -> Result<Loaded> {
     let values = ppo.net.values()?;
     let n_actor = ppo.net.actor_shapes.len();
     let actor = mlp(&values[..n_actor], &ppo.net.actor_shapes, ppo.net.activation);
@@ -123,7 +123,7 @@ fn ppo_net(ppo: Box<Ppo>, encoder_index: &[usize]) -> Result<Loaded> {
         // parameters: actor…, log_std, critic…, encoder…
         let start = n_actor + 1 + ppo.net.critic_shapes.len();
         let encoder = mlp(&values[start..], &ppo.net.encoder_shapes, ppo.net.encoder_activation);
-        PolicyNet::Encoder { obs_norm, priv_norm: normalization(&ppo.priv_norm, ppo.normalize), priv_index: encoder_index.to_vec(), encoder, actor }
+        PolicyNet::Encoder { obs_norm, priv_norm: normalization(&ppo.priv_norm, ppo.normalize), priv_index: ppo.net.encoder_index.clone(), encoder, actor }
     };
     Ok(Loaded { net, policy: BurnPolicy::Ppo(ppo) })
 }
@@ -192,10 +192,13 @@ pub fn run(args: &ExportArgs) -> Result<ExportReport> {
     let is_sac = cfg.train.algorithm == crate::config::AlgorithmChoice::Sac;
     // SAC's parameters are autodiff leaves: an autodiff device for it
     let device = if is_sac { burn::prelude::Device::flex().autodiff() } else { burn::prelude::Device::flex() };
-    let encoder_index = if is_sac { Vec::new() } else { crate::learn::ppo::encoder_index(&cfg.policy, spec).with_context(|| cfg_path.display().to_string())? };
-    let loaded = match load_policy(&cfg, spec, &ckpt, 1, device)? {
-        LoadedPolicy::Ppo(ppo) => ppo_net(ppo, &encoder_index)?,
-        LoadedPolicy::Sac(sac) => sac_net(sac, &ckpt)?,
+    // the encoder's inputs as the loaded policy resolved them (SAC has none)
+    let (loaded, encoder_index) = match load_policy(&cfg, spec, &ckpt, 1, device)? {
+        LoadedPolicy::Ppo(ppo) => {
+            let index = ppo.net.encoder_index.clone();
+            (ppo_net(ppo)?, index)
+        }
+        LoadedPolicy::Sac(sac) => (sac_net(sac, &ckpt)?, Vec::new()),
         LoadedPolicy::Student(_) => bail!("{}: a distillation run's student is exported by export_student", ckpt.display()),
     };
     let has_encoder = !encoder_index.is_empty();

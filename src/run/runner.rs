@@ -229,24 +229,22 @@ fn collect(task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, obs: &mut [f32], 
 /// `host_bytes`: the iteration's host↔GPU traffic; `tracking`: the reference kinds' extra columns).
 #[allow(clippy::too_many_arguments)]
 fn metric_row(s: &RolloutSums, learner: &[f64], env_steps: u64, time_s: f64, fps: f64, collect_s: f64, learn_s: f64, host_bytes: u64, gpu: [f64; 6], tracking: bool) -> Vec<f64> {
-    let per_step = |x: f64| s.per_step(x);
-    let per_ep = |x: f64| s.per_episode(x);
     let mut row = vec![env_steps as f64, time_s, fps, collect_s, learn_s, host_bytes as f64];
     row.extend(gpu);
     row.push(s.mean_reward());
-    row.extend(s.terms.iter().map(|&t| per_step(t)));
+    row.extend(s.terms.iter().map(|&t| s.per_step(t)));
     row.extend([
         s.episodes as f64,
-        per_ep(s.ep_return),
-        per_ep(s.ep_len),
+        s.per_episode(s.ep_return),
+        s.per_episode(s.ep_len),
         s.success_rate(),
-        per_ep(s.lift),
-        per_ep(s.terminated as f64),
-        per_ep(s.bad_resets as f64),
+        s.per_episode(s.lift),
+        s.per_episode(s.terminated as f64),
+        s.per_episode(s.bad_resets as f64),
     ]);
     row.extend_from_slice(learner);
     if tracking {
-        row.extend([per_step(s.obj_pos_err), per_step(s.obj_rot_err)]);
+        row.extend([s.per_step(s.obj_pos_err), s.per_step(s.obj_rot_err)]);
     }
     row
 }
