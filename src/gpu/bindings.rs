@@ -260,6 +260,52 @@ pub const ELU_BACKWARD: EntryBindings = EntryBindings { entry_point: "elu_backwa
 /// ELU's gradient module (shaders/elu_backward.wgsl alone).
 pub const ELU_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain elu backward", bindings: &[ELU_Y, ELU_GRAD, ELU_OUT, ELU_CFG], entry_points: &[ELU_BACKWARD] };
 
+// ---- LayerNorm (layer_norm_common.wgsl with layer_norm.wgsl, and with layer_norm_backward.wgsl:
+// two modules, launched by learn/layer_norm.rs on burn's stream: cubecl binds the buffers in
+// order, then the uniform) ----
+
+/// `array<f32>` `[B, n]`: the rows to normalise.
+pub const LN_H: Binding = binding(0, "ln_h", StorageReadWrite);
+/// `array<f32>` `[n]`: the gain.
+pub const LN_GAIN: Binding = binding(1, "ln_gain", StorageReadWrite);
+/// `array<f32>` `[n]`: the shift.
+pub const LN_SHIFT: Binding = binding(2, "ln_shift", StorageReadWrite);
+/// `array<f32>` `[B, n]`: the output.
+pub const LN_Y: Binding = binding(3, "ln_y", StorageReadWrite);
+/// `array<f32>` `[B, n]`: the normalised rows ĥ.
+pub const LN_NORMED: Binding = binding(4, "ln_normed", StorageReadWrite);
+/// `array<f32>` `[B]`: 1/√(σ² + ε) per row.
+pub const LN_RSTD: Binding = binding(5, "ln_rstd", StorageReadWrite);
+/// `LnCfg`: rows, row length, the grid's row length, ε.
+pub const LN_CFG: Binding = binding(6, "lc", Uniform);
+
+/// `layer_norm_forward`: a workgroup per row.
+pub const LN_FORWARD: EntryBindings = EntryBindings { entry_point: "layer_norm_forward", bindings: &[LN_H, LN_GAIN, LN_SHIFT, LN_Y, LN_NORMED, LN_RSTD, LN_CFG] };
+
+/// LayerNorm's forward module (shaders/layer_norm_common.wgsl and layer_norm.wgsl).
+pub const LN_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain layer norm", bindings: &[LN_H, LN_GAIN, LN_SHIFT, LN_Y, LN_NORMED, LN_RSTD, LN_CFG], entry_points: &[LN_FORWARD] };
+
+/// `array<f32>` `[B, n]`: the normalised rows ĥ of the forward pass.
+pub const LNB_NORMED: Binding = binding(0, "lnb_normed", StorageReadWrite);
+/// `array<f32>` `[B]`: 1/√(σ² + ε) per row, of the forward pass.
+pub const LNB_RSTD: Binding = binding(1, "lnb_rstd", StorageReadWrite);
+/// `array<f32>` `[n]`: the gain.
+pub const LNB_GAIN: Binding = binding(2, "lnb_gain", StorageReadWrite);
+/// `array<f32>` `[B, n]`: ∂L/∂y.
+pub const LNB_DY: Binding = binding(3, "lnb_dy", StorageReadWrite);
+/// `array<f32>` `[B, n]`: ∂L/∂h.
+pub const LNB_DH: Binding = binding(4, "lnb_dh", StorageReadWrite);
+/// `array<f32>` `[B, n]`: ∂y ĥ (its column sums are the gain's gradient).
+pub const LNB_DY_NORMED: Binding = binding(5, "lnb_dy_normed", StorageReadWrite);
+/// `LnCfg`: rows, row length, the grid's row length, ε.
+pub const LNB_CFG: Binding = binding(6, "lbc", Uniform);
+
+/// `layer_norm_backward`: a workgroup per row.
+pub const LN_BACKWARD: EntryBindings = EntryBindings { entry_point: "layer_norm_backward", bindings: &[LNB_NORMED, LNB_RSTD, LNB_GAIN, LNB_DY, LNB_DH, LNB_DY_NORMED, LNB_CFG] };
+
+/// LayerNorm's backward module (shaders/layer_norm_common.wgsl and layer_norm_backward.wgsl).
+pub const LNB_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain layer norm backward", bindings: &[LNB_NORMED, LNB_RSTD, LNB_GAIN, LNB_DY, LNB_DH, LNB_DY_NORMED, LNB_CFG], entry_points: &[LN_BACKWARD] };
+
 // ---- the device-resident learners' observation normalisers (normalizer.wgsl, a module of its
 // own; bound by learn/fused_normalizer.rs with slices of burn's tensors) ----
 

@@ -9,7 +9,11 @@
 //! backend extensions:
 //! - burn flex (the CPU): forward one pass per row (mean, variance, ĥ and y while the row is in
 //!   cache), backward one pass per row plus the column sums, rows split over the rayon pool;
-//! - cubecl (the GPU): the same formulas as tensor ops (the trait's default bodies);
+//! - cubecl (the GPU): forward one kernel of ours (shaders/layer_norm.wgsl: a workgroup per row),
+//!   backward one kernel (shaders/layer_norm_backward.wgsl: ∂h and ∂y ĥ; both after
+//!   layer_norm_common.wgsl) plus the two column sums
+//!   in two stages (`row_sums`), where the tensor ops launched ten and about fourteen kernels; the
+//!   ops remain for tensors the kernels do not take (not contiguous f32, indices over 32 bits);
 //! - autodiff: the backward above from the saved ĥ and r, for the tracked inputs.
 
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
@@ -84,7 +88,108 @@ pub trait LayerNormOps: Backend {
     }
 }
 
-impl LayerNormOps for Cube {}
+impl LayerNormOps for Cube {
+    fn layer_norm_forward(
+        h: FloatTensor<Self>,
+        g: FloatTensor<Self>,
+        s: FloatTensor<Self>,
+    ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
+        match gpu::forward(&h, &g, &s) {
+            Some(out) => out,
+            None => forward_ops::<Self>(h, g, s),
+        }
+    }
+
+    fn layer_norm_backward(
+        normed: FloatTensor<Self>,
+        r: FloatTensor<Self>,
+        g: FloatTensor<Self>,
+        dy: FloatTensor<Self>,
+    ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
+        match gpu::backward(&normed, &r, &g, &dy) {
+            Some((dh, dy_normed)) => (dh, crate::learn::row_sums::column_sums_ops::<Self>(dy_normed), crate::learn::row_sums::column_sums_ops::<Self>(dy)),
+            None => backward_ops::<Self>(normed, r, g, dy),
+        }
+    }
+}
+
+/// The GPU's kernels (shaders/layer_norm.wgsl, shaders/layer_norm_backward.wgsl), launched on
+/// burn's command stream.
+mod gpu {
+    use burn::backend::TensorMetadata;
+    use burn::backend::ops::FloatTensorOps;
+    use burn::backend::tensor::FloatTensor;
+    use burn::backend::Cube;
+    use burn::tensor::{DType, FloatDType, Shape};
+
+    use super::LAYER_NORM_EPS;
+    use crate::learn::wgsl_kernel::{WgslKernel, launch};
+
+    /// shaders/layer_norm_common.wgsl: the constants' struct and the workgroup's sums.
+    const SHADER_COMMON: &str = include_str!("../../shaders/layer_norm_common.wgsl");
+    /// shaders/layer_norm.wgsl.
+    const SHADER_FORWARD: &str = include_str!("../../shaders/layer_norm.wgsl");
+    /// shaders/layer_norm_backward.wgsl.
+    const SHADER_BACKWARD: &str = include_str!("../../shaders/layer_norm_backward.wgsl");
+
+    /// The forward module: layer_norm_common.wgsl and layer_norm.wgsl (one variant).
+    pub fn forward_source(_: ()) -> String {
+        [SHADER_COMMON, SHADER_FORWARD].join("\n")
+    }
+
+    /// The backward module: layer_norm_common.wgsl and layer_norm_backward.wgsl (one variant).
+    pub fn backward_source(_: ()) -> String {
+        [SHADER_COMMON, SHADER_BACKWARD].join("\n")
+    }
+
+    /// Contiguous row-major f32 of `len` entries (the binding starts at the tensor's first entry:
+    /// cubecl binds a view's slice of its buffer).
+    fn plain(t: &FloatTensor<Cube>, len: usize) -> bool {
+        t.dtype == DType::F32 && t.is_contiguous() && t.shape().num_elements() == len
+    }
+
+    /// `[rows, n, grid_x, ε]` and the grid for `rows` rows of n, or None where the shape is empty or
+    /// its indices need more than 32 bits.
+    fn config(rows: usize, n: usize) -> Option<([u32; 4], [u32; 3])> {
+        let (rows32, n32) = (u32::try_from(rows).ok()?, u32::try_from(n).ok()?);
+        u32::try_from(rows.checked_mul(n)?).ok().filter(|_| rows > 0 && n > 0)?;
+        let (gx, gy) = crate::gpu::shaders::workgroups_of(rows32, 1); // a workgroup per row
+        Some(([rows32, n32, gx, LAYER_NORM_EPS.to_bits()], [gx, gy, 1]))
+    }
+
+    /// `(y, ĥ, r)` for h [B, n], g and s [1, n] as one kernel, or None where the tensors do not fit it.
+    pub fn forward(h: &FloatTensor<Cube>, g: &FloatTensor<Cube>, s: &FloatTensor<Cube>) -> Option<(FloatTensor<Cube>, FloatTensor<Cube>, FloatTensor<Cube>)> {
+        let dims = h.shape().to_vec();
+        let [rows, n] = <[usize; 2]>::try_from(dims).ok()?;
+        if !plain(h, rows * n) || !plain(g, n) || !plain(s, n) {
+            return None;
+        }
+        let (constants, groups) = config(rows, n)?;
+        let empty = |shape: [usize; 2]| Cube::float_empty(Shape::new(shape), &h.device, FloatDType::F32); // written whole below
+        let (y, normed, r) = (empty([rows, n]), empty([rows, n]), empty([rows, 1]));
+        let kernel = WgslKernel { name: "dextrain_layer_norm", key: (), source: forward_source, entry_point: "layer_norm_forward", workgroup: [64, 1] };
+        launch(kernel, groups, &[h, g, s, &y, &normed, &r], &constants);
+        Some((y, normed, r))
+    }
+
+    /// `(∂h, ∂y ĥ)` from ĥ [B, n], r [B, 1], g [1, n] and ∂y [B, n] as one kernel, or None where the
+    /// tensors do not fit it.
+    pub fn backward(normed: &FloatTensor<Cube>, r: &FloatTensor<Cube>, g: &FloatTensor<Cube>, dy: &FloatTensor<Cube>) -> Option<(FloatTensor<Cube>, FloatTensor<Cube>)> {
+        let dims = normed.shape().to_vec();
+        let [rows, n] = <[usize; 2]>::try_from(dims).ok()?;
+        if !plain(normed, rows * n) || !plain(r, rows) || !plain(g, n) || !plain(dy, rows * n) || dy.shape() != normed.shape() {
+            return None;
+        }
+        let (constants, groups) = config(rows, n)?;
+        let empty = || Cube::float_empty(Shape::new([rows, n]), &normed.device, FloatDType::F32); // written whole below
+        let (dh, dy_normed) = (empty(), empty());
+        let kernel = WgslKernel { name: "dextrain_layer_norm_backward", key: (), source: backward_source, entry_point: "layer_norm_backward", workgroup: [64, 1] };
+        launch(kernel, groups, &[normed, r, g, dy, &dh, &dy_normed], &constants);
+        Some((dh, dy_normed))
+    }
+}
+
+pub use gpu::{backward_source as layer_norm_backward_source, forward_source as layer_norm_forward_source};
 
 /// A row-major f32 tensor owning `data`, without a copy.
 fn from_vec(data: Vec<f32>, shape: [usize; 2]) -> FlexTensor {

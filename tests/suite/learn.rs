@@ -511,42 +511,58 @@ fn own_avx2_product_matches_the_reference() {
 
 /// An MLP fed its input as two column blocks (`forward_split_input`, SAC's actor update through the
 /// critics) gives the values of the concatenated input's forward, and the tracked block's gradient
-/// is the concatenated input's gradient in those columns — with and without LayerNorm.
+/// and the first layer's weight gradient are the concatenated input's — with and without LayerNorm,
+/// on the CPU and on the wgpu device.
 #[test]
 fn split_input_forward_matches_the_concatenated_input() {
     use dextrain::learn::nets::{Activation, MlpLayout};
-    let mut rng = Rng::new(11, 12);
-    let (b, head, tail) = (37, 13, 5);
-    for layer_norm in [false, true] {
-        let layout = MlpLayout { input: head + tail, hidden: vec![24, 16], output: 3, layer_norm };
-        let params: Vec<Tensor<2>> = layout.init(&mut rng).into_iter().zip(layout.shapes()).map(|(v, s)| to_tensor(v, s, &cpu())).collect();
-        let xh = to_tensor((0..b * head).map(|_| rng.normal() as f32).collect(), [b, head], &cpu());
-        let xt: Vec<f32> = (0..b * tail).map(|_| rng.normal() as f32).collect();
-        let g = to_tensor((0..b * 3).map(|_| rng.normal() as f32).collect(), [b, 3], &cpu());
-        // the concatenated input, tracked as a whole
-        let cat = Tensor::cat(vec![xh.clone(), to_tensor(xt.clone(), [b, tail], &cpu())], 1).require_grad();
-        let y_cat = layout.forward(&params, cat.clone(), Activation::Elu);
-        let grads = (y_cat.clone() * g.clone()).sum().backward();
-        let d_cat = to_host(cat.grad(&grads).unwrap()).unwrap(); // [b, head + tail]
-        // the two blocks, the tail tracked
-        let t = to_tensor(xt, [b, tail], &cpu()).require_grad();
-        let y = layout.forward_split_input(&params, xh, t.clone(), Activation::Elu);
-        let grads = (y.clone() * g).sum().backward();
-        let d_t = to_host(t.grad(&grads).unwrap()).unwrap(); // [b, tail]
-        let (y, y_cat) = (to_host(y.inner()).unwrap(), to_host(y_cat.inner()).unwrap());
-        let worst = y.iter().zip(&y_cat).map(|(a, c)| (a - c).abs()).fold(0.0f32, f32::max);
-        assert!(worst < 1e-5, "layer_norm {layer_norm}: outputs differ by {worst}");
-        for r in 0..b {
-            for c in 0..tail {
-                let (got, want) = (d_t[r * tail + c], d_cat[r * (head + tail) + head + c]);
-                assert!((got - want).abs() < 1e-5, "layer_norm {layer_norm}: ∂tail[{r}, {c}] = {got} vs {want}");
+    let mut devices = vec![("cpu", cpu())];
+    let gpu = crate::common::wgpu_learner("split_input_forward_matches_the_concatenated_input");
+    if let Some((_, d)) = &gpu {
+        devices.push(("wgpu", d.clone()));
+    }
+    for (what, device) in devices {
+        let mut rng = Rng::new(11, 12);
+        let (b, head, tail) = (37, 13, 5);
+        for layer_norm in [false, true] {
+            let layout = MlpLayout { input: head + tail, hidden: vec![24, 16], output: 3, layer_norm };
+            let values = layout.init(&mut rng);
+            let tracked = || -> Vec<Tensor<2>> { values.iter().zip(layout.shapes()).map(|(v, s)| to_tensor(v.clone(), s, &device).require_grad()).collect() };
+            let xh = to_tensor((0..b * head).map(|_| rng.normal() as f32).collect(), [b, head], &device);
+            let xt: Vec<f32> = (0..b * tail).map(|_| rng.normal() as f32).collect();
+            let g = to_tensor((0..b * 3).map(|_| rng.normal() as f32).collect(), [b, 3], &device);
+            // the concatenated input, tracked as a whole
+            let params = tracked();
+            let cat = Tensor::cat(vec![xh.clone(), to_tensor(xt.clone(), [b, tail], &device)], 1).require_grad();
+            let y_cat = layout.forward(&params, cat.clone(), Activation::Elu);
+            let grads = (y_cat.clone() * g.clone()).sum().backward();
+            let d_cat = to_host(cat.grad(&grads).unwrap()).unwrap(); // [b, head + tail]
+            let dw_cat = to_host(params[0].grad(&grads).unwrap()).unwrap(); // [head + tail, 24]
+            // the two blocks, the tail tracked
+            let params = tracked();
+            let t = to_tensor(xt, [b, tail], &device).require_grad();
+            let y = layout.forward_split_input(&params, xh, t.clone(), Activation::Elu);
+            let grads = (y.clone() * g).sum().backward();
+            let d_t = to_host(t.grad(&grads).unwrap()).unwrap(); // [b, tail]
+            let dw = to_host(params[0].grad(&grads).unwrap()).unwrap();
+            let (y, y_cat) = (to_host(y.inner()).unwrap(), to_host(y_cat.inner()).unwrap());
+            let worst = y.iter().zip(&y_cat).map(|(a, c)| (a - c).abs()).fold(0.0f32, f32::max);
+            assert!(worst < 1e-5, "{what}, layer_norm {layer_norm}: outputs differ by {worst}");
+            for r in 0..b {
+                for c in 0..tail {
+                    let (got, want) = (d_t[r * tail + c], d_cat[r * (head + tail) + head + c]);
+                    assert!((got - want).abs() < 1e-5, "{what}, layer_norm {layer_norm}: ∂tail[{r}, {c}] = {got} vs {want}");
+                }
             }
+            let worst_w = dw.iter().zip(&dw_cat).map(|(a, c)| (a - c).abs() / c.abs().max(1.0)).fold(0.0f32, f32::max);
+            assert!(worst_w < 1e-5, "{what}, layer_norm {layer_norm}: the first layer's ∂W differs by {worst_w}");
+            assert!(dw[head * 24..].iter().any(|v| v.abs() > 1e-3), "{what}: the tail's rows of ∂W are a real gradient");
         }
     }
 }
 
-/// The fused LayerNorm (`learn::layer_norm`: one pass per row on the CPU, tensor ops on the wgpu
-/// device): y and the gradients of h, gain and shift match an f64 reference — rows of every scale,
+/// The fused LayerNorm (`learn::layer_norm`: one pass per row on the CPU, a kernel of ours each
+/// way on the wgpu device): y and the gradients of h, gain and shift match an f64 reference — rows of every scale,
 /// a constant row (σ² = 0) and widths that are not a multiple of the CPU's 16 lanes — and the input
 /// it normalises is left as it was.
 #[test]
@@ -597,7 +613,13 @@ fn fused_layer_norm_and_its_gradients_match_the_reference() {
     };
     check(cpu(), "cpu");
     if let Some((_ctx, gpu)) = crate::common::wgpu_learner("fused_layer_norm_and_its_gradients_match_the_reference") {
+        use dextrain::gpu_counts::{Event, GpuCounts};
+        let before = GpuCounts::now();
         check(gpu, "wgpu");
+        // on the GPU, forward and backward are one kernel of ours each (shaders/layer_norm*.wgsl)
+        let counts = GpuCounts::now().since(&before);
+        assert_eq!(counts.total_from(Event::Kernel, "dextrain:layer_norm"), 2, "forward and backward: {counts:?}");
+        assert_eq!(counts.total_from(Event::Kernel, "dextrain:layer_norm_backward"), 1, "{counts:?}");
     }
 }
 
