@@ -50,6 +50,7 @@ use crate::text::{MAX_QUOTED_CHARS, clip, clip_quoted};
 use crate::geom::Pose;
 
 mod urdf;
+mod urdf_collision;
 mod xml_scan;
 
 use urdf::{Loader, one_line_error};

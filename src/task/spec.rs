@@ -142,6 +142,9 @@ const fn critic(name: &'static str, repeat: Repeat, components: Components, unit
 use Components::{Quat, Scalar, Xyz};
 use Repeat::{Once, PerAction, PerJoint, PerLink, PerTip};
 
+/// The critic's field of each fingertip's normal force (N), which eval's force statistics read.
+pub const TIP_FORCE: &str = "tip_force";
+
 /// Every observation field, in the order the twins write them: the actor's fields (which the
 /// critic also sees, without noise), then the critic's privileged extras. The reference block
 /// (`per_reference_frame`) is written once per reference frame `ref0 … refK`, each relative to the
@@ -170,7 +173,7 @@ pub const OBS_FIELDS: [ObsField; 30] = [
     critic("wrist_vel", Once, Xyz, "m/s", "world"),
     critic("wrist_angvel", Once, Xyz, "rad/s", "world"),
     critic("tip_contact", PerTip, Scalar, "0 or 1 (force > task.hand.contact_force)", "fingertip"),
-    critic("tip_force", PerTip, Scalar, "N (the step's mean normal force)", "fingertip"),
+    critic(TIP_FORCE, PerTip, Scalar, "N (the step's mean normal force)", "fingertip"),
     critic("link_contact", PerLink, Scalar, "0 or 1 (pushed on the object during the step)", "hand link"),
     critic("obj_mass", Once, Scalar, "kg", "drawn parameter"),
     critic("obj_friction", Once, Scalar, "coefficient", "drawn parameter"),
@@ -335,5 +338,13 @@ pub struct TaskSpec {
     pub obs_layout: Vec<ObsSlot>,
     /// The critic observation's layout: the actor's fields, then the privileged ones.
     pub priv_layout: Vec<ObsSlot>,
+}
+
+impl TaskSpec {
+    /// The critic observation's columns of the field named `field` (an [`OBS_FIELDS`] name such as
+    /// [`TIP_FORCE`]), in order; empty where this task's layout has no such field.
+    pub fn priv_columns(&self, field: &str) -> Vec<usize> {
+        self.priv_layout.iter().filter(|slot| slot.name == field).flat_map(|slot| slot.offset..slot.offset + slot.size).collect()
+    }
 }
 
