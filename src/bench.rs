@@ -357,7 +357,7 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
         "bench": "dextrain_ppo_bench",
         "device": device_name,
         // products that fell back from the chosen GPU matmul routine to burn's (0: all ran the chosen one)
-        "gpu_matmul_fallbacks": crate::learn::gpu_matmul::fallbacks(),
+        "gpu_matmul_fallbacks": crate::learn::kernels::gpu_matmul::fallbacks(),
         "threads": rayon::current_num_threads(),
         "config": {"num_envs": o.envs, "num_steps_per_env": o.steps, "obs_dim": o.obs, "critic_obs_dim": o.priv_obs,
                    "action_dim": o.actions, "hidden": o.hidden, "activation": "elu", "epochs": o.epochs,
@@ -454,7 +454,7 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
         "bench": "dextrain_sac_bench",
         "device": device_name,
         // products that fell back from the chosen GPU matmul routine to burn's (0: all ran the chosen one)
-        "gpu_matmul_fallbacks": crate::learn::gpu_matmul::fallbacks(),
+        "gpu_matmul_fallbacks": crate::learn::kernels::gpu_matmul::fallbacks(),
         "threads": rayon::current_num_threads(),
         "batch": o.batch, "gradient_steps": o.gradient_steps, "hidden": o.hidden, "activation": "elu",
         "obs": o.obs, "state": o.priv_obs, "actions": o.actions, "num_envs": o.envs, "memory_size": o.memory,
@@ -471,7 +471,7 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
 /// The CPU's model name, whether it has AVX-512 and AVX2 (from /proc/cpuinfo), and which kernels the
 /// learner runs on it: gemm's (AVX-512 when built with the `x86-v4` feature and the CPU has it, else
 /// AVX2 + FMA), whether the dense layers' `x W` and `g Wᵀ` run dextrain's own AVX2 product instead
-/// ([`crate::learn::sgemm::runs`]), and the fused ELU's ([`crate::learn::isa::isa`], capped by
+/// ([`crate::learn::kernels::sgemm::runs`]), and the fused ELU's ([`crate::learn::kernels::isa::isa`], capped by
 /// `DEXTRAIN_SIMD`).
 pub fn cpu_model() -> serde_json::Value {
     let info = std::fs::read_to_string("/proc/cpuinfo").unwrap_or_default();
@@ -480,6 +480,6 @@ pub fn cpu_model() -> serde_json::Value {
     let avx512f = flags.split_whitespace().any(|f| f == "avx512f");
     let gemm = if cfg!(feature = "x86-v4") && avx512f { "avx512" } else { "avx2" };
     json!({"model": model, "avx512f": avx512f, "avx2": flags.split_whitespace().any(|f| f == "avx2"),
-           "kernels": {"gemm": gemm, "own_avx2_product": crate::learn::sgemm::runs(),
-                       "elu": format!("{:?}", crate::learn::isa::isa()).to_lowercase()}})
+           "kernels": {"gemm": gemm, "own_avx2_product": crate::learn::kernels::sgemm::runs(),
+                       "elu": format!("{:?}", crate::learn::kernels::isa::isa()).to_lowercase()}})
 }

@@ -1,5 +1,5 @@
 //! `dextrain bench --matmul --device gpu`: the GPU learner's matrix products at the PPO bench's
-//! shapes, timed with each matmul routine of `learn::gpu_matmul` in one process, so that the
+//! shapes, timed with each matmul routine of `learn::kernels::gpu_matmul` in one process, so that the
 //! routine a run uses is chosen by measurement on the adapter at hand (BENCHMARKS.md).
 //!
 //! The products are those of one PPO minibatch (rows = envs × 24 steps / 4 minibatches) through
@@ -14,7 +14,7 @@ use burn::prelude::{Device, Tensor};
 use burn::tensor::Distribution;
 use serde_json::json;
 
-use crate::learn::gpu_matmul::{self, GpuMatmul};
+use crate::learn::kernels::gpu_matmul::{self, GpuMatmul};
 use crate::learn::nets::to_host;
 
 /// The actor's layer widths of the peer benchmark.

@@ -19,6 +19,41 @@ use anyhow::{Context, Result, bail};
 
 use crate::tensorboard::{EventWriter, read_scalar_events};
 
+/// The names of the metrics columns that more than one part of dextrain names: the runner and the
+/// learners write them, the plots (and the stop rules of the benches) read them. Per-term and
+/// per-group columns are a prefix and a name (`reward/<term>`, `loss/<what>`).
+pub mod columns {
+    pub const ENV_STEPS: &str = "env_steps";
+    pub const TIME_S: &str = "time_s";
+    pub const FPS: &str = "fps";
+    pub const COLLECT_S: &str = "time/collect_s";
+    pub const LEARN_S: &str = "time/learn_s";
+    pub const HOST_BYTES: &str = "time/host_bytes";
+    /// The mean reward per env step; each reward term's mean is [`REWARD_PREFIX`] + its name.
+    pub const REWARD_MEAN: &str = "reward/mean";
+    pub const REWARD_PREFIX: &str = "reward/";
+    pub const EPISODE_COUNT: &str = "episode/count";
+    pub const EPISODE_RETURN: &str = "episode/return";
+    pub const EPISODE_LENGTH: &str = "episode/length";
+    pub const EPISODE_SUCCESS_RATE: &str = "episode/success_rate";
+    pub const EPISODE_LIFT_HEIGHT: &str = "episode/lift_height";
+    pub const EPISODE_TERMINATED_FRAC: &str = "episode/terminated_frac";
+    pub const EPISODE_BAD_RESET_FRAC: &str = "episode/bad_reset_frac";
+    /// The learners' losses: [`LOSS_PREFIX`] + what (PPO's `surrogate`, `value`, `entropy`; SAC's
+    /// `critic`, `actor`; distillation's `action`, `latent`).
+    pub const LOSS_PREFIX: &str = "loss/";
+    pub const LOSS_ENTROPY: &str = "loss/entropy";
+    pub const POLICY_ENTROPY: &str = "policy/entropy";
+    pub const POLICY_STD: &str = "policy/std";
+    pub const LR: &str = "lr";
+    pub const KL: &str = "kl";
+    pub const GRAD_NORM: &str = "grad_norm";
+    /// A distillation run's side-by-side evaluation: [`DISTILL_EVAL_PREFIX`] + what.
+    pub const DISTILL_EVAL_PREFIX: &str = "distill/eval_";
+    pub const DISTILL_EVAL_STUDENT_SUCCESS: &str = "distill/eval_student_success";
+    pub const DISTILL_EVAL_TEACHER_SUCCESS: &str = "distill/eval_teacher_success";
+}
+
 /// The CSV file inside a run directory.
 pub const CSV_NAME: &str = "metrics.csv";
 

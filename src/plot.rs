@@ -32,6 +32,7 @@ use anyhow::{Context, Result, anyhow, bail};
 use plotters::prelude::*;
 use plotters::style::FontStyle;
 
+use crate::metrics::columns::*;
 use crate::metrics::read_csv;
 
 /// Width of one panel, pixels.
@@ -151,30 +152,30 @@ fn panels(columns: &[String]) -> Vec<Panel> {
         sparse: false,
     };
     let all = vec![
-        single("mean reward", &["reward/mean"]),
-        single("episode return", &["episode/return"]),
-        single("success rate", &["episode/success_rate"]),
-        single("episode length", &["episode/length"]),
+        single("mean reward", &[REWARD_MEAN]),
+        single("episode return", &[EPISODE_RETURN]),
+        single("success rate", &[EPISODE_SUCCESS_RATE]),
+        single("episode length", &[EPISODE_LENGTH]),
         Panel {
             title: "reward terms",
-            columns: group("reward/", "reward/mean"),
+            columns: group(REWARD_PREFIX, REWARD_MEAN),
             log_y: false,
             legend: true,
-            strip: "reward/",
+            strip: REWARD_PREFIX,
             sparse: false,
         },
-        Panel { title: "losses", columns: group("loss/", "loss/entropy"), log_y: false, legend: true, strip: "loss/", sparse: false },
-        Panel { title: "learning rate", columns: find(&["lr"]), log_y: true, legend: false, strip: "", sparse: false },
-        single("KL", &["kl"]),
-        single("entropy", &["loss/entropy", "entropy", "policy/entropy"]),
-        single("policy std", &["policy/std"]),
-        single("fps", &["fps"]),
+        Panel { title: "losses", columns: group(LOSS_PREFIX, LOSS_ENTROPY), log_y: false, legend: true, strip: LOSS_PREFIX, sparse: false },
+        Panel { title: "learning rate", columns: find(&[LR]), log_y: true, legend: false, strip: "", sparse: false },
+        single("KL", &[KL]),
+        single("entropy", &[LOSS_ENTROPY, "entropy", POLICY_ENTROPY]),
+        single("policy std", &[POLICY_STD]),
+        single("fps", &[FPS]),
         Panel {
             title: "student vs teacher, same episodes",
-            columns: find(&["distill/eval_student_success", "distill/eval_teacher_success"]),
+            columns: find(&[DISTILL_EVAL_STUDENT_SUCCESS, DISTILL_EVAL_TEACHER_SUCCESS]),
             log_y: false,
             legend: true,
-            strip: "distill/eval_",
+            strip: DISTILL_EVAL_PREFIX,
             sparse: true,
         },
     ];

@@ -189,16 +189,14 @@ pub fn run(args: &ExportArgs) -> Result<ExportReport> {
     if cfg.train.algorithm == crate::config::AlgorithmChoice::Distill {
         return export_student(args, &cfg, &cfg_path, &ckpt, state.iteration, &model, &setup);
     }
-    let is_sac = cfg.train.algorithm == crate::config::AlgorithmChoice::Sac;
-    // SAC's parameters are autodiff leaves: an autodiff device for it
-    let device = if is_sac { burn::prelude::Device::flex().autodiff() } else { burn::prelude::Device::flex() };
-    // the encoder's inputs as the loaded policy resolved them (SAC has none)
-    let (loaded, encoder_index) = match load_policy(&cfg, spec, &ckpt, 1, device)? {
+    // the policy's network, the encoder's inputs as the loaded policy resolved them (SAC has none)
+    // and whether its action is SAC's squashed mean
+    let (loaded, encoder_index, is_sac) = match load_policy(&cfg, spec, &ckpt, 1, burn::prelude::Device::flex())? {
         LoadedPolicy::Ppo(ppo) => {
             let index = ppo.net.encoder_index.clone();
-            (ppo_net(ppo)?, index)
+            (ppo_net(ppo)?, index, false)
         }
-        LoadedPolicy::Sac(sac) => (sac_net(sac, &ckpt)?, Vec::new()),
+        LoadedPolicy::Sac(sac) => (sac_net(sac, &ckpt)?, Vec::new(), true),
         LoadedPolicy::Student(_) => bail!("{}: a distillation run's student is exported by export_student", ckpt.display()),
     };
     let has_encoder = !encoder_index.is_empty();

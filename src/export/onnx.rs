@@ -74,8 +74,8 @@ pub struct LayerNorm {
     pub shift: Vec<f32>,
 }
 
-/// LayerNorm's ε: the learner's (`learn::layer_norm`).
-pub use crate::learn::layer_norm::LAYER_NORM_EPS;
+/// LayerNorm's ε: the learner's (`learn::kernels::layer_norm`).
+pub use crate::learn::kernels::layer_norm::LAYER_NORM_EPS;
 
 /// Per-component normalisation `x̂ = (x − mean) / denom`.
 #[derive(Clone, Debug, PartialEq)]

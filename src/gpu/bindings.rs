@@ -185,7 +185,7 @@ pub const NOISE_GROUP: ShaderGroup = ShaderGroup {
 };
 
 // ---- the learner's optimiser on the device (adam.wgsl, a module of its own; bound by
-// learn/fused_adam.rs with slices of burn's tensors, all read_write: two of them may share one of
+// learn/kernels/fused_adam.rs with slices of burn's tensors, all read_write: two of them may share one of
 // cubecl's buffers, and wgpu allows a buffer one kind of use per dispatch) ----
 
 /// `AdamStep`: the step's constants (one upload per step).
@@ -223,7 +223,7 @@ pub const ADAM_GROUP: ShaderGroup = ShaderGroup {
 };
 
 // ---- the GPU learner's matrix product of our own (matmul.wgsl, a module of its own, launched
-// by learn/wgsl_matmul.rs on burn's stream: cubecl binds the buffers in order, then the uniform) ----
+// by learn/kernels/wgsl_matmul.rs on burn's stream: cubecl binds the buffers in order, then the uniform) ----
 
 /// `array<f32>`: A's memory (any strides).
 pub const MM_A: Binding = binding(0, "mm_a", StorageReadWrite);
@@ -242,7 +242,7 @@ pub const MM_TILED: EntryBindings = EntryBindings { entry_point: "matmul_tiled",
 /// The matrix product's module (shaders/matmul.wgsl alone, any tile shape).
 pub const MM_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain matmul", bindings: &[MM_A, MM_B, MM_C, MM_BIAS, MM_CFG], entry_points: &[MM_TILED] };
 
-// ---- ELU's gradient (elu_backward.wgsl, a module of its own, launched by learn/elu.rs on burn's
+// ---- ELU's gradient (elu_backward.wgsl, a module of its own, launched by learn/kernels/elu.rs on burn's
 // stream: cubecl binds the buffers in order, then the uniform) ----
 
 /// `array<f32>` `[count]`: ELU's output y.
@@ -261,7 +261,7 @@ pub const ELU_BACKWARD: EntryBindings = EntryBindings { entry_point: "elu_backwa
 pub const ELU_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain elu backward", bindings: &[ELU_Y, ELU_GRAD, ELU_OUT, ELU_CFG], entry_points: &[ELU_BACKWARD] };
 
 // ---- LayerNorm (layer_norm_common.wgsl with layer_norm.wgsl, and with layer_norm_backward.wgsl:
-// two modules, launched by learn/layer_norm.rs on burn's stream: cubecl binds the buffers in
+// two modules, launched by learn/kernels/layer_norm.rs on burn's stream: cubecl binds the buffers in
 // order, then the uniform) ----
 
 /// `array<f32>` `[B, n]`: the rows to normalise.
@@ -307,7 +307,7 @@ pub const LN_BACKWARD: EntryBindings = EntryBindings { entry_point: "layer_norm_
 pub const LNB_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain layer norm backward", bindings: &[LNB_NORMED, LNB_RSTD, LNB_GAIN, LNB_DY, LNB_DH, LNB_DY_NORMED, LNB_CFG], entry_points: &[LN_BACKWARD] };
 
 // ---- the device-resident learners' observation normalisers (normalizer.wgsl, a module of its
-// own; bound by learn/fused_normalizer.rs with slices of burn's tensors) ----
+// own; bound by learn/kernels/fused_normalizer.rs with slices of burn's tensors) ----
 
 /// `NormCfg`: the batch's shape and the merge's weights (a slot of the step's uniform buffer).
 pub const NORM_CFG: Binding = binding(0, "nc", Uniform);

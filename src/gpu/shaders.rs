@@ -10,10 +10,10 @@ pub const SHADER_RESET: &str = include_str!("../../shaders/reset.wgsl");
 pub const SHADER_PHYSICS: &str = include_str!("../../shaders/physics.wgsl");
 /// The learner's action noise (appended to common.wgsl; `learn::noise`).
 pub const SHADER_NOISE: &str = include_str!("../../shaders/noise.wgsl");
-/// The learner's optimiser (a module of its own; `learn::fused_adam`).
+/// The learner's optimiser (a module of its own; `learn::kernels::fused_adam`).
 pub const SHADER_ADAM: &str = include_str!("../../shaders/adam.wgsl");
 /// The device-resident learners' observation normalisers (a module of its own;
-/// `learn::fused_normalizer`).
+/// `learn::kernels::fused_normalizer`).
 pub const SHADER_NORMALIZER: &str = include_str!("../../shaders/normalizer.wgsl");
 /// Invocations per workgroup (keep in sync with `WORKGROUP_SIZE` in common.wgsl).
 pub const WORKGROUP_SIZE: u32 = 64;

@@ -5,7 +5,7 @@
 use anyhow::{Context, Result, ensure};
 use burn::prelude::*;
 
-use super::fused_adam::{FusedAdam, StepConstants};
+use super::kernels::fused_adam::{FusedAdam, StepConstants};
 use super::nets::{to_host, to_tensor};
 use super::state::{LearnerState, TensorValues};
 

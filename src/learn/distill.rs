@@ -48,8 +48,8 @@ pub const STAT_COLUMNS: [&str; 9] = [
     "distill/teacher_success",
     "distill/student_return",
     "distill/teacher_return",
-    "grad_norm",
-    "lr",
+    crate::metrics::columns::GRAD_NORM,
+    crate::metrics::columns::LR,
 ];
 
 /// Checkpoint names of the GRU's parameters.

@@ -1,16 +1,14 @@
 //! The learners, on burn tensors (CPU `flex` backend or burn's wgpu backend).
 //!
 //! Shared by every algorithm:
+//! - `kernels/`: the numerical building blocks, apart from the algorithms (see its `mod.rs`):
+//!   dense layers, LayerNorm and ELU as single ops with their own gradients, the GPU's matrix
+//!   products and sums, our WGSL kernels on burn's stream, the fused optimiser and normalisers,
+//!   the CPU's vector kernels;
 //! - `nets.rs`: MLPs as flat lists of `Tensor<2>`;
-//! - `affine.rs`: a dense layer `x W + b` as one operation with its own gradient (no copies on the CPU);
-//! - `layer_norm.rs`: LayerNorm over the features as one operation with its own gradient;
-//! - `elu.rs`: ELU as one operation with its own gradient (a vectorised one on the CPU);
-//! - `gpu_matmul.rs`: the matmul routine of the GPU learner's products (chosen by measurement);
-//!   `wgsl_matmul.rs`: a tiled product of our own (shaders/matmul.wgsl), the default routine;
-//!   `wgsl_kernel.rs`: how our own WGSL kernels are launched on burn's command stream;
-//! - `row_sums.rs`: sums over the batch's rows in two stages on the GPU (losses, ∂b, ∂ log σ);
 //! - `adam.rs`: Adam and global gradient-norm clipping;
 //! - `normalizer.rs`: empirical observation normalisation;
+//! - `noise.rs`: the learners' action noise (the counter hash, on the host or the device);
 //! - the host RNG is `crate::rng` (one `u64` of state, saved in checkpoints; base layer);
 //! - `device.rs`: choosing the learner device (`train.device`);
 //! - `state.rs`: a learner's checkpoint state (named tensors and exact scalars); `checkpoint.rs`:
@@ -25,25 +23,15 @@
 
 pub mod adam;
 pub mod checkpoint;
-pub mod affine;
 pub mod device;
+pub mod kernels;
 pub mod distill;
-pub mod elu;
-pub mod fused_adam;
-pub mod fused_normalizer;
-pub mod gpu_matmul;
 pub mod gru;
-pub mod isa;
-pub mod layer_norm;
 pub mod nets;
 pub mod policy;
 pub mod noise;
 pub mod normalizer;
 pub mod ppo;
-pub mod row_sums;
 pub mod sac;
-pub mod sgemm;
 pub mod state;
 pub mod tcn;
-pub mod wgsl_kernel;
-pub mod wgsl_matmul;

@@ -21,7 +21,7 @@ impl Activation {
         match self {
             // one fused operation with its own gradient (`elu.rs`): burn's `elu` uses mask_where,
             // which burn's CPU backend runs on a slow generic path under autodiff
-            Activation::Elu => super::elu::elu(x),
+            Activation::Elu => super::kernels::elu::elu(x),
             Activation::Relu => activation::relu(x),
             Activation::Tanh => activation::tanh(x),
         }
@@ -87,7 +87,7 @@ pub fn matmul_rows(x: Tensor<2>, w: Tensor<2>, split: usize) -> Tensor<2> {
 }
 
 /// `x W + b` [B, out] for x [B, in], W [in, out], b [1, out]. On a GPU with dextrain's or a cubek
-/// matmul routine (`learn::gpu_matmul`; dextrain's is the default) and on the CPU: `affine.rs`'s
+/// matmul routine (`learn::kernels::gpu_matmul`; dextrain's is the default) and on the CPU: `affine.rs`'s
 /// one op (on the GPU its weight gradient is split over k by dextrain's kernel, or over row slices
 /// inside the op with cubek's, its bias gradient a two-stage column sum). With
 /// `DEXTRAIN_GPU_MATMUL=burn`: burn's products in `split` row slices ([`matmul_rows`]), the bias
@@ -97,7 +97,7 @@ pub fn affine(x: Tensor<2>, w: Tensor<2>, b: Tensor<2>, split: usize) -> Tensor<
     if affine_is_one_op(split) {
         // [B, out]: one op with its own gradient (affine.rs; on a GPU its weight gradient is split
         // over k by dextrain's kernel, or over row slices inside the op with a cubek routine)
-        return super::affine::fused_affine(x, w, b);
+        return super::kernels::affine::fused_affine(x, w, b);
     }
     let ones = Tensor::<2>::ones([x.dims()[0], 1], &x.device()); // [B, 1]
     matmul_rows(x, w, split) + matmul_rows(ones, b, split)
@@ -107,7 +107,7 @@ pub fn affine(x: Tensor<2>, w: Tensor<2>, b: Tensor<2>, split: usize) -> Tensor<
 /// with its activation, `affine::fused_affine_elu`): unsplit, or on a GPU with a routine that
 /// splits inside the op.
 fn affine_is_one_op(split: usize) -> bool {
-    split <= 1 || super::gpu_matmul::chosen().splits_inside()
+    split <= 1 || super::kernels::gpu_matmul::chosen().splits_inside()
 }
 
 /// The row split of a forward pass of `params` over `rows` rows: [`row_split`] when the
@@ -126,7 +126,7 @@ pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tenso
     for l in 0..layers {
         let (w, b) = (params[2 * l].clone(), params[2 * l + 1].clone());
         h = if l + 1 < layers && act == Activation::Elu && one_op {
-            super::affine::fused_affine_elu(h, w, b) // ELU(h W + b) [B, out] as one op (affine.rs)
+            super::kernels::affine::fused_affine_elu(h, w, b) // ELU(h W + b) [B, out] as one op (affine.rs)
         } else if l + 1 < layers {
             act.apply(affine(h, w, b, split))
         } else {
@@ -162,18 +162,18 @@ pub fn to_host<const D: usize>(t: Tensor<D>) -> Result<Vec<f32>> {
 /// training); the sums over each dimension in turn are fixed reductions. The CPU keeps `sum`.
 pub fn sum_all(t: Tensor<2>) -> Tensor<1> {
     if is_gpu(&t.device()) {
-        crate::learn::row_sums::sum_all_two_stage(t) // a long axis in two stages: many threads, fixed order
+        crate::learn::kernels::row_sums::sum_all_two_stage(t) // a long axis in two stages: many threads, fixed order
     } else {
         t.sum()
     }
 }
 
 /// The mean of every entry of `t` `[R, C]` as a `[1]` tensor: on a GPU, for as many entries as
-/// `learn::row_sums` cuts in blocks, [`sum_all`] / (R·C) (a fixed order on many threads, where
+/// `learn::kernels::row_sums` cuts in blocks, [`sum_all`] / (R·C) (a fixed order on many threads, where
 /// burn's `mean` sums all entries on one thread); elsewhere `mean`.
 pub fn mean_all(t: Tensor<2>) -> Tensor<1> {
     let n = t.shape().num_elements();
-    if is_gpu(&t.device()) && crate::learn::row_sums::blocks_for(n).is_some() {
+    if is_gpu(&t.device()) && crate::learn::kernels::row_sums::blocks_for(n).is_some() {
         sum_all(t).div_scalar(n as f64)
     } else {
         t.mean() // the CPU, or too few entries for a second stage to pay
@@ -181,10 +181,10 @@ pub fn mean_all(t: Tensor<2>) -> Tensor<1> {
 }
 
 /// `x` [1, C] to meet a batch of `rows` rows: on a GPU repeated over the rows with a two-stage
-/// column sum as its gradient (`learn::row_sums::rows_of`), on the CPU `x` itself (broadcast by
+/// column sum as its gradient (`learn::kernels::row_sums::rows_of`), on the CPU `x` itself (broadcast by
 /// the operation that uses it, as before).
 pub fn batch_row(x: Tensor<2>, rows: usize) -> Tensor<2> {
-    if is_gpu(&x.device()) { crate::learn::row_sums::rows_of(x, rows) } else { x }
+    if is_gpu(&x.device()) { crate::learn::kernels::row_sums::rows_of(x, rows) } else { x }
 }
 
 /// Whether `device` is a GPU (burn's cubecl backend: wgpu), i.e. not host memory.
@@ -286,12 +286,12 @@ impl MlpLayout {
         for l in 0..self.hidden.len() {
             let p = &params[l * k..(l + 1) * k];
             if one_op && tail.is_none() {
-                h = super::affine::fused_affine_elu(h, p[0].clone(), p[1].clone()); // ELU(h W + b) [B, out]
+                h = super::kernels::affine::fused_affine_elu(h, p[0].clone(), p[1].clone()); // ELU(h W + b) [B, out]
                 continue;
             }
             h = first_or_affine(h, tail.take(), p[0].clone(), p[1].clone(), split); // [B, out]
             if self.layer_norm {
-                h = super::layer_norm::layer_norm(h, p[2].clone(), p[3].clone()); // (h − μ)/√(σ² + ε) · g + s per row
+                h = super::kernels::layer_norm::layer_norm(h, p[2].clone(), p[3].clone()); // (h − μ)/√(σ² + ε) · g + s per row
             }
             h = act.apply(h);
         }

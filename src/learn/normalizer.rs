@@ -10,7 +10,7 @@
 use anyhow::Result;
 use burn::prelude::*;
 
-use super::fused_normalizer::NormalizerKernels;
+use super::kernels::fused_normalizer::NormalizerKernels;
 use super::nets::{to_host, to_tensor};
 use super::state::{LearnerState, TensorValues};
 

@@ -40,12 +40,12 @@ pub fn load_ppo(cfg: &Config, spec: &TaskSpec, ckpt: &Path, n: usize, device: De
 }
 
 /// The policy of run config `cfg` in checkpoint `ckpt`, for `n` envs on `device`: PPO's or SAC's
-/// (SAC's parameters are autodiff leaves: `device` must be an autodiff device for it), or a
+/// (SAC's parameters are autodiff leaves: it loads on `device`'s autodiff form), or a
 /// distillation run's student (`spec.obs_dim` wide).
 pub fn load_policy(cfg: &Config, spec: &TaskSpec, ckpt: &Path, n: usize, device: Device) -> Result<LoadedPolicy> {
     Ok(match cfg.train.algorithm {
         AlgorithmChoice::Ppo => LoadedPolicy::Ppo(Box::new(load_ppo(cfg, spec, ckpt, n, device, cfg.seed as u64)?)),
-        AlgorithmChoice::Sac => LoadedPolicy::Sac(Box::new(Sac::from_checkpoint(dims_of(spec), n, cfg, ckpt, device)?)),
+        AlgorithmChoice::Sac => LoadedPolicy::Sac(Box::new(Sac::from_checkpoint(dims_of(spec), n, cfg, ckpt, device.autodiff())?)),
         AlgorithmChoice::Distill => LoadedPolicy::Student(Box::new(StudentPolicy::load(ckpt, spec.obs_dim, &device)?)),
     })
 }

@@ -13,14 +13,15 @@ use anyhow::{Context, Result};
 use super::algorithm::{Algorithm, StepOutcome};
 use super::runner::RunContext;
 use crate::config::Config;
+use crate::metrics::columns;
 use crate::eval::{Driver, EvalArgs, PolicySource, Summary, run_episodes};
 use crate::learn::distill::{Distill, STAT_COLUMNS, StudentPolicy};
 use crate::learn::state::LearnerState;
 
 /// The side-by-side evaluation's metrics columns, after [`STAT_COLUMNS`].
 pub const EVAL_COLUMNS: [&str; 5] = [
-    "distill/eval_student_success",
-    "distill/eval_teacher_success",
+    columns::DISTILL_EVAL_STUDENT_SUCCESS,
+    columns::DISTILL_EVAL_TEACHER_SUCCESS,
     "distill/eval_student_return",
     "distill/eval_teacher_return",
     "distill/eval_latent_error",

@@ -24,16 +24,14 @@ pub use algorithm::{Algorithm, DeviceOutcome, StepOutcome};
 pub use runner::TrainArgs;
 
 /// Runs (or resumes) a training run with the config's `train.algorithm`; returns its directory.
+/// The config is loaded once (a resumed run's is its config.toml), and this match is where the
+/// algorithm is chosen: its constructor and its check before a run directory is made.
 pub fn train(args: &TrainArgs) -> Result<PathBuf> {
-    // the algorithm is the config's (a resumed run's is in its config.toml)
-    let cfg = match (&args.resume, &args.config) {
-        (Some(dir), _) => crate::config::Config::load(&dir.join("config.toml"))?,
-        (None, Some(path)) => crate::config::Config::load_with_overrides(path, &args.sets)?,
-        (None, None) => anyhow::bail!("a config file or --resume is needed"),
+    let loaded = runner::load(args)?;
+    let (make, preflight): (runner::MakeAlgorithm, runner::Preflight) = match loaded.cfg.train.algorithm {
+        crate::config::AlgorithmChoice::Ppo => (on_policy::make, runner::no_preflight),
+        crate::config::AlgorithmChoice::Sac => (off_policy::make, off_policy::preflight),
+        crate::config::AlgorithmChoice::Distill => (distill::make, runner::no_preflight),
     };
-    match cfg.train.algorithm {
-        crate::config::AlgorithmChoice::Ppo => runner::run(args, on_policy::make),
-        crate::config::AlgorithmChoice::Sac => runner::run(args, off_policy::make),
-        crate::config::AlgorithmChoice::Distill => runner::run(args, distill::make),
-    }
+    runner::run(args, loaded, make, preflight)
 }

@@ -14,13 +14,20 @@ use crate::console;
 use crate::learn::ppo::Dims;
 use crate::learn::sac::{Sac, SacStats};
 use crate::learn::state::LearnerState;
+use crate::metrics::columns;
 
 /// The metrics columns of SAC's iterations, in [`stat_values`] order.
-pub const STAT_COLUMNS: [&str; 7] = ["loss/critic", "loss/actor", "alpha", "policy/entropy", "q/mean", "updates", "buffer/transitions"];
+pub const STAT_COLUMNS: [&str; 7] = ["loss/critic", "loss/actor", "alpha", columns::POLICY_ENTROPY, "q/mean", "updates", "buffer/transitions"];
 
 /// An iteration's stats in [`STAT_COLUMNS`] order.
 pub fn stat_values(s: &SacStats) -> Vec<f64> {
     vec![s.critic_loss, s.actor_loss, s.alpha, s.entropy, s.q_mean, s.updates as f64, s.buffer_transitions as f64]
+}
+
+/// SAC's check before a run directory is made ([`super::runner::Preflight`]): that its replay
+/// buffer fits ([`check_buffer`]).
+pub fn preflight(cfg: &crate::config::Config, spec: &crate::task::TaskSpec) -> Result<()> {
+    check_buffer(cfg, spec).map(|_| ())
 }
 
 /// The replay buffer's size for the run's config and task: (bytes per transition, total bytes).

@@ -9,9 +9,10 @@ use crate::gpu::context::GpuContext;
 use super::runner::RunContext;
 use crate::learn::ppo::{Dims, Ppo, UpdateStats};
 use crate::learn::state::LearnerState;
+use crate::metrics::columns;
 
 /// The metrics columns of a PPO update, in [`stat_values`] order.
-pub const STAT_COLUMNS: [&str; 7] = ["loss/surrogate", "loss/value", "loss/entropy", "kl", "lr", "grad_norm", "policy/std"];
+pub const STAT_COLUMNS: [&str; 7] = ["loss/surrogate", "loss/value", columns::LOSS_ENTROPY, columns::KL, columns::LR, columns::GRAD_NORM, columns::POLICY_STD];
 
 /// An update's stats in [`STAT_COLUMNS`] order.
 pub fn stat_values(u: &UpdateStats) -> Vec<f64> {

@@ -73,12 +73,13 @@ extern "C" fn on_stop_signal(_: libc::c_int) {
 /// The metrics columns of a run, in order (after "iteration"): the env's, the algorithm's
 /// (`learner`, e.g. PPO's losses, kl, lr…), then the reference kinds' tracking errors.
 pub fn metric_columns(spec: &TaskSpec, learner: &[String]) -> Vec<String> {
-    let mut c: Vec<String> = ["env_steps", "time_s", "fps", "time/collect_s", "time/learn_s", "time/host_bytes"].iter().map(|s| s.to_string()).collect();
+    use crate::metrics::columns::*;
+    let mut c: Vec<String> = [ENV_STEPS, TIME_S, FPS, COLLECT_S, LEARN_S, HOST_BYTES].iter().map(|s| s.to_string()).collect();
     c.extend(GPU_COUNT_COLUMNS.iter().map(|s| s.to_string()));
-    c.push("reward/mean".into());
-    c.extend(spec.term_names.iter().map(|t| format!("reward/{t}")));
+    c.push(REWARD_MEAN.into());
+    c.extend(spec.term_names.iter().map(|t| format!("{REWARD_PREFIX}{t}")));
     c.extend(
-        ["episode/count", "episode/return", "episode/length", "episode/success_rate", "episode/lift_height", "episode/terminated_frac", "episode/bad_reset_frac"]
+        [EPISODE_COUNT, EPISODE_RETURN, EPISODE_LENGTH, EPISODE_SUCCESS_RATE, EPISODE_LIFT_HEIGHT, EPISODE_TERMINATED_FRAC, EPISODE_BAD_RESET_FRAC]
             .iter()
             .map(|s| s.to_string()),
     );
@@ -249,8 +250,17 @@ fn metric_row(s: &RolloutSums, learner: &[f64], env_steps: u64, time_s: f64, fps
     row
 }
 
-/// Loads the config of a new run (with overrides) or of a resumed one.
-fn setup(args: &TrainArgs) -> Result<(Config, PathBuf, Option<PathBuf>)> {
+/// A run's config as `train` loads it, once: a new run's (its file with the `--set` overrides) or
+/// a resumed run's (its `config.toml`, with `train.*` overrides only, written back), with the
+/// resumed run's directory and checkpoint.
+pub struct LoadedRun {
+    pub cfg: Config,
+    /// (run directory, checkpoint) of a resume.
+    resume: Option<(PathBuf, PathBuf)>,
+}
+
+/// Loads the config of a new run or of a resumed one ([`LoadedRun`]).
+pub fn load(args: &TrainArgs) -> Result<LoadedRun> {
     if let Some(dir) = &args.resume {
         run_dir::check_run(dir)?;
         let cfg_path = dir.join("config.toml");
@@ -265,22 +275,40 @@ fn setup(args: &TrainArgs) -> Result<(Config, PathBuf, Option<PathBuf>)> {
         if !args.sets.is_empty() {
             std::fs::write(&cfg_path, cfg.to_toml()?).with_context(|| format!("cannot write {}", cfg_path.display()))?;
         }
-        return Ok((cfg, dir.clone(), Some(ckpt)));
+        return Ok(LoadedRun { cfg, resume: Some((dir.clone(), ckpt)) });
     }
     let path = args.config.as_ref().context("a config file or --resume is needed")?;
-    let cfg = Config::load_with_overrides(path, &args.sets)?;
+    Ok(LoadedRun { cfg: Config::load_with_overrides(path, &args.sets)?, resume: None })
+}
+
+/// A check of an algorithm's own on the config and the task before a new run's directory is made
+/// (SAC's: that its replay buffer fits).
+pub type Preflight = fn(&Config, &crate::task::TaskSpec) -> Result<()>;
+
+/// The [`Preflight`] of an algorithm that needs none.
+pub fn no_preflight(_: &Config, _: &crate::task::TaskSpec) -> Result<()> {
+    Ok(())
+}
+
+/// A new run's directory with its resolved config, made once the hand, the references and the
+/// algorithm's `preflight` accept the config; or the resumed run's directory. Returns the
+/// directory, the checkpoint to resume from, and the sim model where it was built here.
+fn setup(args: &TrainArgs, loaded: &LoadedRun, preflight: Preflight) -> Result<(PathBuf, Option<PathBuf>, Option<SimModel>)> {
+    if let Some((dir, ckpt)) = &loaded.resume {
+        return Ok((dir.clone(), Some(ckpt.clone()), None));
+    }
+    let cfg = &loaded.cfg;
+    let path = args.config.as_ref().context("a config file or --resume is needed")?;
     let name = match &args.name {
         Some(n) => n.clone(),
         None => run_dir::default_name(path),
     };
     run_dir::validate_name(&name)?;
     // the hand and the references must load before a run directory is made
-    let model = SimModel::from_config(&cfg)?;
-    let setup = crate::task::task_setup(&cfg, &model)?;
-    if cfg.train.algorithm == crate::config::AlgorithmChoice::Sac {
-        // a replay buffer that cannot fit is an error before anything is written
-        super::off_policy::check_buffer(&cfg, &setup.spec)?;
-    }
+    let model = SimModel::from_config(cfg)?;
+    let setup = crate::task::task_setup(cfg, &model)?;
+    // the algorithm's own check (a replay buffer that cannot fit) before anything is written
+    preflight(cfg, &setup.spec)?;
     let dir = run_dir::create(&args.runs_dir, &name, args.force)?;
     // the exact resolved config, with the hand's URDF and the reference files as absolute paths so
     // that it loads from the run directory
@@ -292,18 +320,19 @@ fn setup(args: &TrainArgs) -> Result<(Config, PathBuf, Option<PathBuf>)> {
         saved.distill.teacher = absolute(&cfg.resolve(&cfg.distill.teacher));
     }
     std::fs::write(dir.join("config.toml"), saved.to_toml()?).with_context(|| format!("cannot write {}", dir.join("config.toml").display()))?;
-    Ok((cfg, dir, None))
+    Ok((dir, None, Some(model)))
 }
 
 fn absolute(p: &Path) -> String {
     std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf()).display().to_string()
 }
 
-/// Runs (or resumes) a training run with the algorithm that `make` builds; returns its directory.
-pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
-    let (cfg, dir, resume) = setup(args)?;
+/// Runs (or resumes) the training run `loaded` with the algorithm that `make` builds, after its
+/// `preflight` check; returns its directory.
+pub fn run(args: &TrainArgs, loaded: LoadedRun, make: MakeAlgorithm, preflight: Preflight) -> Result<PathBuf> {
+    let (dir, resume, model) = setup(args, &loaded, preflight)?;
     let fresh = resume.is_none();
-    let result = train_in(args, make, cfg, dir.clone(), resume);
+    let result = train_in(args, make, loaded.cfg, model, dir.clone(), resume);
     if result.is_err() && fresh {
         // a new run that failed before its first iteration (no adapter, a buffer too large, …)
         // leaves no directory behind; one with iterations or checkpoints stays
@@ -314,9 +343,13 @@ pub fn run(args: &TrainArgs, make: MakeAlgorithm) -> Result<PathBuf> {
     result
 }
 
-/// The training loop of [`run`] in `dir`, from `resume`'s checkpoint or from the start.
-fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, dir: PathBuf, resume: Option<PathBuf>) -> Result<PathBuf> {
-    let model = SimModel::from_config(&cfg)?;
+/// The training loop of [`run`] in `dir`, from `resume`'s checkpoint or from the start; `model`:
+/// the sim model where [`setup`] built it already (a new run's), else built here.
+fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<SimModel>, dir: PathBuf, resume: Option<PathBuf>) -> Result<PathBuf> {
+    let model = match model {
+        Some(m) => m,
+        None => SimModel::from_config(&cfg)?,
+    };
     let mut task = make_task_batch(&cfg, model)?;
     let spec = task.spec().clone();
     let choice = cfg.train.device.clone();

@@ -349,13 +349,13 @@ fn device_noise_and_normaliser_match_their_host_twins() {
     assert!(worst < 1e-4, "normalised values differ by {worst}");
 }
 
-/// The fused ELU (`learn::elu`): on the CPU (its vectorised exp) and on the wgpu device (tensor
+/// The fused ELU (`learn::kernels::elu`): on the CPU (its vectorised exp) and on the wgpu device (tensor
 /// ops), the values and the gradient match an f64 reference over [−100, 10] — large negative
 /// inputs at −1, 0 and tiny inputs included — on a tensor shared with another (copy on write) and
 /// on a transposed one.
 #[test]
 fn fused_elu_and_its_gradient_match_the_reference() {
-    use dextrain::learn::elu::elu;
+    use dextrain::learn::kernels::elu::elu;
     let xs: Vec<f32> = (0..40_000).map(|i| -100.0 + 110.0 * i as f32 / 40_000.0).chain([0.0, -1e-7, 1e-7, -87.5, -88.0, -1e30, 3.0e38]).collect();
     let n = xs.len();
     let check = |device: Device, what: &str| {
@@ -383,8 +383,8 @@ fn fused_elu_and_its_gradient_match_the_reference() {
     check(cpu(), "cpu");
     // every CPU kernel, whichever the op picked: AVX-512, AVX2 + FMA (what an AVX2-only CPU runs)
     // and the plain loop; a kernel this CPU lacks runs the next narrower one
-    use dextrain::learn::elu::{elu_backward_slice_with, elu_slice_with};
-    use dextrain::learn::isa::Isa;
+    use dextrain::learn::kernels::elu::{elu_backward_slice_with, elu_slice_with};
+    use dextrain::learn::kernels::isa::Isa;
     for isa in [Isa::Avx512, Isa::Avx2, Isa::Scalar] {
         let mut y = xs.clone();
         elu_slice_with(isa, &mut y);
@@ -404,14 +404,14 @@ fn fused_elu_and_its_gradient_match_the_reference() {
     }
 }
 
-/// The fused dense layer (`learn::affine`: on the CPU gemm straight into the output, the bias
+/// The fused dense layer (`learn::kernels::affine`: on the CPU gemm straight into the output, the bias
 /// rows first; on the wgpu device tensor ops): `y = x W + b` and the gradients of x, W and b match
 /// an f64 reference, with x given transposed (non-contiguous) and W shared with another tensor
 /// (it must not change), at sizes where gemm splits the work over threads; an untracked x gets no
 /// gradient while W and b still get theirs.
 #[test]
 fn fused_affine_and_its_gradients_match_the_reference() {
-    use dextrain::learn::affine::fused_affine;
+    use dextrain::learn::kernels::affine::fused_affine;
     let (b, i, o) = (1030, 97, 83); // 8.3 M multiply-adds: over gemm's threshold for threads
     let mut rng = Rng::new(5, 6);
     let mut normal = |n: usize| -> Vec<f32> { (0..n).map(|_| rng.normal() as f32).collect() };
@@ -462,15 +462,15 @@ fn fused_affine_and_its_gradients_match_the_reference() {
     }
 }
 
-/// dextrain's own AVX2 matrix product (`learn::sgemm`, what the dense layers' `x W` and `g Wᵀ` run
+/// dextrain's own AVX2 matrix product (`learn::kernels::sgemm`, what the dense layers' `x W` and `g Wᵀ` run
 /// where the learner's kernels are AVX2): against an f64 reference, over shapes that leave partial
 /// tiles (rows not a multiple of 6, columns not a multiple of 16, fewer than 16 columns), depths
 /// over one block (256) and over one packed slab of B, B given transposed (strided), A rows with a
 /// stride above their length, accumulation onto C, and split over the rayon pool.
 #[test]
 fn own_avx2_product_matches_the_reference() {
-    use dextrain::learn::isa::{Isa, detected_isa};
-    use dextrain::learn::sgemm::matmul_slices;
+    use dextrain::learn::kernels::isa::{Isa, detected_isa};
+    use dextrain::learn::kernels::sgemm::matmul_slices;
     if detected_isa() < Isa::Avx2 {
         eprintln!("own_avx2_product_matches_the_reference: not run, this CPU has no AVX2 + FMA (the kernel never runs here)");
         return;
@@ -561,13 +561,13 @@ fn split_input_forward_matches_the_concatenated_input() {
     }
 }
 
-/// The fused LayerNorm (`learn::layer_norm`: one pass per row on the CPU, a kernel of ours each
+/// The fused LayerNorm (`learn::kernels::layer_norm`: one pass per row on the CPU, a kernel of ours each
 /// way on the wgpu device): y and the gradients of h, gain and shift match an f64 reference — rows of every scale,
 /// a constant row (σ² = 0) and widths that are not a multiple of the CPU's 16 lanes — and the input
 /// it normalises is left as it was.
 #[test]
 fn fused_layer_norm_and_its_gradients_match_the_reference() {
-    use dextrain::learn::layer_norm::{LAYER_NORM_EPS, layer_norm};
+    use dextrain::learn::kernels::layer_norm::{LAYER_NORM_EPS, layer_norm};
     let (b, n) = (700, 37); // over the CPU's 256 rows per task: several tasks and a reduction
     let mut rng = Rng::new(7, 8);
     let mut h: Vec<f32> = (0..b * n).map(|i| (rng.normal() * (1.0 + (i / n % 5) as f64 * 10.0) + 3.0) as f32).collect();
@@ -799,7 +799,7 @@ fn the_learners_tcn_matches_the_exported_formulation() {
     }
 }
 
-/// adam.wgsl and normalizer.wgsl (`learn::fused_adam`, `learn::fused_normalizer`: what a learner on
+/// adam.wgsl and normalizer.wgsl (`learn::kernels::fused_adam`, `learn::kernels::fused_normalizer`: what a learner on
 /// burn's wgpu runtime runs) against their tensor-op twins on the CPU backend:
 /// - two clipped AdamW steps of three parameters (one large enough that each of the norm's 64
 ///   slices adds several blocks), the norm (also against an f64 sum), and an unclipped step: the
@@ -883,14 +883,14 @@ fn optimiser_and_normaliser_kernels_match_their_tensor_twins() {
     }
 }
 
-/// The GPU learner's sums over the batch's rows in two stages (`learn::row_sums`) and its products
-/// with each matmul routine (`learn::gpu_matmul`) against plain tensor ops: the same values, the
+/// The GPU learner's sums over the batch's rows in two stages (`learn::kernels::row_sums`) and its products
+/// with each matmul routine (`learn::kernels::gpu_matmul`) against plain tensor ops: the same values, the
 /// same bits run to run, the two-stage path taken where the rows allow it, and a broadcast
 /// parameter's gradient through `rows_of` equal to burn's broadcast gradient.
 #[test]
 fn row_sums_and_matmul_routines_match_their_tensor_twins() {
-    use dextrain::learn::gpu_matmul::{self, GpuMatmul};
-    use dextrain::learn::row_sums::{blocks_for, column_sums, rows_of, sum_all_two_stage};
+    use dextrain::learn::kernels::gpu_matmul::{self, GpuMatmul};
+    use dextrain::learn::kernels::row_sums::{blocks_for, column_sums, rows_of, sum_all_two_stage};
     assert_eq!(blocks_for(24_576), Some(256));
     assert_eq!(blocks_for(6_144), Some(256));
     assert_eq!(blocks_for(2_048 + 8), Some(8), "2056 = 8 · 257");
@@ -952,7 +952,7 @@ fn row_sums_and_matmul_routines_match_their_tensor_twins() {
     }
     // a long k over few output tiles (a weight gradient xᵀ g over 2,100 rows): dextrain's kernel
     // splits it over k (plan) and sums the partials; every routine gives burn's product
-    use dextrain::learn::wgsl_matmul::{MIN_K_PER_SPLIT, Tile, plan};
+    use dextrain::learn::kernels::wgsl_matmul::{MIN_K_PER_SPLIT, Tile, plan};
     assert_eq!(plan(512, 256, 24_576, 1, None), (Tile::LARGE, 66, 376), "the PPO bench's widest weight gradient");
     assert_eq!(plan(512, 256, 4_096, 1, None), (Tile::SMALL, 16, 256), "SAC's: 128 × 128 tiles would not fill the GPU");
     assert_eq!(plan(24_576, 512, 256, 1, None).1, 1, "a forward product fills the GPU unsplit");
@@ -992,7 +992,7 @@ fn row_sums_and_matmul_routines_match_their_tensor_twins() {
         let x = to_tensor(xv.clone(), [rows, i], device).require_grad();
         let w = to_tensor(wv.clone(), [i, o], device).require_grad();
         let b = to_tensor(bv.clone(), [1, o], device).require_grad();
-        let y = dextrain::learn::affine::fused_affine(x.clone(), w.clone(), b.clone());
+        let y = dextrain::learn::kernels::affine::fused_affine(x.clone(), w.clone(), b.clone());
         let grads = (y * to_tensor(cv.clone(), [rows, o], device)).sum().backward();
         [x, w, b].iter().map(|t| to_host(t.grad(&grads).expect("a gradient")).unwrap()).collect()
     };
@@ -1008,9 +1008,9 @@ fn row_sums_and_matmul_routines_match_their_tensor_twins() {
         let w = to_tensor(wv.clone(), [i, o], device).require_grad();
         let b = to_tensor(bv.clone(), [1, o], device).require_grad();
         let y = if one_op {
-            dextrain::learn::affine::fused_affine_elu(x.clone(), w.clone(), b.clone())
+            dextrain::learn::kernels::affine::fused_affine_elu(x.clone(), w.clone(), b.clone())
         } else {
-            dextrain::learn::elu::elu(dextrain::learn::affine::fused_affine(x.clone(), w.clone(), b.clone()))
+            dextrain::learn::kernels::elu::elu(dextrain::learn::kernels::affine::fused_affine(x.clone(), w.clone(), b.clone()))
         };
         let values = to_host(y.clone()).unwrap();
         let grads = (y * to_tensor(cv.clone(), [rows, o], device)).sum().backward();

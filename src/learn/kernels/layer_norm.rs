@@ -107,7 +107,7 @@ impl LayerNormOps for Cube {
         dy: FloatTensor<Self>,
     ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
         match gpu::backward(&normed, &r, &g, &dy) {
-            Some((dh, dy_normed)) => (dh, crate::learn::row_sums::column_sums_ops::<Self>(dy_normed), crate::learn::row_sums::column_sums_ops::<Self>(dy)),
+            Some((dh, dy_normed)) => (dh, crate::learn::kernels::row_sums::column_sums_ops::<Self>(dy_normed), crate::learn::kernels::row_sums::column_sums_ops::<Self>(dy)),
             None => backward_ops::<Self>(normed, r, g, dy),
         }
     }
@@ -123,14 +123,14 @@ mod gpu {
     use burn::tensor::{DType, FloatDType, Shape};
 
     use super::LAYER_NORM_EPS;
-    use crate::learn::wgsl_kernel::{WgslKernel, launch};
+    use crate::learn::kernels::wgsl_kernel::{WgslKernel, launch};
 
     /// shaders/layer_norm_common.wgsl: the constants' struct and the workgroup's sums.
-    const SHADER_COMMON: &str = include_str!("../../shaders/layer_norm_common.wgsl");
+    const SHADER_COMMON: &str = include_str!("../../../shaders/layer_norm_common.wgsl");
     /// shaders/layer_norm.wgsl.
-    const SHADER_FORWARD: &str = include_str!("../../shaders/layer_norm.wgsl");
+    const SHADER_FORWARD: &str = include_str!("../../../shaders/layer_norm.wgsl");
     /// shaders/layer_norm_backward.wgsl.
-    const SHADER_BACKWARD: &str = include_str!("../../shaders/layer_norm_backward.wgsl");
+    const SHADER_BACKWARD: &str = include_str!("../../../shaders/layer_norm_backward.wgsl");
 
     /// The forward module: layer_norm_common.wgsl and layer_norm.wgsl (one variant).
     pub fn forward_source(_: ()) -> String {

@@ -11,10 +11,10 @@
 //!   forward writes the bias rows and lets gemm accumulate `x W` onto them (`dst = dst + x W`), the
 //!   backward products write their outputs directly (gemm without reading dst), and `∂b` is one
 //!   read pass; where the learner's kernels are AVX2 (`sgemm::runs`), `x W` and `g Wᵀ` run
-//!   dextrain's own AVX2 product (`learn::sgemm`) instead of gemm's;
+//!   dextrain's own AVX2 product (`learn::kernels::sgemm`) instead of gemm's;
 //! - cubecl (the GPU): the products with the matmul routine chosen by measurement
-//!   (`learn::gpu_matmul`); with dextrain's kernel (the default) `x W + b` is one kernel, the bias
-//!   added as the product is written; `∂b` as a two-stage column sum (`learn::row_sums`);
+//!   (`learn::kernels::gpu_matmul`); with dextrain's kernel (the default) `x W + b` is one kernel, the bias
+//!   added as the product is written; `∂b` as a two-stage column sum (`learn::kernels::row_sums`);
 //! - autodiff: the gradients above, for the inputs that are tracked only (the first layer's
 //!   observations are not: no `∂x` there).
 //!
@@ -38,9 +38,9 @@ use rayon::prelude::*;
 use burn::backend::TensorMetadata;
 use burn::backend::ops::FloatTensorOps;
 
-use crate::learn::elu::EluOps;
-use crate::learn::wgsl_matmul::Epilogue;
-use crate::learn::{gpu_matmul, row_sums, sgemm};
+use crate::learn::kernels::elu::EluOps;
+use crate::learn::kernels::wgsl_matmul::Epilogue;
+use super::{gpu_matmul, row_sums, sgemm};
 
 /// `x W + b` as tensor ops of `B`.
 fn affine_ops<B: Backend>(x: FloatTensor<B>, w: FloatTensor<B>, b: FloatTensor<B>) -> FloatTensor<B> {
@@ -72,7 +72,7 @@ pub trait AffineOps: Backend {
 
     /// `ELU(x W + b)`, α = 1: a hidden layer with its activation, x [B, in] → [B, out].
     fn affine_elu_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {
-        crate::learn::elu::elu_ops::<Self>(affine_ops::<Self>(x, w, b))
+        crate::learn::kernels::elu::elu_ops::<Self>(affine_ops::<Self>(x, w, b))
     }
 
     /// `∂x = g Wᵀ`: g [B, out], W [in, out] → [B, in].
@@ -91,8 +91,8 @@ pub trait AffineOps: Backend {
     }
 }
 
-/// On burn's wgpu backend: the products with the routine `learn::gpu_matmul` chose, `∂b` as the
-/// two-stage column sum of `learn::row_sums` (one thread per column would sum all the batch's rows
+/// On burn's wgpu backend: the products with the routine `learn::kernels::gpu_matmul` chose, `∂b` as the
+/// two-stage column sum of `learn::kernels::row_sums` (one thread per column would sum all the batch's rows
 /// alone: 1.3 ms for the policy's 22 outputs on an H200).
 impl AffineOps for Cube {
     fn affine_fused(x: FloatTensor<Self>, w: FloatTensor<Self>, b: FloatTensor<Self>) -> FloatTensor<Self> {

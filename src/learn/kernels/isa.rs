@@ -1,5 +1,5 @@
 //! Which vector instruction set dextrain's own CPU kernels run (the fused ELU, the AVX2 matrix
-//! product of `learn::sgemm`): the widest the CPU has, capped by `DEXTRAIN_SIMD`.
+//! product of `learn::kernels::sgemm`): the widest the CPU has, capped by `DEXTRAIN_SIMD`.
 
 /// The vector instruction sets the CPU kernels here are compiled for.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]

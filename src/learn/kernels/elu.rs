@@ -7,7 +7,7 @@
 //! on one core; BENCHMARKS.md). Here, through burn's backend extensions:
 //! - burn flex (the CPU): one pass each way, in place where the tensor is not shared, with a
 //!   vectorised `exp` (Cephes' expf polynomial, ≤ 2 ulp on [−87, 0]) compiled for AVX-512 and for
-//!   AVX2 + FMA and picked at run time ([`crate::learn::isa::isa`]), split over the rayon pool for large tensors;
+//!   AVX2 + FMA and picked at run time ([`crate::learn::kernels::isa::isa`]), split over the rayon pool for large tensors;
 //! - cubecl (the GPU): the same values as tensor ops in fewer kernels (`impl EluOps for Cube`),
 //!   the backward pass one kernel of ours (shaders/elu_backward.wgsl);
 //! - autodiff: the backward pass above, from the saved output.
@@ -22,8 +22,8 @@ use burn::prelude::Tensor;
 use burn::tensor::DType;
 use rayon::prelude::*;
 
-use crate::learn::isa::{Isa, detected_isa, isa};
-use crate::learn::wgsl_kernel::{WgslKernel, launch};
+use crate::learn::kernels::isa::{Isa, detected_isa, isa};
+use crate::learn::kernels::wgsl_kernel::{WgslKernel, launch};
 
 /// `ELU(x) = relu(x) + exp(−relu(−x)) − 1` as tensor ops of `B`.
 pub(crate) fn elu_ops<B: Backend>(x: FloatTensor<B>) -> FloatTensor<B> {
@@ -74,7 +74,7 @@ impl EluOps for Cube {
 }
 
 /// shaders/elu_backward.wgsl.
-const SHADER_ELU_BACKWARD: &str = include_str!("../../shaders/elu_backward.wgsl");
+const SHADER_ELU_BACKWARD: &str = include_str!("../../../shaders/elu_backward.wgsl");
 
 /// The text of shaders/elu_backward.wgsl (the kernel has one variant).
 pub fn elu_backward_source(_: ()) -> String {

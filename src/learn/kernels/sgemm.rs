@@ -1,6 +1,6 @@
 //! dextrain's own single-precision matrix product for AVX2 + FMA CPUs, for the products of the
 //! dense layers whose left operand has contiguous rows: the forward `x W` and the input gradient
-//! `g Wᵀ` (`learn::affine`). The weight gradient `xᵀ g` (left operand strided) stays with gemm.
+//! `g Wᵀ` (`learn::kernels::affine`). The weight gradient `xᵀ g` (left operand strided) stays with gemm.
 //!
 //! Why: the crate `gemm`'s AVX2 kernel packs both operands and loses up to a third of its speed on
 //! the learners' short products (depth 96–256, 24,576 rows): on the 2-core Zen 4 VM, one thread,
@@ -19,7 +19,7 @@
 //!   streams), and a block of 96 rows × kc stays in L2 while every panel of B passes over it;
 //! - blocks of 96 rows of C are the rayon tasks (each writes its own rows).
 
-use crate::learn::isa::{Isa, isa};
+use crate::learn::kernels::isa::{Isa, isa};
 
 /// Rows of C per tile (six broadcasts of A per step).
 const MR: usize = 6;
@@ -46,7 +46,7 @@ pub fn runs() -> bool {
 /// rayon pool when `parallel`.
 ///
 /// # Safety
-/// The CPU has AVX2 and FMA (checked by [`runs`] or [`crate::learn::isa::detected_isa`]); `a`,
+/// The CPU has AVX2 and FMA (checked by [`runs`] or [`crate::learn::kernels::isa::detected_isa`]); `a`,
 /// `b` and `c` point to live storage covering every element the strides above name, and C does not
 /// overlap A or B.
 #[allow(clippy::too_many_arguments)]
@@ -59,7 +59,7 @@ pub unsafe fn matmul(m: usize, n: usize, k: usize, a: *const f32, a_row: usize, 
     #[cfg(not(target_arch = "x86_64"))]
     {
         let _ = (m, n, k, a, a_row, b, b_row, b_col, c, accumulate, parallel);
-        unreachable!("learn::sgemm runs only on x86_64 (runs() is false elsewhere)");
+        unreachable!("learn::kernels::sgemm runs only on x86_64 (runs() is false elsewhere)");
     }
 }
 
@@ -67,7 +67,7 @@ pub unsafe fn matmul(m: usize, n: usize, k: usize, a: *const f32, a_row: usize, 
 /// for the shape and strides (for tests and benchmarks).
 #[allow(clippy::too_many_arguments)]
 pub fn matmul_slices(m: usize, n: usize, k: usize, a: &[f32], a_row: usize, b: &[f32], b_row: usize, b_col: usize, c: &mut [f32], accumulate: bool, parallel: bool) -> Result<(), String> {
-    if crate::learn::isa::detected_isa() < Isa::Avx2 {
+    if crate::learn::kernels::isa::detected_isa() < Isa::Avx2 {
         return Err("this CPU has no AVX2 + FMA".into());
     }
     let last = |rows: usize, cols: usize, rs: usize, cs: usize| if rows == 0 || cols == 0 { 0 } else { (rows - 1) * rs + (cols - 1) * cs + 1 };

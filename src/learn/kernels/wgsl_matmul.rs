@@ -1,5 +1,5 @@
 //! The GPU learner's matrix product of our own: `shaders/matmul.wgsl`, a tiled product with the
-//! operands staged in workgroup memory, the `dextrain_tiled*` routines of `learn::gpu_matmul`.
+//! operands staged in workgroup memory, the `dextrain_tiled*` routines of `learn::kernels::gpu_matmul`.
 //!
 //! cubek's routines on WGSL adapters are unit routines (one thread per output tile, operands read
 //! from global memory); its shared-memory routines need cooperative matrices. This kernel stages
@@ -13,7 +13,7 @@
 //! layer's ELU, are applied as the product is written ([`Epilogue`], `affine.rs`). Measured on an
 //! H200 against cubek's routines: BENCHMARKS.md, "dextrain's own matrix product on the H200".
 //!
-//! It is launched as a hand-written kernel of cubecl (`learn::wgsl_kernel`): on burn's own
+//! It is launched as a hand-written kernel of cubecl (`learn::kernels::wgsl_kernel`): on burn's own
 //! command stream, between burn's kernels, with no flush or submission of ours, the launch's
 //! constants ([`MatmulCfg`]) in the uniform cubecl binds after the buffers (and caches per value).
 
@@ -24,10 +24,10 @@ use burn::backend::ops::FloatTensorOps;
 use burn::tensor::{DType, FloatDType, Shape};
 use burn_cubecl::kernel::matmul::init_matmul_output;
 
-use crate::learn::wgsl_kernel::{WgslKernel, launch};
+use crate::learn::kernels::wgsl_kernel::{WgslKernel, launch};
 
 /// The template (`$NAME` markers filled in by [`shader_source`]).
-const TEMPLATE: &str = include_str!("../../shaders/matmul.wgsl");
+const TEMPLATE: &str = include_str!("../../../shaders/matmul.wgsl");
 
 /// The shader's entry point.
 pub const ENTRY_POINT: &str = "matmul_tiled";

@@ -1,6 +1,6 @@
 //! The learner's matrix products on burn's wgpu backend, launched with a routine chosen by
 //! measurement rather than the one burn takes by default: dextrain's own tiled kernel
-//! (`learn::wgsl_matmul`, the default) or one of cubek's (burn's kernel library).
+//! (`learn::kernels::wgsl_matmul`, the default) or one of cubek's (burn's kernel library).
 //!
 //! Without its `autotune` feature (off here: autotune times every candidate in every process and
 //! may pick another one in the next, so a run and its resume could differ in the last bits), burn
@@ -40,7 +40,7 @@ use cubek::matmul::routine::BlueprintStrategy;
 use cubek::matmul::strategy::Strategy;
 use cubek::std::InputBinding;
 
-use crate::learn::wgsl_matmul::{Epilogue, Tile};
+use crate::learn::kernels::wgsl_matmul::{Epilogue, Tile};
 
 /// The environment variable that names the routine for a measurement.
 pub const ENV_VAR: &str = "DEXTRAIN_GPU_MATMUL";
@@ -64,7 +64,7 @@ pub enum GpuMatmul {
     DoublePlane,
     /// `DoublePlane` with ordered loading.
     OrderedDoublePlane,
-    /// dextrain's own WGSL kernel (`learn::wgsl_matmul`: tiles staged in workgroup memory, on
+    /// dextrain's own WGSL kernel (`learn::kernels::wgsl_matmul`: tiles staged in workgroup memory, on
     /// burn's command stream), the tile shape and any split over k per product (`wgsl_matmul::plan`).
     DextrainTiled,
     /// dextrain's kernel, 64 × 64 tiles (4 × 4 per thread) for every product.
@@ -212,7 +212,7 @@ pub fn matmul(lhs: FloatTensor<Cube>, rhs: FloatTensor<Cube>) -> FloatTensor<Cub
 /// `lhs · rhs` as [`matmul`] with `routine` (the matmul bench compares the routines in one process).
 pub fn matmul_with(routine: GpuMatmul, lhs: FloatTensor<Cube>, rhs: FloatTensor<Cube>) -> FloatTensor<Cube> {
     if let Some(tile) = routine.ours() {
-        return match crate::learn::wgsl_matmul::matmul(&lhs, &rhs, tile) {
+        return match crate::learn::kernels::wgsl_matmul::matmul(&lhs, &rhs, tile) {
             Ok(out) => out,
             Err(_) => fall_back(lhs, rhs), // shapes or a device the kernel does not take
         };
@@ -244,7 +244,7 @@ pub fn matmul_with(routine: GpuMatmul, lhs: FloatTensor<Cube>, rhs: FloatTensor<
 /// the epilogue with tensor ops).
 pub fn matmul_then(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, epilogue: Epilogue<'_>) -> Option<FloatTensor<Cube>> {
     let tile = chosen().ours()?;
-    crate::learn::wgsl_matmul::matmul_then(lhs, rhs, tile, epilogue).ok()
+    crate::learn::kernels::wgsl_matmul::matmul_then(lhs, rhs, tile, epilogue).ok()
 }
 
 /// burn's own product, for one the chosen routine did not take (counted in [`fallbacks`]).

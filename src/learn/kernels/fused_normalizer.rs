@@ -13,7 +13,7 @@ use anyhow::{Result, ensure};
 use burn::prelude::{Device, Tensor};
 
 use crate::gpu::io::{TensorBuffer, empty_buffer, flush, tensor_buffer};
-use super::normalizer::DeviceNormalizer;
+use crate::learn::normalizer::DeviceNormalizer;
 use crate::gpu::context::GpuContext;
 use crate::gpu::shaders::{SHADER_NORMALIZER, workgroups_of};
 use crate::gpu::bindings::{NORM_APPLY, NORM_CFG, NORM_GROUP, NORM_M2, NORM_MEAN, NORM_OUT, NORM_SCALE, NORM_UPDATE, NORM_X};

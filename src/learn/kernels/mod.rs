@@ -1,0 +1,31 @@
+//! The learners' numerical building blocks, apart from the algorithms that use them (`ppo/`,
+//! `sac/`, `distill.rs`): each an operation on burn tensors with its own gradient, or a kernel of
+//! ours, on the CPU (burn flex) and the GPU (burn's wgpu backend) alike.
+//!
+//! - `affine.rs`: a dense layer `x W + b` (and with its ELU) as one operation with its own gradient
+//!   (no copies on the CPU; one kernel of ours on the GPU);
+//! - `layer_norm.rs`: LayerNorm over the features as one operation with its own gradient (one pass
+//!   per row on the CPU; a kernel of ours each way on the GPU, shaders/layer_norm*.wgsl);
+//! - `elu.rs`: ELU as one operation with its own gradient (vectorised on the CPU; its gradient one
+//!   kernel of ours on the GPU, shaders/elu_backward.wgsl);
+//! - `sgemm.rs`: dextrain's own AVX2 + FMA matrix product; `isa.rs`: which vector instruction set
+//!   the CPU kernels run (`DEXTRAIN_SIMD`);
+//! - `gpu_matmul.rs`: the routine of the GPU learner's products (chosen by measurement,
+//!   `DEXTRAIN_GPU_MATMUL`); `wgsl_matmul.rs`: the tiled product of our own (shaders/matmul.wgsl),
+//!   the default routine; `wgsl_kernel.rs`: how our own WGSL kernels launch on burn's command stream;
+//! - `row_sums.rs`: sums over the batch's rows in two stages on the GPU (losses, ∂b, ∂ log σ);
+//! - `fused_adam.rs`: Adam with global-norm clipping as kernels of ours on the GPU
+//!   (shaders/adam.wgsl); `fused_normalizer.rs`: the device-resident observation normalisers
+//!   (shaders/normalizer.wgsl).
+
+pub mod affine;
+pub mod elu;
+pub mod fused_adam;
+pub mod fused_normalizer;
+pub mod gpu_matmul;
+pub mod isa;
+pub mod layer_norm;
+pub mod row_sums;
+pub mod sgemm;
+pub mod wgsl_kernel;
+pub mod wgsl_matmul;
