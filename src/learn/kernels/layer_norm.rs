@@ -27,6 +27,8 @@ use burn::tensor::{Bytes, DType, Shape};
 use burn_flex::{FlexTensor, Layout};
 use rayon::prelude::*;
 
+use super::row_sums::column_sums_ops;
+
 /// ε under the variance (torch's and ONNX's `LayerNormalization` default).
 pub const LAYER_NORM_EPS: f32 = 1e-5;
 
@@ -107,7 +109,8 @@ impl LayerNormOps for Cube {
         dy: FloatTensor<Self>,
     ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
         match gpu::backward(&normed, &r, &g, &dy) {
-            Some((dh, dy_normed)) => (dh, crate::learn::kernels::row_sums::column_sums_ops::<Self>(dy_normed), crate::learn::kernels::row_sums::column_sums_ops::<Self>(dy)),
+            // ∂g = Σ_rows ∂y ĥ and ∂s = Σ_rows ∂y, each in two stages
+            Some((dh, dy_normed)) => (dh, column_sums_ops::<Self>(dy_normed), column_sums_ops::<Self>(dy)),
             None => backward_ops::<Self>(normed, r, g, dy),
         }
     }
