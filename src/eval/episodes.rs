@@ -274,11 +274,12 @@ fn run_round(cfg: &Config, round: usize, n: usize, source: PolicySource, args: &
     };
     tally.term_names = spec.term_names.clone();
     tally.term_sums.resize(tally.term_names.len(), 0.0);
+    // the fingertip forces are critic observations (every kind's critic has them)
+    let force_cols = crate::task::spec::field_indices(&spec.priv_layout, &[crate::task::spec::TIP_FORCE.to_string()]).map_err(|m| anyhow::anyhow!("the task's critic observation: {m}"))?;
     let rules = StepRules {
         has_reference,
         with_latent: teacher.is_some(),
-        // the fingertip forces are critic observations
-        force_cols: spec.priv_columns(crate::task::spec::TIP_FORCE),
+        force_cols,
         priv_dim: spec.priv_dim,
         contact_force: c.task.hand.contact_force as f64,
     };

@@ -340,11 +340,3 @@ pub struct TaskSpec {
     pub priv_layout: Vec<ObsSlot>,
 }
 
-impl TaskSpec {
-    /// The critic observation's columns of the field named `field` (an [`OBS_FIELDS`] name such as
-    /// [`TIP_FORCE`]), in order; empty where this task's layout has no such field.
-    pub fn priv_columns(&self, field: &str) -> Vec<usize> {
-        self.priv_layout.iter().filter(|slot| slot.name == field).flat_map(|slot| slot.offset..slot.offset + slot.size).collect()
-    }
-}
-

@@ -452,12 +452,12 @@ fn observations_match_the_state_and_noise_has_the_configured_std() {
     uniq.dedup();
     assert_eq!(uniq.len(), spec.priv_dim, "names are unique");
     // a field's critic columns (what eval's force statistics read): one per fingertip, named for it
-    let force_cols = spec.priv_columns(dextrain::task::spec::TIP_FORCE);
+    let force_cols = dextrain::task::spec::field_indices(&spec.priv_layout, &[dextrain::task::spec::TIP_FORCE.to_string()]).unwrap();
     assert_eq!(force_cols.len(), nt);
     for (k, &col) in force_cols.iter().enumerate() {
         assert_eq!(spec.priv_names[col], format!("tip_force.{}", es.tip_names[k]));
     }
-    assert!(spec.priv_columns("no_such_field").is_empty());
+    assert!(dextrain::task::spec::field_indices(&spec.priv_layout, &["no_such_field".to_string()]).is_err());
     assert!((spec.control_dt - c.sim.dt * c.sim.decimation as f32).abs() < 1e-9);
     eprintln!("dexhand16 default config: obs_dim {}, priv_dim {}, action_dim {}", spec.obs_dim, spec.priv_dim, spec.action_dim);
 
