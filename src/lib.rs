@@ -7,6 +7,7 @@
 
 // base helpers
 pub mod text;
+pub mod files;
 pub mod rng;
 pub mod console;
 pub mod run_dir;
@@ -40,6 +41,7 @@ pub mod run;
 // commands
 pub mod replay;
 pub mod synth;
+pub mod starter;
 pub mod bench_matmul;
 pub mod bench;
 pub mod train;

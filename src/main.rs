@@ -78,13 +78,26 @@ enum Command {
     /// Train a policy with PPO from a TOML config (or resume a run).
     Train(dextrain::run::TrainArgs),
     /// Evaluate a run's checkpoint: deterministic episodes on fresh seeds, a JSON report in RUN/eval/.
-    Eval(dextrain::eval::EvalArgs),
+    Eval {
+        #[command(flatten)]
+        args: dextrain::eval::EvalArgs,
+        /// Also print every episode's row (`per_episode`) in the JSON on stdout (the report file
+        /// always has them).
+        #[arg(long)]
+        episodes_json: bool,
+    },
     /// Export a run's policy for a robot: RUN/export/policy.onnx (normalisation baked in) and
     /// policy.json (the contract: observation layout, action mapping, joints, timing), world.toml.
     Export(dextrain::export::command::ExportArgs),
     /// Drive the simulator from an export alone (policy.json, policy.onnx, world.toml): eval's
     /// episodes and JSON report, the exported model and the contract's action mapping acting.
-    Play(dextrain::eval::play::PlayArgs),
+    Play {
+        #[command(flatten)]
+        args: dextrain::eval::play::PlayArgs,
+        /// Also print every episode's row (`per_episode`) in the JSON on stdout.
+        #[arg(long)]
+        episodes_json: bool,
+    },
     /// Draw a run's learning curves (PNG) from its metrics.csv into RUN/plots/.
     Plot {
         /// The run directory (runs/NAME).
@@ -96,6 +109,11 @@ enum Command {
     Traj {
         #[command(subcommand)]
         command: TrajCommand,
+    },
+    /// Write a starter config for a hand URDF or an object mesh, every guess said.
+    New {
+        #[command(subcommand)]
+        command: dextrain::starter::NewCommand,
     },
 }
 
@@ -190,10 +208,10 @@ fn run(cli: Cli) -> Result<()> {
             Ok(())
         }
         Command::Train(args) => dextrain::run::train(&args).map(|_| ()),
-        Command::Eval(args) => {
+        Command::Eval { args, episodes_json } => {
             let report = dextrain::eval::run(&args)?;
-            console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
-            console::status(&format!("dextrain eval: report written to {}", report.path.display()));
+            console::status(&dextrain::eval::human_summary(&report, args.record.as_deref()));
+            console::result(&serde_json::to_string(&dextrain::eval::stdout_json(&report, episodes_json)?).context("cannot serialise the report")?);
             Ok(())
         }
         Command::Export(args) => {
@@ -201,9 +219,10 @@ fn run(cli: Cli) -> Result<()> {
             console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
             Ok(())
         }
-        Command::Play(args) => {
+        Command::Play { args, episodes_json } => {
             let report = dextrain::eval::play::run(&args)?;
-            console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
+            console::status(&dextrain::eval::human_summary(&report, args.record.as_deref()));
+            console::result(&serde_json::to_string(&dextrain::eval::stdout_json(&report, episodes_json)?).context("cannot serialise the report")?);
             Ok(())
         }
         Command::Plot { run } => {
@@ -215,10 +234,20 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Replay(args) => dextrain::replay::run(&args),
         Command::Traj { command: TrajCommand::Synth(args) } => dextrain::synth::run(&args),
+        Command::New { command } => dextrain::starter::run(&command),
     }
 }
 
 fn main() -> ExitCode {
+    // The Vulkan drivers' window-system code (Mesa's Wayland support) prints "error: XDG_RUNTIME_DIR
+    // is invalid or not set in the environment." when it looks for a display on a machine without
+    // that variable (a server, a container, CI), though dextrain opens no window. Point it at a
+    // folder that does not exist: the drivers find no display there and stay quiet. Set here,
+    // before any thread starts (changing the environment beside threads that read it is unsound).
+    if std::env::var_os("XDG_RUNTIME_DIR").is_none_or(|v| !Path::new(&v).is_absolute()) {
+        // SAFETY: no other thread exists yet
+        unsafe { std::env::set_var("XDG_RUNTIME_DIR", std::env::temp_dir().join("dextrain-no-display")) };
+    }
     // glibc serves blocks above 32 MiB with mmap and returns them on free, so every minibatch
     // page-faults its (≈50 MB) activations back in and the kernel zeroes them (18 % of a PPO update):
     // keep every block on the heap and never trim it

@@ -48,6 +48,10 @@ pub mod columns {
     pub const LR: &str = "lr";
     pub const KL: &str = "kl";
     pub const GRAD_NORM: &str = "grad_norm";
+    /// The reference kinds: the object's error against its reference (m, deg), mean over the
+    /// rollout's env steps.
+    pub const TRACKING_OBJ_POS_ERR_M: &str = "tracking/obj_pos_err_m";
+    pub const TRACKING_OBJ_ROT_ERR_DEG: &str = "tracking/obj_rot_err_deg";
     /// A distillation run's side-by-side evaluation: [`DISTILL_EVAL_PREFIX`] + what.
     pub const DISTILL_EVAL_PREFIX: &str = "distill/eval_";
     pub const DISTILL_EVAL_STUDENT_SUCCESS: &str = "distill/eval_student_success";

@@ -10,8 +10,9 @@
 //! | episode return   | `episode/return`                                             |
 //! | success rate     | `episode/success_rate`                                       |
 //! | episode length   | `episode/length`                                             |
+//! | object error against the reference (m), (deg) | `tracking/obj_pos_err_m`, `tracking/obj_rot_err_deg` (reference kinds) |
 //! | reward terms     | every other `reward/<term>`, one line each, with a legend    |
-//! | losses           | every `loss/...` but `loss/entropy`, with a legend           |
+//! | loss: NAME       | one panel per `loss/NAME` but `loss/entropy`, each its own y scale |
 //! | learning rate    | `lr`, log y                                                  |
 //! | KL               | `kl`                                                         |
 //! | entropy          | `loss/entropy`, `entropy`, `policy/entropy`                  |
@@ -56,8 +57,9 @@ pub fn grid_size(panels: usize) -> (u32, u32) {
 }
 
 /// Reads dir/metrics.csv and writes PNGs into `out_dir` (created): `learning_curves.png` with a grid of
-/// panels: mean reward, success rate, episode length, every column starting with "reward/" on one
-/// panel (one line each, with a legend), the losses ("loss/..."), learning rate (log y), KL, entropy,
+/// panels: mean reward, success rate, episode length, the tracking errors (reference kinds), every
+/// column starting with "reward/" on one panel (one line each, with a legend), each loss
+/// ("loss/...") on a panel of its own, learning rate (log y), KL, entropy,
 /// fps; x = iteration (or env steps if an "env_steps" column exists). Panels for columns that are
 /// absent are skipped (see the module docs for the full list). Returns the written paths.
 ///
@@ -118,7 +120,7 @@ fn register_font() -> Result<()> {
 
 /// One panel of the grid: a title, the CSV columns it draws, and its y scale.
 struct Panel {
-    title: &'static str,
+    title: String,
     /// indices into the CSV's columns
     columns: Vec<usize>,
     log_y: bool,
@@ -136,50 +138,65 @@ impl Panel {
     }
 }
 
-/// The panels that `columns` can fill, in display order.
+/// The panels that `columns` can fill, in display order. Each loss has a panel and a y scale of
+/// its own: PPO's surrogate (~0.01) beside its value loss (~100s), or distillation's action loss
+/// beside its latent loss, would be a flat line at zero on a shared axis.
 fn panels(columns: &[String]) -> Vec<Panel> {
     let find =
         |names: &[&str]| -> Vec<usize> { names.iter().filter_map(|n| columns.iter().position(|c| c == n)).collect() };
     let group = |prefix: &str, except: &str| -> Vec<usize> {
         (0..columns.len()).filter(|&k| columns[k].starts_with(prefix) && columns[k] != except).collect()
     };
-    let single = |title, names: &[&str]| Panel {
-        title,
+    let single = |title: &str, names: &[&str]| Panel {
+        title: title.to_string(),
         columns: find(names),
         log_y: false,
         legend: names.len() > 1 && find(names).len() > 1,
         strip: "",
         sparse: false,
     };
-    let all = vec![
+    let mut all = vec![
         single("mean reward", &[REWARD_MEAN]),
         single("episode return", &[EPISODE_RETURN]),
         single("success rate", &[EPISODE_SUCCESS_RATE]),
         single("episode length", &[EPISODE_LENGTH]),
+        single("object error against the reference (m)", &[TRACKING_OBJ_POS_ERR_M]),
+        single("object error against the reference (deg)", &[TRACKING_OBJ_ROT_ERR_DEG]),
         Panel {
-            title: "reward terms",
+            title: "reward terms".to_string(),
             columns: group(REWARD_PREFIX, REWARD_MEAN),
             log_y: false,
             legend: true,
             strip: REWARD_PREFIX,
             sparse: false,
         },
-        Panel { title: "losses", columns: group(LOSS_PREFIX, LOSS_ENTROPY), log_y: false, legend: true, strip: LOSS_PREFIX, sparse: false },
-        Panel { title: "learning rate", columns: find(&[LR]), log_y: true, legend: false, strip: "", sparse: false },
+    ];
+    // one panel per loss ("loss: value"), entropy apart (its own panel below)
+    for k in group(LOSS_PREFIX, LOSS_ENTROPY) {
+        let name = columns[k].strip_prefix(LOSS_PREFIX).unwrap_or(&columns[k]);
+        all.push(Panel { title: format!("loss: {name}"), columns: vec![k], log_y: false, legend: false, strip: LOSS_PREFIX, sparse: false });
+    }
+    all.extend([
+        Panel { title: "learning rate".to_string(), columns: find(&[LR]), log_y: true, legend: false, strip: "", sparse: false },
         single("KL", &[KL]),
         single("entropy", &[LOSS_ENTROPY, "entropy", POLICY_ENTROPY]),
         single("policy std", &[POLICY_STD]),
         single("fps", &[FPS]),
         Panel {
-            title: "student vs teacher, same episodes",
+            title: "student vs teacher, same episodes".to_string(),
             columns: find(&[DISTILL_EVAL_STUDENT_SUCCESS, DISTILL_EVAL_TEACHER_SUCCESS]),
             log_y: false,
             legend: true,
             strip: DISTILL_EVAL_PREFIX,
             sparse: true,
         },
-    ];
+    ]);
     all.into_iter().filter(|p| !p.columns.is_empty()).collect()
+}
+
+/// The titles of the panels that a CSV with `columns` gets, in display order (a log axis says so).
+pub fn panel_titles(columns: &[String]) -> Vec<String> {
+    panels(columns).into_iter().map(|p| if p.log_y { format!("{} (log)", p.title) } else { p.title }).collect()
 }
 
 /// Splits a series into runs of drawable points (finite x and y; y > 0 on a log axis), y mapped to
@@ -243,7 +260,7 @@ fn draw_panel(
     let x_range = padded_range(points().map(|p| p.0));
     let y_range = padded_range(points().map(|p| p.1));
 
-    let title = if panel.log_y { format!("{} (log)", panel.title) } else { panel.title.to_string() };
+    let title = if panel.log_y { format!("{} (log)", panel.title) } else { panel.title.clone() };
     let mut chart = ChartBuilder::on(area)
         .caption(title, ("sans-serif", 20))
         .margin(8)

@@ -365,18 +365,12 @@ pub fn make_env_batch(cfg: &Config, model: SimModel) -> Result<Box<dyn EnvBatch>
 
 /// The GPU the config's `sim.backend` asks for: `None` for `cpu`, the named or any hardware adapter
 /// for `gpu`/`gpu:NAME` (an error if there is none), and for `auto` a hardware adapter if there is
-/// one, else `None` (with a message saying why).
+/// one, else `None` (with a message saying why, once per process: [`GpuContext::auto`](crate::gpu::context::GpuContext::auto)).
 pub fn sim_gpu_context(cfg: &Config) -> Result<Option<crate::gpu::context::GpuContext>> {
     match cfg.backend() {
         BackendChoice::Cpu => Ok(None),
         BackendChoice::Gpu(name) => Ok(Some(crate::gpu::context::GpuContext::new(name.as_deref())?)),
-        BackendChoice::Auto => match crate::gpu::context::GpuContext::new(None) {
-            Ok(ctx) => Ok(Some(ctx)),
-            Err(e) => {
-                crate::console::warn(&format!("dextrain: {e:#}; using the CPU backend"));
-                Ok(None)
-            }
-        },
+        BackendChoice::Auto => Ok(crate::gpu::context::GpuContext::auto()),
     }
 }
 

@@ -9,7 +9,7 @@
 use anyhow::{Context, Result};
 
 use super::{Driver, EpisodeRow, EvalArgs, ObjectSummary, PolicySource, Summary, mean_std, reference_names};
-use crate::config::Config;
+use crate::config::{BackendChoice, Config};
 use crate::env::{SimModel, contact_records, hand_link_poses};
 use crate::geom::Pose;
 use crate::gpu::layout::Targets;
@@ -352,8 +352,15 @@ fn run_round(cfg: &Config, round: usize, n: usize, source: PolicySource, args: &
 fn round_actor<'a>(c: &Config, source: PolicySource<'a>, driver: Driver, spec: &TaskSpec, model: &SimModel, n: usize, task: &dyn TaskBatch) -> Result<(Actor<'a>, Option<Box<Ppo>>, String)> {
     match source {
         PolicySource::Checkpoint(ckpt) => {
-            // the learner device: where a checkpoint's policy is loaded (the other sources bring theirs)
-            let (device, device_name) = learner_device(&c.train.device, task.gpu_context())?;
+            // the learner device: where a checkpoint's policy is loaded (the other sources bring
+            // theirs). With train.device = "auto" and the envs on the CPU the policy runs on the
+            // CPU too: eval's small batches gain nothing from a GPU of their own, and `eval
+            // --backend cpu` then touches no GPU at all
+            let choice = match (&c.train.device, task.gpu_context()) {
+                (BackendChoice::Auto, None) => BackendChoice::Cpu,
+                (chosen, _) => chosen.clone(),
+            };
+            let (device, device_name) = learner_device(&choice, task.gpu_context())?;
             let actor = load_actor(c, ckpt, spec, n, device.clone(), driver)?;
             let teacher = match (&actor, driver) {
                 (Actor::Student(s), Driver::Policy) if s.student.latent > 0 => match load_actor(c, ckpt, spec, n, device, Driver::Teacher) {

@@ -16,7 +16,7 @@ pub mod play;
 
 pub(crate) use episodes::run_episodes;
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result, bail};
 use serde::Serialize;
@@ -340,6 +340,58 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
     Ok(report)
 }
 
+/// The report as `dextrain eval` and `play` print it on stdout (one JSON line): every figure, and
+/// the per-episode rows (`per_episode`, in the report file always) only when `episodes` is true
+/// (`--episodes-json`).
+pub fn stdout_json(report: &EvalReport, episodes: bool) -> Result<serde_json::Value> {
+    let mut v = serde_json::to_value(report).context("cannot serialise the eval report")?;
+    if !episodes {
+        // the policy's summary is flattened into the top level; the baseline's is a field
+        if let Some(top) = v.as_object_mut() {
+            top.remove("per_episode");
+            if let Some(base) = top.get_mut("baseline").and_then(|b| b.as_object_mut()) {
+                base.remove("per_episode");
+            }
+        }
+    }
+    Ok(v)
+}
+
+/// A few lines for a person (stderr): what was evaluated, the success rate and the key errors of
+/// the policy (and baseline), and where the report, its table and the recording are.
+pub fn human_summary(r: &EvalReport, record: Option<&Path>) -> String {
+    let line = |who: &str, s: &Summary| {
+        let mut parts = vec![format!("success {:.1} %", 100.0 * s.success_rate)];
+        if let Some(m) = &s.terminal_obj_pos_err_m {
+            parts.push(format!("terminal object error {:.1} ± {:.1} mm", m.mean * 1e3, m.std * 1e3));
+        }
+        if let Some(m) = &s.ote_m {
+            parts.push(format!("OTE {:.1} mm", m.mean * 1e3));
+        }
+        if let Some(m) = &s.ooe_deg {
+            parts.push(format!("OOE {:.1}°", m.mean));
+        }
+        if s.ote_m.is_none() {
+            parts.push(format!("final lift {:.1} ± {:.1} cm", s.final_lift_height_m.mean * 1e2, s.final_lift_height_m.std * 1e2));
+        }
+        parts.push(format!("peak penetration {:.1} mm", s.peak_penetration_mm));
+        parts.push(format!("terminated {:.0} %", 100.0 * s.terminated_rate));
+        format!("  {who}: {}", parts.join(", "))
+    };
+    let mut out = vec![format!("dextrain eval: {} episodes of {} (iteration {}, {}, seed {})", r.episodes, r.run, r.iteration, r.task, r.seed)];
+    out.push(line("policy", &r.policy));
+    if let Some(b) = &r.baseline {
+        out.push(line(&r.baseline_kind, b));
+    }
+    if !r.path.as_os_str().is_empty() {
+        out.push(format!("  report {} (every episode), table {}", r.path.display(), r.path.with_extension("md").display()));
+    }
+    if let Some(p) = record {
+        out.push(format!("  recording (env 0, for Foxglove) {}", p.display()));
+    }
+    out.join("\n")
+}
+
 /// The short Markdown table of a report: policy (and baseline) side by side.
 pub fn markdown(r: &EvalReport) -> String {
     let mut cols: Vec<(&str, &Summary)> = vec![("policy", &r.policy)];
@@ -383,8 +435,11 @@ pub fn markdown(r: &EvalReport) -> String {
     }
     // several objects: per object, its episodes' success, final lift and terminal error
     if r.policy.per_object.len() > 1 {
+        // the terminal object error only where there is one (the reference kinds)
+        let has_error = r.policy.per_object.iter().any(|o| o.terminal_obj_pos_err_m.is_some());
         out.push_str(&format!(
-            "\nPer object: successes, final lift (mean) and terminal object error (mean)\n\n| object | {} |\n|---|{}\n",
+            "\nPer object: successes, final lift (mean){}\n\n| object | {} |\n|---|{}\n",
+            if has_error { " and terminal object error (mean)" } else { "" },
             cols.iter().map(|c| c.0).collect::<Vec<_>>().join(" | "),
             "---|".repeat(cols.len())
         ));

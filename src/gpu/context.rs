@@ -106,6 +106,24 @@ impl GpuContext {
         GpuContext::with_limits(name, |adapter_limits| adapter_limits)
     }
 
+    /// `backend = "auto"`'s GPU: the first hardware adapter, or None. The first time a process finds
+    /// none it says so on one line (why, and that the CPU runs the work) and remembers it: later
+    /// calls (the learner after the envs, each of a distillation's evaluations) neither probe
+    /// again nor repeat the line.
+    pub fn auto() -> Option<GpuContext> {
+        static NONE_FOUND: std::sync::OnceLock<()> = std::sync::OnceLock::new();
+        if NONE_FOUND.get().is_some() {
+            return None;
+        }
+        match GpuContext::new(None) {
+            Ok(ctx) => Some(ctx),
+            Err(e) => {
+                NONE_FOUND.get_or_init(|| crate::console::warn(&format!("dextrain: {e:#}; the CPU runs what backend = \"auto\" would have put on a GPU")));
+                None
+            }
+        }
+    }
+
     /// [`GpuContext::new`], with the device's limits chosen by `limits` from the adapter's (lower
     /// ones make a smaller device: tests of the limit checks, or a budget on a shared GPU).
     pub fn with_limits(name: Option<&str>, limits: impl FnOnce(wgpu::Limits) -> wgpu::Limits) -> Result<GpuContext> {
@@ -128,10 +146,13 @@ impl GpuContext {
                 })?
             }
             None => adapters.into_iter().find(|a| !is_software(&a.get_info())).ok_or_else(|| {
+                // the loader's and the drivers' story only where something in it failed: on a
+                // machine whose drivers all load (Mesa's in a VM) there is simply no GPU
+                let why = super::vulkan_probe::diagnosis();
                 anyhow!(
-                    "no hardware GPU adapter (adapters: {}); name a software one with backend = \"gpu:llvmpipe\". {}",
+                    "no hardware GPU adapter (adapters: {}); name a software one with backend = \"gpu:llvmpipe\"{}",
                     if listed.is_empty() { "none".into() } else { listed.join(", ") },
-                    super::vulkan_probe::diagnose()
+                    if why.failed { format!(". {}", why.line) } else { String::new() }
                 )
             })?,
         };

@@ -12,38 +12,58 @@ use std::path::{Path, PathBuf};
 /// The packages that usually make a present GPU visible to Vulkan (Debian/Ubuntu names).
 pub const FIX_PACKAGES: &str = "libvulkan1, libglvnd0, libegl1";
 
-/// One line: the loader's state, every driver manifest and whether its library loads, the packages
-/// that usually fix it and the next step (`VK_LOADER_DEBUG=error`). The manifests are those of
-/// `VK_DRIVER_FILES` / `VK_ICD_FILENAMES` when set, else the loader's standard folders.
-pub fn diagnose() -> String {
-    let from_env = std::env::var("VK_DRIVER_FILES").ok().filter(|v| !v.is_empty()).or_else(|| std::env::var("VK_ICD_FILENAMES").ok().filter(|v| !v.is_empty()));
-    diagnose_with(from_env.as_deref())
+/// What the Vulkan loader and its drivers say: one line (the loader's state, every driver manifest
+/// and whether its library loads, the packages that usually fix it and the next step,
+/// `VK_LOADER_DEBUG=error`), and whether anything in it failed.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Diagnosis {
+    /// The line.
+    pub line: String,
+    /// The loader does not load, no driver manifest was found, or a driver's library (or one it
+    /// needs) does not load: a GPU may be there and unseen. False on a machine whose drivers all
+    /// load and simply drive no GPU (a VM with Mesa's drivers): there the line is noise.
+    pub failed: bool,
 }
 
-/// [`diagnose`] with the manifests of `driver_files` (a `:`-separated list of JSON files or folders,
-/// as `VK_DRIVER_FILES`), or the standard folders for None.
+/// [`diagnosis_with`] for the manifests of `VK_DRIVER_FILES` / `VK_ICD_FILENAMES` when set, else
+/// the loader's standard folders.
+pub fn diagnosis() -> Diagnosis {
+    let from_env = std::env::var("VK_DRIVER_FILES").ok().filter(|v| !v.is_empty()).or_else(|| std::env::var("VK_ICD_FILENAMES").ok().filter(|v| !v.is_empty()));
+    diagnosis_with(from_env.as_deref())
+}
+
+/// [`Diagnosis::line`] of [`diagnosis_with`].
 pub fn diagnose_with(driver_files: Option<&str>) -> String {
-    let loader = match open_library("libvulkan.so.1") {
-        Ok(()) => "Vulkan: the loader libvulkan.so.1 loads".to_string(),
-        Err(e) => format!("Vulkan: the loader libvulkan.so.1 does not load ({e})"),
+    diagnosis_with(driver_files).line
+}
+
+/// The [`Diagnosis`] for the manifests of `driver_files` (a `:`-separated list of JSON files or
+/// folders, as `VK_DRIVER_FILES`), or the standard folders for None.
+pub fn diagnosis_with(driver_files: Option<&str>) -> Diagnosis {
+    let (loader, loader_ok) = match open_library("libvulkan.so.1") {
+        Ok(()) => ("Vulkan: the loader libvulkan.so.1 loads".to_string(), true),
+        Err(e) => (format!("Vulkan: the loader libvulkan.so.1 does not load ({e})"), false),
     };
     let manifests = match driver_files {
         Some(list) => manifests_in(list.split(':').filter(|s| !s.is_empty()).map(PathBuf::from).collect()),
         None => manifests_in(standard_manifest_folders()),
     };
-    let drivers = if manifests.is_empty() {
-        match driver_files {
+    let (drivers, drivers_ok) = if manifests.is_empty() {
+        let line = match driver_files {
             Some(list) => format!("no driver manifest (ICD JSON) in {list}"),
             None => "no driver manifest (ICD JSON) in /usr/share/vulkan/icd.d, /etc/vulkan/icd.d or /usr/local/share/vulkan/icd.d".to_string(),
-        }
+        };
+        (line, false)
     } else {
-        let each: Vec<String> = manifests.iter().map(|m| describe_manifest(m)).collect();
-        format!("driver manifests: {}", each.join("; "))
+        let each: Vec<(String, bool)> = manifests.iter().map(|m| describe_manifest(m)).collect();
+        let all_load = each.iter().all(|(_, ok)| *ok);
+        (format!("driver manifests: {}", each.into_iter().map(|(d, _)| d).collect::<Vec<_>>().join("; ")), all_load)
     };
-    format!(
+    let line = format!(
         "{loader}; {drivers}. Packages that usually fix this: {FIX_PACKAGES} (apt-get install -y {}); next, run with VK_LOADER_DEBUG=error to see what the loader rejects",
         FIX_PACKAGES.replace(", ", " ")
-    )
+    );
+    Diagnosis { line, failed: !(loader_ok && drivers_ok) }
 }
 
 /// The loader's standard manifest folders (Linux).
@@ -79,18 +99,18 @@ fn manifests_in(paths: Vec<PathBuf>) -> Vec<PathBuf> {
     out
 }
 
-/// "name.json → library: loads" or why not.
-fn describe_manifest(manifest: &Path) -> String {
+/// "name.json → library: loads" or why not, and whether it loads.
+fn describe_manifest(manifest: &Path) -> (String, bool) {
     let name = manifest.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| manifest.display().to_string());
     let text = match std::fs::read_to_string(manifest) {
         Ok(t) => t,
-        Err(e) => return format!("{name}: cannot be read ({e})"),
+        Err(e) => return (format!("{name}: cannot be read ({e})"), false),
     };
     let library = serde_json::from_str::<serde_json::Value>(&text)
         .ok()
         .and_then(|v| v.get("ICD").and_then(|icd| icd.get("library_path")).and_then(|p| p.as_str().map(str::to_string)));
     let Some(library) = library else {
-        return format!("{name}: no ICD.library_path");
+        return (format!("{name}: no ICD.library_path"), false);
     };
     // a relative path with a slash is relative to the manifest; a bare name goes through the linker's search
     let path = if library.contains('/') && !library.starts_with('/') {
@@ -99,8 +119,8 @@ fn describe_manifest(manifest: &Path) -> String {
         library.clone()
     };
     match open_library(&path) {
-        Ok(()) => format!("{name} → {library}: loads"),
-        Err(e) => format!("{name} → {library}: does not load ({e})"),
+        Ok(()) => (format!("{name} → {library}: loads"), true),
+        Err(e) => (format!("{name} → {library}: does not load ({e})"), false),
     }
 }
 

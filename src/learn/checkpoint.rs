@@ -373,7 +373,12 @@ pub fn list(run_dir: &Path) -> Result<Vec<(u64, PathBuf)>> {
 pub fn find(run_dir: &Path, which: &str) -> Result<PathBuf> {
     let all = list(run_dir)?;
     if all.is_empty() {
-        bail!("{}: the run has no checkpoints (expected {}/<iteration>/state.json)", run_dir.display(), run_dir.join("checkpoints").display());
+        // the way out: a run that never checkpointed has nothing to resume or evaluate
+        bail!(
+            "{}: the run has no checkpoints (expected {}/<iteration>/state.json): it stopped before its first; start it again with `dextrain train CONFIG --name NAME --force`, which replaces it",
+            run_dir.display(),
+            run_dir.join("checkpoints").display()
+        );
     }
     if which == "latest" {
         let mut failures = Vec::new();

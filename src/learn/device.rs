@@ -30,9 +30,9 @@ pub fn learner_device(choice: &BackendChoice, sim_gpu: Option<&GpuContext>) -> R
             if let Some(ctx) = sim_gpu {
                 return wgpu_on(ctx);
             }
-            match GpuContext::new(None) {
-                Ok(ctx) => wgpu_on(&ctx),
-                Err(_) => Ok(cpu()),
+            match GpuContext::auto() {
+                Some(ctx) => wgpu_on(&ctx),
+                None => Ok(cpu()),
             }
         }
     }
@@ -44,7 +44,7 @@ pub fn learner_device_and_context(choice: &BackendChoice) -> Result<(Device, Str
     let ctx = match choice {
         BackendChoice::Cpu => None,
         BackendChoice::Gpu(name) => Some(GpuContext::new(name.as_deref())?),
-        BackendChoice::Auto => GpuContext::new(None).ok(),
+        BackendChoice::Auto => GpuContext::auto(),
     };
     let (device, name) = learner_device(choice, ctx.as_ref())?;
     Ok((device, name, ctx))

@@ -222,6 +222,7 @@ impl RolloutWriter<BufWriter<File>> {
     /// temporary file in the same directory. Errors name `path`.
     pub fn create(path: &Path, meta: &RolloutMeta) -> Result<Self> {
         let tmp = temp_path_for(path).with_context(|| format!("creating rollout {}", path.display()))?;
+        crate::files::create_parent_dir(path).with_context(|| format!("creating rollout {}", path.display()))?;
         let file = OpenOptions::new()
             .write(true)
             .create_new(true)

@@ -86,7 +86,7 @@ pub fn metric_columns(spec: &TaskSpec, learner: &[String]) -> Vec<String> {
     c.extend(learner.iter().cloned());
     if spec.kind.follows_reference() {
         // the object's error against its reference, mean over the rollout's env steps
-        c.extend(["tracking/obj_pos_err_m", "tracking/obj_rot_err_deg"].iter().map(|s| s.to_string()));
+        c.extend([TRACKING_OBJ_POS_ERR_M, TRACKING_OBJ_ROT_ERR_DEG].iter().map(|s| s.to_string()));
     }
     c
 }
@@ -480,7 +480,9 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
         let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s, host_bytes, gpu, spec.kind.follows_reference());
         metrics.append(iteration, &row)?;
         let (success, reward) = (sums.success_rate(), sums.mean_reward());
-        let msg = format!("{fps:.0} steps/s (collect {collect_s:.2} s, learn {learn_s:.2} s), reward {reward:.3}, success {:.0}%", 100.0 * success);
+        // no episode ended yet (the first iterations of long episodes): no success rate to show
+        let success = if success.is_finite() { format!("{:.0}%", 100.0 * success) } else { "– (no episode ended yet)".to_string() };
+        let msg = format!("{fps:.0} steps/s (collect {collect_s:.2} s, learn {learn_s:.2} s), reward {reward:.3}, success {success}");
         bar.set_message(msg.clone());
         bar.set_position(iteration);
         if (args.quiet || bar.is_hidden()) && (iteration % (total / 10).max(1) == 0 || iteration == stop_at) {
@@ -517,12 +519,18 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
             crate::plot::plot_run(&dir.join("metrics.csv"), &dir.join("plots"))?;
         }
         if interrupted {
+            // the bar stays where the run stopped (finish() would fill it), and ends its line:
+            // indicatif leaves the cursor after the bar, where the next line would be glued on
             bar.abandon_with_message("interrupted");
+            end_bar_line(&bar);
             console::status(&format!("dextrain train: interrupted at iteration {iteration}; checkpoint written; continue with --resume {}", dir.display()));
             break;
         }
     }
-    bar.finish();
+    if !bar.is_finished() {
+        bar.finish();
+        end_bar_line(&bar);
+    }
     time_base = time_base + started.elapsed().as_secs_f64();
     crate::plot::plot_run(&dir.join("metrics.csv"), &dir.join("plots"))?;
     // device memory at the end: the simulator's buffers and what burn's allocator has reserved
@@ -576,4 +584,13 @@ fn prune(dir: &Path, keep: u32) -> Result<()> {
         std::fs::remove_dir_all(&p).with_context(|| format!("cannot remove old checkpoint {}", p.display()))?;
     }
     Ok(())
+}
+
+/// Ends the progress bar's line on the terminal (indicatif leaves the cursor after a finished or
+/// abandoned bar, so the next status line or the summary would be glued onto it); nothing when
+/// the bar is not drawn (`--quiet`, or stderr not a terminal).
+fn end_bar_line(bar: &ProgressBar) {
+    if !bar.is_hidden() {
+        console::status("");
+    }
 }

@@ -146,9 +146,25 @@ fn train_eval_and_plot_through_the_binary() {
     assert_eq!(summary["env_steps"], 2 * 4 * 4);
     let run = tmp.path().join("cli");
     let run_s = run.to_str().unwrap();
-    let (ok, stdout, stderr) = dextrain(&["eval", run_s, "--episodes", "3"]);
+    // eval: a summary for a person on stderr naming its files (the recording's folder created),
+    // the JSON on stdout without the per-episode rows unless asked for; the file has them
+    let rec = run.join("eval/rollout.mcap");
+    let (ok, stdout, stderr) = dextrain(&["eval", run_s, "--episodes", "3", "--record", rec.to_str().unwrap()]);
     assert!(ok, "{stderr}");
-    assert_eq!(json_line(&stdout)["episodes"], 3);
+    let report = json_line(&stdout);
+    assert_eq!(report["episodes"], 3);
+    assert!(report.get("per_episode").is_none() && report.get("success_rate").is_some(), "{stdout}");
+    assert!(rec.is_file(), "--record into a folder that did not exist");
+    let file = run.join("eval/eval_it2_seed1000003_n3.json");
+    let saved: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    assert_eq!(saved["per_episode"].as_array().map(Vec::len), Some(3));
+    for needle in ["success", file.to_str().unwrap(), file.with_extension("md").to_str().unwrap(), rec.to_str().unwrap()] {
+        assert!(stderr.contains(needle), "the summary names {needle}: {stderr}");
+    }
+    assert!(!stderr.lines().any(|l| l.starts_with("error:")), "{stderr}");
+    let (ok, stdout, stderr) = dextrain(&["eval", run_s, "--episodes", "3", "--episodes-json"]);
+    assert!(ok, "{stderr}");
+    assert_eq!(json_line(&stdout)["per_episode"].as_array().map(Vec::len), Some(3));
     let (ok, stdout, stderr) = dextrain(&["plot", run_s]);
     assert!(ok, "{stderr}");
     assert!(stdout.trim().ends_with("learning_curves.png"), "{stdout}");

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use dextrain::metrics::{MetricsLog, event_files, read_csv};
-use dextrain::plot::{GRID_COLUMNS, PANEL_HEIGHT, PANEL_WIDTH, grid_size, plot_run};
+use dextrain::plot::{GRID_COLUMNS, PANEL_HEIGHT, PANEL_WIDTH, grid_size, panel_titles, plot_run};
 use dextrain::tensorboard::{EventWriter, crc32c, masked_crc32c, read_scalars};
 
 fn cols(names: &[&str]) -> Vec<String> {
@@ -514,10 +514,10 @@ fn plot_run_writes_a_grid_png() {
     let out = dir.path().join("plots");
     let written = plot_run(&dir.path().join("metrics.csv"), &out).unwrap();
     assert_eq!(written, vec![out.join("learning_curves.png")]);
-    // 11 panels: mean reward, episode return, success rate, episode length, reward terms, losses,
-    // learning rate, KL, entropy, policy std, fps
+    // 12 panels: mean reward, episode return, success rate, episode length, reward terms, the two
+    // losses, learning rate, KL, entropy, policy std, fps
     let want = (GRID_COLUMNS * PANEL_WIDTH, 4 * PANEL_HEIGHT);
-    assert_eq!(grid_size(11), want);
+    assert_eq!(grid_size(12), want);
     assert_eq!(png_size(&written[0]), want);
     if let Some((w, h, colours)) = pil_decode(&written[0]) {
         assert_eq!((w, h), want);
@@ -527,6 +527,25 @@ fn plot_run_writes_a_grid_png() {
     assert_eq!(std::fs::read_dir(&out).unwrap().count(), 1);
     // plotting again replaces the file
     assert_eq!(plot_run(&dir.path().join("metrics.csv"), &out).unwrap(), written);
+}
+
+/// Issue 40: each loss on a panel (and a y scale) of its own, so PPO's surrogate (~0.01) is not a
+/// flat line under its value loss (~100s), nor distillation's action loss under its latent loss;
+/// the reference kinds' tracking errors plotted.
+#[test]
+fn each_loss_has_its_own_panel_and_tracking_errors_are_plotted() {
+    let ppo = cols(&["reward/mean", "loss/surrogate", "loss/value", "loss/entropy", "lr"]);
+    assert_eq!(panel_titles(&ppo), ["mean reward", "loss: surrogate", "loss: value", "learning rate (log)", "entropy"]);
+    let distill = cols(&["loss/action", "loss/latent"]);
+    assert_eq!(panel_titles(&distill), ["loss: action", "loss: latent"]);
+    let track = cols(&["episode/success_rate", "tracking/obj_pos_err_m", "tracking/obj_rot_err_deg"]);
+    assert_eq!(panel_titles(&track), ["success rate", "object error against the reference (m)", "object error against the reference (deg)"]);
+    // a reference run's columns as the runner writes them, drawn
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("metrics.csv");
+    std::fs::write(&csv, "iteration,loss/surrogate,loss/value,tracking/obj_pos_err_m,tracking/obj_rot_err_deg\n1,0.01,300,0.03,12\n2,-0.02,150,0.02,9\n").unwrap();
+    let written = plot_run(&csv, &dir.path().join("p")).unwrap();
+    assert_eq!(png_size(&written[0]), (GRID_COLUMNS * PANEL_WIDTH, 2 * PANEL_HEIGHT));
 }
 
 #[test]

@@ -168,6 +168,7 @@ impl Trajectory {
         let path = path.as_ref();
         let name = path.display().to_string();
         let bytes = self.to_mcap_bytes().map_err(|e| fail(&name, Loc::File, format!("cannot save: {e}")))?;
+        crate::files::create_parent_dir(path).map_err(|e| fail(&name, Loc::File, format!("{e:#}")))?;
         std::fs::write(path, bytes).map_err(|e| fail(&name, Loc::File, format!("cannot write: {e}")))
     }
 
@@ -176,6 +177,7 @@ impl Trajectory {
         let path = path.as_ref();
         let name = path.display().to_string();
         let text = self.to_csv_string().map_err(|e| fail(&name, Loc::File, format!("cannot save: {e}")))?;
+        crate::files::create_parent_dir(path).map_err(|e| fail(&name, Loc::File, format!("{e:#}")))?;
         std::fs::write(path, text).map_err(|e| fail(&name, Loc::File, format!("cannot write: {e}")))
     }
 
