@@ -84,14 +84,33 @@ pub struct NewObjectArgs {
     pub mesh_scale: Option<f32>,
 }
 
-/// `dextrain new hand` or `dextrain new object`; prints the written file's path (stdout).
+/// `dextrain new hand` or `dextrain new object`; prints the written file's path (stdout). A
+/// command that fails leaves no folder it made for `--out` (the folders are made before the text is
+/// checked, since its relative paths resolve from there).
 pub fn run(cmd: &NewCommand) -> Result<()> {
-    let path = match cmd {
-        NewCommand::Hand(args) => hand::new_hand(args)?.path,
-        NewCommand::Object(args) => object::new_object(args)?.path,
+    let out = match cmd {
+        NewCommand::Hand(args) => args.out.as_deref(),
+        NewCommand::Object(args) => args.out.as_deref(),
     };
-    crate::console::result(&path.display().to_string());
-    Ok(())
+    // the folders above `out` that do not exist yet, deepest first
+    let missing: Vec<PathBuf> = out.map(|o| o.ancestors().skip(1).filter(|a| !a.as_os_str().is_empty()).take_while(|a| !a.exists()).map(Path::to_path_buf).collect()).unwrap_or_default();
+    let written = match cmd {
+        NewCommand::Hand(args) => hand::new_hand(args).map(|h| h.path),
+        NewCommand::Object(args) => object::new_object(args).map(|o| o.path),
+    };
+    match written {
+        Ok(path) => {
+            crate::console::result(&path.display().to_string());
+            Ok(())
+        }
+        Err(e) => {
+            // remove_dir removes only empty folders: nothing but what this command made goes
+            for dir in &missing {
+                let _ = std::fs::remove_dir(dir);
+            }
+            Err(e)
+        }
+    }
 }
 
 /// What `dextrain check` does to a config, on the text about to be written to `out`: parse and

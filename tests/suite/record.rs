@@ -475,12 +475,21 @@ fn finish_replaces_an_existing_file() {
 #[test]
 fn errors_name_the_path() {
     let dir = tempfile::tempdir().unwrap();
-    let missing = dir.path().join("no_such_dir").join("x.mcap");
-    let err = format!("{:#}", RolloutWriter::create(&missing, &box_meta()).err().expect("missing directory"));
-    assert!(err.contains(&missing.display().to_string()), "{err}");
+    // a folder that cannot be made (a file stands where it would be): the error names the path
+    let blocker = dir.path().join("a_file");
+    std::fs::write(&blocker, "x").unwrap();
+    let blocked = blocker.join("x.mcap");
+    let err = format!("{:#}", RolloutWriter::create(&blocked, &box_meta()).err().expect("a file in the way of the folder"));
+    assert!(err.contains(&blocked.display().to_string()), "{err}");
+    // a folder that does not exist yet is made (`eval --record runs/NAME/eval/x.mcap` on a fresh run)
+    let fresh = dir.path().join("no_such_dir").join("x.mcap");
+    let meta = box_meta();
+    let mut w = RolloutWriter::create(&fresh, &meta).expect("the missing folder made");
+    w.write_frame(&frame(&meta.hand, 0)).unwrap();
+    w.finish().unwrap();
+    assert!(fresh.is_file());
 
     let path = dir.path().join("bad.mcap");
-    let meta = box_meta();
     let mut w = RolloutWriter::create(&path, &meta).unwrap();
     let mut f = frame(&meta.hand, 0);
     f.joint_pos.push(0.0);

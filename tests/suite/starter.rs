@@ -357,4 +357,17 @@ fn new_hand_command_writes_the_default_file_and_says_its_guesses() {
     assert_eq!(std::fs::read_to_string(dir.path().join("dexhand16_lift.toml")).unwrap(), written);
     let (ok, _, stderr) = dextrain(&["new", "object", "no_such.stl"], dir.path());
     assert!(!ok && stderr.lines().count() == 1 && stderr.contains("no_such.stl"), "{stderr}");
+    // a hand that loads but cannot be planned for (one finger: no antipodal grasp) fails after the
+    // --out folders were made (its text is checked from there): the folders it made are gone
+    // again, nothing else is touched
+    let one = r#"<robot name="one">
+  <link name="palm"><collision><geometry><box size="0.08 0.08 0.02"/></geometry></collision><inertial><mass value="0.3"/><inertia ixx="1e-4" iyy="1e-4" izz="1e-4" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <link name="f1"><collision><origin xyz="0 0 0.02"/><geometry><box size="0.015 0.015 0.04"/></geometry></collision><inertial><mass value="0.02"/><inertia ixx="1e-6" iyy="1e-6" izz="1e-6" ixy="0" ixz="0" iyz="0"/></inertial></link>
+  <joint name="j1" type="revolute"><parent link="palm"/><child link="f1"/><origin xyz="0.03 0 0.01"/><axis xyz="0 1 0"/><limit lower="0" upper="1.5" effort="1" velocity="5"/></joint>
+</robot>"#;
+    std::fs::write(dir.path().join("one.urdf"), one).unwrap();
+    let (ok, _, stderr) = dextrain(&["new", "hand", "one.urdf", "--out", "made/deeper/one.toml"], dir.path());
+    assert!(!ok && stderr.contains("one finger chain"), "{stderr}");
+    assert!(!dir.path().join("made").exists(), "a failed `new` left the folders it made");
+    assert!(dir.path().join("dexhand16_lift.toml").is_file());
 }
