@@ -5,6 +5,12 @@
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
+/// The rotation of roll, pitch, yaw (rad): R = Rz(yaw)·Ry(pitch)·Rx(roll), as `wrist.init_rpy` and
+/// URDF origins define it.
+pub fn quat_from_rpy([roll, pitch, yaw]: [f32; 3]) -> Quat {
+    Quat::from_rotation_z(yaw) * Quat::from_rotation_y(pitch) * Quat::from_rotation_x(roll)
+}
+
 /// A rigid pose: position (m) and orientation (unit quaternion, x y z w).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Pose {

@@ -248,8 +248,7 @@ impl SimModel {
 
         let r = &cfg.randomization;
         let restitution = r.object_restitution.unwrap_or([cfg.object.restitution; 2]);
-        let [roll, pitch, yaw] = cfg.wrist.init_rpy;
-        let wrist_rot = Quat::from_rotation_z(yaw) * Quat::from_rotation_y(pitch) * Quat::from_rotation_x(roll);
+        let wrist_rot = crate::geom::quat_from_rpy(cfg.wrist.init_rpy);
         let objects = crate::object::load::load_objects(cfg)?;
         let mut object_descs = Vec::with_capacity(objects.len());
         let mut pieces = Vec::new();

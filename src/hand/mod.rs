@@ -433,6 +433,15 @@ impl HandModel {
         (1..self.links.len()).filter(|&l| !has_child[l]).collect()
     }
 
+    /// The first fingertip whose name says it is the thumb's: it starts with "th" or contains
+    /// "thumb" (case-insensitive): `traj synth`'s and `dextrain new hand`'s rule.
+    pub fn thumb_by_name(&self) -> Option<usize> {
+        self.fingertips.iter().position(|t| {
+            let n = t.name.to_ascii_lowercase();
+            n.starts_with("th") || n.contains("thumb")
+        })
+    }
+
     /// Whether link `a` is link `b` or one of the links it hangs from.
     pub fn is_ancestor_or_same(&self, a: usize, b: usize) -> bool {
         let mut l = b;

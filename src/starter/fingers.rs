@@ -110,16 +110,9 @@ pub fn guess_tips(hand: &HandModel) -> Result<Vec<TipGuess>> {
     Ok(out)
 }
 
-/// Whether a fingertip's name says it is the thumb's: it starts with "th" or contains "thumb"
-/// (case-insensitive).
-pub fn named_thumb(name: &str) -> bool {
-    let n = name.to_ascii_lowercase();
-    n.starts_with("th") || n.contains("thumb")
-}
-
 /// The thumb among `hand.fingertips` (module documentation): its index and why.
 pub fn guess_thumb(hand: &HandModel) -> (usize, String) {
-    if let Some(i) = hand.fingertips.iter().position(|t| named_thumb(&t.name)) {
+    if let Some(i) = hand.thumb_by_name() {
         return (i, "its name starts with \"th\" or contains \"thumb\" (the first such fingertip)".to_string());
     }
     let dirs: Vec<Vec3> = bases_and_tips(hand, &open_posture(hand)).iter().map(|(b, t)| (*t - *b).normalize_or_zero()).collect();

@@ -166,7 +166,7 @@ pub fn new_object(args: &NewObjectArgs) -> Result<ObjectStarter> {
     let top = dims.z;
     // the simulator's start: hand.init_joints, else 0, clamped into the limits
     let q = hand.with_mimic(hand.joints.iter().map(|j| hand_cfg.hand.init_joints.get(&j.name).copied().unwrap_or(0.0).clamp(j.lower, j.upper)).collect());
-    let rot = pose::rot_of(hand_cfg.wrist.init_rpy);
+    let rot = crate::geom::quat_from_rpy(hand_cfg.wrist.init_rpy);
     let need = ((top + pose::START_CLEARANCE_M + pose::reach_below_wrist(&hand, rot, &q)) * 100.0 - 1e-3).ceil() / 100.0;
     let mut init = hand_cfg.wrist.init_pos;
     if init[2] < need {

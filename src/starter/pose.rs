@@ -92,11 +92,6 @@ pub fn rpy_of(rot: Quat) -> [f32; 3] {
     }
 }
 
-/// The rotation of roll, pitch, yaw (R = Rz(yaw)·Ry(pitch)·Rx(roll)), as the simulator builds it.
-pub fn rot_of(rpy: [f32; 3]) -> Quat {
-    (Quat::from_rotation_z(rpy[2]) * Quat::from_rotation_y(rpy[1]) * Quat::from_rotation_x(rpy[0])).normalize()
-}
-
 /// The initial wrist orientation for the hand (rule in the module documentation); `thumb` indexes
 /// `hand.fingertips`. The hand needs at least one fingertip.
 pub fn wrist_orientation(hand: &HandModel, thumb: usize) -> WristOrientation {
@@ -178,7 +173,7 @@ pub fn wrist_orientation(hand: &HandModel, thumb: usize) -> WristOrientation {
         let a = if (a as f64 - quarter * std::f64::consts::FRAC_PI_2).abs() < 1e-5 { quarter * std::f64::consts::FRAC_PI_2 } else { a as f64 };
         ((a * 1e7).round() / 1e7) as f32 + 0.0
     });
-    WristOrientation { rot: rot_of(rpy), rpy, palm, reason }
+    WristOrientation { rot: crate::geom::quat_from_rpy(rpy), rpy, palm, reason }
 }
 
 /// The line the finger bases lie along (unit, across `f`): the principal axis of the bases, or

@@ -154,8 +154,7 @@ pub fn thumb_index(hand: &HandModel, named: &str, mid_tips: &[Vec3]) -> Result<u
             anyhow::anyhow!("the thumb '{named}' is not one of the hand's fingertips ({}); expected one of them", names.join(", "))
         });
     }
-    let lower: Vec<String> = names.iter().map(|n| n.to_ascii_lowercase()).collect();
-    if let Some(i) = lower.iter().position(|n| n.starts_with("th") || n.contains("thumb")) {
+    if let Some(i) = hand.thumb_by_name() {
         return Ok(i);
     }
     let n = mid_tips.len();

@@ -12,7 +12,7 @@ use dextrain::config::Config;
 use dextrain::env::SimModel;
 use dextrain::starter::hand::{HandStarter, new_hand};
 use dextrain::starter::object::{ObjectStarter, new_object};
-use dextrain::starter::pose::rot_of;
+use dextrain::geom::quat_from_rpy as rot_of;
 use dextrain::starter::{NewHandArgs, NewObjectArgs};
 use dextrain::synth::{SynthArgs, synth};
 
