@@ -57,7 +57,11 @@ struct Globals {
     max_speed: f32,
     max_distance: f32,
     torsion_radius: f32,
+    hand_contact_k: f32,
+    hand_contact_kt: f32,
     _pad2: f32,
+    _pad3: f32,
+    _pad4: f32,
 }
 
 struct JointDesc {

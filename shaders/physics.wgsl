@@ -11,9 +11,11 @@ var<private> link_rot: array<vec4<f32>, MAX_LINKS>;
 var<private> link_v: array<vec3<f32>, MAX_LINKS>;
 var<private> link_w: array<vec3<f32>, MAX_LINKS>;
 var<private> joint_axis: array<vec3<f32>, MAX_JOINTS>;
-var<private> tau: array<f32, MAX_JOINTS>;
-var<private> wrist_f: vec3<f32>;
-var<private> wrist_t: vec3<f32>;
+// the change this substep of each independent joint's velocity and of the wrist's: the servos'
+// part first, then each hand contact's as it is solved (physics.rs: Scratch::dqd)
+var<private> dqd: array<f32, MAX_JOINTS>;
+var<private> wrist_dv: vec3<f32>;
+var<private> wrist_dw: vec3<f32>;
 var<private> obj_f: vec3<f32>;
 var<private> obj_t: vec3<f32>;
 var<private> obj_d: array<f32, 36>;
@@ -35,6 +37,14 @@ struct Contact {
 struct ContactForce {
     force: vec3<f32>,
     spring: vec3<f32>,
+    tdamp: f32,
+}
+
+// hand_contact_force's result: the force, the spring, and the object's normal and tangential damping
+struct HandContactForce {
+    force: vec3<f32>,
+    spring: vec3<f32>,
+    ndamp: f32,
     tdamp: f32,
 }
 
@@ -369,7 +379,7 @@ fn collide_hand_object(ci: u32) -> Contact {
     let cd = colliders[ci];
     let cp = collider_pose(ci);
     let opos = st.obj_pos.xyz;
-    let rc = bounding_radius(cd.shape, cd.size.xyz);
+    let rc = bounding_radius(cd.shape, cd.size.xyz) + CONTACT_MARGIN;
     let reach = rc + prm.obj_com.w;
     let dc = cp.pos - opos;
     var best = Contact(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
@@ -404,9 +414,10 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
     let c_o = quat_rotate(oinv, cp.pos - opos);
     let r_o = quat_mul(oinv, cp.rot);
     var out = Contact(0.0, vec3<f32>(0.0), vec3<f32>(0.0));
-    // the piece farther from the collider's centre than the collider reaches: no contact
+    // the piece farther from the collider's centre than the collider reaches (with the margin):
+    // no contact
     let y0 = piece_project(pd, scale, size, c_o).point;
-    let reach = bounding_radius(cd.shape, cd.size.xyz);
+    let reach = bounding_radius(cd.shape, cd.size.xyz) + CONTACT_MARGIN;
     let d0 = c_o - y0;
     if (dot(d0, d0) > reach * reach) {
         out.depth = -1.0;
@@ -557,30 +568,86 @@ fn torsion_torque(n: vec3<f32>, w_rel: vec3<f32>, fn_: f32, mu: f32, radius: f32
     return Torsion(n * (-b * wn), b);
 }
 
-fn apply_hand_force(l: u32, x: vec3<f32>, f: vec3<f32>) {
-    wrist_f += f;
-    wrist_t += cross(x - link_pos[0], f);
+// physics.rs: CONTACT_MARGIN. How far apart (m) a hand collider and the object or table may be for
+// their contact to be solved: a gap that closes within the substep pushes already.
+const CONTACT_MARGIN: f32 = 0.003;
+
+// the hand's mass and rotational inertia about the wrist, as the wrist moves (physics.rs: wrist_mass_inertia)
+fn wrist_mass_inertia() -> vec2<f32> {
+    return vec2<f32>(g.hand_mass * prm.hand_mass_scale + g.wrist_added_mass, g.hand_inertia * prm.hand_mass_scale + g.wrist_added_inertia);
+}
+
+struct JointLead {
+    joint: u32,
+    mult: f32,
+}
+
+// the coordinate that moves joint j (itself, or its mimic leader) and its multiplier (physics.rs: joint_lead)
+fn joint_lead(j: u32) -> JointLead {
+    if (joints[j].mimic_leader != NO_JOINT) {
+        return JointLead(joints[j].mimic_leader, joints[j].mimic_mult);
+    }
+    return JointLead(j, 1.0);
+}
+
+// a joint coordinate's inertia as a contact impulse meets it: I + h·d (physics.rs: joint_impulse_inertia)
+fn joint_impulse_inertia(j: u32, h: f32) -> f32 {
+    let jd = joints[j];
+    return jd.armature + jd.link_inertia * prm.hand_mass_scale + h * jd.damping * prm.kd_scale;
+}
+
+// physics.rs: apply_hand_force. Δq̇_L += h·m_j·aⱼ·((x − oⱼ) × F) / (I_L + h·d_L) up the chain,
+// Δv_w += h·F / m_w, Δω_w += h·(x − p_w) × F / I_w.
+fn apply_hand_force(l: u32, x: vec3<f32>, f: vec3<f32>, h: f32) {
+    let mi = wrist_mass_inertia();
+    wrist_dv += f * (h / mi.x);
+    wrist_dw += cross(x - link_pos[0], f) * (h / mi.y);
     var link = l;
     while (link > 0u) {
         let j = link - 1u;
-        tau[j] += dot(joint_axis[j], cross(x - link_pos[link], f));
+        let ld = joint_lead(j);
+        let tq = dot(joint_axis[j], cross(x - link_pos[link], f));
+        dqd[ld.joint] += h * ld.mult * tq / joint_impulse_inertia(ld.joint, h);
         link = joints[j].parent_link;
     }
 }
 
-// Largest h²·k·w and h·c·w of a hand contact (physics.rs: SAFE_STIFFNESS, SAFE_DAMPING).
-const SAFE_STIFFNESS: f32 = 1.0;
-const SAFE_DAMPING: f32 = 0.5;
+// physics.rs: apply_hand_torque. Δq̇_L += h·m_j·aⱼ·T / (I_L + h·d_L) up the chain, Δω_w += h·T / I_w.
+fn apply_hand_torque(l: u32, tq: vec3<f32>, h: f32) {
+    let mi = wrist_mass_inertia();
+    wrist_dw += tq * (h / mi.y);
+    var link = l;
+    while (link > 0u) {
+        let j = link - 1u;
+        let ld = joint_lead(j);
+        dqd[ld.joint] += h * ld.mult * dot(joint_axis[j], tq) / joint_impulse_inertia(ld.joint, h);
+        link = joints[j].parent_link;
+    }
+}
 
-// Upper bound of the hand's mobility (1/kg) at world point x on link l (physics.rs: hand_mobility):
-// w = 1/m_w + |x − p_w|²/I_w + Σ_L |J_L|²/I_L,  J_L = Σ_{k in chain, leader(k) = L} mult_k · a_k × (x − p_k).
-fn hand_mobility(l: u32, x: vec3<f32>) -> f32 {
-    let mass = g.hand_mass * prm.hand_mass_scale + g.wrist_added_mass;
-    let inertia = g.hand_inertia * prm.hand_mass_scale + g.wrist_added_inertia;
+// physics.rs: hand_point_velocity_change. Δv = Δv_w + Δω_w × (x − p_w) + Σ_chain m_j·Δq̇_L·aⱼ × (x − oⱼ).
+fn hand_point_velocity_change(l: u32, x: vec3<f32>) -> vec3<f32> {
+    var dv = wrist_dv + cross(wrist_dw, x - link_pos[0]);
+    var link = l;
+    while (link > 0u) {
+        let j = link - 1u;
+        let ld = joint_lead(j);
+        dv += cross(joint_axis[j], x - link_pos[link]) * (ld.mult * dqd[ld.joint]);
+        link = joints[j].parent_link;
+    }
+    return dv;
+}
+
+// physics.rs: hand_mobility. The hand's mobility (1/kg) at x on link l along the unit normal n, and
+// summed over all directions: w_u = 1/m_w + |(x − p_w) × u|²/I_w + Σ_L (J_L·u)²/(I_L + h·d_L),
+// J_L = Σ_{k in chain, lead(k) = L} m_k · a_k × (x − o_k). Returns (w_n, trace).
+fn hand_mobility(l: u32, x: vec3<f32>, n: vec3<f32>, h: f32) -> vec2<f32> {
+    let mi = wrist_mass_inertia();
     let r0 = x - link_pos[0];
-    let w0 = 1.0 / mass + dot(r0, r0) / inertia;
+    let rn = cross(r0, n);
+    var w_n = 1.0 / mi.x + dot(rn, rn) / mi.y;
+    var w_tr = 3.0 / mi.x + 2.0 * dot(r0, r0) / mi.y;
     // no follower on the chain (the common case): every joint is its own coordinate, J_j = a_j × r
-    var w = w0;
     var link = l;
     var coupled = false;
     while (link > 0u) {
@@ -589,70 +656,78 @@ fn hand_mobility(l: u32, x: vec3<f32>) -> f32 {
             coupled = true;
             break;
         }
-        let jr = cross(joint_axis[j], x - link_pos[link]);
-        w += dot(jr, jr) / (joints[j].armature + joints[j].link_inertia * prm.hand_mass_scale);
+        let jac = cross(joint_axis[j], x - link_pos[link]);
+        let inv_i = 1.0 / joint_impulse_inertia(j, h);
+        w_n += dot(jac, n) * dot(jac, n) * inv_i;
+        w_tr += dot(jac, jac) * inv_i;
         link = joints[j].parent_link;
     }
     if (!coupled) {
-        return w;
+        return vec2<f32>(w_n, w_tr);
     }
-    w = w0;
+    w_n = 1.0 / mi.x + dot(rn, rn) / mi.y;
+    w_tr = 3.0 / mi.x + 2.0 * dot(r0, r0) / mi.y;
     link = l;
     while (link > 0u) {
         let j = link - 1u;
-        var lj = j;
-        if (joints[j].mimic_leader != NO_JOINT) {
-            lj = joints[j].mimic_leader;
-        }
+        let lj = joint_lead(j).joint;
         // J_L over the whole chain, counted once: at the chain joint nearest the tip that L moves
         var first = true;
         var jac = vec3<f32>(0.0);
         var k_link = l;
         while (k_link > 0u) {
             let k = k_link - 1u;
-            var lk = k;
-            var mult = 1.0;
-            if (joints[k].mimic_leader != NO_JOINT) {
-                lk = joints[k].mimic_leader;
-                mult = joints[k].mimic_mult;
-            }
-            if (lk == lj) {
+            let lk = joint_lead(k);
+            if (lk.joint == lj) {
                 if (k_link > link) {
                     first = false;
                 }
-                jac += cross(joint_axis[k], x - link_pos[k_link]) * mult;
+                jac += cross(joint_axis[k], x - link_pos[k_link]) * lk.mult;
             }
             k_link = joints[k].parent_link;
         }
         if (first) {
-            w += dot(jac, jac) / (joints[lj].armature + joints[lj].link_inertia * prm.hand_mass_scale);
+            let inv_i = 1.0 / joint_impulse_inertia(lj, h);
+            w_n += dot(jac, n) * dot(jac, n) * inv_i;
+            w_tr += dot(jac, jac) * inv_i;
         }
         link = joints[j].parent_link;
     }
-    return w;
+    return vec2<f32>(w_n, w_tr);
 }
 
-struct ContactGains {
-    k: f32,
-    kt: f32,
-    c: f32,
-}
-
-// physics.rs: hand_contact_gains. h²·k·w ≤ SAFE_STIFFNESS, h·c·w ≤ SAFE_DAMPING.
-fn hand_contact_gains(k: f32, kt: f32, c: f32, w: f32, h: f32) -> ContactGains {
-    let k_max = SAFE_STIFFNESS / (h * h * w);
-    let c_max = SAFE_DAMPING / (h * w);
-    return ContactGains(min(k, k_max), min(kt, k_max), min(c, c_max));
-}
-
-fn apply_hand_torque(l: u32, tq: vec3<f32>) {
-    wrist_t += tq;
-    var link = l;
-    while (link > 0u) {
-        let j = link - 1u;
-        tau[j] += dot(joint_axis[j], tq);
-        link = joints[j].parent_link;
+// physics.rs: hand_contact_force. A hand contact's force, solved implicitly on the hand's side:
+// Fn = (k·d − K·(vrel + dv)·n) / (1 + h·w_n·K),  Ft = −(kt·s + Kt·(vrel + dv)t) / (1 + h·w_t·Kt),
+// K = k·h + c, Kt = kt·h + c, Ft limited to μ·Fn.
+fn hand_contact_force(c: Contact, vrel: vec3<f32>, dv: vec3<f32>, anchor: vec3<f32>, k: f32, kt: f32, damp: f32, mu: f32, h: f32, w_n: f32, w_t: f32) -> HandContactForce {
+    let n = c.normal;
+    let vp = vrel + dv;
+    let vn = dot(vp, n);
+    let kn = k * h + damp;
+    // Fn = (k·d − K·vn) / (1 + h·w_n·K)
+    let fn_ = max((k * c.depth - kn * vn) / (1.0 + h * w_n * kn), 0.0);
+    if (fn_ <= 0.0) {
+        return HandContactForce(vec3<f32>(0.0), vec3<f32>(0.0), 0.0, 0.0);
     }
+    let a = kn / (1.0 + h * w_n * kn);
+    // spring kept in the tangent plane, stretched by the slip now: s ← s − (s·n)n + vt h
+    let vt_now = vrel - n * dot(vrel, n);
+    let spring = anchor - n * dot(anchor, n) + vt_now * h;
+    let vt = vp - n * vn;
+    let ktn = kt * h + damp;
+    // Ft = −(kt·s + Kt·vt) / (1 + h·w_t·Kt)
+    let ft = -(spring * kt + vt * ktn) / (1.0 + h * w_t * ktn);
+    let b_stick = ktn / (1.0 + h * w_t * ktn);
+    let ft_len = length(ft);
+    let limit = mu * fn_;
+    if (ft_len > limit) {
+        // sliding: the friction force sits on the cone and the spring carries it
+        let f_slide = ft * (limit / ft_len);
+        let vt_len = length(vt);
+        let b = select(b_stick, min(limit / vt_len, b_stick), vt_len > 1e-6);
+        return HandContactForce(n * fn_ + f_slide, -f_slide / kt, a, b);
+    }
+    return HandContactForce(n * fn_ + ft, spring, a, b_stick);
 }
 
 fn apply_object_torque(tq: vec3<f32>, n: vec3<f32>, b: f32) {
@@ -693,6 +768,24 @@ fn apply_object_force(com: vec3<f32>, x: vec3<f32>, f: vec3<f32>, n: vec3<f32>, 
     }
 }
 
+// physics.rs: solve_hand_contact. Hand contact c on link l against a body whose contact point moves
+// at v_other, spring slot `slot` (xyz: the tangential spring, w: 1 while the pair touches); the
+// force is applied to the hand for the contacts after.
+fn solve_hand_contact(slot: u32, l: u32, c: Contact, v_other: vec3<f32>, damp: f32, mu: f32, h: f32) -> HandContactForce {
+    let vrel = link_point_velocity(l, c.point) - v_other;
+    let dv = hand_point_velocity_change(l, c.point);
+    let w = hand_mobility(l, c.point, c.normal, h);
+    let cf = hand_contact_force(c, vrel, dv, springs[slot].xyz, g.hand_contact_k, g.hand_contact_kt, damp, mu, h, w.x, w.y - w.x);
+    if (dot(cf.force, c.normal) > 0.0) {
+        springs[slot] = vec4<f32>(cf.spring, 1.0);
+        apply_hand_force(l, c.point, cf.force, h);
+    } else {
+        // touching without pushing (separating): no spring, still flagged as touching
+        springs[slot] = vec4<f32>(0.0, 0.0, 0.0, select(0.0, 1.0, c.depth > 0.0));
+    }
+    return cf;
+}
+
 fn contacts_and_forces(h: f32) {
     let k = g.contact_k;
     let kt = g.contact_kt;
@@ -705,31 +798,27 @@ fn contacts_and_forces(h: f32) {
     let mu_ot = 0.5 * (prm.obj_friction + prm.table_friction);
     for (var ci = 0u; ci < g.n_colliders; ci++) {
         let l = colliders[ci].link;
-        // hand–object
+        // hand–object: a touching pair, or one apart by less than the speculative margin
         let c = collide_hand_object(ci);
-        if (c.depth > 0.0) {
-            let vh = link_point_velocity(l, c.point);
-            let vo = ovel + cross(ow, c.point - ocom);
-            let gn = hand_contact_gains(k, kt, prm.obj_contact_c, hand_mobility(l, c.point), h);
-            let cf = contact_force(c, vh - vo, springs[spring_base + ci].xyz, gn.k, gn.kt, gn.c, mu_ho, h);
-            springs[spring_base + ci] = vec4<f32>(cf.spring, 1.0);
-            apply_hand_force(l, c.point, cf.force);
-            // the normal damper acts only while the contact pushes (Fn > 0)
-            let a = select(0.0, gn.k * h + gn.c, dot(cf.force, c.normal) > 0.0);
-            apply_object_force(ocom, c.point, -cf.force, c.normal, a, cf.tdamp);
-            let tor = torsion_torque(c.normal, link_w[l] - ow, dot(cf.force, c.normal), mu_ho, g.torsion_radius);
-            apply_hand_torque(l, tor.torque);
-            apply_object_torque(-tor.torque, c.normal, tor.damping);
-            n_contacts += 1u;
-            n_contacts_ho += 1u;
-            max_pen_ho = max(max_pen_ho, c.depth);
-            max_pen = max(max_pen, c.depth);
-            let tip = colliders[ci].tip;
-            if (tip != NO_JOINT) {
-                tip_force[tip] += dot(cf.force, c.normal);
-            }
-            if (dot(cf.force, c.normal) > 0.0) {
+        if (c.depth > -CONTACT_MARGIN) {
+            let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
+            let fn_ = dot(cf.force, c.normal);
+            if (fn_ > 0.0) {
+                apply_object_force(ocom, c.point, -cf.force, c.normal, cf.ndamp, cf.tdamp);
+                let tor = torsion_torque(c.normal, link_w[l] - ow, fn_, mu_ho, g.torsion_radius);
+                apply_hand_torque(l, tor.torque, h);
+                apply_object_torque(-tor.torque, c.normal, tor.damping);
                 link_contact[l / 32u] |= 1u << (l % 32u);
+                let tip = colliders[ci].tip;
+                if (tip != NO_JOINT) {
+                    tip_force[tip] += fn_;
+                }
+            }
+            if (fn_ > 0.0 || c.depth > 0.0) {
+                n_contacts += 1u;
+                n_contacts_ho += 1u;
+                max_pen_ho = max(max_pen_ho, c.depth);
+                max_pen = max(max_pen, c.depth);
             }
         } else {
             springs[spring_base + ci] = vec4<f32>(0.0);
@@ -737,14 +826,12 @@ fn contacts_and_forces(h: f32) {
         // hand–table
         if (g.hand_table != 0u) {
             let c2 = collide_hand_table(ci);
-            if (c2.depth > 0.0) {
-                let vh = link_point_velocity(l, c2.point);
-                let gt = hand_contact_gains(k, kt, prm.hand_table_c, hand_mobility(l, c2.point), h);
-                let cf = contact_force(c2, vh, springs[spring_base + g.n_colliders + ci].xyz, gt.k, gt.kt, gt.c, mu_ht, h);
-                springs[spring_base + g.n_colliders + ci] = vec4<f32>(cf.spring, 1.0);
-                apply_hand_force(l, c2.point, cf.force);
-                n_contacts += 1u;
-                max_pen = max(max_pen, c2.depth);
+            if (c2.depth > -CONTACT_MARGIN) {
+                let cf = solve_hand_contact(spring_base + g.n_colliders + ci, l, c2, vec3<f32>(0.0), prm.hand_table_c, mu_ht, h);
+                if (dot(cf.force, c2.normal) > 0.0 || c2.depth > 0.0) {
+                    n_contacts += 1u;
+                    max_pen = max(max_pen, c2.depth);
+                }
             } else {
                 springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
             }
@@ -789,16 +876,42 @@ fn contacts_and_forces(h: f32) {
     }
 }
 
-fn integrate_hand(h: f32) {
+// The servos' part of the substep, before the contacts (physics.rs: hand_servo): each independent
+// joint's velocity change from its servo, the wrist's from its controller.
+fn hand_servo(h: f32) {
     let n = g.n_joints;
-    // contact torque on a follower acts on its leader through the multiplier
-    var tq = tau;
     for (var j = 0u; j < n; j++) {
         let jd = joints[j];
+        dqd[j] = 0.0;
         if (jd.mimic_leader != NO_JOINT) {
-            tq[jd.mimic_leader] += jd.mimic_mult * tq[j];
+            continue;
         }
+        let lo = jd.lower * prm.limit_scale;
+        let hi = jd.upper * prm.limit_scale;
+        let inertia = jd.armature + jd.link_inertia * prm.hand_mass_scale;
+        let qd = st.qd[j];
+        let goal = clamp(tg.q[j], lo, hi);
+        // τ_pd = clamp(kp (q* − q) − kd q̇, ±effort)
+        let tau_pd = clamp(jd.kp * prm.kp_scale * (goal - st.q[j]) - jd.kd * prm.kd_scale * qd, -jd.effort, jd.effort);
+        // Coulomb friction, regularised over 0.01 rad/s
+        let tau_f = -jd.friction * clamp(qd / 0.01, -1.0, 1.0);
+        // joint damping implicit: q̇' = (q̇ + h τ / I) / (1 + h d / I)
+        dqd[j] = (qd + h * (tau_pd + tau_f) / inertia) / (1.0 + h * jd.damping * prm.kd_scale / inertia) - qd;
     }
+    // wrist: F = clamp(kp (p* − p) − kd v, Fmax); the hand's weight is compensated
+    let mi = wrist_mass_inertia();
+    let vel = st.wrist_vel.xyz;
+    let w = st.wrist_angvel.xyz;
+    let f_pd = clamp_norm(g.wrist_kp_lin * (tg.wrist_pos.xyz - st.wrist_pos.xyz) - g.wrist_kd_lin * vel, g.wrist_force_limit);
+    let t_pd = clamp_norm(g.wrist_kp_rot * quat_error(tg.wrist_rot, st.wrist_rot) - g.wrist_kd_rot * w, g.wrist_torque_limit);
+    wrist_dv = f_pd * (h / mi.x);
+    wrist_dw = t_pd * (h / mi.y);
+}
+
+// physics.rs: integrate_hand. Velocities change by dqd, wrist_dv, wrist_dw (servos and contacts);
+// then the speed and position limits, positions, followers.
+fn integrate_hand(h: f32) {
+    let n = g.n_joints;
     for (var j = 0u; j < n; j++) {
         let jd = joints[j];
         if (jd.mimic_leader != NO_JOINT) {
@@ -806,18 +919,8 @@ fn integrate_hand(h: f32) {
         }
         let lo = jd.lower * prm.limit_scale;
         let hi = jd.upper * prm.limit_scale;
-        let inertia = jd.armature + jd.link_inertia * prm.hand_mass_scale;
-        let q = st.q[j];
-        var qd = st.qd[j];
-        let goal = clamp(tg.q[j], lo, hi);
-        // τ_pd = clamp(kp (q* − q) − kd q̇, ±effort)
-        let tau_pd = clamp(jd.kp * prm.kp_scale * (goal - q) - jd.kd * prm.kd_scale * qd, -jd.effort, jd.effort);
-        // Coulomb friction, regularised over 0.01 rad/s
-        let tau_f = -jd.friction * clamp(qd / 0.01, -1.0, 1.0);
-        // joint damping implicit: q̇' = (q̇ + h τ / I) / (1 + h d / I)
-        qd = (qd + h * (tau_pd + tau_f + tq[j]) / inertia) / (1.0 + h * jd.damping * prm.kd_scale / inertia);
-        qd = clamp(qd, -jd.velocity, jd.velocity);
-        var qn = q + h * qd;
+        var qd = clamp(st.qd[j] + dqd[j], -jd.velocity, jd.velocity);
+        var qn = st.q[j] + h * qd;
         if (qn < lo) {
             qn = lo;
             qd = max(qd, 0.0);
@@ -837,21 +940,12 @@ fn integrate_hand(h: f32) {
             st.qd[j] = jd.mimic_mult * st.qd[l];
         }
     }
-    // wrist: F = clamp(kp (p* − p) − kd v, Fmax) + contacts; the hand's weight is compensated
-    let mass = g.hand_mass * prm.hand_mass_scale + g.wrist_added_mass;
-    let inertia = g.hand_inertia * prm.hand_mass_scale + g.wrist_added_inertia;
-    let pos = st.wrist_pos.xyz;
-    let vel = st.wrist_vel.xyz;
-    let w = st.wrist_angvel.xyz;
-    let rot = st.wrist_rot;
-    let f_pd = clamp_norm(g.wrist_kp_lin * (tg.wrist_pos.xyz - pos) - g.wrist_kd_lin * vel, g.wrist_force_limit);
-    let t_pd = clamp_norm(g.wrist_kp_rot * quat_error(tg.wrist_rot, rot) - g.wrist_kd_rot * w, g.wrist_torque_limit);
-    let vel_n = vel + (f_pd + wrist_f) * (h / mass);
-    let w_n = w + (t_pd + wrist_t) * (h / inertia);
+    let vel_n = st.wrist_vel.xyz + wrist_dv;
+    let w_n = st.wrist_angvel.xyz + wrist_dw;
     st.wrist_vel = vec4<f32>(vel_n, 0.0);
     st.wrist_angvel = vec4<f32>(w_n, 0.0);
-    st.wrist_pos = vec4<f32>(pos + vel_n * h, 0.0);
-    st.wrist_rot = quat_integrate(rot, w_n, h);
+    st.wrist_pos = vec4<f32>(st.wrist_pos.xyz + vel_n * h, 0.0);
+    st.wrist_rot = quat_integrate(st.wrist_rot, w_n, h);
 }
 
 fn solve6(a: array<f32, 36>, b: array<f32, 6>) -> array<f32, 6> {
@@ -943,16 +1037,12 @@ fn integrate_object(h: f32) {
 
 fn substep(h: f32) {
     hand_kinematics();
-    for (var j = 0u; j < MAX_JOINTS; j++) {
-        tau[j] = 0.0;
-    }
-    wrist_f = vec3<f32>(0.0);
-    wrist_t = vec3<f32>(0.0);
     obj_f = vec3<f32>(0.0);
     obj_t = vec3<f32>(0.0);
     for (var i = 0u; i < 36u; i++) {
         obj_d[i] = 0.0;
     }
+    hand_servo(h);
     contacts_and_forces(h);
     integrate_hand(h);
     integrate_object(h);

@@ -12,7 +12,7 @@ struct TaskGlobals {
     wrist_pos_min: vec4<f32>,
     wrist_pos_max: vec4<f32>,
     palm_offset: vec4<f32>,
-    weights: array<vec4<f32>, 2>,
+    weights: array<vec4<f32>, 3>,
     // joint index of each actuated joint, 4 per vec4: MAX_JOINTS / 4 vec4s
     actuated: array<vec4<u32>, MAX_JOINTS / 4u>,
     n_actuated: u32,
@@ -76,9 +76,9 @@ struct TaskGlobals {
     rw_tips: f32,
     rw_wrist_pos: f32,
     rw_wrist_rot: f32,
-    _pad3: f32,
-    _pad4: f32,
-    _pad5: f32,
+    grip_force_limit: f32,
+    penetration_tolerance: f32,
+    _pad1: f32,
     ik: IkParams,
 }
 
@@ -136,7 +136,7 @@ const KIND_LIFT: u32 = 0u;
 const KIND_TRACK: u32 = 1u;
 const KIND_RESIDUAL_JOINT: u32 = 2u;
 const KIND_RESIDUAL_TASK: u32 = 3u;
-const MAX_TERMS: u32 = 8u;
+const MAX_TERMS: u32 = 12u;
 // the slot of each reward term in its kind's output (the tables of src/task/spec.rs, in their
 // order; tests/suite/shaders.rs checks every name and index)
 const T_LIFT_REACHING: u32 = 0u;
@@ -145,6 +145,8 @@ const T_LIFT_CONTACT: u32 = 2u;
 const T_LIFT_SUCCESS: u32 = 3u;
 const T_LIFT_ACTION_RATE: u32 = 4u;
 const T_LIFT_ACTION_MAGNITUDE: u32 = 5u;
+const T_LIFT_GRIP_FORCE: u32 = 6u;
+const T_LIFT_PENETRATION: u32 = 7u;
 const T_TRACK_HAND_FOLLOWING: u32 = 0u;
 const T_TRACK_OBJECT_FOLLOWING: u32 = 1u;
 const T_TRACK_CONTACT: u32 = 2u;
@@ -152,10 +154,14 @@ const T_TRACK_SUCCESS: u32 = 3u;
 const T_TRACK_LIFTING: u32 = 4u;
 const T_TRACK_ACTION_RATE: u32 = 5u;
 const T_TRACK_ACTION_MAGNITUDE: u32 = 6u;
+const T_TRACK_GRIP_FORCE: u32 = 7u;
+const T_TRACK_PENETRATION: u32 = 8u;
 const T_RESIDUAL_JOINT_OBJECT_POS: u32 = 0u;
 const T_RESIDUAL_JOINT_OBJECT_ROT: u32 = 1u;
 const T_RESIDUAL_JOINT_RESIDUAL: u32 = 2u;
 const T_RESIDUAL_JOINT_SUCCESS: u32 = 3u;
+const T_RESIDUAL_JOINT_GRIP_FORCE: u32 = 4u;
+const T_RESIDUAL_JOINT_PENETRATION: u32 = 5u;
 const T_RESIDUAL_TASK_OBJECT: u32 = 0u;
 const T_RESIDUAL_TASK_FINGERTIPS: u32 = 1u;
 const T_RESIDUAL_TASK_WRIST: u32 = 2u;
@@ -164,18 +170,22 @@ const T_RESIDUAL_TASK_VELOCITY: u32 = 4u;
 const T_RESIDUAL_TASK_TORQUE: u32 = 5u;
 const T_RESIDUAL_TASK_WORK: u32 = 6u;
 const T_RESIDUAL_TASK_TABLE_COLLISION: u32 = 7u;
+const T_RESIDUAL_TASK_GRIP_FORCE: u32 = 8u;
+const T_RESIDUAL_TASK_PENETRATION: u32 = 9u;
+// every kind's grasp terms are its last two (T_*_GRIP_FORCE = n_terms − 2, T_*_PENETRATION =
+// n_terms − 1): task_reward writes them there
 // per-env record of the outputs after the obs and priv obs sections of task_out
 const OUT_REWARD: u32 = 0u;
 const OUT_TERMS: u32 = 1u;
-const OUT_TERMINATED: u32 = 9u;
-const OUT_TIME_OUT: u32 = 10u;
-const OUT_SUCCESS: u32 = 11u;
-const OUT_LIFT: u32 = 12u;
-const OUT_MAX_PEN: u32 = 13u;
-const OUT_OBJ_POS_ERR: u32 = 14u;
-const OUT_OBJ_ROT_ERR: u32 = 15u;
-const OUT_BAD_RESET: u32 = 16u;
-const OUT_MISC: u32 = 17u;
+const OUT_TERMINATED: u32 = 13u;
+const OUT_TIME_OUT: u32 = 14u;
+const OUT_SUCCESS: u32 = 15u;
+const OUT_LIFT: u32 = 16u;
+const OUT_MAX_PEN: u32 = 17u;
+const OUT_OBJ_POS_ERR: u32 = 18u;
+const OUT_OBJ_ROT_ERR: u32 = 19u;
+const OUT_BAD_RESET: u32 = 20u;
+const OUT_MISC: u32 = 21u;
 
 // ---- per-invocation observation cursor (the twin's ObsOut) ----
 var<private> ob_env: u32;
@@ -343,8 +353,8 @@ fn palm_position(wrist_pos: vec3<f32>, wrist_rot: vec4<f32>) -> vec3<f32> {
 // track's raw reward terms (slots T_TRACK_*) against the reference frame f of this instant;
 // e = the object's position and angle error against f, fin = within the success tolerances of the
 // reference's final pose, contact = the thumb and another fingertip touch, h = the lift height (m)
-fn track_terms(s: EnvState, ts: TaskState, f: RefFrame, e: vec2<f32>, fin: bool, contact: bool, h: f32) -> array<f32, 8> {
-    var raw: array<f32, 8>;
+fn track_terms(s: EnvState, ts: TaskState, f: RefFrame, e: vec2<f32>, fin: bool, contact: bool, h: f32) -> array<f32, MAX_TERMS> {
+    var raw: array<f32, MAX_TERMS>;
     let e_wp = length(s.wrist_pos.xyz - f.wrist_pos.xyz);
     let e_wr = length(quat_error(f.wrist_rot, s.wrist_rot));
     var dq = 0.0;
@@ -370,8 +380,8 @@ fn track_terms(s: EnvState, ts: TaskState, f: RefFrame, e: vec2<f32>, fin: bool,
 }
 
 // residual_joint's raw reward terms (slots T_RESIDUAL_JOINT_*): w_p exp(−k_p e_p) + w_r exp(−k_r e_R) − λ_a ‖δ‖²
-fn residual_joint_terms(ts: TaskState, f: RefFrame, e: vec2<f32>, fin: bool) -> array<f32, 8> {
-    var raw: array<f32, 8>;
+fn residual_joint_terms(ts: TaskState, f: RefFrame, e: vec2<f32>, fin: bool) -> array<f32, MAX_TERMS> {
+    var raw: array<f32, MAX_TERMS>;
     raw[T_RESIDUAL_JOINT_OBJECT_POS] = exp(-tc.res_obj_pos_coef * e.x);
     raw[T_RESIDUAL_JOINT_OBJECT_ROT] = exp(-tc.res_obj_rot_coef * e.y);
     raw[T_RESIDUAL_JOINT_RESIDUAL] = ts.res_sq;
@@ -381,8 +391,8 @@ fn residual_joint_terms(ts: TaskState, f: RefFrame, e: vec2<f32>, fin: bool) -> 
 
 // residual_task's raw reward terms (slots T_RESIDUAL_TASK_*; DexRefine): the object, fingertip and
 // wrist tracking exponentials, contact, and the joint velocity, torque, work and table penalties
-fn residual_task_terms(s: EnvState, p: EnvParams, ts: TaskState, f: RefFrame, e: vec2<f32>, contact: bool, table: bool) -> array<f32, 8> {
-    var raw: array<f32, 8>;
+fn residual_task_terms(s: EnvState, p: EnvParams, ts: TaskState, f: RefFrame, e: vec2<f32>, contact: bool, table: bool) -> array<f32, MAX_TERMS> {
+    var raw: array<f32, MAX_TERMS>;
     let e_wp = length(s.wrist_pos.xyz - f.wrist_pos.xyz);
     let e_wr = length(quat_error(f.wrist_rot, s.wrist_rot));
     st = s;
@@ -442,7 +452,7 @@ fn task_reward(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
         }
     }
     let thumb = sts.tip_force[tc.thumb] > tc.contact_force;
-    var raw: array<f32, 8>;
+    var raw: array<f32, MAX_TERMS>;
     var terminated = bad || obj.z < tc.drop_height || abs(obj.x) > tc.table_half_extent || abs(obj.y) > tc.table_half_extent;
     terminated = terminated || dist > tc.max_hand_distance;
     var time_out: bool;
@@ -496,6 +506,15 @@ fn task_reward(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
             success = 0.0;
             err = vec2<f32>(0.0, 0.0);
         }
+    }
+    if (!bad) {
+        // the grasp terms, the kind's last two: Σ_tips max(F − F_limit, 0) (N), max(d − d_tol, 0) (mm)
+        var excess = 0.0;
+        for (var i = 0u; i < g.n_tips; i++) {
+            excess += max(sts.tip_force[i] - tc.grip_force_limit, 0.0);
+        }
+        raw[tc.n_terms - 2u] = excess;
+        raw[tc.n_terms - 1u] = max(sts.max_pen_ho - tc.penetration_tolerance, 0.0) * 1000.0;
     }
     var lift = h;
     if (bad) {

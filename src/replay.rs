@@ -250,7 +250,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
                 wrist: Pose::from_arrays(s.wrist_pos, s.wrist_rot),
                 object: Pose::from_arrays(s.obj_pos, s.obj_rot),
                 links: hand_link_poses(&model, s),
-                contacts: contact_records(&model, s, &springs0()?, &params[0]),
+                contacts: contact_records(&model, s, &springs0()?, &params[0], tg),
                 object_ref: r.object,
             })?;
         }
@@ -271,7 +271,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
             let mut pen = vec![0.0f32; n];
             let mut tips = vec![vec![0.0f32; model.tips.len()]; n];
             for i in 0..n {
-                for c in contact_records(&model, &states[i], &relaxed, &params[i]) {
+                for c in contact_records(&model, &states[i], &relaxed, &params[i], &tg) {
                     if c.kind == ContactKind::HandObject {
                         pen[i] = pen[i].max(c.depth);
                         let tip = model.colliders[c.index as usize].tip;

@@ -23,19 +23,29 @@ const fn term(name: &'static str, formula: &'static str, default_weight: f32) ->
     RewardTerm { name, formula, default_weight }
 }
 
+/// The grasp terms every kind ends with (off by default): the fingertip forces beyond
+/// `task.hand.grip_force_limit` and the hand–object penetration beyond
+/// `task.hand.penetration_tolerance`, so that a policy can be kept from squeezing harder or sinking
+/// deeper than a robot hand would. The twins write them at the last two term indices.
+pub const GRIP_FORCE_FORMULA: &str = "Σ_tips max(F_tip − grip_force_limit, 0) (N; F_tip: the fingertip's normal force, averaged over the step's substeps)";
+/// See [`GRIP_FORCE_FORMULA`].
+pub const PENETRATION_FORMULA: &str = "max(d − penetration_tolerance, 0) · 1000 (mm; d: the step's deepest hand–object penetration)";
+
 /// The lift task's terms, in output order (as tuned for the shipped configs).
-pub const LIFT_TERMS: [RewardTerm; 6] = [
+pub const LIFT_TERMS: [RewardTerm; 8] = [
     term("reaching", "1 − tanh(reach_alpha · ‖p_palm − p_obj‖)", 1.0),
     term("lifting", "clamp(h, 0, success_height) · 100 (h: the object's lift in m; cm)", 0.5),
     term("contact", "1 when the thumb and another fingertip push on the object with > contact_force", 0.5),
     term("success", "1 while h ≥ success_height", 5.0),
     term("action_rate", "Σ (a_t − a_{t−1})²", -0.01),
     term("action_magnitude", "Σ a_t²", -0.001),
+    term("grip_force", GRIP_FORCE_FORMULA, 0.0),
+    term("penetration", PENETRATION_FORMULA, 0.0),
 ];
 
 /// `track`'s terms, in output order (the papers' λ1 = λ2 = λ3 = 1, λ4 = 15; no lifting, no action
 /// penalties by default).
-pub const TRACK_TERMS: [RewardTerm; 7] = [
+pub const TRACK_TERMS: [RewardTerm; 9] = [
     term("hand_following", "R_f = β1 (1 − tanh(α1‖q − q̂‖)) + β2 (1 − tanh(α2‖x − x̂‖)) + β3 (1 − tanh(α3 φ))", 1.0),
     term("object_following", "R_o = exp(−α4‖T − T̂‖) + exp(−α5‖log(q̂⁻¹ ⊗ q)‖)", 1.0),
     term("contact", "1 when the thumb and another fingertip touch the object while the reference grasps", 1.0),
@@ -43,20 +53,24 @@ pub const TRACK_TERMS: [RewardTerm; 7] = [
     term("lifting", "clamp(h, 0, success_height) · 100", 0.0),
     term("action_rate", "Σ (a_t − a_{t−1})²", 0.0),
     term("action_magnitude", "Σ a_t²", 0.0),
+    term("grip_force", GRIP_FORCE_FORMULA, 0.0),
+    term("penetration", PENETRATION_FORMULA, 0.0),
 ];
 
 /// `residual_joint`'s terms, in output order: `w_p r_obj-p + w_r r_obj-r − λ_a‖δ‖²` with
 /// w_p = w_r = λ_a = 1 (the residual term is ‖δ‖², so its weight is −λ_a).
-pub const RESIDUAL_JOINT_TERMS: [RewardTerm; 4] = [
+pub const RESIDUAL_JOINT_TERMS: [RewardTerm; 6] = [
     term("object_pos", "exp(−obj_pos_coef · e_p)", 1.0),
     term("object_rot", "exp(−obj_rot_coef · e_R)", 1.0),
     term("residual", "‖δ‖² (the applied residual, every component)", -1.0),
     term("success", "1 at the reference's end when the object is within the success tolerances", 0.0),
+    term("grip_force", GRIP_FORCE_FORMULA, 0.0),
+    term("penetration", PENETRATION_FORMULA, 0.0),
 ];
 
 /// `residual_task`'s terms, in output order: DexRefine's w_obj 30, w_hand 10, w_wrist 5,
 /// w_contact 0.05 and small penalties.
-pub const RESIDUAL_TASK_TERMS: [RewardTerm; 8] = [
+pub const RESIDUAL_TASK_TERMS: [RewardTerm; 10] = [
     term("object", "exp(−a_pos e_p − a_rot e_R), gated by contact or e_p ≤ success_pos_tol", 30.0),
     term("fingertips", "exp(−a e_tips) (e_tips: the mean fingertip distance)", 10.0),
     term("wrist", "exp(−a_pos e_p − a_rot e_R) of the wrist", 5.0),
@@ -65,6 +79,8 @@ pub const RESIDUAL_TASK_TERMS: [RewardTerm; 8] = [
     term("torque", "Σ τ² (the servos' torques)", -1e-2),
     term("work", "Σ |τ q̇|", -1e-2),
     term("table_collision", "1 when a hand collider touches the table", -1.0),
+    term("grip_force", GRIP_FORCE_FORMULA, 0.0),
+    term("penetration", PENETRATION_FORMULA, 0.0),
 ];
 
 /// The reward terms of a task kind, in the order the twins write them.

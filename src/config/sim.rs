@@ -99,10 +99,18 @@ pub struct TableConfig {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct ContactConfig {
-    /// Normal penalty stiffness (N/m per contact).
+    /// Normal penalty stiffness (N/m per contact) of the object against the table.
     pub stiffness: f32,
-    /// Stiffness of the tangential spring that holds a sticking contact (N/m).
+    /// Stiffness of the tangential spring that holds the object's sticking contacts on the table (N/m).
     pub friction_stiffness: f32,
+    /// Normal stiffness (N/m) of the hand's contacts (with the object and the table): a fingertip
+    /// pushing with F sinks in F/k at rest (5e4: 0.2 mm at 10 N). They are solved implicitly on the
+    /// hand's side, so any value is stable on the lightest finger; but the object answers in its
+    /// own solve, and beyond ~5e4 a light object rings between stiff fingers and turns or slips in
+    /// a grasp (BENCHMARKS.md).
+    pub hand_stiffness: f32,
+    /// Stiffness of the tangential spring that holds the hand's sticking contacts (N/m).
+    pub hand_friction_stiffness: f32,
     /// Effective mass of a hand link at a contact (kg), used with the object's mass to turn the
     /// restitution into a damping coefficient (reduced mass of the pair).
     pub hand_effective_mass: f32,
@@ -155,7 +163,7 @@ impl Default for TableConfig {
 
 impl Default for ContactConfig {
     fn default() -> Self {
-        ContactConfig { stiffness: 1.0e4, friction_stiffness: 1.0e4, hand_effective_mass: 0.1, torsion_radius: 0.005 }
+        ContactConfig { stiffness: 1.0e4, friction_stiffness: 1.0e4, hand_stiffness: 5.0e4, hand_friction_stiffness: 1.0e4, hand_effective_mass: 0.1, torsion_radius: 0.005 }
     }
 }
 
@@ -200,6 +208,8 @@ impl ContactConfig {
     pub fn validate(&self, c: &Check) -> Result<()> {
         c.in_range("contact.stiffness", self.stiffness, 1.0, 1e8, "a stiffness in N/m in [1, 1e8]")?;
         c.in_range("contact.friction_stiffness", self.friction_stiffness, 1.0, 1e8, "a stiffness in N/m in [1, 1e8]")?;
+        c.in_range("contact.hand_stiffness", self.hand_stiffness, 1.0, 1e8, "a stiffness in N/m in [1, 1e8]")?;
+        c.in_range("contact.hand_friction_stiffness", self.hand_friction_stiffness, 1.0, 1e8, "a stiffness in N/m in [1, 1e8]")?;
         c.in_range("contact.hand_effective_mass", self.hand_effective_mass, 1e-4, 1e3, "a mass in kg in [1e-4, 1000]")?;
         c.in_range("contact.torsion_radius", self.torsion_radius, 0.0, 0.1, "a patch radius in m in [0, 0.1]")
     }

@@ -199,6 +199,13 @@ pub struct HandPointsConfig {
     /// The palm point (m) in the wrist frame: lift's reaching term brings it to the object, and
     /// `task.termination.max_hand_distance` is measured from it.
     pub palm_offset: [f32; 3],
+    /// Fingertip normal force (N) that a grasp should not exceed: every kind's `grip_force` reward
+    /// term counts each fingertip's force beyond it (10 N: what a robot hand's fingertip presses
+    /// with; a 0.1 kg object needs ~0.25 N per finger at μ = 1).
+    pub grip_force_limit: f32,
+    /// Hand–object penetration (m) that every kind's `penetration` reward term tolerates before it
+    /// counts (in mm).
+    pub penetration_tolerance: f32,
 }
 
 /// `[task.termination]`: when an episode terminates (every kind; a time-out is `task.episode_length`).
@@ -390,7 +397,7 @@ impl Default for ObsNoiseConfig {
 
 impl Default for HandPointsConfig {
     fn default() -> Self {
-        HandPointsConfig { thumb: String::new(), contact_force: 0.05, palm_offset: [0.0, 0.0, -0.04] }
+        HandPointsConfig { thumb: String::new(), contact_force: 0.05, palm_offset: [0.0, 0.0, -0.04], grip_force_limit: 10.0, penetration_tolerance: 0.001 }
     }
 }
 
@@ -546,6 +553,8 @@ impl HandPointsConfig {
     /// Checks `[task.hand]` (the thumb's name is checked against the hand when the task is built).
     pub fn validate(&self, c: &Check) -> Result<()> {
         c.non_neg("task.hand.contact_force", self.contact_force)?;
+        c.non_neg("task.hand.grip_force_limit", self.grip_force_limit)?;
+        c.non_neg("task.hand.penetration_tolerance", self.penetration_tolerance)?;
         for i in 0..3 {
             c.finite(&format!("task.hand.palm_offset[{i}]"), self.palm_offset[i])?;
         }

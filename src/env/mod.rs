@@ -307,7 +307,9 @@ impl SimModel {
             max_speed: cfg.sim.max_speed,
             max_distance: cfg.sim.max_distance,
             torsion_radius: cfg.contact.torsion_radius,
-            _pad2: 0.0,
+            hand_contact_k: cfg.contact.hand_stiffness,
+            hand_contact_kt: cfg.contact.hand_friction_stiffness,
+            _pad2: [0.0; 3],
         };
         let spec = EnvSpec {
             num_envs: cfg.sim.num_envs,
@@ -382,59 +384,22 @@ pub fn hand_link_poses(model: &SimModel, st: &EnvState) -> Vec<crate::geom::Pose
         .collect()
 }
 
-/// Every contact of a state, with the force the next substep would apply (for recordings and
-/// kinematic replay; evaluated on the host with the CPU twin's narrow phase and force law).
-/// `springs` are the env's `[n_springs]` contact springs.
-pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p: &EnvParams) -> Vec<crate::record::ContactRecord> {
-    use crate::gpu::layout::spring_slot;
-    use crate::record::{ContactKind, ContactRecord};
+/// Every contact of a state, with the force the next substep would apply under `targets` (for
+/// recordings and kinematic replay): the CPU twin's contact pass itself
+/// ([`physics::contacts_and_forces`], after the hand's kinematics and servos), on copies of the
+/// state's springs. `springs` are the env's `[n_springs]` contact springs.
+pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p: &EnvParams, targets: &Targets) -> Vec<crate::record::ContactRecord> {
+    use crate::record::ContactRecord;
     let m = model.view();
     let g = &model.globals;
     let mut s = physics::Scratch::default();
-    physics::hand_kinematics(st, &m, &mut s);
     let h = g.dt / g.substeps as f32;
-    let v3 = |a: [f32; 4]| Vec3::new(a[0], a[1], a[2]);
-    let (ocom, ovel, ow) = (physics::object_com(st, p), v3(st.obj_vel), v3(st.obj_angvel));
+    physics::hand_kinematics(st, &m, &mut s);
+    physics::hand_servo(st, p, targets, &m, &mut s, h);
+    let mut springs = springs.to_vec();
     let mut out = Vec::new();
-    let mut push = |kind, index: usize, c: &physics::Contact, f: Vec3| {
+    physics::contacts_and_forces(st, &mut springs, p, &m, &mut s, h, &mut |kind, index, c: &physics::Contact, f| {
         out.push(ContactRecord { kind, index: index as u32, pos: c.point, normal: c.normal, depth: c.depth, force: f });
-    };
-    for ci in 0..model.colliders.len() {
-        let l = model.colliders[ci].link as usize;
-        let c = physics::collide_hand_object(st, p, &m, &s, ci);
-        if c.depth > 0.0 {
-            let vrel = physics::link_point_velocity(&s, l, c.point) - (ovel + ow.cross(c.point - ocom));
-            let mu = 0.5 * (p.hand_friction + p.obj_friction);
-            let (k, kt, damp) = physics::hand_contact_gains(g.contact_k, g.contact_kt, p.obj_contact_c, physics::hand_mobility(p, &m, &s, l, c.point), h);
-            let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::hand_object(ci as u32) as usize]), k, kt, damp, mu, h);
-            push(ContactKind::HandObject, ci, &c, f);
-        }
-        if g.hand_table != 0 {
-            let c = physics::collide_hand_table(&m, &s, ci);
-            if c.depth > 0.0 {
-                let mu = 0.5 * (p.hand_friction + p.table_friction);
-                let vrel = physics::link_point_velocity(&s, l, c.point);
-                let (k, kt, damp) = physics::hand_contact_gains(g.contact_k, g.contact_kt, p.hand_table_c, physics::hand_mobility(p, &m, &s, l, c.point), h);
-                let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::hand_table(g.n_colliders, ci as u32) as usize]), k, kt, damp, mu, h);
-                push(ContactKind::HandTable, ci, &c, f);
-            }
-        }
-    }
-    let od = &model.object_descs[p.obj_index as usize];
-    let mut k = 0u32;
-    for pi in 0..od.n_pieces {
-        let pd = &model.pieces[(od.first_piece + pi) as usize];
-        let (ppos, prot, size) = physics::piece_pose(st, p, pd);
-        for j in 0..pd.n_support {
-            let c = physics::collide_piece_table(&m, pd, p.obj_scale, size, ppos, prot, j);
-            if c.depth > 0.0 {
-                let mu = 0.5 * (p.obj_friction + p.table_friction);
-                let vrel = ovel + ow.cross(c.point - ocom);
-                let (f, _, _) = physics::contact_force(&c, vrel, v3(springs[spring_slot::object_table(g.n_colliders, k) as usize]), g.contact_k, g.contact_kt, p.obj_contact_c, mu, h);
-                push(ContactKind::ObjectTable, k as usize, &c, f);
-            }
-            k += 1;
-        }
-    }
+    });
     out
 }

@@ -8,14 +8,19 @@
 //!    closest points by alternating projection between the collider and a piece — a primitive, or a
 //!    convex hull whose closest point is found on the triangles the point is in front of),
 //!    hand–table (lowest point of each collider), object–table (every piece's support points).
-//!    Normal force `Fn = max(k·depth − c·vn, 0)`; friction from a tangential spring anchored per contact
-//!    pair, `Ft = −kt·s − ct·vt`, sliding (s rescaled) when `|Ft| > μ·Fn`, so a held object does not creep.
-//! 3. Contact forces on hand links push the joints of their chain (τ = Jᵀ F) and the wrist. The hand
-//!    is integrated explicitly in its contacts, so a contact on a light chain (small link inertias and
-//!    armature: the fingertip's mobility w, 1/kg, is large) would ring at the substep rate; its
-//!    stiffnesses and damping are capped by `hand_contact_gains` so that h²·k·w ≤ `SAFE_STIFFNESS`
-//!    and h·c·w ≤ `SAFE_DAMPING` (like MuJoCo's safe solref, which keeps a contact's time constant
-//!    above twice the step). On hands with heavier chains the caps do not bind.
+//!    Object–table: normal force `Fn = max(k·depth − c·vn, 0)`; friction from a tangential spring
+//!    anchored per contact pair, `Ft = −kt·s − ct·vt`, sliding (s rescaled) when `|Ft| > μ·Fn`, so a
+//!    held object does not creep. Hand contacts: the same spring–damper and spring, solved as in 3.
+//! 3. Hand contacts are solved one after another against the hand's velocity change this substep
+//!    (the servos' first, `hand_servo`, then each solved contact's, `apply_hand_force`: one
+//!    Gauss–Seidel sweep), implicitly on the hand's side (`hand_contact_force`): the force is the
+//!    spring–damper's at the end of the substep, when the contact point moves with that change plus
+//!    the contact's own push through the hand's mobility along the normal (`hand_mobility`),
+//!    `Fn = (k·d − (k·h + c)·vn) / (1 + h·w_n·(k·h + c))`. Stable at any stiffness on the lightest
+//!    fingers (as MuJoCo's implicit constraint forces are), exactly `Fn = k·d` at rest, and a gap
+//!    closing within the substep pushes already (speculative contacts within `CONTACT_MARGIN`), so
+//!    a fast finger stops at the surface. The object takes the opposite force, with its derivative
+//!    in the object's velocity in its implicit solve.
 //! 4. Hand: finger joints are independent 1-DoF servos (PD with effort limit, damping, Coulomb friction,
 //!    armature + link inertia about the axis at q = 0), integrated semi-implicitly; mimic followers
 //!    follow their leader; the wrist is a free body pulled by a force/torque-limited PD toward its
@@ -31,18 +36,18 @@ use super::common::*;
 use crate::gpu::layout::*;
 use super::reset::{clear_springs, reset_params, reset_state};
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
+use crate::record::ContactKind;
 
 /// Most links: the root plus one per movable joint.
 pub const MAX_LINKS: usize = MAX_JOINTS + 1;
 /// Alternating-projection iterations of the hand–object closest-point search.
 pub const PROJ_ITERS: usize = 4;
+/// How far apart (m) a hand collider and the object or table may be for their contact to be solved:
+/// a gap that closes within the substep pushes already (`hand_contact_force`). A finger at its
+/// speed limit travels ~1.3 mm in a 2 ms substep.
+pub const CONTACT_MARGIN: f32 = 0.003;
 /// Spin rate (rad/s) below which torsional friction acts as a damper instead of a constant torque.
 pub const TORSION_EPS: f32 = 0.05;
-/// Largest h²·k·w of a hand contact (ω·h ≤ 1 for the contact's natural frequency ω = √(k·w)).
-pub const SAFE_STIFFNESS: f32 = 1.0;
-/// Largest h·c·w of a hand contact (the explicit damper removes at most half the relative velocity
-/// in one substep, so it never reverses it).
-pub const SAFE_DAMPING: f32 = 0.5;
 
 /// Read-only description of the run shared by all envs (the shader's bindings 0–3, 18–21).
 #[derive(Clone, Copy)]
@@ -69,11 +74,12 @@ pub struct Scratch {
     pub link_w: [Vec3; MAX_LINKS],
     /// World axis of each joint (its origin is `link_pos[j + 1]`).
     pub joint_axis: [Vec3; MAX_JOINTS],
-    /// Contact torque on each joint (τ = Jᵀ F).
-    pub tau: [f32; MAX_JOINTS],
-    /// Contact force and torque (about the wrist position) on the hand.
-    pub wrist_f: Vec3,
-    pub wrist_t: Vec3,
+    /// The change this substep of each independent joint's velocity (a follower's entry is unused:
+    /// it moves with its leader), and of the wrist's linear and angular velocity: the servos' part
+    /// first (`hand_servo`), then each hand contact's as it is solved (`apply_hand_force`).
+    pub dqd: [f32; MAX_JOINTS],
+    pub wrist_dv: Vec3,
+    pub wrist_dw: Vec3,
     /// Contact force and torque (about the centre) on the object, and the 6×6 implicit damping
     /// Σ Jᵀ D J (row-major).
     pub obj_f: Vec3,
@@ -97,9 +103,9 @@ impl Default for Scratch {
             link_v: [Vec3::ZERO; MAX_LINKS],
             link_w: [Vec3::ZERO; MAX_LINKS],
             joint_axis: [Vec3::ZERO; MAX_JOINTS],
-            tau: [0.0; MAX_JOINTS],
-            wrist_f: Vec3::ZERO,
-            wrist_t: Vec3::ZERO,
+            dqd: [0.0; MAX_JOINTS],
+            wrist_dv: Vec3::ZERO,
+            wrist_dw: Vec3::ZERO,
             obj_f: Vec3::ZERO,
             obj_t: Vec3::ZERO,
             obj_d: [0.0; 36],
@@ -460,13 +466,14 @@ pub fn object_com(st: &EnvState, p: &EnvParams) -> Vec3 {
 }
 
 /// Narrow phase between hand collider `ci` and the env's object: the deepest contact over the
-/// object's pieces (normal from object to hand). Pairs whose bounding spheres do not touch (the
-/// whole object's first, then each piece's) are rejected (depth −1).
+/// object's pieces (normal from object to hand; a negative depth is the gap of a pair within
+/// `CONTACT_MARGIN`). Pairs whose bounding spheres, grown by the margin, do not touch (the whole
+/// object's first, then each piece's) are rejected (depth −1).
 pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize) -> Contact {
     let cd = &m.colliders[ci];
     let (cpos, crot) = collider_pose(m, s, ci);
     let opos = v3(st.obj_pos);
-    let rc = bounding_radius(cd.shape, v3(cd.size));
+    let rc = bounding_radius(cd.shape, v3(cd.size)) + CONTACT_MARGIN;
     let reach = rc + p.obj_com[3];
     let mut best = Contact { depth: -1.0, normal: Vec3::Z, point: opos };
     if (cpos - opos).length_squared() > reach * reach {
@@ -501,9 +508,10 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
     let c_o = quat_rotate(oinv, cpos - opos);
     let r_o = quat_mul(oinv, crot);
     let mut out = Contact::default();
-    // the piece farther from the collider's centre than the collider reaches: no contact
+    // the piece farther from the collider's centre than the collider reaches (with the margin):
+    // no contact
     let (y0, _) = piece_project(m, pd, scale, size, c_o);
-    let reach = bounding_radius(cd.shape, v3(cd.size));
+    let reach = bounding_radius(cd.shape, v3(cd.size)) + CONTACT_MARGIN;
     if (c_o - y0).length_squared() > reach * reach {
         out.depth = -1.0;
         return out;
@@ -652,63 +660,116 @@ pub fn torsion_torque(n: Vec3, w_rel: Vec3, fn_: f32, mu: f32, radius: f32) -> (
     (n * (-b * wn), b)
 }
 
-/// Applies a force on hand link `l` at world point `x`: τ_j += aⱼ·((x − oⱼ) × F) up the chain, and
-/// the wrench on the wrist.
-pub fn apply_hand_force(m: &Model, s: &mut Scratch, l: usize, x: Vec3, f: Vec3) {
-    s.wrist_f += f;
-    s.wrist_t += (x - s.link_pos[0]).cross(f);
+/// The hand's mass and its rotational inertia about the wrist, as the wrist moves (the arm's added
+/// mass and inertia included).
+pub fn wrist_mass_inertia(p: &EnvParams, g: &Globals) -> (f32, f32) {
+    (g.hand_mass * p.hand_mass_scale + g.wrist_added_mass, g.hand_inertia * p.hand_mass_scale + g.wrist_added_inertia)
+}
+
+/// The coordinate that moves joint `j` (itself, or its mimic leader) and its multiplier.
+pub fn joint_lead(m: &Model, j: usize) -> (usize, f32) {
+    let jd = &m.joints[j];
+    if jd.mimic_leader != NO_JOINT { (jd.mimic_leader as usize, jd.mimic_mult) } else { (j, 1.0) }
+}
+
+/// A joint coordinate's inertia as a contact impulse meets it this substep: I + h·d (armature, link
+/// inertia about the axis, and the implicit joint damping of `integrate_hand`:
+/// Δq̇ = h·τ / (I + h·d)).
+pub fn joint_impulse_inertia(p: &EnvParams, m: &Model, j: usize, h: f32) -> f32 {
+    let jd = &m.joints[j];
+    jd.armature + jd.link_inertia * p.hand_mass_scale + h * jd.damping * p.kd_scale
+}
+
+/// Applies a force on hand link `l` at world point `x` for this substep: the velocity changes it
+/// makes join the hand's (`Scratch::dqd`, `wrist_dv`, `wrist_dw`), so the contacts solved after it
+/// see it (one Gauss–Seidel sweep over the hand's contacts):
+/// Δq̇_L += h·m_j·aⱼ·((x − oⱼ) × F) / (I_L + h·d_L) up the chain (L: the joint's coordinate, m_j
+/// its multiplier), Δv_w += h·F / m_w, Δω_w += h·(x − p_w) × F / I_w.
+pub fn apply_hand_force(p: &EnvParams, m: &Model, s: &mut Scratch, l: usize, x: Vec3, f: Vec3, h: f32) {
+    let (mass, inertia) = wrist_mass_inertia(p, m.g);
+    s.wrist_dv += f * (h / mass);
+    s.wrist_dw += (x - s.link_pos[0]).cross(f) * (h / inertia);
     let mut link = l;
     while link > 0 {
         let j = link - 1;
-        s.tau[j] += s.joint_axis[j].dot((x - s.link_pos[link]).cross(f));
+        let (lj, mult) = joint_lead(m, j);
+        let tq = s.joint_axis[j].dot((x - s.link_pos[link]).cross(f));
+        s.dqd[lj] += h * mult * tq / joint_impulse_inertia(p, m, lj, h);
         link = m.joints[j].parent_link as usize;
     }
 }
 
-/// Upper bound of the hand's mobility (1/kg: velocity change per unit impulse, in any direction) at
-/// world point `x` on link `l`, as `integrate_hand` moves the hand: the wrist's translation and
-/// rotation, and each independent joint coordinate of the chain (a leader moves its followers,
-/// `q_f = mult·q_L`, with the leader's inertia):
-/// w = 1/m_w + |x − p_w|²/I_w + Σ_L |J_L|²/I_L,  J_L = Σ_{k in chain, leader(k) = L} mult_k · a_k × (x − p_k).
-pub fn hand_mobility(p: &EnvParams, m: &Model, s: &Scratch, l: usize, x: Vec3) -> f32 {
-    let g = m.g;
-    let mass = g.hand_mass * p.hand_mass_scale + g.wrist_added_mass;
-    let inertia = g.hand_inertia * p.hand_mass_scale + g.wrist_added_inertia;
-    let w0 = 1.0 / mass + (x - s.link_pos[0]).length_squared() / inertia;
+/// Applies a torque on hand link `l` for this substep (as `apply_hand_force`):
+/// Δq̇_L += h·m_j·aⱼ·T / (I_L + h·d_L) up the chain, Δω_w += h·T / I_w.
+pub fn apply_hand_torque(p: &EnvParams, m: &Model, s: &mut Scratch, l: usize, tq: Vec3, h: f32) {
+    let (_, inertia) = wrist_mass_inertia(p, m.g);
+    s.wrist_dw += tq * (h / inertia);
+    let mut link = l;
+    while link > 0 {
+        let j = link - 1;
+        let (lj, mult) = joint_lead(m, j);
+        s.dqd[lj] += h * mult * s.joint_axis[j].dot(tq) / joint_impulse_inertia(p, m, lj, h);
+        link = m.joints[j].parent_link as usize;
+    }
+}
+
+/// The change this substep of the velocity of point `x` (world) on hand link `l`, from the servos
+/// and the contacts applied so far: Δv = Δv_w + Δω_w × (x − p_w) + Σ_chain m_j·Δq̇_L·aⱼ × (x − oⱼ).
+pub fn hand_point_velocity_change(m: &Model, s: &Scratch, l: usize, x: Vec3) -> Vec3 {
+    let mut dv = s.wrist_dv + s.wrist_dw.cross(x - s.link_pos[0]);
+    let mut link = l;
+    while link > 0 {
+        let j = link - 1;
+        let (lj, mult) = joint_lead(m, j);
+        dv += s.joint_axis[j].cross(x - s.link_pos[link]) * (mult * s.dqd[lj]);
+        link = m.joints[j].parent_link as usize;
+    }
+    dv
+}
+
+/// The hand's mobility (1/kg: velocity change per unit impulse) at world point `x` on link `l`, as
+/// `apply_hand_force` moves the hand, along the unit normal `n` and summed over all directions
+/// (the trace: its part in the tangent plane, trace − w_n, bounds the mobility along any tangent):
+/// w_u = 1/m_w + |(x − p_w) × u|²/I_w + Σ_L (J_L·u)²/(I_L + h·d_L),
+/// J_L = Σ_{k in chain, lead(k) = L} m_k · a_k × (x − o_k). Returns (w_n, trace).
+pub fn hand_mobility(p: &EnvParams, m: &Model, s: &Scratch, l: usize, x: Vec3, n: Vec3, h: f32) -> (f32, f32) {
+    let (mass, inertia) = wrist_mass_inertia(p, m.g);
+    let r0 = x - s.link_pos[0];
+    let rn = r0.cross(n);
+    // the wrist: translation along u, rotation about the wrist
+    let mut w_n = 1.0 / mass + rn.dot(rn) / inertia;
+    let mut w_tr = 3.0 / mass + 2.0 * r0.dot(r0) / inertia;
     // no follower on the chain (the common case): every joint is its own coordinate, J_j = a_j × r
-    let mut w = w0;
     let mut link = l;
     let mut coupled = false;
     while link > 0 {
         let j = link - 1;
-        let jd = &m.joints[j];
-        if jd.mimic_leader != NO_JOINT {
+        if m.joints[j].mimic_leader != NO_JOINT {
             coupled = true;
             break;
         }
-        w += s.joint_axis[j].cross(x - s.link_pos[link]).length_squared() / (jd.armature + jd.link_inertia * p.hand_mass_scale);
-        link = jd.parent_link as usize;
+        let jac = s.joint_axis[j].cross(x - s.link_pos[link]);
+        let inv_i = 1.0 / joint_impulse_inertia(p, m, j, h);
+        w_n += jac.dot(n) * jac.dot(n) * inv_i;
+        w_tr += jac.dot(jac) * inv_i;
+        link = m.joints[j].parent_link as usize;
     }
     if !coupled {
-        return w;
+        return (w_n, w_tr);
     }
-    let mut w = w0;
-    // the coordinate that moves chain joint j, and its multiplier
-    let lead = |j: usize| -> (usize, f32) {
-        let jd = &m.joints[j];
-        if jd.mimic_leader != NO_JOINT { (jd.mimic_leader as usize, jd.mimic_mult) } else { (j, 1.0) }
-    };
+    w_n = 1.0 / mass + rn.dot(rn) / inertia;
+    w_tr = 3.0 / mass + 2.0 * r0.dot(r0) / inertia;
     let mut link = l;
     while link > 0 {
         let j = link - 1;
-        let (lj, _) = lead(j);
+        let (lj, _) = joint_lead(m, j);
         // J_L over the whole chain, counted once: at the chain joint nearest the tip that L moves
         let mut first = true;
         let mut jac = Vec3::ZERO;
         let mut k_link = l;
         while k_link > 0 {
             let k = k_link - 1;
-            let (lk, mult) = lead(k);
+            let (lk, mult) = joint_lead(m, k);
             if lk == lj {
                 if k_link > link {
                     first = false;
@@ -718,32 +779,58 @@ pub fn hand_mobility(p: &EnvParams, m: &Model, s: &Scratch, l: usize, x: Vec3) -
             k_link = m.joints[k].parent_link as usize;
         }
         if first {
-            let ld = &m.joints[lj];
-            w += jac.length_squared() / (ld.armature + ld.link_inertia * p.hand_mass_scale);
+            let inv_i = 1.0 / joint_impulse_inertia(p, m, lj, h);
+            w_n += jac.dot(n) * jac.dot(n) * inv_i;
+            w_tr += jac.dot(jac) * inv_i;
         }
         link = m.joints[j].parent_link as usize;
     }
-    w
+    (w_n, w_tr)
 }
 
-/// The normal stiffness, tangential stiffness and damping of a hand contact of mobility `w` (see
-/// `hand_mobility`), capped for the explicit hand integration: h²·k·w ≤ `SAFE_STIFFNESS`,
-/// h·c·w ≤ `SAFE_DAMPING`. Returns (k, kt, c).
-pub fn hand_contact_gains(k: f32, kt: f32, c: f32, w: f32, h: f32) -> (f32, f32, f32) {
-    let k_max = SAFE_STIFFNESS / (h * h * w);
-    let c_max = SAFE_DAMPING / (h * w);
-    (k.min(k_max), kt.min(k_max), c.min(c_max))
-}
-
-/// Applies a torque on hand link `l`: τ_j += aⱼ·T up the chain, and on the wrist.
-pub fn apply_hand_torque(m: &Model, s: &mut Scratch, l: usize, tq: Vec3) {
-    s.wrist_t += tq;
-    let mut link = l;
-    while link > 0 {
-        let j = link - 1;
-        s.tau[j] += s.joint_axis[j].dot(tq);
-        link = m.joints[j].parent_link as usize;
+/// A hand contact's force, solved implicitly on the hand's side (the hand is integrated explicitly,
+/// so an explicit spring on a light finger would ring). `vrel`: the hand point's velocity relative
+/// to the other body now; `dv`: its change this substep from the servos and the contacts solved
+/// before (`hand_point_velocity_change`); `w_n`, `w_t`: the hand's mobility along the normal and
+/// its bound along any tangent (`hand_mobility`). With K = k·h + c and the end-of-substep relative
+/// velocity v' = vrel + dv + h·w·F, the force is the spring–damper's at the end of the substep:
+///   Fn = k·(d − h·v'n) − c·v'n  ⇒  Fn = (k·d − K·(vrel + dv)·n) / (1 + h·w_n·K),
+///   Ft = −kt·(s + h·v't) − c·v't  ⇒  Ft = −(kt·s + Kt·(vrel + dv)t) / (1 + h·w_t·Kt),
+/// with s the tangential spring after this substep's slip (as `contact_force`) and Ft limited to
+/// μ·Fn (sliding). At rest Fn = k·d whatever k; a gap (d < 0) closing within the substep pushes
+/// already (a speculative contact), so a fast finger stops at the surface instead of a substep's
+/// travel inside it. Returns (force, spring, the object's normal and tangential damping: the force's
+/// derivative with respect to the other body's velocity).
+#[allow(clippy::too_many_arguments)]
+pub fn hand_contact_force(c: &Contact, vrel: Vec3, dv: Vec3, anchor: Vec3, k: f32, kt: f32, damp: f32, mu: f32, h: f32, w_n: f32, w_t: f32) -> (Vec3, Vec3, f32, f32) {
+    let n = c.normal;
+    let vp = vrel + dv;
+    let vn = vp.dot(n);
+    let kn = k * h + damp;
+    // Fn = (k·d − K·vn) / (1 + h·w_n·K)
+    let fn_ = ((k * c.depth - kn * vn) / (1.0 + h * w_n * kn)).max(0.0);
+    if fn_ <= 0.0 {
+        return (Vec3::ZERO, Vec3::ZERO, 0.0, 0.0);
     }
+    let a = kn / (1.0 + h * w_n * kn);
+    // spring kept in the tangent plane, stretched by the slip now: s ← s − (s·n)n + vt h
+    let vt_now = vrel - n * vrel.dot(n);
+    let spring = anchor - n * anchor.dot(n) + vt_now * h;
+    let vt = vp - n * vn;
+    let ktn = kt * h + damp;
+    // Ft = −(kt·s + Kt·vt) / (1 + h·w_t·Kt)
+    let ft = -(spring * kt + vt * ktn) / (1.0 + h * w_t * ktn);
+    let b_stick = ktn / (1.0 + h * w_t * ktn);
+    let ft_len = ft.length();
+    let limit = mu * fn_;
+    if ft_len > limit {
+        // sliding: the friction force sits on the cone and the spring carries it
+        let f_slide = ft * (limit / ft_len);
+        let vt_len = vt.length();
+        let b = if vt_len > 1e-6 { (limit / vt_len).min(b_stick) } else { b_stick };
+        return (n * fn_ + f_slide, -f_slide / kt, a, b);
+    }
+    (n * fn_ + ft, spring, a, b_stick)
 }
 
 /// Adds a torque on the object and its implicit rotational damping b·nnᵀ.
@@ -789,9 +876,37 @@ pub fn apply_object_force(com: Vec3, s: &mut Scratch, x: Vec3, f: Vec3, n: Vec3,
     }
 }
 
+/// Solves hand contact `c` on link `l` against a body whose contact point moves at `v_other`, with
+/// the spring in slot `slot` (xyz: the tangential spring, w: 1 while the pair touches): the force
+/// on the hand (applied to it for the contacts after), and the object's damping (a, b): the object
+/// meets the force in its own implicit solve. Only the hand's mobility enters the hand's solve, so
+/// that at rest Fn = k·d (with the object's as well, a held object, which its other contacts keep
+/// still, would sink in further by h²·w_o·Fn). A pair whose solve gives no push gets no force and its
+/// spring is cleared.
+#[allow(clippy::too_many_arguments)]
+pub fn solve_hand_contact(p: &EnvParams, m: &Model, s: &mut Scratch, springs: &mut [[f32; 4]], slot: usize, l: usize, c: &Contact, v_other: Vec3, damp: f32, mu: f32, h: f32) -> (Vec3, f32, f32) {
+    let g = m.g;
+    let vrel = link_point_velocity(s, l, c.point) - v_other;
+    let dv = hand_point_velocity_change(m, s, l, c.point);
+    let (w_n, w_tr) = hand_mobility(p, m, s, l, c.point, c.normal, h);
+    let (f, spring, a, b) = hand_contact_force(c, vrel, dv, v3(springs[slot]), g.hand_contact_k, g.hand_contact_kt, damp, mu, h, w_n, w_tr - w_n);
+    if f.dot(c.normal) > 0.0 {
+        springs[slot] = [spring.x, spring.y, spring.z, 1.0];
+        apply_hand_force(p, m, s, l, c.point, f, h);
+    } else {
+        // touching without pushing (separating): no spring, still flagged as touching
+        springs[slot] = [0.0, 0.0, 0.0, if c.depth > 0.0 { 1.0 } else { 0.0 }];
+    }
+    (f, a, b)
+}
+
 /// Evaluates every contact of the substep: forces on hand and object, springs (`springs`: this
-/// env's `[n_springs]` slots, see [`spring_slot`]), statistics.
-pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvParams, m: &Model, s: &mut Scratch, h: f32) {
+/// env's `[n_springs]` slots, see [`spring_slot`]), statistics. `on_contact` sees each contact
+/// that touches or pushes, with the force on its first body (the hand; the object against the
+/// table): the host's recordings take them from here (`env::contact_records`); the step passes a
+/// closure that does nothing.
+#[allow(clippy::too_many_arguments)]
+pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, on_contact: &mut impl FnMut(ContactKind, usize, &Contact, Vec3)) {
     let g = m.g;
     let k = g.contact_k;
     let kt = g.contact_kt;
@@ -806,31 +921,28 @@ pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvP
     for ci in 0..g.n_colliders as usize {
         let (sho, sht) = (spring_slot::hand_object(ci as u32) as usize, spring_slot::hand_table(n_c, ci as u32) as usize);
         let l = m.colliders[ci].link as usize;
-        // hand–object
+        // hand–object: a touching pair, or one apart by less than the speculative margin
         let c = collide_hand_object(st, p, m, s, ci);
-        if c.depth > 0.0 {
-            let vh = link_point_velocity(s, l, c.point);
-            let vo = ovel + ow.cross(c.point - ocom);
-            let (kc, ktc, cc) = hand_contact_gains(k, kt, p.obj_contact_c, hand_mobility(p, m, s, l, c.point), h);
-            let (f, spring, b) = contact_force(&c, vh - vo, v3(springs[sho]), kc, ktc, cc, mu_ho, h);
-            springs[sho] = [spring.x, spring.y, spring.z, 1.0];
-            apply_hand_force(m, s, l, c.point, f);
-            // the normal damper acts only while the contact pushes (Fn > 0)
-            let a = if f.dot(c.normal) > 0.0 { kc * h + cc } else { 0.0 };
-            apply_object_force(ocom, s, c.point, -f, c.normal, a, b);
-            let (tq, br) = torsion_torque(c.normal, s.link_w[l] - ow, f.dot(c.normal), mu_ho, g.torsion_radius);
-            apply_hand_torque(m, s, l, tq);
-            apply_object_torque(s, -tq, c.normal, br);
-            s.contacts += 1;
-            s.contacts_ho += 1;
-            s.max_pen_ho = s.max_pen_ho.max(c.depth);
-            s.max_pen = s.max_pen.max(c.depth);
-            let tip = m.colliders[ci].tip;
-            if tip != NO_JOINT {
-                s.tip_force[tip as usize] += f.dot(c.normal);
-            }
-            if f.dot(c.normal) > 0.0 {
+        if c.depth > -CONTACT_MARGIN {
+            let (f, a, b) = solve_hand_contact(p, m, s, springs, sho, l, &c, ovel + ow.cross(c.point - ocom), p.obj_contact_c, mu_ho, h);
+            let fn_ = f.dot(c.normal);
+            if fn_ > 0.0 {
+                apply_object_force(ocom, s, c.point, -f, c.normal, a, b);
+                let (tq, br) = torsion_torque(c.normal, s.link_w[l] - ow, fn_, mu_ho, g.torsion_radius);
+                apply_hand_torque(p, m, s, l, tq, h);
+                apply_object_torque(s, -tq, c.normal, br);
                 s.link_contact[l / 32] |= 1 << (l % 32);
+                let tip = m.colliders[ci].tip;
+                if tip != NO_JOINT {
+                    s.tip_force[tip as usize] += fn_;
+                }
+            }
+            if fn_ > 0.0 || c.depth > 0.0 {
+                s.contacts += 1;
+                s.contacts_ho += 1;
+                s.max_pen_ho = s.max_pen_ho.max(c.depth);
+                s.max_pen = s.max_pen.max(c.depth);
+                on_contact(ContactKind::HandObject, ci, &c, f);
             }
         } else {
             springs[sho] = [0.0; 4];
@@ -838,14 +950,13 @@ pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvP
         // hand–table
         if g.hand_table != 0 {
             let c = collide_hand_table(m, s, ci);
-            if c.depth > 0.0 {
-                let vh = link_point_velocity(s, l, c.point);
-                let (kc, ktc, cc) = hand_contact_gains(k, kt, p.hand_table_c, hand_mobility(p, m, s, l, c.point), h);
-                let (f, spring, _) = contact_force(&c, vh, v3(springs[sht]), kc, ktc, cc, mu_ht, h);
-                springs[sht] = [spring.x, spring.y, spring.z, 1.0];
-                apply_hand_force(m, s, l, c.point, f);
-                s.contacts += 1;
-                s.max_pen = s.max_pen.max(c.depth);
+            if c.depth > -CONTACT_MARGIN {
+                let (f, _, _) = solve_hand_contact(p, m, s, springs, sht, l, &c, Vec3::ZERO, p.hand_table_c, mu_ht, h);
+                if f.dot(c.normal) > 0.0 || c.depth > 0.0 {
+                    s.contacts += 1;
+                    s.max_pen = s.max_pen.max(c.depth);
+                    on_contact(ContactKind::HandTable, ci, &c, f);
+                }
             } else {
                 springs[sht] = [0.0; 4];
             }
@@ -868,7 +979,6 @@ pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvP
         }
         for j in 0..pd.n_support {
             let ki = spring_slot::object_table(n_c, kp) as usize;
-            kp += 1;
             let c = collide_piece_table(m, pd, p.obj_scale, size, ppos, prot, j);
             if c.depth > 0.0 {
                 let vo = ovel + ow.cross(c.point - ocom);
@@ -880,25 +990,54 @@ pub fn contacts_and_forces(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvP
                 apply_object_torque(s, tq, c.normal, br);
                 s.contacts += 1;
                 s.max_pen = s.max_pen.max(c.depth);
+                on_contact(ContactKind::ObjectTable, kp as usize, &c, f);
             } else {
                 springs[ki] = [0.0; 4];
             }
+            kp += 1;
         }
     }
 }
 
-/// Finger joints (servo + contact torques, semi-implicit) and the wrist (limited PD + contact wrench).
-pub fn integrate_hand(st: &mut EnvState, p: &EnvParams, t: &Targets, m: &Model, s: &Scratch, h: f32) {
+/// The servos' part of the substep, before the contacts: each independent finger joint's velocity
+/// change from its servo (PD within the effort limit, Coulomb friction, implicit joint damping) and
+/// the wrist's from its controller, into `Scratch::dqd`, `wrist_dv`, `wrist_dw`. The hand's
+/// contacts are solved against these (`hand_contact_force`) and add their own.
+pub fn hand_servo(st: &EnvState, p: &EnvParams, t: &Targets, m: &Model, s: &mut Scratch, h: f32) {
+    let g = m.g;
+    for j in 0..g.n_joints as usize {
+        let jd = &m.joints[j];
+        s.dqd[j] = 0.0;
+        if jd.mimic_leader != NO_JOINT {
+            continue;
+        }
+        let lo = jd.lower * p.limit_scale;
+        let hi = jd.upper * p.limit_scale;
+        let inertia = jd.armature + jd.link_inertia * p.hand_mass_scale;
+        let qd = st.qd[j];
+        let goal = t.q[j].clamp(lo, hi);
+        // τ_pd = clamp(kp (q* − q) − kd q̇, ±effort)
+        let tau_pd = (jd.kp * p.kp_scale * (goal - st.q[j]) - jd.kd * p.kd_scale * qd).clamp(-jd.effort, jd.effort);
+        // Coulomb friction, regularised over 0.01 rad/s
+        let tau_f = -jd.friction * (qd / 0.01).clamp(-1.0, 1.0);
+        // joint damping implicit: q̇' = (q̇ + h τ / I) / (1 + h d / I)
+        s.dqd[j] = (qd + h * (tau_pd + tau_f) / inertia) / (1.0 + h * jd.damping * p.kd_scale / inertia) - qd;
+    }
+    // wrist: F = clamp(kp (p* − p) − kd v, Fmax); the hand's weight is compensated
+    let (mass, inertia) = wrist_mass_inertia(p, g);
+    let vel = v3(st.wrist_vel);
+    let w = v3(st.wrist_angvel);
+    let f_pd = clamp_norm(g.wrist_kp_lin * (v3(t.wrist_pos) - v3(st.wrist_pos)) - g.wrist_kd_lin * vel, g.wrist_force_limit);
+    let t_pd = clamp_norm(g.wrist_kp_rot * quat_error(v4(t.wrist_rot), v4(st.wrist_rot)) - g.wrist_kd_rot * w, g.wrist_torque_limit);
+    s.wrist_dv = f_pd * (h / mass);
+    s.wrist_dw = t_pd * (h / inertia);
+}
+
+/// Finger joints and wrist: their velocities change by what the servos and contacts made of
+/// `Scratch::dqd`, `wrist_dv`, `wrist_dw`; then the speed and position limits, positions, followers.
+pub fn integrate_hand(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch, h: f32) {
     let g = m.g;
     let n = g.n_joints as usize;
-    // contact torque on a follower acts on its leader through the multiplier
-    let mut tau = s.tau;
-    for j in 0..n {
-        let jd = &m.joints[j];
-        if jd.mimic_leader != NO_JOINT {
-            tau[jd.mimic_leader as usize] += jd.mimic_mult * tau[j];
-        }
-    }
     for j in 0..n {
         let jd = &m.joints[j];
         if jd.mimic_leader != NO_JOINT {
@@ -906,18 +1045,9 @@ pub fn integrate_hand(st: &mut EnvState, p: &EnvParams, t: &Targets, m: &Model, 
         }
         let lo = jd.lower * p.limit_scale;
         let hi = jd.upper * p.limit_scale;
-        let inertia = jd.armature + jd.link_inertia * p.hand_mass_scale;
-        let q = st.q[j];
-        let mut qd = st.qd[j];
-        let goal = t.q[j].clamp(lo, hi);
-        // τ_pd = clamp(kp (q* − q) − kd q̇, ±effort)
-        let tau_pd = (jd.kp * p.kp_scale * (goal - q) - jd.kd * p.kd_scale * qd).clamp(-jd.effort, jd.effort);
-        // Coulomb friction, regularised over 0.01 rad/s
-        let tau_f = -jd.friction * (qd / 0.01).clamp(-1.0, 1.0);
-        // joint damping implicit: q̇' = (q̇ + h τ / I) / (1 + h d / I)
-        qd = (qd + h * (tau_pd + tau_f + tau[j]) / inertia) / (1.0 + h * jd.damping * p.kd_scale / inertia);
-        qd = qd.clamp(-jd.velocity, jd.velocity);
-        let mut qn = q + h * qd;
+        let qd = (st.qd[j] + s.dqd[j]).clamp(-jd.velocity, jd.velocity);
+        let mut qd = qd;
+        let mut qn = st.q[j] + h * qd;
         if qn < lo {
             qn = lo;
             qd = qd.max(0.0);
@@ -937,21 +1067,12 @@ pub fn integrate_hand(st: &mut EnvState, p: &EnvParams, t: &Targets, m: &Model, 
             st.qd[j] = jd.mimic_mult * st.qd[l];
         }
     }
-    // wrist: F = clamp(kp (p* − p) − kd v, Fmax) + contacts; the hand's weight is compensated
-    let mass = g.hand_mass * p.hand_mass_scale + g.wrist_added_mass;
-    let inertia = g.hand_inertia * p.hand_mass_scale + g.wrist_added_inertia;
-    let pos = v3(st.wrist_pos);
-    let vel = v3(st.wrist_vel);
-    let w = v3(st.wrist_angvel);
-    let rot = v4(st.wrist_rot);
-    let f_pd = clamp_norm(g.wrist_kp_lin * (v3(t.wrist_pos) - pos) - g.wrist_kd_lin * vel, g.wrist_force_limit);
-    let t_pd = clamp_norm(g.wrist_kp_rot * quat_error(v4(t.wrist_rot), rot) - g.wrist_kd_rot * w, g.wrist_torque_limit);
-    let vel_n = vel + (f_pd + s.wrist_f) * (h / mass);
-    let w_n = w + (t_pd + s.wrist_t) * (h / inertia);
+    let vel_n = v3(st.wrist_vel) + s.wrist_dv;
+    let w_n = v3(st.wrist_angvel) + s.wrist_dw;
     st.wrist_vel = put3(vel_n);
     st.wrist_angvel = put3(w_n);
-    st.wrist_pos = put3(pos + vel_n * h);
-    st.wrist_rot = quat_integrate(rot, w_n, h).to_array();
+    st.wrist_pos = put3(v3(st.wrist_pos) + vel_n * h);
+    st.wrist_rot = quat_integrate(v4(st.wrist_rot), w_n, h).to_array();
 }
 
 /// Solves A x = b for a symmetric positive definite 6×6 A (row-major) by Cholesky.
@@ -1049,14 +1170,12 @@ pub fn integrate_object(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch
 /// One substep of length h.
 pub fn substep(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvParams, t: &Targets, m: &Model, s: &mut Scratch, h: f32) {
     hand_kinematics(st, m, s);
-    s.tau = [0.0; MAX_JOINTS];
-    s.wrist_f = Vec3::ZERO;
-    s.wrist_t = Vec3::ZERO;
     s.obj_f = Vec3::ZERO;
     s.obj_t = Vec3::ZERO;
     s.obj_d = [0.0; 36];
-    contacts_and_forces(st, springs, p, m, s, h);
-    integrate_hand(st, p, t, m, s, h);
+    hand_servo(st, p, t, m, s, h);
+    contacts_and_forces(st, springs, p, m, s, h, &mut |_, _, _, _| {});
+    integrate_hand(st, p, m, s, h);
     integrate_object(st, p, m, s, h);
 }
 

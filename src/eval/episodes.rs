@@ -453,7 +453,7 @@ fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::t
         wrist: Pose::from_arrays(s.wrist_pos, s.wrist_rot),
         object: Pose::from_arrays(s.obj_pos, s.obj_rot),
         links: hand_link_poses(model, s),
-        contacts: contact_records(model, s, &springs[..model.globals.n_springs as usize], &params[0]),
+        contacts: contact_records(model, s, &springs[..model.globals.n_springs as usize], &params[0], &targets[0]),
         object_ref,
     })
 }

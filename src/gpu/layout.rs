@@ -120,7 +120,11 @@ pub struct Globals {
     pub max_distance: f32,
     /// Radius (m) of the contact patch that gives torsional friction (μ·Fn·r).
     pub torsion_radius: f32,
-    pub _pad2: f32,
+    /// Normal and tangential-spring stiffness (N/m) of the hand's contacts (`contact_k`,
+    /// `contact_kt`: the object's against the table).
+    pub hand_contact_k: f32,
+    pub hand_contact_kt: f32,
+    pub _pad2: [f32; 3],
 }
 
 /// One movable joint of the hand (WGSL `JointDesc`), in topological order.

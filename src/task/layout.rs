@@ -20,8 +20,8 @@ pub struct TaskGlobals {
     pub wrist_pos_max: [f32; 4],
     /// Palm point in the wrist frame (m), xyz.
     pub palm_offset: [f32; 4],
-    /// Weight of each reward term in `config::LIFT_TERMS` order, packed 4 per vec4.
-    pub weights: [[f32; 4]; 2],
+    /// Weight of each reward term in the kind's order (`config::rewards`), packed 4 per vec4.
+    pub weights: [[f32; 4]; 3],
     /// Joint index of each actuated joint (`EnvSpec::actuated`), packed 4 per vec4 (uniform arrays
     /// need a 16-byte stride).
     pub actuated: [[u32; 4]; MAX_JOINTS / 4],
@@ -105,7 +105,10 @@ pub struct TaskGlobals {
     pub rw_tips: f32,
     pub rw_wrist_pos: f32,
     pub rw_wrist_rot: f32,
-    pub _pad3: [f32; 3],
+    /// `task.hand.grip_force_limit` (N) and `task.hand.penetration_tolerance` (m): the grasp terms.
+    pub grip_force_limit: f32,
+    pub penetration_tolerance: f32,
+    pub _pad1: f32,
     /// The fingertip IK of residual_task.
     pub ik: crate::task::ik::IkParams,
 }

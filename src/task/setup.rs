@@ -159,7 +159,7 @@ pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<TaskSetup> {
         bail!("{}: {priv_dim} observations, at most {} are supported", hand, OBS_KEY_STRIDE / 2 - 1);
     }
 
-    let mut weights = [[0.0f32; 4]; 2];
+    let mut weights = [[0.0f32; 4]; 3];
     for (k, term) in terms.iter().enumerate() {
         weights[k / 4][k % 4] = t.rewards.get(term.name).copied().unwrap_or(0.0);
     }
@@ -243,7 +243,9 @@ pub fn task_setup(cfg: &Config, model: &SimModel) -> Result<TaskSetup> {
         rw_tips: r.reward_tips,
         rw_wrist_pos: r.reward_wrist_pos,
         rw_wrist_rot: r.reward_wrist_rot,
-        _pad3: [0.0; 3],
+        grip_force_limit: t.hand.grip_force_limit,
+        penetration_tolerance: t.hand.penetration_tolerance,
+        _pad1: 0.0,
         ik: IkParams::default(),
     };
     // episode length for the learner's random initial episode lengths: the longest reference

@@ -27,7 +27,7 @@ pub const KIND_TRACK: u32 = TaskKind::Track as u32;
 pub const KIND_RESIDUAL_JOINT: u32 = TaskKind::ResidualJoint as u32;
 pub const KIND_RESIDUAL_TASK: u32 = TaskKind::ResidualTask as u32;
 /// Most reward terms of a kind (the output record's term slots).
-pub const MAX_TERMS: usize = 8;
+pub const MAX_TERMS: usize = 12;
 /// The slot of each reward term in its kind's output: the position of its name in the tables of
 /// [`super::spec`] (task.wgsl's `T_*` constants; tests/suite/shaders.rs checks them).
 pub const T_LIFT_REACHING: usize = term_index(&LIFT_TERMS, "reaching");
@@ -55,6 +55,19 @@ pub const T_RESIDUAL_TASK_VELOCITY: usize = term_index(&RESIDUAL_TASK_TERMS, "ve
 pub const T_RESIDUAL_TASK_TORQUE: usize = term_index(&RESIDUAL_TASK_TERMS, "torque");
 pub const T_RESIDUAL_TASK_WORK: usize = term_index(&RESIDUAL_TASK_TERMS, "work");
 pub const T_RESIDUAL_TASK_TABLE_COLLISION: usize = term_index(&RESIDUAL_TASK_TERMS, "table_collision");
+pub const T_LIFT_GRIP_FORCE: usize = term_index(&LIFT_TERMS, "grip_force");
+pub const T_LIFT_PENETRATION: usize = term_index(&LIFT_TERMS, "penetration");
+pub const T_TRACK_GRIP_FORCE: usize = term_index(&TRACK_TERMS, "grip_force");
+pub const T_TRACK_PENETRATION: usize = term_index(&TRACK_TERMS, "penetration");
+pub const T_RESIDUAL_JOINT_GRIP_FORCE: usize = term_index(&RESIDUAL_JOINT_TERMS, "grip_force");
+pub const T_RESIDUAL_JOINT_PENETRATION: usize = term_index(&RESIDUAL_JOINT_TERMS, "penetration");
+pub const T_RESIDUAL_TASK_GRIP_FORCE: usize = term_index(&RESIDUAL_TASK_TERMS, "grip_force");
+pub const T_RESIDUAL_TASK_PENETRATION: usize = term_index(&RESIDUAL_TASK_TERMS, "penetration");
+// every kind ends with the grasp terms (`task_reward` writes them at the kind's last two slots)
+const _: () = assert!(T_LIFT_GRIP_FORCE == LIFT_TERMS.len() - 2 && T_LIFT_PENETRATION == LIFT_TERMS.len() - 1);
+const _: () = assert!(T_TRACK_GRIP_FORCE == TRACK_TERMS.len() - 2 && T_TRACK_PENETRATION == TRACK_TERMS.len() - 1);
+const _: () = assert!(T_RESIDUAL_JOINT_GRIP_FORCE == RESIDUAL_JOINT_TERMS.len() - 2 && T_RESIDUAL_JOINT_PENETRATION == RESIDUAL_JOINT_TERMS.len() - 1);
+const _: () = assert!(T_RESIDUAL_TASK_GRIP_FORCE == RESIDUAL_TASK_TERMS.len() - 2 && T_RESIDUAL_TASK_PENETRATION == RESIDUAL_TASK_TERMS.len() - 1);
 /// Offsets in the per-env output record (after the obs and priv obs sections of the GPU's output
 /// buffer; keep in sync with task.wgsl `OUT_*`): reward, the weighted terms (`MAX_TERMS` slots,
 /// the kind's first), terminated, time_out, success, lift height, max hand–object penetration, the
@@ -63,15 +76,15 @@ pub const T_RESIDUAL_TASK_TABLE_COLLISION: usize = term_index(&RESIDUAL_TASK_TER
 /// `OUT_MISC` floats in all.
 pub const OUT_REWARD: usize = 0;
 pub const OUT_TERMS: usize = 1;
-pub const OUT_TERMINATED: usize = 9;
-pub const OUT_TIME_OUT: usize = 10;
-pub const OUT_SUCCESS: usize = 11;
-pub const OUT_LIFT: usize = 12;
-pub const OUT_MAX_PEN: usize = 13;
-pub const OUT_OBJ_POS_ERR: usize = 14;
-pub const OUT_OBJ_ROT_ERR: usize = 15;
-pub const OUT_BAD_RESET: usize = 16;
-pub const OUT_MISC: usize = 17;
+pub const OUT_TERMINATED: usize = 13;
+pub const OUT_TIME_OUT: usize = 14;
+pub const OUT_SUCCESS: usize = 15;
+pub const OUT_LIFT: usize = 16;
+pub const OUT_MAX_PEN: usize = 17;
+pub const OUT_OBJ_POS_ERR: usize = 18;
+pub const OUT_OBJ_ROT_ERR: usize = 19;
+pub const OUT_BAD_RESET: usize = 20;
+pub const OUT_MISC: usize = 21;
 
 
 /// The observation cursor of one env (the shader's `ob_*` / `pr_base` private variables): where
@@ -393,6 +406,15 @@ pub fn task_reward(st: &EnvState, p: &EnvParams, stats: &StepStats, ts: &mut Tas
             success = 0.0;
             err = Vec2::ZERO;
         }
+    }
+    if !bad {
+        // the grasp terms, the kind's last two: Σ_tips max(F − F_limit, 0) (N), max(d − d_tol, 0) (mm)
+        let mut excess = 0.0f32;
+        for i in 0..m.g.n_tips as usize {
+            excess += (stats.tip_force[i] - tc.grip_force_limit).max(0.0);
+        }
+        raw[tc.n_terms as usize - 2] = excess;
+        raw[tc.n_terms as usize - 1] = (stats.max_pen_ho - tc.penetration_tolerance).max(0.0) * 1000.0;
     }
     let lift = if bad { 0.0 } else { h };
     let mut reward = 0.0f32;

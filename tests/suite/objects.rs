@@ -196,7 +196,7 @@ fn the_hollow_mug_stands_on_its_base() {
     let (params, springs) = (b.params().unwrap(), b.springs().unwrap());
     let per_env = model.globals.n_springs as usize;
     for (i, s) in b.states().unwrap().iter().enumerate() {
-        let contacts = dextrain::env::contact_records(&model, s, &springs[i * per_env..(i + 1) * per_env], &params[i]);
+        let contacts = dextrain::env::contact_records(&model, s, &springs[i * per_env..(i + 1) * per_env], &params[i], &model.default_targets());
         let table: Vec<u32> = contacts.iter().filter(|k| k.kind == dextrain::record::ContactKind::ObjectTable).map(|k| k.index).collect();
         assert!(table.iter().filter(|&&k| k < 16).count() >= 8 && !table.iter().any(|k| (16..40).contains(k)), "env {i}: table contacts at support points {table:?}");
     }

@@ -74,7 +74,7 @@ fn pod_structs_match_their_wgsl_twins() {
         n_envs, n_joints, n_colliders, n_tips, n_links, n_objects, n_obj_pts, substeps, decimation, seed, hand_table, n_springs,
         dt, gravity, contact_k, contact_kt, hand_eff_mass, hand_friction, n_ref_objects, obj_friction, table_friction, yaw_noise,
         hand_mass, hand_inertia, wrist_added_mass, wrist_added_inertia, wrist_kp_lin, wrist_kd_lin, wrist_force_limit,
-        wrist_kp_rot, wrist_kd_rot, wrist_torque_limit, max_speed, max_distance, torsion_radius, _pad2));
+        wrist_kp_rot, wrist_kd_rot, wrist_torque_limit, max_speed, max_distance, torsion_radius, hand_contact_k, hand_contact_kt, _pad2));
     check(&m, "JointDesc", size_of::<JointDesc>(), rust_fields!(JointDesc; origin_pos, origin_rot, axis, parent_link, mimic_leader,
         mimic_mult, mimic_offset, lower, upper, effort, velocity, damping, friction, armature, link_inertia, kp, kd, default_q, _pad));
     check(&m, "ColliderDesc", size_of::<ColliderDesc>(), rust_fields!(ColliderDesc; pos, rot, size, link, shape, tip, _pad));
@@ -100,7 +100,7 @@ fn pod_structs_match_their_wgsl_twins() {
         alpha_object_rot, success_pos_tol, success_rot_tol, max_object_error, res_alpha, res_wrist_pos_alpha,
         res_wrist_rot_alpha, res_obj_pos_coef, res_obj_rot_coef, res_ema, res_scale_wrist_pos, res_scale_wrist_rot,
         res_scale_tips, res_clamp_wrist_pos, res_clamp_wrist_rot, res_clamp_tips, control_dt, rw_obj_pos, rw_obj_rot,
-        rw_tips, rw_wrist_pos, rw_wrist_rot, _pad3, ik));
+        rw_tips, rw_wrist_pos, rw_wrist_rot, grip_force_limit, penetration_tolerance, _pad1, ik));
     check(&m, "TaskState", size_of::<TaskState>(), rust_fields!(TaskState; targets, rest_pos, prev_action, tip_force,
         act_rate, act_mag, done, res_sq, link_contact, cursor, res_ema, res_delta, obj_hist_pos, obj_hist_rot,
         obj_delay, _pad3));
