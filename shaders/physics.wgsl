@@ -645,8 +645,11 @@ fn hand_mobility(l: u32, x: vec3<f32>, n: vec3<f32>, h: f32) -> vec2<f32> {
     let mi = wrist_mass_inertia();
     let r0 = x - link_pos[0];
     let rn = cross(r0, n);
-    var w_n = 1.0 / mi.x + dot(rn, rn) / mi.y;
-    var w_tr = 3.0 / mi.x + 2.0 * dot(r0, r0) / mi.y;
+    // the wrist: translation along u, rotation about the wrist
+    let wrist_n = 1.0 / mi.x + dot(rn, rn) / mi.y;
+    let wrist_tr = 3.0 / mi.x + 2.0 * dot(r0, r0) / mi.y;
+    var w_n = wrist_n;
+    var w_tr = wrist_tr;
     // no follower on the chain (the common case): every joint is its own coordinate, J_j = a_j × r
     var link = l;
     var coupled = false;
@@ -665,8 +668,8 @@ fn hand_mobility(l: u32, x: vec3<f32>, n: vec3<f32>, h: f32) -> vec2<f32> {
     if (!coupled) {
         return vec2<f32>(w_n, w_tr);
     }
-    w_n = 1.0 / mi.x + dot(rn, rn) / mi.y;
-    w_tr = 3.0 / mi.x + 2.0 * dot(r0, r0) / mi.y;
+    w_n = wrist_n;
+    w_tr = wrist_tr;
     link = l;
     while (link > 0u) {
         let j = link - 1u;

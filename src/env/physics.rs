@@ -737,8 +737,8 @@ pub fn hand_mobility(p: &EnvParams, m: &Model, s: &Scratch, l: usize, x: Vec3, n
     let r0 = x - s.link_pos[0];
     let rn = r0.cross(n);
     // the wrist: translation along u, rotation about the wrist
-    let mut w_n = 1.0 / mass + rn.dot(rn) / inertia;
-    let mut w_tr = 3.0 / mass + 2.0 * r0.dot(r0) / inertia;
+    let (wrist_n, wrist_tr) = (1.0 / mass + rn.dot(rn) / inertia, 3.0 / mass + 2.0 * r0.dot(r0) / inertia);
+    let (mut w_n, mut w_tr) = (wrist_n, wrist_tr);
     // no follower on the chain (the common case): every joint is its own coordinate, J_j = a_j × r
     let mut link = l;
     let mut coupled = false;
@@ -757,8 +757,7 @@ pub fn hand_mobility(p: &EnvParams, m: &Model, s: &Scratch, l: usize, x: Vec3, n
     if !coupled {
         return (w_n, w_tr);
     }
-    w_n = 1.0 / mass + rn.dot(rn) / inertia;
-    w_tr = 3.0 / mass + 2.0 * r0.dot(r0) / inertia;
+    (w_n, w_tr) = (wrist_n, wrist_tr);
     let mut link = l;
     while link > 0 {
         let j = link - 1;
@@ -1045,8 +1044,7 @@ pub fn integrate_hand(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch, 
         }
         let lo = jd.lower * p.limit_scale;
         let hi = jd.upper * p.limit_scale;
-        let qd = (st.qd[j] + s.dqd[j]).clamp(-jd.velocity, jd.velocity);
-        let mut qd = qd;
+        let mut qd = (st.qd[j] + s.dqd[j]).clamp(-jd.velocity, jd.velocity);
         let mut qn = st.q[j] + h * qd;
         if qn < lo {
             qn = lo;
