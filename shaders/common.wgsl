@@ -140,6 +140,8 @@ struct EnvParams {
     obj_rest_height: f32,
     _pad0: u32,
     _pad1: u32,
+    ext_force: vec4<f32>,
+    ext_point: vec4<f32>,
 }
 
 // One collision piece of an object, in the object's frame, unscaled (twin: src/gpu/layout.rs PieceDesc).

@@ -1025,8 +1025,11 @@ fn integrate_object(h: f32) {
         }
     }
     let gz = -(g.gravity + prm.added_gravity) * mass;
-    let f = obj_f + vec3<f32>(0.0, 0.0, gz);
-    let tq = obj_t;
+    // the external force at its point of the object, and its moment about the centre of mass
+    let ext = prm.ext_force.xyz;
+    let at = st.obj_pos.xyz + quat_rotate(rot, prm.ext_point.xyz);
+    let f = obj_f + ext + vec3<f32>(0.0, 0.0, gz);
+    let tq = obj_t + cross(at - com, ext);
     let du = solve6(a, array<f32, 6>(h * f.x, h * f.y, h * f.z, h * tq.x, h * tq.y, h * tq.z));
     let vel_n = st.obj_vel.xyz + vec3<f32>(du[0], du[1], du[2]);
     let w_n = wg + vec3<f32>(du[3], du[4], du[5]);

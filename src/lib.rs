@@ -42,6 +42,7 @@ pub mod run;
 pub mod replay;
 pub mod synth;
 pub mod starter;
+pub mod bench_contacts;
 pub mod bench_matmul;
 pub mod bench;
 pub mod train;

@@ -45,6 +45,12 @@ enum Command {
         /// the peer networks) with each matmul routine (`DEXTRAIN_GPU_MATMUL` names one for a run).
         #[arg(long)]
         matmul: bool,
+        /// Run the contact-fidelity scenes (a box sliding, on a tilting plane, tipped; a cube at
+        /// rest; two fingertips squeezing a cube at 1, 5 and 10 N) on --backend (default cpu) and
+        /// print their figures with the answers of statics; benches/contact_fidelity.sh compares
+        /// them with MuJoCo's.
+        #[arg(long, conflicts_with_all = ["ppo", "sac", "matmul"])]
+        contacts: bool,
         /// SAC bench: transitions per gradient step.
         #[arg(long, default_value_t = 4096)]
         batch: usize,
@@ -163,7 +169,7 @@ fn run(cli: Cli) -> Result<()> {
             console::status(dextrain::task::spec::layout_table(&task.priv_layout, "critic observation").trim_end());
             Ok(())
         }
-        Command::Bench { ppo, sac, matmul, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds } => {
+        Command::Bench { ppo, sac, matmul, contacts, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds } => {
             if let Some(t) = threads {
                 rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot size the thread pool")?;
             }
@@ -186,6 +192,11 @@ fn run(cli: Cli) -> Result<()> {
                 let (dev, name, ctx) = dextrain::learn::device::learner_device_and_context(&device)?;
                 let opts = dextrain::bench::SacBenchOptions { envs: envs.unwrap_or(4096), iters: iters.max(1), batch: batch.max(1), gradient_steps: gradient_steps.max(1), ..Default::default() };
                 let report = dextrain::bench::run_sac_bench(&opts, dev, &name, ctx.as_ref())?;
+                console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
+                return Ok(());
+            }
+            if contacts {
+                let report = dextrain::bench_contacts::run_contact_bench(&backend.unwrap_or(dextrain::config::BackendChoice::Cpu))?;
                 console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
                 return Ok(());
             }

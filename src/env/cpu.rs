@@ -153,6 +153,10 @@ impl EnvBatch for CpuEnvBatch {
         Ok(self.params.clone())
     }
 
+    fn set_params(&mut self, params: &[EnvParams]) -> Result<()> {
+        CpuEnvBatch::set_params(self, params)
+    }
+
     fn stats(&mut self) -> Result<Vec<StepStats>> {
         Ok(self.stats.clone())
     }

@@ -253,6 +253,10 @@ impl EnvBatch for GpuEnvBatch {
         self.read(&self.params, PARAMS.name, self.model.spec.num_envs)
     }
 
+    fn set_params(&mut self, params: &[EnvParams]) -> Result<()> {
+        GpuEnvBatch::set_params(self, params)
+    }
+
     fn stats(&mut self) -> Result<Vec<StepStats>> {
         self.read(&self.stats, STATS.name, self.model.spec.num_envs)
     }

@@ -74,6 +74,9 @@ pub trait EnvBatch: Send {
     /// Overwrites the contact springs (`[N, n_springs]`; checkpoint restore).
     fn set_springs(&mut self, springs: &[[f32; 4]]) -> Result<()>;
     fn params(&mut self) -> Result<Vec<EnvParams>>;
+    /// Overwrites the parameters (checkpoint restore; a benchmark's external force,
+    /// `EnvParams::ext_force`). They hold until the env's next reset draws new ones.
+    fn set_params(&mut self, params: &[EnvParams]) -> Result<()>;
     /// What happened in each env during the last step.
     fn stats(&mut self) -> Result<Vec<StepStats>>;
 }

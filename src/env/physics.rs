@@ -25,7 +25,8 @@
 //!    armature + link inertia about the axis at q = 0), integrated semi-implicitly; mimic followers
 //!    follow their leader; the wrist is a free body pulled by a force/torque-limited PD toward its
 //!    target (the hand's weight is compensated, as by an arm controller).
-//! 5. Object: a free rigid body under gravity and contact forces, integrated linearly implicitly in
+//! 5. Object: a free rigid body under gravity, contact forces and an external force at a point of it
+//!    (`EnvParams::ext_force`, 0 but in benchmarks and tests), integrated linearly implicitly in
 //!    its 6 velocities (M + h·Σ Jᵀ D J) Δu = h·f, so that stiff contacts stay stable for light objects.
 //!    Its state is the pose of its own (mesh) frame and the velocity of its centre of mass; the
 //!    centre of mass and the principal axes of inertia sit in that frame (`ObjectDesc`).
@@ -1152,8 +1153,11 @@ pub fn integrate_object(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch
         }
     }
     let gz = -(m.g.gravity + p.added_gravity) * mass;
-    let f = s.obj_f + Vec3::new(0.0, 0.0, gz);
-    let tq = s.obj_t;
+    // the external force at its point of the object, and its moment about the centre of mass
+    let ext = v3(p.ext_force);
+    let at = v3(st.obj_pos) + quat_rotate(rot, v3(p.ext_point));
+    let f = s.obj_f + ext + Vec3::new(0.0, 0.0, gz);
+    let tq = s.obj_t + (at - com).cross(ext);
     let du = solve6(&a, [h * f.x, h * f.y, h * f.z, h * tq.x, h * tq.y, h * tq.z]);
     let vel_n = v3(st.obj_vel) + Vec3::new(du[0], du[1], du[2]);
     let w_n = wg + Vec3::new(du[3], du[4], du[5]);

@@ -265,6 +265,12 @@ pub struct EnvParams {
     /// Height of the object frame's origin when it rests on the table (m, scaled).
     pub obj_rest_height: f32,
     pub _pad: [u32; 2],
+    /// An external force on the object (N, world frame; xyz, w unused), acting at `ext_point` in
+    /// every substep: what a benchmark or test pushes an object with (`dextrain bench --contacts`).
+    /// 0 after every reset; training never sets it.
+    pub ext_force: [f32; 4],
+    /// Where `ext_force` acts: a point in the object's frame, relative to its origin (m; xyz, w unused).
+    pub ext_point: [f32; 4],
 }
 
 /// Per-env joint and wrist targets for one env step (WGSL `Targets`).

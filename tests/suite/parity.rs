@@ -303,7 +303,8 @@ fn contact_free_rollout_of_30_steps_agrees_to_1e_4_for_compound_objects() {
     contact_free_rollout_agrees(c, 30, ctx);
 }
 
-/// `steps` steps of `c`'s 8 envs with the objects in flight and the hand waving, far apart.
+/// `steps` steps of `c`'s 8 envs with the objects in flight under an external force and the hand
+/// waving, far apart.
 fn contact_free_rollout_agrees(mut c: dextrain::config::Config, steps: usize, ctx: dextrain::gpu::context::GpuContext) {
     let slack = parity_slack(&ctx);
     c.object.init_xy = [0.6, 0.0];
@@ -328,6 +329,15 @@ fn contact_free_rollout_agrees(mut c: dextrain::config::Config, steps: usize, ct
         }
     }
     nudged.set_states(&s).unwrap();
+    // an external force at a point off the centre of every object (the twins' `ext_force` path)
+    let mut p = cpu.params().unwrap();
+    for (i, pp) in p.iter_mut().enumerate() {
+        pp.ext_force = [0.02 * (i % 3) as f32, -0.01, 0.03, 0.0];
+        pp.ext_point = [0.01, -0.02 * (i % 2) as f32, 0.015, 0.0];
+    }
+    for b in [&mut cpu as &mut dyn EnvBatch, &mut gpu, &mut nudged] {
+        b.set_params(&p).unwrap();
+    }
     let base = cpu.model().default_targets();
     for k in 0..steps {
         let targets: Vec<Targets> = (0..8)

@@ -259,3 +259,54 @@ fn hand_contacts_are_stiff_and_stable_on_any_finger() {
     let peak = d.iter().copied().fold(f32::MIN, f32::max);
     assert!(peak < 0.2e-3, "a 1 m/s finger sank {:.3} mm in", peak * 1e3);
 }
+
+/// The contact-fidelity scenes (`dextrain bench --contacts`, issue 36) against statics: a pushed
+/// box slips at μ m g (5 %), a box on a tilting plane at atan μ (1°), a tall box tips at
+/// m g (w/2) / h (10 %), a cube at rest drifts < 0.1 mm in 10 s, and two fingertips squeezing a
+/// cube at 1, 5 and 10 N push that force (5 %), sink ≤ 1 mm and hold it 5 cm up (slip < 1 mm).
+#[test]
+fn contact_fidelity_scenes_agree_with_statics() {
+    let r = dextrain::bench_contacts::run_contact_bench(&dextrain::config::BackendChoice::Cpu).unwrap();
+    let num = |v: &serde_json::Value| v.as_f64().unwrap_or_else(|| panic!("not a number: {v} in {r}"));
+    assert!(num(&r["slide"]["error"]).abs() <= 0.05, "slide: {}", r["slide"]);
+    assert!(num(&r["tilt"]["error_deg"]).abs() <= 1.0, "tilt: {}", r["tilt"]);
+    assert!(num(&r["tip"]["error"]).abs() <= 0.10, "tip: {}", r["tip"]);
+    assert!(num(&r["rest"]["drift_mm"]) < 0.1, "rest: {}", r["rest"]);
+    let squeeze = r["squeeze"].as_array().unwrap();
+    assert_eq!(squeeze.len(), 3);
+    for s in squeeze {
+        let f = num(&s["force_n"]);
+        assert!((num(&s["tip_force_n"]) / f - 1.0).abs() <= 0.05, "squeeze at {f} N: {s}");
+        assert!(num(&s["peak_penetration_mm"]) <= 1.0, "squeeze at {f} N: {s}");
+        assert!(num(&s["slip_mm"]) < 1.0 && num(&s["lifted_mm"]) > 45.0, "squeeze at {f} N: {s}");
+    }
+}
+
+/// An external force at a point off the centre of mass (`EnvParams::ext_force`, `ext_point`)
+/// moves and turns a free object as Newton and Euler say: a = F/m, and for a force along x at a
+/// point z above the centre of a cube, dω_y/dt = z F / I_y.
+#[test]
+fn an_external_force_off_the_centre_accelerates_and_turns_a_free_object() {
+    let mut c = base_config(1);
+    c.wrist.init_pos = [0.0, 0.0, 0.6];
+    c.sim.max_distance = 100.0;
+    let mut b = cpu_batch(&c);
+    let mut s = b.states().unwrap();
+    s[0].obj_pos = [0.0, 0.0, 2.0, 0.0];
+    b.set_states(&s).unwrap();
+    let mut p = b.params().unwrap();
+    let (m, inertia) = (p[0].obj_inertia[3], p[0].obj_inertia[1]); // mass, the moment about y
+    let (f, z) = (0.02f32, 0.02f32);
+    p[0].ext_force = [f, 0.0, 0.0, 0.0];
+    p[0].ext_point = [0.0, 0.0, z, 0.0];
+    b.set_params(&p).unwrap();
+    let t = b.model().default_targets();
+    let steps = 3; // 0.1 s: the cube turns by ~0.02 rad
+    run(&mut b, t, steps);
+    let st = b.states().unwrap();
+    let secs = steps as f32 / 30.0;
+    let (vx, wy) = (st[0].obj_vel[0], st[0].obj_angvel[1]);
+    assert!((vx / (f / m * secs) - 1.0).abs() < 0.02, "v_x {vx} against F t / m = {}", f / m * secs);
+    assert!((wy / (z * f / inertia * secs) - 1.0).abs() < 0.05, "ω_y {wy} against z F t / I = {}", z * f / inertia * secs);
+    assert!(st[0].obj_vel[2] < -0.9, "the cube falls meanwhile: v_z {}", st[0].obj_vel[2]);
+}

@@ -83,7 +83,7 @@ fn pod_structs_match_their_wgsl_twins() {
         obj_pos, obj_rot, obj_vel, obj_angvel, q, qd, time, episode, step, bad_resets));
     check(&m, "EnvParams", size_of::<EnvParams>(), rust_fields!(EnvParams; obj_com, obj_inertia, obj_friction, restitution,
         obj_scale, table_friction, hand_friction, hand_mass_scale, limit_scale, kp_scale, kd_scale, added_gravity,
-        obj_contact_c, hand_table_c, obj_index, obj_rest_height, _pad));
+        obj_contact_c, hand_table_c, obj_index, obj_rest_height, _pad, ext_force, ext_point));
     check(&m, "PieceDesc", size_of::<PieceDesc>(), rust_fields!(PieceDesc; pos, rot, size, shape, n_support, hull_first, hull_faces));
     check(&m, "ObjectDesc", size_of::<ObjectDesc>(), rust_fields!(ObjectDesc; com, principal_rot, inertia, first_piece, n_pieces,
         n_support, rest_height));
