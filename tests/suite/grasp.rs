@@ -213,3 +213,51 @@ fn antipodal_grasp_lifts_mesh_objects() {
         assert_eq!(r.bad_resets, 0, "{name}");
     }
 }
+
+/// Issue 36: when no grasp variant lifts the object, `traj synth` says why from the grasp's
+/// statics (`synth::hold`). In the shipped grasp_lift scene (dexhand16, the 5 cm cube) each
+/// fingertip's push is an effort limit over a lever, so doubling every effort limit doubles every
+/// push and the hold; the 0.1 kg cube is held with room to spare, a 20 kg one is too heavy for the
+/// effort limits, and a grasp whose fingertips end far from their contact points is too wide.
+#[test]
+fn the_grasp_statics_say_why_an_object_cannot_be_held() {
+    use dextrain::config::hand::JointLimitOverride;
+    use dextrain::synth::hold::hold_capacity;
+    let c = config(&Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/grasp_lift.toml"));
+    let model = SimModel::from_config(&c).unwrap();
+    let plan = plan_grasp(&model, &c.task.hand.thumb, &GRASP_VARIANTS[0]).unwrap();
+    let cap = hold_capacity(&model, &plan);
+    eprintln!("{}", cap.describe());
+    assert_eq!(cap.tip_push.len(), model.hand.fingertips.len());
+    // 0.7 N·m over levers of a few centimetres to ~15 cm
+    assert!(cap.tip_push.iter().all(|f| f.is_finite() && *f > 3.0 && *f < 100.0), "{cap:?}");
+    assert!((cap.weight - 0.1 * 9.81).abs() < 1e-3 && cap.holds > 5.0 * cap.weight, "{cap:?}");
+    let held = dextrain::synth::cannot_hold_reason(&cap, 0.0, 0.05, 2.0);
+    assert!(held.contains("slips or turns"), "{held}");
+    let grazed = dextrain::synth::cannot_hold_reason(&cap, 0.0, 0.0, 0.1);
+    assert!(grazed.starts_with("it cannot be held as planned: the fingertips close on the box") && grazed.contains("barely touch its surface"), "{grazed}");
+
+    let mut strong = c.clone();
+    strong.hand.effort = Some(JointLimitOverride::All(1.4));
+    let cap2 = hold_capacity(&SimModel::from_config(&strong).unwrap(), &plan);
+    for (a, b) in cap.tip_push.iter().zip(&cap2.tip_push) {
+        assert!((b / a - 2.0).abs() < 1e-3, "doubled effort limits: push {a} -> {b}");
+    }
+    assert!((cap2.holds / cap.holds - 2.0).abs() < 1e-3);
+
+    let mut heavy = c.clone();
+    heavy.object.mass = Some(20.0);
+    let cap3 = hold_capacity(&SimModel::from_config(&heavy).unwrap(), &plan);
+    let why = dextrain::synth::cannot_hold_reason(&cap3, 0.0, 0.0, 0.0);
+    assert!(why.starts_with("it cannot be held as planned: too heavy for the hand's effort limits ("), "{why}");
+    assert!(why.contains(&format!("{:.1} N", cap3.weight)), "{why}");
+    // a cube just light enough to hold in statics, without a lift's margin
+    let mut marginal = c.clone();
+    marginal.object.mass = Some(0.8 * cap.holds / 9.81);
+    let cap4 = hold_capacity(&SimModel::from_config(&marginal).unwrap(), &plan);
+    let why = dextrain::synth::cannot_hold_reason(&cap4, 0.0, 0.0, 0.0);
+    assert!(why.starts_with("it cannot be held as planned: too heavy to lift with the hand's effort limits, 1.25×"), "{why}");
+    // a wide object: the span; a best replay that lifted it 5 cm did squeeze it
+    let wide = dextrain::synth::cannot_hold_reason(&cap, 0.03, 0.05, 2.0);
+    assert_eq!(wide, "it cannot be held as planned: too wide for the hand's span (in every grasp planned some fingertip ends 30 mm or more from its contact point on the object)");
+}
