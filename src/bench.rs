@@ -297,6 +297,13 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
         inf_ms.push(1e3 * t0.elapsed().as_secs_f64());
         inference_counts = counted(&m, 1.0);
     }
+    // where an inference's time goes: its phases timed apart, each ended by a wait for the device
+    let mut phases: [Vec<f64>; 4] = Default::default();
+    for _ in 0..10 {
+        for (v, x) in phases.iter_mut().zip(ppo.act_mean_phases_ms(&obs[0].0, &obs[0].1)?) {
+            v.push(x);
+        }
+    }
     // the device-resident path: observations, rewards and dones as tensors made once
     let mut device_path = serde_json::Value::Null;
     if let Some(ctx) = ctx.filter(|_| crate::learn::nets::is_gpu(&device)) {
@@ -369,6 +376,8 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
         "update_transitions_per_s_median": transitions / upd_median_s,
         "rollout_policy_ms_24_steps": stats(&rollout_ms),
         "policy_inference_ms": stats(&inf_ms),
+        "policy_inference_phases_ms": {"host_normalization_alone": stats(&phases[0]), "inputs_uploaded": stats(&phases[1]),
+                                       "actor_forward": stats(&phases[2]), "actions_read_back": stats(&phases[3])},
         "gpu_counts": if on_gpu { json!({"per_policy_inference": inference_counts, "per_rollout_step": step_counts, "per_update": update_counts}) } else { serde_json::Value::Null },
         "device_resident": device_path,
         "last_losses": {"surrogate": u.surrogate, "value": u.value, "entropy": u.entropy, "kl": u.kl, "lr": u.lr},

@@ -95,6 +95,21 @@ impl Normalizer {
 }
 
 impl Normalizer {
+    /// Normalises `x` `[rows, dim]` on its device, `(x − μ) · s` with μ and s = 1 / (σ + ε) `[1, dim]`
+    /// worked out on the host in f64 and rounded to f32 (two small uploads, two element-wise
+    /// kernels), when `on`; else `x`. The host's [`Normalizer::apply`] rounds once, at the end: the
+    /// two differ by an f32 rounding.
+    pub fn normalized_on_device(&self, x: Tensor<2>, on: bool) -> Tensor<2> {
+        let d = self.dim();
+        if !on || d == 0 {
+            return x;
+        }
+        let device = x.device();
+        let mean: Vec<f32> = self.mean.iter().map(|&m| m as f32).collect();
+        let scale: Vec<f32> = self.var().iter().map(|v| (1.0 / (v.sqrt() + self.eps)) as f32).collect();
+        (x - to_tensor(mean, [1, d], &device)) * to_tensor(scale, [1, d], &device)
+    }
+
     /// A normalised copy of `x` ([rows, dim]) when `on`, else a plain copy (a learner with
     /// `policy.obs_normalization = false`).
     pub fn normalized(&self, x: &[f32], on: bool) -> Vec<f32> {

@@ -254,7 +254,8 @@ fn pass_through_student(adapt: dextrain::export::onnx::Adaptation, step_dim: usi
 }
 
 /// The same small PPO iteration on burn's wgpu backend (on the simulator's kind of device, e.g.
-/// lavapipe) and on the CPU backend: the updated parameters agree to float rounding.
+/// lavapipe) and on the CPU backend: the updated parameters agree to float rounding, and so do the
+/// policy means of `act_mean` (normalised on the device on the GPU, on the host on the CPU).
 #[test]
 fn the_wgpu_learner_matches_the_cpu_learner() {
     let Some((_ctx, gpu)) = crate::common::wgpu_learner("the_wgpu_learner_matches_the_cpu_learner") else { return };
@@ -274,10 +275,12 @@ fn the_wgpu_learner_matches_the_cpu_learner() {
             ppo.process_step(&rewards, &vec![false; n], &vec![false; n]);
         }
         let stats = ppo.update(&priv_obs).unwrap();
+        actions.push(ppo.act_mean(&obs, &priv_obs).unwrap());
         (ppo.net.values().unwrap(), actions, stats)
     };
     let (p_cpu, a_cpu, s_cpu) = run(cpu());
     let (p_gpu, a_gpu, s_gpu) = run(gpu);
+    assert_eq!(a_cpu.len(), steps + 1);
     for (x, y) in a_cpu.iter().flatten().zip(a_gpu.iter().flatten()) {
         assert!((x - y).abs() < 1e-4, "sampled actions differ: {x} vs {y}");
     }

@@ -432,14 +432,52 @@ impl Ppo {
     /// Deterministic action (the policy mean) for raw observations `obs` [N, O] and `priv_obs`
     /// [N, P] (read only by a privileged encoder); statistics unchanged.
     pub fn act_mean(&self, obs: &[f32], priv_obs: &[f32]) -> Result<Vec<f32>> {
+        let (x, p) = self.inference_inputs(obs, priv_obs)?;
+        to_host(self.net.actor(&self.net.inference_params(), x, p))
+    }
+
+    /// The actor's inputs for raw observations `obs` [N, O] / `priv_obs` [N, P], normalised: x
+    /// [N, O], and the critic observation [N, P] for a privileged encoder (the actor reads it for
+    /// nothing else: without one, x stands in for it and it does not go up). On a GPU the raw rows
+    /// go up and are normalised there (`Normalizer::normalized_on_device`), on the CPU on the host.
+    fn inference_inputs(&self, obs: &[f32], priv_obs: &[f32]) -> Result<(Tensor<2>, Tensor<2>)> {
         let d = self.dims();
         let n = obs.len() / d.obs;
         ensure!(obs.len() == n * d.obs && priv_obs.len() == n * d.priv_obs, "observation sizes do not match the learner");
-        let x = to_tensor(self.obs_norm.normalized(obs, self.normalize), [n, d.obs], &self.device);
-        // the critic observation goes up only for a privileged encoder (the actor reads it for
-        // nothing else): without one, x stands in for it
-        let p = if self.net.encoder_shapes.is_empty() { x.clone() } else { to_tensor(self.priv_norm.normalized(priv_obs, self.normalize), [n, d.priv_obs], &self.device) };
-        to_host(self.net.actor(&self.net.inference_params(), x, p))
+        let on_gpu = nets::is_gpu(&self.device);
+        let up = |norm: &Normalizer, rows: &[f32], dim: usize| {
+            if on_gpu {
+                norm.normalized_on_device(to_tensor(rows.to_vec(), [n, dim], &self.device), self.normalize)
+            } else {
+                to_tensor(norm.normalized(rows, self.normalize), [n, dim], &self.device)
+            }
+        };
+        let x = up(&self.obs_norm, obs, d.obs);
+        let p = if self.net.encoder_shapes.is_empty() { x.clone() } else { up(&self.priv_norm, priv_obs, d.priv_obs) };
+        Ok((x, p))
+    }
+
+    /// [`Ppo::act_mean`]'s phases timed apart (ms), each ended by a wait for the device: the
+    /// inputs made and uploaded (normalised on the device on a GPU), the actor's forward pass,
+    /// the actions read back; and, for comparison, the host's f64 normalisation of `obs` alone
+    /// (what the inputs cost the host before they were normalised on the GPU). `dextrain bench
+    /// --ppo` reports them.
+    pub fn act_mean_phases_ms(&self, obs: &[f32], priv_obs: &[f32]) -> Result<[f64; 4]> {
+        let ms = |t: std::time::Instant| 1e3 * t.elapsed().as_secs_f64();
+        let t = std::time::Instant::now();
+        std::hint::black_box(self.obs_norm.normalized(obs, self.normalize));
+        let host_normalize = ms(t);
+        let t = std::time::Instant::now();
+        let (x, p) = self.inference_inputs(obs, priv_obs)?;
+        crate::gpu::io::sync(&self.device)?;
+        let inputs = ms(t);
+        let t = std::time::Instant::now();
+        let mu = self.net.actor(&self.net.inference_params(), x, p);
+        crate::gpu::io::sync(&self.device)?;
+        let forward = ms(t);
+        let t = std::time::Instant::now();
+        std::hint::black_box(to_host(mu)?);
+        Ok([host_normalize, inputs, forward, ms(t)])
     }
 
     /// Samples actions [N, A] for raw observations `obs` [N, O] / `priv_obs` [N, P], updating the
