@@ -18,7 +18,9 @@
 //! 2. **Contact points** at the variant's height: the thumb at the centre of its face; each other
 //!    finger on the opposite face, spread along the face as the fingers are spread in the mid-range
 //!    posture, squeezed to fit within `SPREAD_FRACTION` of the face's half width (on a round object,
-//!    around the circle at the same arc length).
+//!    around the circle at the same arc length); then each moves inward from the box's face to the
+//!    object's own surface, the first of its pieces met ([`surface_point`]: the same point for a
+//!    primitive, whose box is itself).
 //! 3. **Wrist and joints together.** The wrist position and the joints are solved in turns
 //!    (`WRIST_ROUNDS` rounds): the IK solves the joints for the contact points with the wrist fixed;
 //!    a fingertip that stays more than `REACH_TOLERANCE_M` from its contact point (an underactuated
@@ -39,7 +41,7 @@ use anyhow::{Result, bail};
 use glam::{Quat, Vec3};
 
 use crate::task::ik::{IkParams, ik_solve, ik_tip_positions};
-use crate::env::physics::{Scratch, collide_hand_object, hand_kinematics};
+use crate::env::physics::{Scratch, collide_hand_object, hand_kinematics, piece_pose, piece_project};
 use crate::env::reset::reset_params;
 use crate::env::{EnvState, SimModel};
 use crate::geom::Pose;
@@ -376,6 +378,12 @@ pub fn plan_grasp(model: &SimModel, thumb: &str, variant: &GraspVariant) -> Resu
             normals[i] = -n;
         }
     }
+    // on the object's own surface: each contact point moves inward from the box's face to the
+    // first of the object's pieces it meets (a no-op for a primitive, whose box is itself)
+    let surface_reach = 2.0 * half_n;
+    for i in 0..nt {
+        contacts[i] = surface_point(model, contacts[i], -normals[i], surface_reach);
+    }
 
     // 3. wrist position and joints together
     let palm = palm_links(hand);
@@ -406,7 +414,7 @@ pub fn plan_grasp(model: &SimModel, thumb: &str, variant: &GraspVariant) -> Resu
             (Vec3::new(centre.x, centre.y, z) + dir * half_n, dir)
         } else {
             let along = (p - centre).dot(t).clamp(-SPREAD_FRACTION * half_t, SPREAD_FRACTION * half_t);
-            (Vec3::new(centre.x, centre.y, z) + side * half_n + t * along, side)
+            (surface_point(model, Vec3::new(centre.x, centre.y, z) + side * half_n + t * along, -side, surface_reach), side)
         }
     };
     // start: the mid-range fingertips' centre at the contact points' centre
@@ -480,6 +488,41 @@ pub fn hand_object_depth(model: &SimModel, wrist: &Pose, q: &[f32]) -> f32 {
     let mut s = Scratch::default();
     hand_kinematics(&st, &m, &mut s);
     (0..model.colliders.len()).map(|ci| collide_hand_object(&st, &p, &m, &s, ci).depth).fold(-1.0, f32::max)
+}
+
+/// Step (m) of the march from a face of the box around the object to the object's own surface.
+const SURFACE_STEP_M: f32 = 0.001;
+
+/// The first point of the object's own surface met going from `p` (world, on a face of the box
+/// around its pieces) inward along `dir` (unit, horizontal), at most `reach` m: the point where the
+/// distance to the nearest piece (primitive or hull, at the object's nominal place, unscaled) falls
+/// under one march step; `p` itself when nothing is met (the march passed through a gap).
+pub fn surface_point(model: &SimModel, p: Vec3, dir: Vec3, reach: f32) -> Vec3 {
+    let g = &model.globals;
+    let m = model.view();
+    let mut prm = reset_params(g, &model.object_descs, &[], 0, 0);
+    let od = &model.object_descs[0];
+    (prm.obj_index, prm.obj_scale, prm.obj_com) = (0, 1.0, od.com);
+    let st = EnvState {
+        obj_pos: [g.obj_init[0], g.obj_init[1], g.obj_init[3], 0.0],
+        obj_rot: Quat::from_rotation_z(g.obj_init[2]).to_array(),
+        ..Default::default()
+    };
+    let pieces = &model.pieces[od.first_piece as usize..(od.first_piece + od.n_pieces) as usize];
+    let distance = |x: Vec3| -> f32 {
+        pieces
+            .iter()
+            .map(|pd| {
+                let (ppos, prot, size) = piece_pose(&st, &prm, pd);
+                let r = Quat::from_array(prot.to_array());
+                let local = r.inverse() * (x - ppos);
+                let (closest, inside) = piece_project(&m, pd, 1.0, size, local);
+                if inside { 0.0 } else { (local - closest).length() }
+            })
+            .fold(f32::INFINITY, f32::min)
+    };
+    let steps = (reach / SURFACE_STEP_M).ceil() as usize;
+    (0..=steps).map(|k| p + dir * (k as f32 * SURFACE_STEP_M)).find(|&x| distance(x) < SURFACE_STEP_M).unwrap_or(p)
 }
 
 /// An angle wrapped into (−π, π].

@@ -218,7 +218,8 @@ fn antipodal_grasp_lifts_mesh_objects() {
 /// statics (`synth::hold`). In the shipped grasp_lift scene (dexhand16, the 5 cm cube) each
 /// fingertip's push is an effort limit over a lever, so doubling every effort limit doubles every
 /// push and the hold; the 0.1 kg cube is held with room to spare, a 20 kg one is too heavy for the
-/// effort limits, and a grasp whose fingertips end far from their contact points is too wide.
+/// effort limits, one held 1.25× in statics has too little margin, and a grasp whose fingertips
+/// end far from their contact points is too wide.
 #[test]
 fn the_grasp_statics_say_why_an_object_cannot_be_held() {
     use dextrain::config::hand::JointLimitOverride;
@@ -235,7 +236,7 @@ fn the_grasp_statics_say_why_an_object_cannot_be_held() {
     let held = dextrain::synth::cannot_hold_reason(&cap, 0.0, 0.05, 2.0);
     assert!(held.contains("slips or turns"), "{held}");
     let grazed = dextrain::synth::cannot_hold_reason(&cap, 0.0, 0.0, 0.1);
-    assert!(grazed.starts_with("it cannot be held as planned: the fingertips close on the box") && grazed.contains("barely touch its surface"), "{grazed}");
+    assert!(grazed.starts_with("it cannot be held as planned: the fingertips close without squeezing it"), "{grazed}");
 
     let mut strong = c.clone();
     strong.hand.effort = Some(JointLimitOverride::All(1.4));
@@ -251,12 +252,12 @@ fn the_grasp_statics_say_why_an_object_cannot_be_held() {
     let why = dextrain::synth::cannot_hold_reason(&cap3, 0.0, 0.0, 0.0);
     assert!(why.starts_with("it cannot be held as planned: too heavy for the hand's effort limits ("), "{why}");
     assert!(why.contains(&format!("{:.1} N", cap3.weight)), "{why}");
-    // a cube just light enough to hold in statics, without a lift's margin
+    // a cube just light enough to hold in statics, without a lift's margin (its replay squeezed it)
     let mut marginal = c.clone();
     marginal.object.mass = Some(0.8 * cap.holds / 9.81);
     let cap4 = hold_capacity(&SimModel::from_config(&marginal).unwrap(), &plan);
-    let why = dextrain::synth::cannot_hold_reason(&cap4, 0.0, 0.0, 0.0);
-    assert!(why.starts_with("it cannot be held as planned: too heavy to lift with the hand's effort limits, 1.25×"), "{why}");
+    let why = dextrain::synth::cannot_hold_reason(&cap4, 0.0, 0.02, 2.0);
+    assert!(why.starts_with("the grasp slips or turns in simulation: the strongest grasp planned holds only 1.25×"), "{why}");
     // a wide object: the span; a best replay that lifted it 5 cm did squeeze it
     let wide = dextrain::synth::cannot_hold_reason(&cap, 0.03, 0.05, 2.0);
     assert_eq!(wide, "it cannot be held as planned: too wide for the hand's span (in every grasp planned some fingertip ends 30 mm or more from its contact point on the object)");
