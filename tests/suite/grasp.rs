@@ -183,10 +183,12 @@ fn antipodal_grasp_lifts_the_cube_with_every_hand() {
     }
 }
 
-/// Issue 17: `traj synth` plans its grasp on the object's geometry (the box around its pieces, in
-/// its frame): the shipped 3-piece bottle, and YCB's foam brick, soup can and 16-piece mug from
-/// `../shared/objects` where it exists, are each lifted ≥ 8 cm with < 3 mm peak penetration by
-/// dexhand16, replayed here independently of synth's own check.
+/// Issues 17 and 36: `traj synth` plans its grasp on the object's geometry (oriented by the box
+/// around its pieces, the contacts moved in to its surface): the shipped 3-piece bottle, and from
+/// `../shared/objects` where it exists YCB's foam brick, soup can, 16-piece mug, and the two the
+/// box's faces missed (the 9-piece power drill and the 14-piece scissors, source B's URDFs), at
+/// the YCB dataset's masses, are each lifted ≥ 8 cm with < 3 mm peak penetration by dexhand16,
+/// replayed here independently of synth's own check.
 #[test]
 fn antipodal_grasp_lifts_mesh_objects() {
     let base = config(&Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/grasp_lift.toml"));
@@ -197,13 +199,19 @@ fn antipodal_grasp_lifts_mesh_objects() {
         objects.push(("foam brick", shared.join("061_foam_brick/collision.obj"), 0.028));
         objects.push(("soup can", shared.join("005_tomato_soup_can/collision.obj"), 0.349));
         objects.push(("mug", shared.join("025_mug/collision.obj"), 0.118));
+        objects.push(("power drill", shared.join("035_power_drill/model.urdf"), 0.895));
+        objects.push(("scissors", shared.join("037_scissors/model.urdf"), 0.082));
     } else {
         eprintln!("antipodal_grasp_lifts_mesh_objects: {} does not exist; the bottle only", shared.display());
     }
     for (name, mesh, mass) in objects {
         let mut c = base.clone();
         c.object.shape = None;
-        c.object.mesh = Some(dextrain::config::MeshFiles::One(mesh.display().to_string()));
+        if mesh.extension().is_some_and(|e| e == "urdf") {
+            c.object.urdf = Some(mesh.display().to_string());
+        } else {
+            c.object.mesh = Some(dextrain::config::MeshFiles::One(mesh.display().to_string()));
+        }
         c.object.mass = Some(mass);
         let traj = synth(&c, &args(GraspChoice::Antipodal)).unwrap_or_else(|e| panic!("{name}: {e:#}"));
         let r = dextrain::replay::replay(&c, &traj, false, None).unwrap();
