@@ -30,18 +30,31 @@ OPTION = ""
 SCENES = {}
 
 
-def box_scene(half, mass, mu):
+def table_and_box(half, mass, mu, name="box"):
+    """The start of a scene's MJCF: the options, the table and a free box resting on it (the
+    caller adds its own bodies and closes <worldbody> and <mujoco>)."""
     return f"""
 <mujoco>
+  <compiler angle="radian"/>
   <option timestep="{DT}" integrator="implicitfast" solver="Newton" gravity="0 0 {-G}" {OPTION}/>
   <worldbody>
     <geom name="table" type="plane" size="1 1 0.01" friction="{mu} 0.005 0.0001"/>
-    <body name="box" pos="0 0 {half[2]}">
+    <body name="{name}" pos="0 0 {half[2]}">
       <freejoint/>
-      <geom name="box" type="box" size="{half[0]} {half[1]} {half[2]}" mass="{mass}" friction="{mu} 0.005 0.0001"/>
-    </body>
+      <geom name="{name}" type="box" size="{half[0]} {half[1]} {half[2]}" mass="{mass}" friction="{mu} 0.005 0.0001"/>
+    </body>"""
+
+
+def box_scene(half, mass, mu):
+    return table_and_box(half, mass, mu) + """
   </worldbody>
 </mujoco>"""
+
+
+def box_model(s):
+    """A scene's box on the table: the model, its data and the box's body id."""
+    m = mujoco.MjModel.from_xml_string(box_scene(s["half"], s["mass"], s["mu"]))
+    return m, mujoco.MjData(m), m.body("box").id
 
 
 def settle_pos(m, d, body, secs):
@@ -52,9 +65,7 @@ def settle_pos(m, d, body, secs):
 
 def slide():
     s = SCENES["slide"]
-    m = mujoco.MjModel.from_xml_string(box_scene(s["half"], s["mass"], s["mu"]))
-    d = mujoco.MjData(m)
-    b = m.body("box").id
+    m, d, b = box_model(s)
     p0 = settle_pos(m, d, b, s["settle_s"])
     onset = None
     while d.time < s["settle_s"] + s["duration_s"]:
@@ -70,9 +81,7 @@ def slide():
 
 def tilt():
     s = SCENES["tilt"]
-    m = mujoco.MjModel.from_xml_string(box_scene(s["half"], s["mass"], s["mu"]))
-    d = mujoco.MjData(m)
-    b = m.body("box").id
+    m, d, b = box_model(s)
 
     def set_angle(deg):
         a = math.radians(deg)
@@ -94,9 +103,7 @@ def tilt():
 
 def tip():
     s = SCENES["tip"]
-    m = mujoco.MjModel.from_xml_string(box_scene(s["half"], s["mass"], s["mu"]))
-    d = mujoco.MjData(m)
-    b = m.body("box").id
+    m, d, b = box_model(s)
     settle_pos(m, d, b, s["settle_s"])
     # the push: horizontal, at push_height above the table, on the box's centre line
     lever = np.array([0.0, 0.0, s["push_height"] - s["half"][2]])
@@ -118,9 +125,7 @@ def tip():
 
 def rest():
     s = SCENES["rest"]
-    m = mujoco.MjModel.from_xml_string(box_scene(s["half"], s["mass"], s["mu"]))
-    d = mujoco.MjData(m)
-    b = m.body("box").id
+    m, d, b = box_model(s)
     p0 = settle_pos(m, d, b, s["settle_s"])
     drift = 0.0
     while d.time < s["settle_s"] + s["duration_s"]:
@@ -142,16 +147,7 @@ def gripper_scene(s, effort):
         <geom name="tip_{name}" type="sphere" pos="0 0 {-L}" size="{r}" mass="0.005" friction="{s['mu']} 0.005 0.0001"/>
       </body>"""
     acts = "".join(f'<position joint="j_{n}" kp="{s["kp"]}" kv="{s["kd"]}" forcerange="{-effort} {effort}"/>' for n in "lr")
-    return f"""
-<mujoco>
-  <compiler angle="radian"/>
-  <option timestep="{DT}" integrator="implicitfast" solver="Newton" gravity="0 0 {-G}" {OPTION}/>
-  <worldbody>
-    <geom name="table" type="plane" size="1 1 0.01" friction="{s['mu']} 0.005 0.0001"/>
-    <body name="cube" pos="0 0 {h[2]}">
-      <freejoint/>
-      <geom name="cube" type="box" size="{h[0]} {h[1]} {h[2]}" mass="{s['mass']}" friction="{s['mu']} 0.005 0.0001"/>
-    </body>
+    return table_and_box(h, s["mass"], s["mu"], "cube") + f"""
     <body name="palm" pos="0 0 {palm_z}" gravcomp="1">
       <joint name="lift" type="slide" axis="0 0 1" range="-0.1 0.2"/>
       <geom type="box" size="0.05 0.02 0.01" pos="0 0 0.02" mass="0.2" contype="0" conaffinity="0"/>{fingers}
