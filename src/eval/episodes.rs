@@ -115,9 +115,10 @@ struct RoundEpisodes {
     done: Vec<bool>,
     ret: Vec<f64>,
     len: Vec<u32>,
-    /// The highest lift so far, m; the deepest penetration so far, mm.
+    /// The highest lift so far, m; the deepest penetration so far, mm, its step and the lift then.
     lift_max: Vec<f64>,
     pen_max_mm: Vec<f64>,
+    pen_max_at: Vec<(u32, f64)>,
     /// Σ of the object's position error (m) and rotation error (degrees) over the steps.
     err_sum: Vec<(f64, f64)>,
     /// Σ of the latent error ‖z − ẑ‖ over the steps (a student beside its teacher).
@@ -148,6 +149,7 @@ impl RoundEpisodes {
             len: vec![0; n],
             lift_max: vec![0.0; n],
             pen_max_mm: vec![0.0; n],
+            pen_max_at: vec![(0, 0.0); n],
             err_sum: vec![(0.0, 0.0); n],
             latent_sum: vec![0.0; n],
             refs,
@@ -185,7 +187,10 @@ impl RoundEpisodes {
                 tally.term_sums[k] += b.terms[i * nt + k] as f64;
             }
             let pen_mm = b.max_pen[i] as f64 * 1000.0;
-            self.pen_max_mm[i] = self.pen_max_mm[i].max(pen_mm);
+            if pen_mm > self.pen_max_mm[i] {
+                self.pen_max_mm[i] = pen_mm;
+                self.pen_max_at[i] = (self.len[i], b.lift_height[i] as f64);
+            }
             tally.max_pen_mm = tally.max_pen_mm.max(pen_mm);
             tally.frames += 1;
             tally.frames_over_1mm += (pen_mm > 1.0) as u64;
@@ -221,6 +226,9 @@ impl RoundEpisodes {
                 reference: self.refs[i].clone(),
                 object: self.objects[i].clone(),
                 final_lift_m: b.lift_height[i] as f64,
+                peak_penetration_mm: self.pen_max_mm[i],
+                peak_penetration_step: self.pen_max_at[i].0,
+                lift_at_peak_m: self.pen_max_at[i].1,
             });
             tally.final_lift.push(b.lift_height[i] as f64);
             tally.max_lift.push(self.lift_max[i]);

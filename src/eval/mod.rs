@@ -140,6 +140,12 @@ pub struct EpisodeRow {
     pub object: String,
     /// Object lift height at the episode's last step (m).
     pub final_lift_m: f64,
+    /// The episode's deepest hand–object penetration (mm), the env step (from 1) it came in, and
+    /// the object's lift height then (m): whether the peak is the grasp closing on the resting
+    /// object or the lift.
+    pub peak_penetration_mm: f64,
+    pub peak_penetration_step: u32,
+    pub lift_at_peak_m: f64,
 }
 
 /// The episodes of one object (runs with several objects: each env draws one at its reset).

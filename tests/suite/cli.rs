@@ -158,6 +158,15 @@ fn train_eval_and_plot_through_the_binary() {
     let file = run.join("eval/eval_it2_seed1000003_n3.json");
     let saved: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
     assert_eq!(saved["per_episode"].as_array().map(Vec::len), Some(3));
+    // each episode's peak penetration, its step within the episode; the deepest is the report's
+    let rows = saved["per_episode"].as_array().unwrap();
+    let deepest = rows.iter().map(|r| r["peak_penetration_mm"].as_f64().unwrap()).fold(0.0, f64::max);
+    assert_eq!(deepest, saved["peak_penetration_mm"].as_f64().unwrap(), "{saved}");
+    for r in rows {
+        let step = r["peak_penetration_step"].as_u64().unwrap();
+        assert!(step <= r["length"].as_u64().unwrap() && (step > 0) == (r["peak_penetration_mm"].as_f64().unwrap() > 0.0), "{r}");
+        assert!(r["lift_at_peak_m"].as_f64().is_some(), "{r}");
+    }
     for needle in ["success", file.to_str().unwrap(), file.with_extension("md").to_str().unwrap(), rec.to_str().unwrap()] {
         assert!(stderr.contains(needle), "the summary names {needle}: {stderr}");
     }

@@ -520,6 +520,9 @@ fn summary(tracking: bool) -> dextrain::eval::Summary {
             reference: if tracking { "a.mcap".into() } else { String::new() },
             object: "box".into(),
             final_lift_m: 0.05,
+            peak_penetration_mm: 1.5,
+            peak_penetration_step: 40,
+            lift_at_peak_m: 0.0,
         }],
     }
 }
