@@ -67,6 +67,9 @@ fn vec3_of(s: &Value, key: &str) -> [f32; 3] {
 struct Scene {
     env: Box<dyn EnvBatch>,
     model: SimModel,
+    /// The env's parameters as its reset drew them, kept here so that a push does not read them
+    /// back every step.
+    params: Vec<crate::env::EnvParams>,
     dt: f64,
 }
 
@@ -76,17 +79,18 @@ impl Scene {
         let model = SimModel::from_config(cfg)?;
         let mut env = make_env_batch(cfg, model.clone())?;
         env.reset_all()?;
-        Ok(Scene { env, dt: cfg.sim.dt as f64, model })
+        let params = env.params()?;
+        Ok(Scene { env, params, dt: cfg.sim.dt as f64, model })
     }
 
     /// Sets the external force `force` (N, world) at `point` (m, the object's frame) and the
     /// extra downward acceleration `added_gravity` (m/s²) for the next steps.
     fn push(&mut self, force: Vec3, point: Vec3, added_gravity: f32) -> Result<()> {
-        let mut p = self.env.params()?;
-        p[0].ext_force = [force.x, force.y, force.z, 0.0];
-        p[0].ext_point = [point.x, point.y, point.z, 0.0];
-        p[0].added_gravity = added_gravity;
-        self.env.set_params(&p)
+        let p = &mut self.params[0];
+        p.ext_force = [force.x, force.y, force.z, 0.0];
+        p.ext_point = [point.x, point.y, point.z, 0.0];
+        p.added_gravity = added_gravity;
+        self.env.set_params(&self.params)
     }
 
     /// One physics step toward `targets` (the model's default targets when None); the object's

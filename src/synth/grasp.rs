@@ -43,7 +43,7 @@ use glam::{Quat, Vec3};
 use crate::task::ik::{IkParams, ik_solve, ik_tip_positions};
 use crate::env::physics::{Scratch, collide_hand_object, hand_kinematics, piece_pose, piece_project};
 use crate::env::reset::reset_params;
-use crate::env::{EnvState, SimModel};
+use crate::env::{EnvParams, EnvState, SimModel};
 use crate::geom::Pose;
 use crate::hand::{ColliderShape, HandModel, MAX_JOINTS, MAX_TIPS};
 
@@ -475,19 +475,29 @@ const DESCENT_CHECKS: usize = 10;
 /// The deepest overlap (m; ≤ 0 when none) of the hand's colliders, at wrist pose `wrist` with the
 /// joints `q` (followers included), with the object at rest at its nominal place and size.
 pub fn hand_object_depth(model: &SimModel, wrist: &Pose, q: &[f32]) -> f32 {
-    let g = &model.globals;
     let m = model.view();
-    // the first object, unscaled
-    let mut p = reset_params(g, &model.object_descs, &[], 0, 0);
-    let od = &model.object_descs[0];
-    (p.obj_index, p.obj_scale, p.obj_com) = (0, 1.0, od.com);
-    let mut st = EnvState { wrist_pos: [wrist.pos.x, wrist.pos.y, wrist.pos.z, 0.0], wrist_rot: wrist.rot.to_array(), ..Default::default() };
+    let (p, mut st) = nominal_object(model);
+    st.wrist_pos = [wrist.pos.x, wrist.pos.y, wrist.pos.z, 0.0];
+    st.wrist_rot = wrist.rot.to_array();
     st.q[..q.len()].copy_from_slice(q);
-    st.obj_pos = [g.obj_init[0], g.obj_init[1], g.obj_init[3], 0.0];
-    st.obj_rot = Quat::from_rotation_z(g.obj_init[2]).to_array();
     let mut s = Scratch::default();
     hand_kinematics(&st, &m, &mut s);
     (0..model.colliders.len()).map(|ci| collide_hand_object(&st, &p, &m, &s, ci).depth).fold(-1.0, f32::max)
+}
+
+/// The first object as the planner sees it: env 0's parameters with the object forced to the
+/// first one, unscaled, and a state with it resting at its nominal place (the rest zero).
+fn nominal_object(model: &SimModel) -> (EnvParams, EnvState) {
+    let g = &model.globals;
+    let mut p = reset_params(g, &model.object_descs, &[], 0, 0);
+    let od = &model.object_descs[0];
+    (p.obj_index, p.obj_scale, p.obj_com) = (0, 1.0, od.com);
+    let st = EnvState {
+        obj_pos: [g.obj_init[0], g.obj_init[1], g.obj_init[3], 0.0],
+        obj_rot: Quat::from_rotation_z(g.obj_init[2]).to_array(),
+        ..Default::default()
+    };
+    (p, st)
 }
 
 /// Step (m) of the march from a face of the box around the object to the object's own surface.
@@ -498,16 +508,9 @@ const SURFACE_STEP_M: f32 = 0.001;
 /// distance to the nearest piece (primitive or hull, at the object's nominal place, unscaled) falls
 /// under one march step; `p` itself when nothing is met (the march passed through a gap).
 pub fn surface_point(model: &SimModel, p: Vec3, dir: Vec3, reach: f32) -> Vec3 {
-    let g = &model.globals;
     let m = model.view();
-    let mut prm = reset_params(g, &model.object_descs, &[], 0, 0);
+    let (prm, st) = nominal_object(model);
     let od = &model.object_descs[0];
-    (prm.obj_index, prm.obj_scale, prm.obj_com) = (0, 1.0, od.com);
-    let st = EnvState {
-        obj_pos: [g.obj_init[0], g.obj_init[1], g.obj_init[3], 0.0],
-        obj_rot: Quat::from_rotation_z(g.obj_init[2]).to_array(),
-        ..Default::default()
-    };
     let pieces = &model.pieces[od.first_piece as usize..(od.first_piece + od.n_pieces) as usize];
     let distance = |x: Vec3| -> f32 {
         pieces

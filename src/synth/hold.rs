@@ -30,6 +30,8 @@ pub struct HoldCapacity {
     pub tip_push: Vec<f32>,
     /// The index of the thumb in `tip_push`.
     pub thumb: usize,
+    /// The other fingertips' pushes added up (N).
+    pub fingers_push: f32,
     /// The squeeze (N) the thumb and the other fingertips balance across the object.
     pub squeeze: f32,
     /// The hand–object friction coefficient.
@@ -43,15 +45,15 @@ pub struct HoldCapacity {
 impl HoldCapacity {
     /// One line: the pushes, the squeeze, what it holds against the weight.
     pub fn describe(&self) -> String {
-        let others: f32 = self.tip_push.iter().enumerate().filter(|(i, _)| *i != self.thumb).map(|(_, f)| *f).sum();
         format!(
             "within the effort limits the thumb pushes at most {:.1} N against the other fingertips' {:.1} N, a squeeze of {:.1} N that friction (μ = {:.2}) turns into {:.1} N of hold, against the object's weight of {:.1} N",
-            self.tip_push[self.thumb], others, self.squeeze, self.mu, self.holds, self.weight
+            self.tip_push[self.thumb], self.fingers_push, self.squeeze, self.mu, self.holds, self.weight
         )
     }
 }
 
-/// The hold capacity of `plan` for `model`'s hand and object (env 0's nominal parameters).
+/// The hold capacity of `plan` for `model`'s hand and first object (its nominal mass; the
+/// friction of env 0's parameters).
 pub fn hold_capacity(model: &SimModel, plan: &GraspPlan) -> HoldCapacity {
     let nt = model.hand.fingertips.len();
     let nj = model.joints.len();
@@ -82,10 +84,12 @@ pub fn hold_capacity(model: &SimModel, plan: &GraspPlan) -> HoldCapacity {
             }
         }
     }
-    let others: f32 = tip_push.iter().enumerate().filter(|(i, _)| *i != plan.thumb).map(|(_, f)| *f).sum();
-    let squeeze = tip_push[plan.thumb].min(others);
+    let fingers_push: f32 = tip_push.iter().enumerate().filter(|(i, _)| *i != plan.thumb).map(|(_, f)| *f).sum();
+    let squeeze = tip_push[plan.thumb].min(fingers_push);
     let p = reset_params(&model.globals, &model.object_descs, &[], 0, 0);
     let mu = 0.5 * (p.hand_friction + p.obj_friction);
-    let weight = p.obj_inertia[3] * model.globals.gravity;
-    HoldCapacity { tip_push, thumb: plan.thumb, squeeze, mu, holds: 2.0 * mu * squeeze, weight }
+    // the planned object's weight: the first, as the planner grasps it (env 0's draw may be another
+    // of an object set)
+    let weight = model.objects[0].mass * model.globals.gravity;
+    HoldCapacity { tip_push, thumb: plan.thumb, fingers_push, squeeze, mu, holds: 2.0 * mu * squeeze, weight }
 }
