@@ -431,25 +431,11 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
             x = box_project(c_o, r_o, h, y);
         }
         let y = piece_project(pd, scale, size, x).point;
-        // y lies in the hand box when the two overlap: push the hand out through its nearest face
-        let local = quat_rotate(quat_conj(r_o), y - c_o);
-        let d = h - abs(local);
-        if (d.x < 0.0 || d.y < 0.0 || d.z < 0.0) {
-            out.depth = -1.0;
-            return out;
-        }
-        var n_local = vec3<f32>(0.0, 0.0, -sgn(local.z));
-        var depth = d.z;
-        if (d.x <= d.y && d.x <= d.z) {
-            n_local = vec3<f32>(-sgn(local.x), 0.0, 0.0);
-            depth = d.x;
-        } else if (d.y <= d.z) {
-            n_local = vec3<f32>(0.0, -sgn(local.y), 0.0);
-            depth = d.y;
-        }
-        out.depth = depth;
-        out.normal = quat_rotate(orot, quat_rotate(r_o, n_local));
-        out.point = opos + quat_rotate(orot, y);
+        // y and the piece's support points (box_piece_contact)
+        let bc = box_piece_contact(pd, scale, size, c_o, r_o, h, y);
+        out.depth = bc.depth;
+        out.normal = quat_rotate(orot, quat_rotate(r_o, bc.n_local));
+        out.point = opos + quat_rotate(orot, bc.point);
         return out;
     }
     // sphere or capsule collider: a segment swept by a radius
@@ -493,6 +479,100 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
     out.normal = quat_rotate(orot, n);
     out.point = opos + quat_rotate(orot, surf);
     return out;
+}
+
+struct BoxFace {
+    n: vec3<f32>,
+    dist: f32,
+}
+
+// The face of a box nearest a point v inside it (box frame; d = h − |v|): the push out through it
+// and the point's distance to it (CPU twin: nearest_box_face).
+fn nearest_box_face(v: vec3<f32>, d: vec3<f32>) -> BoxFace {
+    if (d.x <= d.y && d.x <= d.z) {
+        return BoxFace(vec3<f32>(-sgn(v.x), 0.0, 0.0), d.x);
+    }
+    if (d.y <= d.z) {
+        return BoxFace(vec3<f32>(0.0, -sgn(v.y), 0.0), d.y);
+    }
+    return BoxFace(vec3<f32>(0.0, 0.0, -sgn(v.z)), d.z);
+}
+
+// The weight (m) of the piece's nearest point y where a hand box's contact point moves toward the
+// piece's support points deeper than y.
+const DEEP_BLEND: f32 = 1.0e-4;
+
+struct BoxPieceContact {
+    depth: f32,
+    n_local: vec3<f32>,
+    point: vec3<f32>,
+}
+
+// The contact of a hand box (centre c_o, rotation r_o, half extents h, in the piece frame) with
+// piece pd, given the piece's point y nearest the box: the deepest of y (inside the box) and the
+// piece's support points inside it, each at its nearest face, gives the depth and the face; the
+// point is the average of y (weight DEEP_BLEND) and that face's support points deeper than y's
+// depth past it, weighted by how much deeper (CPU twin: box_piece_contact).
+fn box_piece_contact(pd: PieceDesc, scale: f32, size: vec3<f32>, c_o: vec3<f32>, r_o: vec4<f32>, h: vec3<f32>, y: vec3<f32>) -> BoxPieceContact {
+    let inv = quat_conj(r_o);
+    let ly = quat_rotate(inv, y - c_o);
+    let dy = h - abs(ly);
+    var depth = -1.0;
+    var n = vec3<f32>(0.0, 0.0, 1.0);
+    if (dy.x >= 0.0 && dy.y >= 0.0 && dy.z >= 0.0) {
+        let f = nearest_box_face(ly, dy);
+        n = f.n;
+        depth = f.dist;
+    }
+    // the piece's bounding sphere apart from the box: no support point inside it
+    let gap = max(abs(quat_rotate(inv, -c_o)) - h, vec3<f32>(0.0));
+    let radius = pd.pos.w * scale;
+    if (dot(gap, gap) > radius * radius) {
+        return BoxPieceContact(depth, n, y);
+    }
+    let y_depth = depth;
+    for (var k = 0u; k < pd.n_support; k++) {
+        let sp = box_frame_support(pd, scale, size, inv, c_o, k);
+        let dd = h - abs(sp.pos);
+        let f = nearest_box_face(sp.pos, dd);
+        if (dd.x >= -sp.radius && dd.y >= -sp.radius && dd.z >= -sp.radius && f.dist + sp.radius > depth) {
+            depth = f.dist + sp.radius;
+            n = f.n;
+        }
+    }
+    if (depth < 0.0) {
+        return BoxPieceContact(-1.0, n, y);
+    }
+    // no support point deeper than y: the point is y
+    if (depth == y_depth) {
+        return BoxPieceContact(depth, n, y);
+    }
+    // y's depth past that face (negative outside it) sets the floor
+    let floor = max(dot(h, abs(n)) + dot(n, ly), 0.0);
+    var wsum = DEEP_BLEND;
+    var psum = y * DEEP_BLEND;
+    for (var k = 0u; k < pd.n_support; k++) {
+        let sp = box_frame_support(pd, scale, size, inv, c_o, k);
+        let dd = h - abs(sp.pos);
+        let f = nearest_box_face(sp.pos, dd);
+        let w = f.dist + sp.radius - floor;
+        if (dd.x >= -sp.radius && dd.y >= -sp.radius && dd.z >= -sp.radius && all(f.n == n) && w > 0.0) {
+            wsum += w;
+            psum += (c_o + quat_rotate(r_o, sp.pos + n * sp.radius)) * w;
+        }
+    }
+    return BoxPieceContact(depth, n, psum / wsum);
+}
+
+// Support point k of piece pd in a hand box's frame and its radius (CPU twin: box_frame_support).
+fn box_frame_support(pd: PieceDesc, scale: f32, size: vec3<f32>, inv: vec4<f32>, c_o: vec3<f32>, k: u32) -> SupportPoint {
+    var sp = SupportPoint(vec3<f32>(0.0), 0.0);
+    if (pd.shape == SHAPE_HULL) {
+        sp = SupportPoint(hull_vertex(pd, scale, k), 0.0);
+    } else {
+        sp = object_support_point(pd.shape, size, k);
+    }
+    return SupportPoint(quat_rotate(inv, sp.pos - c_o), sp.radius);
 }
 
 fn collide_hand_table(ci: u32) -> Contact {

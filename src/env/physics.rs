@@ -6,7 +6,8 @@
 //! 1. `hand_kinematics`: link poses and velocities from the wrist state and joint positions.
 //! 2. Contacts (penalty): hand–object (one per hand collider: the deepest over the object's pieces,
 //!    closest points by alternating projection between the collider and a piece — a primitive, or a
-//!    convex hull whose closest point is found on the triangles the point is in front of),
+//!    convex hull whose closest point is found on the triangles the point is in front of; a hand
+//!    box also tests the piece's support points inside it, `box_piece_contact`),
 //!    hand–table (lowest point of each collider), object–table (every piece's support points).
 //!    Object–table: normal force `Fn = max(k·depth − c·vn, 0)`; friction from a tangential spring
 //!    anchored per contact pair, `Ft = −kt·s − ct·vt`, sliding (s rescaled) when `|Ft| > μ·Fn`, so a
@@ -47,6 +48,9 @@ pub const PROJ_ITERS: usize = 4;
 /// a gap that closes within the substep pushes already (`hand_contact_force`). A finger at its
 /// speed limit travels ~1.3 mm in a 2 ms substep.
 pub const CONTACT_MARGIN: f32 = 0.003;
+/// The weight (m) of the piece's nearest point y where a hand box's contact point moves toward the
+/// piece's support points deeper than y, each weighted by how much deeper (`box_piece_contact`).
+pub const DEEP_BLEND: f32 = 1.0e-4;
 /// Spin rate (rad/s) below which torsional friction acts as a damper instead of a constant torque.
 pub const TORSION_EPS: f32 = 0.05;
 
@@ -525,25 +529,14 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
             x = box_project(c_o, r_o, h, y);
         }
         let (y, _) = piece_project(m, pd, scale, size, x);
-        // y lies in the hand box when the two overlap: push the hand out through its nearest face
-        let local = quat_rotate(quat_conj(r_o), y - c_o);
-        let d = h - local.abs();
-        if d.x < 0.0 || d.y < 0.0 || d.z < 0.0 {
-            out.depth = -1.0;
-            return out;
-        }
-        let mut n_local = Vec3::new(0.0, 0.0, -sgn(local.z));
-        let mut depth = d.z;
-        if d.x <= d.y && d.x <= d.z {
-            n_local = Vec3::new(-sgn(local.x), 0.0, 0.0);
-            depth = d.x;
-        } else if d.y <= d.z {
-            n_local = Vec3::new(0.0, -sgn(local.y), 0.0);
-            depth = d.y;
-        }
+        // y: the piece's point nearest the box where the projections end, inside the box when they
+        // converged into the overlap; the piece's support points as well, since a piece turned
+        // into the box enters with a corner, and where the two meet at a shallow angle the
+        // projections end outside the overlap (box_piece_contact)
+        let (depth, n_local, point) = box_piece_contact(m, pd, scale, size, c_o, r_o, h, y);
         out.depth = depth;
         out.normal = quat_rotate(orot, quat_rotate(r_o, n_local));
-        out.point = opos + quat_rotate(orot, y);
+        out.point = opos + quat_rotate(orot, point);
         return out;
     }
     // sphere or capsule collider: a segment swept by a radius
@@ -586,6 +579,90 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
     out.normal = quat_rotate(orot, n);
     out.point = opos + quat_rotate(orot, surf);
     out
+}
+
+/// The face of a box (half extents `h`) nearest a point `v` inside it (box frame; `d` = h − |v|):
+/// the push out through it (the box's outward normal there, negated: it pushes the box away from
+/// the point) and the point's distance to it.
+pub fn nearest_box_face(v: Vec3, d: Vec3) -> (Vec3, f32) {
+    if d.x <= d.y && d.x <= d.z {
+        return (Vec3::new(-sgn(v.x), 0.0, 0.0), d.x);
+    }
+    if d.y <= d.z {
+        return (Vec3::new(0.0, -sgn(v.y), 0.0), d.y);
+    }
+    (Vec3::new(0.0, 0.0, -sgn(v.z)), d.z)
+}
+
+/// The contact of a hand box (centre `c_o`, rotation `r_o`, half extents `h`, in the piece frame)
+/// with piece `pd` (scaled `size`, its hull scaled by `scale`), given the piece's point `y` nearest
+/// the box (the alternating projections' end): (depth, the push on the hand in the box frame, the
+/// contact point in the piece frame; depth −1 when apart). The candidates are y, when inside the
+/// box, and each of the piece's support points inside it (corners, hull vertices, a rounded
+/// support's point nearest the box's inside), each at its distance to its nearest face: the
+/// deepest gives the depth and the face. The point is the average of y (weight DEEP_BLEND) and the
+/// support points of that face deeper than y's depth past it (or than the face, y outside) by w,
+/// weighted by w: y itself while the piece lies flat against the face, the entering corner or
+/// edge as it turns in, continuously in between.
+#[allow(clippy::too_many_arguments)]
+pub fn box_piece_contact(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, c_o: Vec3, r_o: Vec4, h: Vec3, y: Vec3) -> (f32, Vec3, Vec3) {
+    let inv = quat_conj(r_o);
+    let ly = quat_rotate(inv, y - c_o);
+    let dy = h - ly.abs();
+    let mut depth = -1.0f32;
+    let mut n = Vec3::Z;
+    if dy.x >= 0.0 && dy.y >= 0.0 && dy.z >= 0.0 {
+        (n, depth) = nearest_box_face(ly, dy);
+    }
+    // the piece's bounding sphere (about its frame's origin) apart from the box: no support point
+    // inside it
+    let gap = (quat_rotate(inv, -c_o).abs() - h).max(Vec3::ZERO);
+    let radius = pd.pos[3] * scale;
+    if gap.length_squared() > radius * radius {
+        return (depth, n, y);
+    }
+    // the deepest support point inside the box, at its nearest face
+    let y_depth = depth;
+    for k in 0..pd.n_support {
+        let (v, r) = box_frame_support(m, pd, scale, size, inv, c_o, k);
+        let dd = h - v.abs();
+        let (nk, dk) = nearest_box_face(v, dd);
+        if dd.x >= -r && dd.y >= -r && dd.z >= -r && dk + r > depth {
+            depth = dk + r;
+            n = nk;
+        }
+    }
+    if depth < 0.0 {
+        return (-1.0, n, y);
+    }
+    // no support point deeper than y: none is deeper than y past y's face either (the point is y)
+    if depth == y_depth {
+        return (depth, n, y);
+    }
+    // y's depth past that face (negative outside it) sets the floor the support points are weighed from
+    let floor = (h.dot(n.abs()) + n.dot(ly)).max(0.0);
+    let mut wsum = DEEP_BLEND;
+    let mut psum = y * DEEP_BLEND;
+    for k in 0..pd.n_support {
+        let (v, r) = box_frame_support(m, pd, scale, size, inv, c_o, k);
+        let dd = h - v.abs();
+        let (nk, dk) = nearest_box_face(v, dd);
+        let w = dk + r - floor;
+        if dd.x >= -r && dd.y >= -r && dd.z >= -r && nk == n && w > 0.0 {
+            wsum += w;
+            // a rounded support's point nearest the box's inside
+            psum += (c_o + quat_rotate(r_o, v + n * r)) * w;
+        }
+    }
+    (depth, n, psum / wsum)
+}
+
+/// Support point `k` of piece `pd` in a hand box's frame (`inv`: the box's rotation in the piece
+/// frame, inverted; `c_o`: its centre there) and its radius (a hull's vertices and a box's corners
+/// have none).
+pub fn box_frame_support(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, inv: Vec4, c_o: Vec3, k: u32) -> (Vec3, f32) {
+    let (sp, r) = if pd.shape == SHAPE_HULL { (hull_vertex(m, pd, scale, k), 0.0) } else { object_support_point(pd.shape, size, k) };
+    (quat_rotate(inv, sp - c_o), r)
 }
 
 /// Narrow phase between hand collider `ci` and the table (its lowest point).

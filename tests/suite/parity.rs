@@ -188,13 +188,18 @@ fn contact_rich_step_agrees(c: dextrain::config::Config, ctx: dextrain::gpu::con
     let n_col = model.colliders.len();
     let holding = start.springs.chunks(per_env).filter(|e| e[..n_col].iter().any(|s| s[3] > 0.0)).count();
     eprintln!("{holding} of {} envs end the approach with a hand–object pair touching", c.sim.num_envs);
-    // one physics step (dt, all its substeps) from that state
+    one_physics_step_agrees(c, &start, t, ctx);
+}
+
+/// One physics step (dt, all its substeps) of config `c` from state `start` under targets `t` on
+/// both backends: the states, springs, contact counts and deepest hand–object penetrations agree.
+fn one_physics_step_agrees(c: dextrain::config::Config, start: &Snap, t: Targets, ctx: dextrain::gpu::context::GpuContext) {
     let mut c = c;
     c.sim.decimation = 1;
     let mut cpu = cpu_batch(&c);
-    restore(&mut cpu, &start);
+    restore(&mut cpu, start);
     let mut gpu = gpu_batch(&c, ctx);
-    restore(&mut gpu, &start);
+    restore(&mut gpu, start);
     run(&mut cpu, t, 1);
     run(&mut gpu, t, 1);
     // In contact, a 1-ulp difference of a 0.1 m coordinate (sin/cos, fused multiply-adds on the GPU)
@@ -222,6 +227,24 @@ fn contact_rich_step_agrees(c: dextrain::config::Config, ctx: dextrain::gpu::con
         assert_eq!(x.contacts, y.contacts);
         assert!((x.max_pen_ho - y.max_pen_ho).abs() < 1e-6);
     }
+}
+
+/// A box turned into the palm box, an edge 3 mm in (the palm's contact at the box's deepest
+/// support points, `box_deepest_support`), the hand held still: one physics step agrees.
+#[test]
+fn a_box_turned_into_the_palm_steps_the_same_on_both_backends() {
+    let Some(ctx) = gpu_context("a_box_turned_into_the_palm_steps_the_same_on_both_backends") else { return };
+    let c = base_config(8);
+    let mut cpu = cpu_batch(&c);
+    // each env's box a little further off the palm's centre
+    box_turned_into_palm(&mut cpu, 0.003, |i| 0.004 * i as f32 - 0.012);
+    let first = cpu.states().unwrap()[0];
+    let mut t = cpu.model().default_targets();
+    t.wrist_pos = first.wrist_pos;
+    t.wrist_rot = first.wrist_rot;
+    t.q = first.q;
+    let start = snap(&mut cpu);
+    one_physics_step_agrees(c, &start, t, ctx);
 }
 
 /// Three objects in one batch (a cube, the shipped 3-piece bottle — two cylinders and a hull — and

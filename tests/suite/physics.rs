@@ -310,3 +310,24 @@ fn an_external_force_off_the_centre_accelerates_and_turns_a_free_object() {
     assert!((wy / (z * f / inertia * secs) - 1.0).abs() < 0.05, "ω_y {wy} against z F t / I = {}", z * f / inertia * secs);
     assert!(st[0].obj_vel[2] < -0.9, "the cube falls meanwhile: v_z {}", st[0].obj_vel[2]);
 }
+
+/// A box turned into the palm box (a hand box collider against a piece) is pushed where it enters:
+/// the contact's depth is that of its deepest edge, not of its point nearest the palm's centre
+/// (which lies on its top face, shallower), and the contact point sits on that edge.
+#[test]
+fn a_box_turned_into_the_palm_is_pushed_at_its_deepest_edge() {
+    use dextrain::record::ContactKind;
+    let c = base_config(1);
+    let mut b = cpu_batch(&c);
+    let depth = 0.004;
+    let edge = box_turned_into_palm(&mut b, depth, |_| 0.02)[0];
+    let model = b.model().clone();
+    let palm = |b: &mut dextrain::env::cpu::CpuEnvBatch| {
+        let (s, p, springs) = (b.states().unwrap(), b.params().unwrap(), b.springs().unwrap());
+        let contacts = dextrain::env::contact_records(&model, &s[0], &springs, &p[0], &model.default_targets());
+        contacts.into_iter().find(|k| k.kind == ContactKind::HandObject && k.index == 0)
+    };
+    let k = palm(&mut b).expect("the palm touches the box");
+    assert!((k.depth - depth).abs() < 1e-4, "palm contact {:.3} mm deep, the edge is {:.3} mm in", k.depth * 1e3, depth * 1e3);
+    assert!(k.pos.distance(edge) < 3e-3, "contact at {:?}, {:.1} mm from the deep edge {edge:?}", k.pos, k.pos.distance(edge) * 1e3);
+}

@@ -89,3 +89,42 @@ pub fn wgpu_learner(test: &str) -> Option<(GpuContext, burn::prelude::Device)> {
     assert!(name.starts_with("gpu (burn wgpu"), "{name}");
     Some((ctx, device))
 }
+
+/// Puts every env's object of `b` (a box: the run's first piece) against dexhand16's palm box
+/// (collider 0), at rest, turned 30° about the palm's x axis so that one edge of it lies `depth`
+/// inside the palm's −z face, `lateral(env)` m off the palm's centre along its y: the box's point
+/// nearest the palm's centre is then on its top face, shallower than that edge. Returns, per env,
+/// the midpoint of that edge (world), where the palm's contact should push.
+pub fn box_turned_into_palm(b: &mut CpuEnvBatch, depth: f32, lateral: impl Fn(usize) -> f32) -> Vec<glam::Vec3> {
+    use dextrain::env::physics::object_support_point;
+    use glam::{Quat, Vec3};
+    let model = b.model().clone();
+    let cd = model.colliders[0];
+    assert_eq!(cd.shape, dextrain::gpu::layout::SHAPE_BOX, "collider 0 is the palm box");
+    let piece = model.pieces[0];
+    assert_eq!(piece.shape, dextrain::gpu::layout::SHAPE_BOX, "the object is a box");
+    assert!(piece.pos[..3].iter().all(|x| *x == 0.0) && piece.rot == [0.0, 0.0, 0.0, 1.0], "one box at the object's frame");
+    let (size, h) = (Vec3::from_slice(&piece.size[..3]), Vec3::from_slice(&cd.size[..3]));
+    let turn = Quat::from_rotation_x(30f32.to_radians());
+    // the turned box's corners in the palm frame, about its centre; the top ones along +z
+    let corners: Vec<Vec3> = (0..8).map(|k| turn * object_support_point(piece.shape, size, k).0).collect();
+    let top = corners.iter().map(|c| c.z).fold(f32::MIN, f32::max);
+    let mut states = b.states().unwrap();
+    let mut edges = Vec::new();
+    for (i, st) in states.iter_mut().enumerate() {
+        // the centre below the −z face (at −h_z) so that the top corners are `depth` past it
+        let centre = Vec3::new(0.0, lateral(i), -h.z + depth - top);
+        let edge: Vec3 = corners.iter().filter(|c| c.z > top - 1e-6).map(|c| *c + centre).sum::<Vec3>() / 2.0;
+        let links = dextrain::env::hand_link_poses(&model, st);
+        let palm = links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot));
+        let pos = palm.transform_point(centre);
+        let rot = palm.rot * turn;
+        st.obj_pos = [pos.x, pos.y, pos.z, 0.0];
+        st.obj_rot = rot.to_array();
+        st.obj_vel = [0.0; 4];
+        st.obj_angvel = [0.0; 4];
+        edges.push(palm.transform_point(edge));
+    }
+    b.set_states(&states).unwrap();
+    edges
+}
