@@ -9,7 +9,8 @@ use std::io::Write;
 /// Writes one line to stderr (progress and status), ignoring write errors.
 pub fn status(line: &str) {
     let mut err = std::io::stderr().lock();
-    let _ = writeln!(err, "{line}");
+    // one write of the whole line (see `result`)
+    let _ = err.write_all(format!("{line}\n").as_bytes());
 }
 
 /// Writes one warning line to stderr, ignoring write errors.
@@ -20,6 +21,9 @@ pub fn warn(line: &str) {
 /// Writes one line to stdout (a command's machine-readable result), ignoring write errors.
 pub fn result(line: &str) {
     let mut out = std::io::stdout().lock();
-    let _ = writeln!(out, "{line}");
+    // one write of the whole line: `writeln!` writes the line and its newline apart, and a long
+    // line leaves stdout's buffer in pieces that an MPI launcher merging its ranks' output into one
+    // stream interleaves with another rank's
+    let _ = out.write_all(format!("{line}\n").as_bytes());
     let _ = out.flush();
 }

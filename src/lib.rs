@@ -13,6 +13,7 @@ pub mod console;
 pub mod run_dir;
 pub mod gpu_counts;
 pub mod host_traffic;
+pub mod dist;
 pub mod tensorboard;
 pub mod metrics;
 pub mod plot;

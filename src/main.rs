@@ -267,10 +267,15 @@ fn main() -> ExitCode {
         libc::mallopt(libc::M_MMAP_MAX, 0);
         libc::mallopt(libc::M_TRIM_THRESHOLD, i32::MAX);
     }
+    // an MPI job's rank joins it here (`--features mpi`, launched by mpiexec or srun); MPI is
+    // finalised when `_mpi` drops at the end of main
+    let _mpi = dextrain::dist::init();
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
             console::status(&format!("error: {}", dextrain::text::one_line(&format!("{e:#}"))));
+            // in an MPI job the other ranks would wait for this one in their next collective
+            dextrain::dist::abort_job(1);
             ExitCode::FAILURE
         }
     }

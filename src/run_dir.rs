@@ -53,7 +53,7 @@ pub fn default_name(config: &Path) -> String {
 }
 
 /// What dextrain writes at the top of a run directory (besides TensorBoard's `events.out.tfevents.*`).
-pub const RUN_ENTRIES: [&str; 6] = ["config.toml", "metrics.csv", "plots", "checkpoints", "eval", "export"];
+pub const RUN_ENTRIES: [&str; 7] = ["config.toml", "metrics.csv", "plots", "checkpoints", "eval", "export", "ranks"];
 
 /// Why `dir` may not be replaced by `--force`, or None when it is a run directory that holds only
 /// what dextrain writes.

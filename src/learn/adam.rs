@@ -52,6 +52,8 @@ impl Adam {
             .enumerate()
             .map(|(i, p)| p.grad(grads).with_context(|| format!("parameter {i} got no gradient")))
             .collect::<Result<_>>()?;
+        // data-parallel (issue 37): every rank steps with the gradients' mean over the ranks
+        let gs = mean_over_ranks(gs)?;
         let lr = lr.clone().inner();
         if let Some(fused) = &self.fused {
             let t = self.t + 1;
@@ -198,4 +200,32 @@ pub fn clipped_grads(params: &[Tensor<2>], grads: &burn::tensor::Gradients, max_
         .map(|(i, p)| p.grad(grads).with_context(|| format!("parameter {i} got no gradient")))
         .collect::<Result<_>>()?;
     clip_to_norm(gs, max_norm)
+}
+
+/// The gradients' element-wise mean over the ranks of a data-parallel job (`crate::dist`): read
+/// back as one flat buffer, one all-reduce, and uploaded again in the same shapes (on a GPU
+/// learner, 4 bytes per parameter each way per step). With one rank they are returned as they are.
+pub fn mean_over_ranks(gs: Vec<Tensor<2>>) -> Result<Vec<Tensor<2>>> {
+    // DEXTRAIN_TEST_NO_GRADIENT_MEAN (tests only): each rank steps with its own gradients, which the
+    // equivalence test uses to show that without the mean the ranks drift apart
+    static OFF: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    if crate::dist::size() == 1 || *OFF.get_or_init(|| std::env::var_os("DEXTRAIN_TEST_NO_GRADIENT_MEAN").is_some()) {
+        return Ok(gs);
+    }
+    let shapes: Vec<[usize; 2]> = gs.iter().map(|g| g.dims()).collect();
+    let device = gs.first().map(|g| g.device());
+    let mut flat = Vec::with_capacity(shapes.iter().map(|s| s[0] * s[1]).sum());
+    for g in gs {
+        flat.extend(super::nets::to_host(g)?);
+    }
+    crate::dist::mean_f32(&mut flat);
+    let Some(device) = device else { return Ok(Vec::new()) };
+    let mut out = Vec::with_capacity(shapes.len());
+    let mut at = 0;
+    for s in shapes {
+        let n = s[0] * s[1];
+        out.push(super::nets::to_tensor(flat[at..at + n].to_vec(), s, &device));
+        at += n;
+    }
+    Ok(out)
 }

@@ -45,14 +45,19 @@ impl Normalizer {
             return;
         }
         let rows = x.len() / d;
-        let nb = rows as f64;
-        // batch mean and Σ(x − μ_b)², two passes over the batch
-        let mut bmean = vec![0.0f64; d];
+        // batch mean and Σ(x − μ_b)², two passes over the batch; in a data-parallel job
+        // (`crate::dist`) the batch is every rank's rows: the count and sums, then the squared
+        // deviations from the common mean, summed over the ranks (each rank then merges the same
+        // batch statistics)
+        let mut bmean = vec![0.0f64; d + 1];
         for r in 0..rows {
-            for (k, m) in bmean.iter_mut().enumerate() {
+            for (k, m) in bmean[..d].iter_mut().enumerate() {
                 *m += x[r * d + k] as f64;
             }
         }
+        bmean[d] = rows as f64;
+        crate::dist::sum_f64(&mut bmean);
+        let nb = bmean.pop().unwrap_or(0.0);
         for m in &mut bmean {
             *m /= nb;
         }
@@ -63,6 +68,7 @@ impl Normalizer {
                 bm2[k] += e * e;
             }
         }
+        crate::dist::sum_f64(&mut bm2);
         // Chan: n = na + nb, δ = μb − μa, μ = μa + δ nb / n, M2 = M2a + M2b + δ² na nb / n
         let na = self.count;
         let n = na + nb;

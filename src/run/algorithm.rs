@@ -117,6 +117,12 @@ pub trait Algorithm {
         bail!("{} has no device-resident rollouts", self.name())
     }
 
+    /// The largest difference of any parameter (or normaliser statistic) from rank 0's over the
+    /// ranks of an MPI job (a collective: every rank calls it; 0 with one rank).
+    fn max_rank_deviation(&self) -> Result<f32> {
+        Ok(0.0)
+    }
+
     /// Everything that a resumed run needs to continue exactly (taken between iterations).
     fn state(&self) -> Result<LearnerState>;
 

@@ -6,6 +6,7 @@
 //! - `off_policy.rs`: SAC's part (every env step into the replay buffer, gradient steps after each);
 //! - `device_loop.rs`: the env loop with the rollouts on the device (envs and learner on one GPU);
 //! - `distill.rs`: online DAgger's part (the student and teacher act, then the student learns);
+//! - `ranks.rs`: what each rank of an MPI job (`mpiexec -n N`) does differently;
 //!
 //! Each implements [`Algorithm`]; none copies the loop.
 
@@ -14,6 +15,7 @@ mod device_loop;
 pub mod distill;
 pub mod off_policy;
 pub mod on_policy;
+pub mod ranks;
 pub mod runner;
 
 use std::path::PathBuf;
@@ -27,7 +29,9 @@ pub use runner::TrainArgs;
 /// The config is loaded once (a resumed run's is its config.toml), and this match is where the
 /// algorithm is chosen: its constructor and its check before a run directory is made.
 pub fn train(args: &TrainArgs) -> Result<PathBuf> {
-    let loaded = runner::load(args)?;
+    let args = &ranks::resume_args(args)?;
+    let mut loaded = runner::load(args)?;
+    let args = &ranks::new_run_args(args, &mut loaded)?;
     let (make, preflight): (runner::MakeAlgorithm, runner::Preflight) = match loaded.cfg.train.algorithm {
         crate::config::AlgorithmChoice::Ppo => (on_policy::make, runner::no_preflight),
         crate::config::AlgorithmChoice::Sac => (off_policy::make, off_policy::preflight),

@@ -40,6 +40,17 @@ impl Algorithm for Ppo {
         STAT_COLUMNS.iter().map(|s| s.to_string()).collect()
     }
 
+    fn max_rank_deviation(&self) -> Result<f32> {
+        // the parameters, and the normalisers' statistics (merged from every rank's observations)
+        let mut flat: Vec<f32> = self.net.values()?.into_iter().flatten().collect();
+        let (obs, priv_obs) = self.normalizers()?;
+        for n in [&obs, &priv_obs] {
+            flat.extend(n.mean.iter().chain(&n.m2).map(|x| *x as f32));
+            flat.push(n.count as f32);
+        }
+        Ok(crate::dist::max_deviation_from_root(&flat))
+    }
+
     fn act(&mut self, obs: &[f32], priv_obs: &[f32]) -> Result<Vec<f32>> {
         Ppo::act(self, obs, priv_obs)
     }

@@ -330,7 +330,27 @@ fn absolute(p: &Path) -> String {
 /// Runs (or resumes) the training run `loaded` with the algorithm that `make` builds, after its
 /// `preflight` check; returns its directory.
 pub fn run(args: &TrainArgs, loaded: LoadedRun, make: MakeAlgorithm, preflight: Preflight) -> Result<PathBuf> {
-    let (dir, resume, model) = setup(args, &loaded, preflight)?;
+    // several ranks (`mpiexec`): rank 0 makes the run directory first, then the others theirs
+    // inside it (`super::ranks`); each waits for rank 0, and a rank that failed stops them all
+    let first = crate::dist::rank() == 0;
+    let rank0 = if first { Some(setup(args, &loaded, preflight)) } else { None };
+    if crate::dist::any(rank0.as_ref().is_some_and(|r| r.is_err())) {
+        return match rank0 {
+            Some(r) => r.map(|(dir, _, _)| dir),
+            None => bail!("rank 0 could not set up the run (its error is above)"),
+        };
+    }
+    let mine = match rank0 {
+        Some(r) => r,
+        None => setup(args, &loaded, preflight),
+    };
+    if crate::dist::any(mine.is_err()) {
+        return match mine {
+            Err(e) => Err(e),
+            Ok(_) => bail!("another rank could not set up the run (its error is above)"),
+        };
+    }
+    let (dir, resume, model) = mine?;
     let fresh = resume.is_none();
     let result = train_in(args, make, loaded.cfg, model, dir.clone(), resume);
     if result.is_err() && fresh {
@@ -392,6 +412,7 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
     // the rollouts stay on the device when the envs and the learner share a GPU (docs/gpu.md "The GPU loop")
     let mut device_loop = None;
     if cfg.train.device_rollouts
+        && crate::dist::size() == 1
         && task.can_step_on_device()
         && algo.can_run_on_device()
         && let Some(ctx) = task.gpu_context().filter(|c| crate::learn::device::shares_sim_device(&choice, Some(c)))
@@ -503,7 +524,8 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
             }
         }
         last_row = row;
-        let interrupted = STOP.load(Ordering::SeqCst);
+        // every rank of an MPI job stops at the same iteration (the next one's collectives would wait)
+        let interrupted = crate::dist::any(STOP.load(Ordering::SeqCst));
         if iteration % cfg.train.save_interval as u64 == 0 || iteration == stop_at || interrupted {
             if let Some(dl) = &device_loop {
                 (obs, priv_obs, eps) = dl.to_host()?;
@@ -537,7 +559,9 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
     // (its pools keep their pages, so this is about the run's peak)
     let sim_bytes = task.device_bytes();
     let learner_bytes = if crate::learn::nets::is_gpu(&device) { device.memory_pool_usage().map_or(0, |u| u.bytes_reserved) } else { 0 };
-    let summary = json!({
+    // the ranks of an MPI job hold the same parameters (they step with the same averaged gradients)
+    let deviation = if crate::dist::size() > 1 { algo.max_rank_deviation()? } else { 0.0 };
+    let mut summary = json!({
         "run": dir.display().to_string(),
         "device_memory": { "sim_bytes": sim_bytes, "learner_bytes": learner_bytes, "bytes_per_env": (sim_bytes + learner_bytes) as f64 / n as f64 },
         "iterations": iteration,
@@ -548,6 +572,9 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
         "learner_device": device_name,
         "last": columns.iter().zip(&last_row).map(|(c, v)| (c.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
     });
+    if crate::dist::size() > 1 {
+        summary["ranks"] = json!({ "size": crate::dist::size(), "rank": crate::dist::rank(), "max_parameter_deviation": deviation });
+    }
     console::result(&summary.to_string());
     Ok(dir)
 }

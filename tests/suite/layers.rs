@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 /// The layers, lowest first; within a layer, the order is also the allowed direction.
 const LAYERS: &[(&str, &[&str])] = &[
-    ("base helpers", &["text", "files", "rng", "console", "run_dir", "gpu_counts", "host_traffic", "tensorboard", "metrics", "plot"]),
+    ("base helpers", &["text", "files", "rng", "console", "run_dir", "gpu_counts", "host_traffic", "dist", "tensorboard", "metrics", "plot"]),
     ("geometry and meshes", &["geom", "mesh"]),
     ("config: plain data, validated where only lower layers are needed", &["config"]),
     ("models: hand, object, reference trajectories, recordings", &["hand", "object", "traj", "record"]),

@@ -19,6 +19,7 @@ mod learn;
 mod mesh;
 mod objects;
 mod metrics;
+mod mpi;
 mod parity;
 mod perturb;
 mod physics;

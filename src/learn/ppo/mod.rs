@@ -150,6 +150,27 @@ impl ActorCritic {
         Ok(())
     }
 
+    /// Gives every rank of a data-parallel job (`crate::dist`) rank 0's parameters: one flat
+    /// broadcast (nothing with one rank).
+    pub fn broadcast_from_root(&mut self, device: &Device) -> Result<()> {
+        if crate::dist::size() == 1 {
+            return Ok(());
+        }
+        let values = self.values()?;
+        let mut flat: Vec<f32> = values.iter().flatten().copied().collect();
+        crate::dist::broadcast_f32(&mut flat);
+        let mut at = 0;
+        let split = values
+            .iter()
+            .map(|v| {
+                let part = flat[at..at + v.len()].to_vec();
+                at += v.len();
+                part
+            })
+            .collect();
+        self.set_values(split, device)
+    }
+
     /// Every parameter's values on the host.
     pub fn values(&self) -> Result<Vec<Vec<f32>>> {
         self.params.iter().map(|p| to_host(p.clone().inner())).collect()
@@ -323,7 +344,9 @@ impl Ppo {
     #[allow(clippy::too_many_arguments)]
     pub fn new(dims: Dims, num_envs: usize, steps: usize, cfg: &PpoConfig, policy: &PolicyConfig, encoder_index: &[usize], device: Device, seed: u64) -> Result<Ppo> {
         let mut rng = Rng::new(seed, 0x5050_4f21);
-        let net = ActorCritic::new(dims, policy, encoder_index, &device, &mut rng)?;
+        let mut net = ActorCritic::new(dims, policy, encoder_index, &device, &mut rng)?;
+        // data-parallel (issue 37): every rank starts from rank 0's parameters
+        net.broadcast_from_root(&device)?;
         let adam = Adam::new(&net.shapes(), &device);
         Ok(Ppo {
             cfg: cfg.clone(),
@@ -637,7 +660,7 @@ impl Ppo {
             let v = self.net.critic(params, b.priv_obs.clone());
             let losses = ppo_losses(mu, self.net.log_std(params), v, &b, &self.cfg);
             if self.cfg.schedule == LrSchedule::Adaptive {
-                lr = adapt_learning_rate(lr, losses.kl.clone().inner(), &self.cfg);
+                lr = adapt_learning_rate(lr, kl_over_ranks(losses.kl.clone().inner())?, &self.cfg);
             }
             let grads = losses.total.backward();
             let (new_params, norm) = self.adam.step_clipped(params, &grads, self.cfg.max_grad_norm as f64, &lr)?;
@@ -672,6 +695,20 @@ impl Ppo {
             mean_std: log_std.iter().map(|l| (*l as f64).exp()).sum::<f64>() / log_std.len().max(1) as f64,
         })
     }
+}
+
+/// A minibatch's KL `[1]`, averaged over the ranks of a data-parallel job (one read and one
+/// all-reduce of a number; with one rank the tensor as it is, no read): every rank adapts its
+/// learning rate alike.
+pub fn kl_over_ranks(kl: Tensor<1>) -> Result<Tensor<1>> {
+    if crate::dist::size() == 1 {
+        return Ok(kl);
+    }
+    let device = kl.device();
+    let mut v = to_host(kl)?;
+    crate::dist::mean_f32(&mut v);
+    let n = v.len();
+    Ok(Tensor::from_data(TensorData::new(v, [n]), &device))
 }
 
 /// rsl_rl's adaptive learning rate from a minibatch's KL, as `[1, 1]` tensor ops (no host read):

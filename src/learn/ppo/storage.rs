@@ -75,10 +75,16 @@ impl RolloutStorage {
     /// (zero mean, unit std), as rsl_rl does.
     pub fn compute_returns(&mut self, last_values: &[f32], gamma: f32, lam: f32) {
         gae(&self.rewards, &self.values, &self.dones, last_values, self.envs, gamma, lam, &mut self.advantages, &mut self.returns);
-        let n = self.advantages.len() as f64;
-        let mean = self.advantages.iter().map(|&a| a as f64).sum::<f64>() / n;
+        // over every rank's rollout in a data-parallel job (`crate::dist`): the count and sum,
+        // then the squared deviations from the common mean, summed over the ranks
+        let mut first = [self.advantages.len() as f64, self.advantages.iter().map(|&a| a as f64).sum::<f64>()];
+        crate::dist::sum_f64(&mut first);
+        let [n, sum] = first;
+        let mean = sum / n;
         // unbiased std, as torch's .std()
-        let var = self.advantages.iter().map(|&a| (a as f64 - mean).powi(2)).sum::<f64>() / (n - 1.0).max(1.0);
+        let mut dev = [self.advantages.iter().map(|&a| (a as f64 - mean).powi(2)).sum::<f64>()];
+        crate::dist::sum_f64(&mut dev);
+        let var = dev[0] / (n - 1.0).max(1.0);
         let inv = 1.0 / (var.sqrt() + 1e-8);
         for a in &mut self.advantages {
             *a = ((*a as f64 - mean) * inv) as f32;
