@@ -60,11 +60,6 @@ pub fn size() -> usize {
     SIZE.load(Ordering::Relaxed)
 }
 
-/// True on the rank that writes the run's shared files (metrics, plots, checkpoints): rank 0.
-pub fn is_root() -> bool {
-    rank() == 0
-}
-
 /// Replaces `buf` on every rank by its element-wise sum over the ranks (f32).
 pub fn sum_f32(buf: &mut [f32]) {
     if size() == 1 {

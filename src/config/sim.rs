@@ -71,7 +71,7 @@ pub struct SimConfig {
     /// GPU adapter; an error if there is none) or `"gpu:NAME"` (the wgpu adapter whose name contains
     /// NAME, e.g. `"gpu:llvmpipe"` for Mesa's software Vulkan driver).
     pub backend: BackendChoice,
-    /// Number of parallel environments.
+    /// Number of parallel environments (of each process in an MPI job: docs/mpi.md).
     pub num_envs: usize,
     /// Physics step (s).
     pub dt: f32,

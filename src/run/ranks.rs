@@ -68,7 +68,8 @@ pub fn new_run_args(args: &TrainArgs, loaded: &mut LoadedRun) -> Result<TrainArg
 /// Only PPO averages its gradients over ranks so far.
 fn check_algorithm(cfg: &Config) -> Result<()> {
     if cfg.train.algorithm != AlgorithmChoice::Ppo {
-        bail!("{}: train.algorithm = {:?} runs on one rank only so far; with {} ranks (mpiexec -n {}) expected \"ppo\"", cfg.source.display(), cfg.train.algorithm, dist::size(), dist::size());
+        let name = format!("{:?}", cfg.train.algorithm).to_lowercase();
+        bail!("{}: train.algorithm = \"{name}\" runs on one rank only so far; with {} ranks (mpiexec -n {}) expected \"ppo\"", cfg.source.display(), dist::size(), dist::size());
     }
     Ok(())
 }

@@ -506,7 +506,8 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
         let msg = format!("{fps:.0} steps/s (collect {collect_s:.2} s, learn {learn_s:.2} s), reward {reward:.3}, success {success}");
         bar.set_message(msg.clone());
         bar.set_position(iteration);
-        if (args.quiet || bar.is_hidden()) && (iteration % (total / 10).max(1) == 0 || iteration == stop_at) {
+        // (ranks ≥ 1 of an MPI job keep theirs in their metrics: one rank's lines are enough)
+        if (args.quiet || bar.is_hidden()) && crate::dist::rank() == 0 && (iteration % (total / 10).max(1) == 0 || iteration == stop_at) {
             console::status(&format!("iteration {iteration}/{total}: {env_steps} env steps, {time_s:.1} s, {msg}"));
         }
         if sums.episodes > 0 {
