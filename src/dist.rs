@@ -62,33 +62,27 @@ pub fn size() -> usize {
 
 /// Replaces `buf` on every rank by its element-wise sum over the ranks (f32).
 pub fn sum_f32(buf: &mut [f32]) {
-    if size() == 1 {
-        return;
-    }
-    // without MPI there is one rank, and the return above is taken
-    #[cfg(not(feature = "mpi"))]
-    let _ = buf;
-    #[cfg(feature = "mpi")]
-    {
-        let send = buf.to_vec();
-        mpi::topology::SimpleCommunicator::world().all_reduce_into(&send[..], buf, mpi::collective::SystemOperation::sum());
-    }
+    sum_over_ranks(buf);
 }
 
 /// Replaces `buf` on every rank by its element-wise sum over the ranks (f64).
 pub fn sum_f64(buf: &mut [f64]) {
+    sum_over_ranks(buf);
+}
+
+/// The element-wise sum over the ranks, in place (one all-reduce; nothing with one rank).
+#[cfg(feature = "mpi")]
+fn sum_over_ranks<T: mpi::datatype::Equivalence + Copy>(buf: &mut [T]) {
     if size() == 1 {
         return;
     }
-    // without MPI there is one rank, and the return above is taken
-    #[cfg(not(feature = "mpi"))]
-    let _ = buf;
-    #[cfg(feature = "mpi")]
-    {
-        let send = buf.to_vec();
-        mpi::topology::SimpleCommunicator::world().all_reduce_into(&send[..], buf, mpi::collective::SystemOperation::sum());
-    }
+    let send = buf.to_vec();
+    mpi::topology::SimpleCommunicator::world().all_reduce_into(&send[..], buf, mpi::collective::SystemOperation::sum());
 }
+
+/// Without MPI there is one rank: the sum is the buffer itself.
+#[cfg(not(feature = "mpi"))]
+fn sum_over_ranks<T>(_buf: &mut [T]) {}
 
 /// Replaces `buf` on every rank by its element-wise mean over the ranks (f32): the sum, divided by
 /// the number of ranks.
