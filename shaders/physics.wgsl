@@ -566,13 +566,17 @@ fn box_piece_contact(pd: PieceDesc, scale: f32, size: vec3<f32>, c_o: vec3<f32>,
 
 // Support point k of piece pd in a hand box's frame and its radius (CPU twin: box_frame_support).
 fn box_frame_support(pd: PieceDesc, scale: f32, size: vec3<f32>, inv: vec4<f32>, c_o: vec3<f32>, k: u32) -> SupportPoint {
-    var sp = SupportPoint(vec3<f32>(0.0), 0.0);
-    if (pd.shape == SHAPE_HULL) {
-        sp = SupportPoint(hull_vertex(pd, scale, k), 0.0);
-    } else {
-        sp = object_support_point(pd.shape, size, k);
-    }
+    let sp = piece_support_point(pd, scale, size, k);
     return SupportPoint(quat_rotate(inv, sp.pos - c_o), sp.radius);
+}
+
+// Support point k of piece pd in its own frame and its radius: a primitive's, or a hull's vertex
+// (CPU twin: piece_support_point).
+fn piece_support_point(pd: PieceDesc, scale: f32, size: vec3<f32>, k: u32) -> SupportPoint {
+    if (pd.shape == SHAPE_HULL) {
+        return SupportPoint(hull_vertex(pd, scale, k), 0.0);
+    }
+    return object_support_point(pd.shape, size, k);
 }
 
 fn collide_hand_table(ci: u32) -> Contact {
@@ -599,12 +603,7 @@ fn collide_hand_table(ci: u32) -> Contact {
 // support point k of object piece pd (scaled size, hull scaled by scale, at ppos, prot) against
 // the table: a primitive's support points, a hull's vertices
 fn collide_piece_table(pd: PieceDesc, scale: f32, size: vec3<f32>, ppos: vec3<f32>, prot: vec4<f32>, k: u32) -> Contact {
-    var sp = SupportPoint(vec3<f32>(0.0), 0.0);
-    if (pd.shape == SHAPE_HULL) {
-        sp = SupportPoint(hull_vertex(pd, scale, k), 0.0);
-    } else {
-        sp = object_support_point(pd.shape, size, k);
-    }
+    let sp = piece_support_point(pd, scale, size, k);
     let w = ppos + quat_rotate(prot, sp.pos);
     return Contact(sp.radius - w.z, vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(w.x, w.y, 0.0));
 }

@@ -661,8 +661,14 @@ pub fn box_piece_contact(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, c_o:
 /// frame, inverted; `c_o`: its centre there) and its radius (a hull's vertices and a box's corners
 /// have none).
 pub fn box_frame_support(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, inv: Vec4, c_o: Vec3, k: u32) -> (Vec3, f32) {
-    let (sp, r) = if pd.shape == SHAPE_HULL { (hull_vertex(m, pd, scale, k), 0.0) } else { object_support_point(pd.shape, size, k) };
+    let (sp, r) = piece_support_point(m, pd, scale, size, k);
     (quat_rotate(inv, sp - c_o), r)
+}
+
+/// Support point `k` of piece `pd` in its own frame (scaled `size`, its hull scaled by `scale`) and
+/// its radius: a primitive's (`object_support_point`), or a hull's vertex (no radius).
+pub fn piece_support_point(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, k: u32) -> (Vec3, f32) {
+    if pd.shape == SHAPE_HULL { (hull_vertex(m, pd, scale, k), 0.0) } else { object_support_point(pd.shape, size, k) }
 }
 
 /// Narrow phase between hand collider `ci` and the table (its lowest point).
@@ -690,7 +696,7 @@ pub fn collide_hand_table(m: &Model, s: &Scratch, ci: usize) -> Contact {
 /// Narrow phase between support point `k` of object piece `pd` (scaled `size`, its hull scaled by
 /// `scale`, at `ppos`, `prot`) and the table: a primitive's support points, a hull's vertices.
 pub fn collide_piece_table(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, ppos: Vec3, prot: Vec4, k: u32) -> Contact {
-    let (local, r) = if pd.shape == SHAPE_HULL { (hull_vertex(m, pd, scale, k), 0.0) } else { object_support_point(pd.shape, size, k) };
+    let (local, r) = piece_support_point(m, pd, scale, size, k);
     let w = ppos + quat_rotate(prot, local);
     Contact { depth: r - w.z, normal: Vec3::Z, point: Vec3::new(w.x, w.y, 0.0) }
 }
