@@ -198,7 +198,7 @@ pub fn object_centre(model: &SimModel) -> Vec3 {
 
 /// Links that no single finger moves alone: the root and every link that lies on the chains of two
 /// or more fingertips (a wrist or palm link), or on none. Their colliders must stay above the object.
-fn palm_links(hand: &HandModel) -> Vec<bool> {
+pub(super) fn palm_links(hand: &HandModel) -> Vec<bool> {
     (0..hand.links.len())
         .map(|l| l == 0 || hand.fingertips.iter().filter(|t| hand.is_ancestor_or_same(l, t.link)).count() != 1)
         .collect()
@@ -487,7 +487,7 @@ pub fn hand_object_depth(model: &SimModel, wrist: &Pose, q: &[f32]) -> f32 {
 
 /// The first object as the planner sees it: env 0's parameters with the object forced to the
 /// first one, unscaled, and a state with it resting at its nominal place (the rest zero).
-fn nominal_object(model: &SimModel) -> (EnvParams, EnvState) {
+pub(super) fn nominal_object(model: &SimModel) -> (EnvParams, EnvState) {
     let g = &model.globals;
     let mut p = reset_params(g, &model.object_descs, &[], 0, 0);
     let od = &model.object_descs[0];

@@ -21,6 +21,11 @@
 //!   `VERIFY_LIFT_FRACTION` of `--lift` with less than `VERIFY_PEAK_PENETRATION_MM` is written
 //!   (else the best, with a warning). It lifts every hand of `../shared/hands/` (BENCHMARKS.md,
 //!   "Real hands").
+//! - `envelope`: the palm on a side face of the object and the fingers closed around it
+//!   ([`envelope::plan_envelope`]; the hand turns on its side on the way in), the variants of
+//!   [`envelope::ENVELOPE_VARIANTS`] checked in simulation as above. `antipodal` falls back to them
+//!   when no fingertip variant passes (a heavy, tall object: the thumb's push limits a fingertip
+//!   grasp, the fingers' pull and the arm's push an enveloping one).
 //! - `posture`: for our dexhand16 a tuned pinch (thumb against three fingers, targets past the
 //!   object so the servos squeeze at their effort limit); for any other hand every actuated joint
 //!   goes `close` of the way from its lower to its upper limit (URDF flexion positive toward the
@@ -34,9 +39,11 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use glam::{Quat, Vec3};
 
+pub mod envelope;
 pub mod grasp;
 pub mod hold;
 
+use envelope::{ENVELOPE_VARIANTS, plan_envelope};
 use grasp::{GRASP_VARIANTS, HOVER_M, object_centre, plan_grasp};
 use crate::traj::perturb::{PerturbArgs, perturb};
 use crate::traj::{Keyframe, Trajectory};
@@ -99,6 +106,9 @@ pub enum GraspChoice {
     Antipodal,
     /// Close every joint to a posture (dexhand16's tuned pinch, or a fraction of each range).
     Posture,
+    /// The palm on a side face of the object and the fingers closed around it (`synth::envelope`),
+    /// checked in simulation; the `antipodal` choice falls back to it when no fingertip grasp lifts.
+    Envelope,
 }
 
 /// Fraction of the approach phase the `antipodal` grasp spends descending onto the grasp pose.
@@ -177,14 +187,144 @@ pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
     if hand.fingertips.is_empty() {
         bail!("{}: the hand has no fingertip frames; synth places the wrist from them", hand.source.display());
     }
+    // a reference that starts with the hand inside the object knocks it over in its first step
+    let g = &model.globals;
+    let wrist0 = Pose::new(Vec3::from_slice(&g.init_wrist_pos[..3]), Quat::from_array(g.init_wrist_rot));
+    let open = hand.with_mimic(model.joints.iter().map(|j| j.default_q).collect());
+    let overlap = grasp::hand_object_depth(&model, &wrist0, &open);
+    if overlap > 0.0 {
+        let (_, hi) = model.objects[0].bounding_box();
+        bail!(
+            "{}: wrist.init_pos = {:?}: the open hand there overlaps the object by {:.1} mm; expected a start clear of it (the object's top is at z = {:.3} m)",
+            args.config.display(),
+            &g.init_wrist_pos[..3],
+            overlap * 1e3,
+            g.obj_init[3] + hi.z
+        );
+    }
     match args.grasp {
         GraspChoice::Posture => {
             let closed = grasp_posture(&model, args.close_fraction);
             script(&model, args, grasp_wrist_pose(&model, &closed), vec![], vec![closed])
         }
         GraspChoice::Antipodal => antipodal(cfg, args, &model),
+        GraspChoice::Envelope => {
+            let checker = Verifier::new(cfg)?;
+            match enveloping(args, &model, &checker)? {
+                Ok(traj) => Ok(traj),
+                Err((Some(best), _)) => {
+                    crate::console::warn(&format!(
+                        "warning: {}: no enveloping grasp lifted the object {:.3} m with less than {} mm penetration in simulation; writing the best: {}",
+                        args.config.display(),
+                        VERIFY_LIFT_FRACTION * args.lift,
+                        VERIFY_PEAK_PENETRATION_MM,
+                        best.about
+                    ));
+                    Ok(best.traj)
+                }
+                Err((None, e)) => bail!("{}: cannot plan an enveloping grasp: {:#}", args.config.display(), e.expect("a variant's error")),
+            }
+        }
     }
 }
+
+/// The replay that checks a planned reference: the config's physics on one env on the CPU, the
+/// object at its nominal place, no randomisation.
+struct Verifier {
+    cfg: Config,
+    model: SimModel,
+}
+
+impl Verifier {
+    fn new(cfg: &Config) -> Result<Verifier> {
+        let mut verify = cfg.clone();
+        verify.sim.num_envs = 1;
+        verify.sim.backend = crate::config::BackendChoice::Cpu;
+        verify.object.xy_noise = [0.0, 0.0];
+        verify.object.yaw_noise = 0.0;
+        verify.randomization = Default::default();
+        let model = SimModel::from_config(&verify)?;
+        Ok(Verifier { cfg: verify, model })
+    }
+
+    /// The object's lift (m) and the peak hand–object penetration (mm) of `traj`'s replay.
+    fn replay(&self, traj: &Trajectory, what: &str) -> Result<(f64, f64)> {
+        let report = crate::replay::replay_with_model(&self.cfg, &self.model, traj, false, None).with_context(|| what.to_string())?;
+        Ok((report.object_lift_m, report.peak_penetration_mm))
+    }
+
+    /// Whether a replay's lift and peak penetration pass the check.
+    fn passes(args: &SynthArgs, lift: f64, pen: f64) -> bool {
+        lift >= (VERIFY_LIFT_FRACTION * args.lift) as f64 && pen < VERIFY_PEAK_PENETRATION_MM
+    }
+}
+
+/// A replayed reference that did not pass the check: its lift, and one line about it.
+struct Attempt {
+    lift: f64,
+    traj: Trajectory,
+    about: String,
+}
+
+/// The first of [`ENVELOPE_VARIANTS`] whose reference passes the replay check (`Ok`), else the one
+/// that lifted the object highest, if any could be planned, and the first planning error, if any.
+fn enveloping(args: &SynthArgs, model: &SimModel, checker: &Verifier) -> Result<std::result::Result<Trajectory, (Option<Attempt>, Option<anyhow::Error>)>> {
+    let mut best: Option<Attempt> = None;
+    let mut first_err = None;
+    for (k, variant) in ENVELOPE_VARIANTS.iter().enumerate() {
+        let plan = match plan_envelope(model, variant) {
+            Ok(plan) => plan,
+            Err(e) => {
+                first_err.get_or_insert(e);
+                continue;
+            }
+        };
+        let t1 = args.approach as f64;
+        let open = model.hand.with_mimic(model.joints.iter().map(|j| j.default_q).collect());
+        let approach = vec![
+            (t1 * ENVELOPE_ABOVE_AT, plan.approach[0], open.clone()),
+            (t1 * ENVELOPE_BESIDE_AT, plan.approach[1], open.clone()),
+            (t1, plan.wrist, open),
+        ];
+        let traj = script(model, args, plan.wrist, approach, plan.closing.clone())?;
+        let held = plan.wrist.inverse().transform_point(object_centre(model));
+        let about = format!(
+            "enveloping variant {}/{} (palm on the {:?} face, {:+.1} of the half height about the centre of mass, pressed {:.0} mm, wrap axis {}), {} joints closed around the object ({} stopped on it); object centre in the wrist frame at the grasp: [{:.3}, {:.3}, {:.3}] m (task.hand.palm_offset)",
+            k + 1,
+            ENVELOPE_VARIANTS.len(),
+            variant.face,
+            variant.height,
+            variant.press * 1e3,
+            if variant.up > 0.0 { "up" } else { "down" },
+            plan.flexing,
+            plan.touching,
+            held.x,
+            held.y,
+            held.z
+        );
+        if args.lift == 0.0 {
+            crate::console::status(&format!("enveloping grasp: {about}"));
+            return Ok(Ok(traj));
+        }
+        let (lift, pen) = checker.replay(&traj, &format!("{}: replaying enveloping grasp variant {}", args.config.display(), k + 1))?;
+        let about = format!("{about}; in simulation it lifts the object {lift:.3} m, peak penetration {pen:.2} mm");
+        if Verifier::passes(args, lift, pen) {
+            crate::console::status(&format!("enveloping grasp: {about}"));
+            return Ok(Ok(traj));
+        }
+        if best.as_ref().is_none_or(|b| lift > b.lift) {
+            best = Some(Attempt { lift, traj, about });
+        }
+    }
+    Ok(Err((best, first_err)))
+}
+
+/// Fractions of the approach phase at which the enveloping grasp's hand is above the object
+/// (turned, out beside the face) and then beside the face at the grasp height; it reaches the
+/// grasp pose at the end of the approach.
+pub const ENVELOPE_ABOVE_AT: f64 = 0.45;
+/// See [`ENVELOPE_ABOVE_AT`].
+pub const ENVELOPE_BESIDE_AT: f64 = 0.75;
 
 /// The `antipodal` reference: the first of [`GRASP_VARIANTS`] whose reference, replayed under the
 /// config's physics (one env, the object at its nominal place, no randomisation), lifts the object
@@ -192,13 +332,7 @@ pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
 /// the one that lifted it highest, with a warning.
 fn antipodal(cfg: &Config, args: &SynthArgs, model: &SimModel) -> Result<Trajectory> {
     let hand = &model.hand;
-    let mut verify = cfg.clone();
-    verify.sim.num_envs = 1;
-    verify.sim.backend = crate::config::BackendChoice::Cpu;
-    verify.object.xy_noise = [0.0, 0.0];
-    verify.object.yaw_noise = 0.0;
-    verify.randomization = Default::default();
-    let verify_model = SimModel::from_config(&verify)?;
+    let checker = Verifier::new(cfg)?;
     let mut first_err = None;
     let mut best: Option<(f64, f64, Trajectory, String)> = None;
     // over the planned variants: the grasp that holds the most (statics), and the best reach
@@ -244,10 +378,8 @@ fn antipodal(cfg: &Config, args: &SynthArgs, model: &SimModel) -> Result<Traject
             crate::console::status(&format!("antipodal grasp: {about}"));
             return Ok(traj);
         }
-        let report = crate::replay::replay_with_model(&verify, &verify_model, &traj, false, None).with_context(|| format!("{}: replaying grasp variant {}", args.config.display(), k + 1))?;
-        let lift = report.object_lift_m;
-        let pen = report.peak_penetration_mm;
-        if lift >= (VERIFY_LIFT_FRACTION * args.lift) as f64 && pen < VERIFY_PEAK_PENETRATION_MM {
+        let (lift, pen) = checker.replay(&traj, &format!("{}: replaying grasp variant {}", args.config.display(), k + 1))?;
+        if Verifier::passes(args, lift, pen) {
             crate::console::status(&format!("antipodal grasp: {about}; in simulation it lifts the object {:.3} m, peak penetration {pen:.2} mm", lift));
             return Ok(traj);
         }
@@ -255,21 +387,48 @@ fn antipodal(cfg: &Config, args: &SynthArgs, model: &SimModel) -> Result<Traject
             best = Some((lift, pen, traj, format!("{about}; in simulation it lifts the object {lift:.3} m, peak penetration {pen:.2} mm")));
         }
     }
+    // no fingertip grasp passed: the enveloping grasps, the palm on a face and the fingers around
+    let (envelope_best, envelope_err) = match enveloping(args, model, &checker)? {
+        Ok(traj) => return Ok(traj),
+        Err(miss) => miss,
+    };
+    let envelope_line = match (&envelope_best, envelope_err) {
+        (Some(e), _) => format!("nor did an enveloping grasp (the best: {})", e.about),
+        (None, Some(e)) => format!("and no enveloping grasp could be planned ({e:#})"),
+        (None, None) => "and no enveloping grasp could be planned".to_string(),
+    };
     match best {
         Some((lift, pen, traj, about)) => {
             let why = match &strongest {
                 Some(s) => cannot_hold_reason(s, closest_reach, lift, pen),
                 None => String::new(),
             };
+            let (traj, about) = match envelope_best {
+                Some(e) if e.lift > lift => (e.traj, e.about),
+                _ => (traj, about),
+            };
             crate::console::warn(&format!(
-                "warning: {}: no grasp variant lifted the object {:.3} m with less than {} mm penetration in simulation; {why}; writing the best: {about}",
+                "warning: {}: no fingertip grasp lifted the object {:.3} m with less than {} mm penetration in simulation; {why}; {envelope_line}; writing the best: {about}",
                 args.config.display(),
                 VERIFY_LIFT_FRACTION * args.lift,
                 VERIFY_PEAK_PENETRATION_MM
             ));
             Ok(traj)
         }
-        None => Err(anyhow::anyhow!("{}: cannot plan the grasp: {:#}", args.config.display(), first_err.expect("a variant's error"))),
+        None => match envelope_best {
+            Some(e) => {
+                crate::console::warn(&format!(
+                    "warning: {}: no fingertip grasp could be planned ({:#}); no enveloping grasp lifted the object {:.3} m with less than {} mm penetration in simulation; writing the best: {}",
+                    args.config.display(),
+                    first_err.expect("a variant's error"),
+                    VERIFY_LIFT_FRACTION * args.lift,
+                    VERIFY_PEAK_PENETRATION_MM,
+                    e.about
+                ));
+                Ok(e.traj)
+            }
+            None => Err(anyhow::anyhow!("{}: cannot plan the grasp: {:#}", args.config.display(), first_err.expect("a variant's error"))),
+        },
     }
 }
 

@@ -270,3 +270,101 @@ fn the_grasp_statics_say_why_an_object_cannot_be_held() {
     let wide = dextrain::synth::cannot_hold_reason(&cap, 0.03, 0.05, 2.0);
     assert_eq!(wide, "it cannot be held as planned: too wide for the hand's span (in every grasp planned some fingertip ends 30 mm or more from its contact point on the object)");
 }
+
+/// The grasp_lift scene with a box of the YCB bleach cleanser's size and mass (10.4 × 7 × 25 cm,
+/// 1.131 kg) in place of the cube, the wrist starting 0.40 m up (above its top), or `mesh` instead.
+fn bleach_like(mesh: Option<&Path>, mass: f32) -> Config {
+    let mut c = config(&Path::new(env!("CARGO_MANIFEST_DIR")).join("configs/grasp_lift.toml"));
+    c.wrist.init_pos = [0.0, 0.0, 0.40];
+    match mesh {
+        Some(m) => {
+            c.object.shape = None;
+            c.object.mesh = Some(dextrain::config::MeshFiles::One(m.display().to_string()));
+        }
+        None => c.object.shape = Some(dextrain::geom::ObjectShape::Box { half_extents: [0.035, 0.052, 0.125] }),
+    }
+    c.object.mass = Some(mass);
+    c
+}
+
+/// The wrist's orientation at the grasp: the keyframe that starts the closing (the last with the
+/// hand open before the joints move).
+fn grasp_rotation(traj: &dextrain::traj::Trajectory) -> glam::Quat {
+    traj.frames.windows(2).find(|w| w[0].joints != w[1].joints && w[0].t > 0.0).map(|w| w[0].wrist.rot).expect("a closing keyframe")
+}
+
+/// Issue 36: a tall object too heavy for dexhand16's fingertip grasps (the thumb's push, 8 N,
+/// holds 1.45× its weight) is held by the enveloping grasp instead: `traj synth` falls back to it
+/// when every fingertip variant fails in simulation, turns the palm onto a side face (its normal
+/// horizontal, into the face; the fingers curling about the vertical), closes the fingers around
+/// the object, and the reference's replay lifts it ≥ 8 cm with < 3 mm peak penetration. The same
+/// box at 0.3 kg keeps the fingertip grasp (palm down). With `../shared/objects`, the YCB bleach
+/// cleanser's own mesh at its dataset mass too.
+#[test]
+fn a_tall_heavy_object_is_held_by_the_enveloping_grasp() {
+    use dextrain::synth::envelope::{ENVELOPE_VARIANTS, TOUCH_M, plan_envelope};
+    let c = bleach_like(None, 1.131);
+    let model = SimModel::from_config(&c).unwrap();
+    let plan = plan_envelope(&model, &ENVELOPE_VARIANTS[0]).unwrap();
+    // the palm (dexhand16's palm box: its −z face, the way the fingers curl) faces into the face
+    // across the box's thinner side (x, half 3.5 cm): n = ±x
+    assert!(plan.normal.x.abs() > 0.999, "{:?}", plan.normal);
+    let palm_normal = plan.wrist.rot * -Vec3::Z;
+    assert!((palm_normal + plan.normal).length() < 1e-2, "palm normal {palm_normal:?} against the face normal {:?}", plan.normal);
+    // the fingers' flexion axis (the joints' y) vertical: they curl in the table's plane
+    assert!((plan.wrist.rot * Vec3::Y).z.abs() > 0.999);
+    // the palm touches the face: at the wrist's target it is `press` into it, moved back by
+    // `press` it is clear of it
+    let press = ENVELOPE_VARIANTS[0].press;
+    let touching = Pose::new(plan.wrist.pos + plan.normal * press, plan.wrist.rot);
+    let open: Vec<f32> = model.joints.iter().map(|j| j.default_q).collect();
+    let d = hand_object_depth(&model, &plan.wrist, &open);
+    assert!((d - press).abs() < 1e-3, "palm pressed {press} m into the face: depth {d}");
+    let d = hand_object_depth(&model, &touching, &open);
+    assert!(d < 0.5e-3, "palm at the face: depth {d}");
+    // closed around it without entering it (the fingers stop a touch short; the palm is at 0)
+    let closed = &plan.closing[plan.closing.len() - 2];
+    let d = hand_object_depth(&model, &touching, closed);
+    assert!(d < TOUCH_M, "closed: depth {d}");
+    assert!(plan.flexing == 12 && plan.touching >= 4, "{} flexing joints, {} stopped on the object", plan.flexing, plan.touching);
+
+    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let bleach = root.join("../shared/objects/021_bleach_cleanser/collision.obj");
+    let mut cases = vec![("bleach-sized box", c.clone())];
+    if bleach.is_file() {
+        cases.push(("YCB bleach cleanser", bleach_like(Some(&bleach), 1.131)));
+    } else {
+        eprintln!("a_tall_heavy_object_is_held_by_the_enveloping_grasp: {} does not exist; the box only", bleach.display());
+    }
+    for (name, c) in cases {
+        let traj = synth(&c, &args(GraspChoice::Antipodal)).unwrap_or_else(|e| panic!("{name}: {e:#}"));
+        let palm = grasp_rotation(&traj) * -Vec3::Z;
+        assert!(palm.z.abs() < 0.05, "{name}: the palm faces {palm:?}: not the enveloping grasp");
+        let r = dextrain::replay::replay(&c, &traj, false, None).unwrap();
+        eprintln!("{name}: lift {:.3} m, peak penetration {:.2} mm", r.object_lift_m, r.peak_penetration_mm);
+        assert!(r.object_lift_m > 0.08, "{name}: lifted {:.3} m", r.object_lift_m);
+        assert!(r.peak_penetration_mm < 3.0, "{name}: peak penetration {:.2} mm", r.peak_penetration_mm);
+        assert_eq!(r.bad_resets, 0, "{name}");
+    }
+    // a light one keeps the fingertip grasp, palm down
+    let traj = synth(&bleach_like(None, 0.3), &args(GraspChoice::Antipodal)).unwrap();
+    let palm = grasp_rotation(&traj) * -Vec3::Z;
+    assert!(palm.z < -0.99, "0.3 kg: the palm faces {palm:?}");
+}
+
+/// Bad scenes for `traj synth` are one-line errors: a wrist that starts with the hand inside the
+/// object (the 25 cm box under grasp_lift's 0.25 m start) names `wrist.init_pos` and the object's
+/// top; an object lower than the hand turned on its side cannot be enveloped.
+#[test]
+fn synth_refuses_a_start_inside_the_object_and_an_envelope_of_a_flat_one() {
+    let mut inside = bleach_like(None, 1.131);
+    inside.wrist.init_pos = [0.0, 0.0, 0.25];
+    let e = format!("{:#}", synth(&inside, &args(GraspChoice::Antipodal)).unwrap_err());
+    assert!(e.starts_with("test.toml: wrist.init_pos = [0.0, 0.0, 0.25]: the open hand there overlaps the object by "), "{e}");
+    assert!(e.ends_with("(the object's top is at z = 0.250 m)") && !e.contains('\n'), "{e}");
+    let mut flat = bleach_like(None, 0.1);
+    flat.object.shape = Some(dextrain::geom::ObjectShape::Box { half_extents: [0.1, 0.1, 0.015] });
+    let e = format!("{:#}", synth(&flat, &args(GraspChoice::Envelope)).unwrap_err());
+    assert!(e.starts_with("test.toml: cannot plan an enveloping grasp: the object is too low for an enveloping grasp"), "{e}");
+    assert!(e.contains("below the object's top at 30 mm") && !e.contains('\n'), "{e}");
+}
