@@ -59,7 +59,8 @@ struct Globals {
     torsion_radius: f32,
     hand_contact_k: f32,
     hand_contact_kt: f32,
-    _pad2: f32,
+    // global id of env 0 of this batch: the counter hash keys an env by env + env_offset
+    env_offset: u32,
     _pad3: f32,
     _pad4: f32,
 }

@@ -185,14 +185,14 @@ fn ref_lerp(a: RefFrame, b: RefFrame, s: f32) -> RefFrame {
 
 // uniform in [−1, 1) for key k of (env, episode)
 fn ref_signed(env: u32, episode: u32, k: u32) -> f32 {
-    return 2.0 * rand_uniform(g.seed, env, episode, PURPOSE_REF, k) - 1.0;
+    return 2.0 * rand_uniform(g.seed, env + g.env_offset, episode, PURPOSE_REF, k) - 1.0; // keyed by the global env id
 }
 
 // standard normal for noise component comp at env step n (Box–Muller, u1 ∈ (0, 1])
 fn ref_gauss(c: RefCursor, n: u32, comp: u32) -> f32 {
     let key = REF_KEY_NOISE + n * REF_KEY_STRIDE + 2u * comp;
-    let u1 = 1.0 - rand_uniform(g.seed, c.env, c.episode, PURPOSE_REF, key);
-    let u2 = rand_uniform(g.seed, c.env, c.episode, PURPOSE_REF, key + 1u);
+    let u1 = 1.0 - rand_uniform(g.seed, c.env + g.env_offset, c.episode, PURPOSE_REF, key);
+    let u2 = rand_uniform(g.seed, c.env + g.env_offset, c.episode, PURPOSE_REF, key + 1u);
     return sqrt(-2.0 * log(u1)) * cos(6.2831855 * u2);
 }
 
@@ -318,14 +318,14 @@ fn ref_begin(env: u32, episode: u32, s: EnvState) -> RefCursor {
     var c: RefCursor;
     c.env = env;
     c.episode = episode;
-    let u = rand_uniform(g.seed, env, episode, PURPOSE_REF, REF_KEY_ID);
+    let u = rand_uniform(g.seed, env + g.env_offset, episode, PURPOSE_REF, REF_KEY_ID);
     c.ref_id = min(u32(u * f32(rg.n_refs)), rg.n_refs - 1u);
     let info = ref_info[c.ref_id];
     c.speed = 1.0;
     if (rg.time_scale > 0.0) {
         c.speed = 1.0 + rg.time_scale * ref_signed(env, episode, REF_KEY_SPEED);
     }
-    if (rg.mirror_prob > 0.0 && rand_uniform(g.seed, env, episode, PURPOSE_REF, REF_KEY_MIRROR) < rg.mirror_prob) {
+    if (rg.mirror_prob > 0.0 && rand_uniform(g.seed, env + g.env_offset, episode, PURPOSE_REF, REF_KEY_MIRROR) < rg.mirror_prob) {
         c.flags |= CUR_MIRROR;
     }
     if (rg.wrist_pos_offset > 0.0) {

@@ -8,7 +8,7 @@ const PURPOSE_REF_DRAW: u32 = 4u;
 const REF_KEY_ID_DRAW: u32 = 0u;
 
 fn rand_range(env: u32, episode: u32, purpose: u32, k: u32, lo: f32, hi: f32) -> f32 {
-    return lo + (hi - lo) * rand_uniform(g.seed, env, episode, purpose, k);
+    return lo + (hi - lo) * rand_uniform(g.seed, env + g.env_offset, episode, purpose, k); // keyed by the global env id
 }
 
 // ζ = −ln e / √(π² + ln² e); ζ = 1 for e → 0
@@ -24,10 +24,10 @@ fn reset_params(env: u32, episode: u32) -> EnvParams {
     let pp = PURPOSE_PARAMS;
     var p: EnvParams;
     // the object: ⌊u · n⌋, clamped (u < 1, but f32 rounding of u · n could reach n)
-    p.obj_index = min(u32(rand_uniform(g.seed, env, episode, pp, 11u) * f32(g.n_objects)), g.n_objects - 1u);
+    p.obj_index = min(u32(rand_uniform(g.seed, env + g.env_offset, episode, pp, 11u) * f32(g.n_objects)), g.n_objects - 1u);
     if (g.n_ref_objects > 0u) {
         // the reference's draw, as ref_begin makes it
-        let u = rand_uniform(g.seed, env, episode, PURPOSE_REF_DRAW, REF_KEY_ID_DRAW);
+        let u = rand_uniform(g.seed, env + g.env_offset, episode, PURPOSE_REF_DRAW, REF_KEY_ID_DRAW);
         let o = ref_objects[min(u32(u * f32(g.n_ref_objects)), g.n_ref_objects - 1u)];
         if (o != NO_OBJECT) {
             p.obj_index = o;

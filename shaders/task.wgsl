@@ -654,7 +654,7 @@ fn task_init(env: u32, s: ptr<function, EnvState>) -> TaskState {
         }
     }
     ts.rest_pos = vec4<f32>((*s).obj_pos.xyz, 0.0);
-    ts.obj_delay = obj_delay_draw(env, (*s).episode);
+    ts.obj_delay = obj_delay_draw(env + g.env_offset, (*s).episode); // the global env id
     return ts;
 }
 
@@ -755,7 +755,8 @@ fn task_observe_final(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(nu
 fn write_observation(env: u32, ts: TaskState, dslot: u32, to_final: bool, obs_base: u32, priv_base: u32) {
     let p = params[env];
     hand_kinematics();
-    ob_env = env;
+    // the noise is keyed by the global env id
+    ob_env = env + g.env_offset;
     ob_episode = st.episode;
     ob_step = st.step;
     ob_final = to_final;

@@ -11,9 +11,11 @@
 use mpi::traits::*;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// This process's rank and the number of ranks, set once by [`init`] (rank 0 of 1 before).
+/// This process's rank and the number of ranks, set once by [`init`] (rank 0 of 1 before), and
+/// its rank among the ranks on its node (those that share its memory: `MPI_Comm_split_type`).
 static RANK: AtomicUsize = AtomicUsize::new(0);
 static SIZE: AtomicUsize = AtomicUsize::new(1);
+static LOCAL_RANK: AtomicUsize = AtomicUsize::new(0);
 
 /// Holds the MPI environment while it is alive: `main` keeps it until it returns (MPI is finalised
 /// when it drops). Without MPI it holds nothing.
@@ -36,6 +38,8 @@ pub fn init() -> Guard {
             let w = u.world();
             RANK.store(w.rank() as usize, Ordering::Relaxed);
             SIZE.store(w.size() as usize, Ordering::Relaxed);
+            // the ranks of this node, in world-rank order
+            LOCAL_RANK.store(w.split_shared(w.rank()).rank() as usize, Ordering::Relaxed);
         }
         Guard { _universe: universe }
     }
@@ -53,6 +57,12 @@ fn launched_by_mpi() -> bool {
 /// This process's rank (0 without MPI).
 pub fn rank() -> usize {
     RANK.load(Ordering::Relaxed)
+}
+
+/// This process's rank among the ranks on its node (0 without MPI): which of the node's GPUs it
+/// takes (`gpu::context`).
+pub fn local_rank() -> usize {
+    LOCAL_RANK.load(Ordering::Relaxed)
 }
 
 /// The number of ranks (1 without MPI).
@@ -123,6 +133,14 @@ pub fn max_deviation_from_root(buf: &[f32]) -> f32 {
     slots[rank()] = mine;
     sum_f32(&mut slots);
     slots.into_iter().fold(0.0f32, f32::max)
+}
+
+/// Every rank's `x`, in rank order, on every rank (`[x]` with one rank): a sum of one-hot slots.
+pub fn gather_f64(x: f64) -> Vec<f64> {
+    let mut slots = vec![0.0f64; size()];
+    slots[rank()] = x;
+    sum_f64(&mut slots);
+    slots
 }
 
 /// True on every rank when `flag` is true on any rank (a sum of flags; `flag` itself with one rank).

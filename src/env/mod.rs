@@ -312,7 +312,8 @@ impl SimModel {
             torsion_radius: cfg.contact.torsion_radius,
             hand_contact_k: cfg.contact.hand_stiffness,
             hand_contact_kt: cfg.contact.hand_friction_stiffness,
-            _pad2: [0.0; 3],
+            env_offset: 0,
+            _pad2: [0.0; 2],
         };
         let spec = EnvSpec {
             num_envs: cfg.sim.num_envs,

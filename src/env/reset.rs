@@ -12,7 +12,7 @@ pub const PURPOSE_INIT: u32 = 2;
 
 /// Uniform draw in [lo, hi] for (env, episode, purpose, k).
 pub fn rand_range(g: &Globals, env: u32, episode: u32, purpose: u32, k: u32, lo: f32, hi: f32) -> f32 {
-    lo + (hi - lo) * rand_uniform(g.seed, env, episode, purpose, k)
+    lo + (hi - lo) * rand_uniform(g.seed, env.wrapping_add(g.env_offset), episode, purpose, k) // keyed by the global env id
 }
 
 /// Damping ratio of a spring-damper contact whose coefficient of restitution is `e`:
@@ -37,10 +37,10 @@ pub fn reset_params(g: &Globals, objects: &[ObjectDesc], ref_objects: &[u32], en
     let pp = PURPOSE_PARAMS;
     let mut p = EnvParams::default_zeroed();
     // the object: ⌊u · n⌋, clamped (u < 1, but f32 rounding of u · n could reach n)
-    p.obj_index = ((rand_uniform(g.seed, env, episode, pp, 11) * g.n_objects as f32) as u32).min(g.n_objects - 1);
+    p.obj_index = ((rand_uniform(g.seed, env.wrapping_add(g.env_offset), episode, pp, 11) * g.n_objects as f32) as u32).min(g.n_objects - 1);
     if g.n_ref_objects > 0 {
         // the reference's draw, as ref_begin makes it
-        let u = rand_uniform(g.seed, env, episode, PURPOSE_REF_DRAW, REF_KEY_ID_DRAW);
+        let u = rand_uniform(g.seed, env.wrapping_add(g.env_offset), episode, PURPOSE_REF_DRAW, REF_KEY_ID_DRAW);
         let o = ref_objects[((u * g.n_ref_objects as f32) as u32).min(g.n_ref_objects - 1) as usize];
         if o != NO_OBJECT {
             p.obj_index = o;

@@ -98,10 +98,23 @@ fn human(bytes: u64) -> String {
     }
 }
 
+/// Among `adapters` (in preference order), those that `accept` of the first accepted one's API (a
+/// GPU is listed once per API); the process takes the (k mod count)-th, k its rank among its
+/// node's MPI ranks (`crate::dist::local_rank`, 0 without MPI): each rank of a node on a GPU of its
+/// own, as far as there are GPUs. None when none is accepted.
+fn node_rank_pick(adapters: Vec<wgpu::Adapter>, accept: impl Fn(&wgpu::AdapterInfo) -> bool) -> Option<wgpu::Adapter> {
+    let api = adapters.iter().find(|a| accept(&a.get_info())).map(|a| a.get_info().backend)?;
+    let mut accepted: Vec<wgpu::Adapter> = adapters.into_iter().filter(|a| a.get_info().backend == api && accept(&a.get_info())).collect();
+    let k = crate::dist::local_rank() % accepted.len();
+    Some(accepted.swap_remove(k))
+}
+
 impl GpuContext {
-    /// Picks an adapter: `name` = the first adapter whose name contains it (case-insensitive; Vulkan,
-    /// Metal and DX12 before OpenGL); `None` = the first hardware adapter — a software adapter such as
-    /// lavapipe is only used when asked for by name. The device gets all of the adapter's limits.
+    /// Picks an adapter: `name` = an adapter whose name contains it (case-insensitive; Vulkan, Metal
+    /// and DX12 before OpenGL); `None` = a hardware adapter — a software adapter such as lavapipe is
+    /// only used when asked for by name. With one such adapter (per API) it is that one; with
+    /// several, rank k of an MPI job's ranks on this node takes the (k mod count)-th
+    /// ([`node_rank_pick`]), the first without MPI. The device gets all of the adapter's limits.
     pub fn new(name: Option<&str>) -> Result<GpuContext> {
         GpuContext::with_limits(name, |adapter_limits| adapter_limits)
     }
@@ -141,11 +154,11 @@ impl GpuContext {
         let chosen = match name {
             Some(n) => {
                 let n = n.to_lowercase();
-                adapters.into_iter().find(|a| a.get_info().name.to_lowercase().contains(&n)).ok_or_else(|| {
+                node_rank_pick(adapters, |info| info.name.to_lowercase().contains(&n)).ok_or_else(|| {
                     anyhow!("no wgpu adapter named like '{n}' (adapters: {})", if listed.is_empty() { "none".into() } else { listed.join(", ") })
                 })?
             }
-            None => adapters.into_iter().find(|a| !is_software(&a.get_info())).ok_or_else(|| {
+            None => node_rank_pick(adapters, |info| !is_software(info)).ok_or_else(|| {
                 // the loader's and the drivers' story only where something in it failed: on a
                 // machine whose drivers all load (Mesa's in a VM) there is simply no GPU
                 let why = super::vulkan_probe::diagnosis();

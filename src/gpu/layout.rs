@@ -124,7 +124,11 @@ pub struct Globals {
     /// `contact_kt`: the object's against the table).
     pub hand_contact_k: f32,
     pub hand_contact_kt: f32,
-    pub _pad2: [f32; 3],
+    /// Global id of env 0 of this batch: every draw of the counter hash keys an env by its global
+    /// id (`env + env_offset`), so that rank r of a data-parallel job (`crate::dist`), simulating
+    /// envs `[r·E, (r+1)·E)`, draws what one process with every env draws for them; 0 otherwise.
+    pub env_offset: u32,
+    pub _pad2: [f32; 2],
 }
 
 /// One movable joint of the hand (WGSL `JointDesc`), in topological order.

@@ -222,13 +222,13 @@ pub fn save_model(path: &Path, ppo: &Ppo) -> Result<()> {
     std::fs::write(path, safetensors_bytes(file)?).with_context(|| format!("cannot write {}", path.display()))
 }
 
-/// Loads parameters and normalisers saved by [`save_model`] (or a checkpoint's `model.safetensors`)
-/// into `ppo` (same config). Errors name the file.
 /// One learner file of a checkpoint (e.g. `model.safetensors` named `model`) as a [`LearnerState`].
 pub fn read_learner_file(path: &Path, name: &str) -> Result<LearnerState> {
     Ok(LearnerState { files: vec![read_state_file(path, name)?], ..Default::default() })
 }
 
+/// Loads parameters and normalisers saved by [`save_model`] (or a checkpoint's `model.safetensors`)
+/// into `ppo` (same config). Errors name the file.
 pub fn load_model(path: &Path, ppo: &mut Ppo) -> Result<()> {
     let file = read_state_file(path, MODEL_FILE)?;
     let state = LearnerState { files: vec![file], ..Default::default() };

@@ -271,9 +271,18 @@ impl Distill {
             }
             names.push(name);
         }
+        // data-parallel (issue 37): every rank starts from rank 0's student
+        for v in &mut values {
+            crate::dist::broadcast_f32(v);
+        }
         let params = values.into_iter().zip(&shapes).map(|(v, s)| to_tensor(v, *s, &device).autodiff().require_grad()).collect();
         let student = Student { params, shapes: shapes.clone(), names, n_adapt, adaptation, activation: t.activation, history_len: h, step_dim: dd, latent: l, obs_dim: obs_index.len() };
         let adam = Adam::new(&shapes, &device);
+        if crate::dist::rank() > 0 {
+            // who drives each episode (β) and the minibatch shuffles: a stream of each rank's own
+            // (rank 0 keeps the one-process stream)
+            rng = Rng::new(cfg.seed as u64, 0xD157_1111 + crate::dist::rank() as u64);
+        }
         let mut teacher_drives = vec![false; num_envs];
         for x in &mut teacher_drives {
             *x = rng.uniform() < d.beta_start as f64;
@@ -449,6 +458,9 @@ impl Distill {
                         *g = g.clone().zeros_like();
                     }
                 }
+                // data-parallel (issue 37): the gradients' mean over the ranks, each on its own envs'
+                // samples (every rank has as many rows, so every rank takes this minibatch)
+                let gs = super::adam::mean_over_ranks(gs)?;
                 // global norm clip: coef = min(1, max / (‖g‖ + 1e-6))
                 let norm = gs.iter().map(|g| to_host(super::nets::sum_all(g.clone().square())).map(|v| v[0] as f64)).sum::<Result<f64>>()?.sqrt();
                 let coef = (self.cfg.max_grad_norm as f64 / (norm + 1e-6)).min(1.0);
@@ -471,6 +483,12 @@ impl Distill {
 
     /// Everything a resumed run needs: the student, Adam, the history windows and episode state,
     /// the RNG, the iteration, the kept rollouts (`aggregate`), and the teacher it came from.
+    /// The student's parameters, one after another (what the ranks of a data-parallel job must
+    /// hold alike).
+    pub fn student_values(&self) -> Result<Vec<f32>> {
+        Ok(self.student.values()?.into_iter().flatten().collect())
+    }
+
     pub fn state(&self) -> Result<LearnerState> {
         let mut s = LearnerState::default();
         for ((n, sh), v) in self.student.names.iter().zip(&self.student.shapes).zip(self.student.values()?) {

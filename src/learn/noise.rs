@@ -30,13 +30,20 @@ const NOISE_ROWS_PER_TASK: usize = 256;
 /// blocks of rows over the rayon pool (each entry depends on its indices only: the same numbers
 /// for any number of threads).
 pub fn host_normals(seed: u32, draw: u32, rows: usize, cols: usize) -> Vec<f32> {
+    host_normals_from_row(seed, draw, 0, rows, cols)
+}
+
+/// Rows `first_row .. first_row + rows` of draw `draw`'s standard normal numbers: what
+/// [`host_normals`] with `first_row + rows` rows holds there (rank r of a data-parallel job draws
+/// its envs' rows of the job's noise, `first_row` = its first env's global id).
+pub fn host_normals_from_row(seed: u32, draw: u32, first_row: u32, rows: usize, cols: usize) -> Vec<f32> {
     let mut out = vec![0.0f32; rows * cols];
     if cols == 0 {
         return out;
     }
     out.par_chunks_mut(NOISE_ROWS_PER_TASK * cols).enumerate().for_each(|(block, chunk)| {
         for (e, v) in chunk.iter_mut().enumerate() {
-            let (i, k) = ((block * NOISE_ROWS_PER_TASK + e / cols) as u32, (e % cols) as u32);
+            let (i, k) = (first_row.wrapping_add((block * NOISE_ROWS_PER_TASK + e / cols) as u32), (e % cols) as u32);
             let u1 = 1.0 - rand_uniform(seed, i, draw, PURPOSE_ACTION_NOISE, 2 * k);
             let u2 = rand_uniform(seed, i, draw, PURPOSE_ACTION_NOISE, 2 * k + 1);
             // √(−2 ln u1) cos(2π u2), 2π as the shader's 6.2831853 (the same f32)
@@ -48,7 +55,13 @@ pub fn host_normals(seed: u32, draw: u32, rows: usize, cols: usize) -> Vec<f32> 
 
 /// Uniform draws in [−1, 1) `[rows, cols]` (row-major) of draw `draw`.
 pub fn host_uniforms(seed: u32, draw: u32, rows: usize, cols: usize) -> Vec<f32> {
-    (0..rows * cols).map(|e| 2.0 * rand_uniform(seed, (e / cols) as u32, draw, PURPOSE_ACTION_NOISE, 2 * (e % cols) as u32) - 1.0).collect()
+    host_uniforms_from_row(seed, draw, 0, rows, cols)
+}
+
+/// Rows `first_row .. first_row + rows` of draw `draw`'s uniform numbers (as
+/// [`host_normals_from_row`]).
+pub fn host_uniforms_from_row(seed: u32, draw: u32, first_row: u32, rows: usize, cols: usize) -> Vec<f32> {
+    (0..rows * cols).map(|e| 2.0 * rand_uniform(seed, first_row.wrapping_add((e / cols) as u32), draw, PURPOSE_ACTION_NOISE, 2 * (e % cols) as u32) - 1.0).collect()
 }
 
 /// `NoiseCfg` of noise.wgsl (keep in sync).

@@ -55,6 +55,22 @@ pub struct LearnerState {
     pub exact_f64: BTreeMap<String, String>,
 }
 
+impl LearnerState {
+    /// Every number of its f32 and f64 tensors (f64 rounded to f32), file by file in order: what
+    /// `crate::dist::max_deviation_from_root` compares over the ranks.
+    pub fn flat_values(&self) -> Vec<f32> {
+        let mut out = Vec::new();
+        for t in self.files.iter().flat_map(|f| &f.tensors) {
+            match &t.values {
+                TensorValues::F32(v) => out.extend_from_slice(v),
+                TensorValues::F64(v) => out.extend(v.iter().map(|x| *x as f32)),
+                TensorValues::U8(_) => {}
+            }
+        }
+        out
+    }
+}
+
 /// A `u64` as 16 hex digits.
 pub fn hex64(x: u64) -> String {
     format!("{x:016x}")

@@ -102,6 +102,10 @@ impl Algorithm for DistillRun {
         self.learner.state()
     }
 
+    fn max_rank_deviation(&self) -> Result<f32> {
+        Ok(crate::dist::max_deviation_from_root(&self.learner.student_values()?))
+    }
+
     fn load_state(&mut self, state: &LearnerState) -> Result<()> {
         self.learner.load_state(state)
     }

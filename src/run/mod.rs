@@ -30,8 +30,8 @@ pub use runner::TrainArgs;
 /// algorithm is chosen: its constructor and its check before a run directory is made.
 pub fn train(args: &TrainArgs) -> Result<PathBuf> {
     let args = &ranks::resume_args(args)?;
-    let mut loaded = runner::load(args)?;
-    let args = &ranks::new_run_args(args, &mut loaded)?;
+    let loaded = runner::load(args)?;
+    let args = &ranks::new_run_args(args)?;
     let (make, preflight): (runner::MakeAlgorithm, runner::Preflight) = match loaded.cfg.train.algorithm {
         crate::config::AlgorithmChoice::Ppo => (on_policy::make, runner::no_preflight),
         crate::config::AlgorithmChoice::Sac => (off_policy::make, off_policy::preflight),

@@ -133,6 +133,13 @@ impl Algorithm for OffPolicy {
         Ok(stat_values(&self.sac.take_stats()?))
     }
 
+    fn max_rank_deviation(&self) -> Result<f32> {
+        // the actor, critics, targets, log α and the normalisers' statistics
+        let mut state = LearnerState::default();
+        self.sac.save_policy(&mut state)?;
+        Ok(crate::dist::max_deviation_from_root(&state.flat_values()))
+    }
+
     fn can_run_on_device(&self) -> bool {
         true
     }

@@ -271,6 +271,8 @@ pub fn load(args: &TrainArgs) -> Result<LoadedRun> {
         }
         let cfg = Config::load_with_overrides(&cfg_path, &args.sets)?;
         let ckpt = checkpoint::find(dir, "latest")?;
+        // several ranks resume from one iteration: the newest that every rank holds
+        let ckpt = super::ranks::common_checkpoint(dir, ckpt)?;
         checkpoint::read_state(&ckpt)?;
         if !args.sets.is_empty() {
             std::fs::write(&cfg_path, cfg.to_toml()?).with_context(|| format!("cannot write {}", cfg_path.display()))?;
@@ -366,10 +368,20 @@ pub fn run(args: &TrainArgs, loaded: LoadedRun, make: MakeAlgorithm, preflight: 
 /// The training loop of [`run`] in `dir`, from `resume`'s checkpoint or from the start; `model`:
 /// the sim model where [`setup`] built it already (a new run's), else built here.
 fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<SimModel>, dir: PathBuf, resume: Option<PathBuf>) -> Result<PathBuf> {
-    let model = match model {
+    let mut model = match model {
         Some(m) => m,
         None => SimModel::from_config(&cfg)?,
     };
+    // data-parallel (`mpiexec`): rank r simulates the job's envs [r·E, (r+1)·E), every rank E of them
+    let (rank, ranks) = (crate::dist::rank(), crate::dist::size());
+    if ranks > 1 {
+        let envs = crate::dist::gather_f64(cfg.sim.num_envs as f64);
+        if envs.iter().any(|&e| e != envs[0]) {
+            let list: Vec<String> = envs.iter().map(|e| e.to_string()).collect();
+            bail!("{}: sim.num_envs differs between the ranks ({}, in rank order); expected the same number on every rank", cfg.source.display(), list.join(", "));
+        }
+        model.globals.env_offset = (rank * cfg.sim.num_envs) as u32;
+    }
     let mut task = make_task_batch(&cfg, model)?;
     let spec = task.spec().clone();
     let choice = cfg.train.device.clone();
@@ -398,10 +410,12 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
             // and a random step count would start the reference elsewhere than the hand and object)
             if cfg.train.init_at_random_ep_len && cfg.task.kind == TaskKind::Lift {
                 // desynchronise the episodes: each env's first episode starts at a random step count
+                // (the job's draws for every env, in env order: a rank takes its envs' ones)
                 let mut rng = crate::rng::Rng::new(cfg.seed as u64, 0xE915_0DE5);
+                let starts: Vec<u32> = (0..n * ranks).map(|_| rng.below(spec.episode_length as usize) as u32).collect();
                 let mut states = task.env().states()?;
-                for s in &mut states {
-                    s.step = rng.below(spec.episode_length as usize) as u32;
+                for (s, start) in states.iter_mut().zip(&starts[rank * n..]) {
+                    s.step = *start;
                 }
                 task.env().set_states(&states)?;
             }

@@ -338,15 +338,15 @@ pub fn ref_lerp(r: &RefModel, a: &RefFrame, b: &RefFrame, s: f32) -> RefFrame {
 
 /// Uniform draw in [−1, 1) for key `k` of (env, episode).
 pub fn ref_signed(r: &RefModel, env: u32, episode: u32, k: u32) -> f32 {
-    2.0 * rand_uniform(r.g.seed, env, episode, PURPOSE_REF, k) - 1.0
+    2.0 * rand_uniform(r.g.seed, env.wrapping_add(r.g.env_offset), episode, PURPOSE_REF, k) - 1.0 // keyed by the global env id
 }
 
 /// Standard normal draw of noise component `comp` at env step `n` (Box–Muller: √(−2 ln u1) cos(2π u2),
 /// u1 ∈ (0, 1]).
 pub fn ref_gauss(r: &RefModel, c: &RefCursor, n: u32, comp: u32) -> f32 {
     let key = REF_KEY_NOISE.wrapping_add(n.wrapping_mul(REF_KEY_STRIDE)).wrapping_add(2 * comp);
-    let u1 = 1.0 - rand_uniform(r.g.seed, c.env, c.episode, PURPOSE_REF, key);
-    let u2 = rand_uniform(r.g.seed, c.env, c.episode, PURPOSE_REF, key.wrapping_add(1));
+    let u1 = 1.0 - rand_uniform(r.g.seed, c.env.wrapping_add(r.g.env_offset), c.episode, PURPOSE_REF, key);
+    let u2 = rand_uniform(r.g.seed, c.env.wrapping_add(r.g.env_offset), c.episode, PURPOSE_REF, key.wrapping_add(1));
     (-2.0 * u1.ln()).sqrt() * (std::f32::consts::TAU * u2).cos()
 }
 
@@ -474,14 +474,14 @@ pub fn ref_augmented(r: &RefModel, c: &RefCursor, n: u32) -> RefFrame {
 pub fn ref_begin(r: &RefModel, env: u32, episode: u32, s: &EnvState) -> RefCursor {
     let rg = r.rg;
     let mut c = RefCursor { env, episode, ..Default::default() };
-    let u = rand_uniform(r.g.seed, env, episode, PURPOSE_REF, REF_KEY_ID);
+    let u = rand_uniform(r.g.seed, env.wrapping_add(r.g.env_offset), episode, PURPOSE_REF, REF_KEY_ID);
     c.ref_id = ((u * rg.n_refs as f32) as u32).min(rg.n_refs - 1);
     let info = &r.info[c.ref_id as usize];
     c.speed = 1.0;
     if rg.time_scale > 0.0 {
         c.speed = 1.0 + rg.time_scale * ref_signed(r, env, episode, REF_KEY_SPEED);
     }
-    if rg.mirror_prob > 0.0 && rand_uniform(r.g.seed, env, episode, PURPOSE_REF, REF_KEY_MIRROR) < rg.mirror_prob {
+    if rg.mirror_prob > 0.0 && rand_uniform(r.g.seed, env.wrapping_add(r.g.env_offset), episode, PURPOSE_REF, REF_KEY_MIRROR) < rg.mirror_prob {
         c.flags |= CUR_MIRROR;
     }
     if rg.wrist_pos_offset > 0.0 {

@@ -91,6 +91,7 @@ pub const OUT_MISC: usize = 21;
 /// its actor and critic rows go and the counters its noise is drawn from.
 pub struct ObsOut<'a> {
     pub seed: u32,
+    /// The env's global id (`Globals::env_offset` added): the noise's key.
     pub env: u32,
     pub episode: u32,
     pub step: u32,
@@ -544,7 +545,7 @@ pub fn task_init(env: u32, st: &mut EnvState, m: &Model, tc: &TaskGlobals, r: &R
         }
     }
     ts.rest_pos = [st.obj_pos[0], st.obj_pos[1], st.obj_pos[2], 0.0];
-    ts.obj_delay = obj_delay_draw(m.g.seed, env, st.episode, tc);
+    ts.obj_delay = obj_delay_draw(m.g.seed, env.wrapping_add(m.g.env_offset), st.episode, tc); // the global env id
     ts
 }
 
@@ -641,7 +642,8 @@ pub fn task_observe_final(env: u32, st: &EnvState, p: &EnvParams, ts: &TaskState
 pub fn write_observation(env: u32, st: &EnvState, p: &EnvParams, ts: &TaskState, dslot: usize, m: &Model, tc: &TaskGlobals, r: &RefModel, obs: &mut [f32], privo: &mut [f32]) {
     let mut s = Scratch::default();
     hand_kinematics(st, m, &mut s);
-    let mut o = ObsOut { seed: m.g.seed, env, episode: st.episode, step: st.step, obs, privo };
+    // the noise is keyed by the global env id
+    let mut o = ObsOut { seed: m.g.seed, env: env.wrapping_add(m.g.env_offset), episode: st.episode, step: st.step, obs, privo };
     let mut ns = NoisyState { wrist: Vec3::ZERO, obj: Vec3::ZERO, obj_rot: Vec4::W, q: [0.0; MAX_JOINTS], tips: [Vec3::ZERO; MAX_TIPS] };
     let mut k = 0u32;
     for i in 0..tc.n_actuated {

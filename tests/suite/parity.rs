@@ -573,3 +573,52 @@ fn an_error_outside_any_scope_is_returned_by_the_next_readback() {
     assert_eq!(states.len(), 4);
     assert!(states.iter().all(|s| s.episode == 0 && s.wrist_pos[2] > 0.0));
 }
+
+/// Issue 37: a batch whose `Globals::env_offset` is 32 (rank 1 of a job of 2 × 32 envs) draws
+/// what envs 32–63 of one 64-env batch draw — their randomised parameters and objects, initial
+/// states, observation noise and object latency, and a reference kind's reference draw and
+/// augmentation — on the CPU to the bit, and on the GPU as its CPU twin does.
+#[test]
+fn an_env_offset_draws_what_the_job_draws_for_those_envs_on_both_backends() {
+    use dextrain::env::SimModel;
+    use dextrain::task::{CpuTaskBatch, GpuTaskBatch, TaskBatch};
+    let ctx = gpu_context("an_env_offset_draws_what_the_job_draws_for_those_envs_on_both_backends");
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let mut lift = base_config(64);
+    lift.randomization = dextrain::config::Config::load(&root.join("configs/dexrefine_dr.toml")).expect("shipped DR config").randomization;
+    (lift.object.xy_noise, lift.object.yaw_noise) = ([0.05, 0.05], 0.5);
+    let n = &mut lift.task.obs_noise;
+    (n.joint_pos, n.hand_pos, n.object_pos, n.object_rot, n.object_delay) = (0.01, 0.005, 0.01, 0.02, [0, 3]);
+    let mut track = dextrain::config::Config::load(&root.join("configs/track_cube.toml")).expect("shipped config");
+    (track.sim.backend, track.sim.num_envs) = ("cpu".parse().unwrap(), 64);
+    for (name, c) in [("lift", lift), ("track_cube", track)] {
+        let mut full = CpuTaskBatch::new(&c, SimModel::from_config(&c).unwrap()).unwrap();
+        let obs_full = full.reset_all().unwrap().obs.clone();
+        let params_full = full.env().params().unwrap();
+        let mut half_cfg = c.clone();
+        half_cfg.sim.num_envs = 32;
+        let mut model = SimModel::from_config(&half_cfg).unwrap();
+        model.globals.env_offset = 32;
+        let mut half = CpuTaskBatch::new(&half_cfg, model.clone()).unwrap();
+        let obs_half = half.reset_all().unwrap().obs.clone();
+        let params_half = half.env().params().unwrap();
+        let row = obs_half.len() / 32;
+        assert_eq!(obs_half, obs_full[32 * row..], "{name}: the actor's observations (noise included)");
+        for (i, (a, b)) in params_half.iter().zip(&params_full[32..]).enumerate() {
+            assert_eq!(floats(a), floats(b), "{name}: env {i}'s parameters");
+        }
+        // the offset matters: envs 0–31 drew otherwise
+        assert_ne!(obs_half, obs_full[..32 * row], "{name}: envs 0–31 observe the same");
+        let Some(ctx) = ctx.clone() else { continue };
+        let slack = parity_slack(&ctx);
+        let mut gpu = GpuTaskBatch::new(&half_cfg, ctx, model).unwrap();
+        let obs_gpu = gpu.reset_all().unwrap().obs.clone();
+        let worst = obs_gpu.iter().zip(&obs_half).map(|(g, c)| (g - c).abs() / c.abs().max(1.0)).fold(0.0f32, f32::max);
+        assert!(worst < 1e-4 * slack, "{name}: the GPU's observations with env_offset 32 differ from the CPU's by {worst:e}");
+        for (i, (g, c)) in gpu.env().params().unwrap().iter().zip(&params_half).enumerate() {
+            for (u, v) in floats(g).iter().zip(floats(c)) {
+                assert!((u - v).abs() <= 1e-6 * v.abs().max(1.0) * slack, "{name}: env {i}'s parameters on the GPU: {g:?} vs {c:?}");
+            }
+        }
+    }
+}

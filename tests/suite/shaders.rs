@@ -74,7 +74,7 @@ fn pod_structs_match_their_wgsl_twins() {
         n_envs, n_joints, n_colliders, n_tips, n_links, n_objects, n_obj_pts, substeps, decimation, seed, hand_table, n_springs,
         dt, gravity, contact_k, contact_kt, hand_eff_mass, hand_friction, n_ref_objects, obj_friction, table_friction, yaw_noise,
         hand_mass, hand_inertia, wrist_added_mass, wrist_added_inertia, wrist_kp_lin, wrist_kd_lin, wrist_force_limit,
-        wrist_kp_rot, wrist_kd_rot, wrist_torque_limit, max_speed, max_distance, torsion_radius, hand_contact_k, hand_contact_kt, _pad2));
+        wrist_kp_rot, wrist_kd_rot, wrist_torque_limit, max_speed, max_distance, torsion_radius, hand_contact_k, hand_contact_kt, env_offset, _pad2));
     check(&m, "JointDesc", size_of::<JointDesc>(), rust_fields!(JointDesc; origin_pos, origin_rot, axis, parent_link, mimic_leader,
         mimic_mult, mimic_offset, lower, upper, effort, velocity, damping, friction, armature, link_inertia, kp, kd, default_q, _pad));
     check(&m, "ColliderDesc", size_of::<ColliderDesc>(), rust_fields!(ColliderDesc; pos, rot, size, link, shape, tip, _pad));

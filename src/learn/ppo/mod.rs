@@ -30,7 +30,7 @@ use burn::tensor::{Int, TensorData};
 use self::storage::RolloutStorage;
 use super::adam::Adam;
 use super::nets::{self, Activation, init_mlp, mlp_forward, mlp_shapes, to_host, to_tensor};
-use super::noise::host_normals;
+use super::noise::host_normals_from_row;
 use super::normalizer::Normalizer;
 use crate::rng::Rng;
 use super::state::{LearnerState, TensorValues};
@@ -334,6 +334,12 @@ pub struct Ppo {
     noise_seed: u32,
     /// Action draws so far (the noise's draw number; saved in checkpoints).
     noise_draw: u32,
+    /// Global id of this learner's first env: in a data-parallel job (`crate::dist`) rank r's
+    /// envs are `[r·E, (r+1)·E)` of the job's `size·E`, and its noise rows and minibatch rows are
+    /// those envs' rows of what one process with every env would draw; 0 with one rank.
+    env_offset: usize,
+    /// Envs over every rank of the job (`num_envs` with one rank).
+    job_envs: usize,
     /// The device-resident rollout, once [`Ppo::start_device_rollouts`] made it (`device.rs`).
     pub(crate) on_device: Option<device::DeviceRollout>,
 }
@@ -362,6 +368,8 @@ impl Ppo {
             step: 0,
             noise_seed: (seed ^ (seed >> 32)) as u32 ^ 0xAC71_0A5E,
             noise_draw: 0,
+            env_offset: crate::dist::rank() * num_envs,
+            job_envs: crate::dist::size() * num_envs,
             on_device: None,
         })
     }
@@ -531,7 +539,8 @@ impl Ppo {
         let sigma: Vec<f32> = log_std.iter().map(|l| l.exp()).collect();
         let sum_log_std: f64 = log_std.iter().map(|&l| l as f64).sum();
         ensure!(self.on_device.is_none(), "act() in a device-resident run (act_device)");
-        let eps = host_normals(self.noise_seed, self.noise_draw, n, d.act); // ε ~ N(0, 1) [N, A]
+        // ε ~ N(0, 1) [N, A]: this rank's envs' rows of the job's draw
+        let eps = host_normals_from_row(self.noise_seed, self.noise_draw, self.env_offset as u32, n, d.act);
         self.noise_draw = self.noise_draw.wrapping_add(1);
         let t = self.step;
         let s = &mut self.storage;
@@ -625,24 +634,20 @@ impl Ppo {
         let inner = dev.clone().inner();
         let on_gpu = super::nets::is_gpu(dev);
         let (epochs, minibatches) = (self.cfg.epochs as usize, self.cfg.minibatches as usize);
-        let mb_size = total / minibatches;
-        // every minibatch's rows, in order: epoch e's permutation, cut into minibatches
-        let mut rows: Vec<i32> = Vec::with_capacity(epochs * minibatches * mb_size);
-        for _epoch in 0..epochs {
-            let perm = self.rng.permutation(total);
-            rows.extend(perm[..minibatches * mb_size].iter().map(|&i| i as i32));
-        }
+        ensure!(total == self.storage.steps * self.storage.envs, "a rollout of {total} rows for {} steps × {} envs", self.storage.steps, self.storage.envs);
+        let plan = minibatch_rows(&mut self.rng, epochs, minibatches, self.storage.steps, self.storage.envs, self.env_offset, self.job_envs);
         if on_gpu {
-            crate::host_traffic::add(4 * rows.len() as u64);
+            crate::host_traffic::add(4 * plan.rows.len() as u64);
             crate::gpu_counts::add(crate::gpu_counts::Event::Upload, "burn:from_data (minibatch indices)");
         }
-        let n_rows = rows.len();
-        let rows = Tensor::<1, Int>::from_data(TensorData::new(rows, [n_rows]), dev);
+        let n_rows = plan.rows.len();
+        let rows = Tensor::<1, Int>::from_data(TensorData::new(plan.rows, [n_rows]), dev);
         let mut lr = to_tensor(vec![self.lr as f32], [1, 1], &inner);
         let mut sums: Option<Tensor<2>> = None; // Σ [surrogate, value, entropy, kl, ‖g‖] [1, 5]
         let count = epochs * minibatches;
+        let data_parallel = crate::dist::size() > 1;
         for k in 0..count {
-            let idx = rows.clone().narrow(0, k * mb_size, mb_size);
+            let idx = rows.clone().narrow(0, plan.starts[k], plan.starts[k + 1] - plan.starts[k]);
             let pick = |t: &Tensor<2>| t.clone().select(0, idx.clone());
             let b = Batch {
                 obs: pick(&all.obs),
@@ -659,10 +664,19 @@ impl Ppo {
             let mu = self.net.actor(params, b.obs.clone(), b.priv_obs.clone());
             let v = self.net.critic(params, b.priv_obs.clone());
             let losses = ppo_losses(mu, self.net.log_std(params), v, &b, &self.cfg);
+            // with several ranks the loss and the KL are this rank's rows' means weighted by its
+            // share of the minibatch (`MinibatchRows::weights`), so that their means over the ranks
+            // are the job's minibatch's means
+            let (total_loss, kl) = if data_parallel {
+                let w = plan.weights[k];
+                (losses.total.clone().mul_scalar(w), losses.kl.clone().inner().mul_scalar(w))
+            } else {
+                (losses.total.clone(), losses.kl.clone().inner())
+            };
             if self.cfg.schedule == LrSchedule::Adaptive {
-                lr = adapt_learning_rate(lr, kl_over_ranks(losses.kl.clone().inner())?, &self.cfg);
+                lr = adapt_learning_rate(lr, kl_over_ranks(kl)?, &self.cfg);
             }
-            let grads = losses.total.backward();
+            let grads = total_loss.backward();
             let (new_params, norm) = self.adam.step_clipped(params, &grads, self.cfg.max_grad_norm as f64, &lr)?;
             self.net.params = new_params;
             let row = Tensor::cat(
@@ -695,6 +709,52 @@ impl Ppo {
             mean_std: log_std.iter().map(|l| (*l as f64).exp()).sum::<f64>() / log_std.len().max(1) as f64,
         })
     }
+}
+
+/// The rows of every minibatch of an update, in order, as [`minibatch_rows`] draws them.
+pub struct MinibatchRows {
+    /// This rank's rows (indices into its rollout) of every minibatch, one after another.
+    pub rows: Vec<i32>,
+    /// Where minibatch k's rows start in `rows` (`epochs · minibatches + 1` entries).
+    pub starts: Vec<usize>,
+    /// Each minibatch's weight on this rank: its rows' count × ranks ÷ the job's minibatch size
+    /// (1 with one rank; 0 for a minibatch with none of this rank's rows, which then holds one row
+    /// as a stand-in so that its loss is finite).
+    pub weights: Vec<f32>,
+}
+
+/// The minibatches of an update over a rollout of `steps × envs` rows (row `t·E + i`: env i at step
+/// t) of this rank's `E = envs` envs, the job's envs `[env_offset, env_offset + E)` of `job_envs`
+/// (a multiple of E): each epoch draws one permutation of the job's `steps · job_envs` rows from
+/// `rng` (the same on every rank) and cuts it into `minibatches` minibatches of
+/// `⌊steps · job_envs / minibatches⌋` rows; a rank takes the rows of each that are its own. So N
+/// ranks × E envs pick the minibatches one process with N·E envs picks, and with one rank this is
+/// the rollout's permutation cut into minibatches, as rsl_rl cuts it.
+pub fn minibatch_rows(rng: &mut Rng, epochs: usize, minibatches: usize, steps: usize, envs: usize, env_offset: usize, job_envs: usize) -> MinibatchRows {
+    let job_total = steps * job_envs;
+    let mb_size = job_total / minibatches.max(1);
+    let ranks = job_envs / envs.max(1);
+    let mut out = MinibatchRows { rows: Vec::with_capacity(epochs * minibatches * mb_size / ranks.max(1)), starts: vec![0], weights: Vec::new() };
+    for _epoch in 0..epochs {
+        let perm = rng.permutation(job_total);
+        for b in 0..minibatches {
+            let start = out.rows.len();
+            for &g in &perm[b * mb_size..(b + 1) * mb_size] {
+                // the job's row g is its env g % job_envs at step g / job_envs
+                let (t, e) = (g / job_envs, g % job_envs);
+                if (env_offset..env_offset + envs).contains(&e) {
+                    out.rows.push((t * envs + e - env_offset) as i32);
+                }
+            }
+            let mine = out.rows.len() - start;
+            out.weights.push((mine * ranks) as f32 / mb_size.max(1) as f32);
+            if mine == 0 {
+                out.rows.push(0);
+            }
+            out.starts.push(out.rows.len());
+        }
+    }
+    out
 }
 
 /// A minibatch's KL `[1]`, averaged over the ranks of a data-parallel job (one read and one

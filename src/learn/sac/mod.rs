@@ -34,7 +34,7 @@ use burn::prelude::*;
 use self::buffer::{ReplayBuffer, Sample, Transitions};
 use super::adam::Adam;
 use super::nets::{self, Activation, MlpLayout, to_host, to_tensor};
-use super::noise::{host_normals, host_uniforms};
+use super::noise::{host_normals_from_row, host_uniforms_from_row};
 use super::normalizer::Normalizer;
 use super::ppo::Dims;
 use crate::rng::Rng;
@@ -177,6 +177,12 @@ pub struct Sac {
     noise_seed: u32,
     /// Draws so far (saved in checkpoints).
     noise_draw: u32,
+    /// Global id of this learner's first env (rank r of a data-parallel job: r · num_envs): its
+    /// acting noise is its envs' rows of the job's draw; 0 with one rank.
+    env_offset: u32,
+    /// The first row of this rank's batch noise (r · batch_size): every rank's batch draws rows
+    /// of its own of the job's draw, as one batch of ranks × batch_size would; 0 with one rank.
+    batch_first_row: u32,
     /// The device-resident loop's state, once [`Sac::start_device_rollouts`] made it (`device.rs`).
     pub(crate) on_device: Option<device::DeviceSac>,
     /// The critics', the actor's and the temperature's learning rates `[1, 1]` on the learner device.
@@ -213,10 +219,17 @@ impl Sac {
                 v.fill(0.0);
             }
         }
+        // data-parallel (issue 37): every rank starts from rank 0's parameters
+        for v in &mut actor_values {
+            crate::dist::broadcast_f32(v);
+        }
         let actor = leaves(actor_values, &actor_layout.shapes(), &device)?;
         let (mut critics, mut targets) = (Vec::new(), Vec::new());
         for _ in 0..cfg.num_critics {
-            let values = critic_layout.init(&mut rng);
+            let mut values = critic_layout.init(&mut rng);
+            for v in &mut values {
+                crate::dist::broadcast_f32(v);
+            }
             // the targets start as copies in memory of their own: on a GPU the optimiser writes
             // the critics in place (fused_adam.rs), which must not move the targets
             let target: Vec<Tensor<2>> = values.iter().zip(critic_layout.shapes()).map(|(v, s)| to_tensor(v.clone(), s, &device).inner()).collect();
@@ -231,6 +244,12 @@ impl Sac {
         critic_adam.weight_decay = cfg.weight_decay as f64;
         let alpha_adam = Adam::new(&[[1, 1]], &device);
         let stored_obs = if cfg.store_actor_obs { dims.obs } else { 0 };
+        let rank = crate::dist::rank();
+        if rank > 0 {
+            // each rank samples its own replay buffer with a batch stream of its own (rank 0 keeps
+            // the one-process stream)
+            rng = Rng::new(seed, 0x5341_4321 + rank as u64);
+        }
         Ok(Sac {
             cfg: cfg.clone(),
             dims,
@@ -257,6 +276,8 @@ impl Sac {
             sums: StatSums::default(),
             noise_seed: (seed ^ (seed >> 32)) as u32 ^ 0x5AC0_0A5E,
             noise_draw: 0,
+            env_offset: (rank * num_envs) as u32,
+            batch_first_row: (rank * cfg.batch_size as usize) as u32,
             on_device: None,
             device,
         })
@@ -317,13 +338,13 @@ impl Sac {
         let draw = self.noise_draw;
         self.noise_draw = draw.wrapping_add(1);
         let actions: Vec<f32> = if self.env_steps < self.cfg.random_steps as u64 {
-            host_uniforms(self.noise_seed, draw, n, d.act) // a ~ U[−1, 1)
+            host_uniforms_from_row(self.noise_seed, draw, self.env_offset, n, d.act) // a ~ U[−1, 1)
         } else {
             let x = to_tensor(self.obs_norm.normalized(obs, self.normalize), [n, d.obs], &self.device);
             let params: Vec<Tensor<2>> = self.actor.iter().map(|p| p.clone().inner()).collect();
             let (mu, log_std) = self.policy(&params, x);
             let (mu, log_std) = (to_host(mu)?, to_host(log_std)?);
-            let eps = host_normals(self.noise_seed, draw, n, d.act); // ε ~ N(0, 1) [N, A]
+            let eps = host_normals_from_row(self.noise_seed, draw, self.env_offset, n, d.act); // ε ~ N(0, 1) [N, A]
             (0..n * d.act).map(|k| (mu[k] + log_std[k].exp() * eps[k]).tanh()).collect() // a = tanh(μ + σ ε)
         };
         self.pending = Some(Pending { obs: obs.to_vec(), priv_obs: priv_obs.to_vec(), actions: actions.clone() });
@@ -413,8 +434,8 @@ impl Sac {
             actions: to_tensor(s.actions.clone(), [b, d.act], &dev),
             returns: to_tensor(s.returns.clone(), [b, 1], &dev).inner(),
             bootstrap: to_tensor(s.bootstrap.clone(), [b, 1], &dev).inner(),
-            eps_actor: to_tensor(host_normals(self.noise_seed, draws.1, b, d.act), [b, d.act], &dev),
-            eps_next: to_tensor(host_normals(self.noise_seed, draws.0, b, d.act), [b, d.act], &dev).inner(),
+            eps_actor: to_tensor(host_normals_from_row(self.noise_seed, draws.1, self.batch_first_row, b, d.act), [b, d.act], &dev),
+            eps_next: to_tensor(host_normals_from_row(self.noise_seed, draws.0, self.batch_first_row, b, d.act), [b, d.act], &dev).inner(),
         })
     }
 
