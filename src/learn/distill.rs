@@ -481,14 +481,14 @@ impl Distill {
         Ok(stats)
     }
 
-    /// Everything a resumed run needs: the student, Adam, the history windows and episode state,
-    /// the RNG, the iteration, the kept rollouts (`aggregate`), and the teacher it came from.
     /// The student's parameters, one after another (what the ranks of a data-parallel job must
     /// hold alike).
     pub fn student_values(&self) -> Result<Vec<f32>> {
         Ok(self.student.values()?.into_iter().flatten().collect())
     }
 
+    /// Everything a resumed run needs: the student, Adam, the history windows and episode state,
+    /// the RNG, the iteration, the kept rollouts (`aggregate`), and the teacher it came from.
     pub fn state(&self) -> Result<LearnerState> {
         let mut s = LearnerState::default();
         for ((n, sh), v) in self.student.names.iter().zip(&self.student.shapes).zip(self.student.values()?) {
