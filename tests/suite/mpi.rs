@@ -1,8 +1,10 @@
 //! Data-parallel training with MPI (issue 37). Without the `mpi` feature: a run trained on several
-//! ranks resumes only with that many (a one-line error otherwise). With it (`cargo test --release
-//! --features mpi mpi::`, MPICH's `mpiexec` on the PATH): `mpiexec -n 2 dextrain train` keeps the
-//! ranks' parameters and normalisers identical while their envs differ, drifts apart without the
-//! gradients' mean, and resumes exactly.
+//! ranks resumes only with that many (a one-line error otherwise), and the ranks' minibatches are
+//! the one process's split by env. With it (`cargo test --release --features mpi mpi::`, MPICH's
+//! `mpiexec` on the PATH): `mpiexec -n 2 dextrain train` keeps the ranks' parameters and
+//! normalisers identical while their envs differ (PPO, SAC, distillation), drifts apart without
+//! the gradients' mean, resumes exactly, computes with 2 × 128 envs what one process computes
+//! with 256, and after a rank is killed resumes from the newest checkpoint both ranks hold.
 
 use std::path::Path;
 use std::process::Command;
