@@ -350,6 +350,18 @@ fn a_tall_heavy_object_is_held_by_the_enveloping_grasp() {
     let traj = synth(&bleach_like(None, 0.3), &args(GraspChoice::Antipodal)).unwrap();
     let palm = grasp_rotation(&traj) * -Vec3::Z;
     assert!(palm.z < -0.99, "0.3 kg: the palm faces {palm:?}");
+    // the same planner, unchanged, on other hands of ../shared/hands (the coupled Inspire, Ability
+    // and SVH hands and the Shadow hand do not lift this box so: BENCHMARKS.md)
+    let Some(dir) = shared_hands() else { return };
+    for h in ["allegro", "leap", "leap_sim"] {
+        let mut c = config(&dir.join(h).join("config.toml"));
+        let b = bleach_like(None, 1.131);
+        (c.wrist.init_pos, c.object, c.randomization) = (b.wrist.init_pos, b.object, b.randomization);
+        let traj = synth(&c, &args(GraspChoice::Envelope)).unwrap_or_else(|e| panic!("{h}: {e:#}"));
+        let r = dextrain::replay::replay(&c, &traj, false, None).unwrap();
+        eprintln!("{h}, enveloping the bleach-sized box: lift {:.3} m, peak penetration {:.2} mm", r.object_lift_m, r.peak_penetration_mm);
+        assert!(r.object_lift_m > 0.08 && r.peak_penetration_mm < 3.0, "{h}: lift {:.3} m, peak {:.2} mm", r.object_lift_m, r.peak_penetration_mm);
+    }
 }
 
 /// Bad scenes for `traj synth` are one-line errors: a wrist that starts with the hand inside the
