@@ -110,9 +110,9 @@ pub struct EnvelopePlan {
     pub closing: Vec<Vec<f32>>,
     /// The face's outward normal (world, horizontal).
     pub normal: Vec3,
-    /// Joints closed until contact, and how many of them stopped on the object (the rest reached
-    /// their limits).
+    /// Joints closed until contact (the flexing leaders).
     pub flexing: usize,
+    /// How many of them stopped on the object (the rest reached their limits).
     pub touching: usize,
 }
 
