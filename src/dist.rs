@@ -128,11 +128,8 @@ pub fn max_deviation_from_root(buf: &[f32]) -> f32 {
     let mut root = buf.to_vec();
     broadcast_f32(&mut root);
     let mine = buf.iter().zip(&root).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
-    // the maximum over the ranks, as a sum of one-hot slots (no max reduction needed)
-    let mut slots = vec![0.0f32; size()];
-    slots[rank()] = mine;
-    sum_f32(&mut slots);
-    slots.into_iter().fold(0.0f32, f32::max)
+    // the maximum over the ranks (an f32 is exact as an f64)
+    gather_f64(mine as f64).into_iter().fold(0.0f64, f64::max) as f32
 }
 
 /// Every rank's `x`, in rank order, on every rank (`[x]` with one rank): a sum of one-hot slots.

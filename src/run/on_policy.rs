@@ -41,14 +41,11 @@ impl Algorithm for Ppo {
     }
 
     fn max_rank_deviation(&self) -> Result<f32> {
-        // the parameters, and the normalisers' statistics (merged from every rank's observations)
-        let mut flat: Vec<f32> = self.net.values()?.into_iter().flatten().collect();
-        let (obs, priv_obs) = self.normalizers()?;
-        for n in [&obs, &priv_obs] {
-            flat.extend(n.mean.iter().chain(&n.m2).map(|x| *x as f32));
-            flat.push(n.count as f32);
-        }
-        Ok(crate::dist::max_deviation_from_root(&flat))
+        // the parameters, and the normalisers' statistics (merged from every rank's observations):
+        // the policy file, as SAC's
+        let mut state = LearnerState::default();
+        self.save_policy(&mut state)?;
+        Ok(crate::dist::max_deviation_from_root(&state.flat_values()))
     }
 
     fn act(&mut self, obs: &[f32], priv_obs: &[f32]) -> Result<Vec<f32>> {

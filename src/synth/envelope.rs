@@ -38,7 +38,7 @@
 use anyhow::{Result, bail};
 use glam::{Mat3, Quat, Vec3};
 
-use super::grasp::{nominal_object, palm_links, surface_point};
+use super::grasp::{nominal_object, open_posture, palm_links, surface_point};
 use crate::env::physics::{Scratch, collide_hand_object, hand_kinematics};
 use crate::env::SimModel;
 use crate::geom::Pose;
@@ -230,7 +230,7 @@ fn depth_of(model: &SimModel, wrist: &Pose, q: &[f32], which: &[bool]) -> f32 {
 pub fn plan_envelope(model: &SimModel, variant: &EnvelopeVariant) -> Result<EnvelopePlan> {
     let hand = &model.hand;
     let g = &model.globals;
-    let open = hand.with_mimic(model.joints.iter().map(|j| j.default_q).collect());
+    let open = open_posture(model);
     let axes = hand_axes(model, &open)?;
 
     // 2. the face: the box around the pieces, in the object's frame turned by its yaw

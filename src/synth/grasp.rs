@@ -485,6 +485,17 @@ pub fn hand_object_depth(model: &SimModel, wrist: &Pose, q: &[f32]) -> f32 {
     (0..model.colliders.len()).map(|ci| collide_hand_object(&st, &p, &m, &s, ci).depth).fold(-1.0, f32::max)
 }
 
+/// The open hand: every joint at its default, mimic followers from their leaders.
+pub(super) fn open_posture(model: &SimModel) -> Vec<f32> {
+    model.hand.with_mimic(model.joints.iter().map(|j| j.default_q).collect())
+}
+
+/// The wrist's initial pose (`wrist.init_pos`, `wrist.init_rpy`): where every script starts.
+pub(super) fn initial_wrist(model: &SimModel) -> Pose {
+    let g = &model.globals;
+    Pose::new(Vec3::from_slice(&g.init_wrist_pos[..3]), Quat::from_array(g.init_wrist_rot))
+}
+
 /// The first object as the planner sees it: env 0's parameters with the object forced to the
 /// first one, unscaled, and a state with it resting at its nominal place (the rest zero).
 pub(super) fn nominal_object(model: &SimModel) -> (EnvParams, EnvState) {

@@ -44,7 +44,7 @@ pub mod grasp;
 pub mod hold;
 
 use envelope::{ENVELOPE_VARIANTS, plan_envelope};
-use grasp::{GRASP_VARIANTS, HOVER_M, object_centre, plan_grasp};
+use grasp::{GRASP_VARIANTS, HOVER_M, initial_wrist, object_centre, open_posture, plan_grasp};
 use crate::traj::perturb::{PerturbArgs, perturb};
 use crate::traj::{Keyframe, Trajectory};
 use crate::config::Config;
@@ -189,9 +189,7 @@ pub fn synth(cfg: &Config, args: &SynthArgs) -> Result<Trajectory> {
     }
     // a reference that starts with the hand inside the object knocks it over in its first step
     let g = &model.globals;
-    let wrist0 = Pose::new(Vec3::from_slice(&g.init_wrist_pos[..3]), Quat::from_array(g.init_wrist_rot));
-    let open = hand.with_mimic(model.joints.iter().map(|j| j.default_q).collect());
-    let overlap = grasp::hand_object_depth(&model, &wrist0, &open);
+    let overlap = grasp::hand_object_depth(&model, &initial_wrist(&model), &open_posture(&model));
     if overlap > 0.0 {
         let (_, hi) = model.objects[0].bounding_box();
         bail!(
@@ -280,7 +278,7 @@ fn enveloping(args: &SynthArgs, model: &SimModel, checker: &Verifier) -> Result<
             }
         };
         let t1 = args.approach as f64;
-        let open = model.hand.with_mimic(model.joints.iter().map(|j| j.default_q).collect());
+        let open = open_posture(model);
         let approach = vec![
             (t1 * ENVELOPE_ABOVE_AT, plan.approach[0], open.clone()),
             (t1 * ENVELOPE_BESIDE_AT, plan.approach[1], open.clone()),
@@ -486,9 +484,8 @@ pub fn cannot_hold_reason(strongest: &hold::HoldCapacity, closest_reach: f32, be
 fn script(model: &SimModel, args: &SynthArgs, grasp: Pose, approach: Vec<(f64, Pose, Vec<f32>)>, closing: Vec<Vec<f32>>) -> Result<Trajectory> {
     let hand = &model.hand;
     let g = &model.globals;
-    let wrist0 = Pose::new(Vec3::from_slice(&g.init_wrist_pos[..3]), Quat::from_array(g.init_wrist_rot));
-    // the open hand: every joint at its default, followers from their leaders
-    let open = hand.with_mimic(model.joints.iter().map(|j| j.default_q).collect());
+    let wrist0 = initial_wrist(model);
+    let open = open_posture(model);
     let obj = Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]);
     let obj_rot = Quat::from_rotation_z(g.obj_init[2]);
     let t1 = args.approach as f64;
