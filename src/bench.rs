@@ -365,6 +365,9 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
         "device": device_name,
         // products that fell back from the chosen GPU matmul routine to burn's (0: all ran the chosen one)
         "gpu_matmul_fallbacks": crate::learn::kernels::gpu_matmul::fallbacks(),
+        // the GPU products' routine and, with `dextrain_tuned`, each product's timed tile shapes
+        "gpu_matmul": crate::learn::kernels::gpu_matmul::chosen().name(),
+        "matmul_tuning": crate::learn::kernels::matmul_tuning::report(),
         "threads": rayon::current_num_threads(),
         "config": {"num_envs": o.envs, "num_steps_per_env": o.steps, "obs_dim": o.obs, "critic_obs_dim": o.priv_obs,
                    "action_dim": o.actions, "hidden": o.hidden, "activation": "elu", "epochs": o.epochs,
@@ -464,6 +467,9 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
         "device": device_name,
         // products that fell back from the chosen GPU matmul routine to burn's (0: all ran the chosen one)
         "gpu_matmul_fallbacks": crate::learn::kernels::gpu_matmul::fallbacks(),
+        // the GPU products' routine and, with `dextrain_tuned`, each product's timed tile shapes
+        "gpu_matmul": crate::learn::kernels::gpu_matmul::chosen().name(),
+        "matmul_tuning": crate::learn::kernels::matmul_tuning::report(),
         "threads": rayon::current_num_threads(),
         "batch": o.batch, "gradient_steps": o.gradient_steps, "hidden": o.hidden, "activation": "elu",
         "obs": o.obs, "state": o.priv_obs, "actions": o.actions, "num_envs": o.envs, "memory_size": o.memory,

@@ -71,11 +71,11 @@ fn wait_for(t: &Tensor<2>) -> Result<f32> {
     Ok(to_host(t.clone().slice([0..1, 0..1]))?[0])
 }
 
-/// Times every routine on the products of one minibatch of `rows` rows: per routine the
+/// Times each routine of `which` on the products of one minibatch of `rows` rows: per routine the
 /// minibatch's product time (median of `rounds` rounds of `reps` launches per product), its
 /// TFLOP/s, the products that fell back to burn's routine and the largest relative difference
 /// from burn's results; and the fastest routine that ran without falling back.
-pub fn run_matmul_bench(rows: usize, reps: usize, rounds: usize, device: Device, device_name: &str) -> Result<serde_json::Value> {
+pub fn run_matmul_bench(rows: usize, reps: usize, rounds: usize, which: &[GpuMatmul], device: Device, device_name: &str) -> Result<serde_json::Value> {
     let device = device.clone().inner();
     let prods = products(rows, &device);
     let flops: f64 = prods.iter().map(Product::flops).sum();
@@ -87,7 +87,7 @@ pub fn run_matmul_bench(rows: usize, reps: usize, rounds: usize, device: Device,
         .collect::<Result<_>>()?;
     let mut routines = Vec::new();
     let mut best: Option<(f64, &str)> = None;
-    for (routine, name) in GpuMatmul::NAMES {
+    for (routine, name) in GpuMatmul::NAMES.into_iter().filter(|(r, _)| which.contains(r)) {
         let fallbacks_before = gpu_matmul::fallbacks();
         let mut worst_diff = 0.0f32;
         for (p, (r, s)) in prods.iter().zip(reference.iter().zip(&scale)) {
@@ -139,5 +139,7 @@ pub fn run_matmul_bench(rows: usize, reps: usize, rounds: usize, device: Device,
         "default_routine": GpuMatmul::DEFAULT.name(),
         "fastest_routine": best.map(|(_, n)| n),
         "routines": routines,
+        // `dextrain_tuned`'s timing of every tile shape per product
+        "matmul_tuning": crate::learn::kernels::matmul_tuning::report(),
     }))
 }

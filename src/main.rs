@@ -9,6 +9,7 @@ use clap::{Parser, Subcommand};
 use dextrain::bench::{BenchOptions, bench_config, run_bench};
 use dextrain::config::Config;
 use dextrain::console;
+use dextrain::learn::kernels::gpu_matmul::GpuMatmul;
 use dextrain::env::{SimModel, make_env_batch};
 
 #[derive(Parser)]
@@ -45,6 +46,9 @@ enum Command {
         /// the peer networks) with each matmul routine (`DEXTRAIN_GPU_MATMUL` names one for a run).
         #[arg(long)]
         matmul: bool,
+        /// Matmul bench: the routines to time, comma-separated (default: every routine).
+        #[arg(long, value_delimiter = ',', requires = "matmul")]
+        routines: Vec<String>,
         /// Run the contact-fidelity scenes (a box sliding, on a tilting plane, tipped; a cube at
         /// rest; two fingertips squeezing a cube at 1, 5 and 10 N) on --backend (default cpu) and
         /// print their figures with the answers of statics; benches/contact_fidelity.sh compares
@@ -169,7 +173,7 @@ fn run(cli: Cli) -> Result<()> {
             console::status(dextrain::task::spec::layout_table(&task.priv_layout, "critic observation").trim_end());
             Ok(())
         }
-        Command::Bench { ppo, sac, matmul, contacts, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds } => {
+        Command::Bench { ppo, sac, matmul, routines, contacts, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds } => {
             if let Some(t) = threads {
                 rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot size the thread pool")?;
             }
@@ -184,7 +188,12 @@ fn run(cli: Cli) -> Result<()> {
                 let (dev, name, _ctx) = dextrain::learn::device::learner_device_and_context(&device)?;
                 anyhow::ensure!(dextrain::learn::nets::is_gpu(&dev), "bench --matmul: --device must be a GPU (got {name})");
                 let rows = envs.unwrap_or(4096) * 24 / 4;
-                let report = dextrain::bench_matmul::run_matmul_bench(rows, 10, iters.max(1), dev, &name)?;
+                let routines = if routines.is_empty() {
+                    GpuMatmul::NAMES.iter().map(|(r, _)| *r).collect()
+                } else {
+                    routines.iter().map(|n| GpuMatmul::parse(n).map_err(|e| anyhow::anyhow!("bench --routines: {e}"))).collect::<anyhow::Result<Vec<_>>>()?
+                };
+                let report = dextrain::bench_matmul::run_matmul_bench(rows, 10, iters.max(1), &routines, dev, &name)?;
                 console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
                 return Ok(());
             }

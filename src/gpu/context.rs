@@ -202,6 +202,11 @@ impl GpuContext {
         Ok(GpuContext { instance, adapter: chosen, device, queue, info, uncaptured })
     }
 
+    /// Whether the adapter is a software rasteriser (lavapipe / llvmpipe) rather than a GPU.
+    pub fn is_software(&self) -> bool {
+        is_software(&self.info)
+    }
+
     /// "ADAPTER (API, TYPE)".
     pub fn describe(&self) -> String {
         format!("{} ({:?}, {:?})", self.info.name, self.info.backend, self.info.device_type)

@@ -79,7 +79,7 @@ fn wgpu_on(ctx: &GpuContext) -> Result<(Device, String)> {
         backend: ctx.info.backend,
     };
     crate::gpu_counts::observe_burn_launches();
-    let matmul = crate::learn::kernels::gpu_matmul::configure()?;
+    let matmul = crate::learn::kernels::gpu_matmul::configure(ctx.is_software())?;
     let device = Device::wgpu_options()
         .setup(setup)
         .init()

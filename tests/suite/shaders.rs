@@ -119,7 +119,7 @@ fn pod_structs_match_their_wgsl_twins() {
     assert_eq!(size_of::<TaskGlobals>() % 16, 0);
     // the learner's matrix product (a module of its own)
     use dextrain::learn::kernels::wgsl_matmul::{MatmulCfg, Tile, shader_source as matmul_source};
-    for tile in Tile::ALL {
+    for tile in Tile::CANDIDATES {
         // each tile shape's text is valid WGSL, its constants filled in
         let src = matmul_source(tile);
         assert!(!src.contains('$'), "{tile:?}: a template marker left in matmul.wgsl");

@@ -14,7 +14,10 @@
 //! them all. Measured on an H200 (2026-11-26, BENCHMARKS.md): one PPO minibatch's products took
 //! 4.0 ms with `dextrain_tiled` against 28 ms with cubek's fastest (`simple_unit_small_tiles`), and
 //! the PPO bench's update 99 against 145 ms device-resident; the plane routines need cooperative
-//! matrices or subgroup features WGSL does not give here and fall back to burn's.
+//! matrices or subgroup features WGSL does not give here and fall back to burn's. On a hardware GPU
+//! the default is `dextrain_tuned`: our kernel with its tile shape per product timed in the process
+//! (`matmul_tuning.rs`), which changes which thread computes an entry but not its value, so it
+//! keeps runs exact where burn's autotune would not.
 
 use std::sync::OnceLock;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -40,7 +43,7 @@ use cubek::matmul::routine::BlueprintStrategy;
 use cubek::matmul::strategy::Strategy;
 use cubek::std::InputBinding;
 
-use crate::learn::kernels::wgsl_matmul::{Epilogue, Tile};
+use crate::learn::kernels::wgsl_matmul::{Epilogue, Tile, TileChoice};
 
 /// The environment variable that names the routine for a measurement.
 pub const ENV_VAR: &str = "DEXTRAIN_GPU_MATMUL";
@@ -73,11 +76,14 @@ pub enum GpuMatmul {
     DextrainTiledLarge,
     /// dextrain's kernel, 128 × 64 tiles (8 × 4 per thread) for every product.
     DextrainTiledTall,
+    /// dextrain's kernel, the tile shape per product timed on the adapter at its first launch
+    /// (`learn::kernels::matmul_tuning`); the same numbers as `DextrainTiled` bit for bit.
+    DextrainTuned,
 }
 
 impl GpuMatmul {
     /// Every routine with its name (`DEXTRAIN_GPU_MATMUL`, the bench JSON).
-    pub const NAMES: [(GpuMatmul, &'static str); 12] = [
+    pub const NAMES: [(GpuMatmul, &'static str); 13] = [
         (GpuMatmul::Burn, "burn"),
         (GpuMatmul::SimpleUnit, "simple_unit"),
         (GpuMatmul::SimpleUnitSmallTiles, "simple_unit_small_tiles"),
@@ -90,10 +96,17 @@ impl GpuMatmul {
         (GpuMatmul::DextrainTiledSmall, "dextrain_tiled_64"),
         (GpuMatmul::DextrainTiledLarge, "dextrain_tiled_128"),
         (GpuMatmul::DextrainTiledTall, "dextrain_tiled_128x64"),
+        (GpuMatmul::DextrainTuned, "dextrain_tuned"),
     ];
 
-    /// The routine a run uses unless `DEXTRAIN_GPU_MATMUL` names another.
+    /// The routine a run uses unless `DEXTRAIN_GPU_MATMUL` names another, on a software adapter
+    /// (lavapipe: compiling every tile shape there costs seconds and timing them says little).
     pub const DEFAULT: GpuMatmul = GpuMatmul::DextrainTiled;
+
+    /// The routine a run uses on a hardware GPU unless `DEXTRAIN_GPU_MATMUL` names another: the tile
+    /// shapes timed per product (the same numbers as [`GpuMatmul::DEFAULT`]; on an H200 the PPO
+    /// bench's device-resident update took 94 ms against 106–115 ms, BENCHMARKS.md).
+    pub const DEFAULT_HARDWARE: GpuMatmul = GpuMatmul::DextrainTuned;
 
     /// The routine's name.
     pub fn name(self) -> &'static str {
@@ -125,14 +138,14 @@ impl GpuMatmul {
         self.ours().is_some()
     }
 
-    /// Whether the routine is dextrain's own kernel, and with which tile shape (None inside: the
-    /// shape per product).
-    fn ours(self) -> Option<Option<Tile>> {
+    /// Whether the routine is dextrain's own kernel, and how it picks the tile shape.
+    fn ours(self) -> Option<TileChoice> {
         match self {
-            GpuMatmul::DextrainTiled => Some(None),
-            GpuMatmul::DextrainTiledSmall => Some(Some(Tile::SMALL)),
-            GpuMatmul::DextrainTiledLarge => Some(Some(Tile::LARGE)),
-            GpuMatmul::DextrainTiledTall => Some(Some(Tile::TALL)),
+            GpuMatmul::DextrainTiled => Some(TileChoice::ByShape),
+            GpuMatmul::DextrainTiledSmall => Some(TileChoice::Fixed(Tile::SMALL)),
+            GpuMatmul::DextrainTiledLarge => Some(TileChoice::Fixed(Tile::LARGE)),
+            GpuMatmul::DextrainTiledTall => Some(TileChoice::Fixed(Tile::TALL)),
+            GpuMatmul::DextrainTuned => Some(TileChoice::Tuned),
             _ => None,
         }
     }
@@ -146,7 +159,8 @@ impl GpuMatmul {
             | GpuMatmul::DextrainTiled
             | GpuMatmul::DextrainTiledSmall
             | GpuMatmul::DextrainTiledLarge
-            | GpuMatmul::DextrainTiledTall => return None,
+            | GpuMatmul::DextrainTiledTall
+            | GpuMatmul::DextrainTuned => return None,
             GpuMatmul::SimpleUnit => Routine::SimpleUnit(BlueprintStrategy::Inferred(unit(TileSizeSelection::MaxTileSize))),
             GpuMatmul::SimpleUnitSmallTiles => {
                 Routine::SimpleUnit(BlueprintStrategy::Inferred(unit(TileSizeSelection::MinTileSize)))
@@ -180,15 +194,17 @@ static CHOSEN: OnceLock<GpuMatmul> = OnceLock::new();
 static FALLBACKS: AtomicU64 = AtomicU64::new(0);
 
 /// Reads `DEXTRAIN_GPU_MATMUL` (once per process): the routine, or an error naming the variable and
-/// the routines there are. Called where a GPU learner device is set up, so that a wrong name stops
-/// the command with a one-line error before anything runs.
-pub fn configure() -> Result<GpuMatmul> {
+/// the routines there are; without it [`GpuMatmul::DEFAULT_HARDWARE`] on a hardware GPU and
+/// [`GpuMatmul::DEFAULT`] on a `software` adapter. Called where a GPU learner device is set up, so
+/// that a wrong name stops the command with a one-line error before anything runs.
+pub fn configure(software: bool) -> Result<GpuMatmul> {
     if let Some(m) = CHOSEN.get() {
         return Ok(*m);
     }
     let m = match std::env::var(ENV_VAR) {
         Ok(name) if !name.is_empty() => GpuMatmul::parse(&name)?,
-        _ => GpuMatmul::DEFAULT,
+        _ if software => GpuMatmul::DEFAULT,
+        _ => GpuMatmul::DEFAULT_HARDWARE,
     };
     Ok(*CHOSEN.get_or_init(|| m))
 }

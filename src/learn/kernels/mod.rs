@@ -12,7 +12,8 @@
 //!   the CPU kernels run (`DEXTRAIN_SIMD`);
 //! - `gpu_matmul.rs`: the routine of the GPU learner's products (chosen by measurement,
 //!   `DEXTRAIN_GPU_MATMUL`); `wgsl_matmul.rs`: the tiled product of our own (shaders/matmul.wgsl),
-//!   the default routine; `wgsl_kernel.rs`: how our own WGSL kernels launch on burn's command stream;
+//!   the default routine; `matmul_tuning.rs`: its tile shape per product timed on the adapter
+//!   (`dextrain_tuned`, the same numbers whichever wins); `wgsl_kernel.rs`: how our own WGSL kernels launch on burn's command stream;
 //! - `row_sums.rs`: sums over the batch's rows in two stages on the GPU (losses, ∂b, ∂ log σ);
 //! - `fused_adam.rs`: Adam with global-norm clipping as kernels of ours on the GPU
 //!   (shaders/adam.wgsl); `fused_normalizer.rs`: the device-resident observation normalisers
@@ -25,6 +26,7 @@ pub mod fused_normalizer;
 pub mod gpu_matmul;
 pub mod isa;
 pub mod layer_norm;
+pub mod matmul_tuning;
 pub mod row_sums;
 pub mod sgemm;
 pub mod wgsl_kernel;

@@ -69,8 +69,27 @@ impl Tile {
     pub const LARGE: Tile = Tile { rows: 128, cols: 128, depth: 8, thread_rows: 8, thread_cols: 8 };
     /// 128 × 64 per workgroup, 8 × 4 per thread, 16 deep.
     pub const TALL: Tile = Tile { rows: 128, cols: 64, depth: 16, thread_rows: 8, thread_cols: 4 };
-    /// Every shape the routines use.
+    /// 64 × 128 per workgroup, 4 × 8 per thread, 16 deep.
+    pub const WIDE: Tile = Tile { rows: 64, cols: 128, depth: 16, thread_rows: 4, thread_cols: 8 };
+    /// 128 × 128 per workgroup, 8 × 8 per thread, 16 deep (half the barriers of [`Tile::LARGE`]).
+    pub const LARGE_DEEP: Tile = Tile { rows: 128, cols: 128, depth: 16, thread_rows: 8, thread_cols: 8 };
+    /// 128 × 256 per workgroup, 8 × 16 per thread, 8 deep.
+    pub const HUGE_WIDE: Tile = Tile { rows: 128, cols: 256, depth: 8, thread_rows: 8, thread_cols: 16 };
+    /// 256 × 128 per workgroup, 16 × 8 per thread, 8 deep.
+    pub const HUGE_TALL: Tile = Tile { rows: 256, cols: 128, depth: 8, thread_rows: 16, thread_cols: 8 };
+    /// 256 × 16 per workgroup, 4 × 4 per thread, 16 deep: a product with few columns (a policy's
+    /// actions, a critic's value) without a 64-wide tile's idle columns.
+    pub const NARROW: Tile = Tile { rows: 256, cols: 16, depth: 16, thread_rows: 4, thread_cols: 4 };
+    /// The shapes the shape rule uses ([`Tile::for_product`], [`plan`]).
     pub const ALL: [Tile; 3] = [Tile::SMALL, Tile::LARGE, Tile::TALL];
+    /// The shapes [`TileChoice::Tuned`] times: every shape the template is written for.
+    pub const CANDIDATES: [Tile; 8] =
+        [Tile::SMALL, Tile::LARGE, Tile::TALL, Tile::WIDE, Tile::LARGE_DEEP, Tile::HUGE_WIDE, Tile::HUGE_TALL, Tile::NARROW];
+
+    /// The shape's name in reports: `BMxBNxBK/TMxTN`.
+    pub fn label(self) -> String {
+        format!("{}x{}x{}/{}x{}", self.rows, self.cols, self.depth, self.thread_rows, self.thread_cols)
+    }
 
     /// Threads along C's columns (TX) and rows (TY).
     fn threads(self) -> (usize, usize) {
@@ -217,7 +236,15 @@ pub enum Epilogue<'a> {
     BiasElu(&'a FloatTensor<Cube>),
 }
 
-impl Epilogue<'_> {
+impl<'a> Epilogue<'a> {
+    /// The bias it adds, if any.
+    fn bias(self) -> Option<&'a FloatTensor<Cube>> {
+        match self {
+            Epilogue::None => None,
+            Epilogue::Bias(b) | Epilogue::BiasElu(b) => Some(b),
+        }
+    }
+
     /// matmul.wgsl's code for it.
     fn code(self) -> u32 {
         match self {
@@ -240,71 +267,164 @@ fn strides_of(t: &FloatTensor<Cube>) -> Result<([usize; 2], [usize; 3], usize)> 
     }
 }
 
-/// `lhs · rhs` for f32 lhs [(S,) M, K], rhs [(S,) K, N] (any strides) with matmul.wgsl in `tile`
-/// (None: chosen by shape, [`plan`]) → [(S,) M, N] row-major; an error where the operands do not
-/// fit it (the caller falls back to another routine). A product split over k ([`plan`]) writes
-/// its partial sums [splits, M, N] and sums them with burn's `sum_dim` (a fixed order).
-pub fn matmul(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, tile: Option<Tile>) -> Result<FloatTensor<Cube>> {
-    matmul_then(lhs, rhs, tile, Epilogue::None)
+/// Which tile shape a product runs with.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TileChoice {
+    /// Chosen from the product's shape ([`Tile::for_product`], [`plan`]).
+    ByShape,
+    /// This shape for every product, its splits over k planned for it ([`plan`]).
+    Fixed(Tile),
+    /// The fastest of [`Tile::CANDIDATES`] on this adapter, timed at the first product of each
+    /// shape, strides and epilogue in the process and remembered for the rest of it. The splits
+    /// over k are [`TileChoice::ByShape`]'s, and every shape sums each entry's k in the same order,
+    /// so the results are [`TileChoice::ByShape`]'s bit for bit whichever shape wins: a run and its
+    /// resume agree although each times the shapes anew.
+    Tuned,
+}
+
+/// A product planned for the kernel: its launch constants, tile rule and splits over k.
+struct Planned {
+    m: usize,
+    n: usize,
+    batches: usize,
+    /// The shape the rule picks ([`TileChoice::ByShape`], or the fixed one).
+    rule_tile: Tile,
+    /// Splits over k (1: none).
+    splits: usize,
+    cfg: MatmulCfg,
+}
+
+impl Planned {
+    /// The plan of `lhs · rhs` with `epilogue` (unsplit with one), with `forced` as the tile where
+    /// fixed; an error where the operands do not fit the kernel.
+    fn new(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, forced: Option<Tile>, epilogue: Epilogue<'_>) -> Result<Planned> {
+        ensure!(lhs.dtype == DType::F32 && rhs.dtype == DType::F32, "matmul.wgsl multiplies f32 tensors");
+        let (([m, k], [a_row, a_col, a_batch], a_batches), ([k2, n], [b_row, b_col, b_batch], b_batches)) = (strides_of(lhs)?, strides_of(rhs)?);
+        ensure!(k == k2 && (a_batches == b_batches || a_batches == 1 || b_batches == 1), "matmul.wgsl: shapes do not multiply");
+        let batches = a_batches.max(b_batches);
+        if let Some(b) = epilogue.bias() {
+            let (shape, strides) = (b.meta.shape().to_vec(), b.meta.strides().to_vec());
+            let columns_ok = shape.last() == Some(&n) && strides.last() == Some(&1) && shape.iter().rev().skip(1).all(|&d| d == 1);
+            ensure!(b.dtype == DType::F32 && columns_ok && batches == 1, "matmul.wgsl: a bias of shape {shape:?} for {n} columns");
+        }
+        // with an epilogue, unsplit (it applies to the sums)
+        let (rule_tile, splits, k_chunk) = if epilogue.bias().is_some() {
+            (forced.unwrap_or_else(|| Tile::for_product(m, n, batches)), 1, k.max(1))
+        } else {
+            plan(m, n, k, batches, forced)
+        };
+        let fits = |v: usize| u32::try_from(v).map_err(|_| anyhow!("matmul.wgsl: {v} does not fit 32 bits"));
+        // every index the kernel forms stays under 2^32
+        fits(a_batch * batches + a_row * m + a_col * k)?;
+        fits(b_batch * batches + b_row * k + b_col * n)?;
+        fits(m * n * batches * splits)?;
+        ensure!(m * n > 0 && k > 0, "matmul.wgsl: an empty product");
+        let cfg = MatmulCfg {
+            m: fits(m)?,
+            n: fits(n)?,
+            k: fits(k)?,
+            batches: fits(batches)?,
+            a_row: fits(a_row)?,
+            a_col: fits(a_col)?,
+            a_batch: fits(a_batch)?,
+            b_row: fits(b_row)?,
+            b_col: fits(b_col)?,
+            b_batch: fits(b_batch)?,
+            c_batch: fits(m * n)?,
+            k_splits: fits(splits)?,
+            k_chunk: fits(k_chunk)?,
+            epilogue: epilogue.code(),
+            _pad1: 0,
+            _pad2: 0,
+        };
+        let planned = Planned { m, n, batches, rule_tile, splits, cfg };
+        ensure!(planned.grid(rule_tile).is_some(), "matmul.wgsl: too many workgroups for {m} × {n} × {batches}");
+        Ok(planned)
+    }
+
+    /// Workgroups with `tile`, None past the 65,535 per dimension a dispatch takes.
+    fn grid(&self, tile: Tile) -> Option<[u32; 3]> {
+        let [gx, gy, gz] = tile.groups(self.m, self.n, self.batches * self.splits);
+        (gx <= 65_535 && gy <= 65_535 && gz <= 65_535).then_some([gx as u32, gy as u32, gz as u32])
+    }
+
+    /// The output the kernel writes whole: [(S,) M, N], or the partials [splits, M, N].
+    fn output(&self, lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>) -> FloatTensor<Cube> {
+        if self.splits == 1 {
+            init_matmul_output(lhs, rhs, DType::F32)
+        } else {
+            Cube::float_empty(Shape::new([self.splits, self.m, self.n]), &lhs.device, FloatDType::F32)
+        }
+    }
+
+    /// Launches the kernel in `tile` into `out` (a tile [`Planned::grid`] takes).
+    fn launch(&self, tile: Tile, lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, out: &FloatTensor<Cube>, epilogue: Epilogue<'_>) {
+        let groups = self.grid(tile).expect("a tile whose grid fits");
+        let (tx, ty) = tile.threads();
+        let kernel = WgslKernel { name: "dextrain_matmul", key: tile, source: shader_source, entry_point: ENTRY_POINT, workgroup: [tx as u32, ty as u32] };
+        // (counted by gpu_counts' launch observer as `dextrain:matmul`)
+        let constants: &[u32] = bytemuck::cast_slice(std::slice::from_ref(&self.cfg));
+        launch(kernel, groups, &[lhs, rhs, out, epilogue.bias().unwrap_or(lhs)], constants); // (the bias is read only with an epilogue)
+    }
+
+    /// The product from the kernel's output: the partials summed where split.
+    fn finish(&self, out: FloatTensor<Cube>) -> FloatTensor<Cube> {
+        if self.splits == 1 {
+            return out;
+        }
+        Cube::float_reshape(Cube::float_sum_dim(out, 0), Shape::new([self.m, self.n])) // Σ_s partial_s: [M, N]
+    }
+}
+
+/// `lhs · rhs` for f32 lhs [(S,) M, K], rhs [(S,) K, N] (any strides) with matmul.wgsl in the
+/// tile `choice` gives → [(S,) M, N] row-major; an error where the operands do not fit it (the
+/// caller falls back to another routine). A product split over k ([`plan`]) writes its partial
+/// sums [splits, M, N] and sums them with burn's `sum_dim` (a fixed order).
+pub fn matmul(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, choice: TileChoice) -> Result<FloatTensor<Cube>> {
+    matmul_then(lhs, rhs, choice, Epilogue::None)
 }
 
 /// [`matmul`] with an epilogue on C's entries (the product is not split over k then): a dense
 /// layer `x W + b`, or with its ELU, in one kernel. The bias must be f32 [1, N] or [N] with
 /// contiguous columns.
-pub fn matmul_then(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, tile: Option<Tile>, epilogue: Epilogue<'_>) -> Result<FloatTensor<Cube>> {
-    ensure!(lhs.dtype == DType::F32 && rhs.dtype == DType::F32, "matmul.wgsl multiplies f32 tensors");
-    let (([m, k], [a_row, a_col, a_batch], a_batches), ([k2, n], [b_row, b_col, b_batch], b_batches)) = (strides_of(lhs)?, strides_of(rhs)?);
-    ensure!(k == k2 && (a_batches == b_batches || a_batches == 1 || b_batches == 1), "matmul.wgsl: shapes do not multiply");
-    let batches = a_batches.max(b_batches);
-    let bias = match epilogue {
-        Epilogue::None => None,
-        Epilogue::Bias(b) | Epilogue::BiasElu(b) => Some(b),
+pub fn matmul_then(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, choice: TileChoice, epilogue: Epilogue<'_>) -> Result<FloatTensor<Cube>> {
+    let forced = match choice {
+        TileChoice::Fixed(t) => Some(t),
+        TileChoice::ByShape | TileChoice::Tuned => None,
     };
-    if let Some(b) = bias {
-        let (shape, strides) = (b.meta.shape().to_vec(), b.meta.strides().to_vec());
-        let columns_ok = shape.last() == Some(&n) && strides.last() == Some(&1) && shape.iter().rev().skip(1).all(|&d| d == 1);
-        ensure!(b.dtype == DType::F32 && columns_ok && batches == 1, "matmul.wgsl: a bias of shape {shape:?} for {n} columns");
+    let planned = Planned::new(lhs, rhs, forced, epilogue)?;
+    let out = planned.output(lhs, rhs);
+    let tile = match choice {
+        TileChoice::Tuned => crate::learn::kernels::matmul_tuning::tuned_tile(&planned_key(&planned), planned.rule_tile, |tile| {
+            planned.grid(tile).is_some().then(|| planned.launch(tile, lhs, rhs, &out, epilogue))
+        }, || {
+            let _ = burn_cubecl::cubecl::future::block_on(lhs.client.sync()); // (a failure surfaces at the next read)
+        }),
+        TileChoice::ByShape | TileChoice::Fixed(_) => planned.rule_tile,
+    };
+    planned.launch(tile, lhs, rhs, &out, epilogue);
+    Ok(planned.finish(out))
+}
+
+/// `lhs · rhs` (with `epilogue`) planned by shape ([`TileChoice::ByShape`]'s splits over k) but
+/// run in `tile`: what [`TileChoice::Tuned`] times for each candidate (a test compares them).
+pub fn matmul_as_planned_in(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, tile: Tile, epilogue: Epilogue<'_>) -> Result<FloatTensor<Cube>> {
+    let planned = Planned::new(lhs, rhs, None, epilogue)?;
+    ensure!(planned.grid(tile).is_some(), "matmul.wgsl: too many workgroups in {tile:?}");
+    let out = planned.output(lhs, rhs);
+    planned.launch(tile, lhs, rhs, &out, epilogue);
+    Ok(planned.finish(out))
+}
+
+/// What identifies a product for the tuner: its sizes, strides, splits and epilogue (the launch
+/// constants).
+fn planned_key(p: &Planned) -> crate::learn::kernels::matmul_tuning::ShapeKey {
+    let c = &p.cfg;
+    crate::learn::kernels::matmul_tuning::ShapeKey {
+        sizes: [c.m, c.n, c.k, c.batches],
+        a_strides: [c.a_row, c.a_col, c.a_batch],
+        b_strides: [c.b_row, c.b_col, c.b_batch],
+        splits: c.k_splits,
+        epilogue: c.epilogue,
     }
-    // with an epilogue, unsplit (it applies to the sums)
-    let (tile, splits, k_chunk) = if bias.is_some() { (tile.unwrap_or_else(|| Tile::for_product(m, n, batches)), 1, k.max(1)) } else { plan(m, n, k, batches, tile) };
-    let fits = |v: usize| u32::try_from(v).map_err(|_| anyhow!("matmul.wgsl: {v} does not fit 32 bits"));
-    // every index the kernel forms stays under 2^32
-    fits(a_batch * batches + a_row * m + a_col * k)?;
-    fits(b_batch * batches + b_row * k + b_col * n)?;
-    fits(m * n * batches * splits)?;
-    let cfg = MatmulCfg {
-        m: fits(m)?,
-        n: fits(n)?,
-        k: fits(k)?,
-        batches: fits(batches)?,
-        a_row: fits(a_row)?,
-        a_col: fits(a_col)?,
-        a_batch: fits(a_batch)?,
-        b_row: fits(b_row)?,
-        b_col: fits(b_col)?,
-        b_batch: fits(b_batch)?,
-        c_batch: fits(m * n)?,
-        k_splits: fits(splits)?,
-        k_chunk: fits(k_chunk)?,
-        epilogue: epilogue.code(),
-        _pad1: 0,
-        _pad2: 0,
-    };
-    let [gx, gy, gz] = tile.groups(m, n, batches * splits);
-    ensure!(gx <= 65_535 && gy <= 65_535 && gz <= 65_535 && m * n > 0 && k > 0, "matmul.wgsl: a grid of {gx} × {gy} × {gz}");
-    // [(S,) M, N], or the partials [splits, M, N]; written whole by the kernel
-    let out = if splits == 1 {
-        init_matmul_output(lhs, rhs, DType::F32)
-    } else {
-        Cube::float_empty(Shape::new([splits, m, n]), &lhs.device, FloatDType::F32)
-    };
-    let (tx, ty) = tile.threads();
-    let kernel = WgslKernel { name: "dextrain_matmul", key: tile, source: shader_source, entry_point: ENTRY_POINT, workgroup: [tx as u32, ty as u32] };
-    // (counted by gpu_counts' launch observer as `dextrain:matmul`)
-    let constants: &[u32] = bytemuck::cast_slice(std::slice::from_ref(&cfg));
-    launch(kernel, [gx as u32, gy as u32, gz as u32], &[lhs, rhs, &out, bias.unwrap_or(lhs)], constants); // (the bias is read only with an epilogue)
-    if splits == 1 {
-        return Ok(out);
-    }
-    Ok(Cube::float_reshape(Cube::float_sum_dim(out, 0), Shape::new([m, n]))) // Σ_s partial_s: [M, N]
 }

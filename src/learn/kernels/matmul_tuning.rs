@@ -1,0 +1,130 @@
+//! The tile shape of dextrain's matrix product (`wgsl_matmul.rs`) measured on the adapter at hand:
+//! [`tuned_tile`] times every shape of `Tile::CANDIDATES` at the first product of each size,
+//! strides, splits and epilogue in the process, and the fastest runs that product for the rest of
+//! the process.
+//!
+//! Why this keeps runs exact, where burn's autotune would not (gpu_matmul.rs): every tile shape
+//! sums each entry's k in increasing order with the same fused multiply-adds, and the splits over
+//! k are planned from the shape alone (`wgsl_matmul::plan`), so a shape changes which thread
+//! computes an entry, never its value. A run and its resume, or two machines that time the shapes
+//! differently, compute the same numbers (a test compares every shape bit for bit).
+//!
+//! The cost: one warm-up launch (the shape's pipeline compiled by the driver, once per process),
+//! then each shape timed over ~2 ms of launches between two host waits, best of two rounds; the
+//! waits are counted (`dextrain:matmul_tuning`), in the first update of a run only. What each
+//! shape measured is kept for the benches' JSON ([`report`]).
+
+use std::collections::HashMap;
+use std::sync::{Mutex, PoisonError};
+use std::time::Instant;
+
+use serde_json::json;
+
+use crate::learn::kernels::wgsl_matmul::Tile;
+
+/// A product as the tuner tells products apart: its launch constants but the tile.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ShapeKey {
+    /// m, n, k and batches.
+    pub sizes: [u32; 4],
+    /// A's row, column and batch strides.
+    pub a_strides: [u32; 3],
+    /// B's likewise.
+    pub b_strides: [u32; 3],
+    /// Splits over k (1: none).
+    pub splits: u32,
+    /// matmul.wgsl's epilogue code (0: none, 1: bias, 2: bias and ELU).
+    pub epilogue: u32,
+}
+
+/// One tuned product: what each shape took and which won.
+#[derive(Clone, Debug)]
+pub struct TuningRecord {
+    /// The product.
+    pub key: ShapeKey,
+    /// The shape the shape rule picks.
+    pub rule: Tile,
+    /// The fastest shape, which runs the product from now on.
+    pub chosen: Tile,
+    /// Each shape timed and its µs per launch (host-timed: launches between two waits).
+    pub micros: Vec<(Tile, f64)>,
+    /// Milliseconds the timing took (compiles included).
+    pub tuning_ms: f64,
+}
+
+/// The shape each product runs with, once timed.
+static TUNED: Mutex<Option<HashMap<ShapeKey, Tile>>> = Mutex::new(None);
+
+/// Every product timed so far, in order.
+static REPORT: Mutex<Vec<TuningRecord>> = Mutex::new(Vec::new());
+
+/// Host-timed launches of one shape per round, at least this long.
+const ROUND_SECONDS: f64 = 2e-3;
+
+/// The shape for the product `key`: the remembered one, or the fastest of `Tile::CANDIDATES`
+/// timed now, `rule` where timing fails. `launch(tile)` launches the product in `tile` into its
+/// output (None: the tile does not take the product); `wait()` waits for the device.
+pub fn tuned_tile(key: &ShapeKey, rule: Tile, mut launch: impl FnMut(Tile) -> Option<()>, mut wait: impl FnMut()) -> Tile {
+    if let Some(t) = TUNED.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert_with(HashMap::new).get(key) {
+        return *t;
+    }
+    let started = Instant::now();
+    let mut waits = 0u64;
+    let mut micros = Vec::new();
+    for tile in Tile::CANDIDATES {
+        // warm-up: the pipeline's compile, and whether the tile takes the product
+        if launch(tile).is_none() {
+            continue;
+        }
+        wait();
+        let t = Instant::now();
+        launch(tile);
+        wait();
+        let once = t.elapsed().as_secs_f64();
+        let reps = (ROUND_SECONDS / once.max(1e-6)).ceil().clamp(2.0, 64.0) as usize;
+        let mut best = f64::INFINITY;
+        for _ in 0..2 {
+            let t = Instant::now();
+            for _ in 0..reps {
+                launch(tile);
+            }
+            wait();
+            best = best.min(t.elapsed().as_secs_f64() / reps as f64);
+        }
+        waits += 4;
+        micros.push((tile, best * 1e6));
+    }
+    crate::gpu_counts::add_n(crate::gpu_counts::Event::Wait, "dextrain:matmul_tuning", waits);
+    let chosen = micros.iter().min_by(|a, b| a.1.total_cmp(&b.1)).map_or(rule, |(t, _)| *t);
+    TUNED.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert_with(HashMap::new).insert(*key, chosen);
+    let record = TuningRecord { key: *key, rule, chosen, micros, tuning_ms: started.elapsed().as_secs_f64() * 1e3 };
+    REPORT.lock().unwrap_or_else(PoisonError::into_inner).push(record);
+    chosen
+}
+
+/// Every product tuned so far in this process.
+pub fn records() -> Vec<TuningRecord> {
+    REPORT.lock().unwrap_or_else(PoisonError::into_inner).clone()
+}
+
+/// The tuned products as JSON (the benches' `matmul_tuning`): per product its sizes, the rule's
+/// and the chosen shape, each shape's µs, and the time tuning took in all.
+pub fn report() -> serde_json::Value {
+    let records = records();
+    let total_ms: f64 = records.iter().map(|r| r.tuning_ms).sum();
+    let products: Vec<serde_json::Value> = records
+        .iter()
+        .map(|r| {
+            let [m, n, k, batches] = r.key.sizes;
+            let rule_us = r.micros.iter().find(|(t, _)| *t == r.rule).map(|(_, us)| *us);
+            let chosen_us = r.micros.iter().find(|(t, _)| *t == r.chosen).map(|(_, us)| *us);
+            json!({
+                "m": m, "n": n, "k": k, "batches": batches, "splits": r.key.splits, "epilogue": r.key.epilogue,
+                "a_strides": r.key.a_strides, "b_strides": r.key.b_strides,
+                "rule": r.rule.label(), "chosen": r.chosen.label(), "rule_us": rule_us, "chosen_us": chosen_us,
+                "us": r.micros.iter().map(|(t, us)| (t.label(), json!(us))).collect::<serde_json::Map<_, _>>(),
+            })
+        })
+        .collect();
+    json!({ "products": products.len(), "tuning_ms": total_ms, "per_product": products })
+}
