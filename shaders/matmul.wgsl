@@ -7,8 +7,10 @@
 // + b[c] (a dense layer's bias), or ELU(· + b[c]) (with its activation, α = 1).
 //
 // A template: learn/wgsl_matmul.rs writes in the tile shape (the markers that begin with a dollar
-// sign: numbers) and the per-thread accumulation, unrolled (the ACC blocks), so that every
-// accumulator is a named register. A workgroup of TX × TY = 256 threads computes a BM × BN tile
+// sign: numbers), the per-thread accumulation, unrolled (the ACC blocks), so that every
+// accumulator is a named register, and how each operand is read (the LOAD blocks): one f32 at a
+// time with any strides, or four at a time (a vec4 along the operand's contiguous dimension, for
+// operands whose sizes and strides are multiples of 4; the operand is then bound as vec4s). A workgroup of TX × TY = 256 threads computes a BM × BN tile
 // of C, TM × TN entries per thread (TM rows in groups of 4 spaced 4·TY apart, TN columns in
 // groups of 4 spaced 4·TX apart, so that neighbouring threads read neighbouring vec4s of
 // workgroup memory). Each BK-deep slice of A's rows and B's columns is staged in workgroup
@@ -41,8 +43,8 @@ struct MatmulCfg {
 // bound by cubecl in this order: the buffers, then the launch's constants as a uniform.
 // Every operand read_write: burn's tensors may share one buffer, and wgpu forbids one buffer bound
 // read-only and writable in one dispatch.
-@group(0) @binding(0) var<storage, read_write> mm_a: array<f32>;
-@group(0) @binding(1) var<storage, read_write> mm_b: array<f32>;
+@group(0) @binding(0) var<storage, read_write> mm_a: array<$A_ELEM>;
+@group(0) @binding(1) var<storage, read_write> mm_b: array<$B_ELEM>;
 @group(0) @binding(2) var<storage, read_write> mm_c: array<f32>;
 @group(0) @binding(3) var<storage, read_write> mm_bias: array<f32>; // [N] (any buffer without an epilogue)
 @group(0) @binding(4) var<uniform> mc: MatmulCfg;
@@ -59,45 +61,7 @@ const B_LOADS: u32 = $B_LOADSu; // B values likewise: BK · BN / THREADS
 var<workgroup> mm_sa: array<vec4<f32>, $SA_LENu>; // [BK][BM / 4]: A's tile rows at each k, 4 rows a vec4
 var<workgroup> mm_sb: array<vec4<f32>, $SB_LENu>; // [BK][BN / 4]: B's tile columns at each k, 4 a vec4
 
-// the tile's (row, k) position of the e-th staged A value: k runs fastest over the threads where
-// A's columns are contiguous (a row-major A), the row where its rows are (a transposed view),
-// so that neighbouring threads read neighbouring memory
-fn a_slot(e: u32, rows_fast: bool) -> vec2<u32> {
-    if rows_fast {
-        return vec2<u32>(e % BM, e / BM);
-    }
-    return vec2<u32>(e / BK, e % BK);
-}
-
-// the tile's (column, k) position of the e-th staged B value, likewise
-fn b_slot(e: u32, cols_fast: bool) -> vec2<u32> {
-    if cols_fast {
-        return vec2<u32>(e % BN, e / BN);
-    }
-    return vec2<u32>(e / BK, e % BK);
-}
-
-// A's value at tile position p = (row, k) of the slice that starts at k0 (0 outside A or past
-// this layer's k range), for the tile's first row row0 and the batch's A at a_base
-fn a_value(p: vec2<u32>, row0: u32, k0: u32, k_end: u32, a_base: u32) -> f32 {
-    let r = row0 + p.x;
-    let k = k0 + p.y;
-    if r < mc.m && k < k_end {
-        return mm_a[a_base + r * mc.a_row + k * mc.a_col];
-    }
-    return 0.0;
-}
-
-// B's value at tile position p = (column, k), likewise
-fn b_value(p: vec2<u32>, col0: u32, k0: u32, k_end: u32, b_base: u32) -> f32 {
-    let c = col0 + p.x;
-    let k = k0 + p.y;
-    if c < mc.n && k < k_end {
-        return mm_b[b_base + k * mc.b_row + c * mc.b_col];
-    }
-    return 0.0;
-}
-
+$LOAD_FUNCS
 // C's entry `v` at column `c` after the epilogue
 fn finish(v: f32, c: u32) -> f32 {
     if mc.epilogue == 0u {
@@ -122,38 +86,18 @@ fn matmul_tiled(@builtin(workgroup_id) wg: vec3<u32>, @builtin(local_invocation_
     let tid = ty * TX + tx;
     let a_base = batch * mc.a_batch;
     let b_base = batch * mc.b_batch;
-    let a_rows_fast = mc.a_row == 1u && mc.a_col != 1u;
-    let b_cols_fast = mc.b_col == 1u || mc.b_row != 1u;
-    var ra: array<f32, $A_LOADSu>; // this thread's share of the next A slice
-    var rb: array<f32, $B_LOADSu>; // and of the next B slice
+$LOAD_REGS
 $ACC_DECL
     // the first slice into registers
-    for (var s = 0u; s < A_LOADS; s++) {
-        ra[s] = a_value(a_slot(tid + s * THREADS, a_rows_fast), row0, k_begin, k_end, a_base);
-    }
-    for (var s = 0u; s < B_LOADS; s++) {
-        rb[s] = b_value(b_slot(tid + s * THREADS, b_cols_fast), col0, k_begin, k_end, b_base);
-    }
+$LOAD_FIRST
     for (var k0 = k_begin; k0 < k_end; k0 += BK) {
         // the fetched slice into workgroup memory
-        for (var s = 0u; s < A_LOADS; s++) {
-            let p = a_slot(tid + s * THREADS, a_rows_fast);
-            mm_sa[p.y * (BM / 4u) + p.x / 4u][p.x % 4u] = ra[s];
-        }
-        for (var s = 0u; s < B_LOADS; s++) {
-            let p = b_slot(tid + s * THREADS, b_cols_fast);
-            mm_sb[p.y * (BN / 4u) + p.x / 4u][p.x % 4u] = rb[s];
-        }
+$LOAD_STAGE
         workgroupBarrier();
         // the next slice into registers while this one is multiplied
         let k1 = k0 + BK;
         if k1 < k_end {
-            for (var s = 0u; s < A_LOADS; s++) {
-                ra[s] = a_value(a_slot(tid + s * THREADS, a_rows_fast), row0, k1, k_end, a_base);
-            }
-            for (var s = 0u; s < B_LOADS; s++) {
-                rb[s] = b_value(b_slot(tid + s * THREADS, b_cols_fast), col0, k1, k_end, b_base);
-            }
+$LOAD_NEXT
         }
         for (var d = 0u; d < BK; d++) {
             // C[r, c] += A[r, k0 + d] · B[k0 + d, c] for this thread's rows and columns

@@ -1033,32 +1033,43 @@ fn row_sums_and_matmul_routines_match_their_tensor_twins() {
     assert!(err.contains("DEXTRAIN_GPU_MATMUL") && err.contains("simple_unit"), "{err}");
 }
 
-/// Every tile shape of dextrain's matrix product gives the shape rule's product bit for bit (a
-/// forward product with its bias and ELU, a weight gradient split over k, a transposed view), so
-/// `dextrain_tuned` may pick any of them per process and a run still repeats and resumes exactly;
-/// the tuner times every shape that takes a product, remembers its pick, and reports it.
+/// Every variant of dextrain's matrix product — each tile shape, with scalar reads and with vec4
+/// reads along k or across rows / columns — gives the shape rule's product bit for bit (a forward
+/// product with its bias and ELU, a weight gradient split over k, a product by a transposed view),
+/// so `dextrain_tuned` may pick any of them per process and a run still repeats and resumes
+/// exactly; the tuner times every variant that takes a product, remembers its pick, and reports it.
 #[test]
 fn every_tile_shape_gives_the_same_bits_and_the_tuner_picks_one() {
     use dextrain::learn::kernels::matmul_tuning::records;
-    use dextrain::learn::kernels::wgsl_matmul::{Epilogue, Tile, TileChoice, matmul_as_planned_in, matmul_then, plan};
+    use dextrain::learn::kernels::wgsl_matmul::{Epilogue, Loads, TileChoice, candidate_variants, matmul_as_planned_in, matmul_then, plan};
     let Some((_ctx, gpu)) = crate::common::wgpu_learner("every_tile_shape_gives_the_same_bits_and_the_tuner_picks_one") else { return };
     let dev = gpu.clone().inner();
     let mut rng = Rng::new(17, 3);
     let mut draw = |len: usize| -> Vec<f32> { (0..len).map(|_| rng.normal() as f32).collect() };
     let prim = |t: &Tensor<2>| t.clone().try_into_primitive::<burn::backend::Cube>().unwrap();
     let host = |t: burn::backend::tensor::FloatTensor<burn::backend::Cube>| to_host(Tensor::<2>::from_primitive::<burn::backend::Cube>(t)).unwrap();
-    // a dense layer ELU(x W + b) over 300 rows (unsplit), and xᵀ g over 1,100 rows (split over k)
-    let (rows, i, o) = (300, 70, 45);
+    // a dense layer ELU(x W + b) over 300 rows (unsplit; A read along k, B across columns), its
+    // input gradient g Wᵀ (B a transposed view, read along k), xᵀ g over 1,100 rows (split over k;
+    // A a transposed view read across rows), and a product whose sizes allow no vec4 reads
+    let (rows, i, o) = (300, 72, 44);
     let x = to_tensor(draw(rows * i), [rows, i], &dev);
     let w = to_tensor(draw(i * o), [i, o], &dev);
     let b = to_tensor(draw(o), [1, o], &dev);
-    let (long, i2, o2) = (1_100, 40, 30);
+    let g = to_tensor(draw(rows * o), [rows, o], &dev);
+    let (long, i2, o2) = (1_100, 40, 32);
     let xt = to_tensor(draw(long * i2), [long, i2], &dev).transpose(); // [in, B], a strided view
-    let g = to_tensor(draw(long * o2), [long, o2], &dev);
+    let g2 = to_tensor(draw(long * o2), [long, o2], &dev);
     assert!(plan(i2, o2, long, 1, None).1 > 1, "the weight gradient is split over k");
+    let odd_a = to_tensor(draw(130 * 45), [130, 45], &dev);
+    let odd_b = to_tensor(draw(45 * 22), [45, 22], &dev);
     let bias = prim(&b);
-    let cases: [(&str, Tensor<2>, Tensor<2>, Epilogue<'_>); 2] = [("ELU(x W + b)", x, w, Epilogue::BiasElu(&bias)), ("xᵀ g, split over k", xt, g, Epilogue::None)];
-    for (name, lhs, rhs, epilogue) in cases {
+    let cases: [(&str, Tensor<2>, Tensor<2>, Epilogue<'_>, [Loads; 2]); 4] = [
+        ("ELU(x W + b)", x, w.clone(), Epilogue::BiasElu(&bias), [Loads::Vec4AlongK, Loads::Vec4Across]),
+        ("g Wᵀ", g, w.transpose(), Epilogue::None, [Loads::Vec4AlongK, Loads::Vec4AlongK]),
+        ("xᵀ g, split over k", xt, g2, Epilogue::None, [Loads::Vec4Across, Loads::Vec4Across]),
+        ("[130 × 45] · [45 × 22]", odd_a, odd_b, Epilogue::None, [Loads::Scalar, Loads::Scalar]),
+    ];
+    for (name, lhs, rhs, epilogue, vector_reads) in cases {
         let (l, r) = (prim(&lhs), prim(&rhs));
         let by_shape = host(matmul_then(&l, &r, TileChoice::ByShape, epilogue).unwrap());
         let want = host(prim(&lhs.clone().matmul(rhs.clone())));
@@ -1067,23 +1078,28 @@ fn every_tile_shape_gives_the_same_bits_and_the_tuner_picks_one() {
             let worst = by_shape.iter().zip(&want).map(|(g, w)| (g - w).abs() / (1.0 + w.abs())).fold(0.0f32, f32::max);
             assert!(worst < 1e-4, "{name}: the product differs from burn's by {worst}");
         }
-        for tile in Tile::CANDIDATES {
-            let got = host(matmul_as_planned_in(&l, &r, tile, epilogue).unwrap());
+        let variants = candidate_variants(&l, &r, epilogue).unwrap();
+        let vector = variants.iter().filter(|v| [v.a, v.b] == vector_reads && vector_reads != [Loads::Scalar; 2]).count();
+        let scalar_only = vector_reads == [Loads::Scalar; 2];
+        assert!(scalar_only || vector >= 4, "{name}: vec4 reads {vector_reads:?} in {vector} variants of {}", variants.len());
+        assert!(!scalar_only || variants.iter().all(|v| [v.a, v.b] == [Loads::Scalar; 2]), "{name}: no vec4 reads where the sizes are not multiples of 4");
+        for v in &variants {
+            let got = host(matmul_as_planned_in(&l, &r, *v, epilogue).unwrap());
             let differing = got.iter().zip(&by_shape).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
-            assert_eq!(differing, 0, "{name}: {} gives {differing} entries other bits than the shape rule's tile", tile.label());
+            assert_eq!(differing, 0, "{name}: {} gives {differing} entries other bits than the shape rule's", v.label());
         }
         let before = records().len();
-        let tuned = host(matmul_then(&l, &r, TileChoice::Tuned, epilogue).unwrap());
+        let tuned = host(matmul_then(&l, &r, TileChoice::Tuned { vector_reads: true }, epilogue).unwrap());
         assert!(tuned.iter().zip(&by_shape).all(|(a, b)| a.to_bits() == b.to_bits()), "{name}: the tuned product's bits");
         let recs = records();
         assert_eq!(recs.len(), before + 1, "{name}: one product tuned");
         let rec = recs.last().unwrap();
-        assert_eq!(rec.micros.len(), Tile::CANDIDATES.len(), "{name}: every shape timed");
+        assert_eq!(rec.micros.iter().map(|(v, _)| *v).collect::<Vec<_>>(), variants, "{name}: every variant timed");
         assert!(rec.micros.iter().all(|(_, us)| us.is_finite() && *us > 0.0), "{name}: {:?}", rec.micros);
         let fastest = rec.micros.iter().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap().0;
-        assert_eq!(rec.chosen, fastest, "{name}: the fastest shape is chosen");
+        assert_eq!(rec.chosen, fastest, "{name}: the fastest variant is chosen");
         // the second product of the shape takes the remembered pick without timing again
-        let again = host(matmul_then(&l, &r, TileChoice::Tuned, epilogue).unwrap());
+        let again = host(matmul_then(&l, &r, TileChoice::Tuned { vector_reads: true }, epilogue).unwrap());
         assert_eq!(again, tuned, "{name}: the tuned product repeats");
         assert_eq!(records().len(), before + 1, "{name}: no second timing of the shape");
     }

@@ -118,11 +118,15 @@ fn pod_structs_match_their_wgsl_twins() {
     // a uniform struct's size must be a multiple of 16
     assert_eq!(size_of::<TaskGlobals>() % 16, 0);
     // the learner's matrix product (a module of its own)
-    use dextrain::learn::kernels::wgsl_matmul::{MatmulCfg, Tile, shader_source as matmul_source};
-    for tile in Tile::CANDIDATES {
-        // each tile shape's text is valid WGSL, its constants filled in
-        let src = matmul_source(tile);
-        assert!(!src.contains('$'), "{tile:?}: a template marker left in matmul.wgsl");
+    use dextrain::learn::kernels::wgsl_matmul::{Loads, MatmulCfg, Tile, Variant, shader_source as matmul_source};
+    let reads = [Loads::Scalar, Loads::Vec4AlongK, Loads::Vec4Across];
+    let whole = |depth: usize, extent: usize, l: Loads| l == Loads::Scalar || (depth * extent / 4) % 256 == 0;
+    let variants = Tile::CANDIDATES.into_iter().flat_map(|tile| reads.into_iter().flat_map(move |a| reads.into_iter().map(move |b| Variant { tile, a, b })));
+    for v in variants.filter(|v| whole(v.tile.depth, v.tile.rows, v.a) && whole(v.tile.depth, v.tile.cols, v.b)) {
+        // each tile shape's text, with each way of reading A and B, is valid WGSL, its constants filled in
+        let src = matmul_source(v);
+        let tile = v.label();
+        assert!(!src.contains('$'), "{tile}: a template marker left in matmul.wgsl");
         let mm = validate(&src);
         check(&mm, "MatmulCfg", size_of::<MatmulCfg>(), rust_fields!(MatmulCfg; m, n, k, batches, a_row, a_col, a_batch, b_row, b_col, b_batch, c_batch, k_splits, k_chunk, epilogue, _pad1, _pad2));
     }
@@ -345,7 +349,7 @@ fn binding_tables_match_the_wgsl_globals() {
     use dextrain::gpu::bindings::{ADAM_GROUP, BindingSpace, COLLIDERS, ELU_GROUP, LN_GROUP, LNB_GROUP, MM_GROUP, NOISE_GROUP, NORM_GROUP, REF_CFG, REF_FRAMES, SIM_GROUP, TASK_GROUP};
     let noise = dextrain::gpu::shaders::noise_shader_source();
     let (adam, norm) = (dextrain::gpu::shaders::SHADER_ADAM.to_string(), dextrain::gpu::shaders::SHADER_NORMALIZER.to_string());
-    let matmul = dextrain::learn::kernels::wgsl_matmul::shader_source(dextrain::learn::kernels::wgsl_matmul::Tile::LARGE);
+    let matmul = dextrain::learn::kernels::wgsl_matmul::shader_source(dextrain::learn::kernels::wgsl_matmul::Variant::scalar(dextrain::learn::kernels::wgsl_matmul::Tile::LARGE));
     for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (adam, ADAM_GROUP), (norm, NORM_GROUP), (matmul, MM_GROUP), (dextrain::learn::kernels::elu::elu_backward_source(()), ELU_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_forward_source(()), LN_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_backward_source(()), LNB_GROUP)] {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other

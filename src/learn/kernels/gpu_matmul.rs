@@ -76,14 +76,20 @@ pub enum GpuMatmul {
     DextrainTiledLarge,
     /// dextrain's kernel, 128 × 64 tiles (8 × 4 per thread) for every product.
     DextrainTiledTall,
-    /// dextrain's kernel, the tile shape per product timed on the adapter at its first launch
-    /// (`learn::kernels::matmul_tuning`); the same numbers as `DextrainTiled` bit for bit.
+    /// dextrain's kernel, its tile shape per product timed on the adapter at its first launch
+    /// (`learn::kernels::matmul_tuning`), scalar reads; the same numbers as `DextrainTiled` bit for
+    /// bit.
     DextrainTuned,
+    /// `DextrainTuned` with vec4 reads of the operands among the candidates where their sizes
+    /// allow (the same numbers again). Not the default: on an H200 it sped the PPO update up on
+    /// some processes and slowed SAC's step on most, and it doubles the shaders a fresh machine
+    /// compiles (BENCHMARKS.md).
+    DextrainTunedVec4,
 }
 
 impl GpuMatmul {
     /// Every routine with its name (`DEXTRAIN_GPU_MATMUL`, the bench JSON).
-    pub const NAMES: [(GpuMatmul, &'static str); 13] = [
+    pub const NAMES: [(GpuMatmul, &'static str); 14] = [
         (GpuMatmul::Burn, "burn"),
         (GpuMatmul::SimpleUnit, "simple_unit"),
         (GpuMatmul::SimpleUnitSmallTiles, "simple_unit_small_tiles"),
@@ -97,6 +103,7 @@ impl GpuMatmul {
         (GpuMatmul::DextrainTiledLarge, "dextrain_tiled_128"),
         (GpuMatmul::DextrainTiledTall, "dextrain_tiled_128x64"),
         (GpuMatmul::DextrainTuned, "dextrain_tuned"),
+        (GpuMatmul::DextrainTunedVec4, "dextrain_tuned_vec4"),
     ];
 
     /// The routine a run uses unless `DEXTRAIN_GPU_MATMUL` names another, on a software adapter
@@ -145,7 +152,8 @@ impl GpuMatmul {
             GpuMatmul::DextrainTiledSmall => Some(TileChoice::Fixed(Tile::SMALL)),
             GpuMatmul::DextrainTiledLarge => Some(TileChoice::Fixed(Tile::LARGE)),
             GpuMatmul::DextrainTiledTall => Some(TileChoice::Fixed(Tile::TALL)),
-            GpuMatmul::DextrainTuned => Some(TileChoice::Tuned),
+            GpuMatmul::DextrainTuned => Some(TileChoice::Tuned { vector_reads: false }),
+            GpuMatmul::DextrainTunedVec4 => Some(TileChoice::Tuned { vector_reads: true }),
             _ => None,
         }
     }
@@ -160,7 +168,8 @@ impl GpuMatmul {
             | GpuMatmul::DextrainTiledSmall
             | GpuMatmul::DextrainTiledLarge
             | GpuMatmul::DextrainTiledTall
-            | GpuMatmul::DextrainTuned => return None,
+            | GpuMatmul::DextrainTuned
+            | GpuMatmul::DextrainTunedVec4 => return None,
             GpuMatmul::SimpleUnit => Routine::SimpleUnit(BlueprintStrategy::Inferred(unit(TileSizeSelection::MaxTileSize))),
             GpuMatmul::SimpleUnitSmallTiles => {
                 Routine::SimpleUnit(BlueprintStrategy::Inferred(unit(TileSizeSelection::MinTileSize)))

@@ -1,18 +1,20 @@
-//! The tile shape of dextrain's matrix product (`wgsl_matmul.rs`) measured on the adapter at hand:
-//! [`tuned_tile`] times every shape of `Tile::CANDIDATES` at the first product of each size,
+//! The form of dextrain's matrix product (`wgsl_matmul.rs`) measured on the adapter at hand:
+//! [`tuned_variant`] times every tile shape of `Tile::CANDIDATES`, with scalar reads and, where
+//! the operands allow, vec4 reads (`wgsl_matmul::Variant`), at the first product of each size,
 //! strides, splits and epilogue in the process, and the fastest runs that product for the rest of
 //! the process.
 //!
 //! Why this keeps runs exact, where burn's autotune would not (gpu_matmul.rs): every tile shape
 //! sums each entry's k in increasing order with the same fused multiply-adds, and the splits over
-//! k are planned from the shape alone (`wgsl_matmul::plan`), so a shape changes which thread
-//! computes an entry, never its value. A run and its resume, or two machines that time the shapes
+//! k are planned from the shape alone (`wgsl_matmul::plan`), so a shape, or reading four values
+//! at a time, changes which thread computes an entry and how its operands arrive, never its value. A run and its resume, or two machines that time the shapes
 //! differently, compute the same numbers (a test compares every shape bit for bit).
 //!
-//! The cost: one warm-up launch (the shape's pipeline compiled by the driver, once per process),
-//! then each shape timed over ~2 ms of launches between two host waits, best of two rounds; the
+//! The cost: one warm-up launch (the variant's pipeline compiled by the driver, once per process),
+//! then each variant timed over ~2 ms of launches between two host waits, in three rounds over all
+//! variants in turn (a drift of the card's clock weighs on all alike), its best round counting; the
 //! waits are counted (`dextrain:matmul_tuning`), in the first update of a run only. What each
-//! shape measured is kept for the benches' JSON ([`report`]).
+//! variant measured is kept for the benches' JSON ([`report`]).
 
 use std::collections::HashMap;
 use std::sync::{Mutex, PoisonError};
@@ -20,7 +22,7 @@ use std::time::Instant;
 
 use serde_json::json;
 
-use crate::learn::kernels::wgsl_matmul::Tile;
+use crate::learn::kernels::wgsl_matmul::Variant;
 
 /// A product as the tuner tells products apart: its launch constants but the tile.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -35,6 +37,8 @@ pub struct ShapeKey {
     pub splits: u32,
     /// matmul.wgsl's epilogue code (0: none, 1: bias, 2: bias and ELU).
     pub epilogue: u32,
+    /// Whether vec4 reads were among the candidates.
+    pub vector_reads: bool,
 }
 
 /// One tuned product: what each shape took and which won.
@@ -42,60 +46,68 @@ pub struct ShapeKey {
 pub struct TuningRecord {
     /// The product.
     pub key: ShapeKey,
-    /// The shape the shape rule picks.
-    pub rule: Tile,
-    /// The fastest shape, which runs the product from now on.
-    pub chosen: Tile,
-    /// Each shape timed and its µs per launch (host-timed: launches between two waits).
-    pub micros: Vec<(Tile, f64)>,
+    /// The shape the shape rule picks (scalar reads).
+    pub rule: Variant,
+    /// The fastest variant, which runs the product from now on.
+    pub chosen: Variant,
+    /// Each variant timed and its µs per launch (host-timed: launches between two waits).
+    pub micros: Vec<(Variant, f64)>,
     /// Milliseconds the timing took (compiles included).
     pub tuning_ms: f64,
 }
 
 /// The shape each product runs with, once timed.
-static TUNED: Mutex<Option<HashMap<ShapeKey, Tile>>> = Mutex::new(None);
+static TUNED: Mutex<Option<HashMap<ShapeKey, Variant>>> = Mutex::new(None);
 
 /// Every product timed so far, in order.
 static REPORT: Mutex<Vec<TuningRecord>> = Mutex::new(Vec::new());
 
-/// Host-timed launches of one shape per round, at least this long.
+/// Host-timed launches of one variant per round, at least this long.
 const ROUND_SECONDS: f64 = 2e-3;
 
-/// The shape for the product `key`: the remembered one, or the fastest of `Tile::CANDIDATES`
-/// timed now, `rule` where timing fails. `launch(tile)` launches the product in `tile` into its
-/// output (None: the tile does not take the product); `wait()` waits for the device.
-pub fn tuned_tile(key: &ShapeKey, rule: Tile, mut launch: impl FnMut(Tile) -> Option<()>, mut wait: impl FnMut()) -> Tile {
-    if let Some(t) = TUNED.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert_with(HashMap::new).get(key) {
-        return *t;
+/// Rounds over all variants; a variant's time is its best round's.
+const ROUNDS: usize = 3;
+
+/// The variant for the product `key`: the remembered one, or the fastest of `candidates` timed
+/// now, `rule` where none was timed. `launch(variant)` launches the product as `variant` into its
+/// output; `wait()` waits for the device.
+pub fn tuned_variant(key: &ShapeKey, rule: Variant, candidates: &[Variant], mut launch: impl FnMut(Variant), mut wait: impl FnMut()) -> Variant {
+    if let Some(v) = TUNED.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert_with(HashMap::new).get(key) {
+        return *v;
     }
     let started = Instant::now();
     let mut waits = 0u64;
     let mut micros = Vec::new();
-    for tile in Tile::CANDIDATES {
-        // warm-up: the pipeline's compile, and whether the tile takes the product
-        if launch(tile).is_none() {
-            continue;
-        }
+    // each variant's pipeline compiled (a warm-up launch), and its launches per round from one
+    // timed launch
+    let mut reps = Vec::with_capacity(candidates.len());
+    for &variant in candidates {
+        launch(variant);
         wait();
         let t = Instant::now();
-        launch(tile);
+        launch(variant);
         wait();
         let once = t.elapsed().as_secs_f64();
-        let reps = (ROUND_SECONDS / once.max(1e-6)).ceil().clamp(2.0, 64.0) as usize;
-        let mut best = f64::INFINITY;
-        for _ in 0..2 {
+        reps.push((ROUND_SECONDS / once.max(1e-6)).ceil().clamp(2.0, 64.0) as usize);
+        waits += 2;
+    }
+    // rounds over all variants in turn, so that a drift of the card's clock (rising from idle at a
+    // process's start) weighs on every variant alike; each variant's best round counts
+    let mut best = vec![f64::INFINITY; candidates.len()];
+    for _ in 0..ROUNDS {
+        for (i, &variant) in candidates.iter().enumerate() {
             let t = Instant::now();
-            for _ in 0..reps {
-                launch(tile);
+            for _ in 0..reps[i] {
+                launch(variant);
             }
             wait();
-            best = best.min(t.elapsed().as_secs_f64() / reps as f64);
+            best[i] = best[i].min(t.elapsed().as_secs_f64() / reps[i] as f64);
+            waits += 1;
         }
-        waits += 4;
-        micros.push((tile, best * 1e6));
     }
+    micros.extend(candidates.iter().zip(&best).map(|(v, s)| (*v, s * 1e6)));
     crate::gpu_counts::add_n(crate::gpu_counts::Event::Wait, "dextrain:matmul_tuning", waits);
-    let chosen = micros.iter().min_by(|a, b| a.1.total_cmp(&b.1)).map_or(rule, |(t, _)| *t);
+    let chosen = micros.iter().min_by(|a, b| a.1.total_cmp(&b.1)).map_or(rule, |(v, _)| *v);
     TUNED.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert_with(HashMap::new).insert(*key, chosen);
     let record = TuningRecord { key: *key, rule, chosen, micros, tuning_ms: started.elapsed().as_secs_f64() * 1e3 };
     REPORT.lock().unwrap_or_else(PoisonError::into_inner).push(record);
@@ -116,13 +128,13 @@ pub fn report() -> serde_json::Value {
         .iter()
         .map(|r| {
             let [m, n, k, batches] = r.key.sizes;
-            let rule_us = r.micros.iter().find(|(t, _)| *t == r.rule).map(|(_, us)| *us);
-            let chosen_us = r.micros.iter().find(|(t, _)| *t == r.chosen).map(|(_, us)| *us);
+            let rule_us = r.micros.iter().find(|(v, _)| *v == r.rule).map(|(_, us)| *us);
+            let chosen_us = r.micros.iter().find(|(v, _)| *v == r.chosen).map(|(_, us)| *us);
             json!({
-                "m": m, "n": n, "k": k, "batches": batches, "splits": r.key.splits, "epilogue": r.key.epilogue,
+                "m": m, "n": n, "k": k, "batches": batches, "splits": r.key.splits, "epilogue": r.key.epilogue, "vector_reads": r.key.vector_reads,
                 "a_strides": r.key.a_strides, "b_strides": r.key.b_strides,
                 "rule": r.rule.label(), "chosen": r.chosen.label(), "rule_us": rule_us, "chosen_us": chosen_us,
-                "us": r.micros.iter().map(|(t, us)| (t.label(), json!(us))).collect::<serde_json::Map<_, _>>(),
+                "us": r.micros.iter().map(|(v, us)| (v.label(), json!(us))).collect::<serde_json::Map<_, _>>(),
             })
         })
         .collect();

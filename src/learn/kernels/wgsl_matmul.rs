@@ -1,12 +1,16 @@
 //! The GPU learner's matrix product of our own: `shaders/matmul.wgsl`, a tiled product with the
-//! operands staged in workgroup memory, the `dextrain_tiled*` routines of `learn::kernels::gpu_matmul`.
+//! operands staged in workgroup memory, the `dextrain_tiled*` and `dextrain_tuned*` routines of
+//! `learn::kernels::gpu_matmul`.
 //!
 //! cubek's routines on WGSL adapters are unit routines (one thread per output tile, operands read
 //! from global memory); its shared-memory routines need cooperative matrices. This kernel stages
 //! the operands in workgroup memory as a plain WGSL kernel can, each thread accumulating a
 //! TM × TN block in registers. The shader is a template: [`shader_source`] writes the tile shape
-//! in and unrolls the per-thread accumulation (one named register per accumulator; an indexed
-//! array could be left in slow per-thread memory by the driver's compiler).
+//! in, unrolls the per-thread accumulation (one named register per accumulator; an indexed
+//! array could be left in slow per-thread memory by the driver's compiler) and writes how each
+//! operand is read ([`Variant`]: one f32 at a time with any strides, or vec4s along its contiguous
+//! dimension). Every variant sums an entry's k in the same order, so [`TileChoice::Tuned`] may run
+//! whichever `matmul_tuning.rs` times fastest and still give the shape rule's bits.
 //!
 //! A product with few output tiles and a long k (a weight gradient over a batch's rows) is split
 //! over k inside the kernel and its partials summed ([`plan`]); a dense layer's bias, and a hidden
@@ -120,6 +124,58 @@ impl Tile {
     }
 }
 
+/// How the kernel reads one operand from memory (matmul.wgsl's LOAD blocks).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Loads {
+    /// One f32 at a time, with any strides.
+    Scalar,
+    /// A vec4 of four consecutive k (A: a row-major operand, k contiguous in a row; B: a
+    /// transposed view, k contiguous in a column).
+    Vec4AlongK,
+    /// A vec4 of four consecutive rows of A, or columns of B, at one k (A: a transposed view; B:
+    /// a row-major operand).
+    Vec4Across,
+}
+
+impl Loads {
+    /// Its tag in a variant's label.
+    fn tag(self) -> &'static str {
+        match self {
+            Loads::Scalar => "1",
+            Loads::Vec4AlongK => "4k",
+            Loads::Vec4Across => "4x",
+        }
+    }
+}
+
+/// A compiled form of the kernel: the tile shape and how A and B are read. Every variant sums
+/// each entry's k in the same order, so all give the same bits.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct Variant {
+    /// The tile shape.
+    pub tile: Tile,
+    /// How A is read.
+    pub a: Loads,
+    /// How B is read.
+    pub b: Loads,
+}
+
+impl Variant {
+    /// The tile shape with scalar reads (the kernel as the shape rule runs it).
+    pub fn scalar(tile: Tile) -> Variant {
+        Variant { tile, a: Loads::Scalar, b: Loads::Scalar }
+    }
+
+    /// Its name in reports: the tile's label, then `A/B` reads (`1`: scalar, `4k` / `4x`: vec4
+    /// along k / across rows or columns) where not both scalar.
+    pub fn label(self) -> String {
+        match (self.a, self.b) {
+            (Loads::Scalar, Loads::Scalar) => self.tile.label(),
+            (a, b) => format!("{} {}/{}", self.tile.label(), a.tag(), b.tag()),
+        }
+    }
+}
+
 /// How an m × n × k product of `batches` batches is launched: the tile shape (`forced`, or chosen
 /// from the shape) and (splits, k per split). A single product whose tiles leave the GPU mostly
 /// idle and whose k is long is split over k into about [`SPLIT_TARGET_GROUPS`] workgroups, at
@@ -166,8 +222,10 @@ pub struct MatmulCfg {
     pub _pad2: u32,
 }
 
-/// matmul.wgsl for `tile`: the template with the shape's numbers and the unrolled accumulation.
-pub fn shader_source(tile: Tile) -> String {
+/// matmul.wgsl for `variant`: the template with the shape's numbers, the unrolled accumulation and
+/// the operands' reads.
+pub fn shader_source(variant: Variant) -> String {
+    let tile = variant.tile;
     let Tile { rows, cols, depth, thread_rows, thread_cols } = tile;
     let (tx, ty) = tile.threads();
     assert!(
@@ -208,8 +266,16 @@ pub fn shader_source(tile: Tile) -> String {
         }
         store += "    }\n";
     }
+    let loads = load_blocks(variant);
     let number = |v: usize| v.to_string();
     TEMPLATE
+        .replace("$LOAD_FUNCS", loads.funcs.trim_end())
+        .replace("$LOAD_REGS", loads.regs.trim_end())
+        .replace("$LOAD_FIRST", loads.first.trim_end())
+        .replace("$LOAD_STAGE", loads.stage.trim_end())
+        .replace("$LOAD_NEXT", loads.next.trim_end())
+        .replace("$A_ELEM", if variant.a == Loads::Scalar { "f32" } else { "vec4<f32>" })
+        .replace("$B_ELEM", if variant.b == Loads::Scalar { "f32" } else { "vec4<f32>" })
         .replace("$ACC_DECL", decl.trim_end())
         .replace("$ACC_FMA", fma.trim_end())
         .replace("$ACC_STORE", store.trim_end())
@@ -223,6 +289,91 @@ pub fn shader_source(tile: Tile) -> String {
         .replace("$B_LOADS", &number(depth * cols / THREADS))
         .replace("$SA_LEN", &number(depth * rows / 4))
         .replace("$SB_LEN", &number(depth * cols / 4))
+}
+
+/// The LOAD blocks of matmul.wgsl for a variant.
+#[derive(Default)]
+struct LoadBlocks {
+    /// Functions the reads use.
+    funcs: String,
+    /// The registers that hold the next slice.
+    regs: String,
+    /// The first slice (at k_begin) into the registers.
+    first: String,
+    /// The registers into workgroup memory.
+    stage: String,
+    /// The next slice (at k1) into the registers.
+    next: String,
+}
+
+/// Scalar reads of A: the tile position of each staged value, and the value (0 outside A).
+const SCALAR_A_FUNCS: &str = include_str!("../../../shaders/matmul_read_a.wgsl");
+
+/// Scalar reads of B, likewise.
+const SCALAR_B_FUNCS: &str = include_str!("../../../shaders/matmul_read_b.wgsl");
+
+/// matmul.wgsl's reads of A and B for `variant` (the operand's letter, its registers `ra`/`rb`,
+/// its tile extent BM/BN, staged in `mm_sa`/`mm_sb` as [BK][extent / 4] vec4s).
+fn load_blocks(variant: Variant) -> LoadBlocks {
+    let mut out = LoadBlocks::default();
+    for (op, loads, extent) in [('a', variant.a, variant.tile.rows), ('b', variant.b, variant.tile.cols)] {
+        let (up, reg, smem, ext, limit) = if op == 'a' { ("A", "ra", "mm_sa", "BM", "mc.m") } else { ("B", "rb", "mm_sb", "BN", "mc.n") };
+        let first_of = if op == 'a' { "row0" } else { "col0" };
+        if loads == Loads::Scalar {
+            out.funcs += if op == 'a' { SCALAR_A_FUNCS } else { SCALAR_B_FUNCS };
+            out.funcs += "\n";
+            let fast = if op == 'a' { "let a_rows_fast = mc.a_row == 1u && mc.a_col != 1u;" } else { "let b_cols_fast = mc.b_col == 1u || mc.b_row != 1u;" };
+            let fast_name = if op == 'a' { "a_rows_fast" } else { "b_cols_fast" };
+            out.regs += &format!("    {fast}\n    var {reg}: array<f32, {up}_LOADS>; // this thread's share of the next {up} slice\n");
+            let fetch = |k0: &str, indent: &str| {
+                format!("{indent}for (var s = 0u; s < {up}_LOADS; s++) {{\n{indent}    {reg}[s] = {op}_value({op}_slot(tid + s * THREADS, {fast_name}), {first_of}, {k0}, k_end, {op}_base);\n{indent}}}\n")
+            };
+            out.first += &fetch("k_begin", "    ");
+            out.next += &fetch("k1", "            ");
+            out.stage += &format!(
+                "        for (var s = 0u; s < {up}_LOADS; s++) {{\n            let p = {op}_slot(tid + s * THREADS, {fast_name});\n            {smem}[p.y * ({ext} / 4u) + p.x / 4u][p.x % 4u] = {reg}[s];\n        }}\n"
+            );
+            continue;
+        }
+        let vecs = variant.tile.depth * extent / 4 / THREADS; // vec4s each thread reads per slice
+        for q in 0..vecs {
+            out.regs += &format!("    var {reg}{q} = vec4<f32>(0.0); // this thread's vec4 {q} of the next {up} slice\n");
+        }
+        // (tile position p, k offset d in the slice, global index of the vec4) per variant; the
+        // operand's sizes and strides are multiples of 4 (`Planned::loads`), so a vec4 is wholly
+        // inside the operand or wholly outside it
+        let fetch = |k0: &str, indent: &str| {
+            let mut f = String::new();
+            for q in 0..vecs {
+                f += &format!("{indent}{{\n{indent}    let e = tid + {q}u * THREADS;\n");
+                match (op, loads) {
+                    ('a', Loads::Vec4AlongK) => f += &format!("{indent}    let r = row0 + e / (BK / 4u);\n{indent}    let k = {k0} + (e % (BK / 4u)) * 4u;\n{indent}    let at = (a_base + r * mc.a_row + k) / 4u; // A[r, k .. k + 4]\n"),
+                    ('a', _) => f += &format!("{indent}    let r = row0 + (e % (BM / 4u)) * 4u;\n{indent}    let k = {k0} + e / (BM / 4u);\n{indent}    let at = (a_base + r + k * mc.a_col) / 4u; // A[r .. r + 4, k]\n"),
+                    (_, Loads::Vec4AlongK) => f += &format!("{indent}    let r = col0 + e / (BK / 4u);\n{indent}    let k = {k0} + (e % (BK / 4u)) * 4u;\n{indent}    let at = (b_base + k + r * mc.b_col) / 4u; // B[k .. k + 4, r]\n"),
+                    _ => f += &format!("{indent}    let r = col0 + (e % (BN / 4u)) * 4u;\n{indent}    let k = {k0} + e / (BN / 4u);\n{indent}    let at = (b_base + k * mc.b_row + r) / 4u; // B[k, r .. r + 4]\n"),
+                }
+                f += &format!("{indent}    if r < {limit} && k < k_end {{\n{indent}        {reg}{q} = mm_{op}[at];\n{indent}    }} else {{\n{indent}        {reg}{q} = vec4<f32>(0.0);\n{indent}    }}\n{indent}}}\n");
+            }
+            f
+        };
+        out.first += &fetch("k_begin", "    ");
+        out.next += &fetch("k1", "            ");
+        for q in 0..vecs {
+            if loads == Loads::Vec4Across {
+                // [BK][extent / 4] vec4s in the order the threads read them
+                out.stage += &format!("        {smem}[tid + {q}u * THREADS] = {reg}{q};\n");
+            } else {
+                out.stage += &format!(
+                    "        {{\n            let e = tid + {q}u * THREADS;\n            let r = e / (BK / 4u); // the tile's row (A) or column (B)\n            let k = (e % (BK / 4u)) * 4u;\n"
+                );
+                for (j, lane) in ["x", "y", "z", "w"].iter().enumerate() {
+                    out.stage += &format!("            {smem}[(k + {j}u) * ({ext} / 4u) + r / 4u][r % 4u] = {reg}{q}.{lane};\n");
+                }
+                out.stage += "        }\n";
+            }
+        }
+    }
+    out
 }
 
 /// What the kernel does to C's entries after the product (matmul.wgsl's `epilogue`).
@@ -267,19 +418,23 @@ fn strides_of(t: &FloatTensor<Cube>) -> Result<([usize; 2], [usize; 3], usize)> 
     }
 }
 
-/// Which tile shape a product runs with.
+/// Which form of the kernel a product runs with.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TileChoice {
-    /// Chosen from the product's shape ([`Tile::for_product`], [`plan`]).
+    /// The tile chosen from the product's shape ([`Tile::for_product`], [`plan`]), scalar reads.
     ByShape,
-    /// This shape for every product, its splits over k planned for it ([`plan`]).
+    /// This tile for every product, its splits over k planned for it ([`plan`]), scalar reads.
     Fixed(Tile),
-    /// The fastest of [`Tile::CANDIDATES`] on this adapter, timed at the first product of each
-    /// shape, strides and epilogue in the process and remembered for the rest of it. The splits
-    /// over k are [`TileChoice::ByShape`]'s, and every shape sums each entry's k in the same order,
-    /// so the results are [`TileChoice::ByShape`]'s bit for bit whichever shape wins: a run and its
-    /// resume agree although each times the shapes anew.
-    Tuned,
+    /// The fastest variant on this adapter — each of [`Tile::CANDIDATES`] with scalar reads and,
+    /// with `vector_reads` where the operands allow, with vec4 reads — timed at the first product
+    /// of each shape, strides and epilogue in the process and remembered for the rest of it. The
+    /// splits over k are [`TileChoice::ByShape`]'s, and every variant sums each entry's k in the
+    /// same order, so the results are [`TileChoice::ByShape`]'s bit for bit whichever wins: a run
+    /// and its resume agree although each times the variants anew.
+    Tuned {
+        /// Whether vec4 reads are among the candidates.
+        vector_reads: bool,
+    },
 }
 
 /// A product planned for the kernel: its launch constants, tile rule and splits over k.
@@ -357,11 +512,55 @@ impl Planned {
         }
     }
 
-    /// Launches the kernel in `tile` into `out` (a tile [`Planned::grid`] takes).
-    fn launch(&self, tile: Tile, lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, out: &FloatTensor<Cube>, epilogue: Epilogue<'_>) {
+    /// How `tile` may read A and B: as vec4s along the operand's contiguous dimension where its
+    /// size there, its other strides and the k per split are multiples of 4 (so a vec4 is wholly
+    /// inside the operand or wholly outside it, and aligned: cubecl binds every tensor at an
+    /// aligned offset) and the tile's slice is a whole number of vec4s per thread; else scalar.
+    fn vector_variant(&self, tile: Tile) -> Variant {
+        let c = &self.cfg;
+        let whole = |extent: usize| (tile.depth * extent / 4) % THREADS == 0 && tile.depth * extent >= 4 * THREADS;
+        let four = |v: u32| v % 4 == 0;
+        let a = if !whole(tile.rows) {
+            Loads::Scalar
+        } else if c.a_col == 1 && four(c.k) && four(c.k_chunk) && four(c.a_row) && four(c.a_batch) {
+            Loads::Vec4AlongK
+        } else if c.a_row == 1 && four(c.m) && four(c.a_col) && four(c.a_batch) {
+            Loads::Vec4Across
+        } else {
+            Loads::Scalar
+        };
+        let b = if !whole(tile.cols) {
+            Loads::Scalar
+        } else if c.b_col == 1 && four(c.n) && four(c.b_row) && four(c.b_batch) {
+            Loads::Vec4Across
+        } else if c.b_row == 1 && four(c.k) && four(c.k_chunk) && four(c.b_col) && four(c.b_batch) {
+            Loads::Vec4AlongK
+        } else {
+            Loads::Scalar
+        };
+        Variant { tile, a, b }
+    }
+
+    /// The variants the tuner times: every candidate tile shape that takes the product, with
+    /// scalar reads and, where the operands allow, with vec4 reads.
+    fn candidates(&self) -> Vec<Variant> {
+        let mut out = Vec::new();
+        for tile in Tile::CANDIDATES.into_iter().filter(|t| self.grid(*t).is_some()) {
+            out.push(Variant::scalar(tile));
+            let v = self.vector_variant(tile);
+            if v != Variant::scalar(tile) {
+                out.push(v);
+            }
+        }
+        out
+    }
+
+    /// Launches the kernel as `variant` into `out` (a tile [`Planned::grid`] takes).
+    fn launch(&self, variant: Variant, lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, out: &FloatTensor<Cube>, epilogue: Epilogue<'_>) {
+        let tile = variant.tile;
         let groups = self.grid(tile).expect("a tile whose grid fits");
         let (tx, ty) = tile.threads();
-        let kernel = WgslKernel { name: "dextrain_matmul", key: tile, source: shader_source, entry_point: ENTRY_POINT, workgroup: [tx as u32, ty as u32] };
+        let kernel = WgslKernel { name: "dextrain_matmul", key: variant, source: shader_source, entry_point: ENTRY_POINT, workgroup: [tx as u32, ty as u32] };
         // (counted by gpu_counts' launch observer as `dextrain:matmul`)
         let constants: &[u32] = bytemuck::cast_slice(std::slice::from_ref(&self.cfg));
         launch(kernel, groups, &[lhs, rhs, out, epilogue.bias().unwrap_or(lhs)], constants); // (the bias is read only with an epilogue)
@@ -390,35 +589,46 @@ pub fn matmul(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, choice: TileChoi
 pub fn matmul_then(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, choice: TileChoice, epilogue: Epilogue<'_>) -> Result<FloatTensor<Cube>> {
     let forced = match choice {
         TileChoice::Fixed(t) => Some(t),
-        TileChoice::ByShape | TileChoice::Tuned => None,
+        TileChoice::ByShape | TileChoice::Tuned { .. } => None,
     };
     let planned = Planned::new(lhs, rhs, forced, epilogue)?;
     let out = planned.output(lhs, rhs);
-    let tile = match choice {
-        TileChoice::Tuned => crate::learn::kernels::matmul_tuning::tuned_tile(&planned_key(&planned), planned.rule_tile, |tile| {
-            planned.grid(tile).is_some().then(|| planned.launch(tile, lhs, rhs, &out, epilogue))
-        }, || {
-            let _ = burn_cubecl::cubecl::future::block_on(lhs.client.sync()); // (a failure surfaces at the next read)
-        }),
-        TileChoice::ByShape | TileChoice::Fixed(_) => planned.rule_tile,
+    let variant = match choice {
+        TileChoice::Tuned { vector_reads } => {
+            let mut candidates = planned.candidates();
+            candidates.retain(|v| vector_reads || *v == Variant::scalar(v.tile));
+            crate::learn::kernels::matmul_tuning::tuned_variant(&planned_key(&planned, vector_reads), Variant::scalar(planned.rule_tile), &candidates, |v| {
+                planned.launch(v, lhs, rhs, &out, epilogue)
+            }, || {
+                let _ = burn_cubecl::cubecl::future::block_on(lhs.client.sync()); // (a failure surfaces at the next read)
+            })
+        }
+        TileChoice::ByShape | TileChoice::Fixed(_) => Variant::scalar(planned.rule_tile),
     };
-    planned.launch(tile, lhs, rhs, &out, epilogue);
+    planned.launch(variant, lhs, rhs, &out, epilogue);
     Ok(planned.finish(out))
 }
 
+/// The variants [`TileChoice::Tuned`] times for `lhs · rhs` (with `epilogue`): every candidate
+/// tile shape, with scalar reads and, where the operands allow, vec4 reads.
+pub fn candidate_variants(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, epilogue: Epilogue<'_>) -> Result<Vec<Variant>> {
+    Ok(Planned::new(lhs, rhs, None, epilogue)?.candidates())
+}
+
 /// `lhs · rhs` (with `epilogue`) planned by shape ([`TileChoice::ByShape`]'s splits over k) but
-/// run in `tile`: what [`TileChoice::Tuned`] times for each candidate (a test compares them).
-pub fn matmul_as_planned_in(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, tile: Tile, epilogue: Epilogue<'_>) -> Result<FloatTensor<Cube>> {
+/// run as `variant` (one of [`candidate_variants`]): what [`TileChoice::Tuned`] times for each
+/// candidate (a test compares them).
+pub fn matmul_as_planned_in(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, variant: Variant, epilogue: Epilogue<'_>) -> Result<FloatTensor<Cube>> {
     let planned = Planned::new(lhs, rhs, None, epilogue)?;
-    ensure!(planned.grid(tile).is_some(), "matmul.wgsl: too many workgroups in {tile:?}");
+    ensure!(planned.candidates().contains(&variant), "matmul.wgsl: {} does not take this product", variant.label());
     let out = planned.output(lhs, rhs);
-    planned.launch(tile, lhs, rhs, &out, epilogue);
+    planned.launch(variant, lhs, rhs, &out, epilogue);
     Ok(planned.finish(out))
 }
 
 /// What identifies a product for the tuner: its sizes, strides, splits and epilogue (the launch
-/// constants).
-fn planned_key(p: &Planned) -> crate::learn::kernels::matmul_tuning::ShapeKey {
+/// constants), and whether vec4 reads are candidates.
+fn planned_key(p: &Planned, vector_reads: bool) -> crate::learn::kernels::matmul_tuning::ShapeKey {
     let c = &p.cfg;
     crate::learn::kernels::matmul_tuning::ShapeKey {
         sizes: [c.m, c.n, c.k, c.batches],
@@ -426,5 +636,6 @@ fn planned_key(p: &Planned) -> crate::learn::kernels::matmul_tuning::ShapeKey {
         b_strides: [c.b_row, c.b_col, c.b_batch],
         splits: c.k_splits,
         epilogue: c.epilogue,
+        vector_reads,
     }
 }
