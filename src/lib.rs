@@ -41,6 +41,7 @@ pub mod eval;
 pub mod run;
 // commands
 pub mod replay;
+pub mod retarget;
 pub mod synth;
 pub mod starter;
 pub mod bench_contacts;

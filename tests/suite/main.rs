@@ -26,6 +26,7 @@ mod physics;
 mod play;
 mod record;
 mod reference;
+mod retarget;
 mod sac;
 mod shaders;
 mod starter;
