@@ -12,6 +12,7 @@
 //! described in `docs/references.md` (section "Reference trajectory format") and implemented in [`io`]. Between keyframes
 //! [`Trajectory::sample`] interpolates linearly (positions, joints, fingertips) and by shortest-arc
 //! slerp (wrist and object rotations); outside the keyframes it holds the first or last frame.
+//! [`npy`] reads NumPy's `.npy` / `.npz` arrays, the files human demonstrations come in.
 
 use anyhow::{Result, bail};
 use glam::{Quat, Vec3};
@@ -19,6 +20,7 @@ use glam::{Quat, Vec3};
 use crate::geom::Pose;
 
 pub mod io;
+pub mod npy;
 pub mod perturb;
 
 pub use io::{FORMAT_VERSION, REFERENCE_JSON_SCHEMA, REFERENCE_METADATA_NAME, REFERENCE_SCHEMA_NAME, REFERENCE_TOPIC};

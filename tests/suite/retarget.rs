@@ -159,3 +159,123 @@ fn a_smaller_hand_retargets_with_its_scale_and_bad_keypoints_are_errors() {
     let err = retarget_sequence(&m, &spec, &[human.clone(), bad], &default_q(&m)).unwrap_err().to_string();
     assert!(err.contains("frame 1") && err.contains("not finite"), "{err}");
 }
+
+/// Runs `script` with python3 and numpy (its stdout), or None with the reason printed where numpy
+/// is missing (a failure with REQUIRE_PYTHON_NUMPY=1, as CI sets).
+fn with_numpy(test: &str, script: &str, args: &[&std::path::Path]) -> Option<String> {
+    use std::process::Command;
+    let required = std::env::var("REQUIRE_PYTHON_NUMPY").is_ok_and(|v| v == "1");
+    let probe = Command::new("python3").args(["-c", "import numpy"]).output();
+    let why = match &probe {
+        Ok(o) if o.status.success() => None,
+        Ok(o) => Some(format!("python3 cannot import numpy ({})", String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or(""))),
+        Err(e) => Some(format!("cannot run python3: {e}")),
+    };
+    if let Some(why) = why {
+        assert!(!required, "{test}: REQUIRE_PYTHON_NUMPY=1 but {why} (pip install numpy)");
+        eprintln!("{test}: SKIPPED: {why} (pip install numpy to run it)");
+        return None;
+    }
+    let out = Command::new("python3").arg("-c").arg(script).args(args).output().unwrap();
+    assert!(out.status.success(), "{test}: numpy failed:\n{}", String::from_utf8_lossy(&out.stderr));
+    Some(String::from_utf8_lossy(&out.stdout).into_owned())
+}
+
+/// NumPy's own writer makes `.npz` archives (stored and deflated) of every element type we read;
+/// ours reads back the same shapes and values, and refuses what it cannot read with a one-line
+/// error naming the member.
+#[test]
+fn npz_archives_written_by_numpy_read_back_exactly() {
+    use dextrain::traj::npy::{NpyData, read_npz};
+    let dir = tempfile::tempdir().unwrap();
+    let (plain, packed, bad) = (dir.path().join("plain.npz"), dir.path().join("packed.npz"), dir.path().join("bad.npz"));
+    let script = r#"
+import sys, numpy as np
+a = (np.arange(2 * 3 * 4, dtype=np.float32).reshape(2, 3, 4) - 7.25) / 3
+arrays = dict(f4=a, f8=np.linspace(-1.0, 2.0, 7), i4=np.array([3, -1, 2**31 - 1], dtype=np.int32),
+              i8=np.array([[-(2**40), 5]], dtype=np.int64), scalar=np.array(25.0))
+np.savez(sys.argv[1], **arrays)
+np.savez_compressed(sys.argv[2], **arrays)
+np.savez(sys.argv[3], fortran=np.asfortranarray(a), objects=np.array([{"a": 1}], dtype=object), big=a.astype(">f4"))
+"#;
+    if with_numpy("npz_archives_written_by_numpy_read_back_exactly", script, &[&plain, &packed, &bad]).is_none() {
+        return;
+    }
+    for path in [&plain, &packed] {
+        let arrays = read_npz(path).unwrap();
+        let a = &arrays["f4"];
+        assert_eq!(a.shape, vec![2, 3, 4]);
+        let want: Vec<f32> = (0..24).map(|i| (i as f32 - 7.25) / 3.0).collect();
+        assert_eq!(a.data, NpyData::F32(want), "{}: f4 values in C order", path.display());
+        let want8: Vec<f64> = (0..7).map(|i| -1.0 + 3.0 * i as f64 / 6.0).collect();
+        let NpyData::F64(got8) = &arrays["f8"].data else { panic!("f8 read as {}", arrays["f8"].dtype()) };
+        assert!(got8.iter().zip(&want8).all(|(g, w)| (g - w).abs() < 1e-15), "{got8:?}");
+        assert_eq!(arrays["i4"].data, NpyData::I32(vec![3, -1, i32::MAX]));
+        assert_eq!((arrays["i8"].shape.clone(), arrays["i8"].data.clone()), (vec![1, 2], NpyData::I64(vec![-(1i64 << 40), 5])));
+        assert_eq!((arrays["scalar"].shape.len(), arrays["scalar"].to_f64()), (0, vec![25.0]), "a 0-d array");
+    }
+    let err = read_npz(&bad).unwrap_err().to_string();
+    assert!(err.contains("bad.npz") && (err.contains("Fortran") || err.contains("element type")), "{err}");
+    for (member, words) in [("fortran", "Fortran-order"), ("objects", "'|O'"), ("big", "'>f4'")] {
+        // each refused on its own
+        let one = dir.path().join(format!("{member}.npz"));
+        let script = format!("import sys, numpy as np\nd = np.load(sys.argv[1], allow_pickle=True)\nnp.savez(sys.argv[2], {member}=d['{member}'])");
+        with_numpy("npz_archives_written_by_numpy_read_back_exactly", &script, &[&bad, &one]).unwrap();
+        let err = read_npz(&one).unwrap_err().to_string();
+        assert!(err.contains(&format!("{member}.npy")) && err.contains(words) && !err.contains('\n'), "{member}: {err}");
+    }
+}
+
+/// DexMV's mustard demo (`../shared/demos`, where it exists) reads as numpy reads it: 122 frames
+/// at 25 fps, keypoints and object poses equal to numpy's; a demo with the wrong keypoint count,
+/// in millimetres, or without an array is a one-line error naming the file and the array.
+#[test]
+fn the_dexmv_demo_reads_as_numpy_reads_it_and_bad_demos_are_errors() {
+    use dextrain::retarget::demo::load_dexmv;
+    let test = "the_dexmv_demo_reads_as_numpy_reads_it_and_bad_demos_are_errors";
+    let dir = tempfile::tempdir().unwrap();
+    let shared = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../shared/demos/dexmv_relocate_mustard_bottle.npz");
+    if shared.is_file() {
+        let demo = load_dexmv(&shared).unwrap();
+        assert_eq!((demo.keypoints.len(), demo.object.len(), demo.fps), (122, 122, 25.0));
+        let script = "import sys, numpy as np\nd = np.load(sys.argv[1])\nprint(*d['hand_joints'][[0, 60, 121]].reshape(-1).tolist(), *d['object_pose'][[0, 60, 121], :3, 3].reshape(-1).tolist())";
+        if let Some(out) = with_numpy(test, script, &[&shared]) {
+            let v: Vec<f64> = out.split_whitespace().map(|s| s.parse().unwrap()).collect();
+            for (n, f) in [0usize, 60, 121].into_iter().enumerate() {
+                for k in 0..21 {
+                    for c in 0..3 {
+                        assert_eq!(demo.keypoints[f][k][c] as f64, v[(n * 21 + k) * 3 + c], "frame {f} keypoint {k}");
+                    }
+                }
+                for c in 0..3 {
+                    assert!((demo.object[f].pos[c] as f64 - v[3 * 63 + n * 3 + c]).abs() < 1e-6, "frame {f} object position");
+                }
+            }
+        }
+    } else {
+        eprintln!("{test}: the DexMV demo part SKIPPED: no {}", shared.display());
+    }
+    // bad demos, written by numpy
+    let script = r#"
+import sys, numpy as np
+k = np.zeros((3, 21, 3), np.float32); k[:, :, 2] = 0.5; k[:, 9, 0] = 0.09
+pose = np.tile(np.eye(4), (3, 1, 1))
+good = dict(hand_joints=k, object_pose=pose, hand_frame_index=np.arange(1, 4, dtype=np.int32),
+            object_frame_index=np.arange(1, 4, dtype=np.int32), fps=np.array(25.0))
+np.savez(sys.argv[1], **good)
+np.savez(sys.argv[2], **{**good, "hand_joints": k[:, :20]})
+np.savez(sys.argv[3], **{**good, "hand_joints": k * 1000})
+np.savez(sys.argv[4], **{n: a for n, a in good.items() if n != "object_pose"})
+"#;
+    let paths: Vec<std::path::PathBuf> = ["good", "twenty", "millimetres", "no_object"].iter().map(|n| dir.path().join(format!("{n}.npz"))).collect();
+    let args: Vec<&std::path::Path> = paths.iter().map(|p| p.as_path()).collect();
+    if with_numpy(test, script, &args).is_none() {
+        return;
+    }
+    let good = load_dexmv(&paths[0]).unwrap();
+    assert_eq!((good.keypoints.len(), good.keypoints[2][9], good.object[1].pos), (3, Vec3::new(0.09, 0.0, 0.5), Vec3::ZERO));
+    for (path, words) in paths[1..].iter().zip(["[frames, 21, 3]", "expected metres", "no array `object_pose`"]) {
+        let err = load_dexmv(path).unwrap_err().to_string();
+        assert!(err.contains(&path.display().to_string()) && err.contains(words) && !err.contains('\n'), "{err}");
+    }
+}
