@@ -289,14 +289,19 @@ pub fn retarget_frame(m: &Model, spec: &RetargetSpec, keypoints: &[Vec3], start_
     Ok(RetargetFrame { wrist_pos, wrist_rot: rot, q, keypoint_error, vector_error, iterations: taken })
 }
 
-/// The first frame's starting rotation: the human palm frame against the robot's at `q_start`.
-pub fn palm_rotation(m: &Model, spec: &RetargetSpec, keypoints: &[Vec3], q_start: &[f32; MAX_JOINTS]) -> Quat {
+/// The first frame's starting rotation: the human palm frame against the robot's at `q_start`;
+/// an error where either palm's three keypoints are (nearly) on one line.
+pub fn palm_rotation(m: &Model, spec: &RetargetSpec, keypoints: &[Vec3], q_start: &[f32; MAX_JOINTS]) -> Result<Quat> {
     let [w, a, b] = spec.palm;
+    ensure!(w.max(a).max(b) < keypoints.len() && w.max(a).max(b) < spec.points.len(), "palm keypoints {:?} for {} keypoints", spec.palm, keypoints.len());
     let pts = robot_points(m, spec, q_start, &mut IkScratch::default());
     let human = palm_frame(keypoints[w], keypoints[a], keypoints[b]);
     let robot = palm_frame(pts[w], pts[a], pts[b]);
+    for (who, f) in [("the human", human), ("the robot", robot)] {
+        ensure!((f.determinant() - 1.0).abs() < 1e-3, "{who}'s palm keypoints {:?} are on one line: no palm frame", spec.palm);
+    }
     // R robot = human  ⇒  R = human · robotᵀ
-    Quat::from_mat3(&(human * robot.transpose())).normalize()
+    Ok(Quat::from_mat3(&(human * robot.transpose())).normalize())
 }
 
 /// Retargets a sequence of frames: the first from the palm frames and `q_start`, each later one
@@ -306,7 +311,7 @@ pub fn retarget_sequence(m: &Model, spec: &RetargetSpec, frames: &[Vec<Vec3>], q
     for (i, k) in frames.iter().enumerate() {
         let (rot, q) = match out.last() {
             Some(prev) => (prev.wrist_rot, prev.q),
-            None => (palm_rotation(m, spec, k, q_start), *q_start),
+            None => (palm_rotation(m, spec, k, q_start).map_err(|e| anyhow::anyhow!("frame {i}: {e}"))?, *q_start),
         };
         let f = retarget_frame(m, spec, k, rot, &q).map_err(|e| anyhow::anyhow!("frame {i}: {e}"))?;
         out.push(f);

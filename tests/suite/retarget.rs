@@ -142,7 +142,7 @@ fn a_smaller_hand_retargets_with_its_scale_and_bad_keypoints_are_errors() {
     // a "human" hand 0.8× the robot's: its vectors are scaled back by 1.25
     let human = keypoints(&m, &spec, Vec3::new(0.0, 0.0, 0.2), rot, &q, 0.8);
     spec.scale = 1.25;
-    let start = dextrain::retarget::solve::palm_rotation(&m, &spec, &human, &default_q(&m));
+    let start = dextrain::retarget::solve::palm_rotation(&m, &spec, &human, &default_q(&m)).unwrap();
     let got = retarget_frame(&m, &spec, &human, start, &default_q(&m)).expect("retargeted");
     let joint_err = (0..m.g.n_joints as usize).map(|j| (got.q[j] - q[j]).abs()).fold(0.0f32, f32::max);
     assert!(joint_err <= 0.01, "joints off by {joint_err} rad");
@@ -158,6 +158,12 @@ fn a_smaller_hand_retargets_with_its_scale_and_bad_keypoints_are_errors() {
     bad[3].x = f32::NAN;
     let err = retarget_sequence(&m, &spec, &[human.clone(), bad], &default_q(&m)).unwrap_err().to_string();
     assert!(err.contains("frame 1") && err.contains("not finite"), "{err}");
+    // a palm whose three keypoints lie on one line gives no starting rotation
+    let mut flat = human.clone();
+    let [w, a, b] = spec.palm;
+    flat[b] = flat[w] + (flat[a] - flat[w]) * 2.0;
+    let err = retarget_sequence(&m, &spec, &[flat], &default_q(&m)).unwrap_err().to_string();
+    assert!(err.contains("frame 0") && err.contains("on one line"), "{err}");
 }
 
 /// Runs `script` with python3 and numpy (its stdout), or None with the reason printed where numpy
