@@ -191,7 +191,11 @@ fn run(cli: Cli) -> Result<()> {
                 let routines = if routines.is_empty() {
                     GpuMatmul::NAMES.iter().map(|(r, _)| *r).collect()
                 } else {
-                    routines.iter().map(|n| GpuMatmul::parse(n).map_err(|e| anyhow::anyhow!("bench --routines: {e}"))).collect::<anyhow::Result<Vec<_>>>()?
+                    let names: Vec<&str> = GpuMatmul::NAMES.iter().map(|(_, n)| *n).collect();
+                    routines
+                        .iter()
+                        .map(|n| GpuMatmul::parse(n).map_err(|_| anyhow::anyhow!("bench --routines: {n:?} is not a routine; expected some of {}", names.join(", "))))
+                        .collect::<anyhow::Result<Vec<_>>>()?
                 };
                 let report = dextrain::bench_matmul::run_matmul_bench(rows, 10, iters.max(1), &routines, dev, &name)?;
                 console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
