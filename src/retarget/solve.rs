@@ -27,8 +27,8 @@ use anyhow::{Result, ensure};
 use glam::{Mat3, Quat, Vec3};
 
 use crate::env::common::quat_rotate;
+use crate::env::SimModel;
 use crate::env::physics::Model;
-use crate::gpu::layout::NO_JOINT;
 use crate::hand::MAX_JOINTS;
 use crate::task::ik::{IkScratch, ik_apply_mimic, ik_link_poses};
 
@@ -86,15 +86,15 @@ pub struct RetargetFrame {
     pub iterations: usize,
 }
 
-/// The actuated joints of a model: those without a mimic leader.
-fn actuated(m: &Model) -> Vec<usize> {
-    (0..m.g.n_joints as usize).filter(|&j| m.joints[j].mimic_leader == NO_JOINT).collect()
-}
-
 /// The robot's keypoints in the wrist frame at `q`.
 fn robot_points(m: &Model, spec: &RetargetSpec, q: &[f32; MAX_JOINTS], s: &mut IkScratch) -> Vec<Vec3> {
     ik_link_poses(m, q, s);
     spec.points.iter().map(|p| s.link_pos[p.link] + quat_rotate(s.link_rot[p.link], p.offset)).collect()
+}
+
+/// The spec's robot keypoints in the wrist frame at joints `q` (every model joint).
+pub fn robot_keypoints(model: &SimModel, spec: &RetargetSpec, q: &[f32; MAX_JOINTS]) -> Vec<Vec3> {
+    robot_points(&model.view(), spec, q, &mut IkScratch::default())
 }
 
 /// An orthonormal palm frame on three points: x from the wrist toward the knuckles' midpoint, z
@@ -196,10 +196,11 @@ impl Problem<'_> {
 
 /// Retargets one frame of human `keypoints` (world frame, `spec.points.len()` of them): from
 /// `start_rot` and joints `q_start` (every model joint), pulled toward `q_start`.
-pub fn retarget_frame(m: &Model, spec: &RetargetSpec, keypoints: &[Vec3], start_rot: Quat, q_start: &[f32; MAX_JOINTS]) -> Result<RetargetFrame> {
+pub fn retarget_frame(model: &SimModel, spec: &RetargetSpec, keypoints: &[Vec3], start_rot: Quat, q_start: &[f32; MAX_JOINTS]) -> Result<RetargetFrame> {
+    let m = &model.view();
     ensure!(keypoints.len() == spec.points.len(), "{} keypoints for {} robot points", keypoints.len(), spec.points.len());
     ensure!(keypoints.iter().all(|k| k.is_finite()), "a keypoint is not finite");
-    let joints = actuated(m);
+    let joints = model.hand.actuated_joints();
     let prev: Vec<f32> = joints.iter().map(|&j| q_start[j]).collect();
     let human: Vec<Vec3> = keypoints.iter().map(|&k| k * spec.scale).collect();
     let problem = Problem { m, spec, human, start_rot, prev: prev.clone(), joints };
@@ -291,10 +292,10 @@ pub fn retarget_frame(m: &Model, spec: &RetargetSpec, keypoints: &[Vec3], start_
 
 /// The first frame's starting rotation: the human palm frame against the robot's at `q_start`;
 /// an error where either palm's three keypoints are (nearly) on one line.
-pub fn palm_rotation(m: &Model, spec: &RetargetSpec, keypoints: &[Vec3], q_start: &[f32; MAX_JOINTS]) -> Result<Quat> {
+pub fn palm_rotation(model: &SimModel, spec: &RetargetSpec, keypoints: &[Vec3], q_start: &[f32; MAX_JOINTS]) -> Result<Quat> {
     let [w, a, b] = spec.palm;
     ensure!(w.max(a).max(b) < keypoints.len() && w.max(a).max(b) < spec.points.len(), "palm keypoints {:?} for {} keypoints", spec.palm, keypoints.len());
-    let pts = robot_points(m, spec, q_start, &mut IkScratch::default());
+    let pts = robot_keypoints(model, spec, q_start);
     let human = palm_frame(keypoints[w], keypoints[a], keypoints[b]);
     let robot = palm_frame(pts[w], pts[a], pts[b]);
     for (who, f) in [("the human", human), ("the robot", robot)] {
@@ -306,14 +307,14 @@ pub fn palm_rotation(m: &Model, spec: &RetargetSpec, keypoints: &[Vec3], q_start
 
 /// Retargets a sequence of frames: the first from the palm frames and `q_start`, each later one
 /// warm-started from (and pulled toward) the previous solution.
-pub fn retarget_sequence(m: &Model, spec: &RetargetSpec, frames: &[Vec<Vec3>], q_start: &[f32; MAX_JOINTS]) -> Result<Vec<RetargetFrame>> {
+pub fn retarget_sequence(model: &SimModel, spec: &RetargetSpec, frames: &[Vec<Vec3>], q_start: &[f32; MAX_JOINTS]) -> Result<Vec<RetargetFrame>> {
     let mut out: Vec<RetargetFrame> = Vec::with_capacity(frames.len());
     for (i, k) in frames.iter().enumerate() {
         let (rot, q) = match out.last() {
             Some(prev) => (prev.wrist_rot, prev.q),
-            None => (palm_rotation(m, spec, k, q_start).map_err(|e| anyhow::anyhow!("frame {i}: {e}"))?, *q_start),
+            None => (palm_rotation(model, spec, k, q_start).map_err(|e| anyhow::anyhow!("frame {i}: {e}"))?, *q_start),
         };
-        let f = retarget_frame(m, spec, k, rot, &q).map_err(|e| anyhow::anyhow!("frame {i}: {e}"))?;
+        let f = retarget_frame(model, spec, k, rot, &q).map_err(|e| anyhow::anyhow!("frame {i}: {e}"))?;
         out.push(f);
     }
     Ok(out)

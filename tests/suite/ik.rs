@@ -46,16 +46,6 @@ fn random_q(m: &Model, i: u32, free: f32) -> [f32; MAX_JOINTS] {
     q
 }
 
-/// The joints a reset starts from: defaults clamped into the limits, followers from their leaders.
-fn default_seed(m: &Model) -> [f32; MAX_JOINTS] {
-    let mut q = [0.0; MAX_JOINTS];
-    for j in 0..m.g.n_joints as usize {
-        q[j] = m.joints[j].default_q.clamp(m.joints[j].lower, m.joints[j].upper);
-    }
-    ik_apply_mimic(m, &mut q);
-    q
-}
-
 /// `q` with every joint moved by up to ±0.3 rad, clamped into the limits.
 fn perturbed(m: &Model, q: &[f32; MAX_JOINTS], i: u32) -> [f32; MAX_JOINTS] {
     let mut p = *q;
@@ -186,7 +176,7 @@ fn reachable_targets_are_reached_within_a_millimetre() {
             for i in 0..n {
                 let q_true = random_q(&m, i, if seed_kind == "default" { 0.6 } else { 3.14 });
                 let targets = tips(&m, &q_true);
-                let seed = if seed_kind == "default" { default_seed(&m) } else { perturbed(&m, &q_true, i) };
+                let seed = if seed_kind == "default" { default_joints(&m) } else { perturbed(&m, &q_true, i) };
                 let q = ik_solve(&m, &seed, &targets, mask, &prm);
                 check_limits_and_mimic(&m, &q, &format!("{urdf} {seed_kind} case {i}"));
                 errs.push(worst_err(&m, &q, &targets, mask));
@@ -232,7 +222,7 @@ fn unreachable_targets_give_finite_joints_within_limits() {
             let after: f32 = (0..m.g.n_tips as usize).map(|k| (p[k] - targets[k]).length_squared()).sum();
             assert!(after <= before, "{urdf} case {i}: the tips moved away from far targets ({before} -> {after})");
         }
-        let seed = default_seed(&m);
+        let seed = default_joints(&m);
         for bad in [f32::NAN, f32::INFINITY] {
             let mut targets = tips(&m, &seed);
             targets[0].x = bad;
@@ -294,7 +284,7 @@ fn a_leader_moves_a_tip_through_its_follower() {
     let idx = |n: &str| sm.hand.joint_index(n).unwrap();
     let fb_tip = sm.spec.tip_names.iter().position(|t| t == "fb_tip").unwrap();
     // fingers bent (j1 = 1 rad), so that the spread has a lever arm
-    let mut seed = default_seed(&m);
+    let mut seed = default_joints(&m);
     for f in ["fa_j1", "fb_j1", "fc_j1"] {
         seed[idx(f)] = 1.0;
     }
@@ -331,7 +321,7 @@ type SweepPoint = (usize, f32, f32, [Vec3; MAX_TIPS]);
 /// δ = 2 mm and 1 cm (nearer than the finger's length: it must bend, and J cannot see that) and
 /// δ = −1 cm (beyond its reach). The other fingertips' targets stay where they are.
 fn straight_finger_sweep(m: &Model) -> Vec<SweepPoint> {
-    let seed = default_seed(m);
+    let seed = default_joints(m);
     let x0 = tips(m, &seed);
     let mut out = Vec::new();
     for t in 0..m.g.n_tips as usize {
@@ -367,7 +357,7 @@ fn straight_finger_sweep(m: &Model) -> Vec<SweepPoint> {
 fn straight_fingers_bend_the_flexion_way_smoothly_and_repeatably() {
     let sm = model_for("dexhand16.urdf");
     let m = sm.view();
-    let seed = default_seed(&m);
+    let seed = default_joints(&m);
     let prm = IkParams::default();
     let (mut worst_lip, mut lip_at) = (0.0f32, (0, 0.0, 0.0));
     let mut prev: Option<SweepPoint> = None;
@@ -572,7 +562,7 @@ fn solve_leaves_room_in_lavapipes_loop_budget() {
         let mut cases = Vec::new();
         for i in 0..64u32 {
             let q_true = random_q(&m, i, 3.14);
-            let seed = if i % 2 == 0 { default_seed(&m) } else { perturbed(&m, &q_true, i) };
+            let seed = if i % 2 == 0 { default_joints(&m) } else { perturbed(&m, &q_true, i) };
             let mut t = tips(&m, &q_true);
             if i % 4 == 1 {
                 for k in 0..MAX_TIPS {
@@ -619,11 +609,11 @@ fn straight_and_near_straight_fingers_solve_alike_on_cpu_and_gpu() {
     let to4 = |t: [Vec3; MAX_TIPS]| t.map(|v| [v.x, v.y, v.z, 0.0]);
     let mut cases = Vec::new();
     for (t, _, _, targets) in straight_finger_sweep(&m) {
-        cases.push(IkCase { seed: default_seed(&m), targets: to4(targets), mask: 1 << t, mode: 0, _pad: [0; 2], prm });
+        cases.push(IkCase { seed: default_joints(&m), targets: to4(targets), mask: 1 << t, mode: 0, _pad: [0; 2], prm });
     }
     let n_sweep = cases.len();
     for i in 0..512u32 {
-        let mut seed = default_seed(&m);
+        let mut seed = default_joints(&m);
         for j in 0..m.g.n_joints as usize {
             let jd = &m.joints[j];
             seed[j] = (seed[j] + 0.1 * (uni(i + 300_000, j as u32) - 0.5)).clamp(jd.lower, jd.upper);

@@ -11,8 +11,8 @@ use dextrain::env::common::rand_uniform;
 use dextrain::env::physics::Model;
 use dextrain::gpu::layout::NO_JOINT;
 use dextrain::hand::MAX_JOINTS;
-use dextrain::retarget::solve::{RetargetSpec, RobotPoint, VectorPair, retarget_frame, retarget_sequence};
-use dextrain::task::ik::{IkScratch, ik_apply_mimic, ik_link_poses};
+use dextrain::retarget::solve::{RetargetSpec, RobotPoint, VectorPair, retarget_frame, retarget_sequence, robot_keypoints};
+use dextrain::task::ik::ik_apply_mimic;
 use glam::{Quat, Vec3};
 
 /// The default config with another shipped hand.
@@ -67,27 +67,9 @@ fn random_q(m: &Model, i: u32) -> [f32; MAX_JOINTS] {
     q
 }
 
-/// The joints a reset starts from: defaults clamped into the limits, followers from their leaders.
-fn default_q(m: &Model) -> [f32; MAX_JOINTS] {
-    let mut q = [0.0; MAX_JOINTS];
-    for j in 0..m.g.n_joints as usize {
-        q[j] = m.joints[j].default_q.clamp(m.joints[j].lower, m.joints[j].upper);
-    }
-    ik_apply_mimic(m, &mut q);
-    q
-}
-
 /// The spec's keypoints (world frame) of the robot at wrist pose (pos, rot) and joints q, scaled.
-fn keypoints(m: &Model, spec: &RetargetSpec, pos: Vec3, rot: Quat, q: &[f32; MAX_JOINTS], scale: f32) -> Vec<Vec3> {
-    let mut s = IkScratch::default();
-    ik_link_poses(m, q, &mut s);
-    spec.points
-        .iter()
-        .map(|p| {
-            let r = Quat::from_array(s.link_rot[p.link].to_array());
-            (pos + rot * (s.link_pos[p.link] + r * p.offset)) * scale
-        })
-        .collect()
+fn keypoints(model: &SimModel, spec: &RetargetSpec, pos: Vec3, rot: Quat, q: &[f32; MAX_JOINTS], scale: f32) -> Vec<Vec3> {
+    robot_keypoints(model, spec, q).into_iter().map(|p| (pos + rot * p) * scale).collect()
 }
 
 #[test]
@@ -112,10 +94,10 @@ fn keypoints_of_known_poses_retarget_back_to_those_poses_on_both_hands() {
             ik_apply_mimic(&m, &mut q);
             let rot = Quat::from_axis_angle(axis, 0.5 + 0.4 * t);
             let pos = Vec3::new(0.1, -0.05 + 0.1 * t, 0.3);
-            demo.push(keypoints(&m, &spec, pos, rot, &q, 1.0));
+            demo.push(keypoints(&model, &spec, pos, rot, &q, 1.0));
             truth.push((pos, rot, q));
         }
-        let out = retarget_sequence(&m, &spec, &demo, &default_q(&m)).expect("retargeted");
+        let out = retarget_sequence(&model, &spec, &demo, &default_joints(&m)).expect("retargeted");
         assert_eq!(out.len(), frames);
         for (f, (got, (pos, rot, q))) in out.iter().zip(&truth).enumerate() {
             let joint_err = actuated.iter().map(|&j| (got.q[j] - q[j]).abs()).fold(0.0f32, f32::max);
@@ -140,29 +122,29 @@ fn a_smaller_hand_retargets_with_its_scale_and_bad_keypoints_are_errors() {
     let q = random_q(&m, 5);
     let rot = Quat::from_axis_angle(Vec3::Z, 0.3);
     // a "human" hand 0.8× the robot's: its vectors are scaled back by 1.25
-    let human = keypoints(&m, &spec, Vec3::new(0.0, 0.0, 0.2), rot, &q, 0.8);
+    let human = keypoints(&model, &spec, Vec3::new(0.0, 0.0, 0.2), rot, &q, 0.8);
     spec.scale = 1.25;
-    let start = dextrain::retarget::solve::palm_rotation(&m, &spec, &human, &default_q(&m)).unwrap();
-    let got = retarget_frame(&m, &spec, &human, start, &default_q(&m)).expect("retargeted");
+    let start = dextrain::retarget::solve::palm_rotation(&model, &spec, &human, &default_joints(&m)).unwrap();
+    let got = retarget_frame(&model, &spec, &human, start, &default_joints(&m)).expect("retargeted");
     let joint_err = (0..m.g.n_joints as usize).map(|j| (got.q[j] - q[j]).abs()).fold(0.0f32, f32::max);
     assert!(joint_err <= 0.01, "joints off by {joint_err} rad");
     assert!((got.wrist_pos - Vec3::new(0.0, 0.0, 0.2)).length() < 1e-3, "the wrist at the scaled position: {}", got.wrist_pos);
     // without the scale the vectors cannot all match: the error says so
     spec.scale = 1.0;
-    let unscaled = retarget_frame(&m, &spec, &human, start, &default_q(&m)).expect("retargeted");
+    let unscaled = retarget_frame(&model, &spec, &human, start, &default_joints(&m)).expect("retargeted");
     assert!(unscaled.vector_error.iter().copied().fold(0.0f32, f32::max) > 5e-3, "a 0.8× hand matched unscaled");
     // a missing keypoint or a NaN is an error, not a panic
-    let err = retarget_frame(&m, &spec, &human[1..], start, &default_q(&m)).unwrap_err().to_string();
+    let err = retarget_frame(&model, &spec, &human[1..], start, &default_joints(&m)).unwrap_err().to_string();
     assert!(err.contains("keypoints for"), "{err}");
     let mut bad = human.clone();
     bad[3].x = f32::NAN;
-    let err = retarget_sequence(&m, &spec, &[human.clone(), bad], &default_q(&m)).unwrap_err().to_string();
+    let err = retarget_sequence(&model, &spec, &[human.clone(), bad], &default_joints(&m)).unwrap_err().to_string();
     assert!(err.contains("frame 1") && err.contains("not finite"), "{err}");
     // a palm whose three keypoints lie on one line gives no starting rotation
     let mut flat = human.clone();
     let [w, a, b] = spec.palm;
     flat[b] = flat[w] + (flat[a] - flat[w]) * 2.0;
-    let err = retarget_sequence(&m, &spec, &[flat], &default_q(&m)).unwrap_err().to_string();
+    let err = retarget_sequence(&model, &spec, &[flat], &default_joints(&m)).unwrap_err().to_string();
     assert!(err.contains("frame 0") && err.contains("on one line"), "{err}");
 }
 

@@ -68,20 +68,19 @@ const ROUND_SECONDS: f64 = 2e-3;
 /// Rounds over all variants; a variant's time is its best round's.
 const ROUNDS: usize = 3;
 
-/// The variant for the product `key`: the remembered one, or the fastest of `candidates` timed
+/// The variant for the product `key`: the remembered one, or the fastest of `candidates()` timed
 /// now, `rule` where none was timed. `launch(variant)` launches the product as `variant` into its
 /// output; `wait()` waits for the device.
-pub fn tuned_variant(key: &ShapeKey, rule: Variant, candidates: &[Variant], mut launch: impl FnMut(Variant), mut wait: impl FnMut()) -> Variant {
+pub fn tuned_variant(key: &ShapeKey, rule: Variant, candidates: impl FnOnce() -> Vec<Variant>, mut launch: impl FnMut(Variant), mut wait: impl FnMut()) -> Variant {
     if let Some(v) = TUNED.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert_with(HashMap::new).get(key) {
         return *v;
     }
+    let candidates = candidates();
     let started = Instant::now();
-    let mut waits = 0u64;
-    let mut micros = Vec::new();
     // each variant's pipeline compiled (a warm-up launch), and its launches per round from one
     // timed launch
     let mut reps = Vec::with_capacity(candidates.len());
-    for &variant in candidates {
+    for &variant in &candidates {
         launch(variant);
         wait();
         let t = Instant::now();
@@ -89,7 +88,6 @@ pub fn tuned_variant(key: &ShapeKey, rule: Variant, candidates: &[Variant], mut 
         wait();
         let once = t.elapsed().as_secs_f64();
         reps.push((ROUND_SECONDS / once.max(1e-6)).ceil().clamp(2.0, 64.0) as usize);
-        waits += 2;
     }
     // rounds over all variants in turn, so that a drift of the card's clock (rising from idle at a
     // process's start) weighs on every variant alike; each variant's best round counts
@@ -102,11 +100,11 @@ pub fn tuned_variant(key: &ShapeKey, rule: Variant, candidates: &[Variant], mut 
             }
             wait();
             best[i] = best[i].min(t.elapsed().as_secs_f64() / reps[i] as f64);
-            waits += 1;
         }
     }
-    micros.extend(candidates.iter().zip(&best).map(|(v, s)| (*v, s * 1e6)));
-    crate::gpu_counts::add_n(crate::gpu_counts::Event::Wait, "dextrain:matmul_tuning", waits);
+    let micros: Vec<(Variant, f64)> = candidates.iter().zip(&best).map(|(v, s)| (*v, s * 1e6)).collect();
+    // two waits per variant to compile and size it, one per round
+    crate::gpu_counts::add_n(crate::gpu_counts::Event::Wait, "dextrain:matmul_tuning", ((2 + ROUNDS) * candidates.len()) as u64);
     let chosen = micros.iter().min_by(|a, b| a.1.total_cmp(&b.1)).map_or(rule, |(v, _)| *v);
     TUNED.lock().unwrap_or_else(PoisonError::into_inner).get_or_insert_with(HashMap::new).insert(*key, chosen);
     let record = TuningRecord { key: *key, rule, chosen, micros, tuning_ms: started.elapsed().as_secs_f64() * 1e3 };

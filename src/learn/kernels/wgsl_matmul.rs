@@ -84,8 +84,6 @@ impl Tile {
     /// 256 × 16 per workgroup, 4 × 4 per thread, 16 deep: a product with few columns (a policy's
     /// actions, a critic's value) without a 64-wide tile's idle columns.
     pub const NARROW: Tile = Tile { rows: 256, cols: 16, depth: 16, thread_rows: 4, thread_cols: 4 };
-    /// The shapes the shape rule uses ([`Tile::for_product`], [`plan`]).
-    pub const ALL: [Tile; 3] = [Tile::SMALL, Tile::LARGE, Tile::TALL];
     /// The shapes [`TileChoice::Tuned`] times: every shape the template is written for.
     pub const CANDIDATES: [Tile; 8] =
         [Tile::SMALL, Tile::LARGE, Tile::TALL, Tile::WIDE, Tile::LARGE_DEEP, Tile::HUGE_WIDE, Tile::HUGE_TALL, Tile::NARROW];
@@ -542,13 +540,13 @@ impl Planned {
     }
 
     /// The variants the tuner times: every candidate tile shape that takes the product, with
-    /// scalar reads and, where the operands allow, with vec4 reads.
-    fn candidates(&self) -> Vec<Variant> {
+    /// scalar reads and, with `vector_reads` where the operands allow, with vec4 reads.
+    fn candidates(&self, vector_reads: bool) -> Vec<Variant> {
         let mut out = Vec::new();
         for tile in Tile::CANDIDATES.into_iter().filter(|t| self.grid(*t).is_some()) {
             out.push(Variant::scalar(tile));
             let v = self.vector_variant(tile);
-            if v != Variant::scalar(tile) {
+            if vector_reads && v != Variant::scalar(tile) {
                 out.push(v);
             }
         }
@@ -595,9 +593,9 @@ pub fn matmul_then(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, choice: Til
     let out = planned.output(lhs, rhs);
     let variant = match choice {
         TileChoice::Tuned { vector_reads } => {
-            let mut candidates = planned.candidates();
-            candidates.retain(|v| vector_reads || *v == Variant::scalar(v.tile));
-            crate::learn::kernels::matmul_tuning::tuned_variant(&planned_key(&planned, vector_reads), Variant::scalar(planned.rule_tile), &candidates, |v| {
+            // (the candidates are listed only where the product is not tuned yet)
+            let candidates = || planned.candidates(vector_reads);
+            crate::learn::kernels::matmul_tuning::tuned_variant(&planned_key(&planned, vector_reads), Variant::scalar(planned.rule_tile), candidates, |v| {
                 planned.launch(v, lhs, rhs, &out, epilogue)
             }, || {
                 let _ = burn_cubecl::cubecl::future::block_on(lhs.client.sync()); // (a failure surfaces at the next read)
@@ -612,7 +610,7 @@ pub fn matmul_then(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, choice: Til
 /// The variants [`TileChoice::Tuned`] times for `lhs · rhs` (with `epilogue`): every candidate
 /// tile shape, with scalar reads and, where the operands allow, vec4 reads.
 pub fn candidate_variants(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, epilogue: Epilogue<'_>) -> Result<Vec<Variant>> {
-    Ok(Planned::new(lhs, rhs, None, epilogue)?.candidates())
+    Ok(Planned::new(lhs, rhs, None, epilogue)?.candidates(true))
 }
 
 /// `lhs · rhs` (with `epilogue`) planned by shape ([`TileChoice::ByShape`]'s splits over k) but
@@ -620,7 +618,7 @@ pub fn candidate_variants(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, epil
 /// candidate (a test compares them).
 pub fn matmul_as_planned_in(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, variant: Variant, epilogue: Epilogue<'_>) -> Result<FloatTensor<Cube>> {
     let planned = Planned::new(lhs, rhs, None, epilogue)?;
-    ensure!(planned.candidates().contains(&variant), "matmul.wgsl: {} does not take this product", variant.label());
+    ensure!(planned.candidates(true).contains(&variant), "matmul.wgsl: {} does not take this product", variant.label());
     let out = planned.output(lhs, rhs);
     planned.launch(variant, lhs, rhs, &out, epilogue);
     Ok(planned.finish(out))

@@ -6,6 +6,9 @@ use dextrain::env::cpu::CpuEnvBatch;
 use dextrain::env::gpu::GpuEnvBatch;
 use dextrain::gpu::context::GpuContext;
 use dextrain::env::{EnvBatch, SimModel};
+use dextrain::env::physics::Model;
+use dextrain::hand::MAX_JOINTS;
+use dextrain::task::ik::ik_apply_mimic;
 
 /// The default config with the shipped hand, CPU backend, `n` envs, the wrist parked high above
 /// the table.
@@ -127,4 +130,14 @@ pub fn box_turned_into_palm(b: &mut CpuEnvBatch, depth: f32, lateral: impl Fn(us
     }
     b.set_states(&states).unwrap();
     edges
+}
+
+/// The joints a reset starts from: defaults clamped into the limits, followers from their leaders.
+pub fn default_joints(m: &Model) -> [f32; MAX_JOINTS] {
+    let mut q = [0.0; MAX_JOINTS];
+    for j in 0..m.g.n_joints as usize {
+        q[j] = m.joints[j].default_q.clamp(m.joints[j].lower, m.joints[j].upper);
+    }
+    ik_apply_mimic(m, &mut q);
+    q
 }
