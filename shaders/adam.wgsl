@@ -4,6 +4,8 @@
 //   adam_norm_partial  once per parameter: Σ g² of its gradient in ADAM_PARTIALS fixed slices
 //   adam_norm_final    once: ‖g‖ = √(Σ of every slice's sum), the clip coefficient
 //   adam_update        once per parameter: the clipped gradient into the moments and the parameter
+//   adam_update_polyak adam_update and then, for SAC's critics, the target network's copy of the
+//                      parameter moved towards it: t ← τ p + (1 − τ) t (Polyak averaging)
 // Every sum runs in a fixed order (the same bits on every run of the same adapter).
 
 const ADAM_WORKGROUP: u32 = 256u;
@@ -24,6 +26,11 @@ struct AdamStep {
     // decoupled weight decay λ (AdamW), 0 for Adam
     weight_decay: f32,
     max_norm: f32,
+    // adam_update_polyak's τ and 1 − τ (worked out on the host in f64)
+    tau: f32,
+    one_minus_tau: f32,
+    _pad0: u32,
+    _pad1: u32,
 }
 
 // one parameter's sizes (a slot per parameter, written once)
@@ -52,6 +59,8 @@ struct AdamParam {
 @group(0) @binding(7) var<storage, read_write> adam_norm: array<f32>;
 // the learning rate [1] (a burn tensor [1, 1]: the adaptive schedule changes it on the device)
 @group(0) @binding(8) var<storage, read_write> adam_lr: array<f32>;
+// the target network's copy of the parameter (adam_update_polyak; updated in place)
+@group(0) @binding(9) var<storage, read_write> adam_target: array<f32>;
 
 var<workgroup> adam_shared: array<f32, ADAM_WORKGROUP>;
 
@@ -113,16 +122,11 @@ fn adam_norm_final(@builtin(local_invocation_index) lid: u32) {
     }
 }
 
-// one element of the parameter: g ← coef · g; m ← β1 m + (1 − β1) g; v ← β2 v + (1 − β2) g²;
-// p ← p (1 − lr λ); p ← p − lr/(1 − β1ᵗ) · m / (√v / √(1 − β2ᵗ) + ε)
-@compute @workgroup_size(ADAM_WORKGROUP)
-fn adam_update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
-    let i = gid.x + gid.y * nwg.x * ADAM_WORKGROUP;
-    if (i >= ap.n) {
-        return;
-    }
+// one element of the parameter: g ← coef · g (coef = 1 without clipping); m ← β1 m + (1 − β1) g; v ← β2 v + (1 − β2) g²;
+// p ← p (1 − lr λ); p ← p − lr/(1 − β1ᵗ) · m / (√v / √(1 − β2ᵗ) + ε). Returns the new p.
+fn adam_element(i: u32) -> f32 {
     let lr = adam_lr[0];
-    let g = adam_g[i] * adam_norm[1];
+    let g = adam_g[i] * select(1.0, adam_norm[1], ac.clip == 1u); // (the norm's passes ran only when clipping or asked for)
     let m = adam_m[i] * ac.beta1 + g * (1.0 - ac.beta1);
     let v = adam_v[i] * ac.beta2 + (g * g) * (1.0 - ac.beta2);
     adam_m[i] = m;
@@ -132,5 +136,33 @@ fn adam_update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workg
     if (ac.weight_decay > 0.0) {
         p = p * (1.0 - lr * ac.weight_decay);
     }
-    adam_p[i] = p - (m / denom) * (lr / ac.bc1);
+    p = p - (m / denom) * (lr / ac.bc1);
+    adam_p[i] = p;
+    return p;
+}
+
+// the element of this invocation (a 2-D grid of ADAM_WORKGROUP-wide rows), or n and beyond
+fn adam_index(gid: vec3<u32>, nwg: vec3<u32>) -> u32 {
+    return gid.x + gid.y * nwg.x * ADAM_WORKGROUP;
+}
+
+@compute @workgroup_size(ADAM_WORKGROUP)
+fn adam_update(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = adam_index(gid, nwg);
+    if (i >= ap.n) {
+        return;
+    }
+    adam_element(i);
+}
+
+// adam_update, then t ← τ p + (1 − τ) t with the new p (the twin of SAC's tensor ops
+// `p·τ + t·(1 − τ)`)
+@compute @workgroup_size(ADAM_WORKGROUP)
+fn adam_update_polyak(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+    let i = adam_index(gid, nwg);
+    if (i >= ap.n) {
+        return;
+    }
+    let p = adam_element(i);
+    adam_target[i] = p * ac.tau + adam_target[i] * ac.one_minus_tau;
 }

@@ -206,6 +206,8 @@ pub const ADAM_PARTIALS: Binding = binding(6, "adam_partials", StorageReadWrite)
 pub const ADAM_NORM: Binding = binding(7, "adam_norm", StorageReadWrite);
 /// `array<f32>` `[1]`: the learning rate.
 pub const ADAM_LR: Binding = binding(8, "adam_lr", StorageReadWrite);
+/// `array<f32>`: the target network's copy of the parameter (SAC's critics; updated in place).
+pub const ADAM_TARGET: Binding = binding(9, "adam_target", StorageReadWrite);
 
 /// `adam_norm_partial`: one parameter's slices of Σ g².
 pub const ADAM_NORM_PARTIAL: EntryBindings = EntryBindings { entry_point: "adam_norm_partial", bindings: &[ADAM_PARAM_CFG, ADAM_GRAD, ADAM_PARTIALS] };
@@ -214,12 +216,17 @@ pub const ADAM_NORM_FINAL: EntryBindings = EntryBindings { entry_point: "adam_no
 /// `adam_update`: one parameter's Adam step.
 pub const ADAM_UPDATE: EntryBindings =
     EntryBindings { entry_point: "adam_update", bindings: &[ADAM_STEP, ADAM_PARAM_CFG, ADAM_PARAM, ADAM_GRAD, ADAM_M, ADAM_V, ADAM_NORM, ADAM_LR] };
+/// `adam_update_polyak`: one parameter's Adam step, then its target copy's Polyak average.
+pub const ADAM_UPDATE_POLYAK: EntryBindings = EntryBindings {
+    entry_point: "adam_update_polyak",
+    bindings: &[ADAM_STEP, ADAM_PARAM_CFG, ADAM_PARAM, ADAM_GRAD, ADAM_M, ADAM_V, ADAM_NORM, ADAM_LR, ADAM_TARGET],
+};
 
 /// The optimiser's module (shaders/adam.wgsl alone).
 pub const ADAM_GROUP: ShaderGroup = ShaderGroup {
     shader: "dextrain adam",
-    bindings: &[ADAM_STEP, ADAM_PARAM_CFG, ADAM_PARAM, ADAM_GRAD, ADAM_M, ADAM_V, ADAM_PARTIALS, ADAM_NORM, ADAM_LR],
-    entry_points: &[ADAM_NORM_PARTIAL, ADAM_NORM_FINAL, ADAM_UPDATE],
+    bindings: &[ADAM_STEP, ADAM_PARAM_CFG, ADAM_PARAM, ADAM_GRAD, ADAM_M, ADAM_V, ADAM_PARTIALS, ADAM_NORM, ADAM_LR, ADAM_TARGET],
+    entry_points: &[ADAM_NORM_PARTIAL, ADAM_NORM_FINAL, ADAM_UPDATE, ADAM_UPDATE_POLYAK],
 };
 
 // ---- the GPU learner's matrix product of our own (matmul.wgsl, a module of its own, launched
@@ -305,6 +312,35 @@ pub const LN_BACKWARD: EntryBindings = EntryBindings { entry_point: "layer_norm_
 
 /// LayerNorm's backward module (shaders/layer_norm_common.wgsl and layer_norm_backward.wgsl).
 pub const LNB_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain layer norm backward", bindings: &[LNB_NORMED, LNB_RSTD, LNB_GAIN, LNB_DY, LNB_DH, LNB_DY_NORMED, LNB_CFG], entry_points: &[LN_BACKWARD] };
+
+// ---- SAC's squashed-Gaussian sample (squashed_common.wgsl with squashed_sample.wgsl, and with
+// squashed_sample_backward.wgsl: two modules, launched by learn/kernels/squashed.rs on burn's stream:
+// cubecl binds the buffers in order, then the uniform) ----
+
+/// `array<f32>` `[B, 2A]`: the actor's head (μ, then the unsquashed log σ).
+pub const SQ_HEAD: Binding = binding(0, "sq_head", StorageReadWrite);
+/// `array<f32>` `[B, A]`: the noise ε.
+pub const SQ_EPS: Binding = binding(1, "sq_eps", StorageReadWrite);
+/// `array<f32>` `[B, A + 1]`: the actions, then log π.
+pub const SQ_OUT: Binding = binding(2, "sq_out", StorageReadWrite);
+/// `SqCfg`: rows, actions, the grid's row length, log σ's range.
+pub const SQ_CFG: Binding = binding(3, "sc", Uniform);
+/// `array<f32>` `[B, A + 1]`: ∂L/∂a, then ∂L/∂log π (the backward module).
+pub const SQ_DOUT: Binding = binding(2, "sq_dout", StorageReadWrite);
+/// `array<f32>` `[B, 2A]`: ∂L/∂head (the backward module).
+pub const SQ_DHEAD: Binding = binding(3, "sq_dhead", StorageReadWrite);
+/// `SqCfg` in the backward module.
+pub const SQB_CFG: Binding = binding(4, "sc", Uniform);
+
+/// `squashed_sample`: one row per invocation.
+pub const SQ_FORWARD: EntryBindings = EntryBindings { entry_point: "squashed_sample", bindings: &[SQ_HEAD, SQ_EPS, SQ_OUT, SQ_CFG] };
+/// `squashed_sample_backward`: one row per invocation.
+pub const SQ_BACKWARD: EntryBindings = EntryBindings { entry_point: "squashed_sample_backward", bindings: &[SQ_HEAD, SQ_EPS, SQ_DOUT, SQ_DHEAD, SQB_CFG] };
+
+/// The squashed sample's forward module.
+pub const SQ_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain squashed sample", bindings: &[SQ_HEAD, SQ_EPS, SQ_OUT, SQ_CFG], entry_points: &[SQ_FORWARD] };
+/// The squashed sample's backward module.
+pub const SQB_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain squashed sample backward", bindings: &[SQ_HEAD, SQ_EPS, SQ_DOUT, SQ_DHEAD, SQB_CFG], entry_points: &[SQ_BACKWARD] };
 
 // ---- the device-resident learners' observation normalisers (normalizer.wgsl, a module of its
 // own; bound by learn/kernels/fused_normalizer.rs with slices of burn's tensors) ----

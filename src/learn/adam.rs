@@ -5,7 +5,7 @@
 use anyhow::{Context, Result, ensure};
 use burn::prelude::*;
 
-use super::kernels::fused_adam::{FusedAdam, StepConstants};
+use super::kernels::fused_adam::{FusedAdam, FusedStep, StepConstants};
 use super::nets::{to_host, to_tensor};
 use super::state::{LearnerState, TensorValues};
 
@@ -27,6 +27,10 @@ pub struct Adam {
     pub m: Vec<Tensor<2>>,
     /// Second moment estimates (same shapes as `m`).
     pub v: Vec<Tensor<2>>,
+    /// Whether a step reports the gradients' norm (true by default). An optimiser whose learner
+    /// does not read it and does not clip sets false: on a GPU its norm's kernels are then not run
+    /// and [`Adam::step_clipped`] returns no norm.
+    pub report_norm: bool,
     /// The kernels of a GPU learner (None on the CPU).
     fused: Option<FusedAdam>,
 }
@@ -37,16 +41,32 @@ impl Adam {
         let zeros = || shapes.iter().map(|s| Tensor::zeros(*s, device).inner()).collect::<Vec<_>>();
         // (a kernel that cannot be built leaves the tensor ops, which give the same step)
         let fused = super::device::gpu_context_of(device).and_then(|ctx| FusedAdam::new(&ctx, device, shapes).ok());
-        Adam { beta1: 0.9, beta2: 0.999, eps: 1e-8, weight_decay: 0.0, t: 0, m: zeros(), v: zeros(), fused }
+        Adam { beta1: 0.9, beta2: 0.999, eps: 1e-8, weight_decay: 0.0, t: 0, m: zeros(), v: zeros(), report_norm: true, fused }
     }
 
     /// One step from a backward pass, with torch's global-norm gradient clipping: the gradients
     /// of `params` (in order) scaled by `min(1, max_norm / (‖g‖ + 1e-6))` (not scaled when
     /// `max_norm` is 0), then [`Adam::step`] at learning rate `lr` (`[1, 1]` on the learner
     /// device, so that a schedule can change it without a host read). Returns the new leaves and
-    /// `‖g‖` before clipping (`[1]`, read lazily). On burn's wgpu runtime this is adam.wgsl's three
+    /// `‖g‖` before clipping (`[1]`, read lazily; None when `report_norm` is off and the step did
+    /// not clip). On burn's wgpu runtime this is adam.wgsl's three
     /// kernels in place (`fused_adam.rs`), elsewhere tensor ops: the same maths.
-    pub fn step_clipped(&mut self, params: &[Tensor<2>], grads: &burn::tensor::Gradients, max_norm: f64, lr: &Tensor<2>) -> Result<(Vec<Tensor<2>>, Tensor<1>)> {
+    pub fn step_clipped(&mut self, params: &[Tensor<2>], grads: &burn::tensor::Gradients, max_norm: f64, lr: &Tensor<2>) -> Result<(Vec<Tensor<2>>, Option<Tensor<1>>)> {
+        self.step_clipped_and_average(params, grads, max_norm, lr, None)
+    }
+
+    /// [`Adam::step_clipped`], then each parameter's target copy (SAC's target critics, one per
+    /// parameter, non-autodiff) moved towards the new value: `t ← τ p + (1 − τ) t` (Polyak
+    /// averaging; `tau` in (0, 1)). On burn's wgpu runtime in the optimiser's own kernels
+    /// (`adam_update_polyak`, the targets written in place), elsewhere as tensor ops.
+    pub fn step_clipped_polyak(&mut self, params: &[Tensor<2>], grads: &burn::tensor::Gradients, max_norm: f64, lr: &Tensor<2>, targets: &mut [Tensor<2>], tau: f64) -> Result<(Vec<Tensor<2>>, Option<Tensor<1>>)> {
+        ensure!(targets.len() == params.len(), "{} Polyak targets for {} parameters", targets.len(), params.len());
+        self.step_clipped_and_average(params, grads, max_norm, lr, Some((targets, tau)))
+    }
+
+    /// [`Adam::step_clipped`] with the Polyak average of [`Adam::step_clipped_polyak`] when
+    /// `polyak` is given.
+    fn step_clipped_and_average(&mut self, params: &[Tensor<2>], grads: &burn::tensor::Gradients, max_norm: f64, lr: &Tensor<2>, polyak: Option<(&mut [Tensor<2>], f64)>) -> Result<(Vec<Tensor<2>>, Option<Tensor<1>>)> {
         let gs: Vec<Tensor<2>> = params
             .iter()
             .enumerate()
@@ -67,19 +87,27 @@ impl Adam {
                 max_norm,
             };
             let inner: Vec<Tensor<2>> = params.iter().map(|p| p.clone().inner()).collect();
-            if let Some(norm) = fused.step(&inner, &gs, &self.m, &self.v, &lr, &c)? {
+            let targets = polyak.as_ref().map(|(ts, tau)| (&ts[..], *tau));
+            if let FusedStep::Taken(norm) = fused.step(&inner, &gs, &self.m, &self.v, &lr, &c, targets, self.report_norm)? {
                 self.t = t;
                 let out = inner.into_iter().map(|p| p.autodiff().require_grad()).collect();
-                return Ok((out, norm.slice([0..1, 0..1]).reshape([1])));
+                return Ok((out, norm.map(|n| n.slice([0..1, 0..1]).reshape([1]))));
             }
         }
         let (gs, norm) = clip_to_norm(gs, max_norm)?;
-        if !super::nets::is_gpu(&lr.device()) {
+        let out = if !super::nets::is_gpu(&lr.device()) {
             // on the CPU a read costs nothing, and a number multiplies faster than a broadcast tensor
             let value = to_host(lr)?[0] as f64;
-            return Ok((self.step_at(params, gs, LearningRate::Value(value)), norm));
+            self.step_at(params, gs, LearningRate::Value(value))
+        } else {
+            self.step_at(params, gs, LearningRate::Tensor(&lr))
+        };
+        if let Some((targets, tau)) = polyak {
+            for (t, p) in targets.iter_mut().zip(&out) {
+                *t = p.clone().inner().mul_scalar(tau) + t.clone().mul_scalar(1.0 - tau); // τ p + (1 − τ) t
+            }
         }
-        Ok((self.step_at(params, gs, LearningRate::Tensor(&lr)), norm))
+        Ok((out, Some(norm)))
     }
 
     /// One step: `params[i] ← params[i] − lr/(1−β1ᵗ) · m / (√v/√(1−β2ᵗ) + ε)`. `params` are the

@@ -146,6 +146,27 @@ pub fn to_tensor(data: Vec<f32>, shape: [usize; 2], device: &Device) -> Tensor<2
     Tensor::from_data(TensorData::new(data, shape), device)
 }
 
+/// Host rows `data` as a `[rows, cols]` tensor on `device`, copied once. On burn's wgpu runtime
+/// they go straight into a fresh tensor's memory through the queue (wgpu's one staging copy) where
+/// [`to_tensor`] takes an owned copy that cubecl copies again: for a PPO rollout of the peer
+/// shapes (~100 MB) two host copies fewer per update. burn's recorded work is submitted first, so
+/// the write lands after every kernel that used the memory before (cubecl does the same before
+/// its own writes). Elsewhere (the CPU) [`to_tensor`] of a copy.
+pub fn upload(data: &[f32], shape: [usize; 2], device: &Device) -> Result<Tensor<2>> {
+    anyhow::ensure!(data.len() == shape[0] * shape[1], "{} values for a [{}, {}] tensor", data.len(), shape[0], shape[1]);
+    let ctx = match super::device::gpu_context_of(device) {
+        Some(ctx) if !data.is_empty() => ctx,
+        _ => return Ok(to_tensor(data.to_vec(), shape, device)),
+    };
+    crate::gpu::io::flush(device)?;
+    let out = crate::gpu::io::empty_buffer(shape[0], shape[1], device)?;
+    ctx.queue.write_buffer(out.buffer(), out.offset(), bytemuck::cast_slice(data));
+    crate::host_traffic::add(4 * data.len() as u64);
+    crate::gpu_counts::add(crate::gpu_counts::Event::Upload, "dextrain:write_buffer");
+    let t = out.tensor.clone();
+    Ok(if device.is_autodiff() { t.autodiff() } else { t })
+}
+
 /// A tensor → its values on the host (row-major; counted in [`crate::host_traffic`] and, as a
 /// host synchronisation, in [`crate::gpu_counts`] from a GPU device).
 pub fn to_host<const D: usize>(t: Tensor<D>) -> Result<Vec<f32>> {

@@ -101,19 +101,24 @@ impl Normalizer {
 }
 
 impl Normalizer {
-    /// Normalises `x` `[rows, dim]` on its device, `(x − μ) · s` with μ and s = 1 / (σ + ε) `[1, dim]`
-    /// worked out on the host in f64 and rounded to f32 (two small uploads, two element-wise
-    /// kernels), when `on`; else `x`. The host's [`Normalizer::apply`] rounds once, at the end: the
-    /// two differ by an f32 rounding.
-    pub fn normalized_on_device(&self, x: Tensor<2>, on: bool) -> Tensor<2> {
+    /// `rows` `[n, dim]` uploaded and normalised on `device`, `(x − μ) · s` with μ and
+    /// s = 1 / (σ + ε) `[1, dim]` worked out on the host in f64 and rounded to f32, when `on`;
+    /// else the rows as they are. The statistics go up with the rows, as two more rows of the
+    /// same upload (one upload and one queue submission, where a tensor each cost two more), and
+    /// two element-wise kernels apply them. The host's [`Normalizer::apply`] rounds once, at the
+    /// end: the two differ by an f32 rounding.
+    pub fn upload_normalized(&self, rows: &[f32], n: usize, device: &Device, on: bool) -> Tensor<2> {
         let d = self.dim();
         if !on || d == 0 {
-            return x;
+            return to_tensor(rows.to_vec(), [n, d], device);
         }
-        let device = x.device();
-        let mean: Vec<f32> = self.mean.iter().map(|&m| m as f32).collect();
-        let scale: Vec<f32> = self.var().iter().map(|v| (1.0 / (v.sqrt() + self.eps)) as f32).collect();
-        (x - to_tensor(mean, [1, d], &device)) * to_tensor(scale, [1, d], &device)
+        let mut data = Vec::with_capacity((n + 2) * d);
+        data.extend_from_slice(rows);
+        data.extend(self.mean.iter().map(|&m| m as f32)); // row n: μ
+        data.extend(self.var().iter().map(|v| (1.0 / (v.sqrt() + self.eps)) as f32)); // row n + 1: s
+        let all = to_tensor(data, [n + 2, d], device);
+        let (x, mean, scale) = (all.clone().narrow(0, 0, n), all.clone().narrow(0, n, 1), all.narrow(0, n + 1, 1));
+        (x - mean) * scale
     }
 
     /// A normalised copy of `x` ([rows, dim]) when `on`, else a plain copy (a learner with

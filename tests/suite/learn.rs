@@ -807,6 +807,10 @@ fn the_learners_tcn_matches_the_exported_formulation() {
 /// - two clipped AdamW steps of three parameters (one large enough that each of the norm's 64
 ///   slices adds several blocks), the norm (also against an f64 sum), and an unclipped step: the
 ///   parameters agree to float rounding, and the GPU ran the 2 P + 1 kernels of adam.wgsl per step;
+/// - the last step with SAC's Polyak average of target copies (`step_clipped_polyak`, τ = 0.3): the
+///   targets agree with τ p + (1 − τ) t worked out on the host, and on the GPU the average ran in
+///   adam.wgsl's kernels (`adam_update_polyak`: no kernel more);
+/// - an unclipped step without the norm (`report_norm = false`, SAC's): P kernels, the same bits;
 /// - the normalisers over three batches (a constant column included, which must normalise to
 ///   exactly 0, as on the host): the statistics and the normalised values agree with the host's
 ///   f64 `Normalizer`, in one submission of four dispatches per step.
@@ -820,26 +824,40 @@ fn optimiser_and_normaliser_kernels_match_their_tensor_twins() {
     let mut draw = |len: usize, scale: f64| -> Vec<f32> { (0..len).map(|_| (rng.normal() * scale) as f32).collect() };
     let init: Vec<Vec<f32>> = shapes.iter().map(|s| draw(s[0] * s[1], 1.0)).collect();
     let coefs: Vec<Vec<Vec<f32>>> = (0..3).map(|_| shapes.iter().map(|s| draw(s[0] * s[1], 0.01)).collect()).collect();
+    let target_init: Vec<Vec<f32>> = shapes.iter().map(|s| draw(s[0] * s[1], 1.0)).collect();
+    let tau = 0.3;
     // three steps of loss = Σ p ⊙ c_k (∂loss/∂p = c_k): clipped to 1.0, clipped to 1.0, unclipped
-    let run = |device: Device| -> (Vec<Vec<f32>>, Vec<f32>, GpuCounts) {
+    // and with the targets' Polyak average
+    let run = |device: Device| -> (Vec<Vec<f32>>, Vec<f32>, GpuCounts, Vec<Vec<f32>>) {
         let mut adam = Adam::new(&shapes, &device);
         adam.weight_decay = 0.01;
         let lr = to_tensor(vec![0.003], [1, 1], &device.clone().inner());
         let mut params: Vec<Tensor<2>> = init.iter().zip(&shapes).map(|(v, s)| to_tensor(v.clone(), *s, &device).require_grad()).collect();
+        let mut targets: Vec<Tensor<2>> = target_init.iter().zip(&shapes).map(|(v, s)| to_tensor(v.clone(), *s, &device).inner()).collect();
         let mut norms = Vec::new();
         let before = GpuCounts::now();
         for (k, c) in coefs.iter().enumerate() {
             let loss = params.iter().zip(c).zip(&shapes).map(|((p, c), s)| (p.clone() * to_tensor(c.clone(), *s, &device)).sum()).reduce(|a, b| a + b).unwrap();
             let grads = loss.backward();
-            let (new, norm) = adam.step_clipped(&params, &grads, if k < 2 { 1.0 } else { 0.0 }, &lr).unwrap();
+            let (new, norm) = if k < 2 {
+                adam.step_clipped(&params, &grads, 1.0, &lr).unwrap()
+            } else {
+                adam.step_clipped_polyak(&params, &grads, 0.0, &lr, &mut targets, tau).unwrap()
+            };
             params = new;
-            norms.push(to_host(norm).unwrap()[0]);
+            norms.push(to_host(norm.expect("the norm is reported")).unwrap()[0]);
         }
         let counts = GpuCounts::now().since(&before);
-        (params.iter().map(|p| to_host(p.clone().inner()).unwrap()).collect(), norms, counts)
+        let host = |ts: &[Tensor<2>]| ts.iter().map(|p| to_host(p.clone().inner()).unwrap()).collect::<Vec<_>>();
+        (host(&params), norms, counts, host(&targets))
     };
-    let (p_cpu, n_cpu, _) = run(cpu());
-    let (p_gpu, n_gpu, counts) = run(gpu.clone());
+    let (p_cpu, n_cpu, _, t_cpu) = run(cpu());
+    let (p_gpu, n_gpu, counts, t_gpu) = run(gpu.clone());
+    for (name, p, t) in [("cpu", &p_cpu, &t_cpu), ("gpu", &p_gpu, &t_gpu)] {
+        let want = p.iter().flatten().zip(target_init.iter().flatten()).map(|(&p, &t)| tau as f32 * p + (1.0 - tau as f32) * t);
+        let worst = want.zip(t.iter().flatten()).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
+        assert!(worst < 1e-5, "the {name} targets differ from τ p + (1 − τ) t by {worst}");
+    }
     assert_eq!(counts.total_from(Event::Kernel, "dextrain:adam"), 3 * (2 * 3 + 1), "adam.wgsl's kernels per step: {counts:?}");
     for (k, c) in coefs.iter().enumerate() {
         let want = c.iter().flatten().map(|&x| (x as f64).powi(2)).sum::<f64>().sqrt();
@@ -850,6 +868,23 @@ fn optimiser_and_normaliser_kernels_match_their_tensor_twins() {
     }
     let worst = p_cpu.iter().flatten().zip(p_gpu.iter().flatten()).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
     assert!(worst < 1e-5, "parameters after three steps differ by {worst}");
+    // an unclipped step that does not report its norm (SAC's): the update kernels alone, the
+    // same parameters bit for bit as a step that works the norm out
+    let unreported = |report_norm: bool| -> (Vec<Vec<f32>>, bool, u64) {
+        let mut adam = Adam::new(&shapes, &gpu);
+        adam.report_norm = report_norm;
+        let lr = to_tensor(vec![0.003], [1, 1], &gpu.clone().inner());
+        let params: Vec<Tensor<2>> = init.iter().zip(&shapes).map(|(v, s)| to_tensor(v.clone(), *s, &gpu).require_grad()).collect();
+        let loss = params.iter().zip(&coefs[0]).zip(&shapes).map(|((p, c), s)| (p.clone() * to_tensor(c.clone(), *s, &gpu)).sum()).reduce(|a, b| a + b).unwrap();
+        let grads = loss.backward();
+        let before = GpuCounts::now();
+        let (new, norm) = adam.step_clipped(&params, &grads, 0.0, &lr).unwrap();
+        let kernels = GpuCounts::now().since(&before).total_from(Event::Kernel, "dextrain:adam");
+        (new.iter().map(|p| to_host(p.clone().inner()).unwrap()).collect(), norm.is_some(), kernels)
+    };
+    let (with, without) = (unreported(true), unreported(false));
+    assert_eq!((with.1, with.2, without.1, without.2), (true, 2 * 3 + 1, false, 3), "norm reported, adam kernels; unreported");
+    assert_eq!(with.0, without.0, "the same step with and without the norm's kernels");
     let moved = init.iter().flatten().zip(p_gpu.iter().flatten()).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
     assert!(moved > 5e-3, "the steps moved the parameters by {moved} only");
 

@@ -8,7 +8,7 @@ use dextrain::learn::nets::{to_host, to_tensor};
 use dextrain::learn::ppo::Dims;
 use dextrain::rng::Rng;
 use dextrain::learn::sac::buffer::{ReplayBuffer, Transitions};
-use dextrain::learn::sac::{Sac, squashed_sample};
+use dextrain::learn::sac::{Sac, squash_log_std, squashed_sample};
 
 use crate::learn::PointTask;
 
@@ -40,6 +40,63 @@ fn the_squashed_gaussians_log_prob_matches_a_hand_computed_value() {
         }
         assert!((logp[r] as f64 - expect).abs() < 1e-4 * expect.abs().max(1.0), "row {r}: log π {} vs {expect}", logp[r]);
     }
+}
+
+/// The squashed sample as one operation (`learn::kernels::squashed`: a kernel each way on burn's
+/// wgpu runtime, tensor ops elsewhere) against `squashed_sample`'s tensor ops differentiated by
+/// burn, on 37 rows of 5 actions with μ up to ±30 (saturated actions) and log σ squashed into
+/// [−5, 2]: the actions, log π and ∂L/∂head for L = Σ w ⊙ a + Σ v ⊙ log π agree to float rounding,
+/// on the CPU and on the GPU, where the sample and its gradient are one kernel each.
+#[test]
+fn the_fused_squashed_sample_matches_its_tensor_ops_and_their_gradient() {
+    use dextrain::gpu_counts::{Event, GpuCounts};
+    use dextrain::learn::kernels::squashed::squashed_sample_fused;
+    let (rows, a, lo, hi) = (37usize, 5usize, -5.0, 2.0);
+    let mut rng = Rng::new(8, 1);
+    let mut draw = |n: usize, scale: f64| (0..n).map(|_| (rng.normal() * scale) as f32).collect::<Vec<f32>>();
+    let mut head = draw(rows * 2 * a, 1.5);
+    head[0] = 30.0; // saturated: 1 − tanh² u underflows
+    head[2 * a + 1] = -30.0;
+    let (eps, w, v) = (draw(rows * a, 1.0), draw(rows * a, 1.0), draw(rows, 1.0));
+    // (a, log π, ∂L/∂head) with the sample made by `sample`
+    let run = |device: &Device, fused: bool| -> (Vec<f32>, Vec<f32>, Vec<f32>) {
+        let h = to_tensor(head.clone(), [rows, 2 * a], device).require_grad();
+        let e = to_tensor(eps.clone(), [rows, a], device);
+        let (act, logp) = if fused {
+            squashed_sample_fused(h.clone(), e, lo, hi)
+        } else {
+            squashed_sample(h.clone().narrow(1, 0, a), squash_log_std(h.clone().narrow(1, a, a), lo, hi), e)
+        };
+        let loss = (act.clone() * to_tensor(w.clone(), [rows, a], device)).sum() + (logp.clone() * to_tensor(v.clone(), [rows, 1], device)).sum();
+        let grads = loss.backward();
+        (to_host(act).unwrap(), to_host(logp).unwrap(), to_host(h.grad(&grads).expect("a gradient of the head")).unwrap())
+    };
+    let close = |name: &str, got: &[f32], want: &[f32]| {
+        assert_eq!(got.len(), want.len(), "{name}");
+        for (i, (g, w)) in got.iter().zip(want).enumerate() {
+            assert!((g - w).abs() <= 1e-4 * (1.0 + w.abs()), "{name}[{i}]: {g} vs {w}");
+        }
+    };
+    let reference = run(&cpu(), false);
+    assert!(reference.2.iter().any(|g| g.abs() > 0.1), "the gradient must not vanish");
+    let fused_cpu = run(&cpu(), true);
+    for (name, k) in [("cpu a", 0), ("cpu log π", 1), ("cpu ∂head", 2)] {
+        let pick = |r: &(Vec<f32>, Vec<f32>, Vec<f32>)| [&r.0, &r.1, &r.2][k].clone();
+        close(name, &pick(&fused_cpu), &pick(&reference));
+    }
+    let Some((_ctx, gpu)) = crate::common::wgpu_learner("the_fused_squashed_sample_matches_its_tensor_ops_and_their_gradient") else { return };
+    let before = GpuCounts::now();
+    let fused_gpu = run(&gpu, true);
+    let counts = GpuCounts::now().since(&before);
+    for (name, k) in [("gpu a", 0), ("gpu log π", 1), ("gpu ∂head", 2)] {
+        let pick = |r: &(Vec<f32>, Vec<f32>, Vec<f32>)| [&r.0, &r.1, &r.2][k].clone();
+        close(name, &pick(&fused_gpu), &pick(&reference));
+    }
+    assert_eq!(
+        (counts.total_from(Event::Kernel, "dextrain:squashed_sample"), counts.total_from(Event::Kernel, "dextrain:squashed_sample_backward")),
+        (2, 1), // (the first name is a prefix of the second)
+        "one kernel each way: {counts:?}"
+    );
 }
 
 /// One env, 8 slots, rewards 1…6; transition 2 ends by a time-out and transition 4 by a
@@ -291,23 +348,38 @@ fn sac_state_restores_a_learner_that_continues_exactly() {
     assert!(err.contains("optimizer.safetensors"), "{err}");
 }
 
-/// One gradient step (critics, actor, temperature) on burn's wgpu backend (lavapipe in CI) and on
-/// the CPU backend from the same state and batch: the parameters agree to float rounding.
+/// One gradient step (critics, actor, temperature, the targets' Polyak average) on burn's wgpu
+/// backend (lavapipe in CI: the squashed sample and the Polyak average in kernels of ours) and on
+/// the CPU backend (tensor ops) from the same state and batch: the parameters agree to float
+/// rounding.
+/// The GPU kernels of one gradient step of [`the_wgpu_sac_learner_matches_the_cpu_learner`]'s learner.
+const PINNED_SAC_KERNELS_PER_GRADIENT_STEP: u64 = 277;
+
 #[test]
 fn the_wgpu_sac_learner_matches_the_cpu_learner() {
+    use dextrain::gpu_counts::{Event, GpuCounts};
+    let kernels = std::cell::Cell::new(0u64);
     let Some((_ctx, gpu)) = crate::common::wgpu_learner("the_wgpu_sac_learner_matches_the_cpu_learner") else { return };
     let cfg = SacConfig { batch_size: 32, learning_starts: 100, critic_layer_norm: true, ..SacConfig::default() };
     let step = |device: Device| {
         let mut sac = filled(&cfg, device, 6);
+        let before = GpuCounts::now();
         sac.gradient_step().unwrap();
+        let counts = GpuCounts::now().since(&before);
+        kernels.set(counts.total(Event::Kernel));
         let mut all = values(&sac.actor);
-        for c in &sac.critics {
+        for c in sac.critics.iter().chain(&sac.targets) {
             all.extend(values(c));
         }
         (all, sac.alpha().unwrap())
     };
     let (p_cpu, a_cpu) = step(cpu());
     let (p_gpu, a_gpu) = step(gpu);
+    // the GPU's kernels for one gradient step of this learner (actor, two critics with LayerNorm,
+    // their targets, the temperature; `bench --sac`'s learner went from 384 to 215 when the
+    // squashed sample and the Polyak average went into kernels of ours and SAC's optimisers
+    // stopped working out norms they do not read)
+    assert_eq!(kernels.get(), PINNED_SAC_KERNELS_PER_GRADIENT_STEP, "kernels per SAC gradient step");
     let mut worst = 0.0f32;
     for (x, y) in p_cpu.iter().flatten().zip(p_gpu.iter().flatten()) {
         worst = worst.max((x - y).abs());

@@ -346,11 +346,11 @@ fn table(bindings: &[dextrain::gpu::bindings::Binding]) -> Vec<(u32, u32, String
 
 #[test]
 fn binding_tables_match_the_wgsl_globals() {
-    use dextrain::gpu::bindings::{ADAM_GROUP, BindingSpace, COLLIDERS, ELU_GROUP, LN_GROUP, LNB_GROUP, MM_GROUP, NOISE_GROUP, NORM_GROUP, REF_CFG, REF_FRAMES, SIM_GROUP, TASK_GROUP};
+    use dextrain::gpu::bindings::{ADAM_GROUP, BindingSpace, COLLIDERS, ELU_GROUP, LN_GROUP, LNB_GROUP, MM_GROUP, NOISE_GROUP, NORM_GROUP, REF_CFG, REF_FRAMES, SIM_GROUP, SQ_GROUP, SQB_GROUP, TASK_GROUP};
     let noise = dextrain::gpu::shaders::noise_shader_source();
     let (adam, norm) = (dextrain::gpu::shaders::SHADER_ADAM.to_string(), dextrain::gpu::shaders::SHADER_NORMALIZER.to_string());
     let matmul = dextrain::learn::kernels::wgsl_matmul::shader_source(dextrain::learn::kernels::wgsl_matmul::Variant::scalar(dextrain::learn::kernels::wgsl_matmul::Tile::LARGE));
-    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (adam, ADAM_GROUP), (norm, NORM_GROUP), (matmul, MM_GROUP), (dextrain::learn::kernels::elu::elu_backward_source(()), ELU_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_forward_source(()), LN_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_backward_source(()), LNB_GROUP)] {
+    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (adam, ADAM_GROUP), (norm, NORM_GROUP), (matmul, MM_GROUP), (dextrain::learn::kernels::elu::elu_backward_source(()), ELU_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_forward_source(()), LN_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_backward_source(()), LNB_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_source(()), SQ_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_backward_source(()), SQB_GROUP)] {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other
         assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu/bindings.rs (right)", group.shader);

@@ -291,7 +291,7 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
         + (2 * misc + 4) * 4 // the iteration's sums
         + epochs * n * t * 4 // the minibatch indices (i32, one upload)
         + 4 // the learning rate up
-        + epochs * minibatches * 32 // each optimiser step's constants (adam.wgsl)
+        + epochs * minibatches * 48 // each optimiser step's constants (adam.wgsl's AdamStep)
         + (1 + 5 + a as u64) * 4; // the update's one read: learning rate, the sums of the losses, KL and gradient norms, log σ
     for (_, d) in &rows_dev {
         assert_eq!(d[bytes], expected as f64, "host bytes of a device-resident iteration");
@@ -386,7 +386,7 @@ fn sac_trains_with_its_replay_buffer_on_one_gpu_device() {
     let misc = dextrain::task::task::OUT_MISC as u64;
     for (it, d) in &rows_dev {
         let g = d[col("updates")] as u64;
-        let expected = t * (32 + 2 * 32) + g * (32 + n_step * batch * 8 + 3 * 32) + (2 * misc + 4) * 4 + 5 * 4;
+        let expected = t * (32 + 2 * 32) + g * (32 + n_step * batch * 8 + 3 * 48) + (2 * misc + 4) * 4 + 5 * 4;
         assert_eq!(d[bytes], expected as f64, "host bytes of device-resident iteration {it} ({g} gradient steps)");
     }
     for (_, h) in &rows_host {

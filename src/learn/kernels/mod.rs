@@ -14,6 +14,8 @@
 //!   `DEXTRAIN_GPU_MATMUL`); `wgsl_matmul.rs`: the tiled product of our own (shaders/matmul.wgsl),
 //!   the default routine; `matmul_tuning.rs`: its tile shape per product timed on the adapter
 //!   (`dextrain_tuned`, the same numbers whichever wins); `wgsl_kernel.rs`: how our own WGSL kernels launch on burn's command stream;
+//! - `squashed.rs`: SAC's squashed-Gaussian sample and its log-probability as one operation with
+//!   its own gradient (a kernel of ours each way on the GPU, shaders/squashed_sample*.wgsl);
 //! - `row_sums.rs`: sums over the batch's rows in two stages on the GPU (losses, ∂b, ∂ log σ);
 //! - `fused_adam.rs`: Adam with global-norm clipping as kernels of ours on the GPU
 //!   (shaders/adam.wgsl); `fused_normalizer.rs`: the device-resident observation normalisers
@@ -29,5 +31,6 @@ pub mod layer_norm;
 pub mod matmul_tuning;
 pub mod row_sums;
 pub mod sgemm;
+pub mod squashed;
 pub mod wgsl_kernel;
 pub mod wgsl_matmul;

@@ -23,7 +23,7 @@
 pub mod device;
 pub mod storage;
 
-use anyhow::{Result, ensure};
+use anyhow::{Context, Result, ensure};
 use burn::prelude::*;
 use burn::tensor::{Int, TensorData};
 
@@ -470,7 +470,8 @@ impl Ppo {
     /// The actor's inputs for raw observations `obs` [N, O] / `priv_obs` [N, P], normalised: x
     /// [N, O], and the critic observation [N, P] for a privileged encoder (the actor reads it for
     /// nothing else: without one, x stands in for it and it does not go up). On a GPU the raw rows
-    /// go up and are normalised there (`Normalizer::normalized_on_device`), on the CPU on the host.
+    /// go up with the statistics and are normalised there (`Normalizer::upload_normalized`), on the
+    /// CPU on the host.
     fn inference_inputs(&self, obs: &[f32], priv_obs: &[f32]) -> Result<(Tensor<2>, Tensor<2>)> {
         let d = self.dims();
         let n = obs.len() / d.obs;
@@ -478,7 +479,7 @@ impl Ppo {
         let on_gpu = nets::is_gpu(&self.device);
         let up = |norm: &Normalizer, rows: &[f32], dim: usize| {
             if on_gpu {
-                norm.normalized_on_device(to_tensor(rows.to_vec(), [n, dim], &self.device), self.normalize)
+                norm.upload_normalized(rows, n, &self.device, self.normalize)
             } else {
                 to_tensor(norm.normalized(rows, self.normalize), [n, dim], &self.device)
             }
@@ -605,17 +606,18 @@ impl Ppo {
         let s = &self.storage;
         let total = s.capacity();
         let dev = &self.device;
-        let col = |v: &Vec<f32>| to_tensor(v.clone(), [total, 1], dev);
+        // the rollout goes up copied once (`nets::upload`)
+        let col = |v: &[f32]| nets::upload(v, [total, 1], dev);
         let all = Batch {
-            obs: to_tensor(s.obs.clone(), [total, d.obs], dev),
-            priv_obs: to_tensor(s.priv_obs.clone(), [total, d.priv_obs], dev),
-            actions: to_tensor(s.actions.clone(), [total, d.act], dev),
-            old_log_prob: col(&s.log_prob),
-            old_mu: to_tensor(s.mu.clone(), [total, d.act], dev),
+            obs: nets::upload(&s.obs, [total, d.obs], dev)?,
+            priv_obs: nets::upload(&s.priv_obs, [total, d.priv_obs], dev)?,
+            actions: nets::upload(&s.actions, [total, d.act], dev)?,
+            old_log_prob: col(&s.log_prob)?,
+            old_mu: nets::upload(&s.mu, [total, d.act], dev)?,
             old_sigma: to_tensor(s.sigma[..d.act].to_vec(), [1, d.act], dev), // every row's σ is the first's
-            advantages: col(&s.advantages),
-            returns: col(&s.returns),
-            old_values: col(&s.values),
+            advantages: col(&s.advantages)?,
+            returns: col(&s.returns)?,
+            old_values: col(&s.values)?,
         };
         self.storage.clear();
         self.optimise(all, total)
@@ -678,6 +680,7 @@ impl Ppo {
             }
             let grads = total_loss.backward();
             let (new_params, norm) = self.adam.step_clipped(params, &grads, self.cfg.max_grad_norm as f64, &lr)?;
+            let norm = norm.context("PPO's optimiser reports its gradient norm")?;
             self.net.params = new_params;
             let row = Tensor::cat(
                 vec![losses.surrogate.detach().inner(), losses.value.detach().inner(), losses.entropy.detach().inner(), losses.kl.inner(), norm.inner()],

@@ -33,6 +33,7 @@ use burn::prelude::*;
 
 use self::buffer::{ReplayBuffer, Sample, Transitions};
 use super::adam::Adam;
+use super::kernels::squashed::squashed_sample_fused;
 use super::nets::{self, Activation, MlpLayout, to_host, to_tensor};
 use super::noise::{host_normals_from_row, host_uniforms_from_row};
 use super::normalizer::Normalizer;
@@ -242,7 +243,10 @@ impl Sac {
         let mut critic_adam = Adam::new(&critic_shapes, &device);
         actor_adam.weight_decay = cfg.weight_decay as f64;
         critic_adam.weight_decay = cfg.weight_decay as f64;
-        let alpha_adam = Adam::new(&[[1, 1]], &device);
+        let mut alpha_adam = Adam::new(&[[1, 1]], &device);
+        for adam in [&mut actor_adam, &mut critic_adam, &mut alpha_adam] {
+            adam.report_norm = false; // SAC reads no gradient norm (on a GPU: no norm kernels unless it clips)
+        }
         let stored_obs = if cfg.store_actor_obs { dims.obs } else { 0 };
         let rank = crate::dist::rank();
         if rank > 0 {
@@ -307,9 +311,17 @@ impl Sac {
         (mu, log_std)
     }
 
-    /// Q_j(ĉ, a) [B, 1] for critic parameters `params`.
-    fn q(&self, params: &[Tensor<2>], priv_n: Tensor<2>, actions: Tensor<2>) -> Tensor<2> {
-        self.critic_layout.forward(params, Tensor::cat(vec![priv_n, actions], 1), self.activation)
+    /// A squashed-Gaussian sample `a = tanh(μ + σ ε)` [B, A] of the actor with parameters `params`
+    /// on normalised observations, and its log-probability [B, 1] ([`squashed_sample`]). On a GPU
+    /// one operation of ours with its own gradient (`kernels::squashed`: a kernel each way where
+    /// the tensor ops launch ~25 forward and ~35 backward); on the CPU the tensor ops.
+    fn sample(&self, params: &[Tensor<2>], obs_n: Tensor<2>, eps: Tensor<2>) -> (Tensor<2>, Tensor<2>) {
+        if nets::is_gpu(&self.device) {
+            let head = self.actor_layout.forward(params, obs_n, self.activation); // [B, 2A]
+            return squashed_sample_fused(head, eps, self.cfg.log_std_min as f64, self.cfg.log_std_max as f64);
+        }
+        let (mu, log_std) = self.policy(params, obs_n);
+        squashed_sample(mu, log_std, eps)
     }
 
     /// Deterministic actions `tanh(μ(ŝ))` [N, A] for raw observations `obs` [N, O]; statistics unchanged.
@@ -447,16 +459,17 @@ impl Sac {
 
         // critics: y = R + β (red_j Q̄_j(ĉ', a') − α log π(a'|s')), a' ~ π(·|s')
         let actor_now: Vec<Tensor<2>> = self.actor.iter().map(|p| p.clone().inner()).collect();
-        let (mu_n, ls_n) = self.policy(&actor_now, next_obs.inner());
-        let (a_next, logp_next) = squashed_sample(mu_n, ls_n, eps_next);
-        let q_next: Vec<Tensor<2>> = self.targets.iter().map(|t| self.q(t, next_priv.clone().inner(), a_next.clone())).collect();
+        let (a_next, logp_next) = self.sample(&actor_now, next_obs.inner(), eps_next);
+        let next_in = Tensor::cat(vec![next_priv.inner(), a_next], 1); // [ĉ', a'], once for every target
+        let q_next: Vec<Tensor<2>> = self.targets.iter().map(|t| self.critic_layout.forward(t, next_in.clone(), self.activation)).collect();
         let soft_v = reduce(q_next, self.cfg.q_reduction) - logp_next * alpha.clone(); // [B, 1]
         let y = (returns + bootstrap * soft_v).detach(); // [B, 1]
         let y = y.autodiff();
+        let critic_in = Tensor::cat(vec![priv_obs.clone(), actions], 1); // [ĉ, a], once for every critic
         let mut critic_loss: Option<Tensor<1>> = None;
         let mut q_sum: Option<Tensor<1>> = None;
         for c in &self.critics {
-            let q = self.q(c, priv_obs.clone(), actions.clone()); // [B, 1]
+            let q = self.critic_layout.forward(c, critic_in.clone(), self.activation); // Q_j(ĉ, a) [B, 1]
             let l = nets::mean_all((q.clone() - y.clone()).square()); // mean((Q_j − y)²)
             let qm = nets::mean_all(q.detach());
             critic_loss = Some(match critic_loss { Some(acc) => acc + l, None => l });
@@ -467,19 +480,32 @@ impl Sac {
         let all: Vec<Tensor<2>> = self.critics.iter().flatten().cloned().collect();
         let grads = critic_loss.clone().backward();
         let [critic_lr, actor_lr, alpha_lr] = self.learning_rates.clone();
-        let mut updated = self.critic_adam.step_clipped(&all, &grads, self.cfg.max_grad_norm as f64, &critic_lr)?.0.into_iter();
+        let (tau, max_norm) = (self.cfg.tau as f64, self.cfg.max_grad_norm as f64);
+        let updated = if tau >= 1.0 {
+            self.critic_adam.step_clipped(&all, &grads, max_norm, &critic_lr)?.0
+        } else {
+            // Polyak: θ̄ ← τ θ + (1 − τ) θ̄, in the optimiser's kernels on a GPU
+            let mut targets: Vec<Tensor<2>> = self.targets.iter().flatten().cloned().collect();
+            let out = self.critic_adam.step_clipped_polyak(&all, &grads, max_norm, &critic_lr, &mut targets, tau)?.0;
+            let mut moved = targets.into_iter();
+            for tp in self.targets.iter_mut().flatten() {
+                *tp = moved.next().expect("one target per critic parameter");
+            }
+            out
+        };
+        let mut updated = updated.into_iter();
         for c in &mut self.critics {
             for p in c.iter_mut() {
                 *p = updated.next().expect("one updated tensor per critic parameter");
             }
         }
-        // Polyak: θ̄ ← τ θ + (1 − τ) θ̄
-        let tau = self.cfg.tau as f64;
-        for (t, c) in self.targets.iter_mut().zip(&self.critics) {
-            for (tp, p) in t.iter_mut().zip(c) {
-                // (τ = 1: the target shares the critic's memory, which the next optimiser step
-                // writes in place on a GPU — after the step's targets were read: the same values)
-                *tp = if tau >= 1.0 { p.clone().inner() } else { p.clone().inner().mul_scalar(tau) + tp.clone().mul_scalar(1.0 - tau) };
+        if tau >= 1.0 {
+            // (τ = 1: the target shares the critic's memory, which the next optimiser step writes
+            // in place on a GPU — after the step's targets were read: the same values)
+            for (t, c) in self.targets.iter_mut().zip(&self.critics) {
+                for (tp, p) in t.iter_mut().zip(c) {
+                    *tp = p.clone().inner();
+                }
             }
         }
         self.critic_updates += 1;
@@ -489,8 +515,7 @@ impl Sac {
         // actor and temperature
         let actor_turn = self.critic_updates % self.cfg.policy_frequency as u64 == 0;
         if actor_turn {
-            let (mu, ls) = self.policy(&self.actor, obs);
-            let (a_new, logp) = squashed_sample(mu, ls, eps_actor);
+            let (a_new, logp) = self.sample(&self.actor, obs, eps_actor);
             let frozen: Vec<Vec<Tensor<2>>> = self.critics.iter().map(|c| c.iter().map(|p| p.clone().inner().autodiff()).collect()).collect();
             // the critic's first layer as ĉ W_c + a W_a + b: its input gradient is only a's columns
             let qs: Vec<Tensor<2>> = frozen.iter().map(|c| self.critic_layout.forward_split_input(c, priv_obs.clone(), a_new.clone(), self.activation)).collect();
