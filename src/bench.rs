@@ -421,7 +421,9 @@ impl Default for SacBenchOptions {
 /// Returns one JSON object with `ms_per_gradient_step` (median, min, max over the timed updates).
 ///
 /// On a GPU, `gpu_counts`: the kernels, submissions and host synchronisations per gradient step
-/// ([`crate::gpu_counts`]; `ctx`, the learner's wgpu context, gives the queue's submissions).
+/// ([`crate::gpu_counts`]; `ctx`, the learner's wgpu context, gives the queue's submissions); and
+/// `device_resident`: the same updates again with the buffer copied to the device (what a GPU
+/// training run samples from), each update ended by a wait for the device.
 pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_name: &str, ctx: Option<&crate::gpu::context::GpuContext>) -> Result<serde_json::Value> {
     use crate::gpu_counts::{GpuCounts, queue_submissions, submissions_between};
     use crate::config::{PolicyConfig, SacConfig};
@@ -462,6 +464,32 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
     let s = sac.take_stats()?;
     let st = stats(&per_step_ms);
     let median = st["median"].as_f64().unwrap_or(f64::NAN);
+    // the device-resident replay buffer (what a GPU training run samples from, and where skrl's
+    // memory lives): the same transitions copied to the device, the same updates timed again
+    let mut device_path = serde_json::Value::Null;
+    if let Some(ctx) = ctx.filter(|_| crate::learn::nets::is_gpu(&sac.device)) {
+        sac.start_device_rollouts(ctx)?;
+        let (mut d_ms, mut d_cpu_s, mut d_counts) = (Vec::new(), Vec::new(), serde_json::Value::Null);
+        for it in 0..o.warmup + o.iters {
+            let (m0, q0) = (GpuCounts::now(), queue_submissions(&ctx.queue));
+            let (t0, c0) = (Instant::now(), process_cpu_time());
+            for _ in 0..o.gradient_steps {
+                sac.gradient_step()?;
+            }
+            // the steps' kernels have run when the device is idle (a training run reads its
+            // statistics once per iteration)
+            crate::gpu::io::sync(&sac.device)?;
+            let (dt, dc) = (t0.elapsed().as_secs_f64(), process_cpu_time() - c0);
+            d_counts = GpuCounts::now().since(&m0).to_json(o.gradient_steps as f64, submissions_between(q0, queue_submissions(&ctx.queue)));
+            crate::console::status(&format!("  device-resident update {it}{}: {:.0} ms ({:.1} ms per gradient step)", if it < o.warmup { " (warm-up)" } else { "" }, 1e3 * dt, 1e3 * dt / o.gradient_steps as f64));
+            if it >= o.warmup {
+                d_ms.push(1e3 * dt / o.gradient_steps as f64);
+                d_cpu_s.push(dc);
+            }
+        }
+        sac.take_stats()?;
+        device_path = json!({"ms_per_gradient_step": stats(&d_ms), "update_process_cpu_s": stats(&d_cpu_s), "gpu_counts": {"per_gradient_step": d_counts}});
+    }
     Ok(json!({
         "bench": "dextrain_sac_bench",
         "device": device_name,
@@ -478,6 +506,8 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
         "transitions_per_s": o.batch as f64 * 1e3 / median,
         "update_process_cpu_s": stats(&cpu_s),
         "gpu_counts": if crate::learn::nets::is_gpu(&sac.device) { json!({"per_gradient_step": counts}) } else { serde_json::Value::Null },
+        // on a GPU, the same gradient steps sampling the device-resident replay buffer
+        "device_resident": device_path,
         "last": {"critic_loss": s.critic_loss, "actor_loss": s.actor_loss, "alpha": s.alpha, "entropy": s.entropy},
         "cpu": cpu_model(),
     }))

@@ -438,11 +438,22 @@ impl Sac {
         let b = self.cfg.batch_size as usize;
         let s = self.buffer.sample(b, self.cfg.n_step as usize, self.cfg.gamma, &mut self.rng)?;
         let dev = self.device.clone();
+        // the observations normalised: on the host (the CPU learner), or on a GPU learner's device
+        // (the rows go up with the statistics; the host's f64 pass over the batch cost a GPU
+        // learner more than its gradient step's kernels)
+        let on_gpu = nets::is_gpu(&dev);
+        let up = |norm: &Normalizer, rows: &[f32], dim: usize| {
+            if on_gpu {
+                norm.upload_normalized(rows, b, &dev, self.normalize)
+            } else {
+                to_tensor(norm.normalized(rows, self.normalize), [b, dim], &dev)
+            }
+        };
         Ok(GradBatch {
-            obs: to_tensor(self.obs_norm.normalized(&self.actor_rows(&s, false), self.normalize), [b, d.obs], &dev),
-            next_obs: to_tensor(self.obs_norm.normalized(&self.actor_rows(&s, true), self.normalize), [b, d.obs], &dev),
-            priv_obs: to_tensor(self.priv_norm.normalized(&s.priv_obs, self.normalize), [b, d.priv_obs], &dev),
-            next_priv: to_tensor(self.priv_norm.normalized(&s.next_priv_obs, self.normalize), [b, d.priv_obs], &dev),
+            obs: up(&self.obs_norm, &self.actor_rows(&s, false), d.obs),
+            next_obs: up(&self.obs_norm, &self.actor_rows(&s, true), d.obs),
+            priv_obs: up(&self.priv_norm, &s.priv_obs, d.priv_obs),
+            next_priv: up(&self.priv_norm, &s.next_priv_obs, d.priv_obs),
             actions: to_tensor(s.actions.clone(), [b, d.act], &dev),
             returns: to_tensor(s.returns.clone(), [b, 1], &dev).inner(),
             bootstrap: to_tensor(s.bootstrap.clone(), [b, 1], &dev).inner(),
