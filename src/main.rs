@@ -131,6 +131,9 @@ enum Command {
 enum TrajCommand {
     /// Write a scripted approach–grasp–lift reference for a config's hand and object.
     Synth(dextrain::synth::SynthArgs),
+    /// Retarget a human demonstration (DexMV `.npz` or dextrain `.csv`: 21 keypoints and the
+    /// object's pose per frame) to a config's hand: a reference on its table, and a JSON report.
+    Retarget(dextrain::retarget::command::RetargetArgs),
 }
 
 fn load_config(path: &Path) -> Result<Config> {
@@ -258,6 +261,7 @@ fn run(cli: Cli) -> Result<()> {
         }
         Command::Replay(args) => dextrain::replay::run(&args),
         Command::Traj { command: TrajCommand::Synth(args) } => dextrain::synth::run(&args),
+        Command::Traj { command: TrajCommand::Retarget(args) } => dextrain::retarget::command::run(&args),
         Command::New { command } => dextrain::starter::run(&command),
     }
 }

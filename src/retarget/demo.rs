@@ -4,9 +4,16 @@
 //! `hand_frame_index` / `object_frame_index` that pair them, `fps`; `../shared/demos/SOURCES.md`
 //! documents the arrays).
 //!
+//! [`load_csv`] reads dextrain's own CSV layout: comment lines first (`# frame: camera` or
+//! `# frame: world`, the frame of every position and pose; without one, `camera`), then a header
+//! `t,wrist_x,wrist_y,wrist_z,thumb_cmc_x,…,little_tip_z,object_x,object_y,object_z,object_qw,
+//! object_qx,object_qy,object_qz` ([`csv_header`]) and one row per frame: its time (s, from 0,
+//! evenly spaced: the rate is 1 / the spacing), the 21 keypoints (m) and the object's pose (m, a
+//! unit quaternion w, x, y, z). [`load_demo`] picks the reader by the file's extension.
+//!
 //! Keypoints are in the MANO / OpenPose order ([`KEYPOINT_NAMES`]): 0 the wrist; 1–4 the thumb
 //! (CMC, MCP, IP, tip); 5–8 the index finger (MCP, PIP, DIP, tip); 9–12 middle; 13–16 ring; 17–20
-//! little. Every problem is a one-line error naming the file, the array and the frame.
+//! little. Every problem is a one-line error naming the file, the array (or column) and the frame.
 
 use std::path::Path;
 
@@ -106,3 +113,97 @@ pub fn load_dexmv(path: &Path) -> Result<HumanDemo> {
     }
     Ok(demo)
 }
+
+/// The header of dextrain's CSV demonstration layout ([`load_csv`]).
+pub fn csv_header() -> String {
+    let mut cols = vec!["t".to_string()];
+    for name in KEYPOINT_NAMES {
+        cols.extend(["x", "y", "z"].map(|a| format!("{name}_{a}")));
+    }
+    cols.extend(["object_x", "object_y", "object_z", "object_qw", "object_qx", "object_qy", "object_qz"].map(String::from));
+    cols.join(",")
+}
+
+/// The keypoints and the object's pose of one frame as a CSV row of [`csv_header`]'s columns.
+pub fn csv_row(t: f64, keypoints: &[Vec3; HUMAN_KEYPOINTS], object: &Pose) -> String {
+    let mut v = vec![format!("{t}")];
+    for k in keypoints {
+        v.extend([k.x, k.y, k.z].map(|c| c.to_string()));
+    }
+    let (p, q) = (object.pos, object.rot);
+    v.extend([p.x, p.y, p.z, q.w, q.x, q.y, q.z].map(|c| c.to_string()));
+    v.join(",")
+}
+
+/// Reads dextrain's CSV demonstration layout (module documentation).
+pub fn load_csv(path: &Path) -> Result<HumanDemo> {
+    let file = path.display().to_string();
+    let text = std::fs::read_to_string(path).map_err(|e| anyhow!("{file}: cannot read it: {e}"))?;
+    let mut frame = "camera".to_string();
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty());
+    let header = loop {
+        let Some((n, line)) = lines.next() else { return Err(anyhow!("{file}: no header line; expected `{}`", csv_header())) };
+        match line.strip_prefix('#') {
+            Some(comment) => {
+                if let Some(name) = comment.trim().strip_prefix("frame:") {
+                    frame = name.trim().to_string();
+                    ensure!(frame == "camera" || frame == "world", "{file}: line {}: frame `{frame}`; expected `camera` or `world`", n + 1);
+                }
+            }
+            None => break line,
+        }
+    };
+    let want = csv_header();
+    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
+    let expected: Vec<&str> = want.split(',').collect();
+    ensure!(cols.len() == expected.len(), "{file}: the header has {} columns; expected {} (t, 21 keypoints × 3, the object's position and quaternion)", cols.len(), expected.len());
+    if let Some((got, exp)) = cols.iter().zip(&expected).find(|(a, b)| a != b) {
+        return Err(anyhow!("{file}: header column `{got}` where `{exp}` was expected"));
+    }
+    let mut demo = HumanDemo { fps: 0.0, keypoints: Vec::new(), object: Vec::new(), frame };
+    let mut times: Vec<f64> = Vec::new();
+    for (n, line) in lines {
+        let f = times.len();
+        let values: Vec<f64> = line
+            .split(',')
+            .enumerate()
+            .map(|(c, v)| v.trim().parse::<f64>().map_err(|_| anyhow!("{file}: line {} (frame {f}): column `{}` is `{}`; expected a number", n + 1, expected.get(c).unwrap_or(&"?"), v.trim())))
+            .collect::<Result<_>>()?;
+        ensure!(values.len() == expected.len(), "{file}: line {} (frame {f}) has {} values; expected {}", n + 1, values.len(), expected.len());
+        ensure!(values.iter().all(|v| v.is_finite()), "{file}: line {} (frame {f}): a value is not finite", n + 1);
+        let mut k = [Vec3::ZERO; HUMAN_KEYPOINTS];
+        for (i, p) in k.iter_mut().enumerate() {
+            *p = Vec3::new(values[1 + 3 * i] as f32, values[2 + 3 * i] as f32, values[3 + 3 * i] as f32);
+            ensure!(p.length() <= MAX_DEMO_DISTANCE_M, "{file}: frame {f}: keypoint {} is {:.1} m from the origin; expected metres (under {MAX_DEMO_DISTANCE_M} m)", KEYPOINT_NAMES[i], p.length());
+        }
+        let palm = (k[9] - k[0]).length();
+        ensure!(palm > 0.0 && palm <= MAX_PALM_LENGTH_M, "{file}: frame {f}: wrist to middle knuckle is {palm:.3} m; expected a human hand in metres (under {MAX_PALM_LENGTH_M} m)");
+        let o = 1 + 3 * HUMAN_KEYPOINTS;
+        let pos = Vec3::new(values[o] as f32, values[o + 1] as f32, values[o + 2] as f32);
+        ensure!(pos.length() <= MAX_DEMO_DISTANCE_M, "{file}: frame {f}: the object is {:.1} m from the origin; expected metres", pos.length());
+        let q = Quat::from_xyzw(values[o + 4] as f32, values[o + 5] as f32, values[o + 6] as f32, values[o + 3] as f32);
+        ensure!((q.length() - 1.0).abs() < 1e-3, "{file}: frame {f}: the object's quaternion has norm {:.4}; expected a unit quaternion (w, x, y, z)", q.length());
+        times.push(values[0]);
+        demo.keypoints.push(k);
+        demo.object.push(Pose { pos, rot: q.normalize() });
+    }
+    ensure!(times.len() >= 2, "{file}: {} frame(s); expected two at least (the rate is their spacing)", times.len());
+    ensure!(times[0] == 0.0, "{file}: frame 0 is at t = {}; expected 0", times[0]);
+    let dt = times[1] - times[0];
+    ensure!(dt > 0.0, "{file}: frame 1 is at t = {}; expected times increasing from 0", times[1]);
+    for (f, t) in times.iter().enumerate() {
+        ensure!((t - f as f64 * dt).abs() <= 1e-6 + 1e-3 * dt, "{file}: frame {f} is at t = {t}; expected evenly spaced frames ({} s apart, as frames 0 and 1)", dt);
+    }
+    demo.fps = 1.0 / dt;
+    Ok(demo)
+}
+
+/// Reads a demonstration: DexMV's `.npz` layout ([`load_dexmv`]) or dextrain's `.csv` ([`load_csv`]).
+pub fn load_demo(path: &Path) -> Result<HumanDemo> {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("npz") => load_dexmv(path),
+        Some("csv") => load_csv(path),
+        other => Err(anyhow!("{}: a demonstration is a DexMV `.npz` or a dextrain `.csv`, not `{}`", path.display(), other.unwrap_or(""))),
+    }
+}
+

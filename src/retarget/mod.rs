@@ -2,14 +2,21 @@
 //! retargeted to the wrist pose and joint angles of a robot hand.
 //!
 //! - `demo.rs`: a human demonstration (21 keypoints and the object's pose per frame, the frame
-//!   rate, the frame they are in) and DexMV's `.npz` layout read into it (`traj::npy`);
+//!   rate, the frame they are in), DexMV's `.npz` layout and dextrain's CSV read into it;
+//! - `world.rs`: a camera-frame demonstration's world frame (up and the table from the object at
+//!   rest), put on the config's table;
+//! - `keypoint_map.rs`: which human keypoint goes to which point of a robot hand (from the hand's
+//!   fingertips and their chains), and the robot's size over the human's;
 //! - `solve.rs`: the per-frame solve (dex-retargeting's vector method: keypoint vectors of the
 //!   robot matched to the human's, scaled; joint limits; a pull toward the previous frame; warm
-//!   starts) and its per-keypoint errors.
+//!   starts) and its per-keypoint errors;
+//! - `command.rs`: `dextrain traj retarget`, which writes the reference.
 //!
-//! Not here yet (issue 39): our own keypoint formats (MCAP and CSV),
-//! the world frame estimated from the demo, the human-to-robot keypoint tables of the shipped hands,
-//! the contact clean-up, and the `dextrain traj retarget` command that writes a reference.
+//! Not here yet (issue 39): a keypoint MCAP layout of our own, a config table that overrides the
+//! automatic keypoint map, and the contact clean-up (fingertips re-grounded on the object).
 
+pub mod command;
 pub mod demo;
+pub mod keypoint_map;
 pub mod solve;
+pub mod world;
