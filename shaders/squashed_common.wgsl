@@ -36,3 +36,9 @@ fn sq_log1p(t: f32) -> f32 {
 fn sq_row(gid: vec3<u32>) -> u32 {
     return gid.y * sc.grid_row + gid.x;
 }
+
+// log σ squashed into [lo, hi] from the head's unsquashed value x, given tanh x:
+// lo + ½ (hi − lo)(tanh x + 1)
+fn sq_log_std(tanh_x: f32) -> f32 {
+    return bitcast<f32>(sc.lo_bits) + bitcast<f32>(sc.half_bits) * (tanh_x + 1.0);
+}

@@ -16,12 +16,10 @@ fn squashed_sample(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let a = sc.a;
-    let lo = bitcast<f32>(sc.lo_bits);
-    let half = bitcast<f32>(sc.half_bits);
     var log_prob = 0.0;
     for (var k = 0u; k < a; k++) {
         let mu = sq_head[r * 2u * a + k];
-        let log_std = lo + half * (sq_tanh(sq_head[r * 2u * a + a + k]) + 1.0); // squashed into [lo, hi]
+        let log_std = sq_log_std(sq_tanh(sq_head[r * 2u * a + a + k])); // squashed into [lo, hi]
         let e = sq_eps[r * a + k];
         let u = mu + exp(log_std) * e; // u = μ + σ ε
         let z = -2.0 * u;

@@ -18,13 +18,12 @@ fn squashed_sample_backward(@builtin(global_invocation_id) gid: vec3<u32>) {
         return;
     }
     let a = sc.a;
-    let lo = bitcast<f32>(sc.lo_bits);
-    let half = bitcast<f32>(sc.half_bits);
+    let half = bitcast<f32>(sc.half_bits); // ½ (hi − lo)
     let d_log_prob = sq_dout[r * (a + 1u) + a];
     for (var k = 0u; k < a; k++) {
         let mu = sq_head[r * 2u * a + k];
         let tx = sq_tanh(sq_head[r * 2u * a + a + k]);
-        let log_std = lo + half * (tx + 1.0);
+        let log_std = sq_log_std(tx);
         let e = sq_eps[r * a + k];
         let sigma_e = exp(log_std) * e; // σ ε
         let act = sq_tanh(mu + sigma_e); // a = tanh(u)
