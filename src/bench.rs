@@ -444,49 +444,42 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
         let term: Vec<bool> = (0..n).map(|_| rng.uniform() < 0.01).collect();
         sac.buffer.push(&Transitions { obs: &ob, priv_obs: &pr, actions: &act, rewards: &rew, done: &term, terminated: &term, next_obs: &next_ob, next_priv_obs: &next_pr })?;
     }
-    let (mut per_step_ms, mut cpu_s) = (Vec::new(), Vec::new());
-    let mut counts = serde_json::Value::Null;
-    for it in 0..o.warmup + o.iters {
-        let (m0, q0) = (GpuCounts::now(), ctx.and_then(|c| queue_submissions(&c.queue)));
-        let (t0, c0) = (Instant::now(), process_cpu_time());
-        for _ in 0..o.gradient_steps {
-            sac.gradient_step()?;
-        }
-        let (dt, dc) = (t0.elapsed().as_secs_f64(), process_cpu_time() - c0);
-        let q1 = ctx.and_then(|c| queue_submissions(&c.queue));
-        counts = GpuCounts::now().since(&m0).to_json(o.gradient_steps as f64, submissions_between(q0, q1));
-        crate::console::status(&format!("  update {it}{}: {:.0} ms ({:.1} ms per gradient step)", if it < o.warmup { " (warm-up)" } else { "" }, 1e3 * dt, 1e3 * dt / o.gradient_steps as f64));
-        if it >= o.warmup {
-            per_step_ms.push(1e3 * dt / o.gradient_steps as f64);
-            cpu_s.push(dc);
-        }
-    }
-    let s = sac.take_stats()?;
-    let st = stats(&per_step_ms);
-    let median = st["median"].as_f64().unwrap_or(f64::NAN);
-    // the device-resident replay buffer (what a GPU training run samples from, and where skrl's
-    // memory lives): the same transitions copied to the device, the same updates timed again
-    let mut device_path = serde_json::Value::Null;
-    if let Some(ctx) = ctx.filter(|_| crate::learn::nets::is_gpu(&sac.device)) {
-        sac.start_device_rollouts(ctx)?;
-        let (mut d_ms, mut d_cpu_s, mut d_counts) = (Vec::new(), Vec::new(), serde_json::Value::Null);
+    // `warmup + iters` updates of `gradient_steps` steps, each update timed (and, with `sync`,
+    // ended by a wait for the device): ms per gradient step and process CPU s of the timed ones,
+    // and the last update's GPU counts per gradient step
+    let timed = |sac: &mut Sac, label: &str, sync: bool| -> Result<(Vec<f64>, Vec<f64>, serde_json::Value)> {
+        let (mut per_step_ms, mut cpu_s, mut counts) = (Vec::new(), Vec::new(), serde_json::Value::Null);
         for it in 0..o.warmup + o.iters {
-            let (m0, q0) = (GpuCounts::now(), queue_submissions(&ctx.queue));
+            let (m0, q0) = (GpuCounts::now(), ctx.and_then(|c| queue_submissions(&c.queue)));
             let (t0, c0) = (Instant::now(), process_cpu_time());
             for _ in 0..o.gradient_steps {
                 sac.gradient_step()?;
             }
-            // the steps' kernels have run when the device is idle (a training run reads its
-            // statistics once per iteration)
-            crate::gpu::io::sync(&sac.device)?;
+            if sync {
+                crate::gpu::io::sync(&sac.device)?;
+            }
             let (dt, dc) = (t0.elapsed().as_secs_f64(), process_cpu_time() - c0);
-            d_counts = GpuCounts::now().since(&m0).to_json(o.gradient_steps as f64, submissions_between(q0, queue_submissions(&ctx.queue)));
-            crate::console::status(&format!("  device-resident update {it}{}: {:.0} ms ({:.1} ms per gradient step)", if it < o.warmup { " (warm-up)" } else { "" }, 1e3 * dt, 1e3 * dt / o.gradient_steps as f64));
+            let q1 = ctx.and_then(|c| queue_submissions(&c.queue));
+            counts = GpuCounts::now().since(&m0).to_json(o.gradient_steps as f64, submissions_between(q0, q1));
+            crate::console::status(&format!("  {label}update {it}{}: {:.0} ms ({:.1} ms per gradient step)", if it < o.warmup { " (warm-up)" } else { "" }, 1e3 * dt, 1e3 * dt / o.gradient_steps as f64));
             if it >= o.warmup {
-                d_ms.push(1e3 * dt / o.gradient_steps as f64);
-                d_cpu_s.push(dc);
+                per_step_ms.push(1e3 * dt / o.gradient_steps as f64);
+                cpu_s.push(dc);
             }
         }
+        Ok((per_step_ms, cpu_s, counts))
+    };
+    let (per_step_ms, cpu_s, counts) = timed(&mut sac, "", false)?;
+    let s = sac.take_stats()?;
+    let st = stats(&per_step_ms);
+    let median = st["median"].as_f64().unwrap_or(f64::NAN);
+    // the device-resident replay buffer (what a GPU training run samples from, and where skrl's
+    // memory lives): the same transitions copied to the device, the same updates timed again, each
+    // ended when the device is idle (a training run reads its statistics once per iteration)
+    let mut device_path = serde_json::Value::Null;
+    if let Some(ctx) = ctx.filter(|_| crate::learn::nets::is_gpu(&sac.device)) {
+        sac.start_device_rollouts(ctx)?;
+        let (d_ms, d_cpu_s, d_counts) = timed(&mut sac, "device-resident ", true)?;
         sac.take_stats()?;
         device_path = json!({"ms_per_gradient_step": stats(&d_ms), "update_process_cpu_s": stats(&d_cpu_s), "gpu_counts": {"per_gradient_step": d_counts}});
     }

@@ -160,9 +160,7 @@ pub fn upload(data: &[f32], shape: [usize; 2], device: &Device) -> Result<Tensor
     };
     crate::gpu::io::flush(device)?;
     let out = crate::gpu::io::empty_buffer(shape[0], shape[1], device)?;
-    ctx.queue.write_buffer(out.buffer(), out.offset(), bytemuck::cast_slice(data));
-    crate::host_traffic::add(4 * data.len() as u64);
-    crate::gpu_counts::add(crate::gpu_counts::Event::Upload, "dextrain:write_buffer");
+    ctx.upload_at("host rows", out.buffer(), out.offset(), bytemuck::cast_slice(data))?; // counted as traffic and an upload
     let t = out.tensor.clone();
     Ok(if device.is_autodiff() { t.autodiff() } else { t })
 }

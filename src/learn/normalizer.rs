@@ -121,6 +121,16 @@ impl Normalizer {
         (x - mean) * scale
     }
 
+    /// `rows` `[n, dim]` normalised (when `on`) as a tensor on `device`: on a GPU normalised there
+    /// ([`Normalizer::upload_normalized`]), on the CPU on the host in f64 ([`Normalizer::normalized`]).
+    pub fn normalized_tensor(&self, rows: &[f32], n: usize, device: &Device, on: bool) -> Tensor<2> {
+        if super::nets::is_gpu(device) {
+            self.upload_normalized(rows, n, device, on)
+        } else {
+            to_tensor(self.normalized(rows, on), [n, self.dim()], device)
+        }
+    }
+
     /// A normalised copy of `x` ([rows, dim]) when `on`, else a plain copy (a learner with
     /// `policy.obs_normalization = false`).
     pub fn normalized(&self, x: &[f32], on: bool) -> Vec<f32> {

@@ -167,6 +167,18 @@ impl ObjectModel {
         (lo, hi)
     }
 
+    /// Points of the collision shape in the object frame that bound it from every side: the
+    /// convex pieces' vertices, or, for a shape without hulls (primitives), the corners of
+    /// [`ObjectModel::bounding_box`].
+    pub fn collision_points(&self) -> Vec<Vec3> {
+        let pts: Vec<Vec3> = self.pieces.iter().filter_map(|p| p.hull.as_ref().map(|h| (p, h))).flat_map(|(p, h)| h.vertices.iter().map(move |v| p.pose.transform_point(*v))).collect();
+        if !pts.is_empty() {
+            return pts;
+        }
+        let (lo, hi) = self.bounding_box();
+        (0..8).map(|i| Vec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z })).collect()
+    }
+
     /// Whether the object is one sphere, or one cylinder or capsule standing upright: round in
     /// the table's plane (a grasp may close on it from any side).
     pub fn is_round(&self) -> bool {

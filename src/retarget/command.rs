@@ -26,7 +26,6 @@ use super::world::{DemoFrame, estimate_world};
 use crate::config::Config;
 use crate::env::SimModel;
 use crate::geom::Pose;
-use crate::object::ObjectModel;
 use crate::traj::{Keyframe, Trajectory};
 
 /// How far above the table the retargeted hand's lowest link origin or fingertip is kept (m): a
@@ -63,17 +62,6 @@ pub struct RetargetArgs {
     pub sets: Vec<String>,
 }
 
-/// Points of an object's collision shape in its frame: the convex pieces' vertices, and the
-/// corners of the bounding box of a shape without hulls (a primitive).
-fn shape_points(obj: &ObjectModel) -> Vec<Vec3> {
-    let mut pts: Vec<Vec3> = obj.pieces.iter().filter_map(|p| p.hull.as_ref().map(|h| (p, h))).flat_map(|(p, h)| h.vertices.iter().map(move |v| p.pose.transform_point(*v))).collect();
-    if pts.is_empty() {
-        let (lo, hi) = obj.bounding_box();
-        pts = (0..8).map(|i| Vec3::new(if i & 1 == 0 { lo.x } else { hi.x }, if i & 2 == 0 { lo.y } else { hi.y }, if i & 4 == 0 { lo.z } else { hi.z })).collect();
-    }
-    pts
-}
-
 /// Runs the command: writes the reference and prints the report (one JSON line).
 pub fn run(args: &RetargetArgs) -> Result<()> {
     let report = retarget(args)?;
@@ -90,7 +78,8 @@ pub fn retarget(args: &RetargetArgs) -> Result<serde_json::Value> {
     let frame = DemoFrame::parse(&demo.frame).ok_or_else(|| anyhow!("{demo_name}: frame `{}`; expected `camera` or `world`", demo.frame))?;
     let obj = model.objects.first().with_context(|| format!("{}: the config has no object to put the demonstration's on", args.config.display()))?;
     let g = &model.globals;
-    let world = estimate_world(&demo, frame, &shape_points(obj), [g.obj_init[0], g.obj_init[1]]).map_err(|e| anyhow!("{demo_name}: {e}"))?;
+    let shape = obj.collision_points();
+    let world = estimate_world(&demo, frame, &shape, [g.obj_init[0], g.obj_init[1]]).map_err(|e| anyhow!("{demo_name}: {e}"))?;
     let frames: Vec<[Vec3; HUMAN_KEYPOINTS]> = demo.keypoints.iter().map(|k| k.map(|p| world.point(p))).collect();
     let mut map = keypoint_map(&model, &frames).map_err(|e| anyhow!("{}: {e}", args.config.display()))?;
     if let Some(s) = args.scale {
@@ -110,7 +99,6 @@ pub fn retarget(args: &RetargetArgs) -> Result<serde_json::Value> {
         frames: Vec::with_capacity(solved.len()),
         object_name: cfg.object.name.clone(),
     };
-    let shape = shape_points(obj);
     let mut cleanup = Cleanup::default();
     for (i, (f, k)) in solved.iter().zip(&frames).enumerate() {
         let mut wrist = Pose::new(k[0] + f.wrist_pos, f.wrist_rot); // the solve's wrist is relative to the human's

@@ -52,6 +52,18 @@ pub struct HumanDemo {
     pub frame: String,
 }
 
+/// That one frame's keypoints are a human hand in metres: each within [`MAX_DEMO_DISTANCE_M`] of
+/// the origin, the wrist within [`MAX_PALM_LENGTH_M`] of the middle knuckle; else an error that
+/// begins with `place` (the file and the frame).
+fn check_hand(k: &[Vec3; HUMAN_KEYPOINTS], place: &str) -> Result<()> {
+    for (i, p) in k.iter().enumerate() {
+        ensure!(p.length() <= MAX_DEMO_DISTANCE_M, "{place} keypoint {i} ({}) is {:.1} m from the origin; expected metres (under {MAX_DEMO_DISTANCE_M} m)", KEYPOINT_NAMES[i], p.length());
+    }
+    let palm = (k[9] - k[0]).length();
+    ensure!(palm > 0.0 && palm <= MAX_PALM_LENGTH_M, "{place}: wrist to middle knuckle is {palm:.3} m; expected a human hand in metres (under {MAX_PALM_LENGTH_M} m)");
+    Ok(())
+}
+
 /// The array `key` of `arrays`, or an error naming the file.
 fn array<'a>(arrays: &'a std::collections::BTreeMap<String, NpyArray>, key: &str, file: &str) -> Result<&'a NpyArray> {
     arrays.get(key).ok_or_else(|| anyhow!("{file}: no array `{key}` (a DexMV demo has hand_joints, object_pose, hand_frame_index, object_frame_index, fps)"))
@@ -88,10 +100,8 @@ pub fn load_dexmv(path: &Path) -> Result<HumanDemo> {
             let at = (f * HUMAN_KEYPOINTS + i) * 3;
             *p = Vec3::new(kp[at] as f32, kp[at + 1] as f32, kp[at + 2] as f32);
             ensure!(p.is_finite(), "{file}: hand_joints frame {f} keypoint {i} ({}) is not finite", KEYPOINT_NAMES[i]);
-            ensure!(p.length() <= MAX_DEMO_DISTANCE_M, "{file}: hand_joints frame {f} keypoint {i} ({}) is {:.1} m from the origin; expected metres (under {MAX_DEMO_DISTANCE_M} m)", KEYPOINT_NAMES[i], p.length());
         }
-        let palm = (k[9] - k[0]).length();
-        ensure!(palm > 0.0 && palm <= MAX_PALM_LENGTH_M, "{file}: hand_joints frame {f}: wrist to middle knuckle is {palm:.3} m; expected a human hand in metres (under {MAX_PALM_LENGTH_M} m)");
+        check_hand(&k, &format!("{file}: hand_joints frame {f}"))?;
         // the object pose of the same source frame
         let source = hand_index[f];
         let o = object_index.iter().position(|&i| i == source).ok_or_else(|| anyhow!("{file}: hand frame {f} (source frame {source}) has no object_pose with that object_frame_index"))?;
@@ -174,10 +184,8 @@ pub fn load_csv(path: &Path) -> Result<HumanDemo> {
         let mut k = [Vec3::ZERO; HUMAN_KEYPOINTS];
         for (i, p) in k.iter_mut().enumerate() {
             *p = Vec3::new(values[1 + 3 * i] as f32, values[2 + 3 * i] as f32, values[3 + 3 * i] as f32);
-            ensure!(p.length() <= MAX_DEMO_DISTANCE_M, "{file}: frame {f}: keypoint {} is {:.1} m from the origin; expected metres (under {MAX_DEMO_DISTANCE_M} m)", KEYPOINT_NAMES[i], p.length());
         }
-        let palm = (k[9] - k[0]).length();
-        ensure!(palm > 0.0 && palm <= MAX_PALM_LENGTH_M, "{file}: frame {f}: wrist to middle knuckle is {palm:.3} m; expected a human hand in metres (under {MAX_PALM_LENGTH_M} m)");
+        check_hand(&k, &format!("{file}: frame {f}"))?;
         let o = 1 + 3 * HUMAN_KEYPOINTS;
         let pos = Vec3::new(values[o] as f32, values[o + 1] as f32, values[o + 2] as f32);
         ensure!(pos.length() <= MAX_DEMO_DISTANCE_M, "{file}: frame {f}: the object is {:.1} m from the origin; expected metres", pos.length());

@@ -3,12 +3,13 @@
 //!
 //! - **Fingers.** Each of the hand's fingertips (`hand.fingertips`) ends a finger; the finger's
 //!   knuckle is the origin of the first link of its chain out of the palm (the link whose parent
-//!   is the wrist). Where the fingertips' names say which finger each is (`thumb`/`th…`,
-//!   `index`/`if…`/`ff…`, `middle`/`mf…`, `ring`/`rf…`, `little`/`pinky`/`lf…`: dexhand16's, LEAP's,
-//!   Shadow's), the names decide. Otherwise the **thumb** is the fingertip farthest from the mean
-//!   of the others at the hand's default posture (the opposed digit), and the other fingers, in
-//!   the order of their knuckles along the palm's row from the end nearer the thumb's knuckle, are
-//!   the human index, middle, ring and little fingers (a hand with fewer fingers maps a subset: a
+//!   is the wrist). The **thumb** is the fingertip whose name starts with `th` or contains
+//!   `thumb` (`HandModel::thumb_by_name`, `traj synth`'s rule), else the one farthest from the
+//!   mean of the others at the hand's default posture (the opposed digit). Where the other
+//!   fingertips' names each say a finger of their own (`index`/`if…`/`ff…`, `middle`/`mf…`,
+//!   `ring`/`rf…`, `little`/`pinky`/`lf…`: dexhand16's, LEAP's, Shadow's), the names decide;
+//!   otherwise the fingers, in the order of their knuckles along the palm's row from the end
+//!   nearer the thumb's knuckle, are the human index, middle, ring and little fingers (a hand with fewer fingers maps a subset: a
 //!   four-fingered hand has no little finger).
 //! - **Points** (dex-retargeting's vector method): the wrist, then per finger its knuckle and its
 //!   tip. **Vectors**: wrist → tip and knuckle → tip (weight 1: where the finger points and how
@@ -25,7 +26,7 @@ use super::demo::{HUMAN_KEYPOINTS, KEYPOINT_NAMES};
 use super::solve::{RetargetSpec, RobotPoint, VectorPair};
 use crate::env::SimModel;
 use crate::hand::MAX_JOINTS;
-use crate::task::ik::{IkScratch, ik_apply_mimic, ik_link_poses};
+use crate::task::ik::{IkScratch, ik_apply_mimic, ik_chain, ik_link_poses, ik_tip_positions};
 
 /// The human fingers' keypoints (wrist excluded), thumb first: knuckle (the thumb's CMC, the
 /// fingers' MCP) to tip, in [`KEYPOINT_NAMES`] order.
@@ -79,25 +80,13 @@ impl KeypointMap {
     }
 }
 
-/// The chain of links from `link` up to the wrist (link 0 excluded), tip first.
-fn chain(model: &SimModel, link: usize) -> Vec<usize> {
-    let mut out = Vec::new();
-    let mut l = link;
-    while l > 0 && out.len() <= MAX_JOINTS {
-        out.push(l);
-        l = model.joints[l - 1].parent_link as usize;
-    }
-    out
-}
-
-/// The human finger (an index into [`FINGER_NAMES`]) a fingertip's name says it ends, if any.
+/// The human finger other than the thumb (an index into [`FINGER_NAMES`], 1–4) a fingertip's name
+/// says it ends, if any (the thumb is `traj synth`'s: `HandModel::thumb_by_name`).
 pub fn finger_of_name(name: &str) -> Option<usize> {
     let n = name.to_ascii_lowercase();
     let starts = |p: &[&str]| p.iter().any(|p| n.starts_with(p));
     let has = |p: &[&str]| p.iter().any(|p| n.contains(p));
-    if has(&["thumb"]) || starts(&["th_", "th"]) && !starts(&["thi"]) {
-        Some(0)
-    } else if has(&["index"]) || starts(&["if_", "ff_", "ff", "if"]) {
+    if has(&["index"]) || starts(&["if_", "ff_", "ff", "if"]) {
         Some(1)
     } else if has(&["middle"]) || starts(&["mf_", "mf"]) {
         Some(2)
@@ -143,31 +132,34 @@ pub fn keypoint_map(model: &SimModel, frames: &[[Vec3; HUMAN_KEYPOINTS]]) -> Res
     ensure!(n_tips <= 5, "{}: the hand has {n_tips} fingertips; a human hand has 5 fingers to map them to", hand.source.display());
     let q = default_posture(model);
     let mut s = IkScratch::default();
+    let tip_pos = ik_tip_positions(&m, &q, &mut s);
     ik_link_poses(&m, &q, &mut s);
-    let tip_pos: Vec<Vec3> = (0..n_tips)
+    // each fingertip's chain of links, root → tip (link j + 1 is moved by joint j)
+    let chains: Vec<Vec<usize>> = (0..n_tips)
         .map(|t| {
-            let tip = &m.tips[t];
-            let l = tip.link as usize;
-            s.link_pos[l] + crate::env::common::quat_rotate(s.link_rot[l], Vec3::new(tip.pos[0], tip.pos[1], tip.pos[2]))
+            let n = ik_chain(&m, t, &mut s);
+            (0..n).map(|i| s.chain_j[t * MAX_JOINTS + i] as usize + 1).collect()
         })
         .collect();
-    let knuckle_of = |t: usize| *chain(model, m.tips[t].link as usize).last().unwrap_or(&0);
-    // by the fingertips' names where they say which finger each is
-    let named: Vec<Option<usize>> = hand.fingertips.iter().map(|t| finger_of_name(&t.name)).collect();
-    let mut by_name: Vec<(usize, usize)> = named.iter().enumerate().filter_map(|(t, f)| f.map(|f| (f, t))).collect();
+    for (t, c) in chains.iter().enumerate() {
+        ensure!(!c.is_empty(), "{}: fingertip {} is on the wrist link itself; a finger needs joints", hand.source.display(), hand.fingertips[t].name);
+    }
+    let knuckle_of = |t: usize| chains[t][0];
+    // the thumb: by its name (`HandModel::thumb_by_name`), else the fingertip farthest from the
+    // mean of the others
+    let apart = |t: usize| {
+        let others: Vec<Vec3> = (0..n_tips).filter(|&o| o != t).map(|o| tip_pos[o]).collect();
+        (tip_pos[t] - others.iter().sum::<Vec3>() / others.len() as f32).length()
+    };
+    let thumb = hand.thumb_by_name().unwrap_or_else(|| (0..n_tips).max_by(|&a, &b| apart(a).total_cmp(&apart(b))).expect("two tips at least"));
+    let rest: Vec<usize> = (0..n_tips).filter(|&t| t != thumb).collect();
+    // the other fingers by their names where each says a finger of its own
+    let mut by_name: Vec<(usize, usize)> = rest.iter().filter_map(|&t| finger_of_name(&hand.fingertips[t].name).map(|f| (f, t))).collect();
     by_name.sort();
-    let names_decide = by_name.len() == n_tips && by_name[0].0 == 0 && by_name.windows(2).all(|w| w[0].0 != w[1].0);
-    let order: Vec<(usize, usize)> = if names_decide {
-        by_name
+    let order: Vec<(usize, usize)> = if by_name.len() == rest.len() && by_name.windows(2).all(|w| w[0].0 != w[1].0) {
+        std::iter::once((0, thumb)).chain(by_name).collect()
     } else {
-        // the thumb: the fingertip farthest from the mean of the others
-        let apart = |t: usize| {
-            let others: Vec<Vec3> = (0..n_tips).filter(|&o| o != t).map(|o| tip_pos[o]).collect();
-            (tip_pos[t] - others.iter().sum::<Vec3>() / others.len() as f32).length()
-        };
-        let thumb = (0..n_tips).max_by(|&a, &b| apart(a).total_cmp(&apart(b))).expect("two tips at least");
-        // the other fingers along the row of their knuckles, from the end nearer the thumb's
-        let rest: Vec<usize> = (0..n_tips).filter(|&t| t != thumb).collect();
+        // along the row of their knuckles, from the end nearer the thumb's
         let at = |t: usize| s.link_pos[knuckle_of(t)];
         let (mut a, mut b) = (rest[0], rest[0]);
         for &i in &rest {
@@ -187,13 +179,12 @@ pub fn keypoint_map(model: &SimModel, frames: &[[Vec3; HUMAN_KEYPOINTS]]) -> Res
     let mut fingers = Vec::new();
     for (human, t) in order {
         let tip = &m.tips[t];
-        let links = chain(model, tip.link as usize);
-        ensure!(!links.is_empty(), "{}: fingertip {} is on the wrist link itself; a finger needs joints", hand.source.display(), hand.fingertips[t].name);
-        let knuckle = *links.last().expect("non-empty");
+        let links = &chains[t];
+        let knuckle = links[0];
         // wrist → knuckle → … → the tip's link, then the tip's offset: constant segment lengths
         let mut length = s.link_pos[knuckle].length();
-        for w in links.windows(2) {
-            length += (s.link_pos[w[0]] - s.link_pos[w[1]]).length();
+        for w in links.windows(2).rev() {
+            length += (s.link_pos[w[1]] - s.link_pos[w[0]]).length(); // summed tip first
         }
         let offset = Vec3::new(tip.pos[0], tip.pos[1], tip.pos[2]);
         length += offset.length();

@@ -430,7 +430,7 @@ fn the_dexmv_demo_retargets_onto_the_table() {
     assert!(moved > 0.2, "the bottle moves {moved} m at most");
     let raised = report["cleanup"]["object_largest_raise_m"].as_f64().unwrap();
     assert!(report["cleanup"]["object_frames_raised"].as_u64().unwrap() > 0 && raised > 0.0 && raised < 0.2, "{report}");
-    let shape = model.objects[0].pieces.iter().filter_map(|p| p.hull.as_ref().map(|h| (p, h))).flat_map(|(p, h)| h.vertices.iter().map(move |v| p.pose.transform_point(*v))).collect::<Vec<_>>();
+    let shape = model.objects[0].collision_points();
     for (f, fr) in r.frames.iter().enumerate() {
         let o = fr.object.unwrap();
         let bottom = shape.iter().map(|v| o.transform_point(*v).z).fold(f32::INFINITY, f32::min);

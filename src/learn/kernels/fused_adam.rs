@@ -181,7 +181,7 @@ impl FusedAdam {
             groups.push(self.ctx.bind_group_slices(&self.fin, &ADAM_NORM_FINAL, &[(ADAM_STEP, step_cfg), (ADAM_PARAM_CFG, cfg_slot(0)), (ADAM_PARTIALS_BUF, partials), (ADAM_NORM, norm.slice())])?);
         }
         let first_update = groups.len();
-        let update = if targets.is_some() { &self.update_polyak } else { &self.update };
+        let (update, update_entry) = if targets.is_some() { (&self.update_polyak, &ADAM_UPDATE_POLYAK) } else { (&self.update, &ADAM_UPDATE) };
         for i in 0..n {
             let mut uses = vec![
                 (ADAM_STEP, step_cfg),
@@ -193,13 +193,10 @@ impl FusedAdam {
                 (ADAM_NORM, norm.slice()),
                 (ADAM_LR, lrb.slice()),
             ];
-            match &targets {
-                Some(tb) => {
-                    uses.push((ADAM_TARGET, tb[i].slice()));
-                    groups.push(self.ctx.bind_group_slices(update, &ADAM_UPDATE_POLYAK, &uses)?);
-                }
-                None => groups.push(self.ctx.bind_group_slices(update, &ADAM_UPDATE, &uses)?),
+            if let Some(tb) = &targets {
+                uses.push((ADAM_TARGET, tb[i].slice()));
             }
+            groups.push(self.ctx.bind_group_slices(update, update_entry, &uses)?);
         }
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         {

@@ -470,22 +470,14 @@ impl Ppo {
     /// The actor's inputs for raw observations `obs` [N, O] / `priv_obs` [N, P], normalised: x
     /// [N, O], and the critic observation [N, P] for a privileged encoder (the actor reads it for
     /// nothing else: without one, x stands in for it and it does not go up). On a GPU the raw rows
-    /// go up with the statistics and are normalised there (`Normalizer::upload_normalized`), on the
-    /// CPU on the host.
+    /// go up with the statistics and are normalised there, on the CPU on the host
+    /// (`Normalizer::normalized_tensor`).
     fn inference_inputs(&self, obs: &[f32], priv_obs: &[f32]) -> Result<(Tensor<2>, Tensor<2>)> {
         let d = self.dims();
         let n = obs.len() / d.obs;
         ensure!(obs.len() == n * d.obs && priv_obs.len() == n * d.priv_obs, "observation sizes do not match the learner");
-        let on_gpu = nets::is_gpu(&self.device);
-        let up = |norm: &Normalizer, rows: &[f32], dim: usize| {
-            if on_gpu {
-                norm.upload_normalized(rows, n, &self.device, self.normalize)
-            } else {
-                to_tensor(norm.normalized(rows, self.normalize), [n, dim], &self.device)
-            }
-        };
-        let x = up(&self.obs_norm, obs, d.obs);
-        let p = if self.net.encoder_shapes.is_empty() { x.clone() } else { up(&self.priv_norm, priv_obs, d.priv_obs) };
+        let x = self.obs_norm.normalized_tensor(obs, n, &self.device, self.normalize);
+        let p = if self.net.encoder_shapes.is_empty() { x.clone() } else { self.priv_norm.normalized_tensor(priv_obs, n, &self.device, self.normalize) };
         Ok((x, p))
     }
 

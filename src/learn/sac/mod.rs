@@ -441,19 +441,12 @@ impl Sac {
         // the observations normalised: on the host (the CPU learner), or on a GPU learner's device
         // (the rows go up with the statistics; the host's f64 pass over the batch cost a GPU
         // learner more than its gradient step's kernels)
-        let on_gpu = nets::is_gpu(&dev);
-        let up = |norm: &Normalizer, rows: &[f32], dim: usize| {
-            if on_gpu {
-                norm.upload_normalized(rows, b, &dev, self.normalize)
-            } else {
-                to_tensor(norm.normalized(rows, self.normalize), [b, dim], &dev)
-            }
-        };
+        let up = |norm: &Normalizer, rows: &[f32]| norm.normalized_tensor(rows, b, &dev, self.normalize);
         Ok(GradBatch {
-            obs: up(&self.obs_norm, &self.actor_rows(&s, false), d.obs),
-            next_obs: up(&self.obs_norm, &self.actor_rows(&s, true), d.obs),
-            priv_obs: up(&self.priv_norm, &s.priv_obs, d.priv_obs),
-            next_priv: up(&self.priv_norm, &s.next_priv_obs, d.priv_obs),
+            obs: up(&self.obs_norm, &self.actor_rows(&s, false)),
+            next_obs: up(&self.obs_norm, &self.actor_rows(&s, true)),
+            priv_obs: up(&self.priv_norm, &s.priv_obs),
+            next_priv: up(&self.priv_norm, &s.next_priv_obs),
             actions: to_tensor(s.actions.clone(), [b, d.act], &dev),
             returns: to_tensor(s.returns.clone(), [b, 1], &dev).inner(),
             bootstrap: to_tensor(s.bootstrap.clone(), [b, 1], &dev).inner(),
