@@ -252,6 +252,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
                 links: hand_link_poses(&model, s),
                 contacts: contact_records(&model, s, &springs0()?, &params[0], tg),
                 object_ref: r.object,
+                overlay: Vec::new(),
             })?;
         }
         Ok(())

@@ -463,5 +463,6 @@ fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::t
         links: hand_link_poses(model, s),
         contacts: contact_records(model, s, &springs[..model.globals.n_springs as usize], &params[0], &targets[0]),
         object_ref,
+        overlay: Vec::new(),
     })
 }

@@ -127,6 +127,10 @@ pub struct RolloutFrame {
     pub contacts: Vec<ContactRecord>,
     /// Optional reference object pose at this time (drawn as a ghost).
     pub object_ref: Option<Pose>,
+    /// Polylines drawn beside the rollout (world frame; each a line strip with a dot at every
+    /// vertex: a human demonstration's fingers, wrist to tip, beside the robot hand that follows
+    /// them); none drawn when empty.
+    pub overlay: Vec<Vec<Vec3>>,
 }
 
 impl ContactKind {
@@ -178,6 +182,7 @@ pub const ENTITY_OBJECT: &str = "object";
 pub const ENTITY_OBJECT_REF: &str = "object_ref";
 pub const ENTITY_TABLE: &str = "table";
 pub const ENTITY_CONTACTS: &str = "contacts";
+pub const ENTITY_OVERLAY: &str = "overlay";
 
 /// Force arrows: shaft length per newton (m/N) and the longest shaft drawn (m).
 pub const FORCE_ARROW_M_PER_N: f32 = 0.02;
@@ -424,6 +429,9 @@ impl<W: Write + Seek> RolloutWriter<W> {
             deletions.push(FgDeletion { timestamp: stamp, kind: 0, id: ENTITY_OBJECT_REF.to_string() });
         }
         entities.push(contacts_entity(&frame.contacts));
+        if !frame.overlay.is_empty() {
+            entities.push(overlay_entity(&frame.overlay));
+        }
         for e in &mut entities {
             e.timestamp = stamp;
         }

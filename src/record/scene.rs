@@ -1,5 +1,5 @@
 //! The Foxglove scene of a recording: the static entities (hand links, object, table) and the
-//! per-frame contact arrows.
+//! per-frame contact arrows and overlay.
 
 use super::*;
 
@@ -9,6 +9,10 @@ pub(super) const GHOST_COLOR: FgColor = FgColor { r: 0.2, g: 0.85, b: 0.3, a: 0.
 pub(super) const TABLE_COLOR: FgColor = FgColor { r: 0.45, g: 0.42, b: 0.4, a: 1.0 };
 pub(super) const CONTACT_POINT_COLOR: FgColor = FgColor { r: 1.0, g: 1.0, b: 0.2, a: 1.0 };
 pub(super) const CONTACT_POINT_DIAMETER: f32 = 0.006;
+/// The overlay (a human demonstration's keypoints): blue dots joined by lines.
+pub(super) const OVERLAY_COLOR: FgColor = FgColor { r: 0.2, g: 0.45, b: 1.0, a: 1.0 };
+pub(super) const OVERLAY_POINT_DIAMETER: f32 = 0.008;
+pub(super) const OVERLAY_LINE_THICKNESS: f32 = 0.003;
 
 pub(super) fn force_color(kind: ContactKind) -> FgColor {
     match kind {
@@ -133,6 +137,31 @@ pub(super) fn build_static_entities(meta: &RolloutMeta, link_frames: &[String]) 
 }
 
 /// Contact points (small spheres) and force arrows (for non-zero forces), in the world frame.
+/// The overlay's polylines (`RolloutFrame::overlay`): a line strip each, a dot at every vertex.
+pub(super) fn overlay_entity(chains: &[Vec<Vec3>]) -> FgEntity {
+    let mut p = Prims::default();
+    let mut lines = Vec::with_capacity(chains.len());
+    for chain in chains {
+        let points: Vec<Vec3> = chain.iter().copied().filter(|v| v.is_finite()).collect();
+        for v in &points {
+            p.sphere(&Pose::new(*v, Quat::IDENTITY), 0.5 * OVERLAY_POINT_DIAMETER, OVERLAY_COLOR);
+        }
+        lines.push(json!({
+            "type": 0, // LINE_STRIP
+            "pose": FgPose::from(&Pose::IDENTITY),
+            "thickness": OVERLAY_LINE_THICKNESS,
+            "scale_invariant": false,
+            "points": points.iter().map(|v| json!({"x": v.x, "y": v.y, "z": v.z})).collect::<Vec<_>>(),
+            "color": OVERLAY_COLOR,
+            "colors": [],
+            "indices": [],
+        }));
+    }
+    let mut e = p.into_entity(ENTITY_OVERLAY, WORLD_FRAME, "overlay");
+    e.lines = lines;
+    e
+}
+
 pub(super) fn contacts_entity(contacts: &[ContactRecord]) -> FgEntity {
     let mut p = Prims::default();
     let mut arrows = Vec::new();

@@ -7,10 +7,12 @@
 //! up, the table, the object moved to the config's position); the human-to-robot keypoint map and
 //! the scale from the hand's model (`keypoint_map.rs`); the per-frame solve (`solve.rs`), each
 //! frame warm-started from the previous. The robot's wrist is placed where the solve puts it
-//! relative to the human wrist, whose keypoints are scaled about it. Then the table clean-up: a
-//! frame whose hand would come within [`HAND_CLEARANCE_M`] of the table (a link origin or a
-//! fingertip) has its wrist raised, and one whose object pose (a video estimate) sinks into the
-//! table has the object raised onto it; the report says which and how far.
+//! relative to the human wrist, whose keypoints are scaled about it. Then the contact clean-up
+//! (`contact.rs`, `--contacts`: the human's grasp re-grounded on the object, or `traj synth`'s
+//! planned grasp, carried along the object's path; or nothing) and the table clean-up: a frame
+//! whose hand would come within [`HAND_CLEARANCE_M`] of the table (a link origin or a fingertip)
+//! has its wrist raised, and one whose object pose (a video estimate) sinks into the table has
+//! the object raised onto it; the report says which and how far.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -19,26 +21,41 @@ use anyhow::{Context, Result, anyhow, ensure};
 use glam::Vec3;
 use serde_json::json;
 
+use super::contact::{ContactReport, GraspSource, HAND_CLEARANCE_M, HandFrame, contact_cleanup, hand_lowest_z, raise_onto_table};
 use super::demo::{HUMAN_KEYPOINTS, KEYPOINT_NAMES, load_demo};
 use super::keypoint_map::{default_posture, keypoint_map};
 use super::solve::retarget_sequence;
-use super::world::{DemoFrame, estimate_world};
+use super::world::{DemoFrame, ObjectAxis, estimate_world};
 use crate::config::Config;
 use crate::env::SimModel;
 use crate::geom::Pose;
+use crate::synth::{SynthArgs, synth};
 use crate::traj::{Keyframe, Trajectory};
 
-/// How far above the table the retargeted hand's lowest link origin or fingertip is kept (m): a
-/// frame whose hand would be lower has its wrist raised.
-pub const HAND_CLEARANCE_M: f32 = 0.01;
-
-/// What the clean-up moved: frames and the largest raise (m), of the hand and of the object.
+/// What the table clean-up moved: frames and the largest raise (m), of the hand and of the object.
 #[derive(Clone, Copy, Debug, Default)]
 struct Cleanup {
     hand_frames: usize,
     hand_raise_m: f32,
     object_frames: usize,
     object_raise_m: f32,
+}
+
+/// What becomes of the demonstration's hand–object contact (`--contacts`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum ContactChoice {
+    /// The retargeted hand re-grounded on the object: its fingertips squeezed onto the object's
+    /// surface at the grasp, the object carried from there (`retarget/contact.rs`). For estimates
+    /// whose hand and object disagree (a video's).
+    #[default]
+    Reground,
+    /// As `reground`, with `traj synth`'s planned grasp of the object (checked in simulation
+    /// there) in place of the human's: the demonstration gives the object's path, the approach
+    /// and the timing. For a demonstration whose grasp the robot cannot copy.
+    Planned,
+    /// The retargeted hand and the object's path as the demonstration has them (a demonstration
+    /// whose hand and object already touch where they should, e.g. motion capture).
+    Keep,
 }
 
 /// `dextrain traj retarget`'s arguments.
@@ -57,6 +74,17 @@ pub struct RetargetArgs {
     /// fingers' lengths over the demonstration's.
     #[arg(long)]
     pub scale: Option<f32>,
+    /// The object's axis (its model frame) that points up while it rests, where the estimate
+    /// should not decide it.
+    #[arg(long, value_enum)]
+    pub object_up: Option<ObjectAxis>,
+    /// The reference's duration over the demonstration's: 2 plays it at half the human's speed (a
+    /// robot hand's grip may not carry an object as fast as a human's).
+    #[arg(long, default_value_t = 1.0)]
+    pub time_scale: f64,
+    /// The contact clean-up: `reground` (default), `planned` or `keep`.
+    #[arg(long, value_enum, default_value_t)]
+    pub contacts: ContactChoice,
     /// Override a config value, as `train --set` does (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub sets: Vec<String>,
@@ -79,13 +107,16 @@ pub fn retarget(args: &RetargetArgs) -> Result<serde_json::Value> {
     let obj = model.objects.first().with_context(|| format!("{}: the config has no object to put the demonstration's on", args.config.display()))?;
     let g = &model.globals;
     let shape = obj.collision_points();
-    let world = estimate_world(&demo, frame, &shape, [g.obj_init[0], g.obj_init[1]]).map_err(|e| anyhow!("{demo_name}: {e}"))?;
+    let world = estimate_world(&demo, frame, &shape, [g.obj_init[0], g.obj_init[1]], args.object_up).map_err(|e| anyhow!("{demo_name}: {e}"))?;
     let frames: Vec<[Vec3; HUMAN_KEYPOINTS]> = demo.keypoints.iter().map(|k| k.map(|p| world.point(p))).collect();
     let mut map = keypoint_map(&model, &frames).map_err(|e| anyhow!("{}: {e}", args.config.display()))?;
     if let Some(s) = args.scale {
         ensure!(s.is_finite() && s > 0.0, "--scale {s}: expected a positive number (the robot's size over the human's)");
         map.spec.scale = s;
     }
+    ensure!(args.time_scale.is_finite() && args.time_scale > 0.0, "--time-scale {}: expected a positive number (the reference's duration over the demonstration's)", args.time_scale);
+    // the reference's frame rate: the demonstration's, slowed by the time scale
+    let fps = demo.fps / args.time_scale;
     let started = Instant::now();
     let relative: Vec<Vec<Vec3>> = frames.iter().map(|k| map.frame_points(k)).collect();
     let solved = retarget_sequence(&model, &map.spec, &relative, &default_posture(&model)).map_err(|e| anyhow!("{demo_name}: {e}"))?;
@@ -93,34 +124,45 @@ pub fn retarget(args: &RetargetArgs) -> Result<serde_json::Value> {
 
     let hand = &model.hand;
     let n = hand.joints.len();
+    // the solve's wrist is relative to the human's
+    let mut hands: Vec<HandFrame> = solved.iter().zip(&frames).map(|(f, k)| HandFrame { wrist: Pose::new(k[0] + f.wrist_pos, f.wrist_rot), q: f.q[..n].to_vec() }).collect();
+    let mut objects: Vec<Pose> = demo.object.iter().map(|o| world.pose(o)).collect();
+    let source = match args.contacts {
+        ContactChoice::Reground => Some(GraspSource::Human),
+        ContactChoice::Planned => Some(GraspSource::Planned(synth(&cfg, &SynthArgs::defaults(args.config.clone(), args.out.clone()))?)),
+        ContactChoice::Keep => None,
+    };
+    let mut cleanup = Cleanup::default();
+    let contacts: Option<ContactReport> = match source {
+        Some(source) => {
+            let report = contact_cleanup(&model, &mut hands, &mut objects, world.rest_frames, fps, &source).map_err(|e| anyhow!("{demo_name}: {e}"))?;
+            (cleanup.object_frames, cleanup.object_raise_m) = (report.object_frames_raised, report.object_largest_raise_m);
+            Some(report)
+        }
+        // the object kept on or above the table
+        None => {
+            (cleanup.object_frames, cleanup.object_raise_m) = raise_onto_table(&mut objects, &shape);
+            None
+        }
+    };
     let mut traj = Trajectory {
         joint_names: hand.joints.iter().map(|j| j.name.clone()).collect(),
         fingertip_names: hand.fingertips.iter().map(|t| t.name.clone()).collect(),
         frames: Vec::with_capacity(solved.len()),
         object_name: cfg.object.name.clone(),
     };
-    let mut cleanup = Cleanup::default();
-    for (i, (f, k)) in solved.iter().zip(&frames).enumerate() {
-        let mut wrist = Pose::new(k[0] + f.wrist_pos, f.wrist_rot); // the solve's wrist is relative to the human's
-        let q = &f.q[..n];
-        let links = hand.forward_kinematics(q);
+    for (i, (h, object)) in hands.into_iter().zip(objects).enumerate() {
+        let mut wrist = h.wrist;
         // the hand kept off the table: its lowest link origin or fingertip HAND_CLEARANCE_M above it
-        let lowest = links.iter().map(|l| l.pos).chain(hand.fingertips.iter().map(|t| links[t.link].transform_point(t.pos))).map(|p| wrist.transform_point(p).z).fold(f32::INFINITY, f32::min);
+        let lowest = hand_lowest_z(&model, &wrist, &h.q);
         if lowest < HAND_CLEARANCE_M {
             wrist.pos.z += HAND_CLEARANCE_M - lowest;
             cleanup.hand_frames += 1;
             cleanup.hand_raise_m = cleanup.hand_raise_m.max(HAND_CLEARANCE_M - lowest);
         }
+        let links = hand.forward_kinematics(&h.q);
         let tips = hand.fingertips.iter().map(|t| wrist.transform_point(links[t.link].transform_point(t.pos))).collect();
-        // the object kept on or above the table
-        let mut object = world.pose(&demo.object[i]);
-        let bottom = shape.iter().map(|v| object.transform_point(*v).z).fold(f32::INFINITY, f32::min);
-        if bottom < 0.0 {
-            object.pos.z -= bottom;
-            cleanup.object_frames += 1;
-            cleanup.object_raise_m = cleanup.object_raise_m.max(-bottom);
-        }
-        traj.frames.push(Keyframe { t: i as f64 / demo.fps, wrist, joints: q.to_vec(), fingertips: Some(tips), object: Some(object) });
+        traj.frames.push(Keyframe { t: i as f64 / fps, wrist, joints: h.q, fingertips: Some(tips), object: Some(object) });
     }
     traj.save(&args.out)?;
 
@@ -141,6 +183,7 @@ pub fn retarget(args: &RetargetArgs) -> Result<serde_json::Value> {
         "out": args.out.display().to_string(),
         "frames": solved.len(),
         "fps": demo.fps,
+        "time_scale": args.time_scale,
         "duration_s": traj.duration(),
         "solve_s": solve_s,
         "scale": map.spec.scale,
@@ -150,6 +193,8 @@ pub fn retarget(args: &RetargetArgs) -> Result<serde_json::Value> {
             "rest_frames": world.rest_frames,
             "up_in_demo": [up.x, up.y, up.z],
             "object_axis_up": world.object_axis_up,
+            "object_axis_given": world.object_axis_given,
+            "hand_clearance_m": world.hand_clearance_m,
             "table_height_in_demo_m": world.table_height_in_demo,
         },
         // what was moved off the table: frames and the largest raise (m)
@@ -159,6 +204,7 @@ pub fn retarget(args: &RetargetArgs) -> Result<serde_json::Value> {
             "object_frames_raised": cleanup.object_frames,
             "object_largest_raise_m": cleanup.object_raise_m,
         },
+        "contacts": contacts,
         "keypoint_error": errors,
         "object": cfg.object.name,
     }))

@@ -2,7 +2,10 @@
 //! object's pose, the frame rate and the frame they are given in. [`load_dexmv`] reads DexMV's
 //! layout (`.npz`: `hand_joints` [N, 21, 3] in metres, `object_pose` [M, 4, 4], the 1-based
 //! `hand_frame_index` / `object_frame_index` that pair them, `fps`; `../shared/demos/SOURCES.md`
-//! documents the arrays).
+//! documents the arrays). As DexMV's own loader (`load_hand_object_data_v2`) does, the object's
+//! poses are turned by 180° about the camera's z axis ([`dexmv_object_in_hand_camera`]): its
+//! object estimator's camera frame is the hand estimator's so turned; read as stored, the bottle
+//! of DexMV's example would stand on its cap in a camera that looks up at the table.
 //!
 //! [`load_csv`] reads dextrain's own CSV layout: comment lines first (`# frame: camera` or
 //! `# frame: world`, the frame of every position and pose; without one, `camera`), then a header
@@ -64,6 +67,14 @@ fn check_hand(k: &[Vec3; HUMAN_KEYPOINTS], place: &str) -> Result<()> {
     Ok(())
 }
 
+/// A DexMV object pose (its object estimator's camera frame) in the hand's camera frame: turned by
+/// 180° about z, `(x, y, z) → (−x, −y, z)`, as DexMV's `load_hand_object_data_v2` left-multiplies
+/// it.
+pub fn dexmv_object_in_hand_camera(pose: Pose) -> Pose {
+    let turn = Quat::from_rotation_z(std::f32::consts::PI);
+    Pose { pos: Vec3::new(-pose.pos.x, -pose.pos.y, pose.pos.z), rot: (turn * pose.rot).normalize() }
+}
+
 /// The array `key` of `arrays`, or an error naming the file.
 fn array<'a>(arrays: &'a std::collections::BTreeMap<String, NpyArray>, key: &str, file: &str) -> Result<&'a NpyArray> {
     arrays.get(key).ok_or_else(|| anyhow!("{file}: no array `{key}` (a DexMV demo has hand_joints, object_pose, hand_frame_index, object_frame_index, fps)"))
@@ -119,7 +130,7 @@ pub fn load_dexmv(path: &Path) -> Result<HumanDemo> {
         let pos = Vec3::new(m[3] as f32, m[7] as f32, m[11] as f32);
         ensure!(pos.length() <= MAX_DEMO_DISTANCE_M, "{file}: object_pose frame {o} is {:.1} m from the origin; expected metres", pos.length());
         demo.keypoints.push(k);
-        demo.object.push(Pose { pos, rot: Quat::from_mat3(&rot).normalize() });
+        demo.object.push(dexmv_object_in_hand_camera(Pose { pos, rot: Quat::from_mat3(&rot).normalize() }));
     }
     Ok(demo)
 }

@@ -10,12 +10,16 @@
 //! - `solve.rs`: the per-frame solve (dex-retargeting's vector method: keypoint vectors of the
 //!   robot matched to the human's, scaled; joint limits; a pull toward the previous frame; warm
 //!   starts) and its per-keypoint errors;
+//! - `contact.rs`: the contact clean-up: the object's path cleaned, the grasp (the human's
+//!   re-grounded on the object, or `traj synth`'s planned one) closed on the object's surface and
+//!   carried along its path, the approach kept off the table and the object;
 //! - `command.rs`: `dextrain traj retarget`, which writes the reference.
 //!
-//! Not here yet (issue 39): a keypoint MCAP layout of our own, a config table that overrides the
-//! automatic keypoint map, and the contact clean-up (fingertips re-grounded on the object).
+//! Not here yet (issue 39): a keypoint MCAP layout of our own, and a config table that overrides
+//! the automatic keypoint map.
 
 pub mod command;
+pub mod contact;
 pub mod demo;
 pub mod keypoint_map;
 pub mod solve;

@@ -5,11 +5,13 @@
 //!    first position (a video estimate jitters by centimetres): the object stands on its support
 //!    there. Its resting pose is the median position and the first frame's rotation.
 //! 2. **Up.** The object rests on one of its faces: up is one of its six axis directions (±x, ±y,
-//!    ±z of its model frame) as the resting rotation turns them — the one that keeps the human
-//!    hand above the table it implies (the highest [`HAND_PERCENTILE`] of the hand's keypoints over
-//!    every frame, a hand does not pass through the table), among those on the side of the frame's
-//!    own idea of up ([`DemoFrame::up_hint`]: −y for a camera, whose image y points down as in
-//!    OpenCV's and DexMV's convention; +z for a world frame).
+//!    ±z of its model frame) as the resting rotation turns them — the one nearest the frame's
+//!    expected up ([`DemoFrame::expected_up`]: for a camera, between its image's up (−y in OpenCV's
+//!    and DexMV's convention) and back toward it (−z): a tabletop recording's camera is upright and
+//!    looks down on the table; +z for a world frame). The report gives the hand's clearance over
+//!    the table this implies (the lowest [`HAND_PERCENTILE`] of its keypoints): a negative one says
+//!    the demonstration's hand and object estimates disagree (the contact clean-up re-grounds the
+//!    hand). A user who knows better names the axis (`--object-up`, [`ObjectAxis`]).
 //! 3. **Table.** The support plane is the lowest point of the object's collision shape along up,
 //!    at rest.
 //! 4. **World.** z along up; x the frame's x laid into the table plane; the origin on the table
@@ -39,10 +41,10 @@ pub enum DemoFrame {
 }
 
 impl DemoFrame {
-    /// The frame's own idea of up, that picks among the object's six axis directions.
-    pub fn up_hint(self) -> Vec3 {
+    /// The frame's expected up (unit), that picks among the object's six axis directions.
+    pub fn expected_up(self) -> Vec3 {
         match self {
-            DemoFrame::Camera => -Vec3::Y,
+            DemoFrame::Camera => Vec3::new(0.0, -1.0, -1.0).normalize(),
             DemoFrame::World => Vec3::Z,
         }
     }
@@ -57,6 +59,35 @@ impl DemoFrame {
     }
 }
 
+/// An axis direction of the object's model frame (`--object-up`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum ObjectAxis {
+    #[value(name = "+x")]
+    PosX,
+    #[value(name = "-x")]
+    NegX,
+    #[value(name = "+y")]
+    PosY,
+    #[value(name = "-y")]
+    NegY,
+    #[value(name = "+z")]
+    PosZ,
+    #[value(name = "-z")]
+    NegZ,
+}
+
+impl ObjectAxis {
+    /// Every axis direction, with the name the report gives it.
+    pub const ALL: [(ObjectAxis, Vec3, &'static str); 6] = [
+        (ObjectAxis::PosX, Vec3::X, "+x"),
+        (ObjectAxis::NegX, Vec3::NEG_X, "-x"),
+        (ObjectAxis::PosY, Vec3::Y, "+y"),
+        (ObjectAxis::NegY, Vec3::NEG_Y, "-y"),
+        (ObjectAxis::PosZ, Vec3::Z, "+z"),
+        (ObjectAxis::NegZ, Vec3::NEG_Z, "-z"),
+    ];
+}
+
 /// What was estimated, and the map from the demonstration's frame to the world.
 #[derive(Clone, Debug)]
 pub struct WorldEstimate {
@@ -66,6 +97,11 @@ pub struct WorldEstimate {
     pub up_in_demo: Vec3,
     /// The object's axis (in its model frame) that points up at rest (`"+z"`, …).
     pub object_axis_up: String,
+    /// Whether that axis was given (`--object-up`) rather than estimated.
+    pub object_axis_given: bool,
+    /// The lowest [`HAND_PERCENTILE`] of the hand's keypoints above the table (m; negative: the
+    /// demonstration's hand passes through the table, its estimate disagreeing with the object's).
+    pub hand_clearance_m: f32,
     /// The table plane's height along up in the demonstration's frame (m).
     pub table_height_in_demo: f32,
     /// demo → world: `p_w = rot · (p − anchor) + target`.
@@ -87,8 +123,9 @@ impl WorldEstimate {
 }
 
 /// The world frame of `demo` for an object whose collision shape has the points `shape` (its
-/// model frame), put at `target_xy` on the table (z = 0).
-pub fn estimate_world(demo: &HumanDemo, frame: DemoFrame, shape: &[Vec3], target_xy: [f32; 2]) -> Result<WorldEstimate> {
+/// model frame), put at `target_xy` on the table (z = 0); `object_up` names the object's axis that
+/// points up at rest, else it is estimated.
+pub fn estimate_world(demo: &HumanDemo, frame: DemoFrame, shape: &[Vec3], target_xy: [f32; 2], object_up: Option<ObjectAxis>) -> Result<WorldEstimate> {
     ensure!(!demo.object.is_empty(), "the demonstration has no object poses: no table to put it on");
     ensure!(!shape.is_empty(), "the object has no collision points");
     let first = demo.object[0].pos;
@@ -106,7 +143,7 @@ pub fn estimate_world(demo: &HumanDemo, frame: DemoFrame, shape: &[Vec3], target
     };
     let rest_pos = Vec3::new(median(0), median(1), median(2));
     let rest_rot = demo.object[0].rot;
-    let hint = frame.up_hint();
+    let expected = frame.expected_up();
     // the table a candidate up implies, and the hand's low percentile above it
     let table_along = |up: Vec3| shape.iter().map(|v| (rest_pos + rest_rot * *v).dot(up)).fold(f32::INFINITY, f32::min);
     let hand_clearance = |up: Vec3| {
@@ -115,9 +152,11 @@ pub fn estimate_world(demo: &HumanDemo, frame: DemoFrame, shape: &[Vec3], target
         h.sort_by(f32::total_cmp);
         h[((h.len() as f32 * HAND_PERCENTILE) as usize).min(h.len() - 1)]
     };
-    let axes = [(Vec3::X, "+x"), (-Vec3::X, "-x"), (Vec3::Y, "+y"), (-Vec3::Y, "-y"), (Vec3::Z, "+z"), (-Vec3::Z, "-z")];
-    let candidates: Vec<(Vec3, &str)> = axes.iter().map(|&(a, n)| ((rest_rot * a).normalize(), n)).filter(|(up, _)| up.dot(hint) > 0.0).collect();
-    let (up, name) = candidates.iter().copied().max_by(|a, b| hand_clearance(a.0).total_cmp(&hand_clearance(b.0))).expect("three of six opposite directions face the hint");
+    let axes: Vec<(ObjectAxis, Vec3, &str)> = ObjectAxis::ALL.iter().map(|&(a, v, n)| (a, (rest_rot * v).normalize(), n)).collect();
+    let (up, name) = match object_up {
+        Some(given) => axes.iter().find(|a| a.0 == given).map(|a| (a.1, a.2)).expect("every axis is listed"),
+        None => axes.iter().map(|a| (a.1, a.2)).max_by(|a, b| a.0.dot(expected).total_cmp(&b.0.dot(expected))).expect("six axes"),
+    };
     // the support plane: the lowest collision point along up
     let table = table_along(up);
     // z up; x the frame's x in the table plane (its z where x is nearly up)
@@ -133,6 +172,8 @@ pub fn estimate_world(demo: &HumanDemo, frame: DemoFrame, shape: &[Vec3], target
         rest_frames,
         up_in_demo: up,
         object_axis_up: name.to_string(),
+        object_axis_given: object_up.is_some(),
+        hand_clearance_m: hand_clearance(up),
         table_height_in_demo: table,
         rot,
         anchor,

@@ -17,7 +17,7 @@ const LAYERS: &[(&str, &[&str])] = &[
     ("task layer: tasks, IK, references, the reference bank", &["task"]),
     ("learners: kernels, networks, PPO, SAC, distillation, checkpoints", &["learn"]),
     ("export, eval (with play), the runner", &["export", "eval", "run"]),
-    ("commands", &["replay", "retarget", "synth", "starter", "bench_contacts", "bench_matmul", "bench", "train"]),
+    ("commands", &["replay", "synth", "retarget", "starter", "bench_contacts", "bench_matmul", "bench", "train"]),
 ];
 
 /// The declared order, flattened.

@@ -120,6 +120,8 @@ fn frame(hand: &HandModel, k: usize) -> RolloutFrame {
         links,
         contacts,
         object_ref: k.is_multiple_of(2).then(|| Pose::new(Vec3::new(0.1, 0.0, 0.025), Quat::IDENTITY)),
+        // an overlay of two polylines (three and two points) on odd frames
+        overlay: if k % 2 == 1 { vec![vec![Vec3::ZERO, Vec3::X * 0.1, Vec3::new(0.1, 0.1, 0.0)], vec![Vec3::Z * 0.2, Vec3::new(0.0, 0.0, 0.3)]] } else { Vec::new() },
     }
 }
 
@@ -353,6 +355,17 @@ fn rollout_reads_back() {
             let ghost = entity(scene, "object_ref");
             assert_eq!(ghost["frame_id"], "object_ref");
             assert!(f32_of(&ghost["cubes"][0]["color"]["a"]) < 1.0);
+        }
+        // the overlay on odd frames: a line strip per polyline through its points, a dot at each
+        let has_overlay = scene["entities"].as_array().unwrap().iter().any(|e| e["id"] == "overlay");
+        assert_eq!(has_overlay, k % 2 == 1, "frame {k}");
+        if has_overlay {
+            let o = entity(scene, "overlay");
+            assert_eq!((o["frame_id"].as_str(), prim_count(o, "lines"), prim_count(o, "spheres")), (Some("world"), 2, 5), "frame {k}");
+            let strip = &o["lines"][0];
+            assert_eq!((strip["type"].as_u64(), strip["points"].as_array().unwrap().len()), (Some(0), 3));
+            assert_eq!(f32_of(&strip["points"][2]["y"]), 0.1);
+            assert_eq!(f32_of(&o["lines"][1]["points"][1]["z"]), 0.3);
         }
         let c = entity(scene, "contacts");
         let n_contacts = frames[k].contacts.len();
