@@ -13,6 +13,7 @@
 pub mod hand;
 pub mod learn;
 pub mod object;
+pub mod retarget;
 pub mod rewards;
 pub mod sac;
 pub mod sim;
@@ -27,6 +28,7 @@ use serde::{Deserialize, Serialize};
 use crate::text::{clip_quoted, one_line, quote_short};
 
 pub use hand::{HandConfig, WristConfig};
+pub use retarget::{FingerMap, RetargetConfig};
 pub use sac::{QReduction, SacConfig};
 pub use learn::{Activation, AdaptationModule, AlgorithmChoice, DatasetMode, DistillConfig, EncoderConfig, LrSchedule, PolicyConfig, PpoConfig, StudentActor, TrainConfig};
 pub use object::{MeshFiles, ObjectConfig, ObjectItem, PieceKind};
@@ -68,6 +70,8 @@ pub struct Config {
     pub distill: DistillConfig,
     /// Soft Actor-Critic hyper-parameters (`train.algorithm = "sac"`).
     pub sac: SacConfig,
+    /// How `traj retarget` maps a human hand onto this hand.
+    pub retarget: RetargetConfig,
     /// Directory of the config file (paths in the config are relative to it); not part of the TOML.
     #[serde(skip)]
     pub base_dir: PathBuf,
@@ -93,6 +97,7 @@ impl Default for Config {
             policy: PolicyConfig::default(),
             distill: DistillConfig::default(),
             sac: SacConfig::default(),
+            retarget: RetargetConfig::default(),
             base_dir: PathBuf::from("."),
             source: PathBuf::from("<default>"),
         }

@@ -23,12 +23,13 @@ use serde_json::json;
 
 use super::contact::{ContactReport, GraspSource, HAND_CLEARANCE_M, HandFrame, contact_cleanup, hand_lowest_z, raise_onto_table};
 use super::demo::{HUMAN_KEYPOINTS, KEYPOINT_NAMES, load_demo};
-use super::keypoint_map::{default_posture, keypoint_map};
+use super::keypoint_map::{HUMAN_FINGERS, default_posture, keypoint_map};
 use super::solve::retarget_sequence;
 use super::world::{DemoFrame, ObjectAxis, estimate_world};
 use crate::config::Config;
 use crate::env::SimModel;
 use crate::geom::Pose;
+use crate::record::{RolloutFrame, RolloutMeta, RolloutWriter, object_parts};
 use crate::synth::{SynthArgs, synth};
 use crate::traj::{Keyframe, Trajectory};
 
@@ -82,12 +83,46 @@ pub struct RetargetArgs {
     /// robot hand's grip may not carry an object as fast as a human's).
     #[arg(long, default_value_t = 1.0)]
     pub time_scale: f64,
+    /// Seconds of the reference kept before the grasp window (the pre-grasp pose): the earlier
+    /// approach is dropped and the reference starts there (a shorter episode spent on the grasp
+    /// and the carry); default: the whole demonstration. Needs a contact clean-up.
+    #[arg(long)]
+    pub lead_in: Option<f64>,
     /// The contact clean-up: `reground` (default), `planned` or `keep`.
     #[arg(long, value_enum, default_value_t)]
     pub contacts: ContactChoice,
+    /// Also write a recording (MCAP, for Foxglove) of the reference played kinematically, with
+    /// the human's keypoints beside the robot hand (scaled to it and moved with its wrist).
+    #[arg(long)]
+    pub record: Option<PathBuf>,
     /// Override a config value, as `train --set` does (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub sets: Vec<String>,
+}
+
+/// Writes `traj` played kinematically (every frame's joints, wrist and object as the reference has
+/// them) as a recording, with `overlay[f]` drawn beside frame `f`.
+fn record_reference(model: &SimModel, traj: &Trajectory, overlay: Vec<Vec<Vec<Vec3>>>, path: &std::path::Path) -> Result<()> {
+    let object = model.objects.first().context("the config has no object")?;
+    let dt = traj.frames.get(1).map_or(0.0, |f| f.t) as f32;
+    let meta = RolloutMeta { hand: model.hand.clone(), object: object_parts(object, 1.0), dt, info: json!({"command": "traj retarget", "overlay": "the human demonstration's fingers, scaled to the robot"}) };
+    let mut w = RolloutWriter::create(path, &meta)?;
+    for (f, chains) in traj.frames.iter().zip(overlay) {
+        let object = f.object.unwrap_or(Pose::IDENTITY);
+        w.write_frame(&RolloutFrame {
+            t: f.t,
+            joint_pos: f.joints.clone(),
+            joint_vel: vec![0.0; f.joints.len()],
+            joint_target: f.joints.clone(),
+            wrist: f.wrist,
+            object,
+            links: model.hand.forward_kinematics(&f.joints).iter().map(|l| f.wrist.mul(l)).collect(),
+            contacts: Vec::new(),
+            object_ref: f.object,
+            overlay: chains,
+        })?;
+    }
+    w.finish()
 }
 
 /// Runs the command: writes the reference and prints the report (one JSON line).
@@ -109,7 +144,7 @@ pub fn retarget(args: &RetargetArgs) -> Result<serde_json::Value> {
     let shape = obj.collision_points();
     let world = estimate_world(&demo, frame, &shape, [g.obj_init[0], g.obj_init[1]], args.object_up).map_err(|e| anyhow!("{demo_name}: {e}"))?;
     let frames: Vec<[Vec3; HUMAN_KEYPOINTS]> = demo.keypoints.iter().map(|k| k.map(|p| world.point(p))).collect();
-    let mut map = keypoint_map(&model, &frames).map_err(|e| anyhow!("{}: {e}", args.config.display()))?;
+    let mut map = keypoint_map(&model, &frames, cfg.retarget.fingers.as_ref()).map_err(|e| anyhow!("{}: {e}", args.config.display()))?;
     if let Some(s) = args.scale {
         ensure!(s.is_finite() && s > 0.0, "--scale {s}: expected a positive number (the robot's size over the human's)");
         map.spec.scale = s;
@@ -126,6 +161,7 @@ pub fn retarget(args: &RetargetArgs) -> Result<serde_json::Value> {
     let n = hand.joints.len();
     // the solve's wrist is relative to the human's
     let mut hands: Vec<HandFrame> = solved.iter().zip(&frames).map(|(f, k)| HandFrame { wrist: Pose::new(k[0] + f.wrist_pos, f.wrist_rot), q: f.q[..n].to_vec() }).collect();
+    let retargeted_wrists: Vec<Vec3> = hands.iter().map(|h| h.wrist.pos).collect();
     let mut objects: Vec<Pose> = demo.object.iter().map(|o| world.pose(o)).collect();
     let source = match args.contacts {
         ContactChoice::Reground => Some(GraspSource::Human),
@@ -164,7 +200,37 @@ pub fn retarget(args: &RetargetArgs) -> Result<serde_json::Value> {
         let tips = hand.fingertips.iter().map(|t| wrist.transform_point(links[t.link].transform_point(t.pos))).collect();
         traj.frames.push(Keyframe { t: i as f64 / fps, wrist, joints: h.q, fingertips: Some(tips), object: Some(object) });
     }
+    // the lead-in: the frames from lead_in before the grasp window, their times from 0
+    let first_frame = match (args.lead_in, &contacts) {
+        (None, _) => 0,
+        (Some(s), Some(c)) => {
+            ensure!(s.is_finite() && s >= 0.0, "--lead-in {s}: expected seconds ≥ 0");
+            c.window_from.saturating_sub((s * fps).round() as usize)
+        }
+        (Some(_), None) => return Err(anyhow!("--lead-in: needs the grasp window of a contact clean-up (--contacts reground or planned)")),
+    };
+    if first_frame > 0 {
+        traj.frames.drain(..first_frame);
+        let t0 = traj.frames[0].t;
+        for f in &mut traj.frames {
+            f.t -= t0;
+        }
+    }
     traj.save(&args.out)?;
+    if let Some(path) = &args.record {
+        // the human's fingers (wrist → knuckle → … → tip) as the solve saw them, scaled about the
+        // human wrist, moved by what the clean-ups moved the robot's wrist
+        let overlay: Vec<Vec<Vec<Vec3>>> = frames[first_frame..]
+            .iter()
+            .zip(&traj.frames)
+            .zip(&retargeted_wrists[first_frame..])
+            .map(|((k, f), &retargeted)| {
+                let at = |p: Vec3| k[0] + (p - k[0]) * map.spec.scale + (f.wrist.pos - retargeted);
+                HUMAN_FINGERS.iter().map(|finger| std::iter::once(at(k[0])).chain(finger.iter().map(|&i| at(k[i]))).collect()).collect()
+            })
+            .collect();
+        record_reference(&model, &traj, overlay, path)?;
+    }
 
     // each mapped keypoint's distance from the scaled human one, mean and largest over the frames
     let errors: serde_json::Map<String, serde_json::Value> = map
@@ -181,9 +247,12 @@ pub fn retarget(args: &RetargetArgs) -> Result<serde_json::Value> {
     let up = world.up_in_demo;
     Ok(json!({
         "out": args.out.display().to_string(),
-        "frames": solved.len(),
+        "record": args.record.as_ref().map(|p| p.display().to_string()),
+        "frames": traj.frames.len(),
+        "first_demo_frame": first_frame,
         "fps": demo.fps,
         "time_scale": args.time_scale,
+        "lead_in_s": args.lead_in,
         "duration_s": traj.duration(),
         "solve_s": solve_s,
         "scale": map.spec.scale,

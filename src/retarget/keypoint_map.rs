@@ -11,6 +11,9 @@
 //!   otherwise the fingers, in the order of their knuckles along the palm's row from the end
 //!   nearer the thumb's knuckle, are the human index, middle, ring and little fingers (a hand with fewer fingers maps a subset: a
 //!   four-fingered hand has no little finger).
+//! - **The config's table.** `[retarget.fingers]` (`thumb = "…"`, `index = "…"`, …) names the
+//!   fingertip each human finger drives, in place of the rules above; a finger left out is not
+//!   mapped.
 //! - **Points** (dex-retargeting's vector method): the wrist, then per finger its knuckle and its
 //!   tip. **Vectors**: wrist → tip and knuckle → tip (weight 1: where the finger points and how
 //!   it bends), wrist → knuckle (weight ½: the palm's orientation). The palm frame that starts the
@@ -19,11 +22,12 @@
 //!   each chain, wrist to tip: the same at any posture) over the human's (wrist → knuckle → …
 //!   → tip, the median over the demonstration's frames), summed over the mapped fingers.
 
-use anyhow::{Result, ensure};
+use anyhow::{Result, anyhow, ensure};
 use glam::Vec3;
 
 use super::demo::{HUMAN_KEYPOINTS, KEYPOINT_NAMES};
 use super::solve::{RetargetSpec, RobotPoint, VectorPair};
+use crate::config::FingerMap;
 use crate::env::SimModel;
 use crate::hand::MAX_JOINTS;
 use crate::task::ik::{IkScratch, ik_apply_mimic, ik_chain, ik_link_poses, ik_tip_positions};
@@ -123,8 +127,9 @@ pub fn human_finger_lengths(frames: &[[Vec3; HUMAN_KEYPOINTS]]) -> [f32; 5] {
     out
 }
 
-/// The map for `model`'s hand and a demonstration whose frames are `frames` (for the scale).
-pub fn keypoint_map(model: &SimModel, frames: &[[Vec3; HUMAN_KEYPOINTS]]) -> Result<KeypointMap> {
+/// The map for `model`'s hand and a demonstration whose frames are `frames` (for the scale); the
+/// fingers as `given` (the config's `[retarget.fingers]`) where it is set.
+pub fn keypoint_map(model: &SimModel, frames: &[[Vec3; HUMAN_KEYPOINTS]], given: Option<&FingerMap>) -> Result<KeypointMap> {
     let m = model.view();
     let hand = &model.hand;
     let n_tips = m.g.n_tips as usize;
@@ -156,7 +161,18 @@ pub fn keypoint_map(model: &SimModel, frames: &[[Vec3; HUMAN_KEYPOINTS]]) -> Res
     // the other fingers by their names where each says a finger of its own
     let mut by_name: Vec<(usize, usize)> = rest.iter().filter_map(|&t| finger_of_name(&hand.fingertips[t].name).map(|f| (f, t))).collect();
     by_name.sort();
-    let order: Vec<(usize, usize)> = if by_name.len() == rest.len() && by_name.windows(2).all(|w| w[0].0 != w[1].0) {
+    let order: Vec<(usize, usize)> = if let Some(given) = given {
+        // the config's table: each named fingertip must be one of the hand's, each used once
+        let names: Vec<&str> = hand.fingertips.iter().map(|t| t.name.as_str()).collect();
+        let mut order = Vec::new();
+        for (human, key, tip) in given.entries() {
+            let t = names.iter().position(|n| *n == tip).ok_or_else(|| anyhow!("key `retarget.fingers.{key}` = \"{tip}\": expected one of the hand's fingertips ({})", names.join(", ")))?;
+            ensure!(!order.iter().any(|&(_, u)| u == t), "key `retarget.fingers.{key}` = \"{tip}\": that fingertip is already another finger's; expected each fingertip once");
+            order.push((human, t));
+        }
+        ensure!(order.len() >= 2, "key `retarget.fingers`: only the thumb is mapped; expected the thumb and at least one other finger");
+        order
+    } else if by_name.len() == rest.len() && by_name.windows(2).all(|w| w[0].0 != w[1].0) {
         std::iter::once((0, thumb)).chain(by_name).collect()
     } else {
         // along the row of their knuckles, from the end nearer the thumb's

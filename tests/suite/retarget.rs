@@ -169,6 +169,25 @@ fn with_numpy(test: &str, script: &str, args: &[&std::path::Path]) -> Option<Str
     Some(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
+/// `tests/read_rollout.py`'s summary of a recording (the Python mcap package's reading, its
+/// messages validated where jsonschema is importable), or None with the reason printed where the
+/// package is missing (a failure with REQUIRE_PYTHON_MCAP=1, as CI sets).
+fn read_rollout_with_python(test: &str, path: &std::path::Path) -> Option<serde_json::Value> {
+    use std::process::Command;
+    let required = std::env::var("REQUIRE_PYTHON_MCAP").is_ok_and(|v| v == "1");
+    let probe = Command::new("python3").args(["-c", "import mcap.reader"]).output();
+    if !probe.as_ref().is_ok_and(|o| o.status.success()) {
+        assert!(!required, "{test}: REQUIRE_PYTHON_MCAP=1 but python3 cannot import mcap (pip install mcap jsonschema)");
+        eprintln!("{test}: the recording's check SKIPPED: python3 cannot import mcap (pip install mcap jsonschema)");
+        return None;
+    }
+    let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/read_rollout.py");
+    let out = Command::new("python3").arg(&script).arg(path).output().unwrap();
+    assert!(out.status.success(), "{test}: read_rollout.py failed: {}", String::from_utf8_lossy(&out.stderr));
+    let stdout = String::from_utf8(out.stdout).unwrap();
+    Some(serde_json::from_str(stdout.lines().last().unwrap()).unwrap())
+}
+
 /// NumPy's own writer makes `.npz` archives (stored and deflated) of every element type we read;
 /// ours reads back the same shapes and values, and refuses what it cannot read with a one-line
 /// error naming the member.
@@ -338,7 +357,7 @@ fn traj_retarget_recovers_a_demo_made_from_the_robot_and_refuses_bad_csv() {
     let demo = dir.path().join("demo.csv");
     std::fs::write(&demo, &text).unwrap();
     let out = dir.path().join("ref.mcap");
-    let args = RetargetArgs { demo: demo.clone(), config: config.clone(), out: out.clone(), scale: Some(1.0), object_up: None, time_scale: 1.0, contacts: ContactChoice::Keep, sets: vec![] };
+    let args = RetargetArgs { demo: demo.clone(), config: config.clone(), out: out.clone(), scale: Some(1.0), object_up: None, time_scale: 1.0, contacts: ContactChoice::Keep, lead_in: None, record: None, sets: vec![] };
     let report = retarget(&args).unwrap();
     assert_eq!(report["world"]["object_axis_up"], "+z", "{report}");
     assert!(report["world"]["table_height_in_demo_m"].as_f64().unwrap().abs() < 1e-5, "{report}");
@@ -386,6 +405,27 @@ fn traj_retarget_recovers_a_demo_made_from_the_robot_and_refuses_bad_csv() {
     let e = bad("demo.txt", "t\n");
     assert!(e.contains(".npz") && e.contains(".csv"), "{e}");
 
+    // the config's table of fingers in place of the automatic map: three fingers, the ring finger
+    // left out (the keypoints still come back within 1 mm); a fingertip the hand lacks, or one
+    // used twice, is a one-line error naming the key
+    let body = std::fs::read_to_string(&config).unwrap();
+    let with_table = |table: &str| {
+        let p = dir.path().join("table.toml");
+        std::fs::write(&p, format!("{body}[retarget.fingers]\n{table}")).unwrap();
+        RetargetArgs { config: p, ..args.clone() }
+    };
+    let three = retarget(&with_table("thumb = \"th_tip\"\nindex = \"if_tip\"\nmiddle = \"mf_tip\"\n")).unwrap();
+    let map: Vec<&str> = three["map"].as_array().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    assert_eq!(map.len(), 7, "{map:?}");
+    assert!(map.contains(&"middle_tip → fingertip mf_tip") && !map.iter().any(|m| m.contains("rf_tip")), "{map:?}");
+    for (name, v) in three["keypoint_error"].as_object().unwrap() {
+        assert!(v["max_mm"].as_f64().unwrap() < 1.0, "{name}: {v}");
+    }
+    for (table, words) in [("thumb = \"th_tip\"\nindex = \"nope\"\n", ["retarget.fingers.index", "th_tip)"]), ("thumb = \"th_tip\"\nindex = \"th_tip\"\n", ["retarget.fingers.index", "already"])] {
+        let e = format!("{:#}", retarget(&with_table(table)).unwrap_err());
+        assert!(words.iter().all(|w| e.contains(w)) && e.contains("table.toml") && !e.contains('\n'), "{e}");
+    }
+
     // the contact clean-up on the same demo: the fingertips end on the cube's surface (squeezed
     // into it by at most SQUEEZE_M), the palm out of it, and from the carry on the wrist keeps its
     // grasp pose relative to the cube, which follows the demo's path
@@ -431,8 +471,17 @@ fn the_dexmv_demo_retargets_onto_the_table() {
     let dir = tempfile::tempdir().unwrap();
     let config = retarget_config(dir.path(), &format!("name = \"mustard_bottle\"\nmesh = \"{}\"\nmass = 0.6", mesh.display()));
     let out = dir.path().join("mustard.mcap");
-    let args = RetargetArgs { demo, config, out: out.clone(), scale: None, object_up: None, time_scale: 1.0, contacts: ContactChoice::Reground, sets: vec![] };
+    let recording = dir.path().join("mustard_recording.mcap");
+    let args = RetargetArgs { demo, config, out: out.clone(), scale: None, object_up: None, time_scale: 1.0, contacts: ContactChoice::Reground, lead_in: None, record: Some(recording.clone()), sets: vec![] };
     let report = retarget(&args).unwrap();
+    // the recording, read by the Python mcap package (every message checked against its schema
+    // where jsonschema is there): a frame per reference frame, the human's five fingers beside
+    // the hand (a line strip each, wrist + 4 keypoints)
+    if let Some(s) = read_rollout_with_python(test, &recording) {
+        assert_eq!((s["counts"]["/scene"].as_u64(), s["counts"]["/tf"].as_u64()), (Some(122), Some(122)), "{s}");
+        let overlay = &s["first_scene"]["entities"]["overlay"];
+        assert_eq!((overlay["lines"].as_u64(), overlay["spheres"].as_u64()), (Some(5), Some(25)), "{s}");
+    }
     assert_eq!((report["frames"].as_u64(), report["fps"].as_f64()), (Some(122), Some(25.0)), "{report}");
     // the bottle stands on its base in a camera that looks down on the table
     assert_eq!((report["world"]["object_axis_up"].as_str(), report["world"]["object_axis_given"].as_bool()), (Some("+z"), Some(false)), "{report}");
