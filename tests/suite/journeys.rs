@@ -2,8 +2,10 @@
 //! folder. A journey is a fenced block of README.md or docs/*.md that follows a
 //! `<!-- journey: NAME -->` line; its commands are the block's lines that start with `dextrain `
 //! (or the set-up's `cargo run --release -- `), a trailing `# comment` dropped. Each journey runs in
-//! a temporary folder holding a copy of `configs/` (as a clean clone's root would), through the
-//! built binary, with `XDG_RUNTIME_DIR` unset (as on a headless machine).
+//! a temporary folder holding a copy of `configs/` (as a clean clone's root would; `../shared`
+//! beside it, a link to the project's, for a journey that reads it — skipped, and said, on a
+//! machine without it), through the built binary, with `XDG_RUNTIME_DIR` unset (as on a headless
+//! machine).
 //!
 //! Only the sizes change ("tiny sizes"), by options appended to what is written: a training run
 //! gets 2 iterations of 4 envs × 8 steps (and stops after 1 when the journey's next command
@@ -132,24 +134,35 @@ fn promised_files(args: &[String]) -> Vec<String> {
 fn documented_journeys_run_as_written() {
     let all = journeys();
     // the journeys that issue 40 names are documented and marked
-    for name in ["set-up", "tour", "own-hand", "own-object", "residual", "distillation"] {
+    for name in ["set-up", "tour", "own-hand", "own-object", "residual", "distillation", "human-demo"] {
         assert!(all.iter().any(|j| j.name == name), "no journey {name:?} is marked in README.md or docs/");
     }
+    let shared = root().join("../shared");
     for j in &all {
-        let dir = tempfile::tempdir().unwrap();
-        copy_dir(&root().join("configs"), &dir.path().join("configs"));
+        // a checkout's copy with `../shared` beside it where the project's has one (the
+        // human-demonstration journey reads its demo and mesh there)
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("checkout");
+        if j.commands.iter().flatten().any(|a| a.contains("../shared")) {
+            if !shared.is_dir() {
+                eprintln!("journey {:?} ({}) SKIPPED: it reads {}, which this machine lacks", j.name, j.source, shared.display());
+                continue;
+            }
+            std::os::unix::fs::symlink(shared.canonicalize().unwrap(), tmp.path().join("shared")).unwrap();
+        }
+        copy_dir(&root().join("configs"), &dir.join("configs"));
         for (k, args) in j.commands.iter().enumerate() {
             let resumed_next = j.commands.get(k + 1).is_some_and(|n| n.first().is_some_and(|c| c == "train") && n.iter().any(|a| a == "--resume"));
             let mut full = args.clone();
             full.extend(tiny(args, resumed_next));
-            let out = Command::new(env!("CARGO_BIN_EXE_dextrain")).args(&full).current_dir(dir.path()).env_remove("XDG_RUNTIME_DIR").output().unwrap();
+            let out = Command::new(env!("CARGO_BIN_EXE_dextrain")).args(&full).current_dir(&dir).env_remove("XDG_RUNTIME_DIR").output().unwrap();
             let stderr = String::from_utf8_lossy(&out.stderr);
             let what = format!("journey {:?} ({}), command {}: dextrain {}", j.name, j.source, k + 1, full.join(" "));
             assert!(out.status.success(), "{what} failed:\n{stderr}");
             let errors: Vec<&str> = stderr.lines().filter(|l| l.trim_start().starts_with("error:")).collect();
             assert!(errors.is_empty(), "{what} printed error lines: {errors:?}");
             for f in promised_files(args) {
-                assert!(dir.path().join(&f).is_file(), "{what}: {f} was not written");
+                assert!(dir.join(&f).is_file(), "{what}: {f} was not written");
             }
             eprintln!("{what}: ok");
         }
