@@ -131,8 +131,9 @@ enum Command {
 enum TrajCommand {
     /// Write a scripted approach–grasp–lift reference for a config's hand and object.
     Synth(dextrain::synth::SynthArgs),
-    /// Retarget a human demonstration (DexMV `.npz` or dextrain `.csv`: 21 keypoints and the
-    /// object's pose per frame) to a config's hand: a reference on its table, and a JSON report.
+    /// Retarget a human demonstration (DexMV `.npz`, or dextrain `.csv` or `.mcap`: 21 keypoints
+    /// and the object's pose per frame) to a config's hand: a reference on its table, its grasp
+    /// closed on the object, and a JSON report.
     Retarget(dextrain::retarget::command::RetargetArgs),
 }
 

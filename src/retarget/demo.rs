@@ -12,7 +12,8 @@
 //! `t,wrist_x,wrist_y,wrist_z,thumb_cmc_x,…,little_tip_z,object_x,object_y,object_z,object_qw,
 //! object_qx,object_qy,object_qz` ([`csv_header`]) and one row per frame: its time (s, from 0,
 //! evenly spaced: the rate is 1 / the spacing), the 21 keypoints (m) and the object's pose (m, a
-//! unit quaternion w, x, y, z). [`load_demo`] picks the reader by the file's extension.
+//! unit quaternion w, x, y, z). [`load_demo_mcap`] reads the same in MCAP (a JSON message per
+//! frame). [`load_demo`] picks the reader by the file's extension.
 //!
 //! Keypoints are in the MANO / OpenPose order ([`KEYPOINT_NAMES`]): 0 the wrist; 1–4 the thumb
 //! (CMC, MCP, IP, tip); 5–8 the index finger (MCP, PIP, DIP, tip); 9–12 middle; 13–16 ring; 17–20
@@ -196,16 +197,19 @@ pub fn load_csv(path: &Path) -> Result<HumanDemo> {
         for (i, p) in k.iter_mut().enumerate() {
             *p = Vec3::new(values[1 + 3 * i] as f32, values[2 + 3 * i] as f32, values[3 + 3 * i] as f32);
         }
-        check_hand(&k, &format!("{file}: frame {f}"))?;
         let o = 1 + 3 * HUMAN_KEYPOINTS;
         let pos = Vec3::new(values[o] as f32, values[o + 1] as f32, values[o + 2] as f32);
-        ensure!(pos.length() <= MAX_DEMO_DISTANCE_M, "{file}: frame {f}: the object is {:.1} m from the origin; expected metres", pos.length());
         let q = Quat::from_xyzw(values[o + 4] as f32, values[o + 5] as f32, values[o + 6] as f32, values[o + 3] as f32);
-        ensure!((q.length() - 1.0).abs() < 1e-3, "{file}: frame {f}: the object's quaternion has norm {:.4}; expected a unit quaternion (w, x, y, z)", q.length());
+        push_frame(&mut demo, &format!("{file}: frame {f}"), k, Pose { pos, rot: q })?;
         times.push(values[0]);
-        demo.keypoints.push(k);
-        demo.object.push(Pose { pos, rot: q.normalize() });
     }
+    demo.fps = rate_of(&file, &times)?;
+    Ok(demo)
+}
+
+/// The frame rate of frames at `times` (s): from 0, evenly spaced; else an error naming `file` and
+/// the frame.
+fn rate_of(file: &str, times: &[f64]) -> Result<f64> {
     ensure!(times.len() >= 2, "{file}: {} frame(s); expected two at least (the rate is their spacing)", times.len());
     ensure!(times[0] == 0.0, "{file}: frame 0 is at t = {}; expected 0", times[0]);
     let dt = times[1] - times[0];
@@ -213,16 +217,102 @@ pub fn load_csv(path: &Path) -> Result<HumanDemo> {
     for (f, t) in times.iter().enumerate() {
         ensure!((t - f as f64 * dt).abs() <= 1e-6 + 1e-3 * dt, "{file}: frame {f} is at t = {t}; expected evenly spaced frames ({} s apart, as frames 0 and 1)", dt);
     }
-    demo.fps = 1.0 / dt;
+    Ok(1.0 / dt)
+}
+
+/// The MCAP topic of dextrain's demonstration layout ([`load_demo_mcap`]), its messages' JSON
+/// Schema name and its metadata record's name.
+pub const DEMO_TOPIC: &str = "/dextrain/human_demo";
+pub const DEMO_SCHEMA_NAME: &str = "dextrain.HumanDemoFrame";
+pub const DEMO_METADATA_NAME: &str = "dextrain.human_demo";
+
+/// A JSON number of `v` at `field`, or an error naming it.
+fn json_number(v: &serde_json::Value, field: &str) -> std::result::Result<f64, String> {
+    v.as_f64().filter(|x| x.is_finite()).ok_or_else(|| format!("field `{field}` is {v}; expected a finite number"))
+}
+
+/// One message of the MCAP layout: its time, keypoints and object pose.
+fn demo_message(v: &serde_json::Value) -> std::result::Result<(f64, [Vec3; HUMAN_KEYPOINTS], Pose), String> {
+    let t = json_number(&v["t"], "t")?;
+    let kps = v["keypoints"].as_array().ok_or_else(|| format!("field `keypoints` is {}; expected an array of 21 [x, y, z]", v["keypoints"]))?;
+    if kps.len() != HUMAN_KEYPOINTS {
+        return Err(format!("field `keypoints` has {} keypoints; expected 21 (the MANO / OpenPose order)", kps.len()));
+    }
+    let mut k = [Vec3::ZERO; HUMAN_KEYPOINTS];
+    for (i, p) in kps.iter().enumerate() {
+        let xyz = p.as_array().filter(|a| a.len() == 3).ok_or_else(|| format!("field `keypoints[{i}]` ({}) is {p}; expected [x, y, z]", KEYPOINT_NAMES[i]))?;
+        let c = |j: usize| json_number(&xyz[j], &format!("keypoints[{i}][{j}]")).map(|x| x as f32);
+        k[i] = Vec3::new(c(0)?, c(1)?, c(2)?);
+    }
+    let o = &v["object"];
+    let n = |key: &str| json_number(&o[key], &format!("object.{key}")).map(|x| x as f32);
+    let pose = Pose { pos: Vec3::new(n("x")?, n("y")?, n("z")?), rot: Quat::from_xyzw(n("qx")?, n("qy")?, n("qz")?, n("qw")?) };
+    Ok((t, k, pose))
+}
+
+/// Reads dextrain's MCAP demonstration layout (docs/file-formats.md): a metadata record
+/// [`DEMO_METADATA_NAME`] whose `frame` is `camera` or `world` (without it, `camera`), and one JSON
+/// message per frame on [`DEMO_TOPIC`]: `{"t": s, "keypoints": [[x, y, z] × 21], "object": {"x",
+/// "y", "z", "qx", "qy", "qz", "qw"}}`, in log-time order, times from 0 evenly spaced; other
+/// topics are ignored.
+pub fn load_demo_mcap(path: &Path) -> Result<HumanDemo> {
+    use mcap::records::Record;
+    let file = path.display().to_string();
+    let bytes = std::fs::read(path).map_err(|e| anyhow!("{file}: cannot read it: {e}"))?;
+    let mut demo = HumanDemo { fps: 0.0, keypoints: Vec::new(), object: Vec::new(), frame: "camera".into() };
+    let mut channels = std::collections::HashMap::new();
+    let mut times = Vec::new();
+    let mut records = crate::traj::io::McapRecords::new(&bytes);
+    while let Some(record) = records.next_record() {
+        match record.map_err(|e| anyhow!("{file}: expected a readable MCAP file: {e}"))? {
+            Record::Metadata(m) if m.name == DEMO_METADATA_NAME => {
+                if let Some(frame) = m.metadata.get("frame") {
+                    ensure!(frame == "camera" || frame == "world", "{file}: metadata `{DEMO_METADATA_NAME}`: field `frame` is `{frame}`; expected `camera` or `world`");
+                    demo.frame = frame.clone();
+                }
+            }
+            Record::Channel(ch) => {
+                channels.insert(ch.id, (ch.topic, ch.message_encoding));
+            }
+            Record::Message { header, data } => {
+                let Some((topic, encoding)) = channels.get(&header.channel_id) else { continue };
+                if topic != DEMO_TOPIC {
+                    continue;
+                }
+                let f = times.len();
+                ensure!(encoding == "json", "{file}: frame {f}: message encoding `{encoding}` on {DEMO_TOPIC}; expected `json`");
+                let value: serde_json::Value = serde_json::from_slice(&data).map_err(|e| anyhow!("{file}: frame {f}: not JSON: {e}"))?;
+                let (t, k, object) = demo_message(&value).map_err(|e| anyhow!("{file}: frame {f}: {e}"))?;
+                push_frame(&mut demo, &format!("{file}: frame {f}"), k, object)?;
+                times.push(t);
+            }
+            _ => {}
+        }
+    }
+    ensure!(!times.is_empty(), "{file}: no message on {DEMO_TOPIC}; expected one per frame (docs/file-formats.md)");
+    demo.fps = rate_of(&file, &times)?;
     Ok(demo)
 }
 
-/// Reads a demonstration: DexMV's `.npz` layout ([`load_dexmv`]) or dextrain's `.csv` ([`load_csv`]).
+/// Checks one frame (a human hand in metres, the object within reach, a unit quaternion) and adds
+/// it to `demo`; errors begin with `place` (the file and the frame).
+fn push_frame(demo: &mut HumanDemo, place: &str, k: [Vec3; HUMAN_KEYPOINTS], object: Pose) -> Result<()> {
+    check_hand(&k, place)?;
+    ensure!(object.pos.length() <= MAX_DEMO_DISTANCE_M, "{place}: the object is {:.1} m from the origin; expected metres", object.pos.length());
+    ensure!((object.rot.length() - 1.0).abs() < 1e-3, "{place}: the object's quaternion has norm {:.4}; expected a unit quaternion", object.rot.length());
+    demo.keypoints.push(k);
+    demo.object.push(Pose { pos: object.pos, rot: object.rot.normalize() });
+    Ok(())
+}
+
+/// Reads a demonstration: DexMV's `.npz` layout ([`load_dexmv`]), dextrain's `.csv` ([`load_csv`])
+/// or `.mcap` ([`load_demo_mcap`]).
 pub fn load_demo(path: &Path) -> Result<HumanDemo> {
     match path.extension().and_then(|e| e.to_str()) {
         Some("npz") => load_dexmv(path),
         Some("csv") => load_csv(path),
-        other => Err(anyhow!("{}: a demonstration is a DexMV `.npz` or a dextrain `.csv`, not `{}`", path.display(), other.unwrap_or(""))),
+        Some("mcap") => load_demo_mcap(path),
+        other => Err(anyhow!("{}: a demonstration is a DexMV `.npz`, or a dextrain `.csv` or `.mcap`, not `{}`", path.display(), other.unwrap_or(""))),
     }
 }
 

@@ -2,7 +2,7 @@
 //! retargeted to the wrist pose and joint angles of a robot hand.
 //!
 //! - `demo.rs`: a human demonstration (21 keypoints and the object's pose per frame, the frame
-//!   rate, the frame they are in), DexMV's `.npz` layout and dextrain's CSV read into it;
+//!   rate, the frame they are in), DexMV's `.npz` layout and dextrain's CSV and MCAP read into it;
 //! - `world.rs`: a camera-frame demonstration's world frame (up and the table from the object at
 //!   rest), put on the config's table;
 //! - `keypoint_map.rs`: which human keypoint goes to which point of a robot hand (from the hand's
@@ -14,9 +14,7 @@
 //!   re-grounded on the object, or `traj synth`'s planned one) closed on the object's surface and
 //!   carried along its path, the approach kept off the table and the object;
 //! - `command.rs`: `dextrain traj retarget`, which writes the reference.
-//!
-//! Not here yet (issue 39): a keypoint MCAP layout of our own, and a config table that overrides
-//! the automatic keypoint map.
+
 
 pub mod command;
 pub mod contact;

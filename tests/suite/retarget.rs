@@ -169,6 +169,22 @@ fn with_numpy(test: &str, script: &str, args: &[&std::path::Path]) -> Option<Str
     Some(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
+/// Runs `script` with python3 and the mcap package; false with the reason printed where the package
+/// is missing (a failure with REQUIRE_PYTHON_MCAP=1, as CI sets).
+fn with_python_mcap(test: &str, script: &str, args: &[&std::path::Path]) -> bool {
+    use std::process::Command;
+    let required = std::env::var("REQUIRE_PYTHON_MCAP").is_ok_and(|v| v == "1");
+    let probe = Command::new("python3").args(["-c", "import mcap.writer"]).output();
+    if !probe.as_ref().is_ok_and(|o| o.status.success()) {
+        assert!(!required, "{test}: REQUIRE_PYTHON_MCAP=1 but python3 cannot import mcap (pip install mcap)");
+        eprintln!("{test}: the MCAP part SKIPPED: python3 cannot import mcap (pip install mcap)");
+        return false;
+    }
+    let out = Command::new("python3").arg("-c").arg(script).args(args).output().unwrap();
+    assert!(out.status.success(), "{test}: the Python mcap script failed:\n{}", String::from_utf8_lossy(&out.stderr));
+    true
+}
+
 /// `tests/read_rollout.py`'s summary of a recording (the Python mcap package's reading, its
 /// messages validated where jsonschema is importable), or None with the reason printed where the
 /// package is missing (a failure with REQUIRE_PYTHON_MCAP=1, as CI sets).
@@ -404,6 +420,41 @@ fn traj_retarget_recovers_a_demo_made_from_the_robot_and_refuses_bad_csv() {
     assert!(e.contains("metres"), "{e}");
     let e = bad("demo.txt", "t\n");
     assert!(e.contains(".npz") && e.contains(".csv"), "{e}");
+
+    // the same demo in dextrain's MCAP layout, written by the Python mcap package as a user's tool
+    // would: read back to the same reference; a frame of 20 keypoints is a one-line error
+    let script = r#"
+import csv, json, sys
+from mcap.writer import Writer
+rows = [r for r in csv.reader(l for l in open(sys.argv[1]) if not l.startswith('#'))][1:]
+schema = {"title": "dextrain.HumanDemoFrame", "type": "object", "properties": {"t": {"type": "number"}, "keypoints": {"type": "array"}, "object": {"type": "object"}}}
+for out, short in ((sys.argv[2], False), (sys.argv[3], True)):
+    with open(out, "wb") as f:
+        w = Writer(f)
+        w.start()
+        sid = w.register_schema(name="dextrain.HumanDemoFrame", encoding="jsonschema", data=json.dumps(schema).encode())
+        cid = w.register_channel(topic="/dextrain/human_demo", message_encoding="json", schema_id=sid)
+        w.add_metadata(name="dextrain.human_demo", data={"frame": "world"})
+        for n, r in enumerate(rows):
+            v = [float(x) for x in r]
+            kp = [v[1 + 3 * i: 4 + 3 * i] for i in range(21)]
+            if short and n == 3:
+                kp = kp[:20]
+            o = v[64:71]
+            msg = {"t": v[0], "keypoints": kp, "object": {"x": o[0], "y": o[1], "z": o[2], "qw": o[3], "qx": o[4], "qy": o[5], "qz": o[6]}}
+            ns = round(v[0] * 1e9)
+            w.add_message(channel_id=cid, log_time=ns, data=json.dumps(msg).encode(), publish_time=ns, sequence=n)
+        w.finish()
+"#;
+    let (as_mcap, bad_mcap) = (dir.path().join("demo.mcap"), dir.path().join("short.mcap"));
+    if with_python_mcap("traj_retarget_recovers_a_demo_made_from_the_robot_and_refuses_bad_csv", script, &[&demo, &as_mcap, &bad_mcap]) {
+        let from_csv = dextrain::traj::Trajectory::load(&out).unwrap();
+        let mcap_out = dir.path().join("from_mcap.mcap");
+        retarget(&RetargetArgs { demo: as_mcap.clone(), out: mcap_out.clone(), ..args.clone() }).unwrap();
+        assert_eq!(dextrain::traj::Trajectory::load(&mcap_out).unwrap(), from_csv);
+        let e = format!("{:#}", retarget(&RetargetArgs { demo: bad_mcap.clone(), ..args.clone() }).unwrap_err());
+        assert!(e.contains("short.mcap") && e.contains("frame 3") && e.contains("21") && !e.contains('\n'), "{e}");
+    }
 
     // the config's table of fingers in place of the automatic map: three fingers, the ring finger
     // left out (the keypoints still come back within 1 mm); a fingertip the hand lacks, or one

@@ -425,14 +425,14 @@ fn bad_extension(name: &str, ext: Option<&str>) -> anyhow::Error {
 /// The records of an MCAP file held in memory, chunks unpacked, with every record length and chunk
 /// size bounded: `mcap::MessageStream` trusts the lengths inside chunks, so a corrupt file could
 /// make it try to allocate petabytes (an abort, not an error).
-struct McapRecords<'a> {
+pub struct McapRecords<'a> {
     reader: mcap::sans_io::LinearReader,
     rest: &'a [u8],
     done: bool,
 }
 
 impl<'a> McapRecords<'a> {
-    fn new(bytes: &'a [u8]) -> Self {
+    pub fn new(bytes: &'a [u8]) -> Self {
         // A record is never longer than the file, except inside compressed chunks: allow those
         // 64 MiB more. (A reference frame is a few kB.)
         let limit = bytes.len().saturating_add(64 << 20);
@@ -443,7 +443,7 @@ impl<'a> McapRecords<'a> {
         McapRecords { reader: mcap::sans_io::LinearReader::new_with_options(options), rest: bytes, done: false }
     }
 
-    fn next_record(&mut self) -> Option<mcap::McapResult<mcap::records::Record<'static>>> {
+    pub fn next_record(&mut self) -> Option<mcap::McapResult<mcap::records::Record<'static>>> {
         if self.done {
             return None;
         }
