@@ -8,30 +8,31 @@
 //!
 //! 1. **The object's path.** While the object rests (the world frame's rest frames, up to the last
 //!    within [`CARRY_START_M`] of the resting position) it stays at its resting pose (the
-//!    estimate's jitter is noise); from the first frame it moves, the
-//!    demonstration's path, blended from the resting pose into it over [`BLEND_S`] and smoothed
-//!    over ±[`SMOOTH_FRAMES`] frames, and raised onto the table where it dips into it. Its rotations are followed only where the estimate's agree while
-//!    the object rests ([`MAX_REST_ROTATION_SPREAD_RAD`]); else the object keeps its resting
-//!    rotation and follows the demonstrated position (a relocation).
-//! 2. **The grasp.** At the grasp frame, [`GRASP_LEAD_S`] before the object moves, the retargeted
-//!    hand starts from its pose and finger shape; its wrist moves and its fingers close so that
-//!    each fingertip ends [`SQUEEZE_M`] inside the object's surface, past the surface point nearest
-//!    it (in rounds: the fingertip IK for those points with the wrist fixed, then the wrist moved by
-//!    the rigid motion that best carries the reached fingertips onto them; the wrist kept where no link origin or fingertip is below
-//!    [`HAND_CLEARANCE_M`] over the table and no collider off the fingertips is deeper than
-//!    [`PALM_DEPTH_TOL_M`] in the object). A servo whose target is inside the object presses on
-//!    its surface: that is the grip.
-//! 3. **The carry.** From the grasp frame on, the wrist keeps its grasp pose relative to the object
-//!    (`W(t) = O(t) · O(g)⁻¹ · W(g)`) and the fingers their squeezing posture.
-//! 4. **The approach.** The grasp starts from a pre-grasp pose (the human grasp: [`APPROACH_M`]
-//!    above or away from the object's vertical axis, whichever straight line onto the grasp
-//!    overlaps the object less, the fingertips [`PRE_CLEARANCE_M`] outside their contact points;
-//!    the planned grasp: `traj synth`'s hover and descent). Until then the wrist follows the
+//!    estimate's jitter is noise); from the first frame it moves, the demonstration's path,
+//!    blended from the resting pose into it over [`BLEND_S`], smoothed over ±[`SMOOTH_FRAMES`]
+//!    frames and raised onto the table where it dips into it. Its rotations are followed only
+//!    where the estimate's agree while the object rests ([`MAX_REST_ROTATION_SPREAD_RAD`]); else
+//!    the object keeps its resting rotation and follows the demonstrated position (a relocation).
+//! 2. **The grasp** ([`GraspSource`]). The human's: the retargeted hand [`GRASP_LEAD_S`] before
+//!    the object moves is the start; its wrist moves and its fingers close so that each
+//!    fingertip's target is [`SQUEEZE_M`] inside the object's surface, past the surface point
+//!    nearest it (in rounds: the fingertip IK for those targets with the wrist fixed, then the
+//!    wrist moved by the rigid motion that best carries the reached fingertips onto them; the
+//!    wrist kept where no link origin or fingertip is below [`HAND_CLEARANCE_M`] over the table
+//!    and no collider off the fingertips is deeper than [`PALM_DEPTH_TOL_M`] in the object). A
+//!    servo whose target is inside the object presses on its surface: that is the grip. Its
+//!    pre-grasp pose is [`APPROACH_M`] above or away from the object's vertical axis, whichever
+//!    straight line onto the grasp overlaps the object less, the fingertips [`PRE_CLEARANCE_M`]
+//!    outside their contact points; the fingers close over [`CLOSE_S`]. Or `traj synth`'s
+//!    planned grasp (its hover, descent and closing, relative to its resting object).
+//! 3. **The carry.** From the first frame the object moves, the wrist keeps its grasp pose
+//!    relative to the object (`W(t) = O(t) · O(c)⁻¹ · W(c)`) and the fingers their posture.
+//! 4. **The approach.** Until the grasp window (the pre-grasp pose) the wrist follows the
 //!    demonstration, moved to end [`HOVER_M`] above the pre-grasp pose and kept no lower than
-//!    that (a hand that comes in low sweeps the object over), turning into its rotation,
-//!    its fingers blending from the demonstration's posture into the pre-grasp one, each frame
-//!    kept off the table and raised until the hand is [`APPROACH_GAP_M`] clear of the object;
-//!    then it comes straight down onto the pre-grasp pose over [`DESCENT_S`].
+//!    that (a hand that comes in low sweeps the object over), turning into its rotation, its
+//!    fingers blending from the demonstration's posture into the pre-grasp one, each frame kept
+//!    off the table and raised until the hand is [`APPROACH_GAP_M`] clear of the object; then it
+//!    comes straight down onto the pre-grasp pose over [`DESCENT_S`].
 //!
 //! A grasp the robot cannot copy from the human (the estimate's hand is elsewhere, the robot's
 //! fingers are not a human's) can come from `traj synth`'s planner instead ([`GraspSource`]): the
@@ -52,12 +53,12 @@ use crate::task::ik::{IkParams, IkScratch, ik_apply_mimic, ik_solve, ik_tip_posi
 /// How far above the table the hand's lowest link origin or fingertip is kept (m).
 pub const HAND_CLEARANCE_M: f32 = 0.01;
 /// How far inside the object's surface the grasp puts each fingertip's target (m): the servos
-/// press the fingers onto the surface (`traj synth`'s shallower squeeze).
+/// press the fingers onto the surface (the deeper of `traj synth`'s two squeezes).
 pub const SQUEEZE_M: f32 = 0.03;
-/// The grasp frame comes this long before the object first moves (s): the fingers are closed when
-/// the carry begins.
+/// The human grasp is taken this long before the object first moves (s), and held from there: the
+/// fingers are closed when the carry begins.
 pub const GRASP_LEAD_S: f64 = 0.3;
-/// The fingers close over this long before the grasp frame (s).
+/// The human grasp's fingers close over this long, from the pre-grasp pose (s).
 pub const CLOSE_S: f64 = 0.4;
 /// The object starts moving after the last frame of its rest within this distance of its resting
 /// position (m): the world frame's rest frames run until it is 4 cm away, well into the motion.
@@ -66,8 +67,8 @@ pub const CARRY_START_M: f32 = 0.01;
 pub const BLEND_S: f64 = 0.5;
 /// The object's path while it moves is averaged over ±this many frames (a video estimate jitters).
 pub const SMOOTH_FRAMES: usize = 2;
-/// How far from the grasp the wrist is when the fingers start closing (m): it comes straight in
-/// from there, away from the object's vertical axis.
+/// How far from the human grasp the pre-grasp wrist is (m): above it, or away from the object's
+/// vertical axis; it comes straight in from there.
 pub const APPROACH_M: f32 = 0.06;
 /// The fingertips' distance outside their contact points when the fingers start closing (m).
 pub const PRE_CLEARANCE_M: f32 = 0.02;
@@ -77,9 +78,9 @@ pub const HOVER_M: f32 = 0.1;
 pub const DESCENT_S: f64 = 0.4;
 /// The gap the approach keeps from the resting object (m), and the step of the raise that keeps it.
 pub const APPROACH_GAP_M: f32 = 0.005;
-pub const PUSH_STEP_M: f32 = 0.005;
+pub const RAISE_STEP_M: f32 = 0.005;
 /// Most raises of one approach frame (0.3 m).
-pub const MAX_PUSHES: usize = 60;
+pub const MAX_RAISES: usize = 60;
 /// Rounds of (fingertip IK, wrist move) of the grasp.
 pub const GRASP_ROUNDS: usize = 30;
 /// The fraction of the fitted rotation the wrist takes per round, and the most it turns (rad): the
@@ -205,8 +206,8 @@ fn hand_depth(model: &SimModel, wrist: &Pose, q: &[f32], object: &Pose) -> (f32,
     (all, off_tips)
 }
 
-/// The squeezing grasp from the retargeted hand `start` with the object at `object`: the wrist
-/// (its rotation kept) and every joint (step 2 of the module documentation).
+/// The squeezing grasp from the retargeted hand `start` with the object at `object`: the wrist and
+/// every joint (step 2 of the module documentation).
 fn solve_grasp(model: &SimModel, start: &HandFrame, object: &Pose) -> HandFrame {
     let m = model.view();
     let n_tips = model.hand.fingertips.len();
@@ -292,8 +293,9 @@ fn open_fingers(model: &SimModel, grasp: &HandFrame, object: &Pose) -> Vec<f32> 
     q[..n].to_vec()
 }
 
-/// The object's poses, frame by frame: the resting pose until `carry_from`, then the path moved to
-/// start there and smoothed (step 1).
+/// The object's poses, frame by frame (step 1), whether they follow the estimate's rotations, and
+/// the first frame the object moves; `blend`: the frames over which the carry blends from the
+/// resting pose into the demonstration's path.
 fn clean_object_path(objects: &[Pose], rest_frames: usize, blend: usize) -> (Vec<Pose>, bool, usize) {
     let rest_frames = rest_frames.clamp(1, objects.len());
     // the estimate's rotations are trusted where they agree while the object rests
@@ -455,11 +457,11 @@ pub fn contact_cleanup(model: &SimModel, hands: &mut [HandFrame], objects: &mut 
         if lowest < HAND_CLEARANCE_M {
             h.wrist.pos.z += HAND_CLEARANCE_M - lowest;
         }
-        for _ in 0..MAX_PUSHES {
+        for _ in 0..MAX_RAISES {
             if hand_depth(model, &h.wrist, &h.q, &objects[f]).0 <= -APPROACH_GAP_M {
                 break;
             }
-            h.wrist.pos.z += PUSH_STEP_M;
+            h.wrist.pos.z += RAISE_STEP_M;
         }
     }
     for (h, o) in hands[..window_from].iter().zip(&objects[..window_from]) {
