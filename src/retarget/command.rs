@@ -21,7 +21,7 @@ use anyhow::{Context, Result, anyhow, ensure};
 use glam::Vec3;
 use serde_json::json;
 
-use super::contact::{ContactReport, GraspSource, HAND_CLEARANCE_M, HandFrame, contact_cleanup, hand_lowest_z, raise_onto_table};
+use super::contact::{ContactReport, GraspSource, HAND_CLEARANCE_M, HandFrame, contact_cleanup, hand_lowest_z, raise_onto_table, tips_world};
 use super::demo::{HUMAN_KEYPOINTS, KEYPOINT_NAMES, load_demo};
 use super::keypoint_map::{HUMAN_FINGERS, default_posture, keypoint_map};
 use super::solve::retarget_sequence;
@@ -196,8 +196,7 @@ pub fn retarget(args: &RetargetArgs) -> Result<serde_json::Value> {
             cleanup.hand_frames += 1;
             cleanup.hand_raise_m = cleanup.hand_raise_m.max(HAND_CLEARANCE_M - lowest);
         }
-        let links = hand.forward_kinematics(&h.q);
-        let tips = hand.fingertips.iter().map(|t| wrist.transform_point(links[t.link].transform_point(t.pos))).collect();
+        let tips = tips_world(&model, &wrist, &h.q);
         traj.frames.push(Keyframe { t: i as f64 / fps, wrist, joints: h.q, fingertips: Some(tips), object: Some(object) });
     }
     // the lead-in: the frames from lead_in before the grasp window, their times from 0

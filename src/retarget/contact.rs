@@ -41,13 +41,12 @@
 use anyhow::{Result, ensure};
 use glam::{Quat, Vec3};
 
-use crate::env::physics::{Scratch, collide_hand_object, hand_kinematics, hull_project, object_inside_normal, object_project};
-use crate::env::reset::reset_params;
-use crate::env::{EnvState, SimModel};
+use crate::env::SimModel;
+use crate::env::physics::{hull_project, object_inside_normal, object_project};
 use crate::geom::{Pose, SHAPE_HULL};
 use crate::traj::{Keyframe, Trajectory};
-use crate::gpu::layout::NO_JOINT;
 use crate::hand::{MAX_JOINTS, MAX_TIPS};
+use crate::synth::grasp::hand_object_depths;
 use crate::task::ik::{IkParams, IkScratch, ik_apply_mimic, ik_solve, ik_tip_positions};
 
 /// How far above the table the hand's lowest link origin or fingertip is kept (m).
@@ -171,39 +170,14 @@ pub fn object_surface(model: &SimModel, pose: &Pose, p: Vec3) -> (f32, Vec3, Vec
 
 /// The height of the hand's lowest link origin or fingertip (world z) at `wrist` and `q`.
 pub fn hand_lowest_z(model: &SimModel, wrist: &Pose, q: &[f32]) -> f32 {
-    let hand = &model.hand;
-    let links = hand.forward_kinematics(q);
-    let tips = hand.fingertips.iter().map(|t| links[t.link].transform_point(t.pos));
+    let links = model.hand.forward_kinematics(q);
+    let tips = model.hand.fingertip_positions(&links);
     links.iter().map(|l| l.pos).chain(tips).map(|p| wrist.transform_point(p).z).fold(f32::INFINITY, f32::min)
 }
 
 /// The hand's fingertips (world) at `wrist` and `q`.
-fn tips_world(model: &SimModel, wrist: &Pose, q: &[f32]) -> Vec<Vec3> {
-    let links = model.hand.forward_kinematics(q);
-    model.hand.fingertips.iter().map(|t| wrist.transform_point(links[t.link].transform_point(t.pos))).collect()
-}
-
-/// The deepest overlap (m; ≤ 0 when none) of the hand's colliders with the object at `object`:
-/// over every collider, and over those on no fingertip's link.
-fn hand_depth(model: &SimModel, wrist: &Pose, q: &[f32], object: &Pose) -> (f32, f32) {
-    let m = model.view();
-    let mut p = reset_params(&model.globals, &model.object_descs, &[], 0, 0);
-    (p.obj_index, p.obj_scale, p.obj_com) = (0, 1.0, model.object_descs[0].com);
-    let mut st = EnvState { obj_pos: [object.pos.x, object.pos.y, object.pos.z, 0.0], obj_rot: object.rot.to_array(), ..Default::default() };
-    st.wrist_pos = [wrist.pos.x, wrist.pos.y, wrist.pos.z, 0.0];
-    st.wrist_rot = wrist.rot.to_array();
-    st.q[..q.len()].copy_from_slice(q);
-    let mut s = Scratch::default();
-    hand_kinematics(&st, &m, &mut s);
-    let (mut all, mut off_tips) = (-1.0f32, -1.0f32);
-    for ci in 0..model.colliders.len() {
-        let d = collide_hand_object(&st, &p, &m, &s, ci).depth;
-        all = all.max(d);
-        if model.colliders[ci].tip == NO_JOINT {
-            off_tips = off_tips.max(d);
-        }
-    }
-    (all, off_tips)
+pub fn tips_world(model: &SimModel, wrist: &Pose, q: &[f32]) -> Vec<Vec3> {
+    model.hand.fingertip_positions(&model.hand.forward_kinematics(q)).into_iter().map(|p| wrist.transform_point(p)).collect()
 }
 
 /// The squeezing grasp from the retargeted hand `start` with the object at `object`: the wrist and
@@ -246,7 +220,7 @@ fn solve_grasp(model: &SimModel, start: &HandFrame, object: &Pose) -> HandFrame 
         let turn = Quat::from_scaled_axis(omega.clamp_length_max(MAX_TURN_RAD));
         wrist = Pose::new(centroid + mean + turn * (wrist.pos - centroid), (turn * wrist.rot).normalize());
         // back away from the object while the palm or a finger's inner link is deep in it
-        let (_, palm) = hand_depth(model, &wrist, &q[..n], object);
+        let (_, palm) = hand_object_depths(model, &wrist, &q[..n], object);
         if palm > PALM_DEPTH_TOL_M {
             let mut away = wrist.pos - object.pos;
             away.z = 0.0;
@@ -365,11 +339,11 @@ fn human_script(model: &SimModel, start: &HandFrame, object: &Pose, lead_s: f64,
     // the closing window's hand at s ∈ [0, 1] from a pre-grasp `from`, and the deepest overlap
     // with the object along it: the straight line from above or from the side, whichever is clearer
     let window = |from: Vec3, s: f32| HandFrame { wrist: Pose::new(from.lerp(grasp.wrist.pos, s), grasp.wrist.rot), q: q_pre.iter().zip(&grasp.q).map(|(o, g)| o + s * (g - o)).collect() };
-    let depth_along = |from: Vec3| (0..=8).map(|k| window(from, k as f32 / 8.0)).map(|h| hand_depth(model, &h.wrist, &h.q, object).0).fold(f32::NEG_INFINITY, f32::max);
+    let depth_along = |from: Vec3| (0..=8).map(|k| window(from, k as f32 / 8.0)).map(|h| hand_object_depths(model, &h.wrist, &h.q, object).0).fold(f32::NEG_INFINITY, f32::max);
     let (from_above, from_side) = (grasp.wrist.pos + Vec3::Z * APPROACH_M, grasp.wrist.pos + away * APPROACH_M);
     let pre = if depth_along(from_above) <= depth_along(from_side) { from_above } else { from_side };
     report.wrist_shift_m = (grasp.wrist.pos - start.wrist.pos).length();
-    report.palm_depth_m = hand_depth(model, &grasp.wrist, &grasp.q, object).1;
+    report.palm_depth_m = hand_object_depths(model, &grasp.wrist, &grasp.q, object).1;
     let rel = |w: Pose| object.inverse().mul(&w);
     let key = |t: f64, w: Pose, q: &[f32]| Keyframe { t, wrist: rel(w), joints: q.to_vec(), fingertips: None, object: None };
     let frames = vec![key(0.0, Pose::new(pre, grasp.wrist.rot), &q_pre), key(CLOSE_S, grasp.wrist, &grasp.q), key(CLOSE_S + lead_s, grasp.wrist, &grasp.q)];
@@ -421,7 +395,7 @@ pub fn contact_cleanup(model: &SimModel, hands: &mut [HandFrame], objects: &mut 
     report.tip_distance_after_m = tips_world(model, &grasp_wrist, &held.joints).into_iter().map(|t| object_surface(model, &rest, t).0).collect();
     if let GraspSource::Planned(_) = source {
         report.wrist_shift_m = (grasp_wrist.pos - hands[human_grasp].wrist.pos).length();
-        report.palm_depth_m = hand_depth(model, &grasp_wrist, &held.joints, &rest).1;
+        report.palm_depth_m = hand_object_depths(model, &grasp_wrist, &held.joints, &rest).1;
     }
     // the carry: the grasp held relative to the object
     for (h, o) in hands[carry_from..].iter_mut().zip(&objects[carry_from..]) {
@@ -458,14 +432,14 @@ pub fn contact_cleanup(model: &SimModel, hands: &mut [HandFrame], objects: &mut 
             h.wrist.pos.z += HAND_CLEARANCE_M - lowest;
         }
         for _ in 0..MAX_RAISES {
-            if hand_depth(model, &h.wrist, &h.q, &objects[f]).0 <= -APPROACH_GAP_M {
+            if hand_object_depths(model, &h.wrist, &h.q, &objects[f]).0 <= -APPROACH_GAP_M {
                 break;
             }
             h.wrist.pos.z += RAISE_STEP_M;
         }
     }
     for (h, o) in hands[..window_from].iter().zip(&objects[..window_from]) {
-        report.approach_depth_m = report.approach_depth_m.max(hand_depth(model, &h.wrist, &h.q, o).0);
+        report.approach_depth_m = report.approach_depth_m.max(hand_object_depths(model, &h.wrist, &h.q, o).0);
     }
     Ok(report)
 }

@@ -45,6 +45,7 @@ use crate::env::physics::{Scratch, collide_hand_object, hand_kinematics, piece_p
 use crate::env::reset::reset_params;
 use crate::env::{EnvParams, EnvState, SimModel};
 use crate::geom::Pose;
+use crate::gpu::layout::NO_JOINT;
 use crate::hand::{ColliderShape, HandModel, MAX_JOINTS, MAX_TIPS};
 
 /// Fingertips outside their contact points in the pre-grasp posture (m), the first clearance tried.
@@ -475,14 +476,29 @@ const DESCENT_CHECKS: usize = 10;
 /// The deepest overlap (m; ≤ 0 when none) of the hand's colliders, at wrist pose `wrist` with the
 /// joints `q` (followers included), with the object at rest at its nominal place and size.
 pub fn hand_object_depth(model: &SimModel, wrist: &Pose, q: &[f32]) -> f32 {
+    hand_object_depths(model, wrist, q, &nominal_pose(model)).0
+}
+
+/// The deepest overlap (m; ≤ 0 when none) of the hand's colliders, at wrist pose `wrist` with the
+/// joints `q` (followers included), with the first object, unscaled, at `object`: over every
+/// collider, and over those on no fingertip's link (the palm and the fingers' inner links).
+pub fn hand_object_depths(model: &SimModel, wrist: &Pose, q: &[f32], object: &Pose) -> (f32, f32) {
     let m = model.view();
-    let (p, mut st) = nominal_object(model);
+    let (p, mut st) = object_at(model, object);
     st.wrist_pos = [wrist.pos.x, wrist.pos.y, wrist.pos.z, 0.0];
     st.wrist_rot = wrist.rot.to_array();
     st.q[..q.len()].copy_from_slice(q);
     let mut s = Scratch::default();
     hand_kinematics(&st, &m, &mut s);
-    (0..model.colliders.len()).map(|ci| collide_hand_object(&st, &p, &m, &s, ci).depth).fold(-1.0, f32::max)
+    let (mut all, mut off_tips) = (-1.0f32, -1.0f32);
+    for ci in 0..model.colliders.len() {
+        let d = collide_hand_object(&st, &p, &m, &s, ci).depth;
+        all = all.max(d);
+        if model.colliders[ci].tip == NO_JOINT {
+            off_tips = off_tips.max(d);
+        }
+    }
+    (all, off_tips)
 }
 
 /// The open hand: every joint at its default, mimic followers from their leaders.
@@ -496,18 +512,25 @@ pub(super) fn initial_wrist(model: &SimModel) -> Pose {
     Pose::new(Vec3::from_slice(&g.init_wrist_pos[..3]), Quat::from_array(g.init_wrist_rot))
 }
 
+/// The first object's nominal resting pose: the config's position (x, y, rest height) and yaw.
+fn nominal_pose(model: &SimModel) -> Pose {
+    let g = &model.globals;
+    Pose::new(Vec3::new(g.obj_init[0], g.obj_init[1], g.obj_init[3]), Quat::from_rotation_z(g.obj_init[2]))
+}
+
 /// The first object as the planner sees it: env 0's parameters with the object forced to the
 /// first one, unscaled, and a state with it resting at its nominal place (the rest zero).
 pub(super) fn nominal_object(model: &SimModel) -> (EnvParams, EnvState) {
-    let g = &model.globals;
-    let mut p = reset_params(g, &model.object_descs, &[], 0, 0);
+    object_at(model, &nominal_pose(model))
+}
+
+/// Env 0's parameters with the object forced to the first one, unscaled, and a state with it at
+/// `pose` (the rest zero).
+fn object_at(model: &SimModel, pose: &Pose) -> (EnvParams, EnvState) {
+    let mut p = reset_params(&model.globals, &model.object_descs, &[], 0, 0);
     let od = &model.object_descs[0];
     (p.obj_index, p.obj_scale, p.obj_com) = (0, 1.0, od.com);
-    let st = EnvState {
-        obj_pos: [g.obj_init[0], g.obj_init[1], g.obj_init[3], 0.0],
-        obj_rot: Quat::from_rotation_z(g.obj_init[2]).to_array(),
-        ..Default::default()
-    };
+    let st = EnvState { obj_pos: [pose.pos.x, pose.pos.y, pose.pos.z, 0.0], obj_rot: pose.rot.to_array(), ..Default::default() };
     (p, st)
 }
 

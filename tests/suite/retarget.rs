@@ -148,59 +148,46 @@ fn a_smaller_hand_retargets_with_its_scale_and_bad_keypoints_are_errors() {
     assert!(err.contains("frame 0") && err.contains("on one line"), "{err}");
 }
 
-/// Runs `script` with python3 and numpy (its stdout), or None with the reason printed where numpy
-/// is missing (a failure with REQUIRE_PYTHON_NUMPY=1, as CI sets).
-fn with_numpy(test: &str, script: &str, args: &[&std::path::Path]) -> Option<String> {
+/// Runs python3 with `args` (its stdout) where it can import `module`; else None with the reason
+/// printed (a failure where the environment variable `require` is 1, as CI sets).
+fn run_python(test: &str, module: &str, require: &str, args: &[&std::ffi::OsStr]) -> Option<String> {
     use std::process::Command;
-    let required = std::env::var("REQUIRE_PYTHON_NUMPY").is_ok_and(|v| v == "1");
-    let probe = Command::new("python3").args(["-c", "import numpy"]).output();
+    let required = std::env::var(require).is_ok_and(|v| v == "1");
+    let probe = Command::new("python3").args(["-c", &format!("import {module}")]).output();
     let why = match &probe {
         Ok(o) if o.status.success() => None,
-        Ok(o) => Some(format!("python3 cannot import numpy ({})", String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or(""))),
+        Ok(o) => Some(format!("python3 cannot import {module} ({})", String::from_utf8_lossy(&o.stderr).lines().last().unwrap_or(""))),
         Err(e) => Some(format!("cannot run python3: {e}")),
     };
     if let Some(why) = why {
-        assert!(!required, "{test}: REQUIRE_PYTHON_NUMPY=1 but {why} (pip install numpy)");
-        eprintln!("{test}: SKIPPED: {why} (pip install numpy to run it)");
+        assert!(!required, "{test}: {require}=1 but {why}");
+        eprintln!("{test}: the part that needs {module} SKIPPED: {why}");
         return None;
     }
-    let out = Command::new("python3").arg("-c").arg(script).args(args).output().unwrap();
-    assert!(out.status.success(), "{test}: numpy failed:\n{}", String::from_utf8_lossy(&out.stderr));
+    let out = Command::new("python3").args(args).output().unwrap();
+    assert!(out.status.success(), "{test}: python3 with {module} failed:\n{}", String::from_utf8_lossy(&out.stderr));
     Some(String::from_utf8_lossy(&out.stdout).into_owned())
 }
 
-/// Runs `script` with python3 and the mcap package; false with the reason printed where the package
-/// is missing (a failure with REQUIRE_PYTHON_MCAP=1, as CI sets).
+/// Runs `script` with python3 and numpy (its stdout); None where numpy is missing.
+fn with_numpy(test: &str, script: &str, args: &[&std::path::Path]) -> Option<String> {
+    let mut all: Vec<&std::ffi::OsStr> = vec!["-c".as_ref(), script.as_ref()];
+    all.extend(args.iter().map(|a| a.as_os_str()));
+    run_python(test, "numpy", "REQUIRE_PYTHON_NUMPY", &all)
+}
+
+/// Runs `script` with python3 and the mcap package's writer; false where the package is missing.
 fn with_python_mcap(test: &str, script: &str, args: &[&std::path::Path]) -> bool {
-    use std::process::Command;
-    let required = std::env::var("REQUIRE_PYTHON_MCAP").is_ok_and(|v| v == "1");
-    let probe = Command::new("python3").args(["-c", "import mcap.writer"]).output();
-    if !probe.as_ref().is_ok_and(|o| o.status.success()) {
-        assert!(!required, "{test}: REQUIRE_PYTHON_MCAP=1 but python3 cannot import mcap (pip install mcap)");
-        eprintln!("{test}: the MCAP part SKIPPED: python3 cannot import mcap (pip install mcap)");
-        return false;
-    }
-    let out = Command::new("python3").arg("-c").arg(script).args(args).output().unwrap();
-    assert!(out.status.success(), "{test}: the Python mcap script failed:\n{}", String::from_utf8_lossy(&out.stderr));
-    true
+    let mut all: Vec<&std::ffi::OsStr> = vec!["-c".as_ref(), script.as_ref()];
+    all.extend(args.iter().map(|a| a.as_os_str()));
+    run_python(test, "mcap.writer", "REQUIRE_PYTHON_MCAP", &all).is_some()
 }
 
 /// `tests/read_rollout.py`'s summary of a recording (the Python mcap package's reading, its
-/// messages validated where jsonschema is importable), or None with the reason printed where the
-/// package is missing (a failure with REQUIRE_PYTHON_MCAP=1, as CI sets).
+/// messages validated where jsonschema is importable); None where the package is missing.
 fn read_rollout_with_python(test: &str, path: &std::path::Path) -> Option<serde_json::Value> {
-    use std::process::Command;
-    let required = std::env::var("REQUIRE_PYTHON_MCAP").is_ok_and(|v| v == "1");
-    let probe = Command::new("python3").args(["-c", "import mcap.reader"]).output();
-    if !probe.as_ref().is_ok_and(|o| o.status.success()) {
-        assert!(!required, "{test}: REQUIRE_PYTHON_MCAP=1 but python3 cannot import mcap (pip install mcap jsonschema)");
-        eprintln!("{test}: the recording's check SKIPPED: python3 cannot import mcap (pip install mcap jsonschema)");
-        return None;
-    }
     let script = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/read_rollout.py");
-    let out = Command::new("python3").arg(&script).arg(path).output().unwrap();
-    assert!(out.status.success(), "{test}: read_rollout.py failed: {}", String::from_utf8_lossy(&out.stderr));
-    let stdout = String::from_utf8(out.stdout).unwrap();
+    let stdout = run_python(test, "mcap.reader", "REQUIRE_PYTHON_MCAP", &[script.as_os_str(), path.as_os_str()])?;
     Some(serde_json::from_str(stdout.lines().last().unwrap()).unwrap())
 }
 
