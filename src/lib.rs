@@ -33,6 +33,8 @@ pub mod gpu;
 pub mod env;
 // the task layer
 pub mod task;
+// the live view (Foxglove WebSocket)
+pub mod live;
 // the learners
 pub mod learn;
 // export, eval (with play), the runner

@@ -45,6 +45,10 @@ pub struct ReplayArgs {
     /// (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub sets: Vec<String>,
+    /// The live view (`--live`, `--live-envs`, `--live-hz`, `--live-wait`): the envs at real time,
+    /// the reference's object as a ghost.
+    #[command(flatten)]
+    pub live: crate::live::LiveArgs,
 }
 
 /// The one-line JSON report of a replay. Each metric name means the same as in the eval report
@@ -139,12 +143,12 @@ struct Acc {
 
 /// Replays `traj` for `cfg` (with `cfg.sim.num_envs` envs) and returns the report.
 pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Path>) -> Result<ReplayReport> {
-    replay_with_model(cfg, &SimModel::from_config(cfg)?, traj, kinematic, out)
+    replay_with_model(cfg, &SimModel::from_config(cfg)?, traj, kinematic, out, None)
 }
 
 /// [`replay`] with the model of `cfg` already built (`SimModel::from_config(cfg)`), for callers
-/// that replay many references under one config.
-pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kinematic: bool, out: Option<&Path>) -> Result<ReplayReport> {
+/// that replay many references under one config; `live`: a live view that shows the envs.
+pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kinematic: bool, out: Option<&Path>, mut live: Option<&mut crate::live::LiveView>) -> Result<ReplayReport> {
     // a reference that names its object is replayed with that object in every env
     let named;
     let model = match &traj.object_name {
@@ -202,11 +206,12 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
     let backend;
     // the per-frame observation shared by both modes: states, params, each env's deepest penetration
     // and fingertip forces at this frame
-    // `springs0`: env 0's contact springs, read only for a recording
+    // `springs`: every env's contact springs `[N, n_springs]`, read only for a recording or a live view
+    let per_env = model.globals.n_springs as usize;
     let mut observe = |k: usize,
                        states: &[EnvState],
                        params: &[crate::env::EnvParams],
-                       springs0: &dyn Fn() -> Result<Vec<[f32; 4]>>,
+                       springs: &mut dyn FnMut() -> Result<Vec<[f32; 4]>>,
                        pen: &[f32],
                        tips: &[Vec<f32>],
                        tg: &Targets,
@@ -240,6 +245,15 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
             }
         }
         trace.push((t, Pose::from_arrays(states[0].obj_pos, states[0].obj_rot), Pose::from_arrays(states[0].wrist_pos, states[0].wrist_rot)));
+        let live_due = live.as_deref().is_some_and(|l| l.wants_scene());
+        let springs = if live_due || writer.is_some() { springs()? } else { Vec::new() };
+        if let Some(l) = live.as_deref_mut()
+            && live_due
+        {
+            let refs = vec![r.object; states.len()];
+            let at = crate::live::EnvSlices { states, params, springs: &springs, targets: std::slice::from_ref(tg), refs: &refs };
+            l.send_scene(&crate::live::env_frames(&model, &at, ctrl_dt, l.shown_envs()))?;
+        }
         if let Some(w) = writer.as_mut() {
             let s = &states[0];
             w.write_frame(&RolloutFrame {
@@ -250,7 +264,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
                 wrist: Pose::from_arrays(s.wrist_pos, s.wrist_rot),
                 object: Pose::from_arrays(s.obj_pos, s.obj_rot),
                 links: hand_link_poses(&model, s),
-                contacts: contact_records(&model, s, &springs0()?, &params[0], tg),
+                contacts: contact_records(&model, s, &springs[..per_env], &params[0], tg),
                 object_ref: r.object,
                 overlay: Vec::new(),
             })?;
@@ -263,7 +277,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
         let bases: Vec<EnvState> = (0..n).map(|i| reset_state(&g, &model.joints, &params[i], i as u32, 0, 0)).collect();
         // a kinematic state has no contact history: every spring is relaxed
         let relaxed = vec![[0.0f32; 4]; model.globals.n_springs as usize];
-        let relaxed_springs = || Ok(relaxed.clone());
+        let mut relaxed_springs = || Ok(vec![[0.0f32; 4]; n * per_env]);
         for k in 0..frames {
             let t = k as f64 * ctrl_dt;
             let tg = targets_at(&model, traj, &map, t);
@@ -282,7 +296,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
                     }
                 }
             }
-            observe(k, &states, &params, &relaxed_springs, &pen, &tips, &tg, &mut writer)?;
+            observe(k, &states, &params, &mut relaxed_springs, &pen, &tips, &tg, &mut writer)?;
         }
     } else {
         let mut env: Box<dyn EnvBatch> = make_env_batch(cfg, model.clone())?;
@@ -293,10 +307,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
         let mut params = env.params()?;
         let zero = vec![0.0f32; n];
         let no_tips = vec![vec![0.0f32; model.tips.len()]; n];
-        let per_env = model.globals.n_springs as usize;
-        let env0_springs = |env: &mut Box<dyn EnvBatch>| -> Result<Vec<[f32; 4]>> { Ok(env.springs()?[..per_env].to_vec()) };
-        let springs = env0_springs(&mut env)?;
-        observe(0, &start, &params, &|| Ok(springs.clone()), &zero, &no_tips, &t0, &mut writer)?;
+        observe(0, &start, &params, &mut || env.springs(), &zero, &no_tips, &t0, &mut writer)?;
         for k in 1..frames {
             let tg = targets_at(&model, traj, &map, k as f64 * ctrl_dt);
             env.step(&vec![tg; n])?;
@@ -309,8 +320,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
             bad += resets;
             let pen: Vec<f32> = stats.iter().map(|s| s.max_pen_ho).collect();
             let tips: Vec<Vec<f32>> = stats.iter().map(|s| s.tip_force[..model.tips.len()].to_vec()).collect();
-            let springs = if writer.is_some() { env0_springs(&mut env)? } else { Vec::new() };
-            observe(k, &states, &params, &|| Ok(springs.clone()), &pen, &tips, &tg, &mut writer)?;
+            observe(k, &states, &params, &mut || env.springs(), &pen, &tips, &tg, &mut writer)?;
         }
     }
     if let Some(w) = writer {
@@ -349,7 +359,10 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     }
     cfg.validate()?;
     let traj = Trajectory::load(&args.traj)?;
-    let report = replay(&cfg, &traj, args.kinematic, args.out.as_deref())
+    let model = SimModel::from_config(&cfg)?;
+    let ctrl_dt = model.globals.dt * model.globals.decimation as f32;
+    let mut live = args.live.start(&model, ctrl_dt, None, true)?;
+    let report = replay_with_model(&cfg, &model, &traj, args.kinematic, args.out.as_deref(), live.as_mut())
         .with_context(|| format!("replaying {} with {}", args.traj.display(), args.config.display()))?;
     crate::console::result(&serde_json::to_string(&report)?);
     Ok(())

@@ -53,7 +53,10 @@ pub fn default_name(config: &Path) -> String {
 }
 
 /// What dextrain writes at the top of a run directory (besides TensorBoard's `events.out.tfevents.*`).
-pub const RUN_ENTRIES: [&str; 7] = ["config.toml", "metrics.csv", "plots", "checkpoints", "eval", "export", "ranks"];
+pub const RUN_ENTRIES: [&str; 8] = ["config.toml", "metrics.csv", "plots", "checkpoints", "eval", "export", "ranks", FOXGLOVE_LAYOUT];
+
+/// The Foxglove layout of a run's live view (`train --live`: the run's reward terms plotted).
+pub const FOXGLOVE_LAYOUT: &str = "foxglove_layout.json";
 
 /// Why `dir` may not be replaced by `--force`, or None when it is a run directory that holds only
 /// what dextrain writes.

@@ -247,10 +247,12 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
     let ref_names: Vec<String> = if has_reference { reference_names(&reference_paths(cfg)?) } else { Vec::new() };
     let mut tally = Tally::default();
     let (mut object_names, mut env_backend, mut device_name) = (Vec::new(), String::new(), String::new());
+    // the live view (`--live`), started by the first round, shows every round
+    let mut live = None;
     for round in 0..episodes.div_ceil(max_envs) {
         let n = (episodes - round * max_envs).min(max_envs);
         // the config's objects, in order (the same every round)
-        (object_names, env_backend, device_name) = run_round(cfg, round, n, source, args, driver, &ref_names, &mut tally)?;
+        (object_names, env_backend, device_name) = run_round(cfg, round, n, source, args, driver, &ref_names, &mut tally, &mut live)?;
     }
     Ok((tally.summary(&object_names, has_reference), env_backend, device_name))
 }
@@ -258,7 +260,7 @@ pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, 
 /// Round `round` of `n` envs: each runs one episode into `tally`. Returns the config's object
 /// names, the env backend and the learner device.
 #[allow(clippy::too_many_arguments)]
-fn run_round(cfg: &Config, round: usize, n: usize, source: PolicySource, args: &EvalArgs, driver: Driver, ref_names: &[String], tally: &mut Tally) -> Result<(Vec<String>, String, String)> {
+fn run_round(cfg: &Config, round: usize, n: usize, source: PolicySource, args: &EvalArgs, driver: Driver, ref_names: &[String], tally: &mut Tally, live: &mut Option<crate::live::LiveView>) -> Result<(Vec<String>, String, String)> {
     let open_loop = driver == Driver::OpenLoop;
     let has_reference = cfg.task.kind.follows_reference();
     let mut c = cfg.clone();
@@ -275,6 +277,9 @@ fn run_round(cfg: &Config, round: usize, n: usize, source: PolicySource, args: &
     let mut task = make_task_batch(&c, model.clone())?;
     let spec = task.spec().clone();
     let env_backend = task.backend_name();
+    if live.is_none() {
+        *live = args.live.start(&model, spec.control_dt, None, true)?;
+    }
     let (mut actor, teacher_loaded, device_name) = round_actor(&c, source, driver, &spec, &model, n, task.as_ref())?;
     let teacher: Option<&Ppo> = match (source, &actor, driver) {
         (PolicySource::Distilling { teacher, .. }, Actor::Student(s), Driver::Policy) if s.student.latent > 0 => Some(teacher),
@@ -346,6 +351,9 @@ fn run_round(cfg: &Config, round: usize, n: usize, source: PolicySource, args: &
         priv_obs = b.priv_obs.clone();
         if env0_running && let Some(w) = writer.as_mut() {
             record_frame(w, &model, task.as_mut(), t)?;
+        }
+        if let Some(l) = live.as_mut() {
+            l.after_step(task.as_mut())?;
         }
     }
     if let Some(w) = writer.take() {

@@ -53,6 +53,10 @@ pub struct EvalArgs {
     /// targets along the references with the policy switched off, as `dextrain replay` does.
     #[arg(long, value_enum)]
     pub baseline: Option<Baseline>,
+    /// The live view (`--live`, `--live-envs`, `--live-hz`, `--live-wait`): the first envs'
+    /// episodes at real time.
+    #[command(flatten)]
+    pub live: crate::live::LiveArgs,
 }
 
 /// `dextrain eval --baseline`.

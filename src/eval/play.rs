@@ -35,6 +35,9 @@ pub struct PlayArgs {
     /// Record env 0's episode to this MCAP file.
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// The live view (`--live`…), as `dextrain eval`'s.
+    #[command(flatten)]
+    pub live: crate::live::LiveArgs,
 }
 
 /// Runs `dextrain play`: the report (not written anywhere: the caller prints it).
@@ -57,6 +60,7 @@ pub fn run(args: &PlayArgs) -> Result<EvalReport> {
         record: args.record.clone(),
         backend: args.backend.clone(),
         baseline: None,
+        live: args.live.clone(),
     };
     let (policy, env_backend, device) = run_episodes(&cfg, PolicySource::Export(&args.contract), &eval_args, Driver::Policy)?;
     let report = EvalReport {

@@ -109,27 +109,27 @@ pub(super) struct FgDeletion {
     pub(super) id: String,
 }
 
-#[derive(Serialize, Debug)]
+#[derive(Serialize, Debug, Default)]
 pub(super) struct FgSceneUpdate {
     pub(super) deletions: Vec<FgDeletion>,
     pub(super) entities: Vec<FgEntity>,
 }
 
 #[derive(Serialize, Debug)]
-pub(super) struct FgTransform<'a> {
+pub(super) struct FgTransform {
     pub(super) timestamp: FgTime,
-    pub(super) parent_frame_id: &'a str,
-    pub(super) child_frame_id: &'a str,
+    pub(super) parent_frame_id: String,
+    pub(super) child_frame_id: String,
     pub(super) translation: FgVec3,
     pub(super) rotation: FgQuat,
 }
 
-impl<'a> FgTransform<'a> {
-    pub(super) fn new(timestamp: FgTime, parent: &'a str, child: &'a str, pose: &Pose) -> Self {
+impl FgTransform {
+    pub(super) fn new(timestamp: FgTime, parent: &str, child: &str, pose: &Pose) -> Self {
         FgTransform {
             timestamp,
-            parent_frame_id: parent,
-            child_frame_id: child,
+            parent_frame_id: parent.to_string(),
+            child_frame_id: child.to_string(),
             translation: fv(pose.pos),
             rotation: fq(pose.rot),
         }
@@ -138,7 +138,7 @@ impl<'a> FgTransform<'a> {
 
 #[derive(Serialize, Debug)]
 pub(super) struct FgFrameTransforms<'a> {
-    pub(super) transforms: Vec<FgTransform<'a>>,
+    pub(super) transforms: &'a [FgTransform],
 }
 
 /// A vector for Foxglove messages: non-finite components become 0.

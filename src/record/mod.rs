@@ -40,9 +40,12 @@ use serde_json::{Value, json};
 use crate::geom::{ObjectShape, Pose};
 use crate::hand::{ColliderShape, HandModel};
 
+mod foxglove_frames;
 mod messages;
 mod scene;
 mod schemas;
+
+pub use foxglove_frames::{FoxgloveFrames, FoxgloveMessages};
 
 use messages::*;
 use scene::*;
@@ -166,6 +169,17 @@ pub const SCHEMA_CONTACTS: &str = "dextrain.Contacts";
 pub const SCHEMA_FRAME_TRANSFORMS: &str = "foxglove.FrameTransforms";
 pub const SCHEMA_SCENE_UPDATE: &str = "foxglove.SceneUpdate";
 
+/// The JSON Schema of the `foxglove.FrameTransforms` messages a recording writes (on `/tf`), for
+/// other writers of the same messages (the live view).
+pub fn frame_transforms_json_schema() -> Value {
+    frame_transforms_schema()
+}
+
+/// The JSON Schema of the `foxglove.SceneUpdate` messages a recording writes (on `/scene`).
+pub fn scene_update_json_schema() -> Value {
+    scene_update_schema()
+}
+
 /// Name of the MCAP metadata record describing the rollout.
 pub const METADATA_NAME: &str = "dextrain";
 /// Value of the metadata's `format` key, and its `version`.
@@ -212,13 +226,10 @@ pub struct RolloutWriter<W: Write + Seek = BufWriter<File>> {
     sequences: [u32; NUM_CHANNELS],
     joint_names: Vec<String>,
     link_names: Vec<String>,
-    link_frames: Vec<String>,
     /// Link index of every collider.
     collider_links: Vec<usize>,
-    /// Scene entities that only change by timestamp: hand links, object, table.
-    static_entities: Vec<FgEntity>,
-    /// The reference ghost (sent when the frame has an `object_ref`).
-    ghost_entity: FgEntity,
+    /// The `/tf` and `/scene` messages of a frame.
+    foxglove: FoxgloveFrames,
     frames: u64,
 }
 
@@ -352,8 +363,6 @@ impl<W: Write + Seek> RolloutWriter<W> {
                 mcap.add_channel(schema_id, topic, MESSAGE_ENCODING, &BTreeMap::new()).with_context(ctx)?;
         }
 
-        let (static_entities, ghost_entity) = build_static_entities(meta, &link_frames);
-
         Ok(Self {
             mcap: Some(mcap),
             label,
@@ -362,10 +371,8 @@ impl<W: Write + Seek> RolloutWriter<W> {
             sequences: [0; NUM_CHANNELS],
             joint_names,
             link_names,
-            link_frames,
             collider_links: hand.colliders.iter().map(|c| c.link).collect(),
-            static_entities,
-            ghost_entity,
+            foxglove: FoxgloveFrames::new(meta, ""),
             frames: 0,
         })
     }
@@ -410,39 +417,15 @@ impl<W: Write + Seek> RolloutWriter<W> {
                 .collect(),
         };
 
-        let mut transforms = Vec::with_capacity(self.link_frames.len() + 2);
-        for (i, child) in self.link_frames.iter().enumerate() {
-            let pose = if i == 0 { &frame.wrist } else { &frame.links[i] };
-            transforms.push(FgTransform::new(stamp, WORLD_FRAME, child, pose));
-        }
-        transforms.push(FgTransform::new(stamp, WORLD_FRAME, OBJECT_FRAME, &frame.object));
-        if let Some(r) = &frame.object_ref {
-            transforms.push(FgTransform::new(stamp, WORLD_FRAME, OBJECT_REF_FRAME, r));
-        }
-        let tf = FgFrameTransforms { transforms };
-
-        let mut entities: Vec<FgEntity> = self.static_entities.clone();
-        let mut deletions = Vec::new();
-        if frame.object_ref.is_some() {
-            entities.push(self.ghost_entity.clone());
-        } else {
-            deletions.push(FgDeletion { timestamp: stamp, kind: 0, id: ENTITY_OBJECT_REF.to_string() });
-        }
-        entities.push(contacts_entity(&frame.contacts));
-        if !frame.overlay.is_empty() {
-            entities.push(overlay_entity(&frame.overlay));
-        }
-        for e in &mut entities {
-            e.timestamp = stamp;
-        }
-        let scene = FgSceneUpdate { deletions, entities };
+        let mut foxglove = FoxgloveMessages::default();
+        self.foxglove.append(frame, ns, None, &mut foxglove);
 
         let payloads: [Vec<u8>; NUM_CHANNELS] = [
             serde_json::to_vec(&hand_state)?,
             serde_json::to_vec(&poses)?,
             serde_json::to_vec(&contacts)?,
-            serde_json::to_vec(&tf)?,
-            serde_json::to_vec(&scene)?,
+            foxglove.tf_json()?,
+            foxglove.scene_json()?,
         ];
         let mcap = self.mcap.as_mut().expect("the MCAP writer is only taken by finish");
         for (ch, data) in payloads.iter().enumerate() {

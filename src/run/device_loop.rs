@@ -62,7 +62,8 @@ impl DeviceLoop {
 
     /// `steps` env steps of every env: the algorithm acts on the device, the task steps on the
     /// device, the algorithm observes, the sums accumulate on the device.
-    pub(super) fn collect(&mut self, task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, steps: usize) -> Result<()> {
+    /// A live view reads the shown envs after a step, when it sends a scene.
+    pub(super) fn collect(&mut self, task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, steps: usize, mut live: Option<&mut crate::live::LiveView>) -> Result<()> {
         let n = task.spec().num_envs;
         let column = |m: &Tensor<2>, k: usize| m.clone().slice([0..n, k..k + 1]); // [N, 1]
         for _ in 0..steps {
@@ -91,6 +92,9 @@ impl DeviceLoop {
             self.obs = out.obs;
             self.priv_obs = out.priv_obs;
             self.steps += n as u64;
+            if let Some(l) = live.as_deref_mut() {
+                l.after_step(task)?;
+            }
         }
         Ok(())
     }

@@ -30,6 +30,7 @@ use crate::config::{Config, TaskKind};
 use crate::env::SimModel;
 use crate::task::{TaskBatch, TaskSpec, make_task_batch};
 use crate::learn::device::learner_device;
+use crate::live::LiveView;
 use crate::metrics::MetricsLog;
 use crate::run_dir;
 
@@ -62,6 +63,9 @@ pub struct TrainArgs {
     /// No progress bar; one log line every 10 % of the run instead.
     #[arg(long)]
     pub quiet: bool,
+    /// The live view (`--live`, `--live-envs`, `--live-hz`, `--live-wait`).
+    #[command(flatten)]
+    pub live: crate::live::LiveArgs,
 }
 
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -180,7 +184,7 @@ pub(super) struct Episodes {
 
 /// One iteration's env steps: act, step, observe; returns the sums. `obs`/`priv_obs` are updated to
 /// the observations after the last step.
-fn collect(task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, obs: &mut [f32], priv_obs: &mut [f32], eps: &mut Episodes, steps: usize) -> Result<RolloutSums> {
+fn collect(task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, obs: &mut [f32], priv_obs: &mut [f32], eps: &mut Episodes, steps: usize, mut live: Option<&mut LiveView>) -> Result<RolloutSums> {
     let n_terms = task.spec().term_names.len();
     let mut s = RolloutSums { terms: vec![0.0; n_terms], ..Default::default() };
     for _ in 0..steps {
@@ -222,6 +226,9 @@ fn collect(task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, obs: &mut [f32], 
         s.steps += n as u64;
         obs.copy_from_slice(&b.obs);
         priv_obs.copy_from_slice(&b.priv_obs);
+        if let Some(l) = live.as_deref_mut() {
+            l.after_step(task)?;
+        }
     }
     Ok(s)
 }
@@ -382,6 +389,7 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
         }
         model.globals.env_offset = (rank * cfg.sim.num_envs) as u32;
     }
+    let live_model = args.live.live.is_some().then(|| model.clone());
     let mut task = make_task_batch(&cfg, model)?;
     let spec = task.spec().clone();
     let choice = cfg.train.device.clone();
@@ -438,6 +446,17 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
     if iteration >= total {
         bail!("{}: the run has finished its {total} iterations; resume with --set train.iterations=N (N > {iteration}) to train longer", dir.display());
     }
+    // the live view (rank 0 of an MPI job shows its envs), with the run's own Foxglove layout
+    let mut live = match &live_model {
+        Some(m) if crate::dist::rank() == 0 => {
+            let losses: Vec<String> = algo.stat_columns().into_iter().filter(|c| c.starts_with(crate::metrics::columns::LOSS_PREFIX)).collect();
+            let layout = crate::live::layout::layout(&spec.term_names, &losses);
+            let path = dir.join(crate::live::layout::RUN_LAYOUT);
+            crate::live::layout::write(&path, &layout)?;
+            args.live.start(m, spec.control_dt, Some(&columns), false)?
+        }
+        _ => None,
+    };
     let stop_at = args.stop_after.map(|k| (iteration + k).min(total)).unwrap_or(total);
     console::status(&format!(
         "dextrain train: {} | envs: {} ({n} envs, obs {}, critic obs {}, actions {}) | learner: {} on {device_name}{} | iterations {iteration}..{stop_at} of {total}",
@@ -473,7 +492,7 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
         let counts0 = GpuCounter::start(task.gpu_context());
         let (sums, upd, collect_and_learn_s, counts1) = match &mut device_loop {
             Some(dl) => {
-                dl.collect(task.as_mut(), algo.as_mut(), steps)?;
+                dl.collect(task.as_mut(), algo.as_mut(), steps, live.as_mut())?;
                 // reading the sums waits for the envs' steps: the collection's time ends here
                 let sums = dl.take_sums(spec.term_names.len())?;
                 if let Some(ctx) = task.gpu_context() {
@@ -485,7 +504,7 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
                 (sums, algo.update_device(&dl.obs, &dl.priv_obs)?, collect_s, counts1)
             }
             None => {
-                let sums = collect(task.as_mut(), algo.as_mut(), &mut obs, &mut priv_obs, &mut eps, steps)?;
+                let sums = collect(task.as_mut(), algo.as_mut(), &mut obs, &mut priv_obs, &mut eps, steps, live.as_mut())?;
                 let collect_s = t0.elapsed().as_secs_f64();
                 let counts1 = GpuCounter::start(task.gpu_context());
                 (sums, algo.update(&obs, &priv_obs)?, collect_s, counts1)
@@ -514,6 +533,9 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
         let fps = sums.steps as f64 / dt.max(1e-9);
         let row = metric_row(&sums, &upd, env_steps, time_s, fps, collect_s, learn_s, host_bytes, gpu, spec.kind.follows_reference());
         metrics.append(iteration, &row)?;
+        if let Some(l) = live.as_mut() {
+            l.metrics(iteration, &columns, &row)?;
+        }
         let (success, reward) = (sums.success_rate(), sums.mean_reward());
         // no episode ended yet (the first iterations of long episodes): no success rate to show
         let success = if success.is_finite() { format!("{:.0}%", 100.0 * success) } else { "– (no episode ended yet)".to_string() };
@@ -587,6 +609,9 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
         "learner_device": device_name,
         "last": columns.iter().zip(&last_row).map(|(c, v)| (c.clone(), json!(v))).collect::<serde_json::Map<_, _>>(),
     });
+    if let Some(l) = &live {
+        summary["live"] = l.summary();
+    }
     if crate::dist::size() > 1 {
         summary["ranks"] = json!({ "size": crate::dist::size(), "rank": crate::dist::rank(), "max_parameter_deviation": deviation });
     }

@@ -25,7 +25,7 @@ const TINY: [&str; 9] = ["sim.backend=cpu", "train.device=cpu", "sim.num_envs=8"
 fn teacher(runs: &Path) -> PathBuf {
     let mut sets = s(&TINY);
     sets.extend(s(&["train.iterations=2", "policy.encoder.inputs=[\"obj_mass\", \"obj_vel\", \"tip_contact\"]", "policy.encoder.hidden=[8]", "policy.encoder.latent=3"]));
-    train(&TrainArgs { config: Some(CONFIG.into()), sets, name: Some("teacher".into()), resume: None, force: false, runs_dir: runs.into(), stop_after: None, quiet: true }).unwrap()
+    train(&TrainArgs { config: Some(CONFIG.into()), sets, name: Some("teacher".into()), resume: None, force: false, runs_dir: runs.into(), stop_after: None, quiet: true, live: Default::default() }).unwrap()
 }
 
 fn student_sets(teacher: &Path, extra: &[&str]) -> Vec<String> {
@@ -170,6 +170,7 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
         runs_dir: tmp.path().into(),
         stop_after: None,
         quiet: true,
+        live: Default::default(),
     };
     let a = train(&args("a")).unwrap();
     let mut b_args = args("b");
@@ -214,7 +215,7 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
     // eval of the student beside its teacher on the same seeds: the teacher's side is exactly what
     // evaluating the teacher run itself gives
     use dextrain::eval::{Baseline, EvalArgs, run as eval};
-    let e = |run: &Path, baseline: Option<Baseline>| EvalArgs { run: run.into(), checkpoint: "latest".into(), episodes: 4, max_envs: 4, seed: Some(77), record: None, backend: None, baseline };
+    let e = |run: &Path, baseline: Option<Baseline>| EvalArgs { run: run.into(), checkpoint: "latest".into(), episodes: 4, max_envs: 4, seed: Some(77), record: None, backend: None, baseline, live: Default::default() };
     let r = eval(&e(&a, Some(Baseline::Teacher))).unwrap();
     assert_eq!(r.baseline_kind, "teacher");
     // the student's latent against its teacher's on the same states: measured, and only for it
@@ -304,7 +305,7 @@ fn a_tcn_student_learns_exports_and_plays() {
     two_updates_lower_both_losses(&mut d, task.as_mut(), &b);
     let mut sets = student_sets(&t, &tcn);
     sets.push("train.iterations=2".into());
-    let run = train(&TrainArgs { config: Some(CONFIG.into()), sets, name: Some("tcn".into()), resume: None, force: false, runs_dir: tmp.path().into(), stop_after: None, quiet: true }).unwrap();
+    let run = train(&TrainArgs { config: Some(CONFIG.into()), sets, name: Some("tcn".into()), resume: None, force: false, runs_dir: tmp.path().into(), stop_after: None, quiet: true, live: Default::default() }).unwrap();
     // read back from the checkpoint: the TCN with its convolutions, and the same parameters
     let back = dextrain::learn::distill::StudentPolicy::load(&run.join("checkpoints/2"), task.spec().obs_dim, &Device::flex()).unwrap();
     assert_eq!(back.student.adaptation, dextrain::learn::distill::Adaptation::Tcn { convs: vec![(2, 2), (2, 1)] });

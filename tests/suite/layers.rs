@@ -15,6 +15,7 @@ const LAYERS: &[(&str, &[&str])] = &[
     ("the GPU context and the shader ABI: Pod structs, bindings, shader sources, burn buffer interop", &["gpu"]),
     ("simulator: the physics twins, the CPU and GPU env batches", &["env"]),
     ("task layer: tasks, IK, references, the reference bank", &["task"]),
+    ("views: the live Foxglove view of env batches", &["live"]),
     ("learners: kernels, networks, PPO, SAC, distillation, checkpoints", &["learn"]),
     ("export, eval (with play), the runner", &["export", "eval", "run"]),
     ("commands", &["replay", "synth", "retarget", "starter", "bench_contacts", "bench_matmul", "bench", "train"]),

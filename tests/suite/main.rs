@@ -16,6 +16,7 @@ mod ik;
 mod journeys;
 mod layers;
 mod learn;
+mod live;
 mod mesh;
 mod objects;
 mod metrics;
