@@ -45,6 +45,10 @@ pub struct ReplayArgs {
     /// (repeatable).
     #[arg(long = "set", value_name = "KEY=VALUE")]
     pub sets: Vec<String>,
+    /// `--video`: render env 0's rollout to a video (`--video-episodes` does not apply: one
+    /// rollout).
+    #[command(flatten)]
+    pub video: crate::video::VideoArgs,
 }
 
 /// The one-line JSON report of a replay. Each metric name means the same as in the eval report
@@ -145,6 +149,12 @@ pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Pat
 /// [`replay`] with the model of `cfg` already built (`SimModel::from_config(cfg)`), for callers
 /// that replay many references under one config.
 pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kinematic: bool, out: Option<&Path>) -> Result<ReplayReport> {
+    Ok(replay_filmed(cfg, model, traj, kinematic, out, false)?.0)
+}
+
+/// [`replay_with_model`], and with `film` env 0's rollout as a video episode (every frame; no
+/// outcome: a replay has no success).
+pub fn replay_filmed(cfg: &Config, model: &SimModel, traj: &Trajectory, kinematic: bool, out: Option<&Path>, film: bool) -> Result<(ReplayReport, Option<crate::video::VideoEpisode>)> {
     // a reference that names its object is replayed with that object in every env
     let named;
     let model = match &traj.object_name {
@@ -179,21 +189,20 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
     // a fingertip touches the object when its force exceeds the task's contact threshold (N)
     let contact_force = cfg.task.hand.contact_force as f64;
     let has_obj = traj.frames.first().is_some_and(|f| f.object.is_some());
+    let meta = || RolloutMeta {
+        hand: model.hand.clone(),
+        object: {
+            let p0 = reset_params(&g, &model.object_descs, &model.ref_objects, 0, 0);
+            crate::record::object_parts(&model.objects[p0.obj_index as usize], p0.obj_scale)
+        },
+        dt: ctrl_dt as f32,
+        info: serde_json::json!({ "command": "replay", "mode": if kinematic { "kinematic" } else { "dynamic" }, "config": cfg.source.display().to_string() }),
+    };
     let mut writer = match out {
-        Some(p) => {
-            let meta = RolloutMeta {
-                hand: model.hand.clone(),
-                object: {
-                    let p0 = reset_params(&g, &model.object_descs, &model.ref_objects, 0, 0);
-                    crate::record::object_parts(&model.objects[p0.obj_index as usize], p0.obj_scale)
-                },
-                dt: ctrl_dt as f32,
-                info: serde_json::json!({ "command": "replay", "mode": if kinematic { "kinematic" } else { "dynamic" }, "config": cfg.source.display().to_string() }),
-            };
-            Some(RolloutWriter::create(p, &meta)?)
-        }
+        Some(p) => Some(RolloutWriter::create(p, &meta())?),
         None => None,
     };
+    let mut filmed = film.then(|| crate::video::VideoEpisode { meta: meta(), frames: Vec::with_capacity(frames), success: None });
     let t0 = targets_at(&model, traj, &map, 0.0);
     let obj0 = traj.frames.first().and_then(|f| f.object);
     let mut acc = vec![Acc::default(); n];
@@ -240,9 +249,9 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
             }
         }
         trace.push((t, Pose::from_arrays(states[0].obj_pos, states[0].obj_rot), Pose::from_arrays(states[0].wrist_pos, states[0].wrist_rot)));
-        if let Some(w) = writer.as_mut() {
+        if writer.is_some() || filmed.is_some() {
             let s = &states[0];
-            w.write_frame(&RolloutFrame {
+            let frame = RolloutFrame {
                 t,
                 joint_pos: s.q[..model.joints.len()].to_vec(),
                 joint_vel: s.qd[..model.joints.len()].to_vec(),
@@ -253,7 +262,13 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
                 contacts: contact_records(&model, s, &springs0()?, &params[0], tg),
                 object_ref: r.object,
                 overlay: Vec::new(),
-            })?;
+            };
+            if let Some(w) = writer.as_mut() {
+                w.write_frame(&frame)?;
+            }
+            if let Some(f) = filmed.as_mut() {
+                f.frames.push(frame);
+            }
         }
         Ok(())
     };
@@ -309,7 +324,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
             bad += resets;
             let pen: Vec<f32> = stats.iter().map(|s| s.max_pen_ho).collect();
             let tips: Vec<Vec<f32>> = stats.iter().map(|s| s.tip_force[..model.tips.len()].to_vec()).collect();
-            let springs = if writer.is_some() { env0_springs(&mut env)? } else { Vec::new() };
+            let springs = if writer.is_some() || film { env0_springs(&mut env)? } else { Vec::new() };
             observe(k, &states, &params, &|| Ok(springs.clone()), &pen, &tips, &tg, &mut writer)?;
         }
     }
@@ -337,7 +352,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
         trace,
     };
     crate::eval::check_finite(&report, "replay report")?;
-    Ok(report)
+    Ok((report, filmed))
 }
 
 /// `dextrain replay`.
@@ -349,8 +364,17 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     }
     cfg.validate()?;
     let traj = Trajectory::load(&args.traj)?;
-    let report = replay(&cfg, &traj, args.kinematic, args.out.as_deref())
+    if let Some(path) = &args.video.video {
+        // a bad path fails before the replay runs
+        crate::video::check_output(path)?;
+    }
+    let (report, filmed) = replay_filmed(&cfg, &SimModel::from_config(&cfg)?, &traj, args.kinematic, args.out.as_deref(), args.video.video.is_some())
         .with_context(|| format!("replaying {} with {}", args.traj.display(), args.config.display()))?;
+    if let (Some(path), Some(episode)) = (&args.video.video, filmed) {
+        let ctx = crate::video::video_context(None)?;
+        let v = crate::video::write_video(path, std::slice::from_ref(&episode), ctx, args.video.video_size)?;
+        crate::console::status(&format!("dextrain replay: video {} ({} frames, {}x{} at {:.0} fps; rendered on {})", path.display(), v.frames, v.width, v.height, v.fps, v.adapter));
+    }
     crate::console::result(&serde_json::to_string(&report)?);
     Ok(())
 }

@@ -13,7 +13,7 @@ use anyhow::{Context, Result};
 use crate::export::command::WORLD_FILE;
 use crate::export::contract::PolicyContract;
 use crate::config::Config;
-use super::{Driver, EvalArgs, EvalReport, PolicySource, check_finite, run_episodes};
+use super::{Driver, EvalArgs, EvalReport, PolicySource, check_finite, film, run_episodes_filmed};
 
 /// `dextrain play`.
 #[derive(clap::Args, Debug, Clone)]
@@ -35,6 +35,9 @@ pub struct PlayArgs {
     /// Record env 0's episode to this MCAP file.
     #[arg(long)]
     pub record: Option<PathBuf>,
+    /// `--video`: render the first envs' episodes to a video.
+    #[command(flatten)]
+    pub video: crate::video::VideoArgs,
 }
 
 /// Runs `dextrain play`: the report (not written anywhere: the caller prints it).
@@ -57,8 +60,14 @@ pub fn run(args: &PlayArgs) -> Result<EvalReport> {
         record: args.record.clone(),
         backend: args.backend.clone(),
         baseline: None,
+        video: args.video.clone(),
     };
-    let (policy, env_backend, device) = run_episodes(&cfg, PolicySource::Export(&args.contract), &eval_args, Driver::Policy)?;
+    // a bad --video fails before the episodes run
+    let video_envs = args.video.episodes_to_film()?;
+    let (policy, env_backend, device, filmed) = run_episodes_filmed(&cfg, PolicySource::Export(&args.contract), &eval_args, Driver::Policy, video_envs)?;
+    if let Some(path) = &args.video.video {
+        film(path, &args.video, filmed, None)?;
+    }
     let report = EvalReport {
         run: contract.source.run.clone(),
         checkpoint: format!("{} (exported: {})", contract.source.checkpoint, args.contract.display()),

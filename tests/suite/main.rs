@@ -34,3 +34,4 @@ mod task;
 mod track;
 mod train;
 mod traj;
+mod video;
