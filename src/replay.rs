@@ -364,14 +364,12 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     }
     cfg.validate()?;
     let traj = Trajectory::load(&args.traj)?;
-    if let Some(path) = &args.video.video {
-        // a bad path fails before the replay runs
-        crate::video::check_output(path)?;
-    }
+    // a bad --video path, or no adapter to render on, fails before the replay runs
+    args.video.episodes_to_film()?;
+    let video_ctx = args.video.render_context()?;
     let (report, filmed) = replay_filmed(&cfg, &SimModel::from_config(&cfg)?, &traj, args.kinematic, args.out.as_deref(), args.video.video.is_some())
         .with_context(|| format!("replaying {} with {}", args.traj.display(), args.config.display()))?;
-    if let (Some(path), Some(episode)) = (&args.video.video, filmed) {
-        let ctx = crate::video::video_context(None)?;
+    if let (Some(path), Some(episode), Some(ctx)) = (&args.video.video, filmed, video_ctx) {
         let v = crate::video::write_video(path, std::slice::from_ref(&episode), ctx, args.video.video_size)?;
         crate::console::status(&format!("dextrain replay: video {} ({} frames, {}x{} at {:.0} fps; rendered on {})", path.display(), v.frames, v.width, v.height, v.fps, v.adapter));
     }

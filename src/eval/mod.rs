@@ -311,9 +311,10 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
     };
     // a bad --video fails before the episodes run
     let video_envs = args.video.episodes_to_film()?;
+    let video_ctx = args.video.render_context()?;
     let (policy, env_backend, device_name, filmed) = run_episodes_filmed(&cfg, PolicySource::Checkpoint(&ckpt), args, Driver::Policy, video_envs)?;
-    if let Some(path) = &args.video.video {
-        film(path, &args.video, filmed, Some(&args.run.join("plots").join(EVAL_STRIP_PNG)))?;
+    if let (Some(path), Some(ctx)) = (&args.video.video, video_ctx) {
+        film(path, &args.video, filmed, ctx, Some(&args.run.join("plots").join(EVAL_STRIP_PNG)))?;
     }
     let base = match baseline {
         Some(d) => Some(run_episodes(&cfg, PolicySource::Checkpoint(&ckpt), args, d)?.0),
@@ -360,10 +361,11 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
 pub const EVAL_STRIP_PNG: &str = "eval_strip.png";
 
 /// Renders the filmed episodes to the video at `path` (and the image strip at `strip`, if given),
-/// on the evaluation's GPU if it had one, and says on stderr what it wrote.
-pub(crate) fn film(path: &Path, video: &crate::video::VideoArgs, filmed: Filmed, strip: Option<&Path>) -> Result<()> {
+/// on the evaluation's GPU if it had one, else on `ctx` (`VideoArgs::render_context`), and says on
+/// stderr what it wrote.
+pub(crate) fn film(path: &Path, video: &crate::video::VideoArgs, filmed: Filmed, ctx: crate::gpu::context::GpuContext, strip: Option<&Path>) -> Result<()> {
     anyhow::ensure!(!filmed.episodes.is_empty(), "video {}: no episodes to render (--video-episodes {})", path.display(), video.video_episodes);
-    let ctx = crate::video::video_context(filmed.gpu.as_ref())?;
+    let ctx = filmed.gpu.unwrap_or(ctx);
     let v = crate::video::write_video(path, &filmed.episodes, ctx, video.video_size)?;
     let per_frame_ms = 1e3 * (v.render_s + v.encode_s) / v.frames.max(1) as f64;
     crate::console::status(&format!(

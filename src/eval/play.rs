@@ -64,9 +64,10 @@ pub fn run(args: &PlayArgs) -> Result<EvalReport> {
     };
     // a bad --video fails before the episodes run
     let video_envs = args.video.episodes_to_film()?;
+    let video_ctx = args.video.render_context()?;
     let (policy, env_backend, device, filmed) = run_episodes_filmed(&cfg, PolicySource::Export(&args.contract), &eval_args, Driver::Policy, video_envs)?;
-    if let Some(path) = &args.video.video {
-        film(path, &args.video, filmed, None)?;
+    if let (Some(path), Some(ctx)) = (&args.video.video, video_ctx) {
+        film(path, &args.video, filmed, ctx, None)?;
     }
     let report = EvalReport {
         run: contract.source.run.clone(),

@@ -178,6 +178,12 @@ impl VideoArgs {
         ensure!(self.video_episodes > 0, "--video {}: --video-episodes 0 films nothing; expected at least 1", path.display());
         Ok(self.video_episodes)
     }
+
+    /// With `--video`, the context to render on ([`video_context`] without an existing one),
+    /// opened before anything runs, so that a machine without any adapter fails at once.
+    pub fn render_context(&self) -> Result<Option<GpuContext>> {
+        self.video.as_ref().map(|_| video_context(None)).transpose()
+    }
 }
 
 /// The format of the video at `path`, checked before anything is run: a path of no known format,

@@ -256,6 +256,64 @@ fn bad_video_paths_are_one_line_errors_and_leave_nothing_behind() {
     // a frame of the wrong size is an error, not a panic
     let mut w = VideoWriter::create(&dir.path().join("ok.gif"), 32, 32, 30.0).unwrap();
     assert!(w.push(&[0u8; 16]).is_err());
+    drop(w);
+    // a path ending in .png: numbered frames beside it, STEM_00000.png, …
+    let mut w = VideoWriter::create(&dir.path().join("shots/f.png"), 32, 32, 30.0).unwrap();
+    assert_eq!(w.format(), VideoFormat::PngFrames);
+    for k in 0..3u8 {
+        w.push(&vec![k * 100; 32 * 32 * 4]).unwrap();
+    }
+    assert_eq!(w.finish().unwrap(), 3);
+    let mut names: Vec<String> = std::fs::read_dir(dir.path().join("shots")).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    names.sort();
+    assert_eq!(names, ["f_00000.png", "f_00001.png", "f_00002.png"]);
+}
+
+/// Without any adapter (the Vulkan loader pointed at no driver), `--video` fails at once in one
+/// line saying what it needs, before the replay runs and without writing anything.
+#[test]
+#[cfg(target_os = "linux")]
+fn video_without_an_adapter_is_a_one_line_error_before_anything_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let video = dir.path().join("none.mp4");
+    let out = Command::new(env!("CARGO_BIN_EXE_dextrain"))
+        .args(["replay", "configs/grasp_lift.toml", "--traj", "configs/refs/grasp_lift.mcap", "--backend", "cpu", "--video"])
+        .arg(&video)
+        .env("VK_ICD_FILENAMES", dir.path().join("no-driver.json"))
+        .env_remove("WGPU_BACKEND")
+        .current_dir(ROOT)
+        .output()
+        .unwrap();
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && e.contains("--video needs a wgpu adapter") && e.trim().lines().count() == 1, "{e}");
+    assert!(out.stdout.is_empty(), "the replay did not run");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "nothing written");
+}
+
+/// `dextrain replay --video`: env 0's rollout, one frame per replayed frame.
+#[test]
+fn replay_video_has_a_frame_per_replayed_frame() {
+    if gpu_context("replay --video").is_none() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let video = dir.path().join("replay.mp4");
+    let out = Command::new(env!("CARGO_BIN_EXE_dextrain"))
+        .args(["replay", "configs/grasp_lift.toml", "--traj", "configs/refs/grasp_lift.mcap", "--backend", "cpu", "--video-size", "160x120", "--video"])
+        .arg(&video)
+        .current_dir(ROOT)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{stderr}");
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let frames = report["frames"].as_u64().unwrap();
+    assert!(stderr.contains(&format!("({frames} frames, 320x148")), "{stderr}");
+    if !python_av("replay --video") {
+        return;
+    }
+    let r = read_with_pyav(&video, &[]);
+    assert_eq!(r["frames"].as_u64(), Some(frames), "{r}");
 }
 
 #[test]
@@ -314,6 +372,13 @@ fn eval_video_writes_an_mp4_of_the_episodes_and_the_strip() {
     let out = run(&["eval", dir.to_str().unwrap(), "--episodes", "1", "--video", "x.mp4", "--video-episodes", "0"]);
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(!out.status.success() && e.contains("--video-episodes 0") && e.trim().lines().count() == 1, "{e}");
+    // the envs on a GPU (lavapipe here): the video renders on the eval's own device
+    let gif = dir.join("eval/gpu.gif");
+    let out = run(&["eval", dir.to_str().unwrap(), "--episodes", "1", "--backend", "gpu:llvmpipe", "--video", gif.to_str().unwrap(), "--video-size", "64x48"]);
+    let e = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success() && e.contains("llvmpipe"), "{e}");
+    let decoder = gif::DecodeOptions::new().read_info(std::fs::File::open(&gif).unwrap()).unwrap();
+    assert_eq!((decoder.width(), decoder.height()), (128, 48 + CAPTION_HEIGHT as u16));
     if !python_av("eval --video") {
         return;
     }
