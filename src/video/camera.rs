@@ -6,12 +6,14 @@ use glam::{Mat4, Vec3, Vec4};
 
 /// Vertical field of view of both cameras (rad): 45°.
 pub const FOV_Y: f32 = std::f32::consts::FRAC_PI_4;
-/// Near and far clip planes (m).
+/// Near clip plane (m).
 pub const NEAR: f32 = 0.02;
+/// Far clip plane (m).
 pub const FAR: f32 = 10.0;
-/// The fixed camera: the point it looks at (above the table's centre, where the object rests and
-/// the hand works) and its eye, front right and above (m, world frame).
+/// The fixed camera's target: above the table's centre, where the object rests and the hand works
+/// (m, world frame).
 pub const FIXED_TARGET: Vec3 = Vec3::new(0.0, 0.0, 0.1);
+/// The fixed camera's eye: front right and above (m, world frame).
 pub const FIXED_EYE: Vec3 = Vec3::new(0.3, -0.38, 0.3);
 /// The follow camera's eye relative to its target (m): the fixed camera's direction, closer.
 pub const FOLLOW_OFFSET: Vec3 = Vec3::new(0.17, -0.21, 0.15);
@@ -21,7 +23,9 @@ pub const FOLLOW_GAIN: f32 = 0.3;
 /// A pinhole camera: eye, the point it looks at, z up.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
+    /// Where the camera is (world, m).
     pub eye: Vec3,
+    /// The point it looks at (world, m): the centre of its view.
     pub target: Vec3,
 }
 

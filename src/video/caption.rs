@@ -17,11 +17,13 @@ const TEXT_RGB: [u8; 3] = [240, 240, 240];
 /// What a caption says about a frame.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Caption {
-    /// Which episode of the video (from 1) and how many there are.
+    /// Which episode of the video (from 1).
     pub episode: usize,
+    /// How many episodes the video has.
     pub episodes: usize,
-    /// The frame's step within its episode (0 = the reset state) and the episode's last step.
+    /// The frame's step within its episode (0 = the reset state).
     pub step: usize,
+    /// The episode's last step (its frames − 1).
     pub last_step: usize,
     /// Simulated time (s).
     pub t: f64,

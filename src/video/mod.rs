@@ -35,7 +35,9 @@ use render::SceneRenderer;
 /// The size of each of the two views, pixels (`--video-size WxH`; even numbers, for H.264).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct ViewSize {
+    /// Width of one view, pixels.
     pub width: u32,
+    /// Height of one view, pixels.
     pub height: u32,
 }
 
@@ -87,6 +89,7 @@ impl Default for VideoArgs {
 /// One episode to render: what a recording of it holds, and its outcome.
 #[derive(Clone, Debug)]
 pub struct VideoEpisode {
+    /// The hand, the object's pieces (scaled) and dt, as a recording of the episode holds them.
     pub meta: RolloutMeta,
     /// Its frames, one per recorded step (the first: the reset state).
     pub frames: Vec<RolloutFrame>,
@@ -97,19 +100,23 @@ pub struct VideoEpisode {
 /// What [`write_video`] wrote.
 #[derive(Clone, Debug)]
 pub struct VideoSummary {
+    /// Where the video is.
     pub path: PathBuf,
+    /// Its format (from the path).
     pub format: VideoFormat,
     /// Frames written (the sum of the episodes' frames).
     pub frames: usize,
-    /// Frame size, pixels (2 views wide; the views and the caption high).
+    /// Frame width, pixels (2 views).
     pub width: u32,
+    /// Frame height, pixels (a view and the caption).
     pub height: u32,
     /// Frames per second (1 / the first episode's dt).
     pub fps: f64,
     /// The adapter that rendered.
     pub adapter: String,
-    /// Time spent building the triangles and rendering (with readback), and encoding, s.
+    /// Time spent building the triangles, rendering (with readback) and drawing captions, s.
     pub render_s: f64,
+    /// Time spent encoding and writing, s.
     pub encode_s: f64,
     /// The first and the last frame of each episode (RGBA8, `width` × `height`), for the strip.
     pub ends: Vec<(Vec<u8>, Vec<u8>)>,

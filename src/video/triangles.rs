@@ -27,15 +27,18 @@ pub const TABLE_COLOR: [f32; 4] = [0.45, 0.42, 0.4, 1.0];
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Vertex {
+    /// World position (m).
     pub pos: [f32; 3],
+    /// Unit normal (world; zero for a degenerate hull triangle).
     pub normal: [f32; 3],
+    /// RGBA, 0..1 (alpha < 1: blended, the ghost).
     pub color: [f32; 4],
 }
 
 /// A triangle list under construction (three vertices per triangle).
 #[derive(Default)]
-pub struct Triangles {
-    pub vertices: Vec<Vertex>,
+struct Triangles {
+    vertices: Vec<Vertex>,
 }
 
 /// A point of a lathe profile: distance from the axis, height along it, and the normal's radial
