@@ -1,7 +1,8 @@
 //! Videos (src/video/): a synthetic rollout rendered on lavapipe (or any adapter) and written as
 //! MP4, GIF and PNG frames, read back by decoders independent of our encoder code (PyAV for the
 //! MP4, tests/read_video.py; the `gif` and `png` crates' decoders), with the object's pixels where
-//! the renderer's camera projects the object's position; and `dextrain eval --video` end to end.
+//! the renderer's camera projects the object's position; and `dextrain eval`, `play` and `replay
+//! --video` end to end.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -333,7 +334,8 @@ fn the_follow_camera_starts_on_the_object_and_eases_toward_it() {
 
 /// `dextrain eval RUN --video out.mp4`: a tiny trained run's first envs' episodes in one MP4 of
 /// Σ episode lengths frames (each episode's frames: its reset state and every step but the last,
-/// whose state is already the next episode's), and the image strip in the run's plots/.
+/// whose state is already the next episode's), and the image strip in the run's plots/; the same
+/// on the GPU backend; `play --video` on the run's export.
 #[test]
 fn eval_video_writes_an_mp4_of_the_episodes_and_the_strip() {
     if gpu_context("eval --video").is_none() {
@@ -379,6 +381,20 @@ fn eval_video_writes_an_mp4_of_the_episodes_and_the_strip() {
     assert!(out.status.success() && e.contains("llvmpipe"), "{e}");
     let decoder = gif::DecodeOptions::new().read_info(std::fs::File::open(&gif).unwrap()).unwrap();
     assert_eq!((decoder.width(), decoder.height()), (128, 48 + CAPTION_HEIGHT as u16));
+    // play --video on the run's export: one episode, a GIF frame per step of it
+    let out = run(&["export", dir.to_str().unwrap()]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let played = dir.join("export/play.gif");
+    let out = run(&["play", dir.join("export/policy.json").to_str().unwrap(), "--episodes", "1", "--episodes-json", "--video", played.to_str().unwrap(), "--video-size", "64x48"]);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let length = report["per_episode"][0]["length"].as_u64().unwrap();
+    let mut decoder = gif::DecodeOptions::new().read_info(std::fs::File::open(&played).unwrap()).unwrap();
+    let mut frames = 0;
+    while decoder.read_next_frame().unwrap().is_some() {
+        frames += 1;
+    }
+    assert_eq!(frames, length, "play's video: a frame per step of its episode");
     if !python_av("eval --video") {
         return;
     }
