@@ -521,3 +521,95 @@ pub fn cpu_model() -> serde_json::Value {
            "kernels": {"gemm": gemm, "own_avx2_product": crate::learn::kernels::sgemm::runs(),
                        "elu": format!("{:?}", crate::learn::kernels::isa::isa()).to_lowercase()}})
 }
+
+/// `dextrain bench --video`: render + encode time per video frame. One env of the bench scene on
+/// the CPU (the 16-joint hand's colliders and the cube) approaches and grasps (the approach, then
+/// the noisy grasp targets), `frames` of its states are kept, then each is rendered (triangles
+/// built, both views drawn and read back, the caption drawn) and encoded into a temporary video of
+/// `format`'s kind (`mp4` or `gif`) on `ctx`; per-frame times in ms (median, min, max).
+pub fn run_video_bench(frames: usize, view: crate::video::ViewSize, format: &str, ctx: crate::gpu::context::GpuContext) -> Result<serde_json::Value> {
+    use crate::record::RolloutFrame;
+    use crate::video::{FrameRenderer, VideoWriter, camera::FollowTarget};
+    let frames = frames.max(2);
+    let mut cfg = bench_config(1);
+    cfg.sim.backend = "cpu".parse().map_err(|e| anyhow::anyhow!("{e}"))?;
+    cfg.validate()?;
+    let model = SimModel::from_config(&cfg)?;
+    let mut env = crate::env::make_env_batch(&cfg, model.clone())?;
+    let g = &model.globals;
+    let dt = g.dt * g.decimation as f32;
+    let grasp = grasp_targets(&model);
+    let approach_steps = (0.9 / dt).round() as usize;
+    let params = env.params()?;
+    let mut states = Vec::with_capacity(frames);
+    for k in 0..frames {
+        let t = if k < approach_steps { approach_targets(&model, &grasp, k as f32 * dt) } else { noisy_targets(&model, &grasp, 1, k as u32)[0] };
+        env.step(&[t])?;
+        states.push(env.states()?[0]);
+    }
+    let meta = crate::record::RolloutMeta {
+        hand: model.hand.clone(),
+        object: crate::record::object_parts(&model.objects[params[0].obj_index as usize], params[0].obj_scale),
+        dt,
+        info: json!({ "command": "bench --video" }),
+    };
+    let nj = model.joints.len();
+    let rollout: Vec<RolloutFrame> = states
+        .iter()
+        .enumerate()
+        .map(|(k, s)| RolloutFrame {
+            t: k as f64 * dt as f64,
+            joint_pos: s.q[..nj].to_vec(),
+            joint_vel: s.qd[..nj].to_vec(),
+            joint_target: s.q[..nj].to_vec(),
+            wrist: crate::geom::Pose::from_arrays(s.wrist_pos, s.wrist_rot),
+            object: crate::geom::Pose::from_arrays(s.obj_pos, s.obj_rot),
+            links: crate::env::hand_link_poses(&model, s),
+            contacts: Vec::new(),
+            object_ref: None,
+            overlay: Vec::new(),
+        })
+        .collect();
+    let dir = std::env::temp_dir().join(format!("dextrain-bench-video-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).map_err(|e| anyhow::anyhow!("bench --video: cannot create {}: {e}", dir.display()))?;
+    let path = dir.join(format!("bench.{format}"));
+    let adapter = ctx.describe();
+    let mut renderer = FrameRenderer::new(ctx, view)?;
+    let (width, height) = renderer.frame_size();
+    let result = (|| -> Result<(Vec<f64>, Vec<f64>, u64)> {
+        let mut writer = VideoWriter::create(&path, width, height, 1.0 / dt as f64)?;
+        let (mut render_ms, mut encode_ms) = (Vec::with_capacity(frames), Vec::with_capacity(frames));
+        let mut follow = FollowTarget::new();
+        // the first frame warms up (pipelines, buffers, the encoder) untimed
+        let warm = renderer.render(&meta, &rollout[0], follow.update(rollout[0].object.pos), "warm-up")?;
+        writer.push(&warm)?;
+        for (k, frame) in rollout.iter().enumerate().skip(1) {
+            let t0 = Instant::now();
+            let image = renderer.render(&meta, frame, follow.update(frame.object.pos), &format!("frame {k}"))?;
+            let t1 = Instant::now();
+            writer.push(&image)?;
+            render_ms.push((t1 - t0).as_secs_f64() * 1e3);
+            encode_ms.push(t1.elapsed().as_secs_f64() * 1e3);
+        }
+        writer.finish()?;
+        let bytes = std::fs::metadata(&path).map(|m| m.len()).unwrap_or(0);
+        Ok((render_ms, encode_ms, bytes))
+    })();
+    let _ = std::fs::remove_dir_all(&dir);
+    let (render_ms, encode_ms, bytes) = result?;
+    let total: Vec<f64> = render_ms.iter().zip(&encode_ms).map(|(a, b)| a + b).collect();
+    let triangles = crate::video::triangles::frame_triangles(&meta, &rollout[0]).0.len() / 3;
+    Ok(json!({
+        "bench": "video",
+        "adapter": adapter,
+        "format": format,
+        "frame_width": width,
+        "frame_height": height,
+        "frames_timed": render_ms.len(),
+        "triangles_per_frame": triangles,
+        "render_ms_per_frame": summary(render_ms),
+        "encode_ms_per_frame": summary(encode_ms),
+        "total_ms_per_frame": summary(total),
+        "bytes_per_frame": bytes as f64 / frames as f64,
+    }))
+}

@@ -29,6 +29,8 @@ pub mod traj;
 pub mod record;
 // the GPU context and the shader ABI
 pub mod gpu;
+// rendered videos of rollouts (wgpu, headless) and their encoders
+pub mod video;
 // the simulator
 pub mod env;
 // the task layer

@@ -55,6 +55,17 @@ enum Command {
         /// them with MuJoCo's.
         #[arg(long, conflicts_with_all = ["ppo", "sac", "matmul"])]
         contacts: bool,
+        /// Time the video of `--video` per frame: render (both views, readback, caption) and encode
+        /// (MP4, or GIF with --video-format gif) --chunks × 24 frames of one env of the bench scene,
+        /// on lavapipe unless --backend names an adapter (gpu, gpu:NAME).
+        #[arg(long, conflicts_with_all = ["ppo", "sac", "matmul", "contacts"])]
+        video: bool,
+        /// Video bench: the encoder, mp4 or gif.
+        #[arg(long, default_value = "mp4", value_parser = ["mp4", "gif"], requires = "video")]
+        video_format: String,
+        /// Video bench: the size of each of the two views, WIDTHxHEIGHT.
+        #[arg(long, default_value_t = dextrain::video::ViewSize::default(), requires = "video")]
+        video_size: dextrain::video::ViewSize,
         /// SAC bench: transitions per gradient step.
         #[arg(long, default_value_t = 4096)]
         batch: usize,
@@ -177,7 +188,7 @@ fn run(cli: Cli) -> Result<()> {
             console::status(dextrain::task::spec::layout_table(&task.priv_layout, "critic observation").trim_end());
             Ok(())
         }
-        Command::Bench { ppo, sac, matmul, routines, contacts, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds } => {
+        Command::Bench { ppo, sac, matmul, routines, contacts, video, video_format, video_size, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds } => {
             if let Some(t) = threads {
                 rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot size the thread pool")?;
             }
@@ -209,6 +220,17 @@ fn run(cli: Cli) -> Result<()> {
                 let (dev, name, ctx) = dextrain::learn::device::learner_device_and_context(&device)?;
                 let opts = dextrain::bench::SacBenchOptions { envs: envs.unwrap_or(4096), iters: iters.max(1), batch: batch.max(1), gradient_steps: gradient_steps.max(1), ..Default::default() };
                 let report = dextrain::bench::run_sac_bench(&opts, dev, &name, ctx.as_ref())?;
+                console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
+                return Ok(());
+            }
+            if video {
+                // the adapter: lavapipe unless --backend names another (gpu = the first hardware one)
+                let ctx = match &backend {
+                    Some(dextrain::config::BackendChoice::Gpu(name)) => dextrain::gpu::context::GpuContext::new(name.as_deref())?,
+                    Some(other) => anyhow::bail!("bench --video: --backend {other:?}: expected gpu or gpu:NAME (the adapter that renders; lavapipe without --backend)"),
+                    None => dextrain::gpu::context::GpuContext::new(Some("llvmpipe"))?,
+                };
+                let report = dextrain::bench::run_video_bench(chunks.max(1) * dextrain::bench::CHUNK_STEPS, video_size, &video_format, ctx)?;
                 console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
                 return Ok(());
             }

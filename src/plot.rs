@@ -46,7 +46,7 @@ pub const GRID_COLUMNS: u32 = 3;
 pub const LEARNING_CURVES_PNG: &str = "learning_curves.png";
 
 /// DejaVu Sans 2.37 (Bitstream Vera licence + Arev licence, see assets/DejaVuSans-LICENSE.txt).
-static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
+pub(crate) static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
 
 /// Size in pixels (width, height) of the grid image holding `panels` panels.
 pub fn grid_size(panels: usize) -> (u32, u32) {

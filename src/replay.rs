@@ -49,6 +49,10 @@ pub struct ReplayArgs {
     /// the reference's object as a ghost.
     #[command(flatten)]
     pub live: crate::live::LiveArgs,
+    /// `--video`: render env 0's rollout to a video (`--video-episodes` does not apply: one
+    /// rollout).
+    #[command(flatten)]
+    pub video: crate::video::VideoArgs,
 }
 
 /// The one-line JSON report of a replay. Each metric name means the same as in the eval report
@@ -143,12 +147,18 @@ struct Acc {
 
 /// Replays `traj` for `cfg` (with `cfg.sim.num_envs` envs) and returns the report.
 pub fn replay(cfg: &Config, traj: &Trajectory, kinematic: bool, out: Option<&Path>) -> Result<ReplayReport> {
-    replay_with_model(cfg, &SimModel::from_config(cfg)?, traj, kinematic, out, None)
+    replay_with_model(cfg, &SimModel::from_config(cfg)?, traj, kinematic, out)
 }
 
 /// [`replay`] with the model of `cfg` already built (`SimModel::from_config(cfg)`), for callers
-/// that replay many references under one config; `live`: a live view that shows the envs.
-pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kinematic: bool, out: Option<&Path>, mut live: Option<&mut crate::live::LiveView>) -> Result<ReplayReport> {
+/// that replay many references under one config.
+pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kinematic: bool, out: Option<&Path>) -> Result<ReplayReport> {
+    Ok(replay_filmed(cfg, model, traj, kinematic, out, false, None)?.0)
+}
+
+/// [`replay_with_model`], and with `film` env 0's rollout as a video episode (every frame; no
+/// outcome: a replay has no success); `live`: a live view that shows the envs.
+pub fn replay_filmed(cfg: &Config, model: &SimModel, traj: &Trajectory, kinematic: bool, out: Option<&Path>, film: bool, mut live: Option<&mut crate::live::LiveView>) -> Result<(ReplayReport, Option<crate::video::VideoEpisode>)> {
     // a reference that names its object is replayed with that object in every env
     let named;
     let model = match &traj.object_name {
@@ -183,21 +193,20 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
     // a fingertip touches the object when its force exceeds the task's contact threshold (N)
     let contact_force = cfg.task.hand.contact_force as f64;
     let has_obj = traj.frames.first().is_some_and(|f| f.object.is_some());
+    let meta = || RolloutMeta {
+        hand: model.hand.clone(),
+        object: {
+            let p0 = reset_params(&g, &model.object_descs, &model.ref_objects, 0, 0);
+            crate::record::object_parts(&model.objects[p0.obj_index as usize], p0.obj_scale)
+        },
+        dt: ctrl_dt as f32,
+        info: serde_json::json!({ "command": "replay", "mode": if kinematic { "kinematic" } else { "dynamic" }, "config": cfg.source.display().to_string() }),
+    };
     let mut writer = match out {
-        Some(p) => {
-            let meta = RolloutMeta {
-                hand: model.hand.clone(),
-                object: {
-                    let p0 = reset_params(&g, &model.object_descs, &model.ref_objects, 0, 0);
-                    crate::record::object_parts(&model.objects[p0.obj_index as usize], p0.obj_scale)
-                },
-                dt: ctrl_dt as f32,
-                info: serde_json::json!({ "command": "replay", "mode": if kinematic { "kinematic" } else { "dynamic" }, "config": cfg.source.display().to_string() }),
-            };
-            Some(RolloutWriter::create(p, &meta)?)
-        }
+        Some(p) => Some(RolloutWriter::create(p, &meta())?),
         None => None,
     };
+    let mut filmed = film.then(|| crate::video::VideoEpisode { meta: meta(), frames: Vec::with_capacity(frames), success: None });
     let t0 = targets_at(&model, traj, &map, 0.0);
     let obj0 = traj.frames.first().and_then(|f| f.object);
     let mut acc = vec![Acc::default(); n];
@@ -246,7 +255,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
         }
         trace.push((t, Pose::from_arrays(states[0].obj_pos, states[0].obj_rot), Pose::from_arrays(states[0].wrist_pos, states[0].wrist_rot)));
         let live_due = live.as_deref().is_some_and(|l| l.wants_scene());
-        let springs = if live_due || writer.is_some() { springs()? } else { Vec::new() };
+        let springs = if live_due || writer.is_some() || filmed.is_some() { springs()? } else { Vec::new() };
         if let Some(l) = live.as_deref_mut()
             && live_due
         {
@@ -254,9 +263,9 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
             let at = crate::live::EnvSlices { states, params, springs: &springs, targets: std::slice::from_ref(tg), refs: &refs };
             l.send_scene(&crate::live::env_frames(&model, &at, ctrl_dt, l.shown_envs()))?;
         }
-        if let Some(w) = writer.as_mut() {
+        if writer.is_some() || filmed.is_some() {
             let s = &states[0];
-            w.write_frame(&RolloutFrame {
+            let frame = RolloutFrame {
                 t,
                 joint_pos: s.q[..model.joints.len()].to_vec(),
                 joint_vel: s.qd[..model.joints.len()].to_vec(),
@@ -267,7 +276,13 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
                 contacts: contact_records(&model, s, &springs[..per_env], &params[0], tg),
                 object_ref: r.object,
                 overlay: Vec::new(),
-            })?;
+            };
+            if let Some(w) = writer.as_mut() {
+                w.write_frame(&frame)?;
+            }
+            if let Some(f) = filmed.as_mut() {
+                f.frames.push(frame);
+            }
         }
         Ok(())
     };
@@ -347,7 +362,7 @@ pub fn replay_with_model(cfg: &Config, model: &SimModel, traj: &Trajectory, kine
         trace,
     };
     crate::eval::check_finite(&report, "replay report")?;
-    Ok(report)
+    Ok((report, filmed))
 }
 
 /// `dextrain replay`.
@@ -361,9 +376,16 @@ pub fn run(args: &ReplayArgs) -> Result<()> {
     let traj = Trajectory::load(&args.traj)?;
     let model = SimModel::from_config(&cfg)?;
     let ctrl_dt = model.globals.dt * model.globals.decimation as f32;
+    // a bad --video path, or no adapter to render on, fails before the replay runs
+    args.video.episodes_to_film()?;
+    let video_ctx = args.video.render_context()?;
     let mut live = args.live.start(&model, ctrl_dt, None, true)?;
-    let report = replay_with_model(&cfg, &model, &traj, args.kinematic, args.out.as_deref(), live.as_mut())
+    let (report, filmed) = replay_filmed(&cfg, &model, &traj, args.kinematic, args.out.as_deref(), args.video.video.is_some(), live.as_mut())
         .with_context(|| format!("replaying {} with {}", args.traj.display(), args.config.display()))?;
+    if let (Some(path), Some(episode), Some(ctx)) = (&args.video.video, filmed, video_ctx) {
+        let v = crate::video::write_video(path, std::slice::from_ref(&episode), ctx, args.video.video_size)?;
+        crate::console::status(&format!("dextrain replay: video {} ({} frames, {}x{} at {:.0} fps; rendered on {})", path.display(), v.frames, v.width, v.height, v.fps, v.adapter));
+    }
     crate::console::result(&serde_json::to_string(&report)?);
     Ok(())
 }

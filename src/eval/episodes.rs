@@ -17,6 +17,7 @@ use crate::learn::checkpoint;
 use crate::learn::device::learner_device;
 use crate::learn::ppo::Ppo;
 use crate::record::{RolloutFrame, RolloutMeta, RolloutWriter};
+use crate::video::VideoEpisode;
 use crate::task::{StepBatch, TaskBatch, TaskSpec, decode_snapshot, make_task_batch, reference_paths};
 
 /// A deterministic policy that eval runs.
@@ -240,27 +241,45 @@ impl RoundEpisodes {
 /// Every episode of an evaluation (the policy's, or a baseline's), the env backend and the
 /// learner device.
 pub(crate) fn run_episodes(cfg: &Config, source: PolicySource, args: &EvalArgs, driver: Driver) -> Result<(Summary, String, String)> {
+    let (summary, env_backend, device_name, _) = run_episodes_filmed(cfg, source, args, driver, 0)?;
+    Ok((summary, env_backend, device_name))
+}
+
+/// The episodes of the first `video_envs` envs of the first round, kept for a video, and the GPU
+/// context their envs ran on (None on the CPU).
+#[derive(Default)]
+pub(crate) struct Filmed {
+    pub(crate) episodes: Vec<VideoEpisode>,
+    pub(crate) gpu: Option<crate::gpu::context::GpuContext>,
+}
+
+/// [`run_episodes`], keeping every frame of the episodes of the first round's first
+/// `video_envs` envs (at most the round's envs) for a video.
+pub(crate) fn run_episodes_filmed(cfg: &Config, source: PolicySource, args: &EvalArgs, driver: Driver, video_envs: usize) -> Result<(Summary, String, String, Filmed)> {
     let episodes = args.episodes.max(1);
     let max_envs = args.max_envs.max(1);
     // the reference kinds measure the object against a reference; lift has none
     let has_reference = cfg.task.kind.follows_reference();
     let ref_names: Vec<String> = if has_reference { reference_names(&reference_paths(cfg)?) } else { Vec::new() };
     let mut tally = Tally::default();
+    let mut filmed = Filmed::default();
     let (mut object_names, mut env_backend, mut device_name) = (Vec::new(), String::new(), String::new());
     // the live view (`--live`), started by the first round, shows every round
     let mut live = None;
     for round in 0..episodes.div_ceil(max_envs) {
         let n = (episodes - round * max_envs).min(max_envs);
+        let film = if round == 0 { Some((video_envs.min(n), &mut filmed)) } else { None };
         // the config's objects, in order (the same every round)
-        (object_names, env_backend, device_name) = run_round(cfg, round, n, source, args, driver, &ref_names, &mut tally, &mut live)?;
+        (object_names, env_backend, device_name) = run_round(cfg, round, n, source, args, driver, &ref_names, &mut tally, film, &mut live)?;
     }
-    Ok((tally.summary(&object_names, has_reference), env_backend, device_name))
+    Ok((tally.summary(&object_names, has_reference), env_backend, device_name, filmed))
 }
 
-/// Round `round` of `n` envs: each runs one episode into `tally`. Returns the config's object
-/// names, the env backend and the learner device.
+/// Round `round` of `n` envs: each runs one episode into `tally`; `film` = (k, into): the
+/// episodes of envs 0..k go into `into`, every frame. Returns the config's object names, the env
+/// backend and the learner device.
 #[allow(clippy::too_many_arguments)]
-fn run_round(cfg: &Config, round: usize, n: usize, source: PolicySource, args: &EvalArgs, driver: Driver, ref_names: &[String], tally: &mut Tally, live: &mut Option<crate::live::LiveView>) -> Result<(Vec<String>, String, String)> {
+fn run_round(cfg: &Config, round: usize, n: usize, source: PolicySource, args: &EvalArgs, driver: Driver, ref_names: &[String], tally: &mut Tally, film: Option<(usize, &mut Filmed)>, live: &mut Option<crate::live::LiveView>) -> Result<(Vec<String>, String, String)> {
     let open_loop = driver == Driver::OpenLoop;
     let has_reference = cfg.task.kind.follows_reference();
     let mut c = cfg.clone();
@@ -302,24 +321,36 @@ fn run_round(cfg: &Config, round: usize, n: usize, source: PolicySource, args: &
     let (env_snap, ts) = decode_snapshot(&task.save_state()?, n, model.globals.n_springs as usize)?;
     let refs: Vec<String> = if !has_reference { vec![String::new(); n] } else { ts.iter().map(|t| ref_names.get(t.cursor.ref_id as usize).cloned().unwrap_or_default()).collect() };
     let objects: Vec<String> = env_snap.params.iter().map(|p| model.objects[p.obj_index as usize].name.clone()).collect();
-    let mut writer = match (&args.record, round, open_loop) {
-        (Some(path), 0, false) => {
-            // env 0's object as its reset drew it
-            let p0 = &env_snap.params[0];
-            let meta = RolloutMeta {
-                hand: model.hand.clone(),
-                object: crate::record::object_parts(&model.objects[p0.obj_index as usize], p0.obj_scale),
-                dt: spec.control_dt,
-                info: serde_json::json!({"run": args.run.display().to_string(), "checkpoint": source.describe(), "seed": c.seed}),
-            };
-            Some(RolloutWriter::create(path, &meta)?)
+    // env i's recording: its object as its reset drew it
+    let meta_of = |i: usize| {
+        let p = &env_snap.params[i];
+        RolloutMeta {
+            hand: model.hand.clone(),
+            object: crate::record::object_parts(&model.objects[p.obj_index as usize], p.obj_scale),
+            dt: spec.control_dt,
+            info: serde_json::json!({"run": args.run.display().to_string(), "checkpoint": source.describe(), "seed": c.seed, "env": i}),
         }
+    };
+    let mut writer = match (&args.record, round, open_loop) {
+        (Some(path), 0, false) => Some(RolloutWriter::create(path, &meta_of(0))?),
         _ => None,
+    };
+    // the filmed envs 0..k: their episodes, filled frame by frame
+    let (film_k, mut filmed) = match film {
+        Some((k, into)) if k > 0 => {
+            into.gpu = task.gpu_context().cloned();
+            let start = into.episodes.len();
+            into.episodes.extend((0..k).map(|i| VideoEpisode { meta: meta_of(i), frames: Vec::new(), success: None }));
+            (k, Some(&mut into.episodes[start..]))
+        }
+        _ => (0, None),
     };
     let mut episodes = RoundEpisodes::new(refs, objects);
     let mut t = 0.0f64;
-    if let Some(w) = writer.as_mut() {
-        record_frame(w, &model, task.as_mut(), t)?;
+    let recorded = (writer.is_some() as usize).max(film_k);
+    if recorded > 0 {
+        let frames = rollout_frames(&model, task.as_mut(), recorded, t)?;
+        keep_frames(frames, &vec![true; recorded], writer.as_mut(), filmed.as_deref_mut())?;
     }
     let zeros = vec![0.0f32; n * spec.action_dim];
     let mut start = vec![true; n];
@@ -345,12 +376,23 @@ fn run_round(cfg: &Config, round: usize, n: usize, source: PolicySource, args: &
             *s = b.done(i);
         }
         t += spec.control_dt as f64;
+        // a recorded env whose episode ends at this step: its outcome (its state is already the
+        // next episode's, not recorded)
+        let was_running: Vec<bool> = (0..recorded).map(|i| !episodes.done[i]).collect();
+        if let Some(f) = filmed.as_deref_mut() {
+            for (i, e) in f.iter_mut().enumerate() {
+                if was_running[i] && b.done(i) {
+                    e.success = Some(b.success[i]);
+                }
+            }
+        }
         episodes.add_step(b, &rules, tally);
-        let env0_running = !episodes.done[0];
+        let running: Vec<bool> = (0..recorded).map(|i| !episodes.done[i]).collect();
         obs = b.obs.clone();
         priv_obs = b.priv_obs.clone();
-        if env0_running && let Some(w) = writer.as_mut() {
-            record_frame(w, &model, task.as_mut(), t)?;
+        if running.iter().any(|&r| r) {
+            let frames = rollout_frames(&model, task.as_mut(), recorded, t)?;
+            keep_frames(frames, &running, writer.as_mut(), filmed.as_deref_mut())?;
         }
         if let Some(l) = live.as_mut() {
             l.after_step(task.as_mut())?;
@@ -451,26 +493,50 @@ fn load_actor(c: &Config, ckpt: &std::path::Path, spec: &crate::task::TaskSpec, 
     Ok(Actor::Ppo(Box::new(load_ppo(&run_cfg, spec, &tc, n, device, c.seed as u64)?)))
 }
 
-/// Writes env 0's current state as one recording frame.
-fn record_frame(w: &mut RolloutWriter, model: &SimModel, task: &mut dyn crate::task::TaskBatch, t: f64) -> Result<()> {
+/// The current state of envs 0..k, one recording frame each.
+fn rollout_frames(model: &SimModel, task: &mut dyn crate::task::TaskBatch, k: usize, t: f64) -> Result<Vec<RolloutFrame>> {
     let targets = task.targets()?;
-    let object_ref = task.reference_now(0)?.map(|f| Pose::from_arrays(f.obj_pos, f.obj_rot));
+    let object_refs = (0..k).map(|i| Ok(task.reference_now(i)?.map(|f| Pose::from_arrays(f.obj_pos, f.obj_rot)))).collect::<Result<Vec<_>>>()?;
     let env = task.env();
     let states = env.states()?;
     let params = env.params()?;
     let springs = env.springs()?;
-    let s = &states[0];
     let nj = model.joints.len();
-    w.write_frame(&RolloutFrame {
-        t,
-        joint_pos: s.q[..nj].to_vec(),
-        joint_vel: s.qd[..nj].to_vec(),
-        joint_target: targets[0].q[..nj].to_vec(),
-        wrist: Pose::from_arrays(s.wrist_pos, s.wrist_rot),
-        object: Pose::from_arrays(s.obj_pos, s.obj_rot),
-        links: hand_link_poses(model, s),
-        contacts: contact_records(model, s, &springs[..model.globals.n_springs as usize], &params[0], &targets[0]),
-        object_ref,
-        overlay: Vec::new(),
-    })
+    // env i's contact springs: the i-th block of n_springs
+    let ns = model.globals.n_springs as usize;
+    Ok((0..k)
+        .map(|i| {
+            let s = &states[i];
+            RolloutFrame {
+                t,
+                joint_pos: s.q[..nj].to_vec(),
+                joint_vel: s.qd[..nj].to_vec(),
+                joint_target: targets[i].q[..nj].to_vec(),
+                wrist: Pose::from_arrays(s.wrist_pos, s.wrist_rot),
+                object: Pose::from_arrays(s.obj_pos, s.obj_rot),
+                links: hand_link_poses(model, s),
+                contacts: contact_records(model, s, &springs[i * ns..(i + 1) * ns], &params[i], &targets[i]),
+                object_ref: object_refs[i],
+                overlay: Vec::new(),
+            }
+        })
+        .collect())
+}
+
+/// Env 0's frame into the recording `writer`, env i's into the filmed episode i, for the envs
+/// whose episode still runs (`running[i]`).
+fn keep_frames(frames: Vec<RolloutFrame>, running: &[bool], writer: Option<&mut RolloutWriter>, filmed: Option<&mut [VideoEpisode]>) -> Result<()> {
+    if let Some(w) = writer
+        && running[0]
+    {
+        w.write_frame(&frames[0])?;
+    }
+    if let Some(f) = filmed {
+        for ((e, frame), &run) in f.iter_mut().zip(frames).zip(running) {
+            if run {
+                e.frames.push(frame);
+            }
+        }
+    }
+    Ok(())
 }

@@ -14,7 +14,7 @@
 mod episodes;
 pub mod play;
 
-pub(crate) use episodes::run_episodes;
+pub(crate) use episodes::{Filmed, run_episodes, run_episodes_filmed};
 
 use std::path::{Path, PathBuf};
 
@@ -57,6 +57,10 @@ pub struct EvalArgs {
     /// episodes at real time.
     #[command(flatten)]
     pub live: crate::live::LiveArgs,
+    /// `--video`: render the first envs' episodes (the policy's) to a video, and the image strip
+    /// `RUN/plots/eval_strip.png`.
+    #[command(flatten)]
+    pub video: crate::video::VideoArgs,
 }
 
 /// `dextrain eval --baseline`.
@@ -309,7 +313,13 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
             Some(Driver::Teacher)
         }
     };
-    let (policy, env_backend, device_name) = run_episodes(&cfg, PolicySource::Checkpoint(&ckpt), args, Driver::Policy)?;
+    // a bad --video fails before the episodes run
+    let video_envs = args.video.episodes_to_film()?;
+    let video_ctx = args.video.render_context()?;
+    let (policy, env_backend, device_name, filmed) = run_episodes_filmed(&cfg, PolicySource::Checkpoint(&ckpt), args, Driver::Policy, video_envs)?;
+    if let (Some(path), Some(ctx)) = (&args.video.video, video_ctx) {
+        film(path, &args.video, filmed, ctx, Some(&args.run.join("plots").join(EVAL_STRIP_PNG)))?;
+    }
     let base = match baseline {
         Some(d) => Some(run_episodes(&cfg, PolicySource::Checkpoint(&ckpt), args, d)?.0),
         None => None,
@@ -348,6 +358,35 @@ pub fn run(args: &EvalArgs) -> Result<EvalReport> {
     std::fs::write(&md, markdown(&report)).with_context(|| format!("cannot write {}", md.display()))?;
     report.path = path;
     Ok(report)
+}
+
+/// The image strip `eval --video` writes into the run's `plots/`: the first and last frame of each
+/// filmed episode.
+pub const EVAL_STRIP_PNG: &str = "eval_strip.png";
+
+/// Renders the filmed episodes to the video at `path` (and the image strip at `strip`, if given),
+/// on the evaluation's GPU if it had one, else on `ctx` (`VideoArgs::render_context`), and says on
+/// stderr what it wrote.
+pub(crate) fn film(path: &Path, video: &crate::video::VideoArgs, filmed: Filmed, ctx: crate::gpu::context::GpuContext, strip: Option<&Path>) -> Result<()> {
+    anyhow::ensure!(!filmed.episodes.is_empty(), "video {}: no episodes to render (--video-episodes {})", path.display(), video.video_episodes);
+    let ctx = filmed.gpu.unwrap_or(ctx);
+    let v = crate::video::write_video(path, &filmed.episodes, ctx, video.video_size)?;
+    let per_frame_ms = 1e3 * (v.render_s + v.encode_s) / v.frames.max(1) as f64;
+    crate::console::status(&format!(
+        "  video {} ({} episodes, {} frames, {}x{} at {:.0} fps; rendered on {}, {per_frame_ms:.1} ms per frame)",
+        path.display(),
+        filmed.episodes.len(),
+        v.frames,
+        v.width,
+        v.height,
+        v.fps,
+        v.adapter
+    ));
+    if let Some(strip) = strip {
+        crate::video::eval_strip(strip, &v)?;
+        crate::console::status(&format!("  image strip (first and last frame of each episode) {}", strip.display()));
+    }
+    Ok(())
 }
 
 /// The report as `dextrain eval` and `play` print it on stdout (one JSON line): every figure, and

@@ -13,7 +13,7 @@ use anyhow::{Context, Result};
 use crate::export::command::WORLD_FILE;
 use crate::export::contract::PolicyContract;
 use crate::config::Config;
-use super::{Driver, EvalArgs, EvalReport, PolicySource, check_finite, run_episodes};
+use super::{Driver, EvalArgs, EvalReport, PolicySource, check_finite, film, run_episodes_filmed};
 
 /// `dextrain play`.
 #[derive(clap::Args, Debug, Clone)]
@@ -38,6 +38,9 @@ pub struct PlayArgs {
     /// The live view (`--live`…), as `dextrain eval`'s.
     #[command(flatten)]
     pub live: crate::live::LiveArgs,
+    /// `--video`: render the first envs' episodes to a video.
+    #[command(flatten)]
+    pub video: crate::video::VideoArgs,
 }
 
 /// Runs `dextrain play`: the report (not written anywhere: the caller prints it).
@@ -61,8 +64,15 @@ pub fn run(args: &PlayArgs) -> Result<EvalReport> {
         backend: args.backend.clone(),
         baseline: None,
         live: args.live.clone(),
+        video: args.video.clone(),
     };
-    let (policy, env_backend, device) = run_episodes(&cfg, PolicySource::Export(&args.contract), &eval_args, Driver::Policy)?;
+    // a bad --video fails before the episodes run
+    let video_envs = args.video.episodes_to_film()?;
+    let video_ctx = args.video.render_context()?;
+    let (policy, env_backend, device, filmed) = run_episodes_filmed(&cfg, PolicySource::Export(&args.contract), &eval_args, Driver::Policy, video_envs)?;
+    if let (Some(path), Some(ctx)) = (&args.video.video, video_ctx) {
+        film(path, &args.video, filmed, ctx, None)?;
+    }
     let report = EvalReport {
         run: contract.source.run.clone(),
         checkpoint: format!("{} (exported: {})", contract.source.checkpoint, args.contract.display()),

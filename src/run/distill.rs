@@ -54,7 +54,7 @@ impl DistillRun {
         c.distill.minibatches = 1;
         c.ppo.minibatches = 1;
         let episodes = self.cfg.distill.eval_episodes as usize;
-        let args = EvalArgs { run: self.cfg.source.clone(), checkpoint: "latest".into(), episodes, max_envs: episodes, seed: None, record: None, backend: None, baseline: None, live: Default::default() };
+        let args = EvalArgs { run: self.cfg.source.clone(), checkpoint: "latest".into(), episodes, max_envs: episodes, seed: None, record: None, backend: None, baseline: None, video: Default::default(), live: Default::default() };
         let student = StudentPolicy::of_learner(&self.learner);
         let source = PolicySource::Distilling { student: &student, teacher: &self.learner.teacher.ppo };
         if self.teacher_eval.is_none() {

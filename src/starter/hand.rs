@@ -324,7 +324,7 @@ fn plan(urdf: &Path, rel: &str, out: &Path, loaded: HandModel, approx: MeshAppro
     verify.object.yaw_noise = 0.0;
     verify.randomization = Default::default();
     let model = SimModel::from_config(&verify)?;
-    let report = crate::replay::replay_with_model(&verify, &model, &traj, false, None, None)?;
+    let report = crate::replay::replay_with_model(&verify, &model, &traj, false, None)?;
     // the grasp pose: the wrist of the last keyframe before the object moves
     let rest = traj.frames.first().and_then(|f| f.object).map(|p| p.pos);
     let grasp = traj

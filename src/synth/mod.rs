@@ -247,7 +247,7 @@ impl Verifier {
 
     /// The object's lift (m) and the peak hand–object penetration (mm) of `traj`'s replay.
     fn replay(&self, traj: &Trajectory, what: &str) -> Result<(f64, f64)> {
-        let report = crate::replay::replay_with_model(&self.cfg, &self.model, traj, false, None, None).with_context(|| what.to_string())?;
+        let report = crate::replay::replay_with_model(&self.cfg, &self.model, traj, false, None).with_context(|| what.to_string())?;
         Ok((report.object_lift_m, report.peak_penetration_mm))
     }
 

@@ -215,7 +215,7 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
     // eval of the student beside its teacher on the same seeds: the teacher's side is exactly what
     // evaluating the teacher run itself gives
     use dextrain::eval::{Baseline, EvalArgs, run as eval};
-    let e = |run: &Path, baseline: Option<Baseline>| EvalArgs { run: run.into(), checkpoint: "latest".into(), episodes: 4, max_envs: 4, seed: Some(77), record: None, backend: None, baseline, live: Default::default() };
+    let e = |run: &Path, baseline: Option<Baseline>| EvalArgs { run: run.into(), checkpoint: "latest".into(), episodes: 4, max_envs: 4, seed: Some(77), record: None, backend: None, baseline, video: Default::default(), live: Default::default() };
     let r = eval(&e(&a, Some(Baseline::Teacher))).unwrap();
     assert_eq!(r.baseline_kind, "teacher");
     // the student's latent against its teacher's on the same states: measured, and only for it

@@ -13,6 +13,7 @@ const LAYERS: &[(&str, &[&str])] = &[
     ("config: plain data, validated where only lower layers are needed", &["config"]),
     ("models: hand, object, reference trajectories, recordings", &["hand", "object", "traj", "record"]),
     ("the GPU context and the shader ABI: Pod structs, bindings, shader sources, burn buffer interop", &["gpu"]),
+    ("views: rollouts rendered headless with wgpu into MP4, GIF or PNG frames", &["video"]),
     ("simulator: the physics twins, the CPU and GPU env batches", &["env"]),
     ("task layer: tasks, IK, references, the reference bank", &["task"]),
     ("views: the live Foxglove view of env batches", &["live"]),

@@ -35,3 +35,4 @@ mod task;
 mod track;
 mod train;
 mod traj;
+mod video;

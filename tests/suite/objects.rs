@@ -325,7 +325,7 @@ fn eval_reports_success_per_object() {
     assert_eq!(saved.object.set.len(), 3);
     let Some(MeshFiles::One(mesh)) = &saved.object.set[2].mesh else { panic!("{:?}", saved.object.set[2]) };
     assert!(Path::new(mesh).is_absolute() && mesh.ends_with("meshes/bottle.obj"), "{mesh}");
-    let e = dextrain::eval::EvalArgs { run: dir, checkpoint: "latest".into(), episodes: 24, max_envs: 12, seed: Some(5), record: None, backend: None, baseline: None, live: Default::default() };
+    let e = dextrain::eval::EvalArgs { run: dir, checkpoint: "latest".into(), episodes: 24, max_envs: 12, seed: Some(5), record: None, backend: None, baseline: None, video: Default::default(), live: Default::default() };
     let r = dextrain::eval::run(&e).unwrap();
     let per: Vec<(&str, usize)> = r.policy.per_object.iter().map(|o| (o.object.as_str(), o.episodes)).collect();
     assert_eq!(per.iter().map(|p| p.0).collect::<Vec<_>>(), ["cube", "cylinder", "bottle"], "{per:?}");

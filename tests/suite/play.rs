@@ -82,8 +82,8 @@ pub fn play_equals_eval(run: &Path, what: &str) -> (EvalReport, EvalReport) {
     export(&ExportArgs { run: run.into(), checkpoint: "latest".into(), out: None, verify: false }).unwrap();
     mapping_is_exact(run, what);
     let backend = Some("cpu".parse().unwrap());
-    let e = eval(&EvalArgs { run: run.into(), checkpoint: "latest".into(), episodes: 4, max_envs: 4, seed: Some(77), record: None, backend: backend.clone(), baseline: None, live: Default::default() }).unwrap();
-    let p = play(&PlayArgs { contract: run.join("export/policy.json"), episodes: 4, max_envs: 4, seed: Some(77), backend, record: None, live: Default::default() }).unwrap();
+    let e = eval(&EvalArgs { run: run.into(), checkpoint: "latest".into(), episodes: 4, max_envs: 4, seed: Some(77), record: None, backend: backend.clone(), baseline: None, video: Default::default(), live: Default::default() }).unwrap();
+    let p = play(&PlayArgs { contract: run.join("export/policy.json"), episodes: 4, max_envs: 4, seed: Some(77), backend, record: None, video: Default::default(), live: Default::default() }).unwrap();
     assert_eq!(p.seed, e.seed);
     assert_eq!(p.task, e.task);
     assert_eq!(p.learner_device, "onnx (tract, cpu)");
@@ -130,7 +130,7 @@ fn play_reproduces_eval_from_the_exported_files_for_every_action_mapping() {
     if let Some(ctx) = crate::common::gpu_context("play_reproduces_eval_from_the_exported_files_for_every_action_mapping") {
         let backend = Some(format!("gpu:{}", ctx.info.name).parse().unwrap());
         drop(ctx);
-        let g = play(&PlayArgs { contract: residual_task.join("export/policy.json"), episodes: 4, max_envs: 4, seed: Some(77), backend, record: None, live: Default::default() }).unwrap();
+        let g = play(&PlayArgs { contract: residual_task.join("export/policy.json"), episodes: 4, max_envs: 4, seed: Some(77), backend, record: None, video: Default::default(), live: Default::default() }).unwrap();
         assert!(!g.env_backend.starts_with("cpu"), "{}", g.env_backend);
         for (k, (x, y)) in p.policy.per_episode.iter().zip(&g.policy.per_episode).enumerate() {
             assert_eq!((x.success, x.terminated, x.length), (y.success, y.terminated, y.length), "residual_task on the GPU: episode {k}");
@@ -156,7 +156,7 @@ fn a_damaged_export_is_a_one_line_error_naming_the_file_and_the_field() {
     export(&ExportArgs { run: run.clone(), checkpoint: "latest".into(), out: None, verify: false }).unwrap();
     let dir = run.join("export");
     let contract = dir.join("policy.json");
-    let args = |c: &Path| PlayArgs { contract: c.into(), episodes: 2, max_envs: 2, seed: Some(1), backend: Some("cpu".parse().unwrap()), record: None, live: Default::default() };
+    let args = |c: &Path| PlayArgs { contract: c.into(), episodes: 2, max_envs: 2, seed: Some(1), backend: Some("cpu".parse().unwrap()), record: None, video: Default::default(), live: Default::default() };
     let err = |c: &Path| {
         let e = format!("{:#}", play(&args(c)).unwrap_err());
         assert!(!e.contains('\n'), "{e}");

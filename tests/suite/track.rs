@@ -419,7 +419,7 @@ fn residual_run_trains_and_evaluates_against_the_open_loop_baseline() {
         assert!(v[k] > 0.0 && v[k] < 0.2, "mean object error {} m", v[k]);
     }
     let rec = tmp.path().join("eval.mcap");
-    let e = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 2, max_envs: 2, seed: None, record: Some(rec.clone()), backend: None, baseline: Some(dextrain::eval::Baseline::OpenLoop), live: Default::default() };
+    let e = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 2, max_envs: 2, seed: None, record: Some(rec.clone()), backend: None, baseline: Some(dextrain::eval::Baseline::OpenLoop), video: Default::default(), live: Default::default() };
     let r = eval(&e).expect("eval");
     // the recording shows the reference object next to the object, frame by frame
     let bytes = std::fs::read(&rec).unwrap();

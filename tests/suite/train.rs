@@ -131,7 +131,7 @@ fn metrics_tensorboard_plots_and_eval_agree_with_the_run() {
     }
 
     let rec = tmp.path().join("eval.mcap");
-    let eargs = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 5, max_envs: 3, seed: None, record: Some(rec.clone()), backend: None, baseline: None, live: Default::default() };
+    let eargs = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 5, max_envs: 3, seed: None, record: Some(rec.clone()), backend: None, baseline: None, video: Default::default(), live: Default::default() };
     let r = eval(&eargs).expect("eval");
     assert_eq!(r.episodes, 5);
     assert_eq!(r.iteration, 4);
@@ -184,7 +184,7 @@ fn sac_runs_resume_exactly_and_evaluate() {
     assert!(same_bits(&ma, &metrics(&b).1), "the resumed SAC run differs from the straight run");
     assert_eq!(model_bytes(&a, 4), model_bytes(&b, 4), "final model differs after resume");
     assert!(same_bits(&ma, &metrics(&train(&sac("c")).expect("sac run c")).1), "same seed, different run");
-    let e = EvalArgs { run: a.clone(), checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None, baseline: None, live: Default::default() };
+    let e = EvalArgs { run: a.clone(), checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None, baseline: None, video: Default::default(), live: Default::default() };
     let r = eval(&e).expect("eval of a SAC run");
     assert_eq!((r.episodes, r.iteration), (3, 4));
     // a SAC run of a reference kind beside open-loop replay (the baseline's episodes load the run's
@@ -231,7 +231,7 @@ fn bad_names_existing_runs_and_broken_checkpoints_are_one_line_errors() {
     assert!(!runs.join("x").exists(), "no run directory for a bad config");
 
     // a missing checkpoint iteration lists the ones there are
-    let e = EvalArgs { run: dir.clone(), checkpoint: "7".into(), episodes: 2, max_envs: 2, seed: None, record: None, backend: None, baseline: None, live: Default::default() };
+    let e = EvalArgs { run: dir.clone(), checkpoint: "7".into(), episodes: 2, max_envs: 2, seed: None, record: None, backend: None, baseline: None, video: Default::default(), live: Default::default() };
     let err = eval(&e).unwrap_err().to_string();
     assert!(err.contains("iteration 7") && err.contains("have: 2"), "{err}");
     // a truncated model file names the file
@@ -318,7 +318,7 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     assert_eq!(gpu("gpu/kernels_per_step"), PINNED_KERNELS_PER_STEP, "kernels per env step (device-resident PPO)");
     assert_eq!(gpu("gpu/kernels_per_update"), PINNED_KERNELS_PER_UPDATE, "kernels per PPO update");
     assert!(gpu("gpu/submissions_per_step") <= 7.0 && gpu("gpu/submissions_per_update") <= 200.0, "submissions: {} per step, {} per update", gpu("gpu/submissions_per_step"), gpu("gpu/submissions_per_update"));
-    let r = eval(&EvalArgs { run: dev, checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None, baseline: None, live: Default::default() }).expect("eval");
+    let r = eval(&EvalArgs { run: dev, checkpoint: "latest".into(), episodes: 3, max_envs: 3, seed: None, record: None, backend: None, baseline: None, video: Default::default(), live: Default::default() }).expect("eval");
     assert!(r.env_backend.starts_with("gpu") && r.learner_device.starts_with("gpu (burn wgpu"), "{} / {}", r.env_backend, r.learner_device);
     assert_eq!(r.episodes, 3);
 }
@@ -595,7 +595,7 @@ fn damaged_edited_or_incomplete_checkpoints_are_skipped_or_refused() {
     for it in [2, 4, 6] {
         checkpoint::verify(&dir.join(format!("checkpoints/{it}"))).expect("a fresh checkpoint passes");
     }
-    let e = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 2, max_envs: 2, seed: None, record: None, backend: None, baseline: None, live: Default::default() };
+    let e = EvalArgs { run: dir.clone(), checkpoint: "latest".into(), episodes: 2, max_envs: 2, seed: None, record: None, backend: None, baseline: None, video: Default::default(), live: Default::default() };
     // 64 bytes of 0xFF in the middle of the newest env.safetensors (same size)
     let envf = dir.join("checkpoints/6/env.safetensors");
     let mut bytes = std::fs::read(&envf).unwrap();
