@@ -522,12 +522,31 @@ pub fn cpu_model() -> serde_json::Value {
                        "elu": format!("{:?}", crate::learn::kernels::isa::isa()).to_lowercase()}})
 }
 
+/// The encoder `bench --video` times (`--video-format`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum VideoBenchFormat {
+    /// H.264 in MP4 (OpenH264 + muxide).
+    Mp4,
+    /// An animated GIF.
+    Gif,
+}
+
+impl VideoBenchFormat {
+    /// The file extension that selects the format.
+    pub fn extension(self) -> &'static str {
+        match self {
+            VideoBenchFormat::Mp4 => "mp4",
+            VideoBenchFormat::Gif => "gif",
+        }
+    }
+}
+
 /// `dextrain bench --video`: render + encode time per video frame. One env of the bench scene on
 /// the CPU (the 16-joint hand's colliders and the cube) approaches and grasps (the approach, then
 /// the noisy grasp targets), `frames` of its states are kept, then each is rendered (triangles
 /// built, both views drawn and read back, the caption drawn) and encoded into a temporary video of
 /// `format`'s kind (`mp4` or `gif`) on `ctx`; per-frame times in ms (median, min, max).
-pub fn run_video_bench(frames: usize, view: crate::video::ViewSize, format: &str, ctx: crate::gpu::context::GpuContext) -> Result<serde_json::Value> {
+pub fn run_video_bench(frames: usize, view: crate::video::ViewSize, format: VideoBenchFormat, ctx: crate::gpu::context::GpuContext) -> Result<serde_json::Value> {
     use crate::record::RolloutFrame;
     use crate::video::{FrameRenderer, VideoWriter, camera::FollowTarget};
     let frames = frames.max(2);
@@ -572,7 +591,7 @@ pub fn run_video_bench(frames: usize, view: crate::video::ViewSize, format: &str
         .collect();
     let dir = std::env::temp_dir().join(format!("dextrain-bench-video-{}", std::process::id()));
     std::fs::create_dir_all(&dir).map_err(|e| anyhow::anyhow!("bench --video: cannot create {}: {e}", dir.display()))?;
-    let path = dir.join(format!("bench.{format}"));
+    let path = dir.join(format!("bench.{}", format.extension()));
     let adapter = ctx.describe();
     let mut renderer = FrameRenderer::new(ctx, view)?;
     let (width, height) = renderer.frame_size();
@@ -602,7 +621,7 @@ pub fn run_video_bench(frames: usize, view: crate::video::ViewSize, format: &str
     Ok(json!({
         "bench": "video",
         "adapter": adapter,
-        "format": format,
+        "format": format.extension(),
         "frame_width": width,
         "frame_height": height,
         "frames_timed": render_ms.len(),

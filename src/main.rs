@@ -61,8 +61,8 @@ enum Command {
         #[arg(long, conflicts_with_all = ["ppo", "sac", "matmul", "contacts"])]
         video: bool,
         /// Video bench: the encoder, mp4 or gif.
-        #[arg(long, default_value = "mp4", value_parser = ["mp4", "gif"], requires = "video")]
-        video_format: String,
+        #[arg(long, value_enum, default_value = "mp4", requires = "video")]
+        video_format: dextrain::bench::VideoBenchFormat,
         /// Video bench: the size of each of the two views, WIDTHxHEIGHT.
         #[arg(long, default_value_t = dextrain::video::ViewSize::default(), requires = "video")]
         video_size: dextrain::video::ViewSize,
@@ -230,7 +230,7 @@ fn run(cli: Cli) -> Result<()> {
                     Some(other) => anyhow::bail!("bench --video: --backend {other:?}: expected gpu or gpu:NAME (the adapter that renders; lavapipe without --backend)"),
                     None => dextrain::gpu::context::GpuContext::new(Some("llvmpipe"))?,
                 };
-                let report = dextrain::bench::run_video_bench(chunks.max(1) * dextrain::bench::CHUNK_STEPS, video_size, &video_format, ctx)?;
+                let report = dextrain::bench::run_video_bench(chunks.max(1) * dextrain::bench::CHUNK_STEPS, video_size, video_format, ctx)?;
                 console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
                 return Ok(());
             }

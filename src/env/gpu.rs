@@ -257,6 +257,13 @@ impl EnvBatch for GpuEnvBatch {
         GpuEnvBatch::set_params(self, params)
     }
 
+    fn first_envs(&mut self, k: usize) -> Result<(Vec<EnvState>, Vec<EnvParams>, Vec<[f32; 4]>)> {
+        // each buffer's first k envs: a readback of their bytes only
+        let k = k.min(self.model.spec.num_envs);
+        let ns = self.model.globals.n_springs as usize;
+        Ok((self.read(&self.states, STATES.name, k)?, self.read(&self.params, PARAMS.name, k)?, self.read(&self.springs, SPRINGS.name, k * ns)?))
+    }
+
     fn stats(&mut self) -> Result<Vec<StepStats>> {
         self.read(&self.stats, STATS.name, self.model.spec.num_envs)
     }

@@ -74,6 +74,17 @@ pub trait EnvBatch: Send {
     /// Overwrites the contact springs (`[N, n_springs]`; checkpoint restore).
     fn set_springs(&mut self, springs: &[[f32; 4]]) -> Result<()>;
     fn params(&mut self) -> Result<Vec<EnvParams>>;
+    /// The first `k` envs' states, parameters and contact springs (`[k, n_springs]`), for a view of
+    /// a few envs (the live view): the GPU batch reads only those back.
+    fn first_envs(&mut self, k: usize) -> Result<(Vec<EnvState>, Vec<EnvParams>, Vec<[f32; 4]>)> {
+        let k = k.min(self.spec().num_envs);
+        let (mut states, mut params, mut springs) = (self.states()?, self.params()?, self.springs()?);
+        let per_env = springs.len() / self.spec().num_envs.max(1);
+        states.truncate(k);
+        params.truncate(k);
+        springs.truncate(k * per_env);
+        Ok((states, params, springs))
+    }
     /// Overwrites the parameters (checkpoint restore; a benchmark's external force,
     /// `EnvParams::ext_force`). They hold until the env's next reset draws new ones.
     fn set_params(&mut self, params: &[EnvParams]) -> Result<()>;

@@ -27,14 +27,13 @@ pub struct EnvFrame {
 /// time is the env's own episode time (its step count × the control step).
 pub fn first_env_frames(model: &SimModel, task: &mut dyn TaskBatch, k: usize) -> Result<Vec<EnvFrame>> {
     let control_dt = task.spec().control_dt as f64;
-    let targets = task.targets()?;
+    let targets = task.first_targets(k)?;
     let k = k.min(targets.len());
     let mut refs = Vec::with_capacity(k);
     for i in 0..k {
         refs.push(task.reference_now(i)?.map(|f| Pose::from_arrays(f.obj_pos, f.obj_rot)));
     }
-    let env = task.env();
-    let (states, params, springs) = (env.states()?, env.params()?, env.springs()?);
+    let (states, params, springs) = task.env().first_envs(k)?;
     Ok(env_frames(model, &EnvSlices { states: &states, params: &params, springs: &springs, targets: &targets, refs: &refs }, control_dt, k))
 }
 

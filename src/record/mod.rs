@@ -30,7 +30,6 @@ use std::collections::BTreeMap;
 use std::fs::{self, File, OpenOptions};
 use std::io::{BufWriter, Cursor, Seek, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::{Context, Result, bail};
 use glam::{Quat, Vec3};
@@ -237,7 +236,7 @@ impl RolloutWriter<BufWriter<File>> {
     /// Starts a recording that [`finish`](Self::finish) will leave at `path`. Writes go to a
     /// temporary file in the same directory. Errors name `path`.
     pub fn create(path: &Path, meta: &RolloutMeta) -> Result<Self> {
-        let tmp = temp_path_for(path).with_context(|| format!("creating rollout {}", path.display()))?;
+        let tmp = crate::files::temp_path_beside(path).with_context(|| format!("creating rollout {}", path.display()))?;
         crate::files::create_parent_dir(path).with_context(|| format!("creating rollout {}", path.display()))?;
         let file = OpenOptions::new()
             .write(true)
@@ -503,15 +502,6 @@ fn validate_meta(meta: &RolloutMeta) -> Result<()> {
         }
     }
     Ok(())
-}
-
-/// `dir/.name.tmp-<pid>-<n>` next to `path`.
-fn temp_path_for(path: &Path) -> Result<PathBuf> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let name = path.file_name().with_context(|| "the path has no file name".to_string())?;
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    let tmp_name = format!(".{}.tmp-{}-{}", name.to_string_lossy(), std::process::id(), n);
-    Ok(path.with_file_name(tmp_name))
 }
 
 /// TF frame id of each link: its name, or `hand/<name>` when that would clash with a reserved frame

@@ -379,13 +379,22 @@ impl TaskBatch for GpuTaskBatch {
         Ok(self.task_states()?.iter().map(|t| t.targets).collect())
     }
 
+    fn first_targets(&mut self, k: usize) -> Result<Vec<Targets>> {
+        let k = k.min(self.spec.num_envs);
+        let first: Vec<TaskState> = self.env.read(&self.task_states, TASK_STATES.name, k)?;
+        Ok(first.iter().map(|t| t.targets).collect())
+    }
+
     fn reference_now(&mut self, env: usize) -> Result<Option<crate::task::reference::RefFrame>> {
         if self.bank.is_none() {
             return Ok(None);
         }
         // the shader's sampler, run on the host (its CPU twin) with the env's cursor and step
-        let cursor = self.task_states()?[env].cursor;
-        let step = self.env.states()?[env].step;
+        // (envs 0..=env read back, not the batch)
+        ensure!(env < self.spec.num_envs, "reference_now: env {env} of {} envs", self.spec.num_envs);
+        let first: Vec<TaskState> = self.env.read(&self.task_states, TASK_STATES.name, env + 1)?;
+        let cursor = first[env].cursor;
+        let step = self.env.first_envs(env + 1)?.0[env].step;
         let r = crate::task::ref_model(&self.env.model, self.bank.as_ref(), &self.rg);
         Ok(Some(crate::task::reference::ref_sample(&r, &cursor, step, 0)))
     }

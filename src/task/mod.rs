@@ -267,6 +267,12 @@ pub trait TaskBatch: Send {
     /// The wrist and joint targets of every env's last step (for an env that was just reset: the
     /// default targets its next step starts from).
     fn targets(&mut self) -> Result<Vec<Targets>>;
+    /// The first `k` envs' targets (the GPU batch reads only those back).
+    fn first_targets(&mut self, k: usize) -> Result<Vec<Targets>> {
+        let mut t = self.targets()?;
+        t.truncate(k);
+        Ok(t)
+    }
     /// Reference kinds: env `env`'s (augmented) reference at its current env step (the frame its
     /// tracking error is measured against); `None` for the lift task.
     fn reference_now(&mut self, env: usize) -> Result<Option<RefFrame>>;

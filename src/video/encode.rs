@@ -7,7 +7,6 @@
 use std::fs::{self, File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicU64, Ordering};
 
 use anyhow::{Context, Result, bail, ensure};
 
@@ -44,14 +43,6 @@ impl VideoFormat {
     }
 }
 
-/// `dir/.name.tmp-<pid>-<n>` next to `path`.
-fn temp_path_for(path: &Path) -> Result<PathBuf> {
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let name = path.file_name().with_context(|| format!("video {}: the path has no file name", path.display()))?;
-    let n = COUNTER.fetch_add(1, Ordering::Relaxed);
-    Ok(path.with_file_name(format!(".{}.tmp-{}-{}", name.to_string_lossy(), std::process::id(), n)))
-}
-
 /// Creates `tmp` (new) for writing, naming `dest` in the error.
 fn create_temp(tmp: &Path, dest: &Path) -> Result<BufWriter<File>> {
     crate::files::create_parent_dir(dest).with_context(|| format!("creating video {}", dest.display()))?;
@@ -80,7 +71,7 @@ pub fn write_png<W: Write>(w: W, rgba: &[u8], width: u32, height: u32) -> Result
 
 /// Writes one RGBA8 image as the PNG file `path` (through a temporary file).
 pub fn write_png_file(path: &Path, rgba: &[u8], width: u32, height: u32) -> Result<()> {
-    let tmp = temp_path_for(path)?;
+    let tmp = crate::files::temp_path_beside(path)?;
     let mut w = create_temp(&tmp, path)?;
     let written = write_png(&mut w, rgba, width, height).with_context(|| format!("writing image {}", path.display())).and_then(|()| commit(w, &tmp, path));
     if written.is_err() {
@@ -173,7 +164,7 @@ impl VideoWriter {
                 ensure!(width % 2 == 0 && height % 2 == 0, "video {}: H.264 needs an even frame size (got {width}x{height})", path.display());
                 #[cfg(feature = "video")]
                 {
-                    let tmp = temp_path_for(path)?;
+                    let tmp = crate::files::temp_path_beside(path)?;
                     let w = create_temp(&tmp, path)?;
                     match Mp4Sink::new(w, width, height, fps) {
                         Ok(s) => (Sink::Mp4(Box::new(s)), Some(tmp)),
@@ -188,7 +179,7 @@ impl VideoWriter {
             }
             VideoFormat::Gif => {
                 ensure!(width <= u16::MAX as u32 && height <= u16::MAX as u32, "video {}: a GIF is at most 65535 pixels on a side (got {width}x{height})", path.display());
-                let tmp = temp_path_for(path)?;
+                let tmp = crate::files::temp_path_beside(path)?;
                 let w = create_temp(&tmp, path)?;
                 let made = gif::Encoder::new(w, width as u16, height as u16, &[]).and_then(|mut e| e.set_repeat(gif::Repeat::Infinite).map(|()| e));
                 match made {
