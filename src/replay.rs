@@ -15,7 +15,7 @@ use serde::Serialize;
 
 use crate::config::Config;
 use crate::env::reset::{reset_params, reset_state};
-use crate::env::{EnvBatch, EnvState, SimModel, Targets, contact_records, hand_link_poses, make_env_batch};
+use crate::env::{EnvBatch, EnvState, SimModel, Targets, contact_records, make_env_batch};
 use crate::geom::Pose;
 use crate::record::{ContactKind, RolloutFrame, RolloutMeta, RolloutWriter};
 use crate::traj::Trajectory;
@@ -215,7 +215,7 @@ pub fn replay_filmed(cfg: &Config, model: &SimModel, traj: &Trajectory, kinemati
     let backend;
     // the per-frame observation shared by both modes: states, params, each env's deepest penetration
     // and fingertip forces at this frame
-    // `springs`: every env's contact springs `[N, n_springs]`, read only for a recording or a live view
+    // `springs`: every env's contact springs `[N, n_springs]`, read only for a recording, a video or a live view
     let per_env = model.globals.n_springs as usize;
     let mut observe = |k: usize,
                        states: &[EnvState],
@@ -255,33 +255,28 @@ pub fn replay_filmed(cfg: &Config, model: &SimModel, traj: &Trajectory, kinemati
         }
         trace.push((t, Pose::from_arrays(states[0].obj_pos, states[0].obj_rot), Pose::from_arrays(states[0].wrist_pos, states[0].wrist_rot)));
         let live_due = live.as_deref().is_some_and(|l| l.wants_scene());
-        let springs = if live_due || writer.is_some() || filmed.is_some() { springs()? } else { Vec::new() };
-        if let Some(l) = live.as_deref_mut()
-            && live_due
-        {
+        let kept = writer.is_some() || filmed.is_some();
+        if live_due || kept {
+            // the shown envs (a live view's first ones; env 0 for a recording or a video)
+            let shown = live.as_deref().filter(|_| live_due).map_or(1, |l| l.shown_envs().max(1));
+            let springs = springs()?;
             let refs = vec![r.object; states.len()];
             let at = crate::live::EnvSlices { states, params, springs: &springs, targets: std::slice::from_ref(tg), refs: &refs };
-            l.send_scene(&crate::live::env_frames(&model, &at, ctrl_dt, l.shown_envs()))?;
-        }
-        if writer.is_some() || filmed.is_some() {
-            let s = &states[0];
-            let frame = RolloutFrame {
-                t,
-                joint_pos: s.q[..model.joints.len()].to_vec(),
-                joint_vel: s.qd[..model.joints.len()].to_vec(),
-                joint_target: tg.q[..model.joints.len()].to_vec(),
-                wrist: Pose::from_arrays(s.wrist_pos, s.wrist_rot),
-                object: Pose::from_arrays(s.obj_pos, s.obj_rot),
-                links: hand_link_poses(&model, s),
-                contacts: contact_records(&model, s, &springs[..per_env], &params[0], tg),
-                object_ref: r.object,
-                overlay: Vec::new(),
-            };
-            if let Some(w) = writer.as_mut() {
-                w.write_frame(&frame)?;
+            let mut frames = crate::live::env_frames(&model, &at, ctrl_dt, shown);
+            if let Some(l) = live.as_deref_mut()
+                && live_due
+            {
+                l.send_scene(&frames)?;
             }
-            if let Some(f) = filmed.as_mut() {
-                f.frames.push(frame);
+            if kept && !frames.is_empty() {
+                // the replay's own clock (a kinematic state's step count stays 0)
+                let frame = RolloutFrame { t, ..frames.swap_remove(0).frame };
+                if let Some(w) = writer.as_mut() {
+                    w.write_frame(&frame)?;
+                }
+                if let Some(f) = filmed.as_mut() {
+                    f.frames.push(frame);
+                }
             }
         }
         Ok(())

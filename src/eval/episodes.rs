@@ -10,8 +10,7 @@ use anyhow::{Context, Result};
 
 use super::{Driver, EpisodeRow, EvalArgs, ObjectSummary, PolicySource, Summary, mean_std, reference_names};
 use crate::config::{BackendChoice, Config};
-use crate::env::{SimModel, contact_records, hand_link_poses};
-use crate::geom::Pose;
+use crate::env::SimModel;
 use crate::gpu::layout::Targets;
 use crate::learn::checkpoint;
 use crate::learn::device::learner_device;
@@ -493,33 +492,12 @@ fn load_actor(c: &Config, ckpt: &std::path::Path, spec: &crate::task::TaskSpec, 
     Ok(Actor::Ppo(Box::new(load_ppo(&run_cfg, spec, &tc, n, device, c.seed as u64)?)))
 }
 
-/// The current state of envs 0..k, one recording frame each.
+/// The current state of envs 0..k, one recording frame each, at time `t` (the live view's
+/// reading of the first envs: only those are read back from a GPU).
 fn rollout_frames(model: &SimModel, task: &mut dyn crate::task::TaskBatch, k: usize, t: f64) -> Result<Vec<RolloutFrame>> {
-    let targets = task.targets()?;
-    let object_refs = (0..k).map(|i| Ok(task.reference_now(i)?.map(|f| Pose::from_arrays(f.obj_pos, f.obj_rot)))).collect::<Result<Vec<_>>>()?;
-    let env = task.env();
-    let states = env.states()?;
-    let params = env.params()?;
-    let springs = env.springs()?;
-    let nj = model.joints.len();
-    // env i's contact springs: the i-th block of n_springs
-    let ns = model.globals.n_springs as usize;
-    Ok((0..k)
-        .map(|i| {
-            let s = &states[i];
-            RolloutFrame {
-                t,
-                joint_pos: s.q[..nj].to_vec(),
-                joint_vel: s.qd[..nj].to_vec(),
-                joint_target: targets[i].q[..nj].to_vec(),
-                wrist: Pose::from_arrays(s.wrist_pos, s.wrist_rot),
-                object: Pose::from_arrays(s.obj_pos, s.obj_rot),
-                links: hand_link_poses(model, s),
-                contacts: contact_records(model, s, &springs[i * ns..(i + 1) * ns], &params[i], &targets[i]),
-                object_ref: object_refs[i],
-                overlay: Vec::new(),
-            }
-        })
+    Ok(crate::live::frames::first_env_frames(model, task, k)?
+        .into_iter()
+        .map(|f| RolloutFrame { t, ..f.frame })
         .collect())
 }
 

@@ -2,14 +2,14 @@
 //! with an independent reader (the Python `mcap` package, tests/read_rollout.py).
 
 use std::collections::{BTreeMap, BTreeSet};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use glam::{Quat, Vec3};
 use serde_json::Value;
 
 use dextrain::geom::{ObjectShape, Pose};
-use dextrain::hand::{Collider, ColliderShape, Fingertip, HandModel, Joint, Link};
+use dextrain::hand::HandModel;
 use dextrain::record::{
     ContactKind, ObjectPart, ContactRecord, RolloutFrame, RolloutMeta, RolloutWriter, TOPIC_CONTACTS, TOPIC_HAND_STATE,
     TOPIC_POSES, TOPIC_SCENE, TOPIC_TF,
@@ -18,52 +18,9 @@ use dextrain::record::{
 const N_FRAMES: usize = 20;
 const DT: f32 = 0.02;
 
-fn link(name: &str) -> Link {
-    Link {
-        name: name.to_string(),
-        mass: 0.1,
-        com: Vec3::ZERO,
-        inertia: [[1e-5, 0.0, 0.0], [0.0, 1e-5, 0.0], [0.0, 0.0, 1e-5]],
-    }
-}
-
-/// A palm (box) and one finger (capsule) on a revolute joint.
+/// A palm (box) and one finger (capsule) on a revolute joint, with a fingertip.
 fn small_hand() -> HandModel {
-    HandModel {
-        name: "tiny_hand".to_string(),
-        source: PathBuf::from("tiny_hand.urdf"),
-        links: vec![link("palm"), link("finger")],
-        joints: vec![Joint {
-            name: "finger_joint".to_string(),
-            parent_link: 0,
-            origin: Pose::new(Vec3::new(0.0, 0.0, 0.05), Quat::IDENTITY),
-            axis: Vec3::X,
-            lower: -1.0,
-            upper: 1.5,
-            effort: 1.0,
-            velocity: 5.0,
-            damping: 0.01,
-            friction: 0.0,
-            mimic: None,
-            continuous: false,
-        }],
-        colliders: vec![
-            Collider {
-                link: 0,
-                pose: Pose::IDENTITY,
-                shape: ColliderShape::Box { half_extents: Vec3::new(0.04, 0.05, 0.01) },
-            },
-            Collider {
-                link: 1,
-                pose: Pose::new(Vec3::new(0.0, 0.0, 0.02), Quat::IDENTITY),
-                shape: ColliderShape::Capsule { radius: 0.01, half_length: 0.02 },
-            },
-        ],
-        fingertips: vec![Fingertip { name: "finger_tip".to_string(), link: 1, pos: Vec3::new(0.0, 0.0, 0.05) }],
-        frames: Vec::new(),
-        warnings: Vec::new(),
-        mesh_fits: Vec::new(),
-    }
+    super::common::tiny_hand()
 }
 
 fn meta(object: ObjectShape) -> RolloutMeta {

@@ -4,13 +4,13 @@
 //! the renderer's camera projects the object's position; and `dextrain eval`, `play` and `replay
 //! --video` end to end.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Command;
 
 use glam::{Quat, Vec3};
 
 use dextrain::geom::{ObjectShape, Pose};
-use dextrain::hand::{Collider, ColliderShape, HandModel, Joint, Link};
+use dextrain::hand::{Collider, ColliderShape, HandModel};
 use dextrain::record::{ObjectPart, RolloutFrame, RolloutMeta};
 use dextrain::video::camera::{Camera, FollowTarget};
 use dextrain::video::caption::CAPTION_HEIGHT;
@@ -26,40 +26,12 @@ const VIEW: ViewSize = ViewSize { width: 240, height: 180 };
 /// The object: a 6 cm cube resting on the table.
 const HALF: f32 = 0.03;
 
-fn link(name: &str) -> Link {
-    Link { name: name.to_string(), mass: 0.1, com: Vec3::ZERO, inertia: [[1e-5, 0.0, 0.0], [0.0, 1e-5, 0.0], [0.0, 0.0, 1e-5]] }
-}
-
-/// A palm (box) with a finger (capsule) and a sphere on it.
+/// The tests' tiny hand (a palm and a finger) with a sphere on the finger, and no fingertip.
 fn small_hand() -> HandModel {
-    HandModel {
-        name: "tiny_hand".to_string(),
-        source: PathBuf::from("tiny_hand.urdf"),
-        links: vec![link("palm"), link("finger")],
-        joints: vec![Joint {
-            name: "finger_joint".to_string(),
-            parent_link: 0,
-            origin: Pose::new(Vec3::new(0.0, 0.0, 0.05), Quat::IDENTITY),
-            axis: Vec3::X,
-            lower: -1.0,
-            upper: 1.5,
-            effort: 1.0,
-            velocity: 5.0,
-            damping: 0.01,
-            friction: 0.0,
-            mimic: None,
-            continuous: false,
-        }],
-        colliders: vec![
-            Collider { link: 0, pose: Pose::IDENTITY, shape: ColliderShape::Box { half_extents: Vec3::new(0.04, 0.05, 0.01) } },
-            Collider { link: 1, pose: Pose::new(Vec3::new(0.0, 0.0, 0.02), Quat::IDENTITY), shape: ColliderShape::Capsule { radius: 0.01, half_length: 0.02 } },
-            Collider { link: 1, pose: Pose::new(Vec3::new(0.0, 0.0, 0.05), Quat::IDENTITY), shape: ColliderShape::Sphere { radius: 0.012 } },
-        ],
-        fingertips: Vec::new(),
-        frames: Vec::new(),
-        warnings: Vec::new(),
-        mesh_fits: Vec::new(),
-    }
+    let mut hand = super::common::tiny_hand();
+    hand.colliders.push(Collider { link: 1, pose: Pose::new(Vec3::new(0.0, 0.0, 0.05), Quat::IDENTITY), shape: ColliderShape::Sphere { radius: 0.012 } });
+    hand.fingertips.clear();
+    hand
 }
 
 /// The object's centre at frame k: from (0, 0, HALF) to (0.12, 0.08, HALF) over the video.

@@ -7,7 +7,10 @@ use dextrain::env::gpu::GpuEnvBatch;
 use dextrain::gpu::context::GpuContext;
 use dextrain::env::{EnvBatch, SimModel};
 use dextrain::env::physics::Model;
-use dextrain::hand::MAX_JOINTS;
+use dextrain::hand::{Collider, ColliderShape, Fingertip, HandModel, Joint, Link, MAX_JOINTS};
+use dextrain::geom::Pose;
+use glam::{Quat, Vec3};
+use std::path::PathBuf;
 use dextrain::task::ik::ik_apply_mimic;
 
 /// The default config with the shipped hand, CPU backend, `n` envs, the wrist parked high above
@@ -140,4 +143,54 @@ pub fn default_joints(m: &Model) -> [f32; MAX_JOINTS] {
     }
     ik_apply_mimic(m, &mut q);
     q
+}
+
+/// A link of 0.1 kg.
+pub fn tiny_link(name: &str) -> Link {
+    Link {
+        name: name.to_string(),
+        mass: 0.1,
+        com: Vec3::ZERO,
+        inertia: [[1e-5, 0.0, 0.0], [0.0, 1e-5, 0.0], [0.0, 0.0, 1e-5]],
+    }
+}
+
+/// A palm (box) and one finger (capsule, fingertip at its end) on a revolute joint: the hand of
+/// the recording and video tests.
+pub fn tiny_hand() -> HandModel {
+    HandModel {
+        name: "tiny_hand".to_string(),
+        source: PathBuf::from("tiny_hand.urdf"),
+        links: vec![tiny_link("palm"), tiny_link("finger")],
+        joints: vec![Joint {
+            name: "finger_joint".to_string(),
+            parent_link: 0,
+            origin: Pose::new(Vec3::new(0.0, 0.0, 0.05), Quat::IDENTITY),
+            axis: Vec3::X,
+            lower: -1.0,
+            upper: 1.5,
+            effort: 1.0,
+            velocity: 5.0,
+            damping: 0.01,
+            friction: 0.0,
+            mimic: None,
+            continuous: false,
+        }],
+        colliders: vec![
+            Collider {
+                link: 0,
+                pose: Pose::IDENTITY,
+                shape: ColliderShape::Box { half_extents: Vec3::new(0.04, 0.05, 0.01) },
+            },
+            Collider {
+                link: 1,
+                pose: Pose::new(Vec3::new(0.0, 0.0, 0.02), Quat::IDENTITY),
+                shape: ColliderShape::Capsule { radius: 0.01, half_length: 0.02 },
+            },
+        ],
+        fingertips: vec![Fingertip { name: "finger_tip".to_string(), link: 1, pos: Vec3::new(0.0, 0.0, 0.05) }],
+        frames: Vec::new(),
+        warnings: Vec::new(),
+        mesh_fits: Vec::new(),
+    }
 }
