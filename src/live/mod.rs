@@ -11,7 +11,7 @@
 //! |---------------------|----------------------------|---------|
 //! | `/tf`               | `foxglove.FrameTransforms` | `world` → `envK/world` (the env's place in a grid, [`ENV_SPACING`] apart), `envK/world` → each link, the object, the reference |
 //! | `/scene`            | `foxglove.SceneUpdate`     | each shown env's hand links, object, table, reference ghost, contact points and force arrows, ids under `envK/` |
-//! | `/dextrain/metrics` | `dextrain.Metrics`         | each iteration's metrics row as nested JSON ([`metrics`]) |
+//! | `/dextrain/metrics` | `dextrain.Metrics`         | each iteration's metrics row as nested JSON ([`metrics`]); a client that subscribes mid-run first gets the rows so far (the last [`HISTORY_REPLAY`]) |
 //!
 //! Cost: nothing is read or built while no client subscribes (one atomic load per env step). With
 //! one, training sends the scene at most `--live-hz` times a second of wall time (default
@@ -26,10 +26,11 @@ pub mod layout;
 pub mod metrics;
 
 use std::net::ToSocketAddrs;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context as _, Result, bail};
+use foxglove::websocket::{ChannelView, Client, ServerListener};
 use foxglove::{Context, RawChannel, Schema, WebSocketServer, WebSocketServerHandle};
 use glam::Vec3;
 use serde_json::json;
@@ -46,6 +47,9 @@ pub const DEFAULT_ADDR: &str = "127.0.0.1:8765";
 pub const DEFAULT_SCENE_HZ: f64 = 10.0;
 /// Distance between two shown envs' places in the view's grid (m).
 pub const ENV_SPACING: f32 = 0.6;
+/// The most metrics rows replayed to a client that subscribes mid-run (the newest ones): under the
+/// SDK's per-client backlog of 1024 messages, which the replay fills at once.
+pub const HISTORY_REPLAY: usize = 900;
 /// How long `--live-wait` waits for a client before it goes on without one.
 pub const WAIT_FOR_CLIENT: Duration = Duration::from_secs(600);
 
@@ -117,6 +121,34 @@ pub struct LiveStats {
     pub busy_s: f64,
 }
 
+/// The metrics channel and the rows sent on it so far (JSON, in order), replayed to a client when it
+/// subscribes: a client that connects mid-run gets the run's curves from the first iteration. One
+/// lock covers both, so a row goes out either live or in a replay (a row sent between the
+/// client's subscription and its replay comes twice, once each way).
+#[derive(Default)]
+struct MetricsHistory {
+    inner: Mutex<(Option<Arc<RawChannel>>, Vec<Vec<u8>>)>,
+}
+
+impl MetricsHistory {
+    fn lock(&self) -> MutexGuard<'_, (Option<Arc<RawChannel>>, Vec<Vec<u8>>)> {
+        // (a panic elsewhere while holding it leaves the rows as they were: still usable)
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+impl ServerListener for MetricsHistory {
+    fn on_subscribe(&self, client: Client, channel: ChannelView) {
+        let g = self.lock();
+        let (Some(ch), rows) = (&g.0, &g.1) else { return };
+        if channel.id() == ch.id() {
+            for row in &rows[rows.len().saturating_sub(HISTORY_REPLAY)..] {
+                ch.log_to_sink(row, client.sink_id());
+            }
+        }
+    }
+}
+
 /// A running live view (see the module docs). Dropping it stops the server.
 pub struct LiveView {
     /// The server's own runtime: one worker thread (the SDK's default takes one per core).
@@ -126,7 +158,8 @@ pub struct LiveView {
     _context: Arc<Context>,
     tf: Arc<RawChannel>,
     scene: Arc<RawChannel>,
-    metrics: Option<Arc<RawChannel>>,
+    /// The metrics channel (once [`LiveView::add_metrics_channel`] made it) and its rows so far.
+    metrics: Arc<MetricsHistory>,
     /// The address clients connect to (`ws://host:port`).
     url: String,
     model: SimModel,
@@ -159,10 +192,12 @@ impl LiveView {
         };
         let tf = json_channel(TOPIC_TF, crate::record::SCHEMA_FRAME_TRANSFORMS, crate::record::frame_transforms_json_schema())?;
         let scene = json_channel(TOPIC_SCENE, crate::record::SCHEMA_SCENE_UPDATE, crate::record::scene_update_json_schema())?;
+        let metrics = Arc::new(MetricsHistory::default());
         let server = WebSocketServer::new()
             .name(format!("dextrain {}", env!("CARGO_PKG_VERSION")))
             .bind(host.clone(), port)
             .context(&context)
+            .listener(metrics.clone())
             .tokio_runtime(runtime.handle())
             .start_blocking()
             .with_context(|| format!("--live {addr}: cannot serve the live view there (a port in use, or an address not of this machine?)"))?;
@@ -174,7 +209,7 @@ impl LiveView {
             _context: context,
             tf,
             scene,
-            metrics: None,
+            metrics,
             url,
             model,
             control_dt,
@@ -206,7 +241,7 @@ impl LiveView {
     }
 
     fn anyone_watching(&self) -> bool {
-        self.tf.has_sinks() || self.scene.has_sinks() || self.metrics.as_ref().is_some_and(|m| m.has_sinks())
+        self.tf.has_sinks() || self.scene.has_sinks() || self.metrics.lock().0.as_ref().is_some_and(|m| m.has_sinks())
     }
 
     /// True when a client subscribed to the scene and, throttled, the last scene went out at least a
@@ -273,26 +308,29 @@ impl LiveView {
     /// the first [`LiveView::metrics`]).
     pub fn add_metrics_channel(&mut self, columns: &[String]) -> Result<()> {
         let schema = metrics::metrics_schema(columns);
-        self.metrics = Some(
-            self._context
-                .channel_builder(metrics::TOPIC_METRICS)
-                .message_encoding("json")
-                .schema(Schema::new(metrics::SCHEMA_METRICS, "jsonschema", serde_json::to_vec(&schema)?))
-                .build_raw()?,
-        );
+        let channel = self
+            ._context
+            .channel_builder(metrics::TOPIC_METRICS)
+            .message_encoding("json")
+            .schema(Schema::new(metrics::SCHEMA_METRICS, "jsonschema", serde_json::to_vec(&schema)?))
+            .build_raw()?;
+        self.metrics.lock().0 = Some(channel);
         Ok(())
     }
 
     /// Sends iteration `iteration`'s metrics `row` (in the channel's `columns` order) to the
-    /// clients that subscribed to it.
+    /// clients that subscribed to it, and keeps it for those that subscribe later.
     pub fn metrics(&mut self, iteration: u64, columns: &[String], row: &[f64]) -> Result<()> {
-        let Some(ch) = &self.metrics else { return Ok(()) };
-        if !ch.has_sinks() {
-            return Ok(());
-        }
         let t0 = Instant::now();
-        ch.log(&serde_json::to_vec(&metrics::metrics_message(iteration, columns, row))?);
-        self.stats.metrics_messages += 1;
+        let bytes = serde_json::to_vec(&metrics::metrics_message(iteration, columns, row))?;
+        let mut g = self.metrics.lock();
+        let Some(ch) = g.0.clone() else { return Ok(()) };
+        if ch.has_sinks() {
+            ch.log(&bytes);
+            self.stats.metrics_messages += 1;
+        }
+        g.1.push(bytes);
+        drop(g);
         self.stats.busy_s += t0.elapsed().as_secs_f64();
         Ok(())
     }

@@ -2,7 +2,8 @@
 //! `websockets`) connects to a training run and to an eval through the binary, receives the advertised
 //! channels, and decodes scene, transform and metrics messages, validated against the schemas the
 //! server advertised; the metrics it receives are the run's metrics.csv rows; the shipped layout
-//! is the one a lift run writes; bad addresses are one-line errors; without a client nothing is sent.
+//! is the one a lift run writes; a client that connects mid-run first gets the rows so far; bad
+//! addresses are one-line errors; without a client nothing is sent.
 
 use std::io::{BufRead, BufReader};
 use std::path::Path;
@@ -254,5 +255,48 @@ fn an_eval_serves_its_episodes_live_and_a_run_without_a_client_sends_nothing() {
     for scene in scenes {
         let ids = scene["entity_ids"].as_array().unwrap();
         assert!(ids.iter().any(|i| i == "env1/object") && ids.iter().all(|i| i.as_str().unwrap().starts_with("env0/") || i.as_str().unwrap().starts_with("env1/")), "{ids:?}");
+    }
+}
+
+#[test]
+fn a_client_that_connects_mid_run_first_gets_the_metrics_rows_so_far() {
+    if !client_available("live history") {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let runs = tmp.path().to_str().unwrap().to_string();
+    let mut args: Vec<String> = ["train", "configs/lift_cube_cpu.toml", "--name", "late", "--runs-dir", &runs, "--quiet"].iter().map(|s| s.to_string()).collect();
+    // long enough to still run when the client comes; stopped once the client has its rows
+    args.extend(tiny_lift(5000));
+    args.extend(["--live=127.0.0.1:0".to_string()]);
+    let (mut child, url, _stderr) = spawn_live(&args);
+    let csv = Path::new(&runs).join("late/metrics.csv");
+    let rows_now = || std::fs::read_to_string(&csv).map(|t| t.lines().count().saturating_sub(1)).unwrap_or(0);
+    let t0 = std::time::Instant::now();
+    while rows_now() < 6 {
+        assert!(t0.elapsed().as_secs() < 120, "the run wrote no 6 rows in 2 minutes");
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    let before = rows_now();
+    let got = client(&url, 0, before + 3);
+    // SIGTERM: the run ends its iteration, writes a checkpoint and stops (no torn row)
+    assert!(Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap().success());
+    assert!(child.wait().unwrap().success());
+
+    // the replayed rows from iteration 1, then the live ones: consecutive (a row sent while the
+    // client subscribed may come twice)
+    let mut its: Vec<u64> = got["metrics"].as_array().unwrap().iter().map(|m| m["iteration"].as_u64().unwrap()).collect();
+    its.dedup();
+    assert_eq!(its[0], 1, "{its:?}");
+    assert!(its.windows(2).all(|w| w[1] == w[0] + 1), "{its:?}");
+    assert!(its.len() >= before + 3, "{} rows, {before} in metrics.csv at the connection", its.len());
+    let (cols, rows) = dextrain::metrics::read_csv(&csv).unwrap();
+    let reward = |it: u64| rows.iter().find(|(i, _)| *i == it).map(|(_, v)| v.clone()).unwrap();
+    let k = cols.iter().position(|c| c == "reward/mean").unwrap();
+    for m in got["metrics"].as_array().unwrap() {
+        let it = m["iteration"].as_u64().unwrap();
+        // (serde_json's default float parsing may be 1 ulp off)
+        let (x, v) = (m["reward"]["mean"].as_f64().unwrap(), reward(it)[k]);
+        assert!((x - v).abs() <= 1e-12 * v.abs().max(1.0), "reward/mean at iteration {it}: message {x}, metrics.csv {v}");
     }
 }
