@@ -25,6 +25,7 @@ pub mod frames;
 pub mod layout;
 pub mod metrics;
 
+use std::collections::VecDeque;
 use std::net::ToSocketAddrs;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
@@ -127,11 +128,12 @@ pub struct LiveStats {
 /// client's subscription and its replay comes twice, once each way).
 #[derive(Default)]
 struct MetricsHistory {
-    inner: Mutex<(Option<Arc<RawChannel>>, Vec<Vec<u8>>)>,
+    /// The channel, and the newest [`HISTORY_REPLAY`] rows (older ones are dropped).
+    inner: Mutex<(Option<Arc<RawChannel>>, VecDeque<Vec<u8>>)>,
 }
 
 impl MetricsHistory {
-    fn lock(&self) -> MutexGuard<'_, (Option<Arc<RawChannel>>, Vec<Vec<u8>>)> {
+    fn lock(&self) -> MutexGuard<'_, (Option<Arc<RawChannel>>, VecDeque<Vec<u8>>)> {
         // (a panic elsewhere while holding it leaves the rows as they were: still usable)
         self.inner.lock().unwrap_or_else(|e| e.into_inner())
     }
@@ -142,7 +144,7 @@ impl ServerListener for MetricsHistory {
         let g = self.lock();
         let (Some(ch), rows) = (&g.0, &g.1) else { return };
         if channel.id() == ch.id() {
-            for row in &rows[rows.len().saturating_sub(HISTORY_REPLAY)..] {
+            for row in rows {
                 ch.log_to_sink(row, client.sink_id());
             }
         }
@@ -329,7 +331,10 @@ impl LiveView {
             ch.log(&bytes);
             self.stats.metrics_messages += 1;
         }
-        g.1.push(bytes);
+        g.1.push_back(bytes);
+        if g.1.len() > HISTORY_REPLAY {
+            g.1.pop_front();
+        }
         drop(g);
         self.stats.busy_s += t0.elapsed().as_secs_f64();
         Ok(())
