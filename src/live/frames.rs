@@ -13,13 +13,17 @@ use crate::task::TaskBatch;
 /// env's reset may draw both anew).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ObjectKey {
+    /// The object's index in the model's objects.
     pub index: u32,
+    /// The env's object scale (every length multiplied by it).
     pub scale: f32,
 }
 
 /// One shown env at the current step: its frame and the key of its object.
 pub struct EnvFrame {
+    /// The env's state as a recording frame.
     pub frame: RolloutFrame,
+    /// Which object (and scale) the frame's object is.
     pub object: ObjectKey,
 }
 
@@ -39,7 +43,9 @@ pub fn first_env_frames(model: &SimModel, task: &mut dyn TaskBatch, k: usize) ->
 
 /// What a batch's first envs hold at one step (each slice from env 0 on).
 pub struct EnvSlices<'a> {
+    /// The envs' states.
     pub states: &'a [EnvState],
+    /// The envs' parameters.
     pub params: &'a [EnvParams],
     /// The envs' contact springs, `[N, n_springs]`.
     pub springs: &'a [[f32; 4]],
