@@ -11,6 +11,13 @@ use std::process::{Child, Command, Stdio};
 
 const ROOT: &str = env!("CARGO_MANIFEST_DIR");
 
+/// `dextrain train` of the tiny lift run `name` (into `runs`) for `iterations` iterations.
+fn tiny_lift_train(runs: &str, name: &str, iterations: u32) -> Vec<String> {
+    let mut args: Vec<String> = ["train", "configs/lift_cube_cpu.toml", "--name", name, "--runs-dir", runs, "--quiet"].iter().map(|s| s.to_string()).collect();
+    args.extend(tiny_lift(iterations));
+    args
+}
+
 /// The tiny lift run's overrides (CPU, 8 envs, short episodes, small nets).
 fn tiny_lift(iterations: u32) -> Vec<String> {
     [
@@ -92,8 +99,7 @@ fn a_foxglove_client_watches_a_training_run_and_gets_its_metrics_rows() {
     }
     let tmp = tempfile::tempdir().unwrap();
     let runs = tmp.path().to_str().unwrap().to_string();
-    let mut args: Vec<String> = ["train", "configs/lift_cube_cpu.toml", "--name", "live", "--runs-dir", &runs, "--quiet"].iter().map(|s| s.to_string()).collect();
-    args.extend(tiny_lift(12));
+    let mut args = tiny_lift_train(&runs, "live", 12);
     args.extend(["--live", "127.0.0.1:0", "--live-envs", "3", "--live-hz", "1000", "--live-wait"].map(String::from));
     let (child, url, _stderr) = spawn_live(&args);
     let got = client(&url, 3, 2);
@@ -211,8 +217,7 @@ fn an_eval_serves_its_episodes_live_and_a_run_without_a_client_sends_nothing() {
     let tmp = tempfile::tempdir().unwrap();
     let runs = tmp.path().to_str().unwrap().to_string();
     // nobody connects: the run trains as usual and the view sends nothing
-    let mut args: Vec<String> = ["train", "configs/lift_cube_cpu.toml", "--name", "quiet", "--runs-dir", &runs, "--quiet"].iter().map(|s| s.to_string()).collect();
-    args.extend(tiny_lift(2));
+    let mut args = tiny_lift_train(&runs, "quiet", 2);
     args.extend(["--live=127.0.0.1:0".to_string()]);
     let out = dextrain(&args).output().unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -265,9 +270,8 @@ fn a_client_that_connects_mid_run_first_gets_the_metrics_rows_so_far() {
     }
     let tmp = tempfile::tempdir().unwrap();
     let runs = tmp.path().to_str().unwrap().to_string();
-    let mut args: Vec<String> = ["train", "configs/lift_cube_cpu.toml", "--name", "late", "--runs-dir", &runs, "--quiet"].iter().map(|s| s.to_string()).collect();
     // long enough to still run when the client comes; stopped once the client has its rows
-    args.extend(tiny_lift(5000));
+    let mut args = tiny_lift_train(&runs, "late", 5000);
     args.extend(["--live=127.0.0.1:0".to_string()]);
     let (mut child, url, _stderr) = spawn_live(&args);
     let csv = Path::new(&runs).join("late/metrics.csv");
