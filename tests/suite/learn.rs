@@ -114,13 +114,100 @@ fn ppo_loss_terms_match_hand_computed_values() {
     let cfg = PpoConfig::default();
     assert_eq!((cfg.clip_param, cfg.value_loss_coef, cfg.entropy_coef), (0.2, 1.0, 0.005));
     let l = ppo_losses(t2(&[0.0, 0.0], [2, 1]), t2(&[0.0], [1, 1]), t2(&[1.0, 0.0], [2, 1]), &b, &cfg);
-    let get = |t: Tensor<1>| to_host(t).unwrap()[0] as f64;
-    let close = |name: &str, got: f64, want: f64| assert!((got - want).abs() < 2e-5, "{name}: {got} vs {want}");
-    close("surrogate", get(l.surrogate), -1.752585);
-    close("value", get(l.value), 0.89);
-    close("entropy", get(l.entropy), 1.418939);
-    close("total", get(l.total), -0.869680);
-    close("kl", get(l.kl), 0.405926);
+    let row = to_host(l.row).unwrap(); // [total, surrogate, value, entropy, KL]
+    assert_eq!(to_host(l.root).unwrap(), row[..1], "the gradient starts from the total");
+    let close = |name: &str, got: f32, want: f64| assert!((got as f64 - want).abs() < 2e-5, "{name}: {got} vs {want}");
+    close("surrogate", row[1], -1.752585);
+    close("value", row[2], 0.89);
+    close("entropy", row[3], 1.418939);
+    close("total", row[0], -0.869680);
+    close("kl", row[4], 0.405926);
+}
+
+/// PPO's loss as one operation (`learn::kernels::ppo_loss`: two kernels each way on burn's wgpu
+/// runtime, tensor ops elsewhere) against `ppo_losses`' tensor ops differentiated by burn, on 600
+/// rows (three workgroups of the kernels, the last one partial) of 5 actions whose ratios fall on
+/// both sides of the clip range, advantages of both signs, with and without the clipped value
+/// loss: `[total, surrogate, value, entropy, KL]` and the gradients of L = w · total in μ, log σ
+/// and V agree to float rounding, on the CPU and on the GPU, where each pass is two kernels (the
+/// fused loss's gradient starts from its whole `[1, 5]` output, of which only the total counts).
+#[test]
+fn the_fused_ppo_loss_matches_its_tensor_ops_and_their_gradient() {
+    use dextrain::gpu_counts::{Event, GpuCounts};
+    use dextrain::learn::kernels::ppo_loss::{LossCoefs, loss_columns, ppo_loss_fused};
+    use dextrain::learn::ppo::Losses;
+    let (rows, a) = (600usize, 5usize);
+    let mut rng = Rng::new(9, 4);
+    let mut draw = |n: usize, scale: f64| (0..n).map(|_| (rng.normal() * scale) as f32).collect::<Vec<f32>>();
+    let (mu, old_mu, log_std, old_sigma_log) = (draw(rows * a, 1.0), draw(rows * a, 1.0), draw(a, 0.3), draw(a, 0.3));
+    let old_sigma: Vec<f32> = old_sigma_log.iter().map(|l| l.exp()).collect();
+    let noise = draw(rows * a, 1.0);
+    let actions: Vec<f32> = (0..rows * a).map(|i| old_mu[i] + old_sigma[i % a] * noise[i]).collect();
+    // log π_old spread around the current policy's log π: ratios from ~0.2 to ~5
+    let log_prob = |r: usize| -> f32 {
+        (0..a).map(|k| -0.5 * ((actions[r * a + k] - mu[r * a + k]) / log_std[k].exp()).powi(2) - log_std[k]).sum::<f32>() - 0.5 * a as f32 * (2.0 * std::f32::consts::PI).ln()
+    };
+    let offsets = draw(rows, 0.8);
+    let old_log_prob: Vec<f32> = (0..rows).map(|r| log_prob(r) + offsets[r]).collect();
+    let (advantages, returns, v, old_values) = (draw(rows, 1.0), draw(rows, 2.0), draw(rows, 2.0), draw(rows, 2.0));
+    let w = 1.7; // ∂L/∂total
+    let ratios: Vec<f32> = (0..rows).map(|r| (-offsets[r]).exp()).collect();
+    assert!(ratios.iter().any(|&x| x < 0.8) && ratios.iter().any(|&x| x > 1.2) && ratios.iter().any(|&x| (0.8..1.2).contains(&x)), "ratios on every side of the clip range");
+    // (out [1, 5], ∂L/∂μ, ∂L/∂log σ, ∂L/∂V)
+    let run = |device: &Device, fused: bool, clipped_value: bool| -> [Vec<f32>; 4] {
+        let t = |v: &[f32], shape: [usize; 2]| to_tensor(v.to_vec(), shape, device);
+        let (m, ls, vv) = (t(&mu, [rows, a]).require_grad(), t(&log_std, [1, a]).require_grad(), t(&v, [rows, 1]).require_grad());
+        let cfg = PpoConfig { clipped_value_loss: clipped_value, ..PpoConfig::default() };
+        let coefs = LossCoefs { clip: cfg.clip_param as f64, value_coef: cfg.value_loss_coef as f64, entropy_coef: cfg.entropy_coef as f64, clipped_value };
+        let losses = if fused {
+            let columns = loss_columns(t(&actions, [rows, a]), t(&old_mu, [rows, a]), t(&old_log_prob, [rows, 1]), t(&advantages, [rows, 1]), t(&returns, [rows, 1]), t(&old_values, [rows, 1]));
+            Losses::from_fused(ppo_loss_fused(m.clone(), ls.clone(), vv.clone(), t(&old_sigma, [1, a]), columns, coefs))
+        } else {
+            let b = Batch {
+                obs: t(&vec![0.0; rows], [rows, 1]),
+                priv_obs: t(&vec![0.0; rows], [rows, 1]),
+                actions: t(&actions, [rows, a]),
+                old_log_prob: t(&old_log_prob, [rows, 1]),
+                old_mu: t(&old_mu, [rows, a]),
+                old_sigma: t(&old_sigma, [1, a]),
+                advantages: t(&advantages, [rows, 1]),
+                returns: t(&returns, [rows, 1]),
+                old_values: t(&old_values, [rows, 1]),
+            };
+            ppo_losses(m.clone(), ls.clone(), vv.clone(), &b, &cfg)
+        };
+        let grads = losses.root.mul_scalar(w).backward();
+        let grad = |x: &Tensor<2>| to_host(x.grad(&grads).expect("a gradient")).unwrap();
+        [to_host(losses.row).unwrap(), grad(&m), grad(&ls), grad(&vv)]
+    };
+    let close = |name: &str, got: &[f32], want: &[f32]| {
+        assert_eq!(got.len(), want.len(), "{name}");
+        for (i, (g, w)) in got.iter().zip(want).enumerate() {
+            assert!((g - w).abs() <= 2e-4 * (1.0 + w.abs()), "{name}[{i}]: {g} vs {w}");
+        }
+    };
+    let names = ["out", "∂μ", "∂log σ", "∂V"];
+    let gpu = crate::common::wgpu_learner("the_fused_ppo_loss_matches_its_tensor_ops_and_their_gradient");
+    for clipped_value in [false, true] {
+        let reference = run(&cpu(), false, clipped_value);
+        assert!(reference[1].iter().any(|g| g.abs() > 1e-4) && reference[3].iter().any(|g| g.abs() > 1e-3), "the gradients must not vanish");
+        for (k, got) in run(&cpu(), true, clipped_value).iter().enumerate() {
+            close(&format!("cpu {} (clipped value {clipped_value})", names[k]), got, &reference[k]);
+        }
+        let Some((_ctx, device)) = &gpu else { continue };
+        let before = GpuCounts::now();
+        let fused_gpu = run(device, true, clipped_value);
+        let counts = GpuCounts::now().since(&before);
+        for (k, got) in fused_gpu.iter().enumerate() {
+            close(&format!("gpu {} (clipped value {clipped_value})", names[k]), got, &reference[k]);
+        }
+        let kernels = |name: &str| counts.total_from(Event::Kernel, name);
+        assert_eq!(
+            [kernels("dextrain:ppo_loss_rows"), kernels("dextrain:ppo_loss_finish"), kernels("dextrain:ppo_loss_backward"), kernels("dextrain:ppo_loss_backward_finish")],
+            [1, 1, 2, 1], // (the backward's name is a prefix of its finish's)
+            "two kernels each way: {counts:?}"
+        );
+    }
 }
 
 #[test]

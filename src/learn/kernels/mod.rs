@@ -21,6 +21,7 @@
 //!   (shaders/adam.wgsl); `fused_normalizer.rs`: the device-resident observation normalisers
 //!   (shaders/normalizer.wgsl).
 
+pub mod adaptive_lr;
 pub mod affine;
 pub mod elu;
 pub mod fused_adam;
@@ -29,6 +30,7 @@ pub mod gpu_matmul;
 pub mod isa;
 pub mod layer_norm;
 pub mod matmul_tuning;
+pub mod ppo_loss;
 pub mod row_sums;
 pub mod sgemm;
 pub mod squashed;

@@ -29,6 +29,8 @@ use burn::tensor::{Int, TensorData};
 
 use self::storage::RolloutStorage;
 use super::adam::Adam;
+use super::kernels::adaptive_lr::{self, AdaptiveLr};
+use super::kernels::ppo_loss::{self, LossCoefs};
 use super::nets::{self, Activation, init_mlp, mlp_forward, mlp_shapes, to_host, to_tensor};
 use super::noise::host_normals_from_row;
 use super::normalizer::Normalizer;
@@ -236,15 +238,26 @@ pub struct Batch {
     pub old_values: Tensor<2>, // [B, 1]
 }
 
-/// The PPO loss terms of one minibatch (each a [1]-tensor; `total` carries the gradient).
+/// The PPO loss of one minibatch.
 pub struct Losses {
-    pub total: Tensor<1>,
-    pub surrogate: Tensor<1>,
-    pub value: Tensor<1>,
-    pub entropy: Tensor<1>,
-    /// Mean KL(π_old ‖ π_new) over the minibatch (no gradient needed).
-    pub kl: Tensor<1>,
+    /// Where the gradient starts (`root.backward()`): the total loss `[1, 1]` (the tensor ops of
+    /// [`ppo_losses`]), or the fused loss's whole `[1, 5]` (`kernels::ppo_loss`: only its first
+    /// column, the total, carries a gradient).
+    pub root: Tensor<2>,
+    /// `[total, surrogate, value, entropy, KL]` `[1, 5]` without gradient (the KL is
+    /// KL(π_old ‖ π_new), the minibatch's mean).
+    pub row: Tensor<2>,
 }
+
+impl Losses {
+    /// The losses from the fused loss's `[total, surrogate, value, entropy, KL]` `[1, 5]`.
+    pub fn from_fused(out: Tensor<2>) -> Losses {
+        Losses { row: out.clone().detach().inner(), root: out }
+    }
+}
+
+/// Where the KL sits in [`Losses::row`].
+pub const KL_COLUMN: usize = 4;
 
 /// The PPO losses for policy output `mu` [B, A], `log_std` [1, A] and values `v` [B, 1]:
 /// - ratio `ρ = exp(log π(a|s) − log π_old(a|s))`,
@@ -284,7 +297,8 @@ pub fn ppo_losses(mu: Tensor<2>, log_std: Tensor<2>, v: Tensor<2>, b: &Batch, cf
         + (b.old_sigma.clone().square() + (b.old_mu.clone() - mu_d).square()) / (sig_d.square().mul_scalar(2.0))
         - 0.5; // [B, A]
     let kl = nets::mean_all(kl_rows.sum_dim(1));
-    Losses { total, surrogate, value, entropy, kl }
+    let row = Tensor::cat(vec![total.clone().detach().inner(), surrogate.detach().inner(), value.detach().inner(), entropy.detach().inner(), kl.inner()], 0).reshape([1, 5]);
+    Losses { root: total.reshape([1, 1]), row }
 }
 
 /// What one update did (means over its minibatches; `lr` after the update).
@@ -637,58 +651,68 @@ impl Ppo {
         let n_rows = plan.rows.len();
         let rows = Tensor::<1, Int>::from_data(TensorData::new(plan.rows, [n_rows]), dev);
         let mut lr = to_tensor(vec![self.lr as f32], [1, 1], &inner);
-        let mut sums: Option<Tensor<2>> = None; // Σ [surrogate, value, entropy, kl, ‖g‖] [1, 5]
+        let mut sums: Option<(Tensor<2>, Tensor<1>)> = None; // Σ [total, surrogate, value, entropy, kl] [1, 5] and Σ ‖g‖ [1]
         let count = epochs * minibatches;
         let data_parallel = crate::dist::size() > 1;
+        // on a GPU the loss is one operation of ours, two kernels each way (kernels::ppo_loss,
+        // where the tensor ops of `ppo_losses` launch ~110), reading the rollout's per-row columns
+        // side by side: one gather per minibatch picks them
+        let columns = on_gpu.then(|| ppo_loss::loss_columns(all.actions.clone(), all.old_mu.clone(), all.old_log_prob.clone(), all.advantages.clone(), all.returns.clone(), all.old_values.clone()));
+        let coefs = LossCoefs { clip: self.cfg.clip_param as f64, value_coef: self.cfg.value_loss_coef as f64, entropy_coef: self.cfg.entropy_coef as f64, clipped_value: self.cfg.clipped_value_loss };
         for k in 0..count {
             let idx = rows.clone().narrow(0, plan.starts[k], plan.starts[k + 1] - plan.starts[k]);
             let pick = |t: &Tensor<2>| t.clone().select(0, idx.clone());
-            let b = Batch {
-                obs: pick(&all.obs),
-                priv_obs: pick(&all.priv_obs),
-                actions: pick(&all.actions),
-                old_log_prob: pick(&all.old_log_prob),
-                old_mu: pick(&all.old_mu),
-                old_sigma: all.old_sigma.clone(), // [1, A]: σ is the same for every row of a rollout
-                advantages: pick(&all.advantages),
-                returns: pick(&all.returns),
-                old_values: pick(&all.old_values),
-            };
+            let (obs, priv_obs) = (pick(&all.obs), pick(&all.priv_obs));
             let params = &self.net.params;
-            let mu = self.net.actor(params, b.obs.clone(), b.priv_obs.clone());
-            let v = self.net.critic(params, b.priv_obs.clone());
-            let losses = ppo_losses(mu, self.net.log_std(params), v, &b, &self.cfg);
+            let mu = self.net.actor(params, obs.clone(), priv_obs.clone());
+            let v = self.net.critic(params, priv_obs.clone());
+            let losses = match &columns {
+                Some(columns) => Losses::from_fused(ppo_loss::ppo_loss_fused(mu, self.net.log_std(params), v, all.old_sigma.clone(), pick(columns), coefs)),
+                None => {
+                    let b = Batch {
+                        obs,
+                        priv_obs,
+                        actions: pick(&all.actions),
+                        old_log_prob: pick(&all.old_log_prob),
+                        old_mu: pick(&all.old_mu),
+                        old_sigma: all.old_sigma.clone(), // [1, A]: σ is the same for every row of a rollout
+                        advantages: pick(&all.advantages),
+                        returns: pick(&all.returns),
+                        old_values: pick(&all.old_values),
+                    };
+                    ppo_losses(mu, self.net.log_std(params), v, &b, &self.cfg)
+                }
+            };
             // with several ranks the loss and the KL are this rank's rows' means weighted by its
             // share of the minibatch (`MinibatchRows::weights`), so that their means over the ranks
             // are the job's minibatch's means
-            let (total_loss, kl) = if data_parallel {
+            let (root, kl_row) = if data_parallel {
                 let w = plan.weights[k];
-                (losses.total.clone().mul_scalar(w), losses.kl.clone().inner().mul_scalar(w))
+                let kl = losses.row.clone().narrow(1, KL_COLUMN, 1).reshape([1]).mul_scalar(w);
+                (losses.root.mul_scalar(w), kl_over_ranks(kl)?.reshape([1, 1]))
             } else {
-                (losses.total.clone(), losses.kl.clone().inner())
+                (losses.root, losses.row.clone())
             };
             if self.cfg.schedule == LrSchedule::Adaptive {
-                lr = adapt_learning_rate(lr, kl_over_ranks(kl)?, &self.cfg);
+                let column = if data_parallel { 0 } else { KL_COLUMN };
+                lr = adapt_learning_rate(lr, &kl_row, column, &self.cfg);
             }
-            let grads = total_loss.backward();
+            let grads = root.backward();
             let (new_params, norm) = self.adam.step_clipped(params, &grads, self.cfg.max_grad_norm as f64, &lr)?;
-            let norm = norm.context("PPO's optimiser reports its gradient norm")?;
+            let norm = norm.context("PPO's optimiser reports its gradient norm")?.inner();
             self.net.params = new_params;
-            let row = Tensor::cat(
-                vec![losses.surrogate.detach().inner(), losses.value.detach().inner(), losses.entropy.detach().inner(), losses.kl.inner(), norm.inner()],
-                0,
-            )
-            .reshape([1, 5]);
             sums = Some(match sums {
-                Some(acc) => acc + row,
-                None => row,
+                Some((rows, norms)) => (rows + losses.row, norms + norm),
+                None => (losses.row, norm),
             });
         }
         self.step = 0;
         // the update's one read: the sums, the learning rate, log σ
         let log_std = self.net.log_std(&self.net.inference_params()); // [1, A]
         let mut parts = vec![lr];
-        parts.extend(sums);
+        if let Some((rows, norms)) = sums {
+            parts.extend([rows.narrow(1, 1, 4), norms.reshape([1, 1])]); // the total is not reported
+        }
         parts.push(log_std);
         let v = to_host(Tensor::cat(parts, 1))?;
         self.lr = v[0] as f64;
@@ -766,16 +790,22 @@ pub fn kl_over_ranks(kl: Tensor<1>) -> Result<Tensor<1>> {
     Ok(Tensor::from_data(TensorData::new(v, [n]), &device))
 }
 
-/// rsl_rl's adaptive learning rate from a minibatch's KL, as `[1, 1]` tensor ops (no host read):
-/// `lr / 1.5` (at least `min_learning_rate`) when `kl > 2 · desired_kl`, `lr · 1.5` (at most
-/// `max_learning_rate`) when `0 < kl < desired_kl / 2`, else unchanged (a non-finite KL too).
-pub fn adapt_learning_rate(lr: Tensor<2>, kl: Tensor<1>, cfg: &PpoConfig) -> Tensor<2> {
-    let kl: Tensor<2> = kl.reshape([1, 1]);
+/// rsl_rl's adaptive learning rate from a minibatch's KL, the entry `column` of `kl_row` `[1, n]`,
+/// without a host read: `lr / 1.5` (at least `min_learning_rate`) when `kl > 2 · desired_kl`,
+/// `lr · 1.5` (at most `max_learning_rate`) when `0 < kl < desired_kl / 2`, else unchanged (a
+/// non-finite KL too). On a GPU one kernel of ours (`kernels::adaptive_lr`), elsewhere `[1, 1]`
+/// tensor ops; the same f32 arithmetic either way.
+pub fn adapt_learning_rate(lr: Tensor<2>, kl_row: &Tensor<2>, column: usize, cfg: &PpoConfig) -> Tensor<2> {
     let target = cfg.desired_kl as f64;
+    let schedule = AdaptiveLr { above: (2.0 * target) as f32, below: (0.5 * target) as f32, min: cfg.min_learning_rate, max: cfg.max_learning_rate };
+    if let Some(adapted) = adaptive_lr::adapt_on_gpu(&lr, kl_row, column, schedule) {
+        return adapted;
+    }
+    let kl: Tensor<2> = kl_row.clone().narrow(1, column, 1); // [1, 1]
     let finite = kl.clone().is_finite();
-    let down = kl.clone().greater_elem(2.0 * target).bool_and(finite.clone());
-    let up = kl.clone().lower_elem(0.5 * target).bool_and(kl.greater_elem(0.0)).bool_and(finite);
-    let lower = lr.clone().div_scalar(1.5).clamp_min(cfg.min_learning_rate as f64);
-    let higher = lr.clone().mul_scalar(1.5).clamp_max(cfg.max_learning_rate as f64);
+    let down = kl.clone().greater_elem(schedule.above).bool_and(finite.clone());
+    let up = kl.clone().lower_elem(schedule.below).bool_and(kl.greater_elem(0.0)).bool_and(finite);
+    let lower = lr.clone().div_scalar(1.5).clamp_min(schedule.min);
+    let higher = lr.clone().mul_scalar(1.5).clamp_max(schedule.max);
     lr.mask_where(down, lower).mask_where(up, higher)
 }
