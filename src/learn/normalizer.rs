@@ -103,22 +103,31 @@ impl Normalizer {
 impl Normalizer {
     /// `rows` `[n, dim]` uploaded and normalised on `device`, `(x − μ) · s` with μ and
     /// s = 1 / (σ + ε) `[1, dim]` worked out on the host in f64 and rounded to f32, when `on`;
-    /// else the rows as they are. The statistics go up with the rows, as two more rows of the
-    /// same upload (one upload and one queue submission, where a tensor each cost two more), and
-    /// two element-wise kernels apply them. The host's [`Normalizer::apply`] rounds once, at the
-    /// end: the two differ by an f32 rounding.
+    /// else the rows as they are. On burn's wgpu runtime the rows are written straight into a
+    /// fresh tensor's memory (`nets::upload`: no host copy of them), the statistics go up as one
+    /// `[2, dim]` tensor, and one kernel of ours applies them (`kernels::standardize`); elsewhere
+    /// two element-wise tensor ops, the same f32 arithmetic. The host's [`Normalizer::apply`]
+    /// rounds once, at the end: the two differ by an f32 rounding.
     pub fn upload_normalized(&self, rows: &[f32], n: usize, device: &Device, on: bool) -> Tensor<2> {
         let d = self.dim();
         if !on || d == 0 {
             return to_tensor(rows.to_vec(), [n, d], device);
         }
-        let mut data = Vec::with_capacity((n + 2) * d);
-        data.extend_from_slice(rows);
-        data.extend(self.mean.iter().map(|&m| m as f32)); // row n: μ
-        data.extend(self.var().iter().map(|v| (1.0 / (v.sqrt() + self.eps)) as f32)); // row n + 1: s
-        let all = to_tensor(data, [n + 2, d], device);
-        let (x, mean, scale) = (all.clone().narrow(0, 0, n), all.clone().narrow(0, n, 1), all.narrow(0, n + 1, 1));
-        (x - mean) * scale
+        let mut stats = Vec::with_capacity(2 * d);
+        stats.extend(self.mean.iter().map(|&m| m as f32)); // row 0: μ
+        stats.extend(self.var().iter().map(|v| (1.0 / (v.sqrt() + self.eps)) as f32)); // row 1: s
+        let inner = device.clone().inner();
+        let stats = to_tensor(stats, [2, d], &inner);
+        // the rows written straight into a fresh tensor's memory (`nets::upload`), then one kernel of
+        // ours; the tensor ops where the kernel does not apply
+        if let Ok(x) = super::nets::upload(rows, [n, d], &inner)
+            && let Some(out) = super::kernels::standardize::standardize_on_gpu(&x, &stats)
+        {
+            return if device.is_autodiff() { out.autodiff() } else { out };
+        }
+        let x = to_tensor(rows.to_vec(), [n, d], device);
+        let stats = if device.is_autodiff() { stats.autodiff() } else { stats };
+        (x - stats.clone().narrow(0, 0, 1)) * stats.narrow(0, 1, 1)
     }
 
     /// `rows` `[n, dim]` normalised (when `on`) as a tensor on `device`: on a GPU normalised there

@@ -33,6 +33,7 @@ use burn::prelude::*;
 
 use self::buffer::{ReplayBuffer, Sample, Transitions};
 use super::adam::Adam;
+use super::kernels::sac_loss::{SacLoss, sac_loss_fused};
 use super::kernels::squashed::squashed_sample_fused;
 use super::nets::{self, Activation, MlpLayout, to_host, to_tensor};
 use super::noise::{host_normals_from_row, host_uniforms_from_row};
@@ -470,17 +471,30 @@ impl Sac {
         let y = (returns + bootstrap * soft_v).detach(); // [B, 1]
         let y = y.autodiff();
         let critic_in = Tensor::cat(vec![priv_obs.clone(), actions], 1); // [ĉ, a], once for every critic
-        let mut critic_loss: Option<Tensor<1>> = None;
+        // on a GPU each critic's loss and mean Q is one operation of ours (kernels::sac_loss: two
+        // kernels forward, one backward, where the tensor ops launch ~13); the CPU keeps the tensor ops
+        let on_gpu = nets::is_gpu(&self.device);
+        let log_alpha_c = log_alpha.clone().autodiff(); // a constant in the critics' and the actor's losses
+        let critic_scale = SacLoss::Critic { q_scale: 1.0 / self.critics.len() as f64 };
+        let mut critic_loss: Option<Tensor<2>> = None; // Σ_j mean((Q_j − y)²) [1, 1], or with the GPU's Σ_j mean Q_j / K beside it [1, 2]
         let mut q_sum: Option<Tensor<1>> = None;
         for c in &self.critics {
             let q = self.critic_layout.forward(c, critic_in.clone(), self.activation); // Q_j(ĉ, a) [B, 1]
-            let l = nets::mean_all((q.clone() - y.clone()).square()); // mean((Q_j − y)²)
-            let qm = nets::mean_all(q.detach());
+            let l = if on_gpu {
+                sac_loss_fused(q, y.clone(), log_alpha_c.clone(), critic_scale)
+            } else {
+                let qm = nets::mean_all(q.clone().detach());
+                q_sum = Some(match q_sum { Some(acc) => acc + qm, None => qm });
+                nets::mean_all((q - y.clone()).square()).reshape([1, 1]) // mean((Q_j − y)²)
+            };
             critic_loss = Some(match critic_loss { Some(acc) => acc + l, None => l });
-            q_sum = Some(match q_sum { Some(acc) => acc + qm, None => qm });
         }
         let critic_loss = critic_loss.expect("at least one critic");
-        let q_mean = q_sum.expect("at least one critic").div_scalar(self.critics.len() as f64);
+        // [critic loss, mean Q] [1, 2]
+        let critic_row = match q_sum {
+            Some(q_sum) => Tensor::cat(vec![critic_loss.clone().detach().inner(), q_sum.div_scalar(self.critics.len() as f64).inner().reshape([1, 1])], 1),
+            None => critic_loss.clone().detach().inner(),
+        };
         let all: Vec<Tensor<2>> = self.critics.iter().flatten().cloned().collect();
         let grads = critic_loss.clone().backward();
         let [critic_lr, actor_lr, alpha_lr] = self.learning_rates.clone();
@@ -513,7 +527,7 @@ impl Sac {
             }
         }
         self.critic_updates += 1;
-        self.sums.critic = accumulate(self.sums.critic.take(), Tensor::cat(vec![critic_loss.detach().inner(), q_mean.inner()], 0).reshape([1, 2]));
+        self.sums.critic = accumulate(self.sums.critic.take(), critic_row);
         self.sums.critic_steps += 1;
 
         // actor and temperature
@@ -524,20 +538,29 @@ impl Sac {
             // the critic's first layer as ĉ W_c + a W_a + b: its input gradient is only a's columns
             let qs: Vec<Tensor<2>> = frozen.iter().map(|c| self.critic_layout.forward_split_input(c, priv_obs.clone(), a_new.clone(), self.activation)).collect();
             let q_pi = reduce(qs, self.cfg.q_reduction);
-            let alpha_c = alpha.clone().autodiff();
-            let actor_loss = nets::mean_all(logp.clone() * alpha_c - q_pi); // mean(α log π − Q)
-            let grads = actor_loss.clone().backward();
+            // [actor loss mean(α log π − Q), entropy estimate −mean log π] [1, 2]: on a GPU one
+            // operation of ours (kernels::sac_loss), the loss its first entry
+            let (root, row) = if on_gpu {
+                let out = sac_loss_fused(logp.clone(), q_pi, log_alpha_c.clone(), SacLoss::Actor);
+                (out.clone(), out.detach().inner())
+            } else {
+                let actor_loss = nets::mean_all(logp.clone() * alpha.clone().autodiff() - q_pi); // mean(α log π − Q)
+                let entropy = nets::mean_all(logp.clone().detach().inner()).neg();
+                (actor_loss.clone().reshape([1, 1]), Tensor::cat(vec![actor_loss.detach().inner(), entropy], 0).reshape([1, 2]))
+            };
+            let grads = root.backward();
             self.actor = self.actor_adam.step_clipped(&self.actor, &grads, self.cfg.max_grad_norm as f64, &actor_lr)?.0;
-            let logp_d = logp.detach().inner(); // [B, 1]
             if self.cfg.learn_alpha {
-                // L = −mean(log α · (log π + H̄)): ∂L/∂log α = −mean(log π + H̄)
-                let coef = nets::mean_all(logp_d.clone().add_scalar(self.target_entropy)).neg().reshape([1, 1]).autodiff();
+                // L = −mean(log α · (log π + H̄)): ∂L/∂log α = −mean(log π + H̄) = (−mean log π) − H̄
+                let coef = if on_gpu {
+                    row.clone().narrow(1, 1, 1).sub_scalar(self.target_entropy).autodiff()
+                } else {
+                    nets::mean_all(logp.detach().inner().add_scalar(self.target_entropy)).neg().reshape([1, 1]).autodiff()
+                };
                 let alpha_loss = (self.log_alpha.clone() * coef).sum();
                 let grads = alpha_loss.backward();
                 self.log_alpha = self.alpha_adam.step_clipped(std::slice::from_ref(&self.log_alpha), &grads, 0.0, &alpha_lr)?.0.remove(0);
             }
-            // [actor loss, entropy estimate −mean log π]
-            let row = Tensor::cat(vec![actor_loss.detach().inner(), nets::mean_all(logp_d).neg()], 0).reshape([1, 2]);
             self.sums.actor = accumulate(self.sums.actor.take(), row);
             self.sums.actor_steps += 1;
         }
