@@ -14,27 +14,28 @@ use crate::learn::nets::{to_host, to_tensor};
 use crate::task::TaskBatch;
 use crate::task::task::{OUT_BAD_RESET, OUT_LIFT, OUT_MISC, OUT_OBJ_POS_ERR, OUT_OBJ_ROT_ERR, OUT_REWARD, OUT_SUCCESS, OUT_TERMINATED, OUT_TERMS, OUT_TIME_OUT};
 
+/// Columns of [`DeviceLoop`]'s accumulators `[N, ACC_WIDTH]` per env: Σ over the iteration's steps
+/// of the output record `[0, M)`; the same over the steps at which the env's episode ended
+/// `[M, 2M)`; Σ of the ended episodes' return and length and of the ended flags (`ACC_EPISODES`,
+/// 3 columns); Σ over the steps of the actions minus themselves (`ACC_BAD`: 0, or NaN once an
+/// action was not finite, as x − x is NaN exactly for ±∞ and NaN); the running episode's return
+/// and length (`ACC_EPISODE`, 2 columns). M = `OUT_MISC`.
+const ACC_EPISODES: usize = 2 * OUT_MISC;
+const ACC_BAD: usize = ACC_EPISODES + 3;
+const ACC_EPISODE: usize = ACC_BAD + 1;
+const ACC_WIDTH: usize = ACC_EPISODE + 2;
+
 /// The loop's tensors on the learner device. The iteration's sums are kept per env and reduced
-/// over the envs once, when the host reads them ([`DeviceLoop::take_sums`]): an env step adds a
-/// handful of element-wise kernels and no reduction.
+/// over the envs once, when the host reads them ([`DeviceLoop::take_sums`]): an env step adds one
+/// kernel of ours (shaders/loop_sums.wgsl, where the tensor ops were ~19 element-wise kernels) and
+/// no reduction.
 pub(super) struct DeviceLoop {
     device: Device,
     /// Raw observations of the current state `[N, O]` / `[N, P]`.
     pub obs: Tensor<2>,
     pub priv_obs: Tensor<2>,
-    /// The running episodes' [return, length] `[N, 2]`.
-    episode: Tensor<2>,
-    /// Ones `[N, 1]`: each env step adds [reward, 1] to `episode`.
-    ones: Tensor<2>,
-    /// Σ over the iteration's env steps of every output-record column, per env `[N, OUT_MISC]`.
-    all_steps: Tensor<2>,
-    /// The same sums over the steps at which the env's episode ended `[N, OUT_MISC]`.
-    ended: Tensor<2>,
-    /// Σ of the ended episodes' [return, length], and of the ended flags, per env `[N, 3]`.
-    episodes: Tensor<2>,
-    /// Σ over the iteration's steps of each env's actions minus themselves `[N, 1]`: 0, or NaN once
-    /// an action was not finite (x − x is NaN exactly for ±∞ and NaN).
-    bad: Tensor<2>,
+    /// The per-env sums and the running episodes `[N, ACC_WIDTH]` (see [`ACC_WIDTH`]).
+    acc: Tensor<2>,
     /// Env steps of all envs in the iteration so far.
     steps: u64,
 }
@@ -45,16 +46,15 @@ impl DeviceLoop {
     pub(super) fn new(obs: &[f32], priv_obs: &[f32], eps: &Episodes, dims: [usize; 3], device: &Device) -> DeviceLoop {
         let n = eps.ret.len();
         let dev = device.clone().inner();
-        let episode: Vec<f32> = eps.ret.iter().zip(&eps.len).flat_map(|(&r, &l)| [r as f32, l as f32]).collect();
+        let mut acc = vec![0.0f32; n * ACC_WIDTH];
+        for (i, (&r, &l)) in eps.ret.iter().zip(&eps.len).enumerate() {
+            acc[i * ACC_WIDTH + ACC_EPISODE] = r as f32;
+            acc[i * ACC_WIDTH + ACC_EPISODE + 1] = l as f32;
+        }
         DeviceLoop {
             obs: to_tensor(obs.to_vec(), [n, dims[0]], &dev),
             priv_obs: to_tensor(priv_obs.to_vec(), [n, dims[1]], &dev),
-            episode: to_tensor(episode, [n, 2], &dev),
-            ones: Tensor::ones([n, 1], &dev),
-            all_steps: Tensor::zeros([n, OUT_MISC], &dev),
-            ended: Tensor::zeros([n, OUT_MISC], &dev),
-            episodes: Tensor::zeros([n, 3], &dev),
-            bad: Tensor::zeros([n, 1], &dev),
+            acc: to_tensor(acc, [n, ACC_WIDTH], &dev),
             steps: 0,
             device: dev,
         }
@@ -65,13 +65,11 @@ impl DeviceLoop {
     /// A live view reads the shown envs after a step, when it sends a scene.
     pub(super) fn collect(&mut self, task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, steps: usize, mut live: Option<&mut crate::live::LiveView>) -> Result<()> {
         let n = task.spec().num_envs;
-        let column = |m: &Tensor<2>, k: usize| m.clone().slice([0..n, k..k + 1]); // [N, 1]
         for _ in 0..steps {
             let actions = algo.act_device(&self.obs, &self.priv_obs)?;
-            // Σ_k (a − a): NaN for an env with a non-finite action
-            self.bad = self.bad.clone() + (actions.clone() - actions.clone()).sum_dim(1);
             let out = task.step_on_device(&actions, &self.device)?;
-            let (reward, terminated, time_out) = (column(&out.misc, OUT_REWARD), column(&out.misc, OUT_TERMINATED), column(&out.misc, OUT_TIME_OUT));
+            let (acc, [reward, terminated, time_out]) = step_sums(&actions, &out.misc, &self.acc)?;
+            self.acc = acc;
             algo.observe_device(&DeviceOutcome {
                 reward: &reward,
                 terminated: &terminated,
@@ -81,14 +79,6 @@ impl DeviceLoop {
                 final_obs: out.final_obs.as_ref(),
                 final_priv_obs: out.final_priv_obs.as_ref(),
             })?;
-            let done = terminated.max_pair(time_out); // [N, 1], flags 0 or 1
-            // the episodes' return and length, then what ended: [return, length] · done
-            self.episode = self.episode.clone() + Tensor::cat(vec![reward, self.ones.clone()], 1);
-            let ended_episode = self.episode.clone() * done.clone(); // [N, 2]
-            self.episodes = self.episodes.clone() + Tensor::cat(vec![ended_episode.clone(), done.clone()], 1);
-            self.episode = self.episode.clone() - ended_episode; // the ended episodes restart from 0
-            self.all_steps = self.all_steps.clone() + out.misc.clone();
-            self.ended = self.ended.clone() + out.misc * done;
             self.obs = out.obs;
             self.priv_obs = out.priv_obs;
             self.steps += n as u64;
@@ -103,7 +93,8 @@ impl DeviceLoop {
     /// over the envs), then zeroed. A non-finite action in the iteration is an error, as the host
     /// path's check of each step's actions.
     pub(super) fn take_sums(&mut self, n_terms: usize) -> Result<RolloutSums> {
-        let per_env = Tensor::cat(vec![self.all_steps.clone(), self.ended.clone(), self.episodes.clone(), self.bad.clone().is_nan().float()], 1);
+        let n = self.acc.dims()[0];
+        let per_env = Tensor::cat(vec![self.acc.clone().narrow(1, 0, ACC_BAD), self.acc.clone().narrow(1, ACC_BAD, 1).is_nan().float()], 1);
         let v = to_host(per_env.sum_dim(0))?; // [1, 2 · OUT_MISC + 4]: Σ over the envs
         let (all, ended, eps) = (&v[..OUT_MISC], &v[OUT_MISC..2 * OUT_MISC], &v[2 * OUT_MISC..]);
         if eps[3] > 0.0 {
@@ -123,19 +114,52 @@ impl DeviceLoop {
             obj_pos_err: all[OUT_OBJ_POS_ERR] as f64,
             obj_rot_err: (all[OUT_OBJ_ROT_ERR] as f64).to_degrees(),
         };
-        self.all_steps = self.all_steps.zeros_like();
-        self.ended = self.ended.zeros_like();
-        self.episodes = self.episodes.zeros_like();
-        self.bad = self.bad.zeros_like();
+        // the sums start again from zero; the running episodes go on
+        self.acc = Tensor::cat(vec![Tensor::zeros([n, ACC_EPISODE], &self.device), self.acc.clone().narrow(1, ACC_EPISODE, 2)], 1);
         self.steps = 0;
         Ok(s)
     }
 
     /// The observations and the running episodes' accumulators on the host (for a checkpoint).
     pub(super) fn to_host(&self) -> Result<(Vec<f32>, Vec<f32>, Episodes)> {
-        let episode = to_host(self.episode.clone())?; // [N, 2]: return, length
+        let episode = to_host(self.acc.clone().narrow(1, ACC_EPISODE, 2))?; // [N, 2]: return, length
         let ret = episode.iter().step_by(2).map(|&x| x as f64).collect();
         let len = episode.iter().skip(1).step_by(2).map(|&x| x as f64).collect();
         Ok((to_host(self.obs.clone())?, to_host(self.priv_obs.clone())?, Episodes { ret, len }))
     }
+}
+
+/// shaders/loop_sums.wgsl.
+const SHADER_LOOP_SUMS: &str = include_str!("../../shaders/loop_sums.wgsl");
+
+/// The loop-sums kernel's module (one variant).
+fn loop_sums_source(_: ()) -> String {
+    SHADER_LOOP_SUMS.to_string()
+}
+
+/// One env step's sums as one kernel of ours on burn's stream: the accumulators after the step
+/// `[N, ACC_WIDTH]` (a fresh tensor) from those before it, the step's actions `[N, A]` and output
+/// records `misc` `[N, OUT_MISC]`, and the step's reward, terminated and time-out flags, each
+/// `[N, 1]`, for the algorithm.
+fn step_sums(actions: &Tensor<2>, misc: &Tensor<2>, acc: &Tensor<2>) -> Result<(Tensor<2>, [Tensor<2>; 3])> {
+    use burn::backend::{Cube, TensorMetadata};
+    use burn::backend::ops::FloatTensorOps;
+    use burn::backend::tensor::FloatTensor;
+    use burn::tensor::{DType, FloatDType, Shape};
+    use crate::learn::kernels::wgsl_kernel::{WgslKernel, launch};
+    let [n, a] = actions.dims();
+    let prim = |t: &Tensor<2>, cols: usize| -> Result<FloatTensor<Cube>> {
+        let p = t.clone().inner().try_into_primitive::<Cube>().map_err(|e| anyhow::anyhow!("the device-resident loop needs burn's wgpu device: {e:?}"))?;
+        anyhow::ensure!(p.dtype == DType::F32 && p.is_contiguous() && p.shape().to_vec() == [n, cols], "the device-resident loop's sums: a tensor of shape {:?}, {:?}, not a contiguous f32 [{n}, {cols}]", p.shape().to_vec(), p.dtype);
+        Ok(p)
+    };
+    let (ap, mp, cp) = (prim(actions, a)?, prim(misc, OUT_MISC)?, prim(acc, ACC_WIDTH)?);
+    let empty = |cols: usize| Cube::float_empty(Shape::new([n, cols]), &ap.device, FloatDType::F32); // written whole by the kernel
+    let (acc_out, reward, terminated, time_out) = (empty(ACC_WIDTH), empty(1), empty(1), empty(1));
+    let kernel = WgslKernel { name: "dextrain_loop_sums", key: (), source: loop_sums_source, entry_point: "loop_sums", workgroup: [64, 1] };
+    let groups = u32::try_from(n.div_ceil(64)).ok().filter(|&g| g <= 65_535).ok_or_else(|| anyhow::anyhow!("the device-resident loop's sums: {n} envs are more than one kernel's grid"))?;
+    let constants = [n as u32, a as u32, OUT_MISC as u32, OUT_REWARD as u32, OUT_TERMINATED as u32, OUT_TIME_OUT as u32];
+    launch(kernel, [groups, 1, 1], &[&ap, &mp, &cp, &acc_out, &reward, &terminated, &time_out], &constants);
+    let t = |p: FloatTensor<Cube>| Tensor::<2>::from_primitive::<Cube>(p);
+    Ok((t(acc_out), [t(reward), t(terminated), t(time_out)]))
 }

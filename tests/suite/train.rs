@@ -327,13 +327,14 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
 /// `training_runs_with_env_and_learner_on_one_gpu_device` (lift, actor and critic [32, 16], 8 envs
 /// × 4 steps), its second iteration: 149.5 before issue 33's work, 72.75 before the dense layers'
 /// bias and ELU went into dextrain's matmul kernel, 46.75 before the output record grew from 17 to
-/// 21 floats (issue 36's grasp terms: up to 12 term slots).
-const PINNED_KERNELS_PER_STEP: f64 = 47.75;
+/// 21 floats (issue 36's grasp terms: up to 12 term slots), 47.75 before the loop's per-env sums
+/// were one kernel of ours, 29.75 before PPO's reward and done flag of a step were one.
+const PINNED_KERNELS_PER_STEP: f64 = 23.75;
 /// Kernels per PPO update of the same run (5 epochs × 4 minibatches): 9,306 before issue 33's work,
 /// 4,912 before the matmul kernel's epilogues, 4,379 before ELU's gradient was one kernel of ours,
 /// 4,219 before PPO's loss (two kernels each way) and the adaptive learning rate (one) were
-/// kernels of ours.
-const PINNED_KERNELS_PER_UPDATE: f64 = 1386.0;
+/// kernels of ours, 1,386 before GAE was one (this run's rollouts are 4 steps long).
+const PINNED_KERNELS_PER_UPDATE: f64 = 1354.0;
 
 /// SAC with its replay buffer on the GPU (lavapipe in CI): the device-resident run gives the host
 /// path's run to float rounding (every metric, every policy value), its host traffic per iteration

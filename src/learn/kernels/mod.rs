@@ -31,6 +31,7 @@ pub mod isa;
 pub mod layer_norm;
 pub mod matmul_tuning;
 pub mod ppo_loss;
+pub mod ppo_rollout;
 pub mod row_sums;
 pub mod sac_loss;
 pub mod sgemm;

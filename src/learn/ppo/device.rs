@@ -6,8 +6,9 @@
 //! - the action noise ([`crate::learn::noise::DeviceNoise`]: the host path's draws, drawn by a
 //!   shader, the whole rollout's at its first step), the actions, their log-probabilities and the
 //!   values;
-//! - the rollout storage (one record of tensors per env step) and GAE, a backward loop of
-//!   `[N, 1]` tensor ops over the rollout's steps, then the advantage normalisation;
+//! - the rollout storage (one record of tensors per env step; each step's learner reward and done
+//!   flag one kernel of ours) and GAE (one kernel of ours over the rollout, `kernels::ppo_rollout`),
+//!   then the advantage normalisation;
 //! - the update: the host path's [`Ppo::optimise`], on the concatenated records.
 //!
 //! What still crosses: the minibatch indices (from the learner RNG on the host, as the host path
@@ -21,6 +22,7 @@ use burn::prelude::*;
 
 use super::{Batch, LN_2PI, Ppo, UpdateStats};
 use crate::gpu::context::GpuContext;
+use crate::learn::kernels::ppo_rollout;
 use crate::learn::noise::DeviceNoise;
 use crate::learn::normalizer::DeviceNormalizers;
 
@@ -36,9 +38,8 @@ struct StepRecord {
     /// log π(a|s) and V(s) `[N, 1]`.
     log_prob: Tensor<2>,
     values: Tensor<2>,
-    /// The learner's reward (time-outs bootstrapped) and the done flags `[N, 1]`, once observed.
-    rewards: Option<Tensor<2>>,
-    dones: Option<Tensor<2>>,
+    /// The learner's reward (time-outs bootstrapped) and the done flag `[N, 2]`, once observed.
+    reward_done: Option<Tensor<2>>,
 }
 
 /// A block of a rollout's action noise: ε `[K · N, A]` for env steps `first .. first + K` (rows
@@ -124,8 +125,7 @@ impl Ppo {
             sigma,
             log_prob,
             values,
-            rewards: None,
-            dones: None,
+            reward_done: None,
         });
         Ok(actions)
     }
@@ -135,13 +135,11 @@ impl Ppo {
     pub fn process_step_device(&mut self, rewards: &Tensor<2>, terminated: &Tensor<2>, time_outs: &Tensor<2>) -> Result<()> {
         let (scale, gamma) = (self.cfg.reward_scale as f64, self.cfg.gamma as f64);
         let r = self.on_device.as_mut().ok_or_else(|| anyhow::anyhow!("process_step_device() before start_device_rollouts()"))?;
-        let rec = r.steps.last_mut().filter(|s| s.rewards.is_none()).ok_or_else(|| anyhow::anyhow!("process_step_device() without act_device()"))?;
+        let rec = r.steps.last_mut().filter(|s| s.reward_done.is_none()).ok_or_else(|| anyhow::anyhow!("process_step_device() without act_device()"))?;
         // flags 0 or 1: done = max(terminated, time-out); a time-out that is not a termination is
-        // done − terminated. r = scale · r_env + γ V(s_t) on it (bootstrap through the time-out)
-        let done = terminated.clone().max_pair(time_outs.clone());
-        let timeout_only = done.clone() - terminated.clone();
-        rec.rewards = Some(rewards.clone().mul_scalar(scale) + rec.values.clone().mul_scalar(gamma) * timeout_only);
-        rec.dones = Some(done);
+        // done − terminated. r = scale · r_env + γ V(s_t) on it (bootstrap through the time-out);
+        // one kernel of ours
+        rec.reward_done = Some(ppo_rollout::step_reward(rewards, terminated, time_outs, &rec.values, scale, gamma)?);
         self.step += 1;
         self.storage.len = self.step * self.storage.envs;
         Ok(())
@@ -157,31 +155,18 @@ impl Ppo {
         r.noise_block = None;
         let priv_n = r.norms.priv_obs.normalized(last_priv_obs.clone(), normalize);
         let last_values = self.net.critic(&self.net.inference_params(), priv_n); // [N, 1]
-        // GAE backwards in time (storage.rs's `gae`, as [N, 1] tensor ops):
+        // GAE backwards in time (storage.rs's `gae`), one kernel of ours over the whole rollout:
         // δ_t = r_t + γ V(s_{t+1}) (1 − d_t) − V(s_t), A_t = δ_t + γλ (1 − d_t) A_{t+1}, R_t = A_t + V(s_t)
         let t_len = steps.len();
-        let mut advantages: Vec<Tensor<2>> = Vec::with_capacity(t_len);
-        let mut next_adv: Option<Tensor<2>> = None;
-        for t in (0..t_len).rev() {
-            let s = &steps[t];
-            let (rew, done) = match (&s.rewards, &s.dones) {
-                (Some(r), Some(d)) => (r.clone(), d.clone()),
-                _ => anyhow::bail!("update_device(): step {t} of the rollout was never observed"),
-            };
-            let next_value = if t + 1 == t_len { last_values.clone() } else { steps[t + 1].values.clone() };
-            let not_done = done.ones_like() - done;
-            let delta = rew + next_value.mul_scalar(gamma) * not_done.clone() - s.values.clone(); // δ
-            let adv = match next_adv {
-                Some(a) => delta + a.mul_scalar(gamma * lam) * not_done, // A = δ + γλ (1 − d) A'
-                None => delta,
-            };
-            advantages.push(adv.clone());
-            next_adv = Some(adv);
-        }
-        advantages.reverse();
         let cat = |f: &dyn Fn(&StepRecord) -> Tensor<2>| Tensor::cat(steps.iter().map(f).collect(), 0);
+        let reward_done = steps
+            .iter()
+            .enumerate()
+            .map(|(t, s)| s.reward_done.clone().ok_or_else(|| anyhow::anyhow!("update_device(): step {t} of the rollout was never observed")))
+            .collect::<Result<Vec<_>>>()?;
+        let reward_done = Tensor::cat(reward_done, 0); // [T·N, 2]
         let values = cat(&|s| s.values.clone()); // [T·N, 1]
-        let adv = Tensor::cat(advantages, 0); // [T·N, 1]
+        let adv = ppo_rollout::gae(&reward_done, &values, &last_values, t_len, gamma, lam)?; // [T·N, 1]
         let returns = adv.clone() + values.clone();
         // normalised over the rollout: zero mean, unit (unbiased, as torch's .std()) std
         let total = adv.dims()[0];
