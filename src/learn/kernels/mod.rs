@@ -16,6 +16,11 @@
 //!   (`dextrain_tuned`, the same numbers whichever wins); `wgsl_kernel.rs`: how our own WGSL kernels launch on burn's command stream;
 //! - `squashed.rs`: SAC's squashed-Gaussian sample and its log-probability as one operation with
 //!   its own gradient (a kernel of ours each way on the GPU, shaders/squashed_sample*.wgsl);
+//! - `ppo_loss.rs`, `sac_loss.rs`: PPO's loss of a minibatch and SAC's critic and actor losses as
+//!   one operation each with its own gradient (kernels of ours on the GPU, tensor ops elsewhere);
+//!   `adaptive_lr.rs`: PPO's adaptive learning rate as one kernel on the GPU; `standardize.rs`: a
+//!   GPU learner's host-path observations standardised by one kernel; `ppo_rollout.rs`: PPO's
+//!   device-resident step reward and GAE as kernels of ours;
 //! - `row_sums.rs`: sums over the batch's rows in two stages on the GPU (losses, ∂b, ∂ log σ);
 //! - `fused_adam.rs`: Adam with global-norm clipping as kernels of ours on the GPU
 //!   (shaders/adam.wgsl); `fused_normalizer.rs`: the device-resident observation normalisers
