@@ -15,8 +15,6 @@
 @group(0) @binding(7) var<storage, read_write> pl_partial: array<f32>;  // [groups, A] Σ over rows of ∂L/∂log σ's row terms
 @group(0) @binding(8) var<uniform> pc: PpoLossCfg;
 
-var<workgroup> pl_sums: array<f32, 256>;
-
 @compute @workgroup_size(256, 1, 1)
 fn ppo_loss_backward(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
     let r = gid.x;
@@ -50,16 +48,10 @@ fn ppo_loss_backward(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(loc
             term = g_lp * (z * z - 1.0);
         }
         // the workgroup's rows summed as a tree (a fixed order)
-        pl_sums[t] = term;
-        workgroupBarrier();
-        for (var s = PL_WORKGROUP / 2u; s > 0u; s = s / 2u) {
-            if t < s {
-                pl_sums[t] = pl_sums[t] + pl_sums[t + s];
-            }
-            workgroupBarrier();
-        }
+        pl_sums[t] = vec3<f32>(term, 0.0, 0.0);
+        pl_tree_sum(t);
         if t == 0u {
-            pl_partial[wid.x * a + k] = pl_sums[0];
+            pl_partial[wid.x * a + k] = pl_sums[0].x;
         }
         workgroupBarrier();
     }

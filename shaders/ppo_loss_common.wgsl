@@ -30,6 +30,21 @@ struct PpoLossCfg {
 const PL_WORKGROUP: u32 = 256u;
 const PL_LN_2PI: f32 = 1.8378770664093453;
 
+// each invocation's terms, summed over the workgroup by pl_tree_sum
+var<workgroup> pl_sums: array<vec3<f32>, 256>;
+
+// the workgroup's tree sum of pl_sums, left in pl_sums[0] (every invocation calls it, in uniform
+// control flow: it holds the workgroup's barriers)
+fn pl_tree_sum(t: u32) {
+    workgroupBarrier();
+    for (var s = PL_WORKGROUP / 2u; s > 0u; s = s / 2u) {
+        if t < s {
+            pl_sums[t] = pl_sums[t] + pl_sums[t + s];
+        }
+        workgroupBarrier();
+    }
+}
+
 // the minibatch columns' row width 2A + 4, and where log π_old, Â, R and V_old sit in a row
 fn pl_width() -> u32 {
     return 2u * pc.a + 4u;

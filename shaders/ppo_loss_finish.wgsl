@@ -8,8 +8,6 @@
 @group(0) @binding(2) var<storage, read_write> pl_out: array<f32>;     // [1, 5]
 @group(0) @binding(3) var<uniform> pc: PpoLossCfg;
 
-var<workgroup> pl_sums: array<vec3<f32>, 256>;
-
 @compute @workgroup_size(256, 1, 1)
 fn ppo_loss_finish(@builtin(local_invocation_id) lid: vec3<u32>) {
     let t = lid.x;
@@ -18,13 +16,7 @@ fn ppo_loss_finish(@builtin(local_invocation_id) lid: vec3<u32>) {
         acc += vec3<f32>(pl_partial[g * 3u], pl_partial[g * 3u + 1u], pl_partial[g * 3u + 2u]);
     }
     pl_sums[t] = acc;
-    workgroupBarrier();
-    for (var s = PL_WORKGROUP / 2u; s > 0u; s = s / 2u) {
-        if t < s {
-            pl_sums[t] = pl_sums[t] + pl_sums[t + s];
-        }
-        workgroupBarrier();
-    }
+    pl_tree_sum(t);
     if t == 0u {
         let n = f32(pc.rows);
         let surrogate = pl_sums[0].x / n;

@@ -9,8 +9,6 @@
 @group(0) @binding(5) var<storage, read_write> pl_partial: array<f32>;   // [groups, 3] Σ surrogate, value, KL
 @group(0) @binding(6) var<uniform> pc: PpoLossCfg;
 
-var<workgroup> pl_sums: array<vec3<f32>, 256>;
-
 @compute @workgroup_size(256, 1, 1)
 fn ppo_loss_rows(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
     let r = gid.x;
@@ -40,13 +38,7 @@ fn ppo_loss_rows(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_i
     // the workgroup's rows summed as a tree (a fixed order)
     let t = lid.x;
     pl_sums[t] = terms;
-    workgroupBarrier();
-    for (var s = PL_WORKGROUP / 2u; s > 0u; s = s / 2u) {
-        if t < s {
-            pl_sums[t] = pl_sums[t] + pl_sums[t + s];
-        }
-        workgroupBarrier();
-    }
+    pl_tree_sum(t);
     if t == 0u {
         let total = pl_sums[0];
         pl_partial[wid.x * 3u] = total.x;

@@ -21,6 +21,21 @@ struct SacLossCfg {
 
 const SL_WORKGROUP: u32 = 256u;
 
+// each invocation's two terms, summed over the workgroup by sl_tree_sum
+var<workgroup> sl_sums: array<vec2<f32>, 256>;
+
+// the workgroup's tree sum of sl_sums, left in sl_sums[0] (every invocation calls it, in uniform
+// control flow: it holds the workgroup's barriers)
+fn sl_tree_sum(t: u32) {
+    workgroupBarrier();
+    for (var s = SL_WORKGROUP / 2u; s > 0u; s = s / 2u) {
+        if t < s {
+            sl_sums[t] = sl_sums[t] + sl_sums[t + s];
+        }
+        workgroupBarrier();
+    }
+}
+
 // the row's two terms (kind 0: (a − b)², a; kind 1: α a − b, a)
 fn sl_terms(a: f32, b: f32, alpha: f32) -> vec2<f32> {
     if sc.kind == 0u {

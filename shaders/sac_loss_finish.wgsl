@@ -6,8 +6,6 @@
 @group(0) @binding(1) var<storage, read_write> sl_out: array<f32>;     // [1, 2]
 @group(0) @binding(2) var<uniform> sc: SacLossCfg;
 
-var<workgroup> sl_sums: array<vec2<f32>, 256>;
-
 @compute @workgroup_size(256, 1, 1)
 fn sac_loss_finish(@builtin(local_invocation_id) lid: vec3<u32>) {
     let t = lid.x;
@@ -16,13 +14,7 @@ fn sac_loss_finish(@builtin(local_invocation_id) lid: vec3<u32>) {
         acc += vec2<f32>(sl_partial[g * 2u], sl_partial[g * 2u + 1u]);
     }
     sl_sums[t] = acc;
-    workgroupBarrier();
-    for (var s = SL_WORKGROUP / 2u; s > 0u; s = s / 2u) {
-        if t < s {
-            sl_sums[t] = sl_sums[t] + sl_sums[t + s];
-        }
-        workgroupBarrier();
-    }
+    sl_tree_sum(t);
     if t == 0u {
         let n = f32(sc.rows);
         sl_out[0] = sl_sums[0].x / n;

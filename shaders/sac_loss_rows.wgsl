@@ -7,8 +7,6 @@
 @group(0) @binding(3) var<storage, read_write> sl_partial: array<f32>; // [groups, 2]
 @group(0) @binding(4) var<uniform> sc: SacLossCfg;
 
-var<workgroup> sl_sums: array<vec2<f32>, 256>;
-
 @compute @workgroup_size(256, 1, 1)
 fn sac_loss_rows(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_invocation_id) lid: vec3<u32>, @builtin(workgroup_id) wid: vec3<u32>) {
     let r = gid.x;
@@ -18,13 +16,7 @@ fn sac_loss_rows(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(local_i
     }
     let t = lid.x;
     sl_sums[t] = terms;
-    workgroupBarrier();
-    for (var s = SL_WORKGROUP / 2u; s > 0u; s = s / 2u) {
-        if t < s {
-            sl_sums[t] = sl_sums[t] + sl_sums[t + s];
-        }
-        workgroupBarrier();
-    }
+    sl_tree_sum(t);
     if t == 0u {
         sl_partial[wid.x * 2u] = sl_sums[0].x;
         sl_partial[wid.x * 2u + 1u] = sl_sums[0].y;

@@ -342,6 +342,203 @@ pub const SQ_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain squashed sampl
 /// The squashed sample's backward module.
 pub const SQB_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain squashed sample backward", bindings: &[SQ_HEAD, SQ_EPS, SQ_DOUT, SQ_DHEAD, SQB_CFG], entry_points: &[SQ_BACKWARD] };
 
+// ---- dextrain's kernels on burn's stream for the learners' losses and the device-resident loop's
+// bookkeeping (learn/kernels/ppo_loss.rs, sac_loss.rs, adaptive_lr.rs, standardize.rs,
+// ppo_rollout.rs, run/device_loop.rs; each WGSL file a module of its own, bound in this order by
+// learn::kernels::wgsl_kernel::launch: the buffers, then the constants as a uniform)
+
+/// [B, A] μ (ppo_loss_rows.wgsl).
+pub const PL_ROWS_MU: Binding = binding(0, "pl_mu", StorageReadWrite);
+/// [B, 1] V (ppo_loss_rows.wgsl).
+pub const PL_ROWS_V: Binding = binding(1, "pl_v", StorageReadWrite);
+/// [1, A] log σ (ppo_loss_rows.wgsl).
+pub const PL_ROWS_LOG_STD: Binding = binding(2, "pl_log_std", StorageReadWrite);
+/// [1, A] σ_old (ppo_loss_rows.wgsl).
+pub const PL_ROWS_OLD_SIGMA: Binding = binding(3, "pl_old_sigma", StorageReadWrite);
+/// [B, 2A + 4] the minibatch's columns (ppo_loss_rows.wgsl).
+pub const PL_ROWS_COLS: Binding = binding(4, "pl_cols", StorageReadWrite);
+/// [groups, 3] Σ surrogate, value, KL (ppo_loss_rows.wgsl).
+pub const PL_ROWS_PARTIAL: Binding = binding(5, "pl_partial", StorageReadWrite);
+/// the launch's constants (ppo_loss_rows.wgsl).
+pub const PL_ROWS_CFG: Binding = binding(6, "pc", Uniform);
+/// `ppo_loss_rows`: PPO's loss, forward, stage 1 (after ppo_loss_common.wgsl).
+pub const PL_ROWS_ENTRY: EntryBindings = EntryBindings { entry_point: "ppo_loss_rows", bindings: &[PL_ROWS_MU, PL_ROWS_V, PL_ROWS_LOG_STD, PL_ROWS_OLD_SIGMA, PL_ROWS_COLS, PL_ROWS_PARTIAL, PL_ROWS_CFG] };
+/// shaders/ppo_loss_rows.wgsl.
+pub const PL_ROWS_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain ppo loss rows", bindings: &[PL_ROWS_MU, PL_ROWS_V, PL_ROWS_LOG_STD, PL_ROWS_OLD_SIGMA, PL_ROWS_COLS, PL_ROWS_PARTIAL, PL_ROWS_CFG], entry_points: &[PL_ROWS_ENTRY] };
+
+/// [groups, 3] (ppo_loss_finish.wgsl).
+pub const PL_FINISH_PARTIAL: Binding = binding(0, "pl_partial", StorageReadWrite);
+/// [1, A] log σ (ppo_loss_finish.wgsl).
+pub const PL_FINISH_LOG_STD: Binding = binding(1, "pl_log_std", StorageReadWrite);
+/// [1, 5] (ppo_loss_finish.wgsl).
+pub const PL_FINISH_OUT: Binding = binding(2, "pl_out", StorageReadWrite);
+/// the launch's constants (ppo_loss_finish.wgsl).
+pub const PL_FINISH_CFG: Binding = binding(3, "pc", Uniform);
+/// `ppo_loss_finish`: PPO's loss, forward, stage 2.
+pub const PL_FINISH_ENTRY: EntryBindings = EntryBindings { entry_point: "ppo_loss_finish", bindings: &[PL_FINISH_PARTIAL, PL_FINISH_LOG_STD, PL_FINISH_OUT, PL_FINISH_CFG] };
+/// shaders/ppo_loss_finish.wgsl.
+pub const PL_FINISH_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain ppo loss finish", bindings: &[PL_FINISH_PARTIAL, PL_FINISH_LOG_STD, PL_FINISH_OUT, PL_FINISH_CFG], entry_points: &[PL_FINISH_ENTRY] };
+
+/// [B, A] μ (ppo_loss_backward.wgsl).
+pub const PL_BACKWARD_MU: Binding = binding(0, "pl_mu", StorageReadWrite);
+/// [B, 1] V (ppo_loss_backward.wgsl).
+pub const PL_BACKWARD_V: Binding = binding(1, "pl_v", StorageReadWrite);
+/// [1, A] log σ (ppo_loss_backward.wgsl).
+pub const PL_BACKWARD_LOG_STD: Binding = binding(2, "pl_log_std", StorageReadWrite);
+/// [B, 2A + 4] (ppo_loss_backward.wgsl).
+pub const PL_BACKWARD_COLS: Binding = binding(3, "pl_cols", StorageReadWrite);
+/// [1, 5] ∂L/∂out (∂L/∂total first) (ppo_loss_backward.wgsl).
+pub const PL_BACKWARD_DOUT: Binding = binding(4, "pl_dout", StorageReadWrite);
+/// [B, A] ∂L/∂μ (ppo_loss_backward.wgsl).
+pub const PL_BACKWARD_DMU: Binding = binding(5, "pl_dmu", StorageReadWrite);
+/// [B, 1] ∂L/∂V (ppo_loss_backward.wgsl).
+pub const PL_BACKWARD_DV: Binding = binding(6, "pl_dv", StorageReadWrite);
+/// [groups, A] Σ over rows of ∂L/∂log σ's row terms (ppo_loss_backward.wgsl).
+pub const PL_BACKWARD_PARTIAL: Binding = binding(7, "pl_partial", StorageReadWrite);
+/// the launch's constants (ppo_loss_backward.wgsl).
+pub const PL_BACKWARD_CFG: Binding = binding(8, "pc", Uniform);
+/// `ppo_loss_backward`: PPO's loss, backward, stage 1.
+pub const PL_BACKWARD_ENTRY: EntryBindings = EntryBindings { entry_point: "ppo_loss_backward", bindings: &[PL_BACKWARD_MU, PL_BACKWARD_V, PL_BACKWARD_LOG_STD, PL_BACKWARD_COLS, PL_BACKWARD_DOUT, PL_BACKWARD_DMU, PL_BACKWARD_DV, PL_BACKWARD_PARTIAL, PL_BACKWARD_CFG] };
+/// shaders/ppo_loss_backward.wgsl.
+pub const PL_BACKWARD_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain ppo loss backward", bindings: &[PL_BACKWARD_MU, PL_BACKWARD_V, PL_BACKWARD_LOG_STD, PL_BACKWARD_COLS, PL_BACKWARD_DOUT, PL_BACKWARD_DMU, PL_BACKWARD_DV, PL_BACKWARD_PARTIAL, PL_BACKWARD_CFG], entry_points: &[PL_BACKWARD_ENTRY] };
+
+/// [groups, A] (ppo_loss_backward_finish.wgsl).
+pub const PL_BACKWARD_FINISH_PARTIAL: Binding = binding(0, "pl_partial", StorageReadWrite);
+/// [1, 5] ∂L/∂out (ppo_loss_backward_finish.wgsl).
+pub const PL_BACKWARD_FINISH_DOUT: Binding = binding(1, "pl_dout", StorageReadWrite);
+/// [1, A] ∂L/∂ log σ (ppo_loss_backward_finish.wgsl).
+pub const PL_BACKWARD_FINISH_DLOG_STD: Binding = binding(2, "pl_dlog_std", StorageReadWrite);
+/// the launch's constants (ppo_loss_backward_finish.wgsl).
+pub const PL_BACKWARD_FINISH_CFG: Binding = binding(3, "pc", Uniform);
+/// `ppo_loss_backward_finish`: PPO's loss, backward, stage 2.
+pub const PL_BACKWARD_FINISH_ENTRY: EntryBindings = EntryBindings { entry_point: "ppo_loss_backward_finish", bindings: &[PL_BACKWARD_FINISH_PARTIAL, PL_BACKWARD_FINISH_DOUT, PL_BACKWARD_FINISH_DLOG_STD, PL_BACKWARD_FINISH_CFG] };
+/// shaders/ppo_loss_backward_finish.wgsl.
+pub const PL_BACKWARD_FINISH_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain ppo loss backward finish", bindings: &[PL_BACKWARD_FINISH_PARTIAL, PL_BACKWARD_FINISH_DOUT, PL_BACKWARD_FINISH_DLOG_STD, PL_BACKWARD_FINISH_CFG], entry_points: &[PL_BACKWARD_FINISH_ENTRY] };
+
+/// [B, 1] (sac_loss_rows.wgsl).
+pub const SL_ROWS_A: Binding = binding(0, "sl_a", StorageReadWrite);
+/// [B, 1] (sac_loss_rows.wgsl).
+pub const SL_ROWS_B: Binding = binding(1, "sl_b", StorageReadWrite);
+/// [1, 1] log α (kind 1) (sac_loss_rows.wgsl).
+pub const SL_ROWS_ALPHA: Binding = binding(2, "sl_alpha", StorageReadWrite);
+/// [groups, 2] (sac_loss_rows.wgsl).
+pub const SL_ROWS_PARTIAL: Binding = binding(3, "sl_partial", StorageReadWrite);
+/// the launch's constants (sac_loss_rows.wgsl).
+pub const SL_ROWS_CFG: Binding = binding(4, "sc", Uniform);
+/// `sac_loss_rows`: SAC's per-row losses, forward, stage 1 (after sac_loss_common.wgsl).
+pub const SL_ROWS_ENTRY: EntryBindings = EntryBindings { entry_point: "sac_loss_rows", bindings: &[SL_ROWS_A, SL_ROWS_B, SL_ROWS_ALPHA, SL_ROWS_PARTIAL, SL_ROWS_CFG] };
+/// shaders/sac_loss_rows.wgsl.
+pub const SL_ROWS_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain sac loss rows", bindings: &[SL_ROWS_A, SL_ROWS_B, SL_ROWS_ALPHA, SL_ROWS_PARTIAL, SL_ROWS_CFG], entry_points: &[SL_ROWS_ENTRY] };
+
+/// [groups, 2] (sac_loss_finish.wgsl).
+pub const SL_FINISH_PARTIAL: Binding = binding(0, "sl_partial", StorageReadWrite);
+/// [1, 2] (sac_loss_finish.wgsl).
+pub const SL_FINISH_OUT: Binding = binding(1, "sl_out", StorageReadWrite);
+/// the launch's constants (sac_loss_finish.wgsl).
+pub const SL_FINISH_CFG: Binding = binding(2, "sc", Uniform);
+/// `sac_loss_finish`: SAC's per-row losses, forward, stage 2.
+pub const SL_FINISH_ENTRY: EntryBindings = EntryBindings { entry_point: "sac_loss_finish", bindings: &[SL_FINISH_PARTIAL, SL_FINISH_OUT, SL_FINISH_CFG] };
+/// shaders/sac_loss_finish.wgsl.
+pub const SL_FINISH_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain sac loss finish", bindings: &[SL_FINISH_PARTIAL, SL_FINISH_OUT, SL_FINISH_CFG], entry_points: &[SL_FINISH_ENTRY] };
+
+/// [B, 1] (sac_loss_backward.wgsl).
+pub const SL_BACKWARD_A: Binding = binding(0, "sl_a", StorageReadWrite);
+/// [B, 1] (sac_loss_backward.wgsl).
+pub const SL_BACKWARD_B: Binding = binding(1, "sl_b", StorageReadWrite);
+/// [1, 1] log α (kind 1) (sac_loss_backward.wgsl).
+pub const SL_BACKWARD_ALPHA: Binding = binding(2, "sl_alpha", StorageReadWrite);
+/// [1, 2] ∂L/∂out (sac_loss_backward.wgsl).
+pub const SL_BACKWARD_DOUT: Binding = binding(3, "sl_dout", StorageReadWrite);
+/// [B, 1] (sac_loss_backward.wgsl).
+pub const SL_BACKWARD_DA: Binding = binding(4, "sl_da", StorageReadWrite);
+/// [B, 1] (sac_loss_backward.wgsl).
+pub const SL_BACKWARD_DB: Binding = binding(5, "sl_db", StorageReadWrite);
+/// the launch's constants (sac_loss_backward.wgsl).
+pub const SL_BACKWARD_CFG: Binding = binding(6, "sc", Uniform);
+/// `sac_loss_backward`: SAC's per-row losses, backward.
+pub const SL_BACKWARD_ENTRY: EntryBindings = EntryBindings { entry_point: "sac_loss_backward", bindings: &[SL_BACKWARD_A, SL_BACKWARD_B, SL_BACKWARD_ALPHA, SL_BACKWARD_DOUT, SL_BACKWARD_DA, SL_BACKWARD_DB, SL_BACKWARD_CFG] };
+/// shaders/sac_loss_backward.wgsl.
+pub const SL_BACKWARD_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain sac loss backward", bindings: &[SL_BACKWARD_A, SL_BACKWARD_B, SL_BACKWARD_ALPHA, SL_BACKWARD_DOUT, SL_BACKWARD_DA, SL_BACKWARD_DB, SL_BACKWARD_CFG], entry_points: &[SL_BACKWARD_ENTRY] };
+
+/// [1, 1] the learning rate (adaptive_lr.wgsl).
+pub const AL_LR: Binding = binding(0, "al_lr", StorageReadWrite);
+/// [1, n] holding the KL at `column` (adaptive_lr.wgsl).
+pub const AL_KL_ROW: Binding = binding(1, "al_kl_row", StorageReadWrite);
+/// [1, 1] the adapted learning rate (adaptive_lr.wgsl).
+pub const AL_OUT: Binding = binding(2, "al_out", StorageReadWrite);
+/// the launch's constants (adaptive_lr.wgsl).
+pub const AL_CFG: Binding = binding(3, "ac", Uniform);
+/// `adaptive_lr`: PPO's adaptive learning rate.
+pub const AL_ENTRY: EntryBindings = EntryBindings { entry_point: "adaptive_lr", bindings: &[AL_LR, AL_KL_ROW, AL_OUT, AL_CFG] };
+/// shaders/adaptive_lr.wgsl.
+pub const AL_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain adaptive lr", bindings: &[AL_LR, AL_KL_ROW, AL_OUT, AL_CFG], entry_points: &[AL_ENTRY] };
+
+/// [rows, dim] (standardize.wgsl).
+pub const ST_X: Binding = binding(0, "st_x", StorageReadWrite);
+/// [2, dim] μ, then s (standardize.wgsl).
+pub const ST_STATS: Binding = binding(1, "st_stats", StorageReadWrite);
+/// [rows, dim] (standardize.wgsl).
+pub const ST_OUT: Binding = binding(2, "st_out", StorageReadWrite);
+/// the launch's constants (standardize.wgsl).
+pub const ST_CFG: Binding = binding(3, "sc", Uniform);
+/// `standardize`: a host-path batch's standardisation.
+pub const ST_ENTRY: EntryBindings = EntryBindings { entry_point: "standardize", bindings: &[ST_X, ST_STATS, ST_OUT, ST_CFG] };
+/// shaders/standardize.wgsl.
+pub const ST_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain standardize", bindings: &[ST_X, ST_STATS, ST_OUT, ST_CFG], entry_points: &[ST_ENTRY] };
+
+/// [N, 1] the env's reward (ppo_step_reward.wgsl).
+pub const SR_REWARD: Binding = binding(0, "sr_reward", StorageReadWrite);
+/// [N, 1] (ppo_step_reward.wgsl).
+pub const SR_TERMINATED: Binding = binding(1, "sr_terminated", StorageReadWrite);
+/// [N, 1] (ppo_step_reward.wgsl).
+pub const SR_TIME_OUT: Binding = binding(2, "sr_time_out", StorageReadWrite);
+/// [N, 1] V(s_t) (ppo_step_reward.wgsl).
+pub const SR_VALUES: Binding = binding(3, "sr_values", StorageReadWrite);
+/// [N, 2] r', done (ppo_step_reward.wgsl).
+pub const SR_OUT: Binding = binding(4, "sr_out", StorageReadWrite);
+/// the launch's constants (ppo_step_reward.wgsl).
+pub const SR_CFG: Binding = binding(5, "rc", Uniform);
+/// `ppo_step_reward`: PPO's step reward and done flag.
+pub const SR_ENTRY: EntryBindings = EntryBindings { entry_point: "ppo_step_reward", bindings: &[SR_REWARD, SR_TERMINATED, SR_TIME_OUT, SR_VALUES, SR_OUT, SR_CFG] };
+/// shaders/ppo_step_reward.wgsl.
+pub const SR_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain ppo step reward", bindings: &[SR_REWARD, SR_TERMINATED, SR_TIME_OUT, SR_VALUES, SR_OUT, SR_CFG], entry_points: &[SR_ENTRY] };
+
+/// [T · N, 2] r', done (gae.wgsl).
+pub const GAE_RD: Binding = binding(0, "gae_rd", StorageReadWrite);
+/// [T · N, 1] V(s_t) (gae.wgsl).
+pub const GAE_VALUES: Binding = binding(1, "gae_values", StorageReadWrite);
+/// [N, 1] V(s_T) (gae.wgsl).
+pub const GAE_LAST: Binding = binding(2, "gae_last", StorageReadWrite);
+/// [T · N, 1] A_t (gae.wgsl).
+pub const GAE_ADV: Binding = binding(3, "gae_adv", StorageReadWrite);
+/// the launch's constants (gae.wgsl).
+pub const GAE_CFG: Binding = binding(4, "gc", Uniform);
+/// `gae`: GAE over a device-resident rollout.
+pub const GAE_ENTRY: EntryBindings = EntryBindings { entry_point: "gae", bindings: &[GAE_RD, GAE_VALUES, GAE_LAST, GAE_ADV, GAE_CFG] };
+/// shaders/gae.wgsl.
+pub const GAE_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain gae", bindings: &[GAE_RD, GAE_VALUES, GAE_LAST, GAE_ADV, GAE_CFG], entry_points: &[GAE_ENTRY] };
+
+/// [N, A] (loop_sums.wgsl).
+pub const LS_ACTIONS: Binding = binding(0, "ls_actions", StorageReadWrite);
+/// [N, M] the step's output records (loop_sums.wgsl).
+pub const LS_MISC: Binding = binding(1, "ls_misc", StorageReadWrite);
+/// [N, 2M + 6] before the step (loop_sums.wgsl).
+pub const LS_ACC: Binding = binding(2, "ls_acc", StorageReadWrite);
+/// [N, 2M + 6] after it (loop_sums.wgsl).
+pub const LS_ACC_OUT: Binding = binding(3, "ls_acc_out", StorageReadWrite);
+/// [N, 1] (loop_sums.wgsl).
+pub const LS_REWARD: Binding = binding(4, "ls_reward", StorageReadWrite);
+/// [N, 1] (loop_sums.wgsl).
+pub const LS_TERMINATED: Binding = binding(5, "ls_terminated", StorageReadWrite);
+/// [N, 1] (loop_sums.wgsl).
+pub const LS_TIME_OUT: Binding = binding(6, "ls_time_out", StorageReadWrite);
+/// the launch's constants (loop_sums.wgsl).
+pub const LS_CFG: Binding = binding(7, "lc", Uniform);
+/// `loop_sums`: the device-resident env loop's per-env sums.
+pub const LS_ENTRY: EntryBindings = EntryBindings { entry_point: "loop_sums", bindings: &[LS_ACTIONS, LS_MISC, LS_ACC, LS_ACC_OUT, LS_REWARD, LS_TERMINATED, LS_TIME_OUT, LS_CFG] };
+/// shaders/loop_sums.wgsl.
+pub const LS_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain loop sums", bindings: &[LS_ACTIONS, LS_MISC, LS_ACC, LS_ACC_OUT, LS_REWARD, LS_TERMINATED, LS_TIME_OUT, LS_CFG], entry_points: &[LS_ENTRY] };
+
 // ---- the device-resident learners' observation normalisers (normalizer.wgsl, a module of its
 // own; bound by learn/kernels/fused_normalizer.rs with slices of burn's tensors) ----
 

@@ -133,7 +133,7 @@ impl DeviceLoop {
 const SHADER_LOOP_SUMS: &str = include_str!("../../shaders/loop_sums.wgsl");
 
 /// The loop-sums kernel's module (one variant).
-fn loop_sums_source(_: ()) -> String {
+pub fn loop_sums_source(_: ()) -> String {
     SHADER_LOOP_SUMS.to_string()
 }
 

@@ -11,7 +11,7 @@
 //! Each implements [`Algorithm`]; none copies the loop.
 
 pub mod algorithm;
-mod device_loop;
+pub mod device_loop;
 pub mod distill;
 pub mod off_policy;
 pub mod on_policy;

@@ -21,11 +21,13 @@ const SHADER_GAE: &str = include_str!("../../../shaders/gae.wgsl");
 /// Invocations per workgroup (one per env).
 const WORKGROUP: u32 = 64;
 
-fn step_reward_source(_: ()) -> String {
+/// The step-reward kernel's module (one variant).
+pub fn step_reward_source(_: ()) -> String {
     SHADER_STEP_REWARD.to_string()
 }
 
-fn gae_source(_: ()) -> String {
+/// The GAE kernel's module (one variant).
+pub fn gae_source(_: ()) -> String {
     SHADER_GAE.to_string()
 }
 
