@@ -686,17 +686,16 @@ impl Ppo {
             // with several ranks the loss and the KL are this rank's rows' means weighted by its
             // share of the minibatch (`MinibatchRows::weights`), so that their means over the ranks
             // are the job's minibatch's means
-            let (root, kl_row) = if data_parallel {
-                let w = plan.weights[k];
-                let kl = losses.row.clone().narrow(1, KL_COLUMN, 1).reshape([1]).mul_scalar(w);
-                (losses.root.mul_scalar(w), kl_over_ranks(kl)?.reshape([1, 1]))
-            } else {
-                (losses.root, losses.row.clone())
-            };
+            let w = plan.weights[k];
             if self.cfg.schedule == LrSchedule::Adaptive {
-                let column = if data_parallel { 0 } else { KL_COLUMN };
-                lr = adapt_learning_rate(lr, &kl_row, column, &self.cfg);
+                lr = if data_parallel {
+                    let kl = losses.row.clone().narrow(1, KL_COLUMN, 1).reshape([1]).mul_scalar(w);
+                    adapt_learning_rate(lr, &kl_over_ranks(kl)?.reshape([1, 1]), 0, &self.cfg)
+                } else {
+                    adapt_learning_rate(lr, &losses.row, KL_COLUMN, &self.cfg)
+                };
             }
+            let root = if data_parallel { losses.root.mul_scalar(w) } else { losses.root };
             let grads = root.backward();
             let (new_params, norm) = self.adam.step_clipped(params, &grads, self.cfg.max_grad_norm as f64, &lr)?;
             let norm = norm.context("PPO's optimiser reports its gradient norm")?.inner();
