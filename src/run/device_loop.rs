@@ -142,16 +142,15 @@ pub fn loop_sums_source(_: ()) -> String {
 /// records `misc` `[N, OUT_MISC]`, and the step's reward, terminated and time-out flags, each
 /// `[N, 1]`, for the algorithm.
 fn step_sums(actions: &Tensor<2>, misc: &Tensor<2>, acc: &Tensor<2>) -> Result<(Tensor<2>, [Tensor<2>; 3])> {
-    use burn::backend::{Cube, TensorMetadata};
+    use burn::backend::Cube;
     use burn::backend::ops::FloatTensorOps;
     use burn::backend::tensor::FloatTensor;
-    use burn::tensor::{DType, FloatDType, Shape};
+    use burn::tensor::{FloatDType, Shape};
     use crate::learn::kernels::wgsl_kernel::{WgslKernel, launch};
     let [n, a] = actions.dims();
     let prim = |t: &Tensor<2>, cols: usize| -> Result<FloatTensor<Cube>> {
-        let p = t.clone().inner().try_into_primitive::<Cube>().map_err(|e| anyhow::anyhow!("the device-resident loop needs burn's wgpu device: {e:?}"))?;
-        anyhow::ensure!(p.dtype == DType::F32 && p.is_contiguous() && p.shape().to_vec() == [n, cols], "the device-resident loop's sums: a tensor of shape {:?}, {:?}, not a contiguous f32 [{n}, {cols}]", p.shape().to_vec(), p.dtype);
-        Ok(p)
+        use anyhow::Context;
+        crate::learn::kernels::wgsl_kernel::plain_primitive(&t.clone().inner(), [n, cols]).context("the device-resident loop's sums")
     };
     let (ap, mp, cp) = (prim(actions, a)?, prim(misc, OUT_MISC)?, prim(acc, ACC_WIDTH)?);
     let empty = |cols: usize| Cube::float_empty(Shape::new([n, cols]), &ap.device, FloatDType::F32); // written whole by the kernel

@@ -5,12 +5,10 @@
 
 use burn::backend::Cube;
 use burn::backend::ops::FloatTensorOps;
-use burn::backend::TensorMetadata;
-use burn::backend::tensor::FloatTensor;
 use burn::prelude::Tensor;
-use burn::tensor::{DType, FloatDType, Shape};
+use burn::tensor::{FloatDType, Shape};
 
-use super::wgsl_kernel::{WgslKernel, launch};
+use super::wgsl_kernel::{WgslKernel, launch, plain_primitive};
 
 /// shaders/adaptive_lr.wgsl.
 const SHADER: &str = include_str!("../../../shaders/adaptive_lr.wgsl");
@@ -37,12 +35,11 @@ pub fn adaptive_lr_source(_: ()) -> String {
 /// `[1, n]`, as one kernel, where both are contiguous f32 tensors of burn's wgpu device; None
 /// elsewhere (the caller's tensor ops then run).
 pub fn adapt_on_gpu(lr: &Tensor<2>, kl_row: &Tensor<2>, column: usize, s: AdaptiveLr) -> Option<Tensor<2>> {
-    let lr_p = lr.clone().try_into_primitive::<Cube>().ok()?;
-    let kl_p = kl_row.clone().try_into_primitive::<Cube>().ok()?;
-    let plain = |t: &FloatTensor<Cube>, cols: usize| t.dtype == DType::F32 && t.is_contiguous() && t.shape().to_vec() == [1, cols];
-    if !plain(&lr_p, 1) || column >= kl_row.dims()[1] || !plain(&kl_p, kl_row.dims()[1]) {
+    let n = kl_row.dims()[1];
+    if column >= n {
         return None;
     }
+    let (lr_p, kl_p) = (plain_primitive(lr, [1, 1]).ok()?, plain_primitive(kl_row, [1, n]).ok()?);
     let out = Cube::float_empty(Shape::new([1, 1]), &lr_p.device, FloatDType::F32); // written whole below
     let constants = [column as u32, s.above.to_bits(), s.below.to_bits(), s.min.to_bits(), s.max.to_bits(), 0];
     let kernel = WgslKernel { name: "dextrain_adaptive_lr", key: (), source: adaptive_lr_source, entry_point: "adaptive_lr", workgroup: [1, 1] };

@@ -44,3 +44,17 @@ pub mod squashed;
 pub mod standardize;
 pub mod wgsl_kernel;
 pub mod wgsl_matmul;
+
+use burn::backend::tensor::FloatTensor;
+use burn::backend::{Backend, TensorMetadata};
+
+/// Columns `[from, to)` of a `[B, n]` tensor of `B` (the fused ops' tensor-op twins).
+pub(crate) fn columns<B: Backend>(t: FloatTensor<B>, from: usize, to: usize) -> FloatTensor<B> {
+    let rows = t.shape()[0];
+    B::float_slice(t, &[burn::tensor::Slice::from(0..rows), burn::tensor::Slice::from(from..to)])
+}
+
+/// The mean of a `[B, 1]` tensor of `B` as `[1, 1]`.
+pub(crate) fn mean_11<B: Backend>(t: FloatTensor<B>) -> FloatTensor<B> {
+    B::float_reshape(B::float_mean(t), burn::tensor::Shape::new([1, 1]))
+}

@@ -33,7 +33,9 @@ use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
 use burn::backend::tensor::FloatTensor;
 use burn::backend::{Autodiff, Backend, Cube, Flex, TensorMetadata, backend_extension, get_device_settings};
 use burn::prelude::Tensor;
-use burn::tensor::{FloatDType, Shape, Slice};
+use burn::tensor::{FloatDType, Shape};
+
+use super::{columns, mean_11};
 
 const LN_2PI: f64 = 1.837_877_066_409_345_3; // ln(2π)
 
@@ -48,12 +50,6 @@ pub struct LossCoefs {
     pub entropy_coef: f64,
     /// Whether the value loss is clipped around V_old.
     pub clipped_value: bool,
-}
-
-/// Columns `[from, to)` of a `[B, n]` tensor of `B`.
-fn columns<B: Backend>(t: FloatTensor<B>, from: usize, to: usize) -> FloatTensor<B> {
-    let rows = t.shape()[0];
-    B::float_slice(t, &[Slice::from(0..rows), Slice::from(from..to)])
 }
 
 /// What both passes work out again per row as tensor ops of `B`: `(σ [B, A] (broadcast),
@@ -81,11 +77,6 @@ fn value_terms<B: Backend>(v: FloatTensor<B>, ret: FloatTensor<B>, old_v: FloatT
     let dv_old = B::float_sub(v.clone(), old_v.clone());
     let vc = B::float_add(old_v, B::float_clamp(dv_old.clone(), (-eps).into(), eps.into()));
     (B::float_sub(v, ret.clone()), B::float_sub(vc, ret), dv_old)
-}
-
-/// The mean of a `[B, 1]` tensor as `[1, 1]`.
-fn mean_11<B: Backend>(t: FloatTensor<B>) -> FloatTensor<B> {
-    B::float_reshape(B::float_mean(t), Shape::new([1, 1]))
 }
 
 /// `[total, surrogate, value, entropy, KL]` `[1, 5]` as tensor ops of `B` (the maths of
@@ -200,10 +191,10 @@ mod gpu {
     use burn::backend::TensorMetadata;
     use burn::backend::ops::FloatTensorOps;
     use burn::backend::tensor::FloatTensor;
-    use burn::tensor::{DType, FloatDType, Shape};
+    use burn::tensor::{FloatDType, Shape};
 
     use super::LossCoefs;
-    use crate::learn::kernels::wgsl_kernel::{WgslKernel, launch};
+    use crate::learn::kernels::wgsl_kernel::{WgslKernel, is_plain, launch};
 
     /// shaders/ppo_loss_common.wgsl: the constants' struct and the per-row terms.
     const SHADER_COMMON: &str = include_str!("../../../shaders/ppo_loss_common.wgsl");
@@ -228,7 +219,7 @@ mod gpu {
 
     /// A contiguous row-major f32 `[rows, cols]` tensor.
     fn plain(t: &FloatTensor<Cube>, rows: usize, cols: usize) -> bool {
-        t.dtype == DType::F32 && t.is_contiguous() && t.shape().to_vec() == [rows, cols]
+        is_plain(t, [rows, cols])
     }
 
     /// (B, A, the launch's constants `PpoLossCfg`, the row kernels' workgroups) for the forward

@@ -5,15 +5,14 @@
 //! in their order (a hardware driver may still contract a product and a sum into one rounding), so
 //! on lavapipe the rollout's numbers are those of before; every run repeats bit for bit.
 
-use anyhow::{Result, anyhow, ensure};
+use anyhow::{Context, Result, anyhow};
 use burn::backend::Cube;
-use burn::backend::TensorMetadata;
 use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::prelude::Tensor;
-use burn::tensor::{DType, FloatDType, Shape};
+use burn::tensor::{FloatDType, Shape};
 
-use super::wgsl_kernel::{WgslKernel, launch};
+use super::wgsl_kernel::{WgslKernel, launch, plain_primitive};
 
 /// shaders/ppo_step_reward.wgsl and shaders/gae.wgsl.
 const SHADER_STEP_REWARD: &str = include_str!("../../../shaders/ppo_step_reward.wgsl");
@@ -34,9 +33,7 @@ pub fn gae_source(_: ()) -> String {
 /// `t`'s primitive on burn's wgpu device (the autodiff wrapper, if any, dropped), checked to be a
 /// contiguous f32 `shape` tensor.
 fn cube(t: &Tensor<2>, shape: [usize; 2], what: &str) -> Result<FloatTensor<Cube>> {
-    let p = t.clone().inner().try_into_primitive::<Cube>().map_err(|e| anyhow!("PPO's device-resident rollout needs burn's wgpu device ({what}): {e:?}"))?;
-    ensure!(p.dtype == DType::F32 && p.is_contiguous() && p.shape().to_vec() == shape, "PPO's device-resident rollout: {what} is {:?} {:?}, not a contiguous f32 {shape:?}", p.shape().to_vec(), p.dtype);
-    Ok(p)
+    plain_primitive(&t.clone().inner(), shape).with_context(|| format!("PPO's device-resident rollout: {what}"))
 }
 
 /// One workgroup per 64 envs, on a 1-D grid.

@@ -29,6 +29,8 @@ use burn::backend::{Autodiff, Backend, Cube, Flex, TensorMetadata, backend_exten
 use burn::prelude::Tensor;
 use burn::tensor::{Shape, Slice};
 
+use super::mean_11;
+
 /// Which of SAC's losses.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum SacLoss {
@@ -48,11 +50,6 @@ impl SacLoss {
             SacLoss::Actor => 1,
         }
     }
-}
-
-/// The mean of a `[B, 1]` tensor as `[1, 1]`.
-fn mean_11<B: Backend>(t: FloatTensor<B>) -> FloatTensor<B> {
-    B::float_reshape(B::float_mean(t), Shape::new([1, 1]))
 }
 
 /// `out` `[1, 2]` as tensor ops of `B` (α = exp(log α) `[1, 1]`).
@@ -126,10 +123,10 @@ mod gpu {
     use burn::backend::TensorMetadata;
     use burn::backend::ops::FloatTensorOps;
     use burn::backend::tensor::FloatTensor;
-    use burn::tensor::{DType, FloatDType, Shape};
+    use burn::tensor::{FloatDType, Shape};
 
     use super::SacLoss;
-    use crate::learn::kernels::wgsl_kernel::{WgslKernel, launch};
+    use crate::learn::kernels::wgsl_kernel::{WgslKernel, is_plain, launch};
 
     /// shaders/sac_loss_common.wgsl: the constants' struct and the per-row terms.
     const SHADER_COMMON: &str = include_str!("../../../shaders/sac_loss_common.wgsl");
@@ -161,7 +158,7 @@ mod gpu {
 
     /// A contiguous row-major f32 `[rows, cols]` tensor.
     fn plain(t: &FloatTensor<Cube>, rows: usize, cols: usize) -> bool {
-        t.dtype == DType::F32 && t.is_contiguous() && t.shape().to_vec() == [rows, cols]
+        is_plain(t, [rows, cols])
     }
 
     /// (B, the launch's constants `SacLossCfg`, the row kernels' workgroups), or None where the

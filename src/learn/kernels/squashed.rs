@@ -27,16 +27,11 @@ use burn::backend::autodiff::ops::{Backward, Ops, OpsKind, unary};
 use burn::backend::tensor::FloatTensor;
 use burn::backend::{Autodiff, Backend, Cube, Flex, TensorMetadata, backend_extension};
 use burn::prelude::Tensor;
-use burn::tensor::Slice;
 
 const LN_2: f64 = std::f64::consts::LN_2;
 const LN_2PI: f64 = 1.837_877_066_409_345_3; // ln(2π)
 
-/// Columns `[from, to)` of a `[B, n]` tensor of `B`.
-fn columns<B: Backend>(t: FloatTensor<B>, from: usize, to: usize) -> FloatTensor<B> {
-    let rows = t.shape()[0];
-    B::float_slice(t, &[Slice::from(0..rows), Slice::from(from..to)])
-}
+use super::columns;
 
 /// `(μ, log σ, tanh x)`, each `[B, A]`, of a head `[B, 2A]`: log σ squashed into [lo, hi].
 fn head_parts<B: Backend>(head: FloatTensor<B>, lo: f64, hi: f64) -> (FloatTensor<B>, FloatTensor<B>, FloatTensor<B>) {
@@ -113,9 +108,9 @@ mod gpu {
     use burn::backend::TensorMetadata;
     use burn::backend::ops::FloatTensorOps;
     use burn::backend::tensor::FloatTensor;
-    use burn::tensor::{DType, FloatDType, Shape};
+    use burn::tensor::{FloatDType, Shape};
 
-    use crate::learn::kernels::wgsl_kernel::{WgslKernel, launch};
+    use crate::learn::kernels::wgsl_kernel::{WgslKernel, is_plain, launch};
 
     /// shaders/squashed_common.wgsl: the constants' struct and the shared maths.
     const SHADER_COMMON: &str = include_str!("../../../shaders/squashed_common.wgsl");
@@ -138,7 +133,7 @@ mod gpu {
 
     /// A contiguous row-major f32 `[rows, cols]` tensor.
     fn plain(t: &FloatTensor<Cube>, rows: usize, cols: usize) -> bool {
-        t.dtype == DType::F32 && t.is_contiguous() && t.shape().to_vec() == [rows, cols]
+        is_plain(t, [rows, cols])
     }
 
     /// (rows, A, the launch's constants `SqCfg`, the grid) for a head `[rows, 2A]` and ε

@@ -5,13 +5,11 @@
 //! aligned for views) and ran two element-wise kernels; the values are the same bit for bit.
 
 use burn::backend::Cube;
-use burn::backend::TensorMetadata;
 use burn::backend::ops::FloatTensorOps;
-use burn::backend::tensor::FloatTensor;
 use burn::prelude::Tensor;
-use burn::tensor::{DType, FloatDType, Shape};
+use burn::tensor::{FloatDType, Shape};
 
-use super::wgsl_kernel::{WgslKernel, launch};
+use super::wgsl_kernel::{WgslKernel, launch, plain_primitive};
 
 /// shaders/standardize.wgsl.
 const SHADER: &str = include_str!("../../../shaders/standardize.wgsl");
@@ -27,12 +25,10 @@ pub fn standardize_source(_: ()) -> String {
 /// contiguous f32 tensors of burn's wgpu device (not autodiff); None elsewhere.
 pub fn standardize_on_gpu(x: &Tensor<2>, stats: &Tensor<2>) -> Option<Tensor<2>> {
     let [n, d] = x.dims();
-    let xp = x.clone().try_into_primitive::<Cube>().ok()?;
-    let sp = stats.clone().try_into_primitive::<Cube>().ok()?;
-    let plain = |t: &FloatTensor<Cube>, shape: [usize; 2]| t.dtype == DType::F32 && t.is_contiguous() && t.shape().to_vec() == shape;
-    if n == 0 || d == 0 || !plain(&xp, [n, d]) || !plain(&sp, [2, d]) {
+    if n == 0 || d == 0 {
         return None;
     }
+    let (xp, sp) = (plain_primitive(x, [n, d]).ok()?, plain_primitive(stats, [2, d]).ok()?);
     let entries = u32::try_from(n.checked_mul(d)?).ok()?;
     let (gx, gy) = crate::gpu::shaders::workgroups_of(entries, WORKGROUP);
     let out = Cube::float_empty(Shape::new([n, d]), &xp.device, FloatDType::F32); // written whole below

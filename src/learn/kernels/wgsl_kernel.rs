@@ -7,8 +7,9 @@
 use std::fmt::Debug;
 use std::hash::Hash;
 
-use burn::backend::Cube;
 use burn::backend::tensor::FloatTensor;
+use burn::backend::{Cube, TensorMetadata};
+use burn::prelude::Tensor;
 use burn_cubecl::cubecl::ir::metadata::Info;
 use burn_cubecl::cubecl::ir::settings::{Dim3, ExecutionMode, KernelSettings};
 use burn_cubecl::cubecl::ir::{AddressType, ElemType, Scope, UIntKind};
@@ -78,4 +79,18 @@ pub fn launch<K: Copy + Eq + Hash + Debug + Send + Sync + 'static>(
         .fold(KernelArguments::new(), |args, t| args.with_buffer(t.handle.clone().binding()))
         .with_info(MetadataBindingInfo::custom(words));
     buffers[0].client.launch(Box::new(kernel), CubeCount::Static(groups[0], groups[1], groups[2]), args);
+}
+
+/// Whether `t` is a contiguous row-major f32 tensor of `shape` (what our kernels bind).
+pub fn is_plain(t: &FloatTensor<Cube>, shape: [usize; 2]) -> bool {
+    t.dtype == burn::tensor::DType::F32 && t.is_contiguous() && t.shape().to_vec() == shape
+}
+
+/// `t`'s primitive on burn's wgpu device, checked to be a contiguous f32 tensor of `shape`; an
+/// error saying which it is not. An autodiff tensor is refused (callers strip it with `inner()`
+/// where they want its memory).
+pub fn plain_primitive(t: &Tensor<2>, shape: [usize; 2]) -> anyhow::Result<FloatTensor<Cube>> {
+    let p = t.clone().try_into_primitive::<Cube>().map_err(|e| anyhow::anyhow!("not a tensor of burn's wgpu device: {e:?}"))?;
+    anyhow::ensure!(is_plain(&p, shape), "a {:?} {:?} tensor, not a contiguous f32 {shape:?}", p.shape().to_vec(), p.dtype);
+    Ok(p)
 }
