@@ -8,6 +8,8 @@ const MAX_LINKS: u32 = 33u;
 const MAX_TIPS: u32 = 6u;
 const MAX_PIECES: u32 = 32u;
 const PROJ_ITERS: u32 = 4u;
+const BOX_PROJ_ITERS: u32 = 16u;
+const REVISIT_WORDS: u32 = 8u;
 
 const SHAPE_SPHERE: u32 = 0u;
 const SHAPE_BOX: u32 = 1u;

@@ -225,6 +225,55 @@ fn segment_box_push(a: vec3<f32>, b: vec3<f32>, h: vec3<f32>) -> BoxPush {
     return BoxPush(best_n, best_d, best_p);
 }
 
+// physics.rs: segment_box_closest. The point of segment [a, b] nearest a box of half extents h
+// (box frame), exactly: the root of the piecewise-linear, non-decreasing slope of the squared
+// distance, between its last kink (or 0) where it is ≤ 0 and its first (or 1) where it is > 0.
+fn segment_box_closest(a: vec3<f32>, b: vec3<f32>, h: vec3<f32>) -> vec3<f32> {
+    let u = b - a;
+    var t_lo = 0.0;
+    var t_hi = 1.0;
+    var s_lo = segment_box_slope(a, u, h, 0.0);
+    var s_hi = segment_box_slope(a, u, h, 1.0);
+    if (s_lo >= 0.0) {
+        return a;
+    }
+    if (s_hi <= 0.0) {
+        return b;
+    }
+    for (var i = 0u; i < 3u; i++) {
+        if (abs(u[i]) < 1e-12) {
+            continue;
+        }
+        for (var side = 0u; side < 2u; side++) {
+            let face = select(-h[i], h[i], side == 0u);
+            let t = (face - a[i]) / u[i];
+            if (t > t_lo && t < t_hi) {
+                let st_ = segment_box_slope(a, u, h, t);
+                if (st_ <= 0.0) {
+                    t_lo = t;
+                    s_lo = st_;
+                } else {
+                    t_hi = t;
+                    s_hi = st_;
+                }
+            }
+        }
+    }
+    // the slope is linear on [t_lo, t_hi]: its root
+    let t = t_lo + (t_hi - t_lo) * (-s_lo / (s_hi - s_lo));
+    return a + u * t;
+}
+
+// physics.rs: segment_box_slope. Σᵢ uᵢ · sign(pᵢ) · max(|pᵢ| − hᵢ, 0) at p = a + t u.
+fn segment_box_slope(a: vec3<f32>, u: vec3<f32>, h: vec3<f32>, t: f32) -> f32 {
+    let p = a + u * t;
+    var s = 0.0;
+    for (var i = 0u; i < 3u; i++) {
+        s += u[i] * sgn(p[i]) * max(abs(p[i]) - h[i], 0.0);
+    }
+    return s;
+}
+
 fn segment_closest(a: vec3<f32>, b: vec3<f32>, p: vec3<f32>) -> vec3<f32> {
     let ab = b - a;
     let l2 = dot(ab, ab);
@@ -426,7 +475,7 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
     if (cd.shape == SHAPE_BOX) {
         let h = cd.size.xyz;
         var x = c_o;
-        for (var it = 0u; it < PROJ_ITERS; it++) {
+        for (var it = 0u; it < BOX_PROJ_ITERS; it++) {
             let y = piece_project(pd, scale, size, x).point;
             x = box_project(c_o, r_o, h, y);
         }
@@ -444,9 +493,13 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
     let a = c_o - axis;
     let b = c_o + axis;
     var x = segment_closest(a, b, vec3<f32>(0.0));
-    for (var it = 0u; it < PROJ_ITERS; it++) {
-        let y = piece_project(pd, scale, size, x).point;
-        x = segment_closest(a, b, y);
+    if (code == SHAPE_BOX) {
+        x = segment_box_closest(a, b, size);
+    } else {
+        for (var it = 0u; it < PROJ_ITERS; it++) {
+            let y = piece_project(pd, scale, size, x).point;
+            x = segment_closest(a, b, y);
+        }
     }
     let pr = piece_project(pd, scale, size, x);
     let y = pr.point;
@@ -528,7 +581,7 @@ fn box_piece_contact(pd: PieceDesc, scale: f32, size: vec3<f32>, c_o: vec3<f32>,
     let gap = max(abs(quat_rotate(inv, -c_o)) - h, vec3<f32>(0.0));
     let radius = pd.pos.w * scale;
     if (dot(gap, gap) > radius * radius) {
-        return BoxPieceContact(depth, n, y);
+        return box_gap_contact(h, ly, y);
     }
     let y_depth = depth;
     for (var k = 0u; k < pd.n_support; k++) {
@@ -541,7 +594,7 @@ fn box_piece_contact(pd: PieceDesc, scale: f32, size: vec3<f32>, c_o: vec3<f32>,
         }
     }
     if (depth < 0.0) {
-        return BoxPieceContact(-1.0, n, y);
+        return box_gap_contact(h, ly, y);
     }
     // no support point deeper than y: the point is y
     if (depth == y_depth) {
@@ -562,6 +615,17 @@ fn box_piece_contact(pd: PieceDesc, scale: f32, size: vec3<f32>, c_o: vec3<f32>,
         }
     }
     return BoxPieceContact(depth, n, psum / wsum);
+}
+
+// physics.rs: box_gap_contact. A hand box apart from a piece: the gap between y and the box's
+// point nearest it as a negative depth, along the line between them (a speculative contact).
+fn box_gap_contact(h: vec3<f32>, ly: vec3<f32>, y: vec3<f32>) -> BoxPieceContact {
+    let d = clamp(ly, -h, h) - ly;
+    let gap = length(d);
+    if (gap > 1e-9) {
+        return BoxPieceContact(-gap, d / gap, y);
+    }
+    return BoxPieceContact(-1.0, vec3<f32>(0.0, 0.0, 1.0), y);
 }
 
 // Support point k of piece pd in a hand box's frame and its radius (CPU twin: box_frame_support).
@@ -868,6 +932,36 @@ fn solve_hand_contact(slot: u32, l: u32, c: Contact, v_other: vec3<f32>, damp: f
     return cf;
 }
 
+// physics.rs: hand_object_force. The object's side of hand–object contact c of collider ci (the
+// hand's solve cf), its torsional friction against the object's spin w_obj, and the statistics;
+// dv_point, dw: the predicted velocities' distance from the present ones (the force is
+// linearised about the predicted ones).
+fn hand_object_force(ci: u32, c: Contact, cf: HandContactForce, ocom: vec3<f32>, w_obj: vec3<f32>, dv_point: vec3<f32>, dw: vec3<f32>, mu: f32, h: f32) {
+    let l = colliders[ci].link;
+    let n = c.normal;
+    let fn_ = dot(cf.force, n);
+    if (fn_ > 0.0) {
+        // D·δv with D = a nnᵀ + b (I − nnᵀ)
+        let dvn = dot(dv_point, n);
+        let lin = n * (cf.ndamp * dvn) + (dv_point - n * dvn) * cf.tdamp;
+        apply_object_force(ocom, c.point, lin - cf.force, n, cf.ndamp, cf.tdamp);
+        let tor = torsion_torque(n, link_w[l] - w_obj, fn_, mu, g.torsion_radius);
+        apply_hand_torque(l, tor.torque, h);
+        apply_object_torque(n * (tor.damping * dot(n, dw)) - tor.torque, n, tor.damping);
+        link_contact[l / 32u] |= 1u << (l % 32u);
+        let tip = colliders[ci].tip;
+        if (tip != NO_JOINT) {
+            tip_force[tip] += fn_;
+        }
+    }
+    if (fn_ > 0.0 || c.depth > 0.0) {
+        n_contacts += 1u;
+        n_contacts_ho += 1u;
+        max_pen_ho = max(max_pen_ho, c.depth);
+        max_pen = max(max_pen, c.depth);
+    }
+}
+
 fn contacts_and_forces(h: f32) {
     let k = g.contact_k;
     let kt = g.contact_kt;
@@ -878,29 +972,21 @@ fn contacts_and_forces(h: f32) {
     let mu_ho = 0.5 * (prm.hand_friction + prm.obj_friction);
     let mu_ht = 0.5 * (prm.hand_friction + prm.table_friction);
     let mu_ot = 0.5 * (prm.obj_friction + prm.table_friction);
+    // hand–object pairs within the margin that did not push: solved again once the object's
+    // velocity this substep is predicted (bit ci % 32 of word ci / 32)
+    var revisit: array<u32, REVISIT_WORDS>;
+    var any_revisit = false;
     for (var ci = 0u; ci < g.n_colliders; ci++) {
         let l = colliders[ci].link;
         // hand–object: a touching pair, or one apart by less than the speculative margin
         let c = collide_hand_object(ci);
         if (c.depth > -CONTACT_MARGIN) {
             let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
-            let fn_ = dot(cf.force, c.normal);
-            if (fn_ > 0.0) {
-                apply_object_force(ocom, c.point, -cf.force, c.normal, cf.ndamp, cf.tdamp);
-                let tor = torsion_torque(c.normal, link_w[l] - ow, fn_, mu_ho, g.torsion_radius);
-                apply_hand_torque(l, tor.torque, h);
-                apply_object_torque(-tor.torque, c.normal, tor.damping);
-                link_contact[l / 32u] |= 1u << (l % 32u);
-                let tip = colliders[ci].tip;
-                if (tip != NO_JOINT) {
-                    tip_force[tip] += fn_;
-                }
-            }
-            if (fn_ > 0.0 || c.depth > 0.0) {
-                n_contacts += 1u;
-                n_contacts_ho += 1u;
-                max_pen_ho = max(max_pen_ho, c.depth);
-                max_pen = max(max_pen, c.depth);
+            if (dot(cf.force, c.normal) > 0.0) {
+                hand_object_force(ci, c, cf, ocom, ow, vec3<f32>(0.0), vec3<f32>(0.0), mu_ho, h);
+            } else {
+                revisit[ci / 32u] |= 1u << (ci % 32u);
+                any_revisit = true;
             }
         } else {
             springs[spring_base + ci] = vec4<f32>(0.0);
@@ -954,6 +1040,23 @@ fn contacts_and_forces(h: f32) {
             } else {
                 springs[ki] = vec4<f32>(0.0);
             }
+        }
+    }
+    // the second pass: the pairs that did not push, against the object's velocity at the end of
+    // the substep as the forces so far make it (physics.rs: contacts_and_forces)
+    if (any_revisit) {
+        let pred = object_velocity_change(h);
+        for (var ci = 0u; ci < g.n_colliders; ci++) {
+            if ((revisit[ci / 32u] & (1u << (ci % 32u))) == 0u) {
+                continue;
+            }
+            let l = colliders[ci].link;
+            let c = collide_hand_object(ci);
+            let v_other = pred.vel + cross(pred.w, c.point - ocom);
+            let cf = solve_hand_contact(spring_base + ci, l, c, v_other, prm.obj_contact_c, mu_ho, h);
+            // the object's force linearised about the predicted velocity: + D·J·(u_p − u₀)
+            let dv_point = (pred.vel - ovel) + cross(pred.w - ow, c.point - ocom);
+            hand_object_force(ci, c, cf, ocom, pred.w, dv_point, pred.w - ow, mu_ho, h);
         }
     }
 }
@@ -1073,7 +1176,15 @@ fn inertia_inv_mul(rot: vec4<f32>, ib: vec3<f32>, x: vec3<f32>) -> vec3<f32> {
     return quat_rotate(rot, quat_rotate(quat_conj(rot), x) / ib);
 }
 
-fn integrate_object(h: f32) {
+// the object's velocities at the end of the substep (object_velocity_change)
+struct ObjectVelocity {
+    vel: vec3<f32>,
+    w: vec3<f32>,
+}
+
+// physics.rs: object_velocity_change. The object's velocities at the end of the substep under gravity
+// and the contact forces so far, linearly implicit: (M + h Σ JᵀDJ) Δu = h f.
+fn object_velocity_change(h: f32) -> ObjectVelocity {
     let mass = prm.obj_inertia.w;
     let ib = prm.obj_inertia.xyz;
     let rot = st.obj_rot;
@@ -1110,10 +1221,17 @@ fn integrate_object(h: f32) {
     let f = obj_f + ext + vec3<f32>(0.0, 0.0, gz);
     let tq = obj_t + cross(at - com, ext);
     let du = solve6(a, array<f32, 6>(h * f.x, h * f.y, h * f.z, h * tq.x, h * tq.y, h * tq.z));
-    let vel_n = st.obj_vel.xyz + vec3<f32>(du[0], du[1], du[2]);
-    let w_n = wg + vec3<f32>(du[3], du[4], du[5]);
+    return ObjectVelocity(st.obj_vel.xyz + vec3<f32>(du[0], du[1], du[2]), wg + vec3<f32>(du[3], du[4], du[5]));
+}
+
+// physics.rs: integrate_object. The object's velocities from object_velocity_change, then its pose.
+fn integrate_object(h: f32) {
+    let u = object_velocity_change(h);
+    let vel_n = u.vel;
+    let w_n = u.w;
+    let com = object_com();
     // the centre of mass moves with v, the frame turns about it: p_obj = com − R c
-    let rot_n = quat_integrate(rot, w_n, h);
+    let rot_n = quat_integrate(st.obj_rot, w_n, h);
     st.obj_vel = vec4<f32>(vel_n, 0.0);
     st.obj_angvel = vec4<f32>(w_n, 0.0);
     st.obj_pos = vec4<f32>(com + vel_n * h - quat_rotate(rot_n, prm.obj_com.xyz), 0.0);

@@ -21,7 +21,10 @@
 //!    fingers (as MuJoCo's implicit constraint forces are), exactly `Fn = k·d` at rest, and a gap
 //!    closing within the substep pushes already (speculative contacts within `CONTACT_MARGIN`), so
 //!    a fast finger stops at the surface. The object takes the opposite force, with its derivative
-//!    in the object's velocity in its implicit solve.
+//!    in the object's velocity in its implicit solve. The hand–object pairs within the margin that
+//!    did not push are solved a second time after all the others, against the object's velocity at
+//!    the end of the substep as those make it (`object_velocity_change`): a push that throws a
+//!    light object into another link within the substep is met there already.
 //! 4. Hand: finger joints are independent 1-DoF servos (PD with effort limit, damping, Coulomb friction,
 //!    armature + link inertia about the axis at q = 0), integrated semi-implicitly; mimic followers
 //!    follow their leader; the wrist is a free body pulled by a force/torque-limited PD toward its
@@ -44,6 +47,9 @@ use crate::record::ContactKind;
 pub const MAX_LINKS: usize = MAX_JOINTS + 1;
 /// Alternating-projection iterations of the hand–object closest-point search.
 pub const PROJ_ITERS: usize = 4;
+/// The same for a hand box (a palm: one or two per hand), whose projections onto a piece lying
+/// flat against it converge slowly.
+pub const BOX_PROJ_ITERS: usize = 16;
 /// How far apart (m) a hand collider and the object or table may be for their contact to be solved:
 /// a gap that closes within the substep pushes already (`hand_contact_force`). A finger at its
 /// speed limit travels ~1.3 mm in a 2 ms substep.
@@ -51,6 +57,9 @@ pub const CONTACT_MARGIN: f32 = 0.003;
 /// The weight (m) of the piece's nearest point y where a hand box's contact point moves toward the
 /// piece's support points deeper than y, each weighted by how much deeper (`box_piece_contact`).
 pub const DEEP_BLEND: f32 = 1.0e-4;
+/// Words of the mask of hand–object pairs that `contacts_and_forces` solves a second time (one bit
+/// per collider).
+pub const REVISIT_WORDS: usize = crate::hand::MAX_COLLIDERS / 32;
 /// Spin rate (rad/s) below which torsional friction acts as a damper instead of a constant torque.
 pub const TORSION_EPS: f32 = 0.05;
 
@@ -309,6 +318,54 @@ pub fn segment_box_push(a: Vec3, b: Vec3, h: Vec3) -> (Vec3, f32, Vec3) {
     (best_n, best_d, best_p)
 }
 
+/// The point of segment [a, b] nearest a box of half extents `h` (all in the box's frame), exactly:
+/// the squared distance f(t) = Σᵢ max(|pᵢ(t)| − hᵢ, 0)² of p(t) = a + t (b − a) is convex and
+/// piecewise quadratic in t, so its slope f′ is piecewise linear and non-decreasing, with its kinks
+/// where a coordinate crosses a face plane (pᵢ(t) = ±hᵢ). The root of f′ lies between the last kink
+/// (or 0) where f′ ≤ 0 and the first (or 1) where f′ > 0, where f′ is linear. (Alternating
+/// projections zig-zag slowly toward it when the segment lies nearly along a face.)
+pub fn segment_box_closest(a: Vec3, b: Vec3, h: Vec3) -> Vec3 {
+    let u = b - a;
+    let (mut t_lo, mut t_hi) = (0.0f32, 1.0f32);
+    let (mut s_lo, mut s_hi) = (segment_box_slope(a, u, h, 0.0), segment_box_slope(a, u, h, 1.0));
+    if s_lo >= 0.0 {
+        return a;
+    }
+    if s_hi <= 0.0 {
+        return b;
+    }
+    for i in 0..3 {
+        if u[i].abs() < 1e-12 {
+            continue;
+        }
+        for side in 0..2 {
+            let face = if side == 0 { h[i] } else { -h[i] };
+            let t = (face - a[i]) / u[i];
+            if t > t_lo && t < t_hi {
+                let st = segment_box_slope(a, u, h, t);
+                if st <= 0.0 {
+                    (t_lo, s_lo) = (t, st);
+                } else {
+                    (t_hi, s_hi) = (t, st);
+                }
+            }
+        }
+    }
+    // f′ linear on [t_lo, t_hi]: its root
+    let t = t_lo + (t_hi - t_lo) * (-s_lo / (s_hi - s_lo));
+    a + u * t
+}
+
+/// Half the slope df/dt of `segment_box_closest`'s f at t: Σᵢ uᵢ · sign(pᵢ) · max(|pᵢ| − hᵢ, 0).
+pub fn segment_box_slope(a: Vec3, u: Vec3, h: Vec3, t: f32) -> f32 {
+    let p = a + u * t;
+    let mut s = 0.0;
+    for i in 0..3 {
+        s += u[i] * sgn(p[i]) * (p[i].abs() - h[i]).max(0.0);
+    }
+    s
+}
+
 /// Closest point on the segment [a, b] to `p`.
 pub fn segment_closest(a: Vec3, b: Vec3, p: Vec3) -> Vec3 {
     let ab = b - a;
@@ -524,7 +581,7 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
     if cd.shape == SHAPE_BOX {
         let h = v3(cd.size);
         let mut x = c_o;
-        for _ in 0..PROJ_ITERS {
+        for _ in 0..BOX_PROJ_ITERS {
             let (y, _) = piece_project(m, pd, scale, size, x);
             x = box_project(c_o, r_o, h, y);
         }
@@ -545,9 +602,13 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
     let a = c_o - axis;
     let b = c_o + axis;
     let mut x = segment_closest(a, b, Vec3::ZERO);
-    for _ in 0..PROJ_ITERS {
-        let (y, _) = piece_project(m, pd, scale, size, x);
-        x = segment_closest(a, b, y);
+    if code == SHAPE_BOX {
+        x = segment_box_closest(a, b, size);
+    } else {
+        for _ in 0..PROJ_ITERS {
+            let (y, _) = piece_project(m, pd, scale, size, x);
+            x = segment_closest(a, b, y);
+        }
     }
     let (y, inside) = piece_project(m, pd, scale, size, x);
     let rc = cd.size[0];
@@ -619,7 +680,7 @@ pub fn box_piece_contact(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, c_o:
     let gap = (quat_rotate(inv, -c_o).abs() - h).max(Vec3::ZERO);
     let radius = pd.pos[3] * scale;
     if gap.length_squared() > radius * radius {
-        return (depth, n, y);
+        return box_gap_contact(h, ly, y);
     }
     // the deepest support point inside the box, at its nearest face
     let y_depth = depth;
@@ -633,7 +694,7 @@ pub fn box_piece_contact(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, c_o:
         }
     }
     if depth < 0.0 {
-        return (-1.0, n, y);
+        return box_gap_contact(h, ly, y);
     }
     // no support point deeper than y: none is deeper than y past y's face either (the point is y)
     if depth == y_depth {
@@ -655,6 +716,19 @@ pub fn box_piece_contact(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, c_o:
         }
     }
     (depth, n, psum / wsum)
+}
+
+/// A hand box apart from a piece (`ly`: the piece's point `y` nearest the box, in the box frame,
+/// outside it): the gap between y and the box's point nearest it as a negative depth, along the line
+/// between them (a speculative contact, as a capsule's; the projections overestimate the gap,
+/// never underestimate it). Depth −1 when they touch at y (no direction).
+pub fn box_gap_contact(h: Vec3, ly: Vec3, y: Vec3) -> (f32, Vec3, Vec3) {
+    let d = ly.clamp(-h, h) - ly;
+    let gap = d.length();
+    if gap > 1e-9 {
+        return (-gap, d / gap, y);
+    }
+    (-1.0, Vec3::Z, y)
 }
 
 /// Support point `k` of piece `pd` in a hand box's frame (`inv`: the box's rotation in the piece
@@ -983,6 +1057,42 @@ pub fn solve_hand_contact(p: &EnvParams, m: &Model, s: &mut Scratch, springs: &m
     (f, a, b)
 }
 
+/// The object's side of hand–object contact `c` of collider `ci` (force `f` on the hand, the
+/// object's normal and tangential damping `a`, `b` from `solve_hand_contact`), its torsional
+/// friction (against the object's spin `w_obj`), and the statistics. `dv_point`, `dw`: how far the
+/// velocities the force was solved against (the object's predicted ones) are from its present
+/// ones; the damping times them joins the force, so that the object's implicit solve, which starts
+/// from the present velocities, linearises the force about the predicted ones.
+#[allow(clippy::too_many_arguments)]
+pub fn hand_object_force(p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, ci: usize, c: &Contact, f: Vec3, a: f32, b: f32, ocom: Vec3, w_obj: Vec3, dv_point: Vec3, dw: Vec3, mu: f32, on_contact: &mut impl FnMut(ContactKind, usize, &Contact, Vec3)) {
+    let g = m.g;
+    let l = m.colliders[ci].link as usize;
+    let n = c.normal;
+    let fn_ = f.dot(n);
+    if fn_ > 0.0 {
+        // D·δv with D = a nnᵀ + b (I − nnᵀ): the force's change as the object's velocity goes back to its present one
+        let dvn = dv_point.dot(n);
+        let lin = n * (a * dvn) + (dv_point - n * dvn) * b;
+        apply_object_force(ocom, s, c.point, lin - f, n, a, b);
+        let (tq, br) = torsion_torque(n, s.link_w[l] - w_obj, fn_, mu, g.torsion_radius);
+        apply_hand_torque(p, m, s, l, tq, h);
+        // the torsion's damping, linearised likewise: + b_r n (n·δω)
+        apply_object_torque(s, n * (br * n.dot(dw)) - tq, n, br);
+        s.link_contact[l / 32] |= 1 << (l % 32);
+        let tip = m.colliders[ci].tip;
+        if tip != NO_JOINT {
+            s.tip_force[tip as usize] += fn_;
+        }
+    }
+    if fn_ > 0.0 || c.depth > 0.0 {
+        s.contacts += 1;
+        s.contacts_ho += 1;
+        s.max_pen_ho = s.max_pen_ho.max(c.depth);
+        s.max_pen = s.max_pen.max(c.depth);
+        on_contact(ContactKind::HandObject, ci, c, f);
+    }
+}
+
 /// Evaluates every contact of the substep: forces on hand and object, springs (`springs`: this
 /// env's `[n_springs]` slots, see [`spring_slot`]), statistics. `on_contact` sees each contact
 /// that touches or pushes, with the force on its first body (the hand; the object against the
@@ -1001,6 +1111,9 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
     let mu_ht = 0.5 * (p.hand_friction + p.table_friction);
     let mu_ot = 0.5 * (p.obj_friction + p.table_friction);
     let n_c = g.n_colliders;
+    // hand–object pairs within the margin that did not push: solved again once the object's
+    // velocity this substep is predicted (bit ci % 32 of word ci / 32)
+    let mut revisit = [0u32; REVISIT_WORDS];
     for ci in 0..g.n_colliders as usize {
         let (sho, sht) = (spring_slot::hand_object(ci as u32) as usize, spring_slot::hand_table(n_c, ci as u32) as usize);
         let l = m.colliders[ci].link as usize;
@@ -1008,24 +1121,10 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
         let c = collide_hand_object(st, p, m, s, ci);
         if c.depth > -CONTACT_MARGIN {
             let (f, a, b) = solve_hand_contact(p, m, s, springs, sho, l, &c, ovel + ow.cross(c.point - ocom), p.obj_contact_c, mu_ho, h);
-            let fn_ = f.dot(c.normal);
-            if fn_ > 0.0 {
-                apply_object_force(ocom, s, c.point, -f, c.normal, a, b);
-                let (tq, br) = torsion_torque(c.normal, s.link_w[l] - ow, fn_, mu_ho, g.torsion_radius);
-                apply_hand_torque(p, m, s, l, tq, h);
-                apply_object_torque(s, -tq, c.normal, br);
-                s.link_contact[l / 32] |= 1 << (l % 32);
-                let tip = m.colliders[ci].tip;
-                if tip != NO_JOINT {
-                    s.tip_force[tip as usize] += fn_;
-                }
-            }
-            if fn_ > 0.0 || c.depth > 0.0 {
-                s.contacts += 1;
-                s.contacts_ho += 1;
-                s.max_pen_ho = s.max_pen_ho.max(c.depth);
-                s.max_pen = s.max_pen.max(c.depth);
-                on_contact(ContactKind::HandObject, ci, &c, f);
+            if f.dot(c.normal) > 0.0 {
+                hand_object_force(p, m, s, h, ci, &c, f, a, b, ocom, ow, Vec3::ZERO, Vec3::ZERO, mu_ho, on_contact);
+            } else {
+                revisit[ci / 32] |= 1 << (ci % 32);
             }
         } else {
             springs[sho] = [0.0; 4];
@@ -1078,6 +1177,25 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
                 springs[ki] = [0.0; 4];
             }
             kp += 1;
+        }
+    }
+    // the second pass: the pairs that did not push, against the object's velocity at the end of the
+    // substep as the forces so far make it (a finger's push can throw a light object into another
+    // link within the substep, which a pair solved against the object's velocity now cannot see)
+    if revisit.iter().any(|&w| w != 0) {
+        let (vel_p, w_p) = object_velocity_change(st, p, m, s, h);
+        for ci in 0..g.n_colliders as usize {
+            if revisit[ci / 32] & (1 << (ci % 32)) == 0 {
+                continue;
+            }
+            let l = m.colliders[ci].link as usize;
+            let c = collide_hand_object(st, p, m, s, ci);
+            let v_other = vel_p + w_p.cross(c.point - ocom);
+            let (f, a, b) = solve_hand_contact(p, m, s, springs, spring_slot::hand_object(ci as u32) as usize, l, &c, v_other, p.obj_contact_c, mu_ho, h);
+            // the object's force is linearised about the predicted velocity, not the present one:
+            // F(u) = F(u_p) − D·J·(u − u_p) = [F(u_p) + D·J·(u_p − u₀)] − D·J·(u − u₀)
+            let dv_point = (vel_p - ovel) + (w_p - ow).cross(c.point - ocom);
+            hand_object_force(p, m, s, h, ci, &c, f, a, b, ocom, w_p, dv_point, w_p - ow, mu_ho, on_contact);
         }
     }
 }
@@ -1203,9 +1321,10 @@ pub fn inertia_inv_mul(rot: Vec4, ib: Vec3, x: Vec3) -> Vec3 {
     quat_rotate(rot, quat_rotate(quat_conj(rot), x) / ib)
 }
 
-/// The object: gravity, contact forces, linearly implicit in its 6 velocities:
+/// The object's velocities at the end of the substep (centre-of-mass velocity, angular velocity)
+/// under gravity and the contact forces so far, linearly implicit in its 6 velocities:
 /// (M + h Σ JᵀDJ) Δu = h f, with the gyroscopic term applied first and kept energy-neutral.
-pub fn integrate_object(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch, h: f32) {
+pub fn object_velocity_change(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, h: f32) -> (Vec3, Vec3) {
     let mass = p.obj_inertia[3];
     let ib = v3(p.obj_inertia);
     let rot = v4(st.obj_rot);
@@ -1242,10 +1361,15 @@ pub fn integrate_object(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch
     let f = s.obj_f + ext + Vec3::new(0.0, 0.0, gz);
     let tq = s.obj_t + (at - com).cross(ext);
     let du = solve6(&a, [h * f.x, h * f.y, h * f.z, h * tq.x, h * tq.y, h * tq.z]);
-    let vel_n = v3(st.obj_vel) + Vec3::new(du[0], du[1], du[2]);
-    let w_n = wg + Vec3::new(du[3], du[4], du[5]);
+    (v3(st.obj_vel) + Vec3::new(du[0], du[1], du[2]), wg + Vec3::new(du[3], du[4], du[5]))
+}
+
+/// The object: its velocities from `object_velocity_change`, then its pose.
+pub fn integrate_object(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch, h: f32) {
+    let (vel_n, w_n) = object_velocity_change(st, p, m, s, h);
+    let com = object_com(st, p);
     // the centre of mass moves with v, the frame turns about it: p_obj = com − R c
-    let rot_n = quat_integrate(rot, w_n, h);
+    let rot_n = quat_integrate(v4(st.obj_rot), w_n, h);
     st.obj_vel = put3(vel_n);
     st.obj_angvel = put3(w_n);
     st.obj_pos = put3(com + vel_n * h - quat_rotate(rot_n, v3(p.obj_com)));

@@ -206,8 +206,9 @@ fn one_physics_step_agrees(c: dextrain::config::Config, start: &Snap, t: Targets
     // changes a penalty force by k·1e-8 m = 1e-4 N, so joint velocities agree to ~1e-5 rad/s absolute:
     // velocities are compared relative to max(|v|, 1 rad/s), positions to max(|x|, 1 m). The bound is
     // 2e-5, or 4× what the CPU itself does when every input coordinate moves by one ulp (the f32
-    // conditioning of this very state), whichever is larger, and never above 1e-4. A twin that
-    // computes something else is off by orders of magnitude more.
+    // conditioning of this very state), whichever is larger, and never above 5e-4 (LEAP's 71
+    // colliders, a pair solved a second time against the object's predicted velocity: ~1.3e-4 from
+    // a 1-ulp nudge alone). A twin that computes something else is off by orders of magnitude more.
     let (d, at) = max_rel_diff(&snap(&mut cpu), &snap(&mut gpu), 1.0);
     let mut nudged = Snap { states: start.states.clone(), springs: start.springs.clone() };
     for s in nudged.states.iter_mut() {
@@ -219,7 +220,7 @@ fn one_physics_step_agrees(c: dextrain::config::Config, start: &Snap, t: Targets
     restore(&mut cpu2, &nudged);
     run(&mut cpu2, t, 1);
     let (cond, _) = max_rel_diff(&snap(&mut cpu), &snap(&mut cpu2), 1.0);
-    let bound = (4.0 * cond).clamp(2e-5, 1e-4);
+    let bound = (4.0 * cond).clamp(2e-5, 5e-4);
     eprintln!("one physics step: cpu vs gpu {d:e} (relative), cpu vs cpu with 1-ulp nudged inputs {cond:e}");
     assert!(d < bound, "one physics step differs by {d:e} (relative; bound {bound:e}, 1-ulp conditioning {cond:e}): {at}");
     let (a, b) = (cpu.stats().unwrap(), gpu.stats().unwrap());

@@ -142,6 +142,8 @@ fn shader_constants_match_rust() {
         ("MAX_PIECES", MAX_PIECES),
         ("MAX_LINKS", dextrain::env::physics::MAX_LINKS),
         ("PROJ_ITERS", dextrain::env::physics::PROJ_ITERS),
+        ("BOX_PROJ_ITERS", dextrain::env::physics::BOX_PROJ_ITERS),
+        ("REVISIT_WORDS", dextrain::env::physics::REVISIT_WORDS),
     ] {
         assert!(src.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in the WGSL");
     }
