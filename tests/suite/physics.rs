@@ -369,6 +369,15 @@ fn the_segment_point_nearest_a_box_is_exact() {
     assert!(worse_projections > 0, "the projections should miss by > 0.1 mm on some nearly parallel segment");
 }
 
+/// The direction from the object toward the palm box of `box_turned_into_palm`'s scene: the
+/// palm's +z (its −z face looks at the object), in the world.
+fn toward_palm(model: &dextrain::env::SimModel, st: &dextrain::env::EnvState) -> glam::Vec3 {
+    let links = dextrain::env::hand_link_poses(model, st);
+    let cd = model.colliders[0];
+    let palm = links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot));
+    palm.rot * glam::Vec3::Z
+}
+
 /// A hand box (the palm) apart from the object reports the gap as a speculative contact, as a
 /// capsule does: a cube flying at the palm at 1 m/s from 1.5 mm away is stopped at its surface,
 /// not a substep's travel (2 mm) inside it.
@@ -377,13 +386,8 @@ fn a_cube_thrown_at_the_palm_stops_at_its_surface() {
     let c = base_config(1);
     let mut b = cpu_batch(&c);
     box_turned_into_palm(&mut b, -0.0015, |_| 0.02);
-    let model = b.model().clone();
     let mut s = b.states().unwrap();
-    // toward the palm: the palm's +z (its −z face looks at the cube)
-    let links = dextrain::env::hand_link_poses(&model, &s[0]);
-    let cd = model.colliders[0];
-    let palm = links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot));
-    let up = palm.rot * glam::Vec3::Z;
+    let up = toward_palm(&b.model().clone(), &s[0]);
     s[0].obj_vel = [up.x, up.y, up.z, 0.0];
     b.set_states(&s).unwrap();
     let mut t = b.model().default_targets();
@@ -407,10 +411,7 @@ fn a_pair_apart_pushes_once_the_object_is_predicted_to_close_the_gap() {
     box_turned_into_palm(&mut b, -0.001, |_| 0.02);
     let model = b.model().clone();
     let s = b.states().unwrap();
-    let links = dextrain::env::hand_link_poses(&model, &s[0]);
-    let cd = model.colliders[0];
-    let palm = links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot));
-    let up = palm.rot * glam::Vec3::Z;
+    let up = toward_palm(&model, &s[0]);
     let springs = b.springs().unwrap();
     let records = |p: &dextrain::env::EnvParams| {
         dextrain::env::contact_records(&model, &s[0], &springs, p, &model.default_targets()).into_iter().find(|k| k.kind == ContactKind::HandObject && k.index == 0)
