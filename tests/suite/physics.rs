@@ -379,15 +379,15 @@ fn toward_palm(model: &dextrain::env::SimModel, st: &dextrain::env::EnvState) ->
 }
 
 /// A hand box (the palm) apart from the object reports the gap as a speculative contact, as a
-/// capsule does: a cube flying at the palm at 1 m/s from 1.5 mm away is stopped at its surface,
-/// not a substep's travel (2 mm) inside it.
+/// capsule does: a cube flying at the palm at 2 m/s from 2.5 mm away is slowed before it gets
+/// there, not a substep's travel (4.2 mm: 1.7 mm inside) later.
 #[test]
-fn a_cube_thrown_at_the_palm_stops_at_its_surface() {
+fn a_cube_thrown_at_the_palm_is_slowed_before_it_gets_there() {
     let c = base_config(1);
     let mut b = cpu_batch(&c);
-    box_turned_into_palm(&mut b, -0.0015, |_| 0.02);
+    box_turned_into_palm(&mut b, -0.0025, |_| 0.02);
     let mut s = b.states().unwrap();
-    let up = toward_palm(&b.model().clone(), &s[0]);
+    let up = toward_palm(&b.model().clone(), &s[0]) * 2.0;
     s[0].obj_vel = [up.x, up.y, up.z, 0.0];
     b.set_states(&s).unwrap();
     let mut t = b.model().default_targets();
@@ -395,7 +395,7 @@ fn a_cube_thrown_at_the_palm_stops_at_its_surface() {
     t.wrist_rot = s[0].wrist_rot;
     b.step(&[t]).unwrap();
     let pen = b.stats().unwrap()[0].max_pen_ho;
-    assert!(pen < 0.6e-3, "the cube sank {:.3} mm into the palm", pen * 1e3);
+    assert!(pen < 1.0e-3, "the cube sank {:.3} mm into the palm", pen * 1e3);
 }
 
 /// The second pass of the hand's contacts: a pair apart and not pushing, solved against the
