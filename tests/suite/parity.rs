@@ -207,8 +207,8 @@ fn one_physics_step_agrees(c: dextrain::config::Config, start: &Snap, t: Targets
     // velocities are compared relative to max(|v|, 1 rad/s), positions to max(|x|, 1 m). The bound is
     // 2e-5, or 4× what the CPU itself does when every input coordinate moves by one ulp (the f32
     // conditioning of this very state), whichever is larger, and never above 5e-4 (LEAP's 71
-    // colliders, a pair solved a second time against the object's predicted velocity: ~1.3e-4 from
-    // a 1-ulp nudge alone). A twin that computes something else is off by orders of magnitude more.
+    // colliders: a 1-ulp nudge alone moves its contact-rich step by ~1.3e-4). A twin that
+    // computes something else is off by orders of magnitude more.
     let (d, at) = max_rel_diff(&snap(&mut cpu), &snap(&mut gpu), 1.0);
     let mut nudged = Snap { states: start.states.clone(), springs: start.springs.clone() };
     for s in nudged.states.iter_mut() {
