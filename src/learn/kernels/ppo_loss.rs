@@ -217,16 +217,11 @@ mod gpu {
         [SHADER_COMMON, body].join("\n")
     }
 
-    /// A contiguous row-major f32 `[rows, cols]` tensor.
-    fn plain(t: &FloatTensor<Cube>, rows: usize, cols: usize) -> bool {
-        is_plain(t, [rows, cols])
-    }
-
     /// (B, A, the launch's constants `PpoLossCfg`, the row kernels' workgroups) for the forward
     /// pass's inputs, or None where they do not fit the kernels.
     fn config(mu: &FloatTensor<Cube>, log_std: &FloatTensor<Cube>, v: &FloatTensor<Cube>, cols: &FloatTensor<Cube>, c: LossCoefs) -> Option<(usize, usize, [u32; 8], u32)> {
         let [rows, a] = <[usize; 2]>::try_from(mu.shape().to_vec()).ok()?;
-        if rows == 0 || a == 0 || !plain(mu, rows, a) || !plain(log_std, 1, a) || !plain(v, rows, 1) || !plain(cols, rows, 2 * a + 4) {
+        if rows == 0 || a == 0 || !is_plain(mu, [rows, a]) || !is_plain(log_std, [1, a]) || !is_plain(v, [rows, 1]) || !is_plain(cols, [rows, 2 * a + 4]) {
             return None;
         }
         u32::try_from(rows.checked_mul(2 * a + 4)?).ok()?; // every index within 32 bits
@@ -249,7 +244,7 @@ mod gpu {
     /// `[1, 5]` as two kernels, or None where the tensors do not fit them.
     pub fn forward(mu: &FloatTensor<Cube>, log_std: &FloatTensor<Cube>, v: &FloatTensor<Cube>, old_sigma: &FloatTensor<Cube>, cols: &FloatTensor<Cube>, c: LossCoefs) -> Option<FloatTensor<Cube>> {
         let (_, a, constants, groups) = config(mu, log_std, v, cols, c)?;
-        if !plain(old_sigma, 1, a) {
+        if !is_plain(old_sigma, [1, a]) {
             return None;
         }
         let device = &mu.device;
@@ -263,7 +258,7 @@ mod gpu {
     /// `(∂μ, ∂ log σ, ∂V)` as two kernels, or None where the tensors do not fit them.
     pub fn backward(mu: &FloatTensor<Cube>, log_std: &FloatTensor<Cube>, v: &FloatTensor<Cube>, cols: &FloatTensor<Cube>, dout: &FloatTensor<Cube>, c: LossCoefs) -> Option<(FloatTensor<Cube>, FloatTensor<Cube>, FloatTensor<Cube>)> {
         let (rows, a, constants, groups) = config(mu, log_std, v, cols, c)?;
-        if !plain(dout, 1, 5) {
+        if !is_plain(dout, [1, 5]) {
             return None;
         }
         let device = &mu.device;

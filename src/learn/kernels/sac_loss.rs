@@ -156,16 +156,11 @@ mod gpu {
         WgslKernel { name, key: k, source, entry_point, workgroup: [WORKGROUP, 1] }
     }
 
-    /// A contiguous row-major f32 `[rows, cols]` tensor.
-    fn plain(t: &FloatTensor<Cube>, rows: usize, cols: usize) -> bool {
-        is_plain(t, [rows, cols])
-    }
-
     /// (B, the launch's constants `SacLossCfg`, the row kernels' workgroups), or None where the
     /// tensors do not fit the kernels.
     fn config(a: &FloatTensor<Cube>, b: &FloatTensor<Cube>, log_alpha: &FloatTensor<Cube>, kind: SacLoss) -> Option<(usize, [u32; 4], u32)> {
         let rows = a.shape()[0];
-        if rows == 0 || !plain(a, rows, 1) || !plain(b, rows, 1) || !plain(log_alpha, 1, 1) {
+        if rows == 0 || !is_plain(a, [rows, 1]) || !is_plain(b, [rows, 1]) || !is_plain(log_alpha, [1, 1]) {
             return None;
         }
         let rows32 = u32::try_from(rows).ok()?;
@@ -193,7 +188,7 @@ mod gpu {
     /// `(∂a, ∂b)` as one kernel, or None where the tensors do not fit it.
     pub fn backward(a: &FloatTensor<Cube>, b: &FloatTensor<Cube>, log_alpha: &FloatTensor<Cube>, dout: &FloatTensor<Cube>, kind: SacLoss) -> Option<(FloatTensor<Cube>, FloatTensor<Cube>)> {
         let (rows, constants, groups) = config(a, b, log_alpha, kind)?;
-        if !plain(dout, 1, 2) {
+        if !is_plain(dout, [1, 2]) {
             return None;
         }
         // each written whole by the kernel

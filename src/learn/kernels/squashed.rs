@@ -131,17 +131,12 @@ mod gpu {
         [SHADER_COMMON, SHADER_BACKWARD].join("\n")
     }
 
-    /// A contiguous row-major f32 `[rows, cols]` tensor.
-    fn plain(t: &FloatTensor<Cube>, rows: usize, cols: usize) -> bool {
-        is_plain(t, [rows, cols])
-    }
-
     /// (rows, A, the launch's constants `SqCfg`, the grid) for a head `[rows, 2A]` and ε
     /// `[rows, A]`, or None where they do not fit the kernels.
     fn config(head: &FloatTensor<Cube>, eps: &FloatTensor<Cube>, lo: f64, hi: f64) -> Option<(usize, usize, [u32; 6], [u32; 3])> {
         let [rows, two_a] = <[usize; 2]>::try_from(head.shape().to_vec()).ok()?;
         let a = two_a / 2;
-        if rows == 0 || a == 0 || two_a != 2 * a || !plain(head, rows, two_a) || !plain(eps, rows, a) {
+        if rows == 0 || a == 0 || two_a != 2 * a || !is_plain(head, [rows, two_a]) || !is_plain(eps, [rows, a]) {
             return None;
         }
         u32::try_from(rows.checked_mul(two_a + 2)?).ok()?; // every index within 32 bits
@@ -162,7 +157,7 @@ mod gpu {
     /// `∂L/∂head` `[B, 2A]` as one kernel, or None where the tensors do not fit it.
     pub fn backward(head: &FloatTensor<Cube>, eps: &FloatTensor<Cube>, dout: &FloatTensor<Cube>, lo: f64, hi: f64) -> Option<FloatTensor<Cube>> {
         let (rows, a, constants, groups) = config(head, eps, lo, hi)?;
-        if !plain(dout, rows, a + 1) {
+        if !is_plain(dout, [rows, a + 1]) {
             return None;
         }
         let dhead = Cube::float_empty(Shape::new([rows, 2 * a]), &head.device, FloatDType::F32); // written whole below
