@@ -492,10 +492,11 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
     let axis = quat_rotate(r_o, vec3<f32>(0.0, 0.0, hl));
     let a = c_o - axis;
     let b = c_o + axis;
-    var x = segment_closest(a, b, vec3<f32>(0.0));
+    var x: vec3<f32>;
     if (code == SHAPE_BOX) {
         x = segment_box_closest(a, b, size);
     } else {
+        x = segment_closest(a, b, vec3<f32>(0.0));
         for (var it = 0u; it < PROJ_ITERS; it++) {
             let y = piece_project(pd, scale, size, x).point;
             x = segment_closest(a, b, y);

@@ -601,15 +601,16 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
     let axis = quat_rotate(r_o, Vec3::new(0.0, 0.0, hl));
     let a = c_o - axis;
     let b = c_o + axis;
-    let mut x = segment_closest(a, b, Vec3::ZERO);
-    if code == SHAPE_BOX {
-        x = segment_box_closest(a, b, size);
+    let x = if code == SHAPE_BOX {
+        segment_box_closest(a, b, size)
     } else {
+        let mut x = segment_closest(a, b, Vec3::ZERO);
         for _ in 0..PROJ_ITERS {
             let (y, _) = piece_project(m, pd, scale, size, x);
             x = segment_closest(a, b, y);
         }
-    }
+        x
+    };
     let (y, inside) = piece_project(m, pd, scale, size, x);
     let rc = cd.size[0];
     let mut n = Vec3::Z;
