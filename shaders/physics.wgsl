@@ -482,8 +482,20 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
         let y = piece_project(pd, scale, size, x).point;
         // y and the piece's support points (box_piece_contact)
         let bc = box_piece_contact(pd, scale, size, c_o, r_o, h, y);
-        out.depth = bc.depth;
-        out.normal = quat_rotate(orot, quat_rotate(r_o, bc.n_local));
+        var depth = bc.depth;
+        // the normal in the object's frame
+        var normal = quat_rotate(r_o, bc.n_local);
+        // apart by the projections, from a box piece: no more than the boxes' separation over
+        // their separating axes where those find them apart (physics.rs: collide_collider_piece)
+        if (depth < 0.0 && code == SHAPE_BOX) {
+            let bs = box_box_separation(c_o, r_o, h, size);
+            if (bs.sep > 0.0 && bs.sep < -depth) {
+                depth = -bs.sep;
+                normal = bs.axis;
+            }
+        }
+        out.depth = depth;
+        out.normal = quat_rotate(orot, normal);
         out.point = opos + quat_rotate(orot, bc.point);
         return out;
     }
@@ -616,6 +628,45 @@ fn box_piece_contact(pd: PieceDesc, scale: f32, size: vec3<f32>, c_o: vec3<f32>,
         }
     }
     return BoxPieceContact(depth, n, psum / wsum);
+}
+
+struct BoxSeparation {
+    sep: f32,
+    axis: vec3<f32>,
+}
+
+// physics.rs: box_box_separation. The largest separation of a box (c, r, ha) from the axis-aligned
+// box hb at the origin over the 15 separating axes (each box's faces, then edge × edge; near-parallel
+// edges skipped), and that axis from the second box to the first: > 0 a lower bound on their
+// distance, ≤ 0 they overlap (SAT)
+fn box_box_separation(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>) -> BoxSeparation {
+    let a = array<vec3<f32>, 3>(quat_rotate(r, vec3<f32>(1.0, 0.0, 0.0)), quat_rotate(r, vec3<f32>(0.0, 1.0, 0.0)), quat_rotate(r, vec3<f32>(0.0, 0.0, 1.0)));
+    let b = array<vec3<f32>, 3>(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, 0.0, 1.0));
+    var best = BoxSeparation(-3.0e38, vec3<f32>(0.0, 0.0, 1.0));
+    for (var k = 0u; k < 15u; k++) {
+        var l: vec3<f32>;
+        if (k < 3u) {
+            l = a[k];
+        } else if (k < 6u) {
+            l = b[k - 3u];
+        } else {
+            l = cross(a[(k - 6u) / 3u], b[(k - 6u) % 3u]);
+        }
+        let len2 = dot(l, l);
+        if (len2 < 1e-8) {
+            continue;
+        }
+        l = l / sqrt(len2);
+        // each box's half-width along l: Σ hᵢ |uᵢ·l|
+        let ra = ha.x * abs(dot(a[0], l)) + ha.y * abs(dot(a[1], l)) + ha.z * abs(dot(a[2], l));
+        let rb = hb.x * abs(l.x) + hb.y * abs(l.y) + hb.z * abs(l.z);
+        let t = dot(c, l);
+        let sep = abs(t) - ra - rb;
+        if (sep > best.sep) {
+            best = BoxSeparation(sep, select(-l, l, t >= 0.0));
+        }
+    }
+    return best;
 }
 
 // physics.rs: box_gap_contact. A hand box apart from a piece: the gap between y and the box's

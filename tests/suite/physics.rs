@@ -369,13 +369,28 @@ fn the_segment_point_nearest_a_box_is_exact() {
     assert!(worse_projections > 0, "the projections should miss by > 0.1 mm on some nearly parallel segment");
 }
 
-/// The direction from the object toward the palm box of `box_turned_into_palm`'s scene: the
-/// palm's +z (its −z face looks at the object), in the world.
-fn toward_palm(model: &dextrain::env::SimModel, st: &dextrain::env::EnvState) -> glam::Vec3 {
-    let links = dextrain::env::hand_link_poses(model, st);
-    let cd = model.colliders[0];
-    let palm = links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot));
-    palm.rot * glam::Vec3::Z
+/// A hand box's gap to a box piece is the boxes' largest separation over their 15 separating axes
+/// where the alternating projections stop short of the nearest points (`box_box_separation`): a
+/// cube tilted under the palm, its near edge 0.5 or 2 mm from the palm's face, reports that gap,
+/// however flat it lies (the projections zig-zag slowly between faces that meet at a shallow angle
+/// and end far from the nearest points).
+#[test]
+fn the_palm_s_gap_to_a_cube_tilted_under_it_is_exact() {
+    use dextrain::env::physics::{Scratch, collide_hand_object, hand_kinematics};
+    for tilt in [0.5f32, 2.0, 10.0, 30.0] {
+        for gap in [0.0005f32, 0.002] {
+            let c = base_config(1);
+            let mut b = cpu_batch(&c);
+            box_tilted_against_palm(&mut b, -gap, tilt, |_| 0.0);
+            let model = b.model().clone();
+            let m = model.view();
+            let (st, p) = (b.states().unwrap()[0], b.params().unwrap()[0]);
+            let mut s = Scratch::default();
+            hand_kinematics(&st, &m, &mut s);
+            let k = collide_hand_object(&st, &p, &m, &s, 0);
+            assert!((k.depth + gap).abs() < 2e-5, "tilt {tilt}°, gap {:.2} mm: reported {:.4} mm", gap * 1e3, -k.depth * 1e3);
+        }
+    }
 }
 
 /// A hand box (the palm) apart from the object reports the gap as a speculative contact, as a

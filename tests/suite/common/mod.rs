@@ -102,6 +102,12 @@ pub fn wgpu_learner(test: &str) -> Option<(GpuContext, burn::prelude::Device)> {
 /// nearest the palm's centre is then on its top face, shallower than that edge. Returns, per env,
 /// the midpoint of that edge (world), where the palm's contact should push.
 pub fn box_turned_into_palm(b: &mut CpuEnvBatch, depth: f32, lateral: impl Fn(usize) -> f32) -> Vec<glam::Vec3> {
+    box_tilted_against_palm(b, depth, 30.0, lateral)
+}
+
+/// `box_turned_into_palm`, turned `tilt_deg` instead of 30° (a small tilt: the box's top face lies
+/// nearly flat against the palm's face).
+pub fn box_tilted_against_palm(b: &mut CpuEnvBatch, depth: f32, tilt_deg: f32, lateral: impl Fn(usize) -> f32) -> Vec<glam::Vec3> {
     use dextrain::env::physics::object_support_point;
     use glam::{Quat, Vec3};
     let model = b.model().clone();
@@ -111,7 +117,7 @@ pub fn box_turned_into_palm(b: &mut CpuEnvBatch, depth: f32, lateral: impl Fn(us
     assert_eq!(piece.shape, dextrain::gpu::layout::SHAPE_BOX, "the object is a box");
     assert!(piece.pos[..3].iter().all(|x| *x == 0.0) && piece.rot == [0.0, 0.0, 0.0, 1.0], "one box at the object's frame");
     let (size, h) = (Vec3::from_slice(&piece.size[..3]), Vec3::from_slice(&cd.size[..3]));
-    let turn = Quat::from_rotation_x(30f32.to_radians());
+    let turn = Quat::from_rotation_x(tilt_deg.to_radians());
     // the turned box's corners in the palm frame, about its centre; the top ones along +z
     let corners: Vec<Vec3> = (0..8).map(|k| turn * object_support_point(piece.shape, size, k).0).collect();
     let top = corners.iter().map(|c| c.z).fold(f32::MIN, f32::max);
@@ -133,6 +139,15 @@ pub fn box_turned_into_palm(b: &mut CpuEnvBatch, depth: f32, lateral: impl Fn(us
     }
     b.set_states(&states).unwrap();
     edges
+}
+
+/// The direction from the object toward the palm box of `box_turned_into_palm`'s scene: the
+/// palm's +z (its −z face looks at the object), in the world.
+pub fn toward_palm(model: &dextrain::env::SimModel, st: &dextrain::env::EnvState) -> glam::Vec3 {
+    let links = dextrain::env::hand_link_poses(model, st);
+    let cd = model.colliders[0];
+    let palm = links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot));
+    palm.rot * glam::Vec3::Z
 }
 
 /// The joints a reset starts from: defaults clamped into the limits, followers from their leaders.
