@@ -25,6 +25,17 @@ var<private> max_pen: f32;
 var<private> n_contacts: u32;
 var<private> n_contacts_ho: u32;
 var<private> link_contact: array<u32, 2>;
+// physics.rs: MAX_REACTIONS. Hand–object pairs per substep whose force on the hand follows the
+// object's motion in its implicit solve
+const MAX_REACTIONS: u32 = 16u;
+// the hand–object pairs that pushed this substep (physics.rs: Scratch::reactions, Reaction):
+// the link, the point, (normal, a), (δv₀, b), (b_r, n·δω₀)
+var<private> react_link: array<u32, MAX_REACTIONS>;
+var<private> react_point: array<vec3<f32>, MAX_REACTIONS>;
+var<private> react_normal: array<vec4<f32>, MAX_REACTIONS>;
+var<private> react_dv0: array<vec4<f32>, MAX_REACTIONS>;
+var<private> react_torsion: array<vec2<f32>, MAX_REACTIONS>;
+var<private> n_reactions: u32;
 // index of this env's first contact spring in `springs`
 var<private> spring_base: u32;
 
@@ -1000,6 +1011,14 @@ fn hand_object_force(ci: u32, c: Contact, cf: HandContactForce, ocom: vec3<f32>,
         let tor = torsion_torque(n, link_w[l] - w_obj, fn_, mu, g.torsion_radius);
         apply_hand_torque(l, tor.torque, h);
         apply_object_torque(n * (tor.damping * dot(n, dw)) - tor.torque, n, tor.damping);
+        if (n_reactions < MAX_REACTIONS) {
+            react_link[n_reactions] = l;
+            react_point[n_reactions] = c.point;
+            react_normal[n_reactions] = vec4<f32>(n, cf.ndamp);
+            react_dv0[n_reactions] = vec4<f32>(dv_point, cf.tdamp);
+            react_torsion[n_reactions] = vec2<f32>(tor.damping, dot(n, dw));
+            n_reactions += 1u;
+        }
         link_contact[l / 32u] |= 1u << (l % 32u);
         let tip = colliders[ci].tip;
         if (tip != NO_JOINT) {
@@ -1276,9 +1295,29 @@ fn object_velocity_change(h: f32) -> ObjectVelocity {
     return ObjectVelocity(st.obj_vel.xyz + vec3<f32>(du[0], du[1], du[2]), wg + vec3<f32>(du[3], du[4], du[5]));
 }
 
-// physics.rs: integrate_object. The object's velocities from object_velocity_change, then its pose.
-fn integrate_object(h: f32) {
-    let u = object_velocity_change(h);
+// The hand's side of the object's implicit solve (physics.rs: react_to_object_motion): each pushing
+// pair's link takes D·(J·Δu − δv₀) at the contact point and b_r·n·(n·Δω − n·δω₀) about the normal
+fn react_to_object_motion(u: ObjectVelocity, h: f32) {
+    let com = object_com();
+    let dv = u.vel - st.obj_vel.xyz;
+    let dw = u.w - st.obj_angvel.xyz;
+    for (var i = 0u; i < n_reactions; i++) {
+        let x = react_point[i];
+        let l = react_link[i];
+        let n = react_normal[i].xyz;
+        // J·Δu − δv₀: the contact point's velocity change past the one linearised about
+        let du = dv + cross(dw, x - com) - react_dv0[i].xyz;
+        let dun = dot(du, n);
+        // D·(J·Δu − δv₀) with D = a nnᵀ + b (I − nnᵀ)
+        let f = n * (react_normal[i].w * dun) + (du - n * dun) * react_dv0[i].w;
+        apply_hand_force(l, x, f, h);
+        // the torsion's damping: b_r n (n·Δω − n·δω₀)
+        apply_hand_torque(l, n * (react_torsion[i].x * (dot(n, dw) - react_torsion[i].y)), h);
+    }
+}
+
+// the object's pose from its velocities at the end of the substep (physics.rs: integrate_object)
+fn integrate_object(u: ObjectVelocity, h: f32) {
     let vel_n = u.vel;
     let w_n = u.w;
     let com = object_com();
@@ -1297,10 +1336,13 @@ fn substep(h: f32) {
     for (var i = 0u; i < 36u; i++) {
         obj_d[i] = 0.0;
     }
+    n_reactions = 0u;
     hand_servo(h);
     contacts_and_forces(h);
+    let u = object_velocity_change(h);
+    react_to_object_motion(u, h);
     integrate_hand(h);
-    integrate_object(h);
+    integrate_object(u, h);
 }
 
 fn is_finite3(v: vec3<f32>) -> bool {

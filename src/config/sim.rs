@@ -104,10 +104,11 @@ pub struct ContactConfig {
     /// Stiffness of the tangential spring that holds the object's sticking contacts on the table (N/m).
     pub friction_stiffness: f32,
     /// Normal stiffness (N/m) of the hand's contacts (with the object and the table): a fingertip
-    /// pushing with F sinks in F/k at rest (5e4: 0.2 mm at 10 N). They are solved implicitly on the
-    /// hand's side, so any value is stable on the lightest finger; but the object answers in its
-    /// own solve, and beyond ~5e4 a light object rings between stiff fingers and turns or slips in
-    /// a grasp (BENCHMARKS.md).
+    /// pushing with F sinks in F/k at rest (2e5: 0.05 mm at 10 N, 0.5 mm under the arm's 100 N).
+    /// They are solved implicitly on the hand's side, so any value is stable on the lightest
+    /// finger, and the object's answer in its own implicit solve goes back to the hand
+    /// (`react_to_object_motion`), so a light object squeezed between stiff fingers holds still
+    /// (without that, above ~5e4 it rang between them and slipped out: BENCHMARKS.md).
     pub hand_stiffness: f32,
     /// Stiffness of the tangential spring that holds the hand's sticking contacts (N/m).
     pub hand_friction_stiffness: f32,
@@ -163,7 +164,7 @@ impl Default for TableConfig {
 
 impl Default for ContactConfig {
     fn default() -> Self {
-        ContactConfig { stiffness: 1.0e4, friction_stiffness: 1.0e4, hand_stiffness: 5.0e4, hand_friction_stiffness: 1.0e4, hand_effective_mass: 0.1, torsion_radius: 0.005 }
+        ContactConfig { stiffness: 1.0e4, friction_stiffness: 1.0e4, hand_stiffness: 2.0e5, hand_friction_stiffness: 1.0e4, hand_effective_mass: 0.1, torsion_radius: 0.005 }
     }
 }
 

@@ -402,7 +402,9 @@ pub fn hand_link_poses(model: &SimModel, st: &EnvState) -> Vec<crate::geom::Pose
 /// Every contact of a state, with the force the next substep would apply under `targets` (for
 /// recordings and kinematic replay): the CPU twin's contact pass itself
 /// ([`physics::contacts_and_forces`], after the hand's kinematics and servos), on copies of the
-/// state's springs. `springs` are the env's `[n_springs]` contact springs.
+/// state's springs: each force as its pair is solved, without the part the object's motion changes
+/// in its implicit solve ([`physics::react_to_object_motion`]). `springs` are the env's
+/// `[n_springs]` contact springs.
 pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p: &EnvParams, targets: &Targets) -> Vec<crate::record::ContactRecord> {
     use crate::record::ContactRecord;
     let m = model.view();

@@ -24,7 +24,10 @@
 //!    in the object's velocity in its implicit solve. The hand–object pairs within the margin that
 //!    did not push are solved a second time after all the others, against the object's velocity at
 //!    the end of the substep as those make it (`object_velocity_change`): a push that throws a
-//!    light object into another link within the substep is met there already.
+//!    light object into another link within the substep is met there already. Once the object's
+//!    velocity change is solved, each pushing pair's link takes the part of the force that the
+//!    object's motion took off or added in its solve (`react_to_object_motion`), so that hand and
+//!    object feel equal and opposite forces and stiff contacts hold a light object still.
 //! 4. Hand: finger joints are independent 1-DoF servos (PD with effort limit, damping, Coulomb friction,
 //!    armature + link inertia about the axis at q = 0), integrated semi-implicitly; mimic followers
 //!    follow their leader; the wrist is a free body pulled by a force/torque-limited PD toward its
@@ -62,6 +65,11 @@ pub const DEEP_BLEND: f32 = 1.0e-4;
 pub const REVISIT_WORDS: usize = crate::hand::MAX_COLLIDERS / 32;
 /// Spin rate (rad/s) below which torsional friction acts as a damper instead of a constant torque.
 pub const TORSION_EPS: f32 = 0.05;
+/// The most hand–object pairs per substep whose force on the hand follows the object's motion in
+/// its implicit solve (`react_to_object_motion`; the scripted YCB grasps push with at most 6): a
+/// pair past this many keeps the force it was solved with (the shader holds them in private
+/// memory).
+pub const MAX_REACTIONS: usize = 16;
 
 /// Read-only description of the run shared by all envs (the shader's bindings 0–3, 18–21).
 #[derive(Clone, Copy)]
@@ -107,6 +115,31 @@ pub struct Scratch {
     pub contacts_ho: u32,
     /// Bit l % 32 of word l / 32: a collider of link l pushed on the object (Fn > 0) in a substep.
     pub link_contact: [u32; 2],
+    /// The hand–object pairs that pushed this substep, in the order solved (the first
+    /// `n_reactions`, at most `MAX_REACTIONS`): what `react_to_object_motion` needs of each.
+    pub reactions: [Reaction; MAX_REACTIONS],
+    pub n_reactions: u32,
+}
+
+/// A hand–object pair that pushed this substep, as the object's implicit solve sees it: at the
+/// object's velocity change Δu the object takes −(F + D·(J·Δu − δv₀)), F the force on the hand as
+/// solved, D = a·nnᵀ + b·(I − nnᵀ) and J·Δu the contact point's change (the shader's `react_*`
+/// arrays).
+#[derive(Clone, Copy, Default)]
+pub struct Reaction {
+    /// The hand link the collider is on.
+    pub link: u32,
+    /// Contact point (world) and unit normal (from the object to the hand).
+    pub point: Vec3,
+    pub normal: Vec3,
+    /// The normal and tangential damping of D, and the torsion's b_r (its torque: −b_r·n·(n·Δω − δω₀)).
+    pub a: f32,
+    pub b: f32,
+    pub br: f32,
+    /// The contact point's velocity change δv₀ and n·δω₀ the force was linearised about (the
+    /// second pass's prediction; zero in the first).
+    pub dv0: Vec3,
+    pub dw0_n: f32,
 }
 
 impl Default for Scratch {
@@ -129,6 +162,8 @@ impl Default for Scratch {
             contacts: 0,
             contacts_ho: 0,
             link_contact: [0; 2],
+            reactions: [Reaction::default(); MAX_REACTIONS],
+            n_reactions: 0,
         }
     }
 }
@@ -1130,6 +1165,10 @@ pub fn hand_object_force(p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, ci: 
         apply_hand_torque(p, m, s, l, tq, h);
         // the torsion's damping, linearised likewise: + b_r n (n·δω)
         apply_object_torque(s, n * (br * n.dot(dw)) - tq, n, br);
+        if (s.n_reactions as usize) < MAX_REACTIONS {
+            s.reactions[s.n_reactions as usize] = Reaction { link: l as u32, point: c.point, normal: n, a, b, br, dv0: dv_point, dw0_n: n.dot(dw) };
+            s.n_reactions += 1;
+        }
         s.link_contact[l / 32] |= 1 << (l % 32);
         let tip = m.colliders[ci].tip;
         if tip != NO_JOINT {
@@ -1416,9 +1455,34 @@ pub fn object_velocity_change(st: &EnvState, p: &EnvParams, m: &Model, s: &Scrat
     (v3(st.obj_vel) + Vec3::new(du[0], du[1], du[2]), wg + Vec3::new(du[3], du[4], du[5]))
 }
 
-/// The object: its velocities from `object_velocity_change`, then its pose.
-pub fn integrate_object(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch, h: f32) {
-    let (vel_n, w_n) = object_velocity_change(st, p, m, s, h);
+/// The hand's side of the object's implicit solve: at its velocity change Δu = (`vel_n` − v,
+/// `w_n` − ω) the object took −(F + D·(J·Δu − δv₀)) from each pushing pair (`Reaction`), while the
+/// hand took F as solved against the object's velocity then; each pair's link now takes the
+/// difference, D·(J·Δu − δv₀) at the contact point and b_r·n·(n·Δω − n·δω₀) about the normal, so
+/// that hand and object feel equal and opposite forces. Without it a cube squeezed by two light
+/// fingertips at stiff contacts rattles between them and slips out (a finger is pushed back by the
+/// whole force while the cube gives way).
+pub fn react_to_object_motion(st: &EnvState, p: &EnvParams, m: &Model, s: &mut Scratch, vel_n: Vec3, w_n: Vec3, h: f32) {
+    let com = object_com(st, p);
+    let dv = vel_n - v3(st.obj_vel);
+    let dw = w_n - v3(st.obj_angvel);
+    for i in 0..s.n_reactions as usize {
+        let r = s.reactions[i];
+        let n = r.normal;
+        // J·Δu − δv₀: the contact point's velocity change past the one linearised about
+        let du = dv + dw.cross(r.point - com) - r.dv0;
+        let dun = du.dot(n);
+        // D·(J·Δu − δv₀) with D = a nnᵀ + b (I − nnᵀ)
+        let f = n * (r.a * dun) + (du - n * dun) * r.b;
+        apply_hand_force(p, m, s, r.link as usize, r.point, f, h);
+        // the torsion's damping: b_r n (n·Δω − n·δω₀)
+        apply_hand_torque(p, m, s, r.link as usize, n * (r.br * (n.dot(dw) - r.dw0_n)), h);
+    }
+}
+
+/// The object: its pose from its velocities at the end of the substep, `vel_n` and `w_n`
+/// (`object_velocity_change`).
+pub fn integrate_object(st: &mut EnvState, p: &EnvParams, vel_n: Vec3, w_n: Vec3, h: f32) {
     let com = object_com(st, p);
     // the centre of mass moves with v, the frame turns about it: p_obj = com − R c
     let rot_n = quat_integrate(v4(st.obj_rot), w_n, h);
@@ -1434,10 +1498,13 @@ pub fn substep(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvParams, t: &T
     s.obj_f = Vec3::ZERO;
     s.obj_t = Vec3::ZERO;
     s.obj_d = [0.0; 36];
+    s.n_reactions = 0;
     hand_servo(st, p, t, m, s, h);
     contacts_and_forces(st, springs, p, m, s, h, &mut |_, _, _, _| {});
+    let (vel_n, w_n) = object_velocity_change(st, p, m, s, h);
+    react_to_object_motion(st, p, m, s, vel_n, w_n, h);
     integrate_hand(st, p, m, s, h);
-    integrate_object(st, p, m, s, h);
+    integrate_object(st, p, vel_n, w_n, h);
 }
 
 /// True when every component is finite (NaN fails every comparison; ±inf fails the bound).
