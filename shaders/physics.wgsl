@@ -1033,7 +1033,15 @@ fn hand_object_force(ci: u32, c: Contact, cf: HandContactForce, ocom: vec3<f32>,
     }
 }
 
-fn contacts_and_forces(h: f32) {
+// physics.rs: contacts_and_forces. Every contact of the substep; `exact` when the second pass
+// predicted the object's velocities and none of its pairs pushed (they are then the end of the
+// substep's: nothing the object's implicit solve reads has changed since)
+struct ObjectPrediction {
+    u: ObjectVelocity,
+    exact: bool,
+}
+
+fn contacts_and_forces(h: f32) -> ObjectPrediction {
     let k = g.contact_k;
     let kt = g.contact_kt;
     // the object's velocities are those of its centre of mass
@@ -1117,6 +1125,7 @@ fn contacts_and_forces(h: f32) {
     // the substep as the forces so far make it (physics.rs: contacts_and_forces)
     if (any_revisit) {
         let pred = object_velocity_change(h);
+        var pushed = false;
         for (var ci = 0u; ci < g.n_colliders; ci++) {
             if ((revisit[ci / 32u] & (1u << (ci % 32u))) == 0u) {
                 continue;
@@ -1128,8 +1137,13 @@ fn contacts_and_forces(h: f32) {
             // the object's force linearised about the predicted velocity: + D·J·(u_p − u₀)
             let dv_point = (pred.vel - ovel) + cross(pred.w - ow, c.point - ocom);
             hand_object_force(ci, c, cf, ocom, pred.w, dv_point, pred.w - ow, mu_ho, h);
+            pushed = pushed || dot(cf.force, c.normal) > 0.0;
+        }
+        if (!pushed) {
+            return ObjectPrediction(pred, true);
         }
     }
+    return ObjectPrediction(ObjectVelocity(vec3<f32>(0.0), vec3<f32>(0.0)), false);
 }
 
 // The servos' part of the substep, before the contacts (physics.rs: hand_servo): each independent
@@ -1338,8 +1352,13 @@ fn substep(h: f32) {
     }
     n_reactions = 0u;
     hand_servo(h);
-    contacts_and_forces(h);
-    let u = object_velocity_change(h);
+    let predicted = contacts_and_forces(h);
+    // the object's velocities at the end of the substep: the second pass's prediction when no
+    // force has joined its implicit solve since
+    var u = predicted.u;
+    if (!predicted.exact) {
+        u = object_velocity_change(h);
+    }
     react_to_object_motion(u, h);
     integrate_hand(h);
     integrate_object(u, h);

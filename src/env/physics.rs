@@ -1188,9 +1188,11 @@ pub fn hand_object_force(p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, ci: 
 /// env's `[n_springs]` slots, see [`spring_slot`]), statistics. `on_contact` sees each contact
 /// that touches or pushes, with the force on its first body (the hand; the object against the
 /// table): the host's recordings take them from here (`env::contact_records`); the step passes a
-/// closure that does nothing.
+/// closure that does nothing. Returns the object's velocities at the end of the substep when the
+/// second pass predicted them and none of its pairs pushed (nothing its implicit solve reads has
+/// changed since, so `object_velocity_change` would return them again).
 #[allow(clippy::too_many_arguments)]
-pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, on_contact: &mut impl FnMut(ContactKind, usize, &Contact, Vec3)) {
+pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, on_contact: &mut impl FnMut(ContactKind, usize, &Contact, Vec3)) -> Option<(Vec3, Vec3)> {
     let g = m.g;
     let k = g.contact_k;
     let kt = g.contact_kt;
@@ -1275,6 +1277,7 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
     // link within the substep, which a pair solved against the object's velocity now cannot see)
     if revisit.iter().any(|&w| w != 0) {
         let (vel_p, w_p) = object_velocity_change(st, p, m, s, h);
+        let mut pushed = false;
         for ci in 0..g.n_colliders as usize {
             if revisit[ci / 32] & (1 << (ci % 32)) == 0 {
                 continue;
@@ -1287,8 +1290,13 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
             // F(u) = F(u_p) − D·J·(u − u_p) = [F(u_p) + D·J·(u_p − u₀)] − D·J·(u − u₀)
             let dv_point = (vel_p - ovel) + (w_p - ow).cross(c.point - ocom);
             hand_object_force(p, m, s, h, ci, &c, f, a, b, ocom, w_p, dv_point, w_p - ow, mu_ho, on_contact);
+            pushed = pushed || f.dot(c.normal) > 0.0;
+        }
+        if !pushed {
+            return Some((vel_p, w_p));
         }
     }
+    None
 }
 
 /// The servos' part of the substep, before the contacts: each independent finger joint's velocity
@@ -1500,8 +1508,10 @@ pub fn substep(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvParams, t: &T
     s.obj_d = [0.0; 36];
     s.n_reactions = 0;
     hand_servo(st, p, t, m, s, h);
-    contacts_and_forces(st, springs, p, m, s, h, &mut |_, _, _, _| {});
-    let (vel_n, w_n) = object_velocity_change(st, p, m, s, h);
+    let predicted = contacts_and_forces(st, springs, p, m, s, h, &mut |_, _, _, _| {});
+    // the object's velocities at the end of the substep: the second pass's prediction when no
+    // force has joined its implicit solve since
+    let (vel_n, w_n) = predicted.unwrap_or_else(|| object_velocity_change(st, p, m, s, h));
     react_to_object_motion(st, p, m, s, vel_n, w_n, h);
     integrate_hand(st, p, m, s, h);
     integrate_object(st, p, vel_n, w_n, h);
