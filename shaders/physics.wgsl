@@ -424,8 +424,12 @@ struct PiecePose {
 
 // world pose and scaled size of an object piece: centre = p_obj + R_obj (s c), rotation = R_obj R_piece
 fn piece_pose(pd: PieceDesc) -> PiecePose {
-    let orot = st.obj_rot;
-    let pos = st.obj_pos.xyz + quat_rotate(orot, pd.pos.xyz * prm.obj_scale);
+    return piece_pose_at(pd, st.obj_pos.xyz, st.obj_rot);
+}
+
+// physics.rs: piece_pose_at. piece_pose with the object's frame at opos, orot
+fn piece_pose_at(pd: PieceDesc, opos: vec3<f32>, orot: vec4<f32>) -> PiecePose {
+    let pos = opos + quat_rotate(orot, pd.pos.xyz * prm.obj_scale);
     return PiecePose(pos, quat_mul(orot, pd.rot), pd.size.xyz * prm.obj_scale);
 }
 
@@ -436,9 +440,12 @@ fn object_com() -> vec3<f32> {
 
 // the deepest contact of hand collider ci over the object's pieces (bounding spheres first)
 fn collide_hand_object(ci: u32) -> Contact {
+    return collide_hand_object_at(ci, collider_pose(ci), st.obj_pos.xyz, st.obj_rot);
+}
+
+// physics.rs: collide_hand_object_at. The collider at cp, the object's frame at opos, orot
+fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4<f32>) -> Contact {
     let cd = colliders[ci];
-    let cp = collider_pose(ci);
-    let opos = st.obj_pos.xyz;
     let rc = bounding_radius(cd.shape, cd.size.xyz) + CONTACT_MARGIN;
     let reach = rc + prm.obj_com.w;
     let dc = cp.pos - opos;
@@ -448,7 +455,7 @@ fn collide_hand_object(ci: u32) -> Contact {
     }
     let od = objects[prm.obj_index];
     // the collider's centre in the object frame: each piece's bounding sphere is tested there
-    let c_obj = quat_rotate(quat_conj(st.obj_rot), cp.pos - opos);
+    let c_obj = quat_rotate(quat_conj(orot), cp.pos - opos);
     for (var k = 0u; k < od.n_pieces; k++) {
         let pd = pieces[od.first_piece + k];
         let r = rc + pd.pos.w * prm.obj_scale;
@@ -456,13 +463,51 @@ fn collide_hand_object(ci: u32) -> Contact {
         if (dot(dp, dp) > r * r) {
             continue;
         }
-        let pp = piece_pose(pd);
+        let pp = piece_pose_at(pd, opos, orot);
         let c = collide_collider_piece(cd, cp, pd, prm.obj_scale, pp.pos, pp.rot);
         if (c.depth > best.depth) {
             best = c;
         }
     }
     return best;
+}
+
+// physics.rs: SWEPT_TOLERANCE
+const SWEPT_TOLERANCE: f32 = 3.0e-4;
+
+// physics.rs: swept_contact. Contact c of collider ci, or the pair's contact at the end of the
+// substep if collider and object keep their velocities, when that is deeper than c would be by
+// then by more than SWEPT_TOLERANCE (taken back to the start of the substep along the relative
+// motion)
+fn swept_contact(ci: u32, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>) -> Contact {
+    if (c.depth <= -1.0) {
+        return c;
+    }
+    let cd = colliders[ci];
+    let l = cd.link;
+    // c's own depth by the end of the substep (v_hand − v_object along n: separating speed)
+    let c_end = c.depth - h * dot(link_point_velocity(l, c.point) - (ovel + cross(ow, c.point - ocom)), c.normal);
+    // no feature gets deeper than c's own prediction by more than h·2r·|ω_link − ω_obj|: nothing to
+    // find within the tolerance, or where even so nothing would be touching by then
+    let sweep = h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length(link_w[l] - ow);
+    if (sweep <= SWEPT_TOLERANCE || c_end + sweep <= 0.0) {
+        return c;
+    }
+    let cp = collider_pose(ci);
+    let cp_end = ColliderPose(cp.pos + link_point_velocity(l, cp.pos) * h, quat_integrate(cp.rot, link_w[l], h));
+    let orot_end = quat_integrate(st.obj_rot, ow, h);
+    let opos_end = ocom + ovel * h - quat_rotate(orot_end, prm.obj_com.xyz);
+    let end = collide_hand_object_at(ci, cp_end, opos_end, orot_end);
+    if (end.depth <= -1.0) {
+        return c;
+    }
+    if (end.depth <= c_end + SWEPT_TOLERANCE) {
+        return c;
+    }
+    // back to the start of the substep: the point with the object, d = d_end + h·(v_rel·n)
+    let x = end.point - (ovel + cross(ow, end.point - ocom)) * h;
+    let v_rel = link_point_velocity(l, x) - (ovel + cross(ow, x - ocom));
+    return Contact(end.depth + h * dot(v_rel, end.normal), end.normal, x);
 }
 
 // a hand collider against object piece pd (lengths scaled by scale, at opos, orot)
@@ -1057,8 +1102,9 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
     var any_revisit = false;
     for (var ci = 0u; ci < g.n_colliders; ci++) {
         let l = colliders[ci].link;
-        // hand–object: a touching pair, or one apart by less than the speculative margin
-        let c = collide_hand_object(ci);
+        // hand–object: a touching pair, or one apart by less than the speculative margin (at the
+        // end of the substep where the object's turn brings a feature in elsewhere)
+        let c = swept_contact(ci, collide_hand_object(ci), h, ocom, ovel, ow);
         if (c.depth > -CONTACT_MARGIN) {
             let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
             if (dot(cf.force, c.normal) > 0.0) {
@@ -1131,7 +1177,7 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
                 continue;
             }
             let l = colliders[ci].link;
-            let c = collide_hand_object(ci);
+            let c = swept_contact(ci, collide_hand_object(ci), h, ocom, pred.vel, pred.w);
             let v_other = pred.vel + cross(pred.w, c.point - ocom);
             let cf = solve_hand_contact(spring_base + ci, l, c, v_other, prm.obj_contact_c, mu_ho, h);
             // the object's force linearised about the predicted velocity: + D·J·(u_p − u₀)

@@ -27,7 +27,10 @@
 //!    light object into another link within the substep is met there already. Once the object's
 //!    velocity change is solved, each pushing pair's link takes the part of the force that the
 //!    object's motion took off or added in its solve (`react_to_object_motion`), so that hand and
-//!    object feel equal and opposite forces and stiff contacts hold a light object still.
+//!    object feel equal and opposite forces and stiff contacts hold a light object still. A pair
+//!    whose contact where collider and object will be at the end of the substep is deeper than
+//!    its contact now predicts is solved at that one (`swept_contact`): a turning object brings
+//!    an edge into a finger away from the pair's one contact point within a substep.
 //! 4. Hand: finger joints are independent 1-DoF servos (PD with effort limit, damping, Coulomb friction,
 //!    armature + link inertia about the axis at q = 0), integrated semi-implicitly; mimic followers
 //!    follow their leader; the wrist is a free body pulled by a force/torque-limited PD toward its
@@ -65,6 +68,11 @@ pub const DEEP_BLEND: f32 = 1.0e-4;
 pub const REVISIT_WORDS: usize = crate::hand::MAX_COLLIDERS / 32;
 /// Spin rate (rad/s) below which torsional friction acts as a damper instead of a constant torque.
 pub const TORSION_EPS: f32 = 0.05;
+/// How much deeper (m) a hand–object pair's contact at the end of the substep must be than its
+/// contact now predicts before it takes the pair's place (`swept_contact`): below it the two are
+/// the same feature, a smooth turn's curvature apart (0 let contact points flicker between
+/// them: a learned lift peaked higher, BENCHMARKS.md).
+pub const SWEPT_TOLERANCE: f32 = 3.0e-4;
 /// The most hand–object pairs per substep whose force on the hand follows the object's motion in
 /// its implicit solve (`react_to_object_motion`; the scripted YCB grasps push with at most 6): a
 /// pair past this many keeps the force it was solved with (the shader holds them in private
@@ -551,9 +559,13 @@ pub fn bounding_radius(code: u32, size: Vec3) -> f32 {
 
 /// World pose and scaled size of an object piece: (centre, rotation, size).
 pub fn piece_pose(st: &EnvState, p: &EnvParams, pd: &PieceDesc) -> (Vec3, Vec4, Vec3) {
-    let orot = v4(st.obj_rot);
+    piece_pose_at(p, pd, v3(st.obj_pos), v4(st.obj_rot))
+}
+
+/// `piece_pose` with the object's frame at `opos`, `orot`.
+pub fn piece_pose_at(p: &EnvParams, pd: &PieceDesc, opos: Vec3, orot: Vec4) -> (Vec3, Vec4, Vec3) {
     // centre = p_obj + R_obj (s · c_piece),  rotation = R_obj R_piece
-    let pos = v3(st.obj_pos) + quat_rotate(orot, v3(pd.pos) * p.obj_scale);
+    let pos = opos + quat_rotate(orot, v3(pd.pos) * p.obj_scale);
     (pos, quat_mul(orot, v4(pd.rot)), v3(pd.size) * p.obj_scale)
 }
 
@@ -567,9 +579,15 @@ pub fn object_com(st: &EnvState, p: &EnvParams) -> Vec3 {
 /// `CONTACT_MARGIN`). Pairs whose bounding spheres, grown by the margin, do not touch (the whole
 /// object's first, then each piece's) are rejected (depth −1).
 pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize) -> Contact {
-    let cd = &m.colliders[ci];
     let (cpos, crot) = collider_pose(m, s, ci);
-    let opos = v3(st.obj_pos);
+    collide_hand_object_at(p, m, ci, cpos, crot, v3(st.obj_pos), v4(st.obj_rot))
+}
+
+/// `collide_hand_object` with the collider at `cpos`, `crot` and the object's frame at `opos`,
+/// `orot`.
+#[allow(clippy::too_many_arguments)]
+pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, crot: Vec4, opos: Vec3, orot: Vec4) -> Contact {
+    let cd = &m.colliders[ci];
     let rc = bounding_radius(cd.shape, v3(cd.size)) + CONTACT_MARGIN;
     let reach = rc + p.obj_com[3];
     let mut best = Contact { depth: -1.0, normal: Vec3::Z, point: opos };
@@ -579,20 +597,70 @@ pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch,
     let od = &m.objects[p.obj_index as usize];
     // the collider's centre in the object frame: each piece's bounding sphere is tested there,
     // without turning the piece into the world
-    let c_obj = quat_rotate(quat_conj(v4(st.obj_rot)), cpos - opos);
+    let c_obj = quat_rotate(quat_conj(orot), cpos - opos);
     for k in 0..od.n_pieces {
         let pd = &m.pieces[(od.first_piece + k) as usize];
         let r = rc + pd.pos[3] * p.obj_scale;
         if (c_obj - v3(pd.pos) * p.obj_scale).length_squared() > r * r {
             continue;
         }
-        let (ppos, prot, _) = piece_pose(st, p, pd);
+        let (ppos, prot, _) = piece_pose_at(p, pd, opos, orot);
         let c = collide_collider_piece(m, cd, cpos, crot, pd, p.obj_scale, ppos, prot);
         if c.depth > best.depth {
             best = c;
         }
     }
     best
+}
+
+/// Hand–object contact `c` of collider `ci`, or the pair's contact where the collider and the
+/// object will be at the end of the substep if they keep their velocities (the object's centre of
+/// mass `ocom` moving at `ovel`, turning at `ow`) when that one is deeper than `c` itself would be
+/// by then (`c`'s depth less its separating speed times h) by more than `SWEPT_TOLERANCE`: one
+/// contact per pair sits at today's closest point, and a cube turning at 10–20 rad/s sweeps an
+/// edge into the middle of a finger lying against it within a substep, 1–1.5 mm deep before
+/// the next substep sees it. The swept contact is taken back to the start of the substep along
+/// the relative motion (its point with the object, its depth less h times the closing speed
+/// there), so the pair's implicit solve stops it at the surface. Pairs the broad phase rejects
+/// (depth −1), those turning too slowly against each other for any feature to get
+/// `SWEPT_TOLERANCE` deeper than `c`'s prediction within the substep, and those too far apart for
+/// any to touch by its end are left alone.
+#[allow(clippy::too_many_arguments)]
+pub fn swept_contact(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, c: Contact, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3) -> Contact {
+    let cd = &m.colliders[ci];
+    let l = cd.link as usize;
+    if c.depth <= -1.0 {
+        return c;
+    }
+    // v_hand − v_object at x: positive along the normal where the pair separates
+    let v_rel = |x: Vec3| link_point_velocity(s, l, x) - (ovel + ow.cross(x - ocom));
+    // c's own depth by the end of the substep
+    let c_end = c.depth - h * v_rel(c.point).dot(c.normal);
+    // points of the collider's bounding sphere (radius r) move relative to the object at
+    // v_rel(c) + (ω_link − ω_obj) × (x − c): any two differ by at most 2r·|ω_link − ω_obj|, so no
+    // feature gets deeper than c's own prediction by more than h times that: nothing to find
+    // where that is within the tolerance, or where even so nothing would be touching by then
+    let sweep = h * 2.0 * bounding_radius(cd.shape, v3(cd.size)) * (s.link_w[l] - ow).length();
+    if sweep <= SWEPT_TOLERANCE || c_end + sweep <= 0.0 {
+        return c;
+    }
+    // the poses at the end of the substep: the collider moves with its link, the object's frame
+    // turns about its centre of mass, which moves at ovel (as `integrate_object`)
+    let (cpos, crot) = collider_pose(m, s, ci);
+    let cpos_end = cpos + link_point_velocity(s, l, cpos) * h;
+    let crot_end = quat_integrate(crot, s.link_w[l], h);
+    let orot_end = quat_integrate(v4(st.obj_rot), ow, h);
+    let opos_end = ocom + ovel * h - quat_rotate(orot_end, v3(p.obj_com));
+    let end = collide_hand_object_at(p, m, ci, cpos_end, crot_end, opos_end, orot_end);
+    if end.depth <= -1.0 {
+        return c;
+    }
+    if end.depth <= c_end + SWEPT_TOLERANCE {
+        return c;
+    }
+    // back to the start of the substep: the point with the object, d = d_end + h·(v_rel·n)
+    let x = end.point - (ovel + ow.cross(end.point - ocom)) * h;
+    Contact { depth: end.depth + h * v_rel(x).dot(end.normal), normal: end.normal, point: x }
 }
 
 /// Narrow phase between a hand collider (`cd` at `cpos`, `crot`) and object piece `pd` (its
@@ -1210,8 +1278,9 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
     for ci in 0..g.n_colliders as usize {
         let (sho, sht) = (spring_slot::hand_object(ci as u32) as usize, spring_slot::hand_table(n_c, ci as u32) as usize);
         let l = m.colliders[ci].link as usize;
-        // hand–object: a touching pair, or one apart by less than the speculative margin
-        let c = collide_hand_object(st, p, m, s, ci);
+        // hand–object: a touching pair, or one apart by less than the speculative margin (at the
+        // end of the substep where the object's turn brings a feature in elsewhere)
+        let c = swept_contact(st, p, m, s, ci, collide_hand_object(st, p, m, s, ci), h, ocom, ovel, ow);
         if c.depth > -CONTACT_MARGIN {
             let (f, a, b) = solve_hand_contact(p, m, s, springs, sho, l, &c, ovel + ow.cross(c.point - ocom), p.obj_contact_c, mu_ho, h);
             if f.dot(c.normal) > 0.0 {
@@ -1283,7 +1352,7 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
                 continue;
             }
             let l = m.colliders[ci].link as usize;
-            let c = collide_hand_object(st, p, m, s, ci);
+            let c = swept_contact(st, p, m, s, ci, collide_hand_object(st, p, m, s, ci), h, ocom, vel_p, w_p);
             let v_other = vel_p + w_p.cross(c.point - ocom);
             let (f, a, b) = solve_hand_contact(p, m, s, springs, spring_slot::hand_object(ci as u32) as usize, l, &c, v_other, p.obj_contact_c, mu_ho, h);
             // the object's force is linearised about the predicted velocity, not the present one:

@@ -272,6 +272,34 @@ fn a_cube_thrown_flat_at_the_palm_steps_the_same_on_both_backends() {
     one_physics_step_agrees(c, &start, t, ctx);
 }
 
+/// A cube tilted 10° under the palm, its near edge 0.2 mm away, spinning at 15–29 rad/s one way or
+/// the other about the palm's x axis, so that an edge sweeps toward the palm within the substep
+/// (`swept_contact` looks at the pair where the poses will be at its end): one physics step agrees.
+#[test]
+fn a_cube_spinning_against_the_palm_steps_the_same_on_both_backends() {
+    let Some(ctx) = gpu_context("a_cube_spinning_against_the_palm_steps_the_same_on_both_backends") else { return };
+    let c = base_config(8);
+    let mut cpu = cpu_batch(&c);
+    box_tilted_against_palm(&mut cpu, -0.0002, 10.0, |i| 0.004 * i as f32 - 0.012);
+    let model = cpu.model().clone();
+    let mut s = cpu.states().unwrap();
+    for (i, st) in s.iter_mut().enumerate() {
+        let links = dextrain::env::hand_link_poses(&model, st);
+        let cd = model.colliders[0];
+        let palm = links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot));
+        let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
+        let w = palm.rot * glam::Vec3::X * (sign * (15.0 + 2.0 * i as f32));
+        st.obj_angvel = [w.x, w.y, w.z, 0.0];
+    }
+    cpu.set_states(&s).unwrap();
+    let mut t = model.default_targets();
+    t.wrist_pos = s[0].wrist_pos;
+    t.wrist_rot = s[0].wrist_rot;
+    t.q = s[0].q;
+    let start = snap(&mut cpu);
+    one_physics_step_agrees(c, &start, t, ctx);
+}
+
 /// Three objects in one batch (a cube, the shipped 3-piece bottle — two cylinders and a hull — and
 /// a two-box "L" whose centre of mass and principal axes are off its frame, its pieces colliding
 /// as their convex hulls), each env holding the one it drew.
