@@ -254,14 +254,23 @@ fn a_box_turned_into_the_palm_steps_the_same_on_both_backends() {
 #[test]
 fn a_cube_thrown_flat_at_the_palm_steps_the_same_on_both_backends() {
     let Some(ctx) = gpu_context("a_cube_thrown_flat_at_the_palm_steps_the_same_on_both_backends") else { return };
+    cube_under_the_palm_steps_the_same(ctx, -0.001, 0.5, |_, model, st| {
+        let up = toward_palm(model, st);
+        st.obj_vel = [up.x, up.y, up.z, 0.0];
+    });
+}
+
+/// A cube tilted `tilt_deg` under the palm, its near edge `depth` in (negative: apart), 4 mm
+/// further sideways in each of 8 envs, its velocities set by `moving` (env, model, state), the hand
+/// held where it is: one physics step agrees.
+fn cube_under_the_palm_steps_the_same(ctx: dextrain::gpu::context::GpuContext, depth: f32, tilt_deg: f32, moving: impl Fn(usize, &dextrain::env::SimModel, &mut dextrain::env::EnvState)) {
     let c = base_config(8);
     let mut cpu = cpu_batch(&c);
-    box_tilted_against_palm(&mut cpu, -0.001, 0.5, |i| 0.004 * i as f32 - 0.012);
+    box_tilted_against_palm(&mut cpu, depth, tilt_deg, |i| 0.004 * i as f32 - 0.012);
     let model = cpu.model().clone();
     let mut s = cpu.states().unwrap();
-    for st in s.iter_mut() {
-        let up = toward_palm(&model, st);
-        st.obj_vel = [up.x, up.y, up.z, 0.0];
+    for (i, st) in s.iter_mut().enumerate() {
+        moving(i, &model, st);
     }
     cpu.set_states(&s).unwrap();
     let mut t = model.default_targets();
@@ -278,26 +287,14 @@ fn a_cube_thrown_flat_at_the_palm_steps_the_same_on_both_backends() {
 #[test]
 fn a_cube_spinning_against_the_palm_steps_the_same_on_both_backends() {
     let Some(ctx) = gpu_context("a_cube_spinning_against_the_palm_steps_the_same_on_both_backends") else { return };
-    let c = base_config(8);
-    let mut cpu = cpu_batch(&c);
-    box_tilted_against_palm(&mut cpu, -0.0002, 10.0, |i| 0.004 * i as f32 - 0.012);
-    let model = cpu.model().clone();
-    let mut s = cpu.states().unwrap();
-    for (i, st) in s.iter_mut().enumerate() {
-        let links = dextrain::env::hand_link_poses(&model, st);
+    cube_under_the_palm_steps_the_same(ctx, -0.0002, 10.0, |i, model, st| {
+        let links = dextrain::env::hand_link_poses(model, st);
         let cd = model.colliders[0];
         let palm = links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot));
         let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
         let w = palm.rot * glam::Vec3::X * (sign * (15.0 + 2.0 * i as f32));
         st.obj_angvel = [w.x, w.y, w.z, 0.0];
-    }
-    cpu.set_states(&s).unwrap();
-    let mut t = model.default_targets();
-    t.wrist_pos = s[0].wrist_pos;
-    t.wrist_rot = s[0].wrist_rot;
-    t.q = s[0].q;
-    let start = snap(&mut cpu);
-    one_physics_step_agrees(c, &start, t, ctx);
+    });
 }
 
 /// Three objects in one batch (a cube, the shipped 3-piece bottle — two cylinders and a hull — and
