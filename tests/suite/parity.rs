@@ -239,12 +239,17 @@ fn a_box_turned_into_the_palm_steps_the_same_on_both_backends() {
     let mut cpu = cpu_batch(&c);
     // each env's box a little further off the palm's centre
     box_turned_into_palm(&mut cpu, 0.003, |i| 0.004 * i as f32 - 0.012);
+    held_hand_step_agrees(c, &mut cpu, ctx);
+}
+
+/// `one_physics_step_agrees` from `cpu`'s states, the hand's targets where env 0's hand is (held).
+fn held_hand_step_agrees(c: dextrain::config::Config, cpu: &mut dextrain::env::cpu::CpuEnvBatch, ctx: dextrain::gpu::context::GpuContext) {
     let first = cpu.states().unwrap()[0];
     let mut t = cpu.model().default_targets();
     t.wrist_pos = first.wrist_pos;
     t.wrist_rot = first.wrist_rot;
     t.q = first.q;
-    let start = snap(&mut cpu);
+    let start = snap(cpu);
     one_physics_step_agrees(c, &start, t, ctx);
 }
 
@@ -273,12 +278,7 @@ fn cube_under_the_palm_steps_the_same(ctx: dextrain::gpu::context::GpuContext, d
         moving(i, &model, st);
     }
     cpu.set_states(&s).unwrap();
-    let mut t = model.default_targets();
-    t.wrist_pos = s[0].wrist_pos;
-    t.wrist_rot = s[0].wrist_rot;
-    t.q = s[0].q;
-    let start = snap(&mut cpu);
-    one_physics_step_agrees(c, &start, t, ctx);
+    held_hand_step_agrees(c, &mut cpu, ctx);
 }
 
 /// A cube tilted 10° under the palm, its near edge 0.2 mm away, spinning at 15–29 rad/s one way or
@@ -288,9 +288,7 @@ fn cube_under_the_palm_steps_the_same(ctx: dextrain::gpu::context::GpuContext, d
 fn a_cube_spinning_against_the_palm_steps_the_same_on_both_backends() {
     let Some(ctx) = gpu_context("a_cube_spinning_against_the_palm_steps_the_same_on_both_backends") else { return };
     cube_under_the_palm_steps_the_same(ctx, -0.0002, 10.0, |i, model, st| {
-        let links = dextrain::env::hand_link_poses(model, st);
-        let cd = model.colliders[0];
-        let palm = links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot));
+        let palm = palm_pose(model, st);
         let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
         let w = palm.rot * glam::Vec3::X * (sign * (15.0 + 2.0 * i as f32));
         st.obj_angvel = [w.x, w.y, w.z, 0.0];

@@ -144,10 +144,14 @@ pub fn box_tilted_against_palm(b: &mut CpuEnvBatch, depth: f32, tilt_deg: f32, l
 /// The direction from the object toward the palm box of `box_turned_into_palm`'s scene: the
 /// palm's +z (its −z face looks at the object), in the world.
 pub fn toward_palm(model: &dextrain::env::SimModel, st: &dextrain::env::EnvState) -> glam::Vec3 {
+    palm_pose(model, st).rot * glam::Vec3::Z
+}
+
+/// The world pose of the palm box (collider 0) in state `st`.
+pub fn palm_pose(model: &dextrain::env::SimModel, st: &dextrain::env::EnvState) -> dextrain::geom::Pose {
     let links = dextrain::env::hand_link_poses(model, st);
     let cd = model.colliders[0];
-    let palm = links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot));
-    palm.rot * glam::Vec3::Z
+    links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot))
 }
 
 /// The joints a reset starts from: defaults clamped into the limits, followers from their leaders.
