@@ -29,20 +29,33 @@ var<private> link_contact: array<u32, 2>;
 // object's motion in its implicit solve
 const MAX_REACTIONS: u32 = 16u;
 // the hand–object pairs that pushed this substep (physics.rs: Scratch::reactions, Reaction):
-// the link, the point, (normal, a), (δv₀, b), (b_r, n·δω₀)
+// the link, the point, (normal, a), (δv₀, b), (δω₀, b_r), (the manifold's spread diagonal,
+// its spring count), the spread's (xy, xz, yz)
 var<private> react_link: array<u32, MAX_REACTIONS>;
 var<private> react_point: array<vec3<f32>, MAX_REACTIONS>;
 var<private> react_normal: array<vec4<f32>, MAX_REACTIONS>;
 var<private> react_dv0: array<vec4<f32>, MAX_REACTIONS>;
-var<private> react_torsion: array<vec2<f32>, MAX_REACTIONS>;
+var<private> react_dw0: array<vec4<f32>, MAX_REACTIONS>;
+var<private> react_spread_d: array<vec4<f32>, MAX_REACTIONS>;
+var<private> react_spread_o: array<vec3<f32>, MAX_REACTIONS>;
 var<private> n_reactions: u32;
 // index of this env's first contact spring in `springs`
 var<private> spring_base: u32;
 
+// physics.rs: Contact. spring_count: how many point springs it stands for (1 at one point);
+// spread_diag, spread_off: the manifold's spread about the point (zero at one point)
 struct Contact {
     depth: f32,
     normal: vec3<f32>,
     point: vec3<f32>,
+    spring_count: f32,
+    spread_diag: vec3<f32>,
+    spread_off: vec3<f32>,
+}
+
+// a contact at one point (physics.rs: Contact::at)
+fn contact_at(depth: f32, normal: vec3<f32>, point: vec3<f32>) -> Contact {
+    return Contact(depth, normal, point, 1.0, vec3<f32>(0.0), vec3<f32>(0.0));
 }
 
 struct ContactForce {
@@ -449,7 +462,7 @@ fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4
     let rc = bounding_radius(cd.shape, cd.size.xyz) + CONTACT_MARGIN;
     let reach = rc + prm.obj_com.w;
     let dc = cp.pos - opos;
-    var best = Contact(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
+    var best = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
     if (dot(dc, dc) > reach * reach) {
         return best;
     }
@@ -507,7 +520,10 @@ fn swept_contact(ci: u32, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, 
     // back to the start of the substep: the point with the object, d = d_end + h·(v_rel·n)
     let x = end.point - (ovel + cross(ow, end.point - ocom)) * h;
     let v_rel = link_point_velocity(l, x) - (ovel + cross(ow, x - ocom));
-    return Contact(end.depth + h * dot(v_rel, end.normal), end.normal, x);
+    var out = end;
+    out.depth = end.depth + h * dot(v_rel, end.normal);
+    out.point = x;
+    return out;
 }
 
 // a hand collider against object piece pd (lengths scaled by scale, at opos, orot)
@@ -518,7 +534,7 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
     // collider in the object's frame
     let c_o = quat_rotate(oinv, cp.pos - opos);
     let r_o = quat_mul(oinv, cp.rot);
-    var out = Contact(0.0, vec3<f32>(0.0), vec3<f32>(0.0));
+    var out = contact_at(0.0, vec3<f32>(0.0), vec3<f32>(0.0));
     // the piece farther from the collider's centre than the collider reaches (with the margin):
     // no contact
     let y0 = piece_project(pd, scale, size, c_o).point;
@@ -530,6 +546,18 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
     }
     if (cd.shape == SHAPE_BOX) {
         let h = cd.size.xyz;
+        // two boxes overlapping over every separating axis: the contact of the face (or edge) of
+        // least overlap, over the clipped face's points (box_box_contact)
+        var sat = BoxSeparation(1.0, vec3<f32>(0.0, 0.0, 1.0), 0u);
+        if (code == SHAPE_BOX) {
+            sat = box_box_separation(c_o, r_o, h, size);
+        }
+        if (sat.sep <= 0.0) {
+            let bb = box_box_contact(c_o, r_o, h, size, sat.sep, sat.axis, sat.k);
+            if (bb.depth > 0.0) {
+                return piece_contact_to_world(bb, opos, orot);
+            }
+        }
         var x = c_o;
         for (var it = 0u; it < BOX_PROJ_ITERS; it++) {
             let y = piece_project(pd, scale, size, x).point;
@@ -544,10 +572,9 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
         // apart by the projections, from a box piece: no more than the boxes' separation over
         // their separating axes where those find them apart (physics.rs: collide_collider_piece)
         if (depth < 0.0 && code == SHAPE_BOX) {
-            let bs = box_box_separation(c_o, r_o, h, size);
-            if (bs.sep > 0.0 && bs.sep < -depth) {
-                depth = -bs.sep;
-                normal = bs.axis;
+            if (sat.sep > 0.0 && sat.sep < -depth) {
+                depth = -sat.sep;
+                normal = sat.axis;
             }
         }
         out.depth = depth;
@@ -596,6 +623,14 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
         out.depth = rc - l;
         if (l > 1e-12) {
             n = d / l;
+        }
+    }
+    // a capsule lying along a box piece's face: the ends of its segment's part over the face are
+    // two point springs (capsule_face_contact)
+    if (code == SHAPE_BOX && hl > 0.0 && out.depth > 0.0) {
+        let line = capsule_face_contact(a, b, rc, size, n);
+        if (line.spring_count > 1.0) {
+            return piece_contact_to_world(line, opos, orot);
         }
     }
     out.normal = quat_rotate(orot, n);
@@ -689,16 +724,21 @@ fn box_piece_contact(pd: PieceDesc, scale: f32, size: vec3<f32>, c_o: vec3<f32>,
 struct BoxSeparation {
     sep: f32,
     axis: vec3<f32>,
+    k: u32,
 }
+
+// physics.rs: EDGE_AXIS_BIAS
+const EDGE_AXIS_BIAS: f32 = 1.0e-4;
 
 // physics.rs: box_box_separation. The largest separation of a box (c, r, ha) from the axis-aligned
 // box hb at the origin over the 15 separating axes (each box's faces, then edge × edge; near-parallel
-// edges skipped), and that axis from the second box to the first: > 0 a lower bound on their
-// distance, ≤ 0 they overlap (SAT)
+// edges skipped), that axis from the second box to the first, and its index (0–2 the first box's
+// faces, 3–5 the second's, 6 + 3i + j edge i × edge j; an edge axis only where it beats the faces'
+// best by EDGE_AXIS_BIAS): > 0 a lower bound on their distance, ≤ 0 they overlap (SAT)
 fn box_box_separation(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>) -> BoxSeparation {
     let a = array<vec3<f32>, 3>(quat_rotate(r, vec3<f32>(1.0, 0.0, 0.0)), quat_rotate(r, vec3<f32>(0.0, 1.0, 0.0)), quat_rotate(r, vec3<f32>(0.0, 0.0, 1.0)));
     let b = array<vec3<f32>, 3>(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, 0.0, 1.0));
-    var best = BoxSeparation(-3.0e38, vec3<f32>(0.0, 0.0, 1.0));
+    var best = BoxSeparation(-3.0e38, vec3<f32>(0.0, 0.0, 1.0), 0u);
     for (var k = 0u; k < 15u; k++) {
         var l: vec3<f32>;
         if (k < 3u) {
@@ -718,11 +758,252 @@ fn box_box_separation(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>) 
         let rb = hb.x * abs(l.x) + hb.y * abs(l.y) + hb.z * abs(l.z);
         let t = dot(c, l);
         let sep = abs(t) - ra - rb;
-        if (sep > best.sep) {
-            best = BoxSeparation(sep, select(-l, l, t >= 0.0));
+        // an edge axis must beat the faces' best by the bias
+        let bias = select(0.0, EDGE_AXIS_BIAS, k >= 6u);
+        if (sep > best.sep + bias) {
+            best = BoxSeparation(sep, select(-l, l, t >= 0.0), k);
         }
     }
     return best;
+}
+
+struct ClippedPolygon {
+    q: array<vec3<f32>, 8>,
+    n: u32,
+}
+
+// physics.rs: clip_polygon. Sutherland–Hodgman: the part of polygon poly where sign·q[t] ≤ lim
+fn clip_polygon(poly: ClippedPolygon, t: u32, sign: f32, lim: f32) -> ClippedPolygon {
+    var out: ClippedPolygon;
+    out.n = 0u;
+    if (poly.n == 0u) {
+        return out;
+    }
+    var prev = poly.q[poly.n - 1u];
+    // how far past the line (inside ≤ 0)
+    var dp = sign * prev[t] - lim;
+    for (var i = 0u; i < poly.n; i++) {
+        let cur = poly.q[i];
+        let dc = sign * cur[t] - lim;
+        if ((dc <= 0.0) != (dp <= 0.0) && out.n < 8u) {
+            // the edge crosses the line: prev + (cur − prev)·dp / (dp − dc)
+            out.q[out.n] = prev + (cur - prev) * (dp / (dp - dc));
+            out.n += 1u;
+        }
+        if (dc <= 0.0 && out.n < 8u) {
+            out.q[out.n] = cur;
+            out.n += 1u;
+        }
+        prev = cur;
+        dp = dc;
+    }
+    return out;
+}
+
+// physics.rs: box_box_contact. A hand box (c, r, ha, in the piece frame) overlapping a box piece
+// (hb at the origin) by −sep along axis (piece → hand box) of index k, in the piece frame: a face
+// axis clips the incident face to the reference face and stands for the points below it (depth
+// max dᵢ, point Σ dᵢ xᵢ / Σ dᵢ on the piece's surface, spring_count Σ dᵢ / max dᵢ, their spread);
+// an edge axis is one spring at the edges' closest points. Depth −1 where no point is below.
+fn box_box_contact(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>, sep: f32, axis: vec3<f32>, k: u32) -> Contact {
+    let a = array<vec3<f32>, 3>(quat_rotate(r, vec3<f32>(1.0, 0.0, 0.0)), quat_rotate(r, vec3<f32>(0.0, 1.0, 0.0)), quat_rotate(r, vec3<f32>(0.0, 0.0, 1.0)));
+    let e = array<vec3<f32>, 3>(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, 0.0, 1.0));
+    if (k >= 6u) {
+        let i = (k - 6u) / 3u;
+        let j = (k - 6u) % 3u;
+        // the hand box's edge along aᵢ nearest the piece, the piece's along eⱼ nearest the hand box
+        var pa = c;
+        var pb = vec3<f32>(0.0);
+        for (var m = 0u; m < 3u; m++) {
+            if (m != i) {
+                pa -= a[m] * (ha[m] * sgn(dot(a[m], axis)));
+            }
+            if (m != j) {
+                pb += e[m] * (hb[m] * sgn(dot(e[m], axis)));
+            }
+        }
+        // closest points of pa + s·aᵢ and pb + t·eⱼ, each clamped to its edge
+        let w = pa - pb;
+        let beta = dot(a[i], e[j]);
+        let aw = dot(a[i], w);
+        let ew = dot(e[j], w);
+        let s0 = clamp((beta * ew - aw) / max(1.0 - beta * beta, 1e-12), -ha[i], ha[i]);
+        let t = clamp(ew + beta * s0, -hb[j], hb[j]);
+        return contact_at(-sep, axis, pb + e[j] * t);
+    }
+    // the reference face: the hand box's toward the piece (outward −axis) or the piece's (+axis)
+    var rc = c;
+    var ra = a;
+    var rh = ha;
+    var ri = k;
+    var ic = vec3<f32>(0.0);
+    var ia = e;
+    var ih = hb;
+    var nref = -axis;
+    if (k >= 3u) {
+        rc = vec3<f32>(0.0);
+        ra = e;
+        rh = hb;
+        ri = k - 3u;
+        ic = c;
+        ia = a;
+        ih = ha;
+        nref = axis;
+    }
+    // the incident face: the other box's face whose outward normal is most against nref
+    var j = 0u;
+    for (var m = 1u; m < 3u; m++) {
+        if (abs(dot(ia[m], nref)) > abs(dot(ia[j], nref))) {
+            j = m;
+        }
+    }
+    let f = ic - ia[j] * (ih[j] * sgn(dot(ia[j], nref)));
+    let eu = ia[(j + 1u) % 3u] * ih[(j + 1u) % 3u];
+    let ev = ia[(j + 2u) % 3u] * ih[(j + 2u) % 3u];
+    // its corners in the reference box's frame, in order around the face
+    var poly: ClippedPolygon;
+    poly.n = 4u;
+    let corners = array<vec3<f32>, 4>(f + eu + ev, f - eu + ev, f - eu - ev, f + eu - ev);
+    for (var m = 0u; m < 4u; m++) {
+        let d = corners[m] - rc;
+        poly.q[m] = vec3<f32>(dot(d, ra[0]), dot(d, ra[1]), dot(d, ra[2]));
+    }
+    // clipped to the reference face's rectangle along its two other axes
+    let t1 = (ri + 1u) % 3u;
+    let t2 = (ri + 2u) % 3u;
+    poly = clip_polygon(poly, t1, 1.0, rh[t1]);
+    poly = clip_polygon(poly, t1, -1.0, rh[t1]);
+    poly = clip_polygon(poly, t2, 1.0, rh[t2]);
+    poly = clip_polygon(poly, t2, -1.0, rh[t2]);
+    // each point's depth below the reference face: dᵢ = h_ri − s·q_ri
+    let s_ref = sgn(dot(nref, ra[ri]));
+    var springs = Manifold(0.0, 0.0, vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+    for (var m = 0u; m < poly.n; m++) {
+        let q = poly.q[m];
+        let d = rh[ri] - s_ref * q[ri];
+        if (d <= 0.0) {
+            continue;
+        }
+        // back in the piece frame; on the piece's surface
+        var x = rc + ra[0] * q.x + ra[1] * q.y + ra[2] * q.z;
+        if (k >= 3u) {
+            x += nref * d;
+        }
+        manifold_add(&springs, x, d);
+    }
+    return manifold_contact(springs, axis, c);
+}
+
+// physics.rs: Manifold. The point springs of one contact as they are gathered: Σ dᵢ, max dᵢ,
+// Σ dᵢ xᵢ, Σ dᵢ xᵢ xᵢᵀ (diagonal, then xy, xz, yz)
+struct Manifold {
+    dsum: f32,
+    dmax: f32,
+    xsum: vec3<f32>,
+    xx_diag: vec3<f32>,
+    xx_off: vec3<f32>,
+}
+
+// physics.rs: Manifold::add. A point spring at x, d deep
+fn manifold_add(m: ptr<function, Manifold>, x: vec3<f32>, d: f32) {
+    (*m).dsum += d;
+    (*m).dmax = max((*m).dmax, d);
+    (*m).xsum += x * d;
+    (*m).xx_diag += x * x * d;
+    (*m).xx_off += vec3<f32>(x.x * x.y, x.x * x.z, x.y * x.z) * d;
+}
+
+// physics.rs: Manifold::contact. The contact standing for the springs (depth −1 at `empty` where
+// there are none): depth max dᵢ, point Σ dᵢ xᵢ / Σ dᵢ, spring count Σ dᵢ / max dᵢ, spread
+fn manifold_contact(m: Manifold, normal: vec3<f32>, empty: vec3<f32>) -> Contact {
+    if (m.dsum <= 0.0) {
+        return contact_at(-1.0, normal, empty);
+    }
+    let p = m.xsum / m.dsum;
+    // C = Σ wᵢ xᵢ xᵢᵀ − p pᵀ
+    let spread_diag = max(m.xx_diag / m.dsum - p * p, vec3<f32>(0.0));
+    let spread_off = m.xx_off / m.dsum - vec3<f32>(p.x * p.y, p.x * p.z, p.y * p.z);
+    return Contact(m.dmax, normal, p, m.dsum / m.dmax, spread_diag, spread_off);
+}
+
+// physics.rs: capsule_face_contact. A capsule (segment a–b, radius rc, piece frame) against the face
+// of a box piece (h) with outward normal n (a box axis, else none): the ends of the segment's part
+// over the face, each a point spring rc − its height over the face deep
+fn capsule_face_contact(a: vec3<f32>, b: vec3<f32>, rc: f32, h: vec3<f32>, n: vec3<f32>) -> Contact {
+    let none = contact_at(-1.0, n, a);
+    let na = abs(n);
+    var i = 2u;
+    if (na.x >= na.y && na.x >= na.z) {
+        i = 0u;
+    } else if (na.y >= na.z) {
+        i = 1u;
+    }
+    if (na[i] < 0.9999) {
+        return none;
+    }
+    let s = sgn(n[i]);
+    // the segment's parameter range over the face's rectangle
+    let d = b - a;
+    var t0 = 0.0;
+    var t1 = 1.0;
+    for (var m = 1u; m < 3u; m++) {
+        let t = (i + m) % 3u;
+        if (abs(d[t]) < 1e-12) {
+            if (abs(a[t]) > h[t]) {
+                return none;
+            }
+        } else {
+            let u0 = (-h[t] - a[t]) / d[t];
+            let u1 = (h[t] - a[t]) / d[t];
+            t0 = max(t0, min(u0, u1));
+            t1 = min(t1, max(u0, u1));
+        }
+    }
+    if (t0 >= t1) {
+        return none;
+    }
+    var springs = Manifold(0.0, 0.0, vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
+    let ts = array<f32, 2>(t0, t1);
+    for (var m = 0u; m < 2u; m++) {
+        var x = a + d * ts[m];
+        // depth: rc less the end's height over the face
+        let dk = rc - (s * x[i] - h[i]);
+        if (dk <= 0.0) {
+            continue;
+        }
+        // on the face
+        x[i] = s * h[i];
+        manifold_add(&springs, x, dk);
+    }
+    return manifold_contact(springs, n, a);
+}
+
+// physics.rs: piece_contact_to_world. Contact c in the frame of a piece at opos, orot, in the world
+fn piece_contact_to_world(c: Contact, opos: vec3<f32>, orot: vec4<f32>) -> Contact {
+    let qi = quat_conj(orot);
+    // column j of R C Rᵀ: R C (Rᵀ eⱼ)
+    let c0 = quat_rotate(orot, spread_mul(c.spread_diag, c.spread_off, quat_rotate(qi, vec3<f32>(1.0, 0.0, 0.0))));
+    let c1 = quat_rotate(orot, spread_mul(c.spread_diag, c.spread_off, quat_rotate(qi, vec3<f32>(0.0, 1.0, 0.0))));
+    let c2 = quat_rotate(orot, spread_mul(c.spread_diag, c.spread_off, quat_rotate(qi, vec3<f32>(0.0, 0.0, 1.0))));
+    return Contact(c.depth, quat_rotate(orot, c.normal), opos + quat_rotate(orot, c.point), c.spring_count, vec3<f32>(c0.x, c1.y, c2.z), vec3<f32>(c1.x, c2.x, c2.y));
+}
+
+// physics.rs: spread_mul. C·x for C given as its diagonal and (xy, xz, yz)
+fn spread_mul(d: vec3<f32>, o: vec3<f32>, x: vec3<f32>) -> vec3<f32> {
+    return vec3<f32>(d.x * x.x + o.x * x.y + o.y * x.z, o.x * x.x + d.y * x.y + o.z * x.z, o.y * x.x + o.z * x.y + d.z * x.z);
+}
+
+// physics.rs: spread_matrix. A manifold's rotational stiffness about its centre,
+// b (tr C·I − C) + (a − b) [n]× C [n]×ᵀ, as its columns
+fn spread_matrix(d: vec3<f32>, o: vec3<f32>, n: vec3<f32>, a: f32, b: f32) -> array<vec3<f32>, 3> {
+    let tr = d.x + d.y + d.z;
+    var cols: array<vec3<f32>, 3>;
+    for (var i = 0u; i < 3u; i++) {
+        var x = vec3<f32>(0.0);
+        x[i] = 1.0;
+        cols[i] = (x * tr - spread_mul(d, o, x)) * b - cross(n, spread_mul(d, o, cross(n, x))) * (a - b);
+    }
+    return cols;
 }
 
 // physics.rs: box_gap_contact. A hand box apart from a piece: the gap between y and the box's
@@ -769,7 +1050,7 @@ fn collide_hand_table(ci: u32) -> Contact {
             }
         }
     }
-    return Contact(r - low.z, vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(low.x, low.y, 0.0));
+    return contact_at(r - low.z, vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(low.x, low.y, 0.0));
 }
 
 // support point k of object piece pd (scaled size, hull scaled by scale, at ppos, prot) against
@@ -777,7 +1058,7 @@ fn collide_hand_table(ci: u32) -> Contact {
 fn collide_piece_table(pd: PieceDesc, scale: f32, size: vec3<f32>, ppos: vec3<f32>, prot: vec4<f32>, k: u32) -> Contact {
     let sp = piece_support_point(pd, scale, size, k);
     let w = ppos + quat_rotate(prot, sp.pos);
-    return Contact(sp.radius - w.z, vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(w.x, w.y, 0.0));
+    return contact_at(sp.radius - w.z, vec3<f32>(0.0, 0.0, 1.0), vec3<f32>(w.x, w.y, 0.0));
 }
 
 fn contact_force(c: Contact, vrel: vec3<f32>, anchor: vec3<f32>, k: f32, kt: f32, damp: f32, mu: f32, h: f32) -> ContactForce {
@@ -993,6 +1274,17 @@ fn apply_object_torque(tq: vec3<f32>, n: vec3<f32>, b: f32) {
     }
 }
 
+// physics.rs: apply_object_spread. A manifold's resistance to turning e into the object's implicit
+// damping, and its linearisation E·dw into its torque
+fn apply_object_spread(e: array<vec3<f32>, 3>, dw: vec3<f32>) {
+    obj_t += e[0] * dw.x + e[1] * dw.y + e[2] * dw.z;
+    for (var col = 0u; col < 3u; col++) {
+        for (var row = 0u; row < 3u; row++) {
+            obj_d[(3u + row) * 6u + 3u + col] += e[col][row];
+        }
+    }
+}
+
 // f at x on the object (centre of mass com), and Σ JᵀDJ with D = a nnᵀ + b (I − nnᵀ), J = [I, −[r]×]
 fn apply_object_force(com: vec3<f32>, x: vec3<f32>, f: vec3<f32>, n: vec3<f32>, a: f32, b: f32) {
     let r = x - com;
@@ -1029,7 +1321,9 @@ fn solve_hand_contact(slot: u32, l: u32, c: Contact, v_other: vec3<f32>, damp: f
     let vrel = link_point_velocity(l, c.point) - v_other;
     let dv = hand_point_velocity_change(l, c.point);
     let w = hand_mobility(l, c.point, c.normal, h);
-    let cf = hand_contact_force(c, vrel, dv, springs[slot].xyz, g.hand_contact_k, g.hand_contact_kt, damp, mu, h, w.x, w.y - w.x);
+    // a manifold of point springs in parallel: their stiffness, friction spring and damping add up
+    let n_s = c.spring_count;
+    let cf = hand_contact_force(c, vrel, dv, springs[slot].xyz, g.hand_contact_k * n_s, g.hand_contact_kt * n_s, damp * n_s, mu, h, w.x, w.y - w.x);
     if (dot(cf.force, c.normal) > 0.0) {
         springs[slot] = vec4<f32>(cf.spring, 1.0);
         apply_hand_force(l, c.point, cf.force, h);
@@ -1053,6 +1347,10 @@ fn hand_object_force(ci: u32, c: Contact, cf: HandContactForce, ocom: vec3<f32>,
         let dvn = dot(dv_point, n);
         let lin = n * (cf.ndamp * dvn) + (dv_point - n * dvn) * cf.tdamp;
         apply_object_force(ocom, c.point, lin - cf.force, n, cf.ndamp, cf.tdamp);
+        if (c.spring_count > 1.0) {
+            // a manifold's points resist the object's turning about their centre: + E·δω
+            apply_object_spread(spread_matrix(c.spread_diag, c.spread_off, n, cf.ndamp, cf.tdamp), dw);
+        }
         let tor = torsion_torque(n, link_w[l] - w_obj, fn_, mu, g.torsion_radius);
         apply_hand_torque(l, tor.torque, h);
         apply_object_torque(n * (tor.damping * dot(n, dw)) - tor.torque, n, tor.damping);
@@ -1061,7 +1359,9 @@ fn hand_object_force(ci: u32, c: Contact, cf: HandContactForce, ocom: vec3<f32>,
             react_point[n_reactions] = c.point;
             react_normal[n_reactions] = vec4<f32>(n, cf.ndamp);
             react_dv0[n_reactions] = vec4<f32>(dv_point, cf.tdamp);
-            react_torsion[n_reactions] = vec2<f32>(tor.damping, dot(n, dw));
+            react_dw0[n_reactions] = vec4<f32>(dw, tor.damping);
+            react_spread_d[n_reactions] = vec4<f32>(c.spread_diag, c.spring_count);
+            react_spread_o[n_reactions] = c.spread_off;
             n_reactions += 1u;
         }
         link_contact[l / 32u] |= 1u << (l % 32u);
@@ -1372,7 +1672,14 @@ fn react_to_object_motion(u: ObjectVelocity, h: f32) {
         let f = n * (react_normal[i].w * dun) + (du - n * dun) * react_dv0[i].w;
         apply_hand_force(l, x, f, h);
         // the torsion's damping: b_r n (n·Δω − n·δω₀)
-        apply_hand_torque(l, n * (react_torsion[i].x * (dot(n, dw) - react_torsion[i].y)), h);
+        var tq = n * (react_dw0[i].w * (dot(n, dw) - dot(n, react_dw0[i].xyz)));
+        if (react_spread_d[i].w > 1.0) {
+            // a manifold's resistance to the object's turning: E (Δω − δω₀)
+            let e = spread_matrix(react_spread_d[i].xyz, react_spread_o[i], n, react_normal[i].w, react_dv0[i].w);
+            let x = dw - react_dw0[i].xyz;
+            tq += e[0] * x.x + e[1] * x.y + e[2] * x.z;
+        }
+        apply_hand_torque(l, tq, h);
     }
 }
 

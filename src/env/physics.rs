@@ -7,7 +7,9 @@
 //! 2. Contacts (penalty): hand–object (one per hand collider: the deepest over the object's pieces,
 //!    closest points by alternating projection between the collider and a piece — a primitive, or a
 //!    convex hull whose closest point is found on the triangles the point is in front of; a hand
-//!    box also tests the piece's support points inside it, `box_piece_contact`),
+//!    box also tests the piece's support points inside it, `box_piece_contact`, and a hand box
+//!    overlapping a box piece is met on the clipped face of least overlap, one contact standing
+//!    for the face's point springs, `box_box_contact`),
 //!    hand–table (lowest point of each collider), object–table (every piece's support points).
 //!    Object–table: normal force `Fn = max(k·depth − c·vn, 0)`; friction from a tangential spring
 //!    anchored per contact pair, `Ft = −kt·s − ct·vt`, sliding (s rescaled) when `|Ft| > μ·Fn`, so a
@@ -144,10 +146,15 @@ pub struct Reaction {
     pub a: f32,
     pub b: f32,
     pub br: f32,
-    /// The contact point's velocity change δv₀ and n·δω₀ the force was linearised about (the
-    /// second pass's prediction; zero in the first).
+    /// The contact point's velocity change δv₀ and the object's δω₀ the force was linearised
+    /// about (the second pass's prediction; zero in the first).
     pub dv0: Vec3,
-    pub dw0_n: f32,
+    pub dw0: Vec3,
+    /// The contact's manifold (`Contact::spring_count`, `spread_diag`, `spread_off`): its points'
+    /// resistance to the object's turning, E (`spread_matrix`), goes back to the hand as well.
+    pub spring_count: f32,
+    pub spread_diag: Vec3,
+    pub spread_off: Vec3,
 }
 
 impl Default for Scratch {
@@ -177,7 +184,7 @@ impl Default for Scratch {
 }
 
 /// A contact found by a narrow-phase function.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Contact {
     /// Penetration depth (m); the pair touches when > 0.
     pub depth: f32,
@@ -185,6 +192,29 @@ pub struct Contact {
     pub normal: Vec3,
     /// Contact point on the second body's surface (world).
     pub point: Vec3,
+    /// How many point springs the contact stands for: 1 for a contact at one point; for a face
+    /// pressed on a face (`box_box_contact`), Σ dᵢ / depth over the manifold's points (dᵢ their
+    /// depths, `point` their centre weighted by dᵢ), so that k·spring_count·depth at `point` is
+    /// the sum of the points' springs and its moment theirs.
+    pub spring_count: f32,
+    /// The manifold's spread about `point` (world): C = Σ wᵢ eᵢ eᵢᵀ with wᵢ = dᵢ / Σ d and eᵢ
+    /// each point's offset from `point`, as its diagonal and (xy, xz, yz); zero at one point. The
+    /// object's implicit solve takes the points' resistance to turning from it (`spread_matrix`).
+    pub spread_diag: Vec3,
+    pub spread_off: Vec3,
+}
+
+impl Contact {
+    /// A contact at one point.
+    pub fn at(depth: f32, normal: Vec3, point: Vec3) -> Contact {
+        Contact { depth, normal, point, spring_count: 1.0, spread_diag: Vec3::ZERO, spread_off: Vec3::ZERO }
+    }
+}
+
+impl Default for Contact {
+    fn default() -> Self {
+        Contact::at(0.0, Vec3::ZERO, Vec3::ZERO)
+    }
 }
 
 /// The xyz of a padded `[f32; 4]` (a WGSL `vec4`'s `.xyz`).
@@ -590,7 +620,7 @@ pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, c
     let cd = &m.colliders[ci];
     let rc = bounding_radius(cd.shape, v3(cd.size)) + CONTACT_MARGIN;
     let reach = rc + p.obj_com[3];
-    let mut best = Contact { depth: -1.0, normal: Vec3::Z, point: opos };
+    let mut best = Contact::at(-1.0, Vec3::Z, opos);
     if (cpos - opos).length_squared() > reach * reach {
         return best;
     }
@@ -660,7 +690,7 @@ pub fn swept_contact(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: u
     }
     // back to the start of the substep: the point with the object, d = d_end + h·(v_rel·n)
     let x = end.point - (ovel + ow.cross(end.point - ocom)) * h;
-    Contact { depth: end.depth + h * v_rel(x).dot(end.normal), normal: end.normal, point: x }
+    Contact { depth: end.depth + h * v_rel(x).dot(end.normal), point: x, ..end }
 }
 
 /// Narrow phase between a hand collider (`cd` at `cpos`, `crot`) and object piece `pd` (its
@@ -683,6 +713,15 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
     }
     if cd.shape == SHAPE_BOX {
         let h = v3(cd.size);
+        // two boxes overlapping over every separating axis: the contact of the face (or edge) of
+        // least overlap, over the clipped face's points (box_box_contact)
+        let sat = if code == SHAPE_BOX { box_box_separation(c_o, r_o, h, size) } else { (1.0, Vec3::Z, 0) };
+        if sat.0 <= 0.0 {
+            let c = box_box_contact(c_o, r_o, h, size, sat.0, sat.1, sat.2);
+            if c.depth > 0.0 {
+                return piece_contact_to_world(c, opos, orot);
+            }
+        }
         let mut x = c_o;
         for _ in 0..BOX_PROJ_ITERS {
             let (y, _) = piece_project(m, pd, scale, size, x);
@@ -703,7 +742,7 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
         // end apart, the projections' answer stands: an overlap's contact point and normal need a
         // box–box contact of their own (docs/not-done-yet.md)
         if depth < 0.0 && code == SHAPE_BOX {
-            let (sep, axis) = box_box_separation(c_o, r_o, h, size);
+            let (sep, axis, _) = sat;
             if sep > 0.0 && sep < -depth {
                 depth = -sep;
                 normal = axis;
@@ -756,9 +795,63 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
             n = d / l;
         }
     }
+    // a capsule lying along a box piece's face: the ends of its segment's part over the face are
+    // two point springs (capsule_face_contact)
+    if code == SHAPE_BOX && hl > 0.0 && out.depth > 0.0 {
+        let line = capsule_face_contact(a, b, rc, size, n);
+        if line.spring_count > 1.0 {
+            return piece_contact_to_world(line, opos, orot);
+        }
+    }
     out.normal = quat_rotate(orot, n);
     out.point = opos + quat_rotate(orot, surf);
     out
+}
+
+/// A capsule (segment a–b, radius `rc`, in the piece frame) against the face of a box piece (half
+/// extents `h`) whose outward normal is `n` (the pair's normal; a box's axis, else no manifold):
+/// the segment's part over the face (|x_t| ≤ h_t along the face's two axes), its two ends each a
+/// point spring of depth dₖ = rc − (its height over the face), the contact standing for those
+/// below rc as `box_box_contact`'s for a face's points — as MuJoCo's capsule–box contact gives a
+/// constraint per end. Spring count 1 (or depth −1) where one end or none is in.
+pub fn capsule_face_contact(a: Vec3, b: Vec3, rc: f32, h: Vec3, n: Vec3) -> Contact {
+    let none = Contact::at(-1.0, n, a);
+    let na = n.abs();
+    let i = if na.x >= na.y && na.x >= na.z { 0 } else if na.y >= na.z { 1 } else { 2 };
+    if na[i] < 0.9999 {
+        return none;
+    }
+    let s = sgn(n[i]);
+    // the segment's parameter range over the face's rectangle
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0f32, 1.0f32);
+    for t in [(i + 1) % 3, (i + 2) % 3] {
+        if d[t].abs() < 1e-12 {
+            if a[t].abs() > h[t] {
+                return none;
+            }
+        } else {
+            let (u0, u1) = ((-h[t] - a[t]) / d[t], (h[t] - a[t]) / d[t]);
+            t0 = t0.max(u0.min(u1));
+            t1 = t1.min(u0.max(u1));
+        }
+    }
+    if t0 >= t1 {
+        return none;
+    }
+    let mut springs = Manifold::default();
+    for t in [t0, t1] {
+        let mut x = a + d * t;
+        // depth: rc less the end's height over the face
+        let dk = rc - (s * x[i] - h[i]);
+        if dk <= 0.0 {
+            continue;
+        }
+        // on the face
+        x[i] = s * h[i];
+        springs.add(x, dk);
+    }
+    springs.contact(n, a)
 }
 
 /// The face of a box (half extents `h`) nearest a point `v` inside it (box frame; `d` = h − |v|):
@@ -837,17 +930,24 @@ pub fn box_piece_contact(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, c_o:
     (depth, n, psum / wsum)
 }
 
+/// How much larger (m) an edge–edge axis's separation must be than the best face axis's for two
+/// boxes' contact to be taken along it: where a face and an edge overlap alike, the face's
+/// clipped points make the steadier contact.
+pub const EDGE_AXIS_BIAS: f32 = 1.0e-4;
+
 /// The largest separation (m) of a box (centre `c`, rotation `r`, half-extents `ha`) from the
 /// axis-aligned box of half-extents `hb` at the origin over the 15 separating axes of two boxes
 /// (each box's 3 face normals, then the 9 cross products of their edges; near-parallel edges
-/// skipped: a face axis stands for them), and that axis, pointing from the second box to the first.
-/// Positive: a lower bound on the boxes' distance, equal to it where their nearest features are a
-/// face and what lies against it; zero or less: they overlap, by its magnitude along the axis
-/// (the separating-axis theorem).
-pub fn box_box_separation(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3) -> (f32, Vec3) {
+/// skipped: a face axis stands for them), that axis, pointing from the second box to the first,
+/// and its index k (0–2: the first box's faces, 3–5: the second's, 6 + 3i + j: edge i of the
+/// first × edge j of the second). An edge axis is taken only where it beats the best face axis
+/// by `EDGE_AXIS_BIAS`. Positive: a lower bound on the boxes' distance, equal to it where their
+/// nearest features are a face and what lies against it; zero or less: they overlap, by its
+/// magnitude along the axis (the separating-axis theorem).
+pub fn box_box_separation(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3) -> (f32, Vec3, usize) {
     let a = [quat_rotate(r, Vec3::X), quat_rotate(r, Vec3::Y), quat_rotate(r, Vec3::Z)];
     let b = [Vec3::X, Vec3::Y, Vec3::Z];
-    let mut best = (-3.0e38f32, Vec3::Z);
+    let mut best = (-3.0e38f32, Vec3::Z, 0usize);
     for k in 0..15 {
         let l = if k < 3 {
             a[k]
@@ -866,12 +966,190 @@ pub fn box_box_separation(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3) -> (f32, Vec3) {
         let rb = hb.x * l.x.abs() + hb.y * l.y.abs() + hb.z * l.z.abs();
         let t = c.dot(l);
         let sep = t.abs() - ra - rb;
-        if sep > best.0 {
-            best = (sep, if t >= 0.0 { l } else { -l });
+        // an edge axis must beat the faces' best by the bias
+        let bias = if k >= 6 { EDGE_AXIS_BIAS } else { 0.0 };
+        if sep > best.0 + bias {
+            best = (sep, if t >= 0.0 { l } else { -l }, k);
         }
     }
     best
 }
+
+/// Sutherland–Hodgman: the part of polygon `poly` (its first `n` points, in order) where
+/// `sign·q[t] ≤ lim`, and its point count (at most 8: a quadrilateral clipped by four lines).
+pub fn clip_polygon(poly: &[Vec3; 8], n: usize, t: usize, sign: f32, lim: f32) -> ([Vec3; 8], usize) {
+    let mut out = [Vec3::ZERO; 8];
+    let mut m = 0;
+    if n == 0 {
+        return (out, 0);
+    }
+    let mut prev = poly[n - 1];
+    // how far past the line (inside ≤ 0)
+    let mut dp = sign * prev[t] - lim;
+    for &cur in poly.iter().take(n) {
+        let dc = sign * cur[t] - lim;
+        if (dc <= 0.0) != (dp <= 0.0) && m < 8 {
+            // the edge crosses the line: prev + (cur − prev)·dp / (dp − dc)
+            out[m] = prev + (cur - prev) * (dp / (dp - dc));
+            m += 1;
+        }
+        if dc <= 0.0 && m < 8 {
+            out[m] = cur;
+            m += 1;
+        }
+        prev = cur;
+        dp = dc;
+    }
+    (out, m)
+}
+
+/// The contact of a hand box (centre `c`, rotation `r`, half extents `ha`, in the piece frame)
+/// overlapping a box piece (half extents `hb` at the origin) by −`sep` along separating axis `axis`
+/// (from the piece to the hand box) of index `k` (`box_box_separation`), in the piece frame; depth −1
+/// where no point of the manifold is below the reference face. A face axis (k < 6): the face of
+/// the other box turned most squarely against that face (the incident face) is clipped to the
+/// reference face's rectangle; each clipped point below the reference face is a point spring of
+/// depth dᵢ, and the contact stands for them all: depth max dᵢ, point Σ dᵢ xᵢ / Σ dᵢ (on the
+/// piece's surface), `spring_count` Σ dᵢ / max dᵢ, `spread` their spread about the point — as
+/// MuJoCo's box–box contact gives a constraint per clipped point. A face pressed flat on the
+/// cube's face is four springs at the face's centre, one corner pressed in one spring at the
+/// corner. An edge axis: one spring at the closest points of the two edges, depth the overlap.
+pub fn box_box_contact(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3, sep: f32, axis: Vec3, k: usize) -> Contact {
+    let a = [quat_rotate(r, Vec3::X), quat_rotate(r, Vec3::Y), quat_rotate(r, Vec3::Z)];
+    let e = [Vec3::X, Vec3::Y, Vec3::Z];
+    if k >= 6 {
+        let (i, j) = ((k - 6) / 3, (k - 6) % 3);
+        // the hand box's edge along aᵢ nearest the piece (toward −axis), the piece's along eⱼ
+        // nearest the hand box (toward +axis)
+        let mut pa = c;
+        let mut pb = Vec3::ZERO;
+        for m in 0..3 {
+            if m != i {
+                pa -= a[m] * (ha[m] * sgn(a[m].dot(axis)));
+            }
+            if m != j {
+                pb += e[m] * (hb[m] * sgn(e[m].dot(axis)));
+            }
+        }
+        // closest points of pa + s·aᵢ and pb + t·eⱼ: s = (β·(eⱼ·w) − aᵢ·w) / (1 − β²), t = eⱼ·w + β·s
+        // (w = pa − pb, β = aᵢ·eⱼ), each clamped to its edge
+        let w = pa - pb;
+        let beta = a[i].dot(e[j]);
+        let (aw, ew) = (a[i].dot(w), e[j].dot(w));
+        let s0 = ((beta * ew - aw) / (1.0 - beta * beta).max(1e-12)).clamp(-ha[i], ha[i]);
+        let t = (ew + beta * s0).clamp(-hb[j], hb[j]);
+        return Contact::at(-sep, axis, pb + e[j] * t);
+    }
+    // the reference face: the hand box's toward the piece (outward −axis) or the piece's toward
+    // the hand box (outward +axis)
+    let (rc, ra, rh, ri, ic, ia, ih, nref) = if k < 3 { (c, a, ha, k, Vec3::ZERO, e, hb, -axis) } else { (Vec3::ZERO, e, hb, k - 3, c, a, ha, axis) };
+    // the incident face: the other box's face whose outward normal is most against nref
+    let mut j = 0;
+    for m in 1..3 {
+        if ia[m].dot(nref).abs() > ia[j].dot(nref).abs() {
+            j = m;
+        }
+    }
+    let f = ic - ia[j] * (ih[j] * sgn(ia[j].dot(nref)));
+    let eu = ia[(j + 1) % 3] * ih[(j + 1) % 3];
+    let ev = ia[(j + 2) % 3] * ih[(j + 2) % 3];
+    // its corners in the reference box's frame, in order around the face
+    let to_ref = |x: Vec3| {
+        let d = x - rc;
+        Vec3::new(d.dot(ra[0]), d.dot(ra[1]), d.dot(ra[2]))
+    };
+    let mut poly = [Vec3::ZERO; 8];
+    poly[0] = to_ref(f + eu + ev);
+    poly[1] = to_ref(f - eu + ev);
+    poly[2] = to_ref(f - eu - ev);
+    poly[3] = to_ref(f + eu - ev);
+    let mut n = 4;
+    // clipped to the reference face's rectangle: |q_t| ≤ h_t along its two other axes
+    for t in [(ri + 1) % 3, (ri + 2) % 3] {
+        for sign in [1.0f32, -1.0] {
+            (poly, n) = clip_polygon(&poly, n, t, sign, rh[t]);
+        }
+    }
+    // each point's depth below the reference face: dᵢ = h_ri − s·q_ri (s: nref's sign along that axis)
+    let s_ref = sgn(nref.dot(ra[ri]));
+    let mut springs = Manifold::default();
+    for q in poly.iter().take(n) {
+        let d = rh[ri] - s_ref * q[ri];
+        if d <= 0.0 {
+            continue;
+        }
+        // back in the piece frame; on the piece's surface (the reference face, where that is the piece's)
+        let mut x = rc + ra[0] * q.x + ra[1] * q.y + ra[2] * q.z;
+        if k >= 3 {
+            x += nref * d;
+        }
+        springs.add(x, d);
+    }
+    springs.contact(axis, c)
+}
+
+/// The point springs of one contact as they are gathered (`box_box_contact`,
+/// `capsule_face_contact`): Σ dᵢ, max dᵢ, Σ dᵢ xᵢ and Σ dᵢ xᵢ xᵢᵀ (diagonal, then xy, xz, yz).
+#[derive(Clone, Copy, Default)]
+pub struct Manifold {
+    pub dsum: f32,
+    pub dmax: f32,
+    pub xsum: Vec3,
+    pub xx_diag: Vec3,
+    pub xx_off: Vec3,
+}
+
+impl Manifold {
+    /// Adds a point spring at `x`, `d` deep (> 0).
+    pub fn add(&mut self, x: Vec3, d: f32) {
+        self.dsum += d;
+        self.dmax = self.dmax.max(d);
+        self.xsum += x * d;
+        self.xx_diag += x * x * d;
+        self.xx_off += Vec3::new(x.x * x.y, x.x * x.z, x.y * x.z) * d;
+    }
+
+    /// The contact along `normal` standing for the springs gathered (depth −1 at `empty` where
+    /// there are none): depth max dᵢ, point p = Σ dᵢ xᵢ / Σ dᵢ, spring count Σ dᵢ / max dᵢ, spread
+    /// C = Σ wᵢ xᵢ xᵢᵀ − p pᵀ.
+    pub fn contact(&self, normal: Vec3, empty: Vec3) -> Contact {
+        if self.dsum <= 0.0 {
+            return Contact::at(-1.0, normal, empty);
+        }
+        let p = self.xsum / self.dsum;
+        let spread_diag = (self.xx_diag / self.dsum - p * p).max(Vec3::ZERO);
+        let spread_off = self.xx_off / self.dsum - Vec3::new(p.x * p.y, p.x * p.z, p.y * p.z);
+        Contact { depth: self.dmax, normal, point: p, spring_count: self.dsum / self.dmax, spread_diag, spread_off }
+    }
+}
+
+/// Contact `c` in the frame of a piece at `opos`, `orot`, in the world: its normal, point and
+/// spread (R C Rᵀ) turned.
+pub fn piece_contact_to_world(c: Contact, opos: Vec3, orot: Vec4) -> Contact {
+    let qi = quat_conj(orot);
+    // column j of R C Rᵀ: R C (Rᵀ eⱼ)
+    let col = |x: Vec3| quat_rotate(orot, spread_mul(c.spread_diag, c.spread_off, quat_rotate(qi, x)));
+    let (c0, c1, c2) = (col(Vec3::X), col(Vec3::Y), col(Vec3::Z));
+    let (spread_diag, spread_off) = (Vec3::new(c0.x, c1.y, c2.z), Vec3::new(c1.x, c2.x, c2.y));
+    Contact { depth: c.depth, normal: quat_rotate(orot, c.normal), point: opos + quat_rotate(orot, c.point), spring_count: c.spring_count, spread_diag, spread_off }
+}
+
+/// C·x for a symmetric C given as its diagonal `d` and (xy, xz, yz) `o`.
+pub fn spread_mul(d: Vec3, o: Vec3, x: Vec3) -> Vec3 {
+    Vec3::new(d.x * x.x + o.x * x.y + o.y * x.z, o.x * x.x + d.y * x.y + o.z * x.z, o.y * x.x + o.z * x.y + d.z * x.z)
+}
+
+/// The rotational stiffness a manifold's points add about their centre, Σ wᵢ [eᵢ]×ᵀ D [eᵢ]× with
+/// D = a nnᵀ + b (I − nnᵀ) (the pair's damping, shared out as wᵢ): b (tr C·I − C) + (a − b)
+/// [n]× C [n]×ᵀ, as its three columns. Pressed at one point the object's implicit solve sees no
+/// resistance to turning about it; four springs at a face's corners resist it, and in the implicit
+/// solve that resistance stays stable at any stiffness, as each of the object's table contacts'.
+pub fn spread_matrix(d: Vec3, o: Vec3, n: Vec3, a: f32, b: f32) -> [Vec3; 3] {
+    let tr = d.x + d.y + d.z;
+    let col = |x: Vec3| (x * tr - spread_mul(d, o, x)) * b - n.cross(spread_mul(d, o, n.cross(x))) * (a - b);
+    [col(Vec3::X), col(Vec3::Y), col(Vec3::Z)]
+}
+
 
 /// A hand box apart from a piece (`ly`: the piece's point `y` nearest the box, in the box frame,
 /// outside it): the gap between y and the box's point nearest it as a negative depth, along the line
@@ -919,7 +1197,7 @@ pub fn collide_hand_table(m: &Model, s: &Scratch, ci: usize) -> Contact {
             }
         }
     }
-    Contact { depth: r - low.z, normal: Vec3::Z, point: Vec3::new(low.x, low.y, 0.0) }
+    Contact::at(r - low.z, Vec3::Z, Vec3::new(low.x, low.y, 0.0))
 }
 
 /// Narrow phase between support point `k` of object piece `pd` (scaled `size`, its hull scaled by
@@ -927,7 +1205,7 @@ pub fn collide_hand_table(m: &Model, s: &Scratch, ci: usize) -> Contact {
 pub fn collide_piece_table(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, ppos: Vec3, prot: Vec4, k: u32) -> Contact {
     let (local, r) = piece_support_point(m, pd, scale, size, k);
     let w = ppos + quat_rotate(prot, local);
-    Contact { depth: r - w.z, normal: Vec3::Z, point: Vec3::new(w.x, w.y, 0.0) }
+    Contact::at(r - w.z, Vec3::Z, Vec3::new(w.x, w.y, 0.0))
 }
 
 /// Penalty contact force on the first body, the new tangential spring, and the tangential damping
@@ -1155,6 +1433,18 @@ pub fn apply_object_torque(s: &mut Scratch, tq: Vec3, n: Vec3, b: f32) {
     }
 }
 
+/// Adds a manifold's resistance to turning `e` (`spread_matrix`, its columns) to the object's
+/// implicit damping, and its linearisation E·`dw` about the velocities the force was solved
+/// against to the object's torque.
+pub fn apply_object_spread(s: &mut Scratch, e: &[Vec3; 3], dw: Vec3) {
+    s.obj_t += e[0] * dw.x + e[1] * dw.y + e[2] * dw.z;
+    for col in 0..3 {
+        for row in 0..3 {
+            s.obj_d[(3 + row) * 6 + 3 + col] += e[col][row];
+        }
+    }
+}
+
 /// Adds a contact force `f` at world point `x` on the object (centre of mass `com`), and its
 /// implicit damping D = a nnᵀ + b (I − nnᵀ) mapped through J = [I, −[r]×]: Σ Jᵀ D J.
 pub fn apply_object_force(com: Vec3, s: &mut Scratch, x: Vec3, f: Vec3, n: Vec3, a: f32, b: f32) {
@@ -1201,7 +1491,9 @@ pub fn solve_hand_contact(p: &EnvParams, m: &Model, s: &mut Scratch, springs: &m
     let vrel = link_point_velocity(s, l, c.point) - v_other;
     let dv = hand_point_velocity_change(m, s, l, c.point);
     let (w_n, w_tr) = hand_mobility(p, m, s, l, c.point, c.normal, h);
-    let (f, spring, a, b) = hand_contact_force(c, vrel, dv, v3(springs[slot]), g.hand_contact_k, g.hand_contact_kt, damp, mu, h, w_n, w_tr - w_n);
+    // a manifold of point springs in parallel: their stiffness, friction spring and damping add up
+    let n_s = c.spring_count;
+    let (f, spring, a, b) = hand_contact_force(c, vrel, dv, v3(springs[slot]), g.hand_contact_k * n_s, g.hand_contact_kt * n_s, damp * n_s, mu, h, w_n, w_tr - w_n);
     if f.dot(c.normal) > 0.0 {
         springs[slot] = [spring.x, spring.y, spring.z, 1.0];
         apply_hand_force(p, m, s, l, c.point, f, h);
@@ -1229,12 +1521,18 @@ pub fn hand_object_force(p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, ci: 
         let dvn = dv_point.dot(n);
         let lin = n * (a * dvn) + (dv_point - n * dvn) * b;
         apply_object_force(ocom, s, c.point, lin - f, n, a, b);
+        if c.spring_count > 1.0 {
+            // a manifold's points resist the object's turning about their centre, linearised as
+            // the force: + E·δω
+            let e = spread_matrix(c.spread_diag, c.spread_off, n, a, b);
+            apply_object_spread(s, &e, dw);
+        }
         let (tq, br) = torsion_torque(n, s.link_w[l] - w_obj, fn_, mu, g.torsion_radius);
         apply_hand_torque(p, m, s, l, tq, h);
         // the torsion's damping, linearised likewise: + b_r n (n·δω)
         apply_object_torque(s, n * (br * n.dot(dw)) - tq, n, br);
         if (s.n_reactions as usize) < MAX_REACTIONS {
-            s.reactions[s.n_reactions as usize] = Reaction { link: l as u32, point: c.point, normal: n, a, b, br, dv0: dv_point, dw0_n: n.dot(dw) };
+            s.reactions[s.n_reactions as usize] = Reaction { link: l as u32, point: c.point, normal: n, a, b, br, dv0: dv_point, dw0: dw, spring_count: c.spring_count, spread_diag: c.spread_diag, spread_off: c.spread_off };
             s.n_reactions += 1;
         }
         s.link_contact[l / 32] |= 1 << (l % 32);
@@ -1553,7 +1851,14 @@ pub fn react_to_object_motion(st: &EnvState, p: &EnvParams, m: &Model, s: &mut S
         let f = n * (r.a * dun) + (du - n * dun) * r.b;
         apply_hand_force(p, m, s, r.link as usize, r.point, f, h);
         // the torsion's damping: b_r n (n·Δω − n·δω₀)
-        apply_hand_torque(p, m, s, r.link as usize, n * (r.br * (n.dot(dw) - r.dw0_n)), h);
+        let mut tq = n * (r.br * (n.dot(dw) - n.dot(r.dw0)));
+        if r.spring_count > 1.0 {
+            // a manifold's resistance to the object's turning: E (Δω − δω₀)
+            let e = spread_matrix(r.spread_diag, r.spread_off, n, r.a, r.b);
+            let x = dw - r.dw0;
+            tq += e[0] * x.x + e[1] * x.y + e[2] * x.z;
+        }
+        apply_hand_torque(p, m, s, r.link as usize, tq, h);
     }
 }
 

@@ -295,6 +295,71 @@ fn a_cube_spinning_against_the_palm_steps_the_same_on_both_backends() {
     });
 }
 
+/// A cube pressed nearly flat (1° off) 1 mm into the palm, 4 mm further sideways in each env and
+/// turning at 2–9 rad/s one way or the other about the palm's y axis: the palm's contact is a
+/// manifold of the corners below its face (`box_box_contact`), whose spread resists the cube's turn
+/// in its implicit solve and goes back to the hand (`spread_matrix`): one physics step agrees.
+#[test]
+fn a_cube_pressed_flat_into_the_palm_steps_the_same_on_both_backends() {
+    let Some(ctx) = gpu_context("a_cube_pressed_flat_into_the_palm_steps_the_same_on_both_backends") else { return };
+    cube_under_the_palm_steps_the_same(ctx, 0.001, 1.0, |i, model, st| {
+        let palm = palm_pose(model, st);
+        let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
+        let w = palm.rot * glam::Vec3::Y * (sign * (2.0 + i as f32));
+        st.obj_angvel = [w.x, w.y, w.z, 0.0];
+    });
+}
+
+/// A cube lying along a fingertip capsule, on the capsule's side away from the palm, the capsule's
+/// middle 1 mm into the face and the cube turned 0–7° about the face's axis across the capsule in
+/// the 8 envs, so that both ends of the segment are in (two point springs,
+/// `capsule_face_contact`) or one is out: one physics step agrees.
+#[test]
+fn a_cube_along_a_fingertip_steps_the_same_on_both_backends() {
+    use dextrain::gpu::layout::{NO_JOINT, SHAPE_CAPSULE};
+    use glam::{Mat3, Quat, Vec3};
+    let Some(ctx) = gpu_context("a_cube_along_a_fingertip_steps_the_same_on_both_backends") else { return };
+    let c = base_config(8);
+    let mut cpu = cpu_batch(&c);
+    let model = cpu.model().clone();
+    let ci = model.colliders.iter().position(|cd| cd.shape == SHAPE_CAPSULE && cd.tip != NO_JOINT).expect("a fingertip capsule");
+    let cd = model.colliders[ci];
+    assert_eq!(model.pieces[0].shape, dextrain::gpu::layout::SHAPE_BOX, "the object is a box");
+    let (rc, half) = (cd.size[0], model.pieces[0].size[2]);
+    let mut s = cpu.states().unwrap();
+    for (i, st) in s.iter_mut().enumerate() {
+        let links = dextrain::env::hand_link_poses(&model, st);
+        let cap = links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot));
+        let u = cap.rot * Vec3::Z;
+        // away from the palm, across the capsule
+        let out = cap.pos - palm_pose(&model, st).pos;
+        let away = (out - u * out.dot(u)).normalize();
+        // the cube's +z face toward the capsule, its x axis along the segment, then turned
+        let nrm = -away;
+        let flat = Quat::from_mat3(&Mat3::from_cols(u, nrm.cross(u), nrm));
+        let rot = Quat::from_axis_angle(nrm.cross(u), (i as f32).to_radians()) * flat;
+        let centre = cap.pos - rot * Vec3::Z * (half + rc - 0.001);
+        st.obj_pos = [centre.x, centre.y, centre.z, 0.0];
+        st.obj_rot = rot.to_array();
+        st.obj_vel = [0.0; 4];
+        st.obj_angvel = [0.0; 4];
+    }
+    cpu.set_states(&s).unwrap();
+    // the scene as described: two springs in the flattest envs, one in the most turned
+    let p = cpu.params().unwrap();
+    let springs: Vec<f32> = s
+        .iter()
+        .zip(&p)
+        .map(|(st, p)| {
+            let mut scratch = dextrain::env::physics::Scratch::default();
+            dextrain::env::physics::hand_kinematics(st, &model.view(), &mut scratch);
+            dextrain::env::physics::collide_hand_object(st, p, &model.view(), &scratch, ci).spring_count
+        })
+        .collect();
+    assert!(springs[0] > 1.9 && springs[7] == 1.0, "spring counts {springs:?}");
+    held_hand_step_agrees(c, &mut cpu, ctx);
+}
+
 /// Three objects in one batch (a cube, the shipped 3-piece bottle — two cylinders and a hull — and
 /// a two-box "L" whose centre of mass and principal axes are off its frame, its pieces colliding
 /// as their convex hulls), each env holding the one it drew.

@@ -224,7 +224,7 @@ fn press_into_wall(w: f32, k: f32, servo_n: f32, v0: f32, steps: usize) -> Vec<f
     let (mut z, mut v) = (0.002f32, -v0);
     let mut depths = Vec::new();
     for _ in 0..steps {
-        let c = Contact { depth: -z, normal: Vec3::Z, point: Vec3::ZERO };
+        let c = Contact::at(-z, Vec3::Z, Vec3::ZERO);
         // the servo alone changes the velocity by −h·w·F_servo this substep
         let dv = Vec3::new(0.0, 0.0, -h * w * servo_n);
         let f = if c.depth > -dextrain::env::physics::CONTACT_MARGIN {
@@ -332,6 +332,101 @@ fn a_box_turned_into_the_palm_is_pushed_at_its_deepest_edge() {
     assert!(k.pos.distance(edge) < 3e-3, "contact at {:?}, {:.1} mm from the deep edge {edge:?}", k.pos, k.pos.distance(edge) * 1e3);
 }
 
+/// The palm's (collider 0's) contact with a cube tilted `tilt` degrees under it, its near edge
+/// `depth` in (negative: apart), `lateral` m off the palm's centre (`box_tilted_against_palm`):
+/// the contact, the near edge's middle (world), the model, the env's state and parameters.
+fn palm_contact_with_tilted_cube(depth: f32, tilt: f32, lateral: f32) -> (dextrain::env::physics::Contact, glam::Vec3, dextrain::env::SimModel, dextrain::env::EnvState, dextrain::env::EnvParams) {
+    use dextrain::env::physics::{Scratch, collide_hand_object, hand_kinematics};
+    let c = base_config(1);
+    let mut b = cpu_batch(&c);
+    let edge = box_tilted_against_palm(&mut b, depth, tilt, |_| lateral)[0];
+    let model = b.model().clone();
+    let (st, p) = (b.states().unwrap()[0], b.params().unwrap()[0]);
+    let mut s = Scratch::default();
+    hand_kinematics(&st, &model.view(), &mut s);
+    let k = collide_hand_object(&st, &p, &model.view(), &s, 0);
+    (k, edge, model, st, p)
+}
+
+/// A hand box overlapping a box piece is a manifold of point springs (`box_box_contact`): pressed
+/// flat 1 mm onto a cube's face it stands for the face's four corners (spring count 4, its point
+/// at the face's centre, the corners' spread about it), tilted 3° for its deep edge's two corners
+/// (count 2, at the edge's middle); wherever the cube lies under the palm.
+#[test]
+fn a_palm_pressed_on_a_cube_s_face_stands_for_the_corners_below_it() {
+    for lateral in [0.0f32, 0.02] {
+        for (tilt, springs) in [(0.0f32, 4.0f32), (3.0, 2.0)] {
+            let (k, edge, model, st, p) = palm_contact_with_tilted_cube(0.001, tilt, lateral);
+            let at = format!("tilt {tilt}°, {lateral} m off the palm's centre");
+            assert!((k.depth - 0.001).abs() < 2e-6, "{at}: depth {:.4} mm", k.depth * 1e3);
+            assert!((k.spring_count - springs).abs() < 1e-3, "{at}: {} springs", k.spring_count);
+            let up = toward_palm(&model, &st);
+            assert!(k.normal.dot(up) > 0.998, "{at}: normal {:?}, toward the palm {up:?}", k.normal);
+            // half the cube's side
+            let half = p.obj_scale * model.pieces[0].size[0];
+            let (centre, spread) = if tilt == 0.0 {
+                (glam::Vec3::from_slice(&st.obj_pos[..3]) + up * half, 2.0 * half * half)
+            } else {
+                (edge, half * half)
+            };
+            assert!(k.point.distance(centre) < 1e-4, "{at}: point {:?}, {:.3} mm from {centre:?}", k.point, k.point.distance(centre) * 1e3);
+            let trace = k.spread_diag.x + k.spread_diag.y + k.spread_diag.z;
+            assert!((trace / spread - 1.0).abs() < 2e-3, "{at}: spread {trace:e} m², the corners' {spread:e}");
+        }
+    }
+}
+
+/// A capsule lying along a box's face is two point springs, one at each end of its segment's part
+/// over the face (`capsule_face_contact`): flat 1 mm in, two springs at the part's middle; tilted
+/// so that one end is 0.5 mm in, 1.5 springs two thirds of the way to the deep end; partly past
+/// the face's edge, the part over the face; one end out, a single spring (no manifold).
+#[test]
+fn a_capsule_along_a_box_face_is_a_spring_at_each_end_over_the_face() {
+    use dextrain::env::physics::capsule_face_contact;
+    use glam::Vec3;
+    let (h, rc) = (Vec3::splat(0.025), 0.008);
+    // the segment's height over the +z face at which an end is `d` deep
+    let z = |d: f32| 0.025 + rc - d;
+    let cases = [
+        // (a, b, depth, springs, point)
+        (Vec3::new(-0.01, 0.0, z(0.001)), Vec3::new(0.02, 0.0, z(0.001)), 0.001, 2.0, Vec3::new(0.005, 0.0, 0.025)),
+        (Vec3::new(-0.01, 0.0, z(0.001)), Vec3::new(0.02, 0.0, z(0.0005)), 0.001, 1.5, Vec3::new(0.0, 0.0, 0.025)),
+        (Vec3::new(0.01, 0.01, z(0.001)), Vec3::new(0.04, 0.01, z(0.001)), 0.001, 2.0, Vec3::new(0.0175, 0.01, 0.025)),
+        (Vec3::new(-0.01, 0.0, z(0.001)), Vec3::new(0.02, 0.0, z(-0.001)), 0.001, 1.0, Vec3::new(-0.01, 0.0, 0.025)),
+    ];
+    for (i, (a, b, depth, springs, point)) in cases.into_iter().enumerate() {
+        let k = capsule_face_contact(a, b, rc, h, Vec3::Z);
+        assert!((k.depth - depth).abs() < 1e-6, "case {i}: depth {:.4} mm", k.depth * 1e3);
+        assert!((k.spring_count - springs).abs() < 1e-3, "case {i}: {} springs", k.spring_count);
+        assert!(k.point.distance(point) < 1e-5, "case {i}: point {:?}, expected {point:?}", k.point);
+    }
+    // a normal off the box's axes (an edge or corner contact): no manifold
+    assert_eq!(capsule_face_contact(cases[0].0, cases[0].1, rc, h, Vec3::new(0.0, 0.6, 0.8)).depth, -1.0);
+}
+
+/// A cube pressed flat 1 mm into the palm (the hand held, the cube free) is pushed out straight,
+/// wherever it lies under the palm: its four corners push alike, so it does not turn, and the
+/// palm's manifold resists the turn the push would start.
+#[test]
+fn a_cube_pressed_flat_into_the_palm_is_pushed_out_without_turning() {
+    for lateral in [0.0f32, 0.01, 0.02] {
+        let c = base_config(1);
+        let mut b = cpu_batch(&c);
+        box_tilted_against_palm(&mut b, 0.001, 0.0, |_| lateral);
+        let s = b.states().unwrap();
+        let mut t = b.model().default_targets();
+        t.wrist_pos = s[0].wrist_pos;
+        t.wrist_rot = s[0].wrist_rot;
+        t.q = s[0].q;
+        b.step(&[t]).unwrap();
+        let after = b.states().unwrap()[0];
+        let w = glam::Vec3::from_slice(&after.obj_angvel[..3]).length();
+        let v = glam::Vec3::from_slice(&after.obj_vel[..3]).dot(-toward_palm(&b.model().clone(), &after));
+        assert!(v > 0.05, "{lateral} m off the centre: pushed out at {v:.3} m/s");
+        assert!(w < 0.05 * v / 0.025, "{lateral} m off the centre: turning at {w:.3} rad/s while pushed out at {v:.3} m/s");
+    }
+}
+
 /// A capsule's segment against a box piece: `segment_box_closest` finds the segment's point nearest
 /// the box exactly — its distance to the box is the least over a dense sampling of the segment, and
 /// never more than four rounds of alternating projections find (which zig-zag when the segment lies
@@ -376,18 +471,9 @@ fn the_segment_point_nearest_a_box_is_exact() {
 /// and end far from the nearest points).
 #[test]
 fn the_palm_s_gap_to_a_cube_tilted_under_it_is_exact() {
-    use dextrain::env::physics::{Scratch, collide_hand_object, hand_kinematics};
     for tilt in [0.5f32, 2.0, 10.0, 30.0] {
         for gap in [0.0005f32, 0.002] {
-            let c = base_config(1);
-            let mut b = cpu_batch(&c);
-            box_tilted_against_palm(&mut b, -gap, tilt, |_| 0.0);
-            let model = b.model().clone();
-            let m = model.view();
-            let (st, p) = (b.states().unwrap()[0], b.params().unwrap()[0]);
-            let mut s = Scratch::default();
-            hand_kinematics(&st, &m, &mut s);
-            let k = collide_hand_object(&st, &p, &m, &s, 0);
+            let k = palm_contact_with_tilted_cube(-gap, tilt, 0.0).0;
             assert!((k.depth + gap).abs() < 2e-5, "tilt {tilt}°, gap {:.2} mm: reported {:.4} mm", gap * 1e3, -k.depth * 1e3);
         }
     }
