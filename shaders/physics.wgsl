@@ -546,14 +546,14 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
     }
     if (cd.shape == SHAPE_BOX) {
         let h = cd.size.xyz;
-        // two boxes overlapping over every separating axis: the contact of the face (or edge) of
-        // least overlap, over the clipped face's points (box_box_contact)
+        // two boxes overlapping over every separating axis, least along one of the hand box's
+        // faces: box_box_contact; else the support points below (physics.rs: collide_collider_piece)
         var sat = BoxSeparation(1.0, vec3<f32>(0.0, 0.0, 1.0), 0u);
         if (code == SHAPE_BOX) {
             sat = box_box_separation(c_o, r_o, h, size);
         }
-        if (sat.sep <= 0.0) {
-            let bb = box_box_contact(c_o, r_o, h, size, sat.sep, sat.axis, sat.k);
+        if (sat.sep <= 0.0 && sat.k < 3u) {
+            let bb = box_box_contact(c_o, r_o, h, size, sat.axis, sat.k);
             if (bb.depth > 0.0) {
                 return piece_contact_to_world(bb, opos, orot);
             }
@@ -801,95 +801,50 @@ fn clip_polygon(poly: ClippedPolygon, t: u32, sign: f32, lim: f32) -> ClippedPol
 }
 
 // physics.rs: box_box_contact. A hand box (c, r, ha, in the piece frame) overlapping a box piece
-// (hb at the origin) by −sep along axis (piece → hand box) of index k, in the piece frame: a face
-// axis clips the incident face to the reference face and stands for the points below it (depth
-// max dᵢ, point Σ dᵢ xᵢ / Σ dᵢ on the piece's surface, spring_count Σ dᵢ / max dᵢ, their spread);
-// an edge axis is one spring at the edges' closest points. Depth −1 where no point is below.
-fn box_box_contact(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>, sep: f32, axis: vec3<f32>, k: u32) -> Contact {
+// (hb at the origin) least along its own face k < 3 (axis: piece → hand box), in the piece frame:
+// the piece's incident face clipped to that face stands for the points below it (depth max dᵢ,
+// point Σ dᵢ xᵢ / Σ dᵢ on the piece's face, spring_count Σ dᵢ / max dᵢ, their spread). Depth −1
+// where no point is below.
+fn box_box_contact(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>, axis: vec3<f32>, k: u32) -> Contact {
     let a = array<vec3<f32>, 3>(quat_rotate(r, vec3<f32>(1.0, 0.0, 0.0)), quat_rotate(r, vec3<f32>(0.0, 1.0, 0.0)), quat_rotate(r, vec3<f32>(0.0, 0.0, 1.0)));
     let e = array<vec3<f32>, 3>(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, 0.0, 1.0));
-    if (k >= 6u) {
-        let i = (k - 6u) / 3u;
-        let j = (k - 6u) % 3u;
-        // the hand box's edge along aᵢ nearest the piece, the piece's along eⱼ nearest the hand box
-        var pa = c;
-        var pb = vec3<f32>(0.0);
-        for (var m = 0u; m < 3u; m++) {
-            if (m != i) {
-                pa -= a[m] * (ha[m] * sgn(dot(a[m], axis)));
-            }
-            if (m != j) {
-                pb += e[m] * (hb[m] * sgn(dot(e[m], axis)));
-            }
-        }
-        // closest points of pa + s·aᵢ and pb + t·eⱼ, each clamped to its edge
-        let w = pa - pb;
-        let beta = dot(a[i], e[j]);
-        let aw = dot(a[i], w);
-        let ew = dot(e[j], w);
-        let s0 = clamp((beta * ew - aw) / max(1.0 - beta * beta, 1e-12), -ha[i], ha[i]);
-        let t = clamp(ew + beta * s0, -hb[j], hb[j]);
-        return contact_at(-sep, axis, pb + e[j] * t);
-    }
-    // the reference face: the hand box's toward the piece (outward −axis) or the piece's (+axis)
-    var rc = c;
-    var ra = a;
-    var rh = ha;
-    var ri = k;
-    var ic = vec3<f32>(0.0);
-    var ia = e;
-    var ih = hb;
-    var nref = -axis;
-    if (k >= 3u) {
-        rc = vec3<f32>(0.0);
-        ra = e;
-        rh = hb;
-        ri = k - 3u;
-        ic = c;
-        ia = a;
-        ih = ha;
-        nref = axis;
-    }
-    // the incident face: the other box's face whose outward normal is most against nref
+    // the reference face: the hand box's face k toward the piece (outward −axis)
+    let nref = -axis;
+    // the incident face: the piece's face whose outward normal is most against nref
     var j = 0u;
     for (var m = 1u; m < 3u; m++) {
-        if (abs(dot(ia[m], nref)) > abs(dot(ia[j], nref))) {
+        if (abs(nref[m]) > abs(nref[j])) {
             j = m;
         }
     }
-    let f = ic - ia[j] * (ih[j] * sgn(dot(ia[j], nref)));
-    let eu = ia[(j + 1u) % 3u] * ih[(j + 1u) % 3u];
-    let ev = ia[(j + 2u) % 3u] * ih[(j + 2u) % 3u];
-    // its corners in the reference box's frame, in order around the face
+    let f = e[j] * (-hb[j] * sgn(nref[j]));
+    let eu = e[(j + 1u) % 3u] * hb[(j + 1u) % 3u];
+    let ev = e[(j + 2u) % 3u] * hb[(j + 2u) % 3u];
+    // its corners in the hand box's frame, in order around the face
     var poly: ClippedPolygon;
     poly.n = 4u;
     let corners = array<vec3<f32>, 4>(f + eu + ev, f - eu + ev, f - eu - ev, f + eu - ev);
     for (var m = 0u; m < 4u; m++) {
-        let d = corners[m] - rc;
-        poly.q[m] = vec3<f32>(dot(d, ra[0]), dot(d, ra[1]), dot(d, ra[2]));
+        let d = corners[m] - c;
+        poly.q[m] = vec3<f32>(dot(d, a[0]), dot(d, a[1]), dot(d, a[2]));
     }
-    // clipped to the reference face's rectangle along its two other axes
-    let t1 = (ri + 1u) % 3u;
-    let t2 = (ri + 2u) % 3u;
-    poly = clip_polygon(poly, t1, 1.0, rh[t1]);
-    poly = clip_polygon(poly, t1, -1.0, rh[t1]);
-    poly = clip_polygon(poly, t2, 1.0, rh[t2]);
-    poly = clip_polygon(poly, t2, -1.0, rh[t2]);
-    // each point's depth below the reference face: dᵢ = h_ri − s·q_ri
-    let s_ref = sgn(dot(nref, ra[ri]));
+    // clipped to the hand box face's rectangle along its two other axes
+    let t1 = (k + 1u) % 3u;
+    let t2 = (k + 2u) % 3u;
+    poly = clip_polygon(poly, t1, 1.0, ha[t1]);
+    poly = clip_polygon(poly, t1, -1.0, ha[t1]);
+    poly = clip_polygon(poly, t2, 1.0, ha[t2]);
+    poly = clip_polygon(poly, t2, -1.0, ha[t2]);
+    // each point's depth below the hand box's face: dᵢ = h_k − s·q_k
+    let s_ref = sgn(dot(nref, a[k]));
     var springs = Manifold(0.0, 0.0, vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
     for (var m = 0u; m < poly.n; m++) {
         let q = poly.q[m];
-        let d = rh[ri] - s_ref * q[ri];
-        if (d <= 0.0) {
-            continue;
+        let d = ha[k] - s_ref * q[k];
+        if (d > 0.0) {
+            // back in the piece frame, on the piece's incident face
+            manifold_add(&springs, c + a[0] * q.x + a[1] * q.y + a[2] * q.z, d);
         }
-        // back in the piece frame; on the piece's surface
-        var x = rc + ra[0] * q.x + ra[1] * q.y + ra[2] * q.z;
-        if (k >= 3u) {
-            x += nref * d;
-        }
-        manifold_add(&springs, x, d);
     }
     return manifold_contact(springs, axis, c);
 }

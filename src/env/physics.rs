@@ -8,8 +8,10 @@
 //!    closest points by alternating projection between the collider and a piece — a primitive, or a
 //!    convex hull whose closest point is found on the triangles the point is in front of; a hand
 //!    box also tests the piece's support points inside it, `box_piece_contact`, and a hand box
-//!    overlapping a box piece is met on the clipped face of least overlap, one contact standing
-//!    for the face's point springs, `box_box_contact`),
+//!    overlapping a box piece least along its own face is met on that face's clipped points,
+//!    `box_box_contact`, and
+//!    a capsule along a box piece's face at both ends of its part over the face,
+//!    `capsule_face_contact`: one contact standing for the point springs, `Manifold`),
 //!    hand–table (lowest point of each collider), object–table (every piece's support points).
 //!    Object–table: normal force `Fn = max(k·depth − c·vn, 0)`; friction from a tangential spring
 //!    anchored per contact pair, `Ft = −kt·s − ct·vt`, sliding (s rescaled) when `|Ft| > μ·Fn`, so a
@@ -193,7 +195,8 @@ pub struct Contact {
     /// Contact point on the second body's surface (world).
     pub point: Vec3,
     /// How many point springs the contact stands for: 1 for a contact at one point; for a face
-    /// pressed on a face (`box_box_contact`), Σ dᵢ / depth over the manifold's points (dᵢ their
+    /// pressed on a face (`box_box_contact`) or a capsule along one (`capsule_face_contact`),
+    /// Σ dᵢ / depth over the manifold's points (dᵢ their
     /// depths, `point` their centre weighted by dᵢ), so that k·spring_count·depth at `point` is
     /// the sum of the points' springs and its moment theirs.
     pub spring_count: f32,
@@ -204,16 +207,14 @@ pub struct Contact {
     pub spread_off: Vec3,
 }
 
-impl Contact {
-    /// A contact at one point.
-    pub fn at(depth: f32, normal: Vec3, point: Vec3) -> Contact {
-        Contact { depth, normal, point, spring_count: 1.0, spread_diag: Vec3::ZERO, spread_off: Vec3::ZERO }
-    }
+/// A contact at one point.
+pub fn contact_at(depth: f32, normal: Vec3, point: Vec3) -> Contact {
+    Contact { depth, normal, point, spring_count: 1.0, spread_diag: Vec3::ZERO, spread_off: Vec3::ZERO }
 }
 
 impl Default for Contact {
     fn default() -> Self {
-        Contact::at(0.0, Vec3::ZERO, Vec3::ZERO)
+        contact_at(0.0, Vec3::ZERO, Vec3::ZERO)
     }
 }
 
@@ -620,7 +621,7 @@ pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, c
     let cd = &m.colliders[ci];
     let rc = bounding_radius(cd.shape, v3(cd.size)) + CONTACT_MARGIN;
     let reach = rc + p.obj_com[3];
-    let mut best = Contact::at(-1.0, Vec3::Z, opos);
+    let mut best = contact_at(-1.0, Vec3::Z, opos);
     if (cpos - opos).length_squared() > reach * reach {
         return best;
     }
@@ -713,11 +714,14 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
     }
     if cd.shape == SHAPE_BOX {
         let h = v3(cd.size);
-        // two boxes overlapping over every separating axis: the contact of the face (or edge) of
-        // least overlap, over the clipped face's points (box_box_contact)
+        // two boxes overlapping over every separating axis, least along one of the hand box's
+        // faces: that face's clipped points (box_box_contact). Least along one of the piece's
+        // faces or an edge pair, the support points below (with those, LEAP lost its enveloping
+        // grasp of a 1.1 kg box and its antipodal grasp of the cube sank 8.8 mm:
+        // docs/not-done-yet.md)
         let sat = if code == SHAPE_BOX { box_box_separation(c_o, r_o, h, size) } else { (1.0, Vec3::Z, 0) };
-        if sat.0 <= 0.0 {
-            let c = box_box_contact(c_o, r_o, h, size, sat.0, sat.1, sat.2);
+        if sat.0 <= 0.0 && sat.2 < 3 {
+            let c = box_box_contact(c_o, r_o, h, size, sat.1, sat.2);
             if c.depth > 0.0 {
                 return piece_contact_to_world(c, opos, orot);
             }
@@ -806,52 +810,6 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
     out.normal = quat_rotate(orot, n);
     out.point = opos + quat_rotate(orot, surf);
     out
-}
-
-/// A capsule (segment a–b, radius `rc`, in the piece frame) against the face of a box piece (half
-/// extents `h`) whose outward normal is `n` (the pair's normal; a box's axis, else no manifold):
-/// the segment's part over the face (|x_t| ≤ h_t along the face's two axes), its two ends each a
-/// point spring of depth dₖ = rc − (its height over the face), the contact standing for those
-/// below rc as `box_box_contact`'s for a face's points — as MuJoCo's capsule–box contact gives a
-/// constraint per end. Spring count 1 (or depth −1) where one end or none is in.
-pub fn capsule_face_contact(a: Vec3, b: Vec3, rc: f32, h: Vec3, n: Vec3) -> Contact {
-    let none = Contact::at(-1.0, n, a);
-    let na = n.abs();
-    let i = if na.x >= na.y && na.x >= na.z { 0 } else if na.y >= na.z { 1 } else { 2 };
-    if na[i] < 0.9999 {
-        return none;
-    }
-    let s = sgn(n[i]);
-    // the segment's parameter range over the face's rectangle
-    let d = b - a;
-    let (mut t0, mut t1) = (0.0f32, 1.0f32);
-    for t in [(i + 1) % 3, (i + 2) % 3] {
-        if d[t].abs() < 1e-12 {
-            if a[t].abs() > h[t] {
-                return none;
-            }
-        } else {
-            let (u0, u1) = ((-h[t] - a[t]) / d[t], (h[t] - a[t]) / d[t]);
-            t0 = t0.max(u0.min(u1));
-            t1 = t1.min(u0.max(u1));
-        }
-    }
-    if t0 >= t1 {
-        return none;
-    }
-    let mut springs = Manifold::default();
-    for t in [t0, t1] {
-        let mut x = a + d * t;
-        // depth: rc less the end's height over the face
-        let dk = rc - (s * x[i] - h[i]);
-        if dk <= 0.0 {
-            continue;
-        }
-        // on the face
-        x[i] = s * h[i];
-        springs.add(x, dk);
-    }
-    springs.contact(n, a)
 }
 
 /// The face of a box (half extents `h`) nearest a point `v` inside it (box frame; `d` = h − |v|):
@@ -1004,59 +962,34 @@ pub fn clip_polygon(poly: &[Vec3; 8], n: usize, t: usize, sign: f32, lim: f32) -
 }
 
 /// The contact of a hand box (centre `c`, rotation `r`, half extents `ha`, in the piece frame)
-/// overlapping a box piece (half extents `hb` at the origin) by −`sep` along separating axis `axis`
-/// (from the piece to the hand box) of index `k` (`box_box_separation`), in the piece frame; depth −1
-/// where no point of the manifold is below the reference face. A face axis (k < 6): the face of
-/// the other box turned most squarely against that face (the incident face) is clipped to the
-/// reference face's rectangle; each clipped point below the reference face is a point spring of
-/// depth dᵢ, and the contact stands for them all: depth max dᵢ, point Σ dᵢ xᵢ / Σ dᵢ (on the
-/// piece's surface), `spring_count` Σ dᵢ / max dᵢ, `spread` their spread about the point — as
-/// MuJoCo's box–box contact gives a constraint per clipped point. A face pressed flat on the
-/// cube's face is four springs at the face's centre, one corner pressed in one spring at the
-/// corner. An edge axis: one spring at the closest points of the two edges, depth the overlap.
-pub fn box_box_contact(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3, sep: f32, axis: Vec3, k: usize) -> Contact {
+/// overlapping a box piece (half extents `hb` at the origin) least along one of its own faces, k
+/// < 3 (`box_box_separation`; `axis` from the piece to the hand box), in the piece frame; depth
+/// −1 where no point of the manifold is below that face. The piece's face turned most squarely
+/// against it (the incident face) is clipped to its rectangle; each clipped point below it is a
+/// point spring of depth dᵢ, and the contact stands for them all (`Manifold`): depth max dᵢ,
+/// point Σ dᵢ xᵢ / Σ dᵢ (on the piece's face), `spring_count` Σ dᵢ / max dᵢ, `spread` their
+/// spread about the point — as MuJoCo's box–box contact gives a constraint per clipped point. The
+/// palm pressed flat on a cube's face is four springs at the face's centre, one corner pressed in
+/// one spring at the corner.
+pub fn box_box_contact(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3, axis: Vec3, k: usize) -> Contact {
     let a = [quat_rotate(r, Vec3::X), quat_rotate(r, Vec3::Y), quat_rotate(r, Vec3::Z)];
     let e = [Vec3::X, Vec3::Y, Vec3::Z];
-    if k >= 6 {
-        let (i, j) = ((k - 6) / 3, (k - 6) % 3);
-        // the hand box's edge along aᵢ nearest the piece (toward −axis), the piece's along eⱼ
-        // nearest the hand box (toward +axis)
-        let mut pa = c;
-        let mut pb = Vec3::ZERO;
-        for m in 0..3 {
-            if m != i {
-                pa -= a[m] * (ha[m] * sgn(a[m].dot(axis)));
-            }
-            if m != j {
-                pb += e[m] * (hb[m] * sgn(e[m].dot(axis)));
-            }
-        }
-        // closest points of pa + s·aᵢ and pb + t·eⱼ: s = (β·(eⱼ·w) − aᵢ·w) / (1 − β²), t = eⱼ·w + β·s
-        // (w = pa − pb, β = aᵢ·eⱼ), each clamped to its edge
-        let w = pa - pb;
-        let beta = a[i].dot(e[j]);
-        let (aw, ew) = (a[i].dot(w), e[j].dot(w));
-        let s0 = ((beta * ew - aw) / (1.0 - beta * beta).max(1e-12)).clamp(-ha[i], ha[i]);
-        let t = (ew + beta * s0).clamp(-hb[j], hb[j]);
-        return Contact::at(-sep, axis, pb + e[j] * t);
-    }
-    // the reference face: the hand box's toward the piece (outward −axis) or the piece's toward
-    // the hand box (outward +axis)
-    let (rc, ra, rh, ri, ic, ia, ih, nref) = if k < 3 { (c, a, ha, k, Vec3::ZERO, e, hb, -axis) } else { (Vec3::ZERO, e, hb, k - 3, c, a, ha, axis) };
-    // the incident face: the other box's face whose outward normal is most against nref
+    // the reference face: the hand box's face k toward the piece (outward −axis)
+    let nref = -axis;
+    // the incident face: the piece's face whose outward normal is most against nref
     let mut j = 0;
     for m in 1..3 {
-        if ia[m].dot(nref).abs() > ia[j].dot(nref).abs() {
+        if nref[m].abs() > nref[j].abs() {
             j = m;
         }
     }
-    let f = ic - ia[j] * (ih[j] * sgn(ia[j].dot(nref)));
-    let eu = ia[(j + 1) % 3] * ih[(j + 1) % 3];
-    let ev = ia[(j + 2) % 3] * ih[(j + 2) % 3];
-    // its corners in the reference box's frame, in order around the face
+    let f = e[j] * (-hb[j] * sgn(nref[j]));
+    let eu = e[(j + 1) % 3] * hb[(j + 1) % 3];
+    let ev = e[(j + 2) % 3] * hb[(j + 2) % 3];
+    // its corners in the hand box's frame, in order around the face
     let to_ref = |x: Vec3| {
-        let d = x - rc;
-        Vec3::new(d.dot(ra[0]), d.dot(ra[1]), d.dot(ra[2]))
+        let d = x - c;
+        Vec3::new(d.dot(a[0]), d.dot(a[1]), d.dot(a[2]))
     };
     let mut poly = [Vec3::ZERO; 8];
     poly[0] = to_ref(f + eu + ev);
@@ -1064,28 +997,23 @@ pub fn box_box_contact(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3, sep: f32, axis: Vec
     poly[2] = to_ref(f - eu - ev);
     poly[3] = to_ref(f + eu - ev);
     let mut n = 4;
-    // clipped to the reference face's rectangle: |q_t| ≤ h_t along its two other axes
-    for t in [(ri + 1) % 3, (ri + 2) % 3] {
+    // clipped to the hand box face's rectangle: |q_t| ≤ h_t along its two other axes
+    for t in [(k + 1) % 3, (k + 2) % 3] {
         for sign in [1.0f32, -1.0] {
-            (poly, n) = clip_polygon(&poly, n, t, sign, rh[t]);
+            (poly, n) = clip_polygon(&poly, n, t, sign, ha[t]);
         }
     }
-    // each point's depth below the reference face: dᵢ = h_ri − s·q_ri (s: nref's sign along that axis)
-    let s_ref = sgn(nref.dot(ra[ri]));
+    // each point's depth below the hand box's face: dᵢ = h_k − s·q_k (s: nref's sign along a_k)
+    let s_ref = sgn(nref.dot(a[k]));
     let mut springs = Manifold::default();
     for q in poly.iter().take(n) {
-        let d = rh[ri] - s_ref * q[ri];
-        if d <= 0.0 {
-            continue;
+        let d = ha[k] - s_ref * q[k];
+        if d > 0.0 {
+            // back in the piece frame, on the piece's incident face
+            manifold_add(&mut springs, c + a[0] * q.x + a[1] * q.y + a[2] * q.z, d);
         }
-        // back in the piece frame; on the piece's surface (the reference face, where that is the piece's)
-        let mut x = rc + ra[0] * q.x + ra[1] * q.y + ra[2] * q.z;
-        if k >= 3 {
-            x += nref * d;
-        }
-        springs.add(x, d);
     }
-    springs.contact(axis, c)
+    manifold_contact(&springs, axis, c)
 }
 
 /// The point springs of one contact as they are gathered (`box_box_contact`,
@@ -1099,28 +1027,72 @@ pub struct Manifold {
     pub xx_off: Vec3,
 }
 
-impl Manifold {
-    /// Adds a point spring at `x`, `d` deep (> 0).
-    pub fn add(&mut self, x: Vec3, d: f32) {
-        self.dsum += d;
-        self.dmax = self.dmax.max(d);
-        self.xsum += x * d;
-        self.xx_diag += x * x * d;
-        self.xx_off += Vec3::new(x.x * x.y, x.x * x.z, x.y * x.z) * d;
-    }
+/// Adds a point spring at `x`, `d` deep (> 0), to `m`.
+pub fn manifold_add(m: &mut Manifold, x: Vec3, d: f32) {
+    m.dsum += d;
+    m.dmax = m.dmax.max(d);
+    m.xsum += x * d;
+    m.xx_diag += x * x * d;
+    m.xx_off += Vec3::new(x.x * x.y, x.x * x.z, x.y * x.z) * d;
+}
 
-    /// The contact along `normal` standing for the springs gathered (depth −1 at `empty` where
-    /// there are none): depth max dᵢ, point p = Σ dᵢ xᵢ / Σ dᵢ, spring count Σ dᵢ / max dᵢ, spread
-    /// C = Σ wᵢ xᵢ xᵢᵀ − p pᵀ.
-    pub fn contact(&self, normal: Vec3, empty: Vec3) -> Contact {
-        if self.dsum <= 0.0 {
-            return Contact::at(-1.0, normal, empty);
-        }
-        let p = self.xsum / self.dsum;
-        let spread_diag = (self.xx_diag / self.dsum - p * p).max(Vec3::ZERO);
-        let spread_off = self.xx_off / self.dsum - Vec3::new(p.x * p.y, p.x * p.z, p.y * p.z);
-        Contact { depth: self.dmax, normal, point: p, spring_count: self.dsum / self.dmax, spread_diag, spread_off }
+/// The contact along `normal` standing for the springs gathered in `m` (depth −1 at `empty` where
+/// there are none): depth max dᵢ, point p = Σ dᵢ xᵢ / Σ dᵢ, spring count Σ dᵢ / max dᵢ, spread
+/// C = Σ wᵢ xᵢ xᵢᵀ − p pᵀ.
+pub fn manifold_contact(m: &Manifold, normal: Vec3, empty: Vec3) -> Contact {
+    if m.dsum <= 0.0 {
+        return contact_at(-1.0, normal, empty);
     }
+    let p = m.xsum / m.dsum;
+    let spread_diag = (m.xx_diag / m.dsum - p * p).max(Vec3::ZERO);
+    let spread_off = m.xx_off / m.dsum - Vec3::new(p.x * p.y, p.x * p.z, p.y * p.z);
+    Contact { depth: m.dmax, normal, point: p, spring_count: m.dsum / m.dmax, spread_diag, spread_off }
+}
+
+/// A capsule (segment a–b, radius `rc`, in the piece frame) against the face of a box piece (half
+/// extents `h`) whose outward normal is `n` (the pair's normal; a box's axis, else no manifold):
+/// the segment's part over the face (|x_t| ≤ h_t along the face's two axes), its two ends each a
+/// point spring of depth dₖ = rc − (its height over the face), the contact standing for those
+/// below rc as `box_box_contact`'s for a face's points — as MuJoCo's capsule–box contact gives a
+/// constraint per end. Spring count 1 (or depth −1) where one end or none is in.
+pub fn capsule_face_contact(a: Vec3, b: Vec3, rc: f32, h: Vec3, n: Vec3) -> Contact {
+    let none = contact_at(-1.0, n, a);
+    let na = n.abs();
+    let i = if na.x >= na.y && na.x >= na.z { 0 } else if na.y >= na.z { 1 } else { 2 };
+    if na[i] < 0.9999 {
+        return none;
+    }
+    let s = sgn(n[i]);
+    // the segment's parameter range over the face's rectangle
+    let d = b - a;
+    let (mut t0, mut t1) = (0.0f32, 1.0f32);
+    for t in [(i + 1) % 3, (i + 2) % 3] {
+        if d[t].abs() < 1e-12 {
+            if a[t].abs() > h[t] {
+                return none;
+            }
+        } else {
+            let (u0, u1) = ((-h[t] - a[t]) / d[t], (h[t] - a[t]) / d[t]);
+            t0 = t0.max(u0.min(u1));
+            t1 = t1.min(u0.max(u1));
+        }
+    }
+    if t0 >= t1 {
+        return none;
+    }
+    let mut springs = Manifold::default();
+    for t in [t0, t1] {
+        let mut x = a + d * t;
+        // depth: rc less the end's height over the face
+        let dk = rc - (s * x[i] - h[i]);
+        if dk <= 0.0 {
+            continue;
+        }
+        // on the face
+        x[i] = s * h[i];
+        manifold_add(&mut springs, x, dk);
+    }
+    manifold_contact(&springs, n, a)
 }
 
 /// Contact `c` in the frame of a piece at `opos`, `orot`, in the world: its normal, point and
@@ -1197,7 +1169,7 @@ pub fn collide_hand_table(m: &Model, s: &Scratch, ci: usize) -> Contact {
             }
         }
     }
-    Contact::at(r - low.z, Vec3::Z, Vec3::new(low.x, low.y, 0.0))
+    contact_at(r - low.z, Vec3::Z, Vec3::new(low.x, low.y, 0.0))
 }
 
 /// Narrow phase between support point `k` of object piece `pd` (scaled `size`, its hull scaled by
@@ -1205,7 +1177,7 @@ pub fn collide_hand_table(m: &Model, s: &Scratch, ci: usize) -> Contact {
 pub fn collide_piece_table(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, ppos: Vec3, prot: Vec4, k: u32) -> Contact {
     let (local, r) = piece_support_point(m, pd, scale, size, k);
     let w = ppos + quat_rotate(prot, local);
-    Contact::at(r - w.z, Vec3::Z, Vec3::new(w.x, w.y, 0.0))
+    contact_at(r - w.z, Vec3::Z, Vec3::new(w.x, w.y, 0.0))
 }
 
 /// Penalty contact force on the first body, the new tangential spring, and the tangential damping

@@ -217,14 +217,14 @@ fn kinematic_replay_measures_the_penetration_that_physics_prevents() {
 /// (1/kg) pushed into the wall by a servo force, its contact solved by `hand_contact_force`. Returns
 /// the depths of every substep.
 fn press_into_wall(w: f32, k: f32, servo_n: f32, v0: f32, steps: usize) -> Vec<f32> {
-    use dextrain::env::physics::{Contact, hand_contact_force};
+    use dextrain::env::physics::{contact_at, hand_contact_force};
     use glam::Vec3;
     let h = 1.0 / 480.0;
     // the wall's normal points at the hand (+z); the point starts 2 mm above it, moving down at v0
     let (mut z, mut v) = (0.002f32, -v0);
     let mut depths = Vec::new();
     for _ in 0..steps {
-        let c = Contact::at(-z, Vec3::Z, Vec3::ZERO);
+        let c = contact_at(-z, Vec3::Z, Vec3::ZERO);
         // the servo alone changes the velocity by −h·w·F_servo this substep
         let dv = Vec3::new(0.0, 0.0, -h * w * servo_n);
         let f = if c.depth > -dextrain::env::physics::CONTACT_MARGIN {
