@@ -561,7 +561,12 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
         var x = c_o;
         for (var it = 0u; it < BOX_PROJ_ITERS; it++) {
             let y = piece_project(pd, scale, size, x).point;
-            x = box_project(c_o, r_o, h, y);
+            let x_next = box_project(c_o, r_o, h, y);
+            // a fixed point: every further round returns the same x
+            if (all(x_next == x)) {
+                break;
+            }
+            x = x_next;
         }
         let y = piece_project(pd, scale, size, x).point;
         // y and the piece's support points (box_piece_contact)
@@ -736,32 +741,49 @@ const EDGE_AXIS_BIAS: f32 = 1.0e-4;
 // faces, 3–5 the second's, 6 + 3i + j edge i × edge j; an edge axis only where it beats the faces'
 // best by EDGE_AXIS_BIAS): > 0 a lower bound on their distance, ≤ 0 they overlap (SAT)
 fn box_box_separation(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>) -> BoxSeparation {
-    let a = array<vec3<f32>, 3>(quat_rotate(r, vec3<f32>(1.0, 0.0, 0.0)), quat_rotate(r, vec3<f32>(0.0, 1.0, 0.0)), quat_rotate(r, vec3<f32>(0.0, 0.0, 1.0)));
-    let b = array<vec3<f32>, 3>(vec3<f32>(1.0, 0.0, 0.0), vec3<f32>(0.0, 1.0, 0.0), vec3<f32>(0.0, 0.0, 1.0));
+    // the first box's axes (the second's are x̂, ŷ, ẑ)
+    let a = quat_axes(r);
     var best = BoxSeparation(-3.0e38, vec3<f32>(0.0, 0.0, 1.0), 0u);
     for (var k = 0u; k < 15u; k++) {
+        // the axis l, 1/|l|, each box's half-width along l times |l| (physics.rs)
         var l: vec3<f32>;
+        var inv_len = 1.0;
+        var ra: f32;
         if (k < 3u) {
             l = a[k];
+            ra = ha[k];
         } else if (k < 6u) {
-            l = b[k - 3u];
+            let j = k - 3u;
+            l = vec3<f32>(0.0);
+            l[j] = 1.0;
+            ra = ha.x * abs(a[0][j]) + ha.y * abs(a[1][j]) + ha.z * abs(a[2][j]);
         } else {
-            l = cross(a[(k - 6u) / 3u], b[(k - 6u) % 3u]);
+            let i = (k - 6u) / 3u;
+            let j = (k - 6u) % 3u;
+            var e = vec3<f32>(0.0);
+            e[j] = 1.0;
+            l = cross(a[i], e);
+            // |aᵢ × ê_j|² = 1 − (aᵢ)_j²: parallel edges skipped
+            let len2 = 1.0 - a[i][j] * a[i][j];
+            if (len2 < 1e-8) {
+                continue;
+            }
+            // a_m·(aᵢ × ê_j): 0 for m = i, ± the third axis's component j otherwise
+            let i1 = (i + 1u) % 3u;
+            let i2 = (i + 2u) % 3u;
+            ra = ha[i1] * abs(a[i2][j]) + ha[i2] * abs(a[i1][j]);
+            inv_len = 1.0 / sqrt(len2);
         }
-        let len2 = dot(l, l);
-        if (len2 < 1e-8) {
-            continue;
+        var rb = hb.x * abs(l.x) + hb.y * abs(l.y) + hb.z * abs(l.z);
+        if (k >= 3u && k < 6u) {
+            rb = hb[k - 3u];
         }
-        l = l / sqrt(len2);
-        // each box's half-width along l: Σ hᵢ |uᵢ·l|
-        let ra = ha.x * abs(dot(a[0], l)) + ha.y * abs(dot(a[1], l)) + ha.z * abs(dot(a[2], l));
-        let rb = hb.x * abs(l.x) + hb.y * abs(l.y) + hb.z * abs(l.z);
         let t = dot(c, l);
-        let sep = abs(t) - ra - rb;
+        let sep = (abs(t) - ra - rb) * inv_len;
         // an edge axis must beat the faces' best by the bias
         let bias = select(0.0, EDGE_AXIS_BIAS, k >= 6u);
         if (sep > best.sep + bias) {
-            best = BoxSeparation(sep, select(-l, l, t >= 0.0), k);
+            best = BoxSeparation(sep, select(-l, l, t >= 0.0) * inv_len, k);
         }
     }
     return best;
@@ -1554,12 +1576,14 @@ fn solve6(a: array<f32, 36>, b: array<f32, 6>) -> array<f32, 6> {
     return x;
 }
 
-fn inertia_mul(rot: vec4<f32>, ib: vec3<f32>, x: vec3<f32>) -> vec3<f32> {
-    return quat_rotate(rot, ib * quat_rotate(quat_conj(rot), x));
-}
-
-fn inertia_inv_mul(rot: vec4<f32>, ib: vec3<f32>, x: vec3<f32>) -> vec3<f32> {
-    return quat_rotate(rot, quat_rotate(quat_conj(rot), x) / ib);
+// R diag(ib) Rᵀ: column c is Σₖ ibₖ (rₖ)_c rₖ (physics.rs)
+fn world_inertia(rot: vec4<f32>, ib: vec3<f32>) -> mat3x3<f32> {
+    let r = quat_axes(rot);
+    var m: mat3x3<f32>;
+    for (var c = 0u; c < 3u; c++) {
+        m[c] = r[0] * (ib.x * r[0][c]) + r[1] * (ib.y * r[1][c]) + r[2] * (ib.z * r[2][c]);
+    }
+    return m;
 }
 
 // the object's velocities at the end of the substep (object_velocity_change)
@@ -1579,10 +1603,11 @@ fn object_velocity_change(h: f32) -> ObjectVelocity {
     let com = object_com();
     let w = st.obj_angvel.xyz;
     // gyroscopic: ω ← ω − h I⁻¹ (ω × Iω), rescaled so that ωᵀIω is unchanged
-    let iw = inertia_mul(prot, ib, w);
+    let inertia = world_inertia(prot, ib);
+    let iw = inertia * w;
     let e0 = dot(w, iw);
-    var wg = w - h * inertia_inv_mul(prot, ib, cross(w, iw));
-    let e1 = dot(wg, inertia_mul(prot, ib, wg));
+    var wg = w - h * (world_inertia(prot, 1.0 / ib) * cross(w, iw));
+    let e1 = dot(wg, inertia * wg);
     if (e1 > 1e-20) {
         wg *= sqrt(e0 / e1);
     }
@@ -1593,9 +1618,7 @@ fn object_velocity_change(h: f32) -> ObjectVelocity {
     }
     for (var i = 0u; i < 3u; i++) {
         a[i * 6u + i] += mass;
-        var e = vec3<f32>(0.0);
-        e[i] = 1.0;
-        let col = inertia_mul(prot, ib, e);
+        let col = inertia[i];
         for (var row = 0u; row < 3u; row++) {
             a[(3u + row) * 6u + 3u + i] += col[row];
         }

@@ -27,6 +27,17 @@ pub fn quat_rotate(q: Vec4, v: Vec3) -> Vec3 {
     v + q.w * t + u.cross(t)
 }
 
+/// The columns of the rotation matrix of the unit quaternion `q` (R·x̂, R·ŷ, R·ẑ: `quat_rotate` of
+/// each axis, in fewer operations).
+pub fn quat_axes(q: Vec4) -> [Vec3; 3] {
+    let (x, y, z, w) = (q.x, q.y, q.z, q.w);
+    [
+        Vec3::new(1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y + z * w), 2.0 * (x * z - y * w)),
+        Vec3::new(2.0 * (x * y - z * w), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z + x * w)),
+        Vec3::new(2.0 * (x * z + y * w), 2.0 * (y * z - x * w), 1.0 - 2.0 * (x * x + y * y)),
+    ]
+}
+
 pub fn quat_normalize(q: Vec4) -> Vec4 {
     q / q.dot(q).sqrt()
 }

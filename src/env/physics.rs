@@ -45,7 +45,7 @@
 //!    Its state is the pose of its own (mesh) frame and the velocity of its centre of mass; the
 //!    centre of mass and the principal axes of inertia sit in that frame (`ObjectDesc`).
 
-use glam::{Vec3, Vec4};
+use glam::{Mat3, Vec3, Vec4};
 
 use super::common::*;
 use crate::gpu::layout::*;
@@ -82,6 +82,9 @@ pub const SWEPT_TOLERANCE: f32 = 3.0e-4;
 /// pair past this many keeps the force it was solved with (the shader holds them in private
 /// memory).
 pub const MAX_REACTIONS: usize = 16;
+/// The CPU twin's second pass reuses the first pass's contacts of this many pairs (the rest, and
+/// the shader's, are found again, to the same bits).
+pub const REVISIT_CACHE: usize = 16;
 
 /// Read-only description of the run shared by all envs (the shader's bindings 0–3, 18–21).
 #[derive(Clone, Copy)]
@@ -208,6 +211,7 @@ pub struct Contact {
 }
 
 /// A contact at one point.
+#[inline]
 pub fn contact_at(depth: f32, normal: Vec3, point: Vec3) -> Contact {
     Contact { depth, normal, point, spring_count: 1.0, spread_diag: Vec3::ZERO, spread_off: Vec3::ZERO }
 }
@@ -219,16 +223,19 @@ impl Default for Contact {
 }
 
 /// The xyz of a padded `[f32; 4]` (a WGSL `vec4`'s `.xyz`).
+#[inline]
 pub fn v3(a: [f32; 4]) -> Vec3 {
     Vec3::new(a[0], a[1], a[2])
 }
 
 /// A `[f32; 4]` as a Vec4 (quaternions, xyzw).
+#[inline]
 pub fn v4(a: [f32; 4]) -> Vec4 {
     Vec4::from_array(a)
 }
 
 /// A Vec3 as a padded `[f32; 4]` (w = 0).
+#[inline]
 pub fn put3(v: Vec3) -> [f32; 4] {
     [v.x, v.y, v.z, 0.0]
 }
@@ -266,6 +273,7 @@ pub fn hand_kinematics(st: &EnvState, m: &Model, s: &mut Scratch) {
 }
 
 /// Velocity of the point `x` (world) fixed to hand link `l`.
+#[inline]
 pub fn link_point_velocity(s: &Scratch, l: usize, x: Vec3) -> Vec3 {
     s.link_v[l] + s.link_w[l].cross(x - s.link_pos[l])
 }
@@ -306,6 +314,7 @@ pub fn object_num_support(code: u32) -> u32 {
 }
 
 /// Closest point of the solid object (local frame) to `p`; the flag is true when `p` is inside.
+#[inline]
 pub fn object_project(code: u32, size: Vec3, p: Vec3) -> (Vec3, bool) {
     if code == SHAPE_BOX {
         let c = p.clamp(-size, size);
@@ -441,6 +450,7 @@ pub fn segment_box_slope(a: Vec3, u: Vec3, h: Vec3, t: f32) -> f32 {
 }
 
 /// Closest point on the segment [a, b] to `p`.
+#[inline]
 pub fn segment_closest(a: Vec3, b: Vec3, p: Vec3) -> Vec3 {
     let ab = b - a;
     let l2 = ab.dot(ab);
@@ -451,6 +461,7 @@ pub fn segment_closest(a: Vec3, b: Vec3, p: Vec3) -> Vec3 {
 }
 
 /// Closest point of a box (centre `c`, rotation `r`, half extents `h`) to `p`, all in one frame.
+#[inline]
 pub fn box_project(c: Vec3, r: Vec4, h: Vec3, p: Vec3) -> Vec3 {
     let local = quat_rotate(quat_conj(r), p - c);
     c + quat_rotate(r, local.clamp(-h, h))
@@ -559,6 +570,7 @@ pub fn segment_hull_push(m: &Model, pd: &PieceDesc, scale: f32, a: Vec3, b: Vec3
 
 /// Closest point of object piece `pd` (piece frame; scaled `size`, or its hull scaled by `scale`)
 /// to `p`, and whether `p` is inside.
+#[inline]
 pub fn piece_project(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, p: Vec3) -> (Vec3, bool) {
     if pd.shape == SHAPE_HULL {
         return hull_project(m, pd, scale, p);
@@ -567,6 +579,7 @@ pub fn piece_project(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, p: Vec3)
 }
 
 /// World pose of hand collider `ci`.
+#[inline]
 pub fn collider_pose(m: &Model, s: &Scratch, ci: usize) -> (Vec3, Vec4) {
     let cd = &m.colliders[ci];
     let l = cd.link as usize;
@@ -575,6 +588,7 @@ pub fn collider_pose(m: &Model, s: &Scratch, ci: usize) -> (Vec3, Vec4) {
 }
 
 /// Radius of a sphere about the centre that bounds a shape (sphere/box/capsule/cylinder `code`, size).
+#[inline]
 pub fn bounding_radius(code: u32, size: Vec3) -> f32 {
     if code == SHAPE_SPHERE {
         return size.x;
@@ -609,6 +623,7 @@ pub fn object_com(st: &EnvState, p: &EnvParams) -> Vec3 {
 /// object's pieces (normal from object to hand; a negative depth is the gap of a pair within
 /// `CONTACT_MARGIN`). Pairs whose bounding spheres, grown by the margin, do not touch (the whole
 /// object's first, then each piece's) are rejected (depth −1).
+#[inline]
 pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize) -> Contact {
     let (cpos, crot) = collider_pose(m, s, ci);
     collide_hand_object_at(p, m, ci, cpos, crot, v3(st.obj_pos), v4(st.obj_rot))
@@ -729,7 +744,14 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
         let mut x = c_o;
         for _ in 0..BOX_PROJ_ITERS {
             let (y, _) = piece_project(m, pd, scale, size, x);
-            x = box_project(c_o, r_o, h, y);
+            let x_next = box_project(c_o, r_o, h, y);
+            // a fixed point: every further round returns the same x. (Stopping once a round
+            // moves x less than 0.1 µm instead moved the contact by that much, 0.02 N at the
+            // hand's stiffness, at a round the two backends' roundings choose apart)
+            if x_next == x {
+                break;
+            }
+            x = x_next;
         }
         let (y, _) = piece_project(m, pd, scale, size, x);
         // y: the piece's point nearest the box where the projections end, inside the box when they
@@ -903,31 +925,42 @@ pub const EDGE_AXIS_BIAS: f32 = 1.0e-4;
 /// nearest features are a face and what lies against it; zero or less: they overlap, by its
 /// magnitude along the axis (the separating-axis theorem).
 pub fn box_box_separation(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3) -> (f32, Vec3, usize) {
-    let a = [quat_rotate(r, Vec3::X), quat_rotate(r, Vec3::Y), quat_rotate(r, Vec3::Z)];
-    let b = [Vec3::X, Vec3::Y, Vec3::Z];
+    // the first box's axes aᵢ (the second's are x̂, ŷ, ẑ)
+    let a = quat_axes(r);
     let mut best = (-3.0e38f32, Vec3::Z, 0usize);
     for k in 0..15 {
-        let l = if k < 3 {
-            a[k]
+        // the axis l, 1/|l|, and each box's half-width along l times |l| (Σ hᵢ |uᵢ·l|)
+        let (l, inv_len, ra, rb) = if k < 3 {
+            // the first box's face: its half-width along its own axis is h_k
+            let l = a[k];
+            (l, 1.0, ha[k], hb.x * l.x.abs() + hb.y * l.y.abs() + hb.z * l.z.abs())
         } else if k < 6 {
-            b[k - 3]
+            // the second box's face: aᵢ·ê_j is aᵢ's component j
+            let j = k - 3;
+            let mut l = Vec3::ZERO;
+            l[j] = 1.0;
+            (l, 1.0, ha.x * a[0][j].abs() + ha.y * a[1][j].abs() + ha.z * a[2][j].abs(), hb[j])
         } else {
-            a[(k - 6) / 3].cross(b[(k - 6) % 3])
+            let (i, j) = ((k - 6) / 3, (k - 6) % 3);
+            let mut e = Vec3::ZERO;
+            e[j] = 1.0;
+            let l = a[i].cross(e);
+            // |aᵢ × ê_j|² = 1 − (aᵢ)_j²: parallel edges are skipped (a face axis stands for them)
+            let len2 = 1.0 - a[i][j] * a[i][j];
+            if len2 < 1e-8 {
+                continue;
+            }
+            // a_m·(aᵢ × ê_j) = ê_j·(a_m × aᵢ): 0 for m = i, ± the third axis's component j otherwise
+            let (i1, i2) = ((i + 1) % 3, (i + 2) % 3);
+            let ra = ha[i1] * a[i2][j].abs() + ha[i2] * a[i1][j].abs();
+            (l, 1.0 / len2.sqrt(), ra, hb.x * l.x.abs() + hb.y * l.y.abs() + hb.z * l.z.abs())
         };
-        let len2 = l.length_squared();
-        if len2 < 1e-8 {
-            continue;
-        }
-        let l = l / len2.sqrt();
-        // each box's half-width along l: Σ hᵢ |uᵢ·l|
-        let ra = ha.x * a[0].dot(l).abs() + ha.y * a[1].dot(l).abs() + ha.z * a[2].dot(l).abs();
-        let rb = hb.x * l.x.abs() + hb.y * l.y.abs() + hb.z * l.z.abs();
         let t = c.dot(l);
-        let sep = t.abs() - ra - rb;
+        let sep = (t.abs() - ra - rb) * inv_len;
         // an edge axis must beat the faces' best by the bias
         let bias = if k >= 6 { EDGE_AXIS_BIAS } else { 0.0 };
         if sep > best.0 + bias {
-            best = (sep, if t >= 0.0 { l } else { -l }, k);
+            best = (sep, if t >= 0.0 { l * inv_len } else { -l * inv_len }, k);
         }
     }
     best
@@ -1545,18 +1578,29 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
     // hand–object pairs within the margin that did not push: solved again once the object's
     // velocity this substep is predicted (bit ci % 32 of word ci / 32)
     let mut revisit = [0u32; REVISIT_WORDS];
+    // the first REVISIT_CACHE of those pairs' contacts, in collider order: the link poses do not
+    // change within the substep, so the second pass's narrow phase would find them again (the
+    // shader finds them again: a per-invocation array of contacts costs a GPU more than the
+    // narrow phase)
+    let mut cached = [Contact::default(); REVISIT_CACHE];
+    let mut n_cached = 0usize;
     for ci in 0..g.n_colliders as usize {
         let (sho, sht) = (spring_slot::hand_object(ci as u32) as usize, spring_slot::hand_table(n_c, ci as u32) as usize);
         let l = m.colliders[ci].link as usize;
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
-        let c = swept_contact(st, p, m, s, ci, collide_hand_object(st, p, m, s, ci), h, ocom, ovel, ow);
+        let raw = collide_hand_object(st, p, m, s, ci);
+        let c = swept_contact(st, p, m, s, ci, raw, h, ocom, ovel, ow);
         if c.depth > -CONTACT_MARGIN {
             let (f, a, b) = solve_hand_contact(p, m, s, springs, sho, l, &c, ovel + ow.cross(c.point - ocom), p.obj_contact_c, mu_ho, h);
             if f.dot(c.normal) > 0.0 {
                 hand_object_force(p, m, s, h, ci, &c, f, a, b, ocom, ow, Vec3::ZERO, Vec3::ZERO, mu_ho, on_contact);
             } else {
                 revisit[ci / 32] |= 1 << (ci % 32);
+                if n_cached < REVISIT_CACHE {
+                    cached[n_cached] = raw;
+                    n_cached += 1;
+                }
             }
         } else {
             springs[sho] = [0.0; 4];
@@ -1617,12 +1661,15 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
     if revisit.iter().any(|&w| w != 0) {
         let (vel_p, w_p) = object_velocity_change(st, p, m, s, h);
         let mut pushed = false;
+        let mut n_seen = 0usize;
         for ci in 0..g.n_colliders as usize {
             if revisit[ci / 32] & (1 << (ci % 32)) == 0 {
                 continue;
             }
             let l = m.colliders[ci].link as usize;
-            let c = swept_contact(st, p, m, s, ci, collide_hand_object(st, p, m, s, ci), h, ocom, vel_p, w_p);
+            let raw = if n_seen < n_cached { cached[n_seen] } else { collide_hand_object(st, p, m, s, ci) };
+            n_seen += 1;
+            let c = swept_contact(st, p, m, s, ci, raw, h, ocom, vel_p, w_p);
             let v_other = vel_p + w_p.cross(c.point - ocom);
             let (f, a, b) = solve_hand_contact(p, m, s, springs, spring_slot::hand_object(ci as u32) as usize, l, &c, v_other, p.obj_contact_c, mu_ho, h);
             // the object's force is linearised about the predicted velocity, not the present one:
@@ -1749,14 +1796,12 @@ pub fn solve6(a: &[f32; 36], b: [f32; 6]) -> [f32; 6] {
     x
 }
 
-/// World inertia times x: R (ib ⊙ (Rᵀ x)).
-pub fn inertia_mul(rot: Vec4, ib: Vec3, x: Vec3) -> Vec3 {
-    quat_rotate(rot, ib * quat_rotate(quat_conj(rot), x))
-}
-
-/// World inverse inertia times x: R ((Rᵀ x) / ib).
-pub fn inertia_inv_mul(rot: Vec4, ib: Vec3, x: Vec3) -> Vec3 {
-    quat_rotate(rot, quat_rotate(quat_conj(rot), x) / ib)
+/// The world inertia R diag(ib) Rᵀ of principal moments `ib` in the principal frame `rot`: column c
+/// is Σₖ ibₖ (rₖ)_c rₖ, rₖ the frame's axes.
+pub fn world_inertia(rot: Vec4, ib: Vec3) -> Mat3 {
+    let r = quat_axes(rot);
+    let col = |c: usize| r[0] * (ib.x * r[0][c]) + r[1] * (ib.y * r[1][c]) + r[2] * (ib.z * r[2][c]);
+    Mat3::from_cols(col(0), col(1), col(2))
 }
 
 /// The object's velocities at the end of the substep (centre-of-mass velocity, angular velocity)
@@ -1770,11 +1815,13 @@ pub fn object_velocity_change(st: &EnvState, p: &EnvParams, m: &Model, s: &Scrat
     let prot = quat_mul(rot, v4(m.objects[p.obj_index as usize].principal_rot));
     let com = object_com(st, p);
     let w = v3(st.obj_angvel);
+    // the world inertia I and its inverse (the principal moments' reciprocals)
+    let inertia = world_inertia(prot, ib);
     // gyroscopic: ω ← ω − h I⁻¹ (ω × Iω), rescaled so that ωᵀIω (the rotational energy) is unchanged
-    let iw = inertia_mul(prot, ib, w);
+    let iw = inertia * w;
     let e0 = w.dot(iw);
-    let mut wg = w - h * inertia_inv_mul(prot, ib, w.cross(iw));
-    let e1 = wg.dot(inertia_mul(prot, ib, wg));
+    let mut wg = w - h * (world_inertia(prot, ib.recip()) * w.cross(iw));
+    let e1 = wg.dot(inertia * wg);
     if e1 > 1e-20 {
         wg *= (e0 / e1).sqrt();
     }
@@ -1785,9 +1832,7 @@ pub fn object_velocity_change(st: &EnvState, p: &EnvParams, m: &Model, s: &Scrat
     }
     for i in 0..3 {
         a[i * 6 + i] += mass;
-        let mut e = Vec3::ZERO;
-        e[i] = 1.0;
-        let col = inertia_mul(prot, ib, e);
+        let col = inertia.col(i);
         for row in 0..3 {
             a[(3 + row) * 6 + 3 + i] += col[row];
         }
