@@ -582,6 +582,11 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
                 normal = sat.axis;
             }
         }
+        // overlapping least along an edge pair, deeper than the support points and projections
+        // find: the edges' own contact (physics.rs)
+        if (code == SHAPE_BOX && sat.sep <= 0.0 && sat.k >= 6u && -sat.sep > depth) {
+            return piece_contact_to_world(box_edge_contact(c_o, r_o, h, size, sat.axis, -sat.sep, sat.k), opos, orot);
+        }
         out.depth = depth;
         out.normal = quat_rotate(orot, normal);
         out.point = opos + quat_rotate(orot, bc.point);
@@ -735,11 +740,15 @@ struct BoxSeparation {
 // physics.rs: EDGE_AXIS_BIAS
 const EDGE_AXIS_BIAS: f32 = 1.0e-4;
 
+// physics.rs: EDGE_AXIS_SHARE (an edge axis must also overlap 10 % less than the best face)
+const EDGE_AXIS_SHARE: f32 = 0.1;
+
 // physics.rs: box_box_separation. The largest separation of a box (c, r, ha) from the axis-aligned
 // box hb at the origin over the 15 separating axes (each box's faces, then edge × edge; near-parallel
 // edges skipped), that axis from the second box to the first, and its index (0–2 the first box's
 // faces, 3–5 the second's, 6 + 3i + j edge i × edge j; an edge axis only where it beats the faces'
-// best by EDGE_AXIS_BIAS): > 0 a lower bound on their distance, ≤ 0 they overlap (SAT)
+// best by EDGE_AXIS_BIAS and EDGE_AXIS_SHARE of its overlap): > 0 a lower bound on their
+// distance, ≤ 0 they overlap (SAT)
 fn box_box_separation(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>) -> BoxSeparation {
     // the first box's axes (the second's are x̂, ŷ, ẑ)
     let a = quat_axes(r);
@@ -780,8 +789,8 @@ fn box_box_separation(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>) 
         }
         let t = dot(c, l);
         let sep = (abs(t) - ra - rb) * inv_len;
-        // an edge axis must beat the faces' best by the bias
-        let bias = select(0.0, EDGE_AXIS_BIAS, k >= 6u);
+        // an edge axis must beat the faces' best by the bias and a share of its overlap (−sep)
+        let bias = select(0.0, EDGE_AXIS_BIAS + EDGE_AXIS_SHARE * max(-best.sep, 0.0), k >= 6u);
         if (sep > best.sep + bias) {
             best = BoxSeparation(sep, select(-l, l, t >= 0.0) * inv_len, k);
         }
@@ -879,6 +888,40 @@ struct Manifold {
     xsum: vec3<f32>,
     xx_diag: vec3<f32>,
     xx_off: vec3<f32>,
+}
+
+// physics.rs: box_edge_contact. A hand box (c, r, ha, in the piece frame) overlapping a box piece
+// (hb at the origin) least along edge axis k ≥ 6 (its edge i × the piece's edge j; axis from the
+// piece to the hand box, overlap along it): the two edges along those directions that reach
+// furthest into each other, met at the piece's edge's point nearest the hand box's edge
+fn box_edge_contact(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>, axis: vec3<f32>, overlap: f32, k: u32) -> Contact {
+    let a = quat_axes(r);
+    let i = (k - 6u) / 3u;
+    let j = (k - 6u) % 3u;
+    // the middle of the hand box's edge along aᵢ furthest toward the piece (against the axis)
+    var pa = c;
+    for (var m = 0u; m < 3u; m++) {
+        if (m != i) {
+            pa -= a[m] * (ha[m] * sgn(dot(a[m], axis)));
+        }
+    }
+    // the middle of the piece's edge along ê_j furthest toward the hand box (along the axis)
+    var pb = vec3<f32>(0.0);
+    for (var m = 0u; m < 3u; m++) {
+        if (m != j) {
+            pb[m] = hb[m] * sgn(axis[m]);
+        }
+    }
+    // the lines' nearest points pa + s aᵢ, pb + t ê_j (physics.rs), each kept on its edge
+    let d = pa - pb;
+    let b = a[i][j];
+    let da = dot(a[i], d);
+    let db = d[j];
+    let s = clamp((b * db - da) / (1.0 - b * b), -ha[i], ha[i]);
+    let t = clamp(db + s * b, -hb[j], hb[j]);
+    var x = pb;
+    x[j] += t;
+    return contact_at(overlap, axis, x);
 }
 
 // physics.rs: Manifold::add. A point spring at x, d deep
@@ -1314,7 +1357,7 @@ fn solve_hand_contact(slot: u32, l: u32, c: Contact, v_other: vec3<f32>, damp: f
 // physics.rs: hand_object_force. The object's side of hand–object contact c of collider ci (the
 // hand's solve cf), its torsional friction against the object's spin w_obj, and the statistics;
 // dv_point, dw: the predicted velocities' distance from the present ones (the force is
-// linearised about the predicted ones).
+// linearised about the predicted ones). (The penetration statistics: contacts_and_forces.)
 fn hand_object_force(ci: u32, c: Contact, cf: HandContactForce, ocom: vec3<f32>, w_obj: vec3<f32>, dv_point: vec3<f32>, dw: vec3<f32>, mu: f32, h: f32) {
     let l = colliders[ci].link;
     let n = c.normal;
@@ -1350,8 +1393,6 @@ fn hand_object_force(ci: u32, c: Contact, cf: HandContactForce, ocom: vec3<f32>,
     if (fn_ > 0.0 || c.depth > 0.0) {
         n_contacts += 1u;
         n_contacts_ho += 1u;
-        max_pen_ho = max(max_pen_ho, c.depth);
-        max_pen = max(max_pen, c.depth);
     }
 }
 
@@ -1381,7 +1422,12 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
         let l = colliders[ci].link;
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
-        let c = swept_contact(ci, collide_hand_object(ci), h, ocom, ovel, ow);
+        let raw = collide_hand_object(ci);
+        // the statistics' penetration: the pair's overlap at the substep's poses, not a swept
+        // contact's depth (physics.rs)
+        max_pen_ho = max(max_pen_ho, raw.depth);
+        max_pen = max(max_pen, raw.depth);
+        let c = swept_contact(ci, raw, h, ocom, ovel, ow);
         if (c.depth > -CONTACT_MARGIN) {
             let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
             if (dot(cf.force, c.normal) > 0.0) {

@@ -774,6 +774,12 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
                 normal = axis;
             }
         }
+        // overlapping least along an edge pair, deeper than the support points and projections
+        // find (they miss an edge across an edge: a palm's rim across a cube's edge 4.6 mm in was
+        // met less than 1 mm deep, BENCHMARKS.md): the edges' own contact
+        if code == SHAPE_BOX && sat.0 <= 0.0 && sat.2 >= 6 && -sat.0 > depth {
+            return piece_contact_to_world(box_edge_contact(c_o, r_o, h, size, sat.1, -sat.0, sat.2), opos, orot);
+        }
         out.depth = depth;
         out.normal = quat_rotate(orot, normal);
         out.point = opos + quat_rotate(orot, point);
@@ -911,9 +917,17 @@ pub fn box_piece_contact(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, c_o:
 }
 
 /// How much larger (m) an edge–edge axis's separation must be than the best face axis's for two
-/// boxes' contact to be taken along it: where a face and an edge overlap alike, the face's
-/// clipped points make the steadier contact.
+/// boxes' contact to be taken along it, plus `EDGE_AXIS_SHARE` of the face's overlap: where a
+/// face and an edge overlap alike, the face's clipped points make the steadier contact.
 pub const EDGE_AXIS_BIAS: f32 = 1.0e-4;
+
+/// The share of the best face axis's overlap by which an edge–edge axis must overlap less to be
+/// taken (with `EDGE_AXIS_BIAS`): pushed along a face that overlaps at most 10 % more than the
+/// least, the boxes part within 10 % of the shortest way. A palm lying nearly flat on a cube, its
+/// rim across the cube's edge, overlaps 6 % less along an edge pair than along its face; there
+/// the support points (the cube's corners inside the palm) missed the rim, a cube 1.7 mm in was
+/// met 0.1 mm deep, and the face's clipped points meet it (BENCHMARKS.md).
+pub const EDGE_AXIS_SHARE: f32 = 0.1;
 
 /// The largest separation (m) of a box (centre `c`, rotation `r`, half-extents `ha`) from the
 /// axis-aligned box of half-extents `hb` at the origin over the 15 separating axes of two boxes
@@ -921,9 +935,10 @@ pub const EDGE_AXIS_BIAS: f32 = 1.0e-4;
 /// skipped: a face axis stands for them), that axis, pointing from the second box to the first,
 /// and its index k (0–2: the first box's faces, 3–5: the second's, 6 + 3i + j: edge i of the
 /// first × edge j of the second). An edge axis is taken only where it beats the best face axis
-/// by `EDGE_AXIS_BIAS`. Positive: a lower bound on the boxes' distance, equal to it where their
-/// nearest features are a face and what lies against it; zero or less: they overlap, by its
-/// magnitude along the axis (the separating-axis theorem).
+/// by `EDGE_AXIS_BIAS` and `EDGE_AXIS_SHARE` of that face's overlap. Positive: a lower bound on
+/// the boxes' distance, equal to it where their nearest features are a face and what lies
+/// against it; zero or less: they overlap, by its magnitude along the axis (the separating-axis
+/// theorem).
 pub fn box_box_separation(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3) -> (f32, Vec3, usize) {
     // the first box's axes aᵢ (the second's are x̂, ŷ, ẑ)
     let a = quat_axes(r);
@@ -957,8 +972,8 @@ pub fn box_box_separation(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3) -> (f32, Vec3, u
         };
         let t = c.dot(l);
         let sep = (t.abs() - ra - rb) * inv_len;
-        // an edge axis must beat the faces' best by the bias
-        let bias = if k >= 6 { EDGE_AXIS_BIAS } else { 0.0 };
+        // an edge axis must beat the faces' best by the bias and a share of its overlap (−sep)
+        let bias = if k >= 6 { EDGE_AXIS_BIAS + EDGE_AXIS_SHARE * (-best.0).max(0.0) } else { 0.0 };
         if sep > best.0 + bias {
             best = (sep, if t >= 0.0 { l * inv_len } else { -l * inv_len }, k);
         }
@@ -1047,6 +1062,43 @@ pub fn box_box_contact(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3, axis: Vec3, k: usiz
         }
     }
     manifold_contact(&springs, axis, c)
+}
+
+/// The contact of a hand box (centre `c`, rotation `r`, half extents `ha`, in the piece frame)
+/// overlapping a box piece (half extents `hb` at the origin) least along edge axis k ≥ 6
+/// (`box_box_separation`: the hand box's edge i = (k − 6) / 3 × the piece's edge j = (k − 6) % 3,
+/// `axis` from the piece to the hand box, `overlap` the boxes' overlap along it), in the piece
+/// frame: of the edges along those directions the two that reach furthest into each other, met
+/// at the piece's edge's point nearest the hand box's edge, `overlap` deep along the axis — as
+/// MuJoCo's box–box contact meets an edge pair.
+pub fn box_edge_contact(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3, axis: Vec3, overlap: f32, k: usize) -> Contact {
+    let a = quat_axes(r);
+    let (i, j) = ((k - 6) / 3, (k - 6) % 3);
+    // the middle of the hand box's edge along aᵢ furthest toward the piece (against the axis)
+    let mut pa = c;
+    for m in 0..3 {
+        if m != i {
+            pa -= a[m] * (ha[m] * sgn(a[m].dot(axis)));
+        }
+    }
+    // the middle of the piece's edge along ê_j furthest toward the hand box (along the axis)
+    let mut pb = Vec3::ZERO;
+    for m in 0..3 {
+        if m != j {
+            pb[m] = hb[m] * sgn(axis[m]);
+        }
+    }
+    // the lines' nearest points pa + s aᵢ, pb + t ê_j: s (1 − b²) = b (d·ê_j) − d·aᵢ, t = d·ê_j + s b
+    // (d = pa − pb, b = aᵢ·ê_j; 1 − b² = |aᵢ × ê_j|² ≥ 1e-8, box_box_separation skips nearer
+    // parallel edges), each kept on its edge and t found again from the kept s
+    let d = pa - pb;
+    let b = a[i][j];
+    let (da, db) = (a[i].dot(d), d[j]);
+    let s = ((b * db - da) / (1.0 - b * b)).clamp(-ha[i], ha[i]);
+    let t = (db + s * b).clamp(-hb[j], hb[j]);
+    let mut x = pb;
+    x[j] += t;
+    contact_at(overlap, axis, x)
 }
 
 /// The point springs of one contact as they are gathered (`box_box_contact`,
@@ -1514,7 +1566,8 @@ pub fn solve_hand_contact(p: &EnvParams, m: &Model, s: &mut Scratch, springs: &m
 /// friction (against the object's spin `w_obj`), and the statistics. `dv_point`, `dw`: how far the
 /// velocities the force was solved against (the object's predicted ones) are from its present
 /// ones; the damping times them joins the force, so that the object's implicit solve, which starts
-/// from the present velocities, linearises the force about the predicted ones.
+/// from the present velocities, linearises the force about the predicted ones. (The penetration
+/// statistics are the pair's overlap, `contacts_and_forces`.)
 #[allow(clippy::too_many_arguments)]
 pub fn hand_object_force(p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, ci: usize, c: &Contact, f: Vec3, a: f32, b: f32, ocom: Vec3, w_obj: Vec3, dv_point: Vec3, dw: Vec3, mu: f32, on_contact: &mut impl FnMut(ContactKind, usize, &Contact, Vec3)) {
     let g = m.g;
@@ -1549,8 +1602,6 @@ pub fn hand_object_force(p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, ci: 
     if fn_ > 0.0 || c.depth > 0.0 {
         s.contacts += 1;
         s.contacts_ho += 1;
-        s.max_pen_ho = s.max_pen_ho.max(c.depth);
-        s.max_pen = s.max_pen.max(c.depth);
         on_contact(ContactKind::HandObject, ci, c, f);
     }
 }
@@ -1590,6 +1641,11 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
         let raw = collide_hand_object(st, p, m, s, ci);
+        // the penetration the statistics record: the pair's overlap at the substep's poses, not
+        // a swept contact's depth (where the pair would be by the substep's end if nothing
+        // pushed, taken back along the motion: not a pose the env reaches)
+        s.max_pen_ho = s.max_pen_ho.max(raw.depth);
+        s.max_pen = s.max_pen.max(raw.depth);
         let c = swept_contact(st, p, m, s, ci, raw, h, ocom, ovel, ow);
         if c.depth > -CONTACT_MARGIN {
             let (f, a, b) = solve_hand_contact(p, m, s, springs, sho, l, &c, ovel + ow.cross(c.point - ocom), p.obj_contact_c, mu_ho, h);

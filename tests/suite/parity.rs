@@ -310,6 +310,31 @@ fn a_cube_pressed_flat_into_the_palm_steps_the_same_on_both_backends() {
     });
 }
 
+/// A cube pressed into the palm across the palm's rim (`cube_across_the_palm_rim`), 0.2 mm
+/// less to 0.5 mm further in and up to 3.5 mm sideways over the 8 envs: the edge–edge axes near the palm's
+/// normal give way to its face (`EDGE_AXIS_FACE_COS2`), whose clipped points meet the cube; one
+/// physics step agrees.
+#[test]
+fn a_cube_pressed_into_the_palm_across_its_rim_steps_the_same_on_both_backends() {
+    let Some(ctx) = gpu_context("a_cube_pressed_into_the_palm_across_its_rim_steps_the_same_on_both_backends") else { return };
+    let c = base_config(8);
+    let mut cpu = cpu_batch(&c);
+    cube_across_the_palm_rim(&mut cpu, |i| 0.0001 * i as f32 - 0.0002, |i| 0.0005 * i as f32);
+    held_hand_step_agrees(c, &mut cpu, ctx);
+}
+
+/// A palm's rim pressed across a cube's top edge (`cube_under_the_palm_s_edge`), 1 mm less to
+/// 0.75 mm more and up to 3.5 mm sideways over the 8 envs: the edge pair's contact
+/// (`box_edge_contact`); one physics step agrees.
+#[test]
+fn a_palm_s_rim_across_a_cube_s_edge_steps_the_same_on_both_backends() {
+    let Some(ctx) = gpu_context("a_palm_s_rim_across_a_cube_s_edge_steps_the_same_on_both_backends") else { return };
+    let c = base_config(8);
+    let mut cpu = cpu_batch(&c);
+    cube_under_the_palm_s_edge(&mut cpu, |i| 0.00025 * i as f32 - 0.001, |i| 0.0005 * i as f32);
+    held_hand_step_agrees(c, &mut cpu, ctx);
+}
+
 /// A cube lying along a fingertip capsule, on the capsule's side away from the palm, the capsule's
 /// middle 1 mm into the face and the cube turned 0–7° about the face's axis across the capsule in
 /// the 8 envs, so that both ends of the segment are in (two point springs,

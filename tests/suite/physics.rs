@@ -376,6 +376,31 @@ fn a_palm_pressed_on_a_cube_s_face_stands_for_the_corners_below_it() {
     }
 }
 
+/// A cube pressed into the palm across the palm's rim (`cube_across_the_palm_rim`: the boxes
+/// overlap least along an edge–edge axis a few degrees off the palm's normal) is met on the palm's
+/// face, as deep as the boxes overlap: the support points alone (the cube's corners inside the
+/// palm) met it 0.1 mm deep where it was 1.7 mm in, until a turn of a fraction of a degree made
+/// the face's axis the least and the contact jumped to 1.4 mm (`EDGE_AXIS_FACE_COS2`).
+#[test]
+fn a_cube_pressed_into_the_palm_across_its_rim_is_met_as_deep_as_it_is() {
+    use dextrain::env::physics::{Scratch, collide_hand_object, hand_kinematics};
+    for sink in [-0.0005f32, 0.0, 0.0005] {
+        let c = base_config(1);
+        let mut b = cpu_batch(&c);
+        let overlap = cube_across_the_palm_rim(&mut b, |_| sink, |_| 0.0)[0];
+        let model = b.model().clone();
+        let (st, p) = (b.states().unwrap()[0], b.params().unwrap()[0]);
+        let mut s = Scratch::default();
+        hand_kinematics(&st, &model.view(), &mut s);
+        let k = collide_hand_object(&st, &p, &model.view(), &s, 0);
+        let at = format!("{:.1} mm further in", sink * 1e3);
+        // the deepest point under the palm's face is at its rim, a little shallower than the corner past it
+        assert!(k.depth > 0.85 * overlap && k.depth <= overlap + 1e-5, "{at}: contact {:.3} mm deep, the boxes overlap {:.3} mm", k.depth * 1e3, overlap * 1e3);
+        assert!(k.normal.dot(toward_palm(&model, &st)) > 0.999, "{at}: normal {:?} is not the palm's", k.normal);
+        assert!(k.spring_count > 1.0, "{at}: {} springs: the face's clipped points", k.spring_count);
+    }
+}
+
 /// A capsule lying along a box's face is two point springs, one at each end of its segment's part
 /// over the face (`capsule_face_contact`): flat 1 mm in, two springs at the part's middle; tilted
 /// so that one end is 0.5 mm in, 1.5 springs two thirds of the way to the deep end; partly past
@@ -497,6 +522,102 @@ fn a_cube_thrown_at_the_palm_is_slowed_before_it_gets_there() {
     b.step(&[t]).unwrap();
     let pen = b.stats().unwrap()[0].max_pen_ho;
     assert!(pen < 1.0e-3, "the cube sank {:.3} mm into the palm", pen * 1e3);
+}
+
+/// A palm's rim pressed across a cube's top edge (`cube_under_the_palm_s_edge`: 21° off its top
+/// face, the boxes overlapping least along that edge pair) is met on the edges, as deep as the
+/// boxes overlap along them (`box_edge_contact`): the support points and projections met it
+/// less than 1 mm deep where it was 4.6 mm in, and a learned lift pressed the palm 12 mm in.
+#[test]
+fn a_palm_s_rim_across_a_cube_s_edge_is_met_as_deep_as_it_is() {
+    use dextrain::env::physics::{Scratch, collide_hand_object, hand_kinematics};
+    for sink in [-0.002f32, 0.0, 0.001] {
+        let c = base_config(1);
+        let mut b = cpu_batch(&c);
+        cube_under_the_palm_s_edge(&mut b, |_| sink, |_| 0.0);
+        let model = b.model().clone();
+        let (st, p) = (b.states().unwrap()[0], b.params().unwrap()[0]);
+        let mut s = Scratch::default();
+        hand_kinematics(&st, &model.view(), &mut s);
+        let k = collide_hand_object(&st, &p, &model.view(), &s, 0);
+        // the overlap along each edge pair's axis (the palm's edge i × the cube's edge j), in the
+        // cube's frame: the least is the boxes' penetration along edges
+        let palm = palm_pose(&model, &st);
+        let cube = dextrain::geom::Pose::from_arrays(st.obj_pos, st.obj_rot);
+        let to_cube = cube.rot.inverse();
+        let c_o = to_cube * (palm.pos - cube.pos);
+        let a = [to_cube * palm.rot * glam::Vec3::X, to_cube * palm.rot * glam::Vec3::Y, to_cube * palm.rot * glam::Vec3::Z];
+        let (ha, hb) = (glam::Vec3::from_slice(&model.colliders[0].size[..3]), glam::Vec3::splat(p.obj_scale * model.pieces[0].size[0]));
+        let mut least = (f32::MAX, glam::Vec3::Z);
+        for i in 0..3 {
+            for j in 0..3 {
+                let l = a[i].cross(glam::Vec3::AXES[j]);
+                if l.length() < 1e-3 {
+                    continue;
+                }
+                let l = l.normalize();
+                let reach = (0..3).map(|m| ha[m] * a[m].dot(l).abs()).sum::<f32>() + hb.dot(l.abs());
+                let overlap = reach - c_o.dot(l).abs();
+                if overlap < least.0 {
+                    least = (overlap, if c_o.dot(l) >= 0.0 { l } else { -l });
+                }
+            }
+        }
+        let at = format!("{:.1} mm further in", sink * 1e3);
+        assert!((k.depth - least.0).abs() < 1e-5, "{at}: contact {:.3} mm deep, the edges overlap {:.3} mm", k.depth * 1e3, least.0 * 1e3);
+        let n = cube.rot * least.1;
+        assert!(k.normal.dot(n) > 0.9999, "{at}: normal {:?}, the edge pair's axis {n:?}", k.normal);
+        // on one of the cube's edges: two of its coordinates at the half side
+        let x = (to_cube * (k.point - cube.pos)).abs();
+        let on = (0..3).filter(|&m| (x[m] - hb[m]).abs() < 1e-5).count();
+        assert!(on >= 2, "{at}: point {x:?} (cube frame) is not on an edge");
+    }
+}
+
+/// The penetration the step's statistics record is the overlap at the substep's poses, not the
+/// depth of a swept contact (`swept_contact`: where the pair would be by the end of the substep
+/// if nothing pushed, taken back along the motion), which the env never reaches: a cube pressed
+/// nearly flat (1° off) 0.8 mm into the palm, closing on it at 0.4 m/s and turning at 8–22 rad/s
+/// one way or the other about the palm's y axis, up to 16 mm off its centre (as a learned lift's
+/// deepest press: 0.82 mm in, closing at 0.38 m/s, turning at 8.8 rad/s, solved on a swept
+/// contact 1.14 mm deep), is solved on contacts deeper than the boxes overlap, and the statistics
+/// say how deep they do.
+#[test]
+fn the_statistics_record_the_overlap_not_the_swept_contact_s_depth() {
+    use dextrain::env::physics::{Scratch, collide_hand_object, contacts_and_forces, hand_kinematics};
+    use dextrain::record::ContactKind;
+    let mut swept = 0;
+    let c = base_config(8);
+    let mut b = cpu_batch(&c);
+    box_tilted_against_palm(&mut b, 0.0008, 1.0, |i| 0.004 * i as f32 - 0.012);
+    let model = b.model().clone();
+    let m = model.view();
+    let all_springs = b.springs().unwrap();
+    let (states, params) = (b.states().unwrap(), b.params().unwrap());
+    for (i, (mut st, p)) in states.into_iter().zip(params).enumerate() {
+        let sign = if i % 2 == 0 { 1.0 } else { -1.0 };
+        let w = palm_pose(&model, &st).rot * glam::Vec3::Y * (sign * (8.0 + 2.0 * i as f32));
+        st.obj_angvel = [w.x, w.y, w.z, 0.0];
+        let v = toward_palm(&model, &st) * 0.4;
+        st.obj_vel = [v.x, v.y, v.z, 0.0];
+        let n = m.g.n_springs as usize;
+        let mut springs = all_springs[i * n..(i + 1) * n].to_vec();
+        let mut s = Scratch::default();
+        hand_kinematics(&st, &m, &mut s);
+        let overlap = (0..m.g.n_colliders as usize).map(|ci| collide_hand_object(&st, &p, &m, &s, ci).depth).fold(0.0f32, f32::max);
+        let mut solved = 0.0f32;
+        contacts_and_forces(&st, &mut springs, &p, &m, &mut s, m.g.dt / m.g.substeps as f32, &mut |kind, _, k, _| {
+            if kind == ContactKind::HandObject {
+                solved = solved.max(k.depth);
+            }
+        });
+        let at = format!("env {i}");
+        assert_eq!(s.max_pen_ho, overlap, "{at}: statistics {:.4} mm, overlap {:.4} mm (solved on {:.4} mm)", s.max_pen_ho * 1e3, overlap * 1e3, solved * 1e3);
+        if solved > overlap + 1e-4 {
+            swept += 1;
+        }
+    }
+    assert!(swept >= 4, "{swept} of 8 envs solved on a swept contact deeper than the overlap");
 }
 
 /// The second pass of the hand's contacts: a pair apart and not pushing, solved against the

@@ -129,16 +129,75 @@ pub fn box_tilted_against_palm(b: &mut CpuEnvBatch, depth: f32, tilt_deg: f32, l
         let edge: Vec3 = corners.iter().filter(|c| c.z > top - 1e-6).map(|c| *c + centre).sum::<Vec3>() / 2.0;
         let links = dextrain::env::hand_link_poses(&model, st);
         let palm = links[cd.link as usize].mul(&dextrain::geom::Pose::from_arrays(cd.pos, cd.rot));
-        let pos = palm.transform_point(centre);
-        let rot = palm.rot * turn;
-        st.obj_pos = [pos.x, pos.y, pos.z, 0.0];
-        st.obj_rot = rot.to_array();
-        st.obj_vel = [0.0; 4];
-        st.obj_angvel = [0.0; 4];
+        object_at_rest_in_palm_frame(st, &palm, centre, turn);
         edges.push(palm.transform_point(edge));
     }
     b.set_states(&states).unwrap();
     edges
+}
+
+/// Puts the object of `st` at rest with its frame at `centre`, turned `turn`, in the frame `palm`.
+fn object_at_rest_in_palm_frame(st: &mut dextrain::env::EnvState, palm: &Pose, centre: Vec3, turn: Quat) {
+    let pos = palm.transform_point(centre);
+    st.obj_pos = [pos.x, pos.y, pos.z, 0.0];
+    st.obj_rot = (palm.rot * turn).to_array();
+    st.obj_vel = [0.0; 4];
+    st.obj_angvel = [0.0; 4];
+}
+
+/// Puts every env's object of `b` (a box: the run's first piece) under dexhand16's palm box
+/// (collider 0) as a learned lift pressed it (recorded 2026-11-29): turned ~30° about the palm's
+/// normal and 3.6° off flat, its top face 1.8 mm into the palm along the palm's normal at its
+/// highest corner, which lies 2.8 mm past the palm's rim: the palm's rim crosses the cube's top
+/// edge, so the boxes overlap least along an edge–edge axis within a few degrees of the palm's
+/// normal. Moved `sink(env)` m further into the palm along its normal and `lateral(env)` m along
+/// the palm's y. Returns, per env, the boxes' overlap along the palm's normal (the highest
+/// corner's depth past the palm's face, m).
+pub fn cube_across_the_palm_rim(b: &mut CpuEnvBatch, sink: impl Fn(usize) -> f32, lateral: impl Fn(usize) -> f32) -> Vec<f32> {
+    let recorded = (Vec3::new(0.869, -0.491, -0.056), Vec3::new(0.493, 0.870, 0.030), Vec3::new(-0.006_482, 0.014_656, 0.041_413));
+    cube_under_the_palm_as_recorded(b, recorded, sink, lateral)
+}
+
+/// `cube_across_the_palm_rim` with another learned lift's press (recorded 2026-11-29): the palm
+/// 21° off the cube's top face, its rim's edge 4.6 mm across the cube's top edge, the boxes
+/// overlapping least along that edge pair (4.6 mm; 8.9 mm along the palm's normal).
+pub fn cube_under_the_palm_s_edge(b: &mut CpuEnvBatch, sink: impl Fn(usize) -> f32, lateral: impl Fn(usize) -> f32) {
+    let recorded = (Vec3::new(0.939_158, 0.212_628, -0.269_764), Vec3::new(-0.151_305, 0.961_158, 0.230_830), Vec3::new(-0.030_024, -0.019_237, 0.050_759));
+    cube_under_the_palm_as_recorded(b, recorded, sink, lateral);
+}
+
+/// Puts every env's object of `b` (a box: the run's first piece) under dexhand16's palm box
+/// (collider 0) where the palm's x and y axes and its centre in the cube's frame are `recorded`
+/// (the axes orthonormalised), moved `sink(env)` m further into the palm along its normal and
+/// `lateral(env)` m along its y. Returns, per env, the boxes' overlap along the palm's normal.
+pub fn cube_under_the_palm_as_recorded(b: &mut CpuEnvBatch, recorded: (Vec3, Vec3, Vec3), sink: impl Fn(usize) -> f32, lateral: impl Fn(usize) -> f32) -> Vec<f32> {
+    use dextrain::env::physics::object_support_point;
+    use glam::Mat3;
+    let model = b.model().clone();
+    let cd = model.colliders[0];
+    assert_eq!(cd.shape, dextrain::gpu::layout::SHAPE_BOX, "collider 0 is the palm box");
+    let piece = model.pieces[0];
+    assert_eq!(piece.shape, dextrain::gpu::layout::SHAPE_BOX, "the object is a box");
+    let (size, h) = (Vec3::from_slice(&piece.size[..3]), Vec3::from_slice(&cd.size[..3]));
+    // the palm's axes and centre in the cube's frame, as recorded (the axes orthonormalised)
+    let (x, y, c_o) = recorded;
+    let x = x.normalize();
+    let z = x.cross(y).normalize();
+    let palm_in_cube = Mat3::from_cols(x, z.cross(x), z);
+    // the cube in the palm's frame: rotation Rᵀ, centre −Rᵀ c_o
+    let turn = Quat::from_mat3(&palm_in_cube.transpose());
+    let centre0 = -(palm_in_cube.transpose() * c_o);
+    let mut states = b.states().unwrap();
+    let mut overlaps = Vec::new();
+    for (i, st) in states.iter_mut().enumerate() {
+        let centre = centre0 + Vec3::new(0.0, lateral(i), sink(i));
+        let top = (0..8).map(|k| (turn * object_support_point(piece.shape, size, k).0 + centre).z).fold(f32::MIN, f32::max);
+        overlaps.push(top + h.z);
+        let palm = palm_pose(&model, st);
+        object_at_rest_in_palm_frame(st, &palm, centre, turn);
+    }
+    b.set_states(&states).unwrap();
+    overlaps
 }
 
 /// The direction from the object toward the palm box of `box_turned_into_palm`'s scene: the
