@@ -451,15 +451,27 @@ fn object_com() -> vec3<f32> {
     return st.obj_pos.xyz + quat_rotate(st.obj_rot, prm.obj_com.xyz);
 }
 
-// the deepest contact of hand collider ci over the object's pieces (bounding spheres first)
-fn collide_hand_object(ci: u32) -> Contact {
-    return collide_hand_object_at(ci, collider_pose(ci), st.obj_pos.xyz, st.obj_rot);
+// physics.rs: speculative_margin. CONTACT_MARGIN, or how far hand collider ci's points can close
+// on the object's within the substep: h (|v_rel at its centre| + r |ω_link − ω_obj|)
+fn speculative_margin(ci: u32, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>) -> f32 {
+    let cd = colliders[ci];
+    let l = cd.link;
+    let cpos = collider_pose(ci).pos;
+    let v = link_point_velocity(l, cpos) - (ovel + cross(ow, cpos - ocom));
+    let r = bounding_radius(cd.shape, cd.size.xyz);
+    return max(h * (length(v) + r * length(link_w[l] - ow)), CONTACT_MARGIN);
+}
+
+// the deepest contact of hand collider ci over the object's pieces (bounding spheres grown by
+// margin first)
+fn collide_hand_object(ci: u32, margin: f32) -> Contact {
+    return collide_hand_object_at(ci, collider_pose(ci), st.obj_pos.xyz, st.obj_rot, margin);
 }
 
 // physics.rs: collide_hand_object_at. The collider at cp, the object's frame at opos, orot
-fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4<f32>) -> Contact {
+fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4<f32>, margin: f32) -> Contact {
     let cd = colliders[ci];
-    let rc = bounding_radius(cd.shape, cd.size.xyz) + CONTACT_MARGIN;
+    let rc = bounding_radius(cd.shape, cd.size.xyz) + margin;
     let reach = rc + prm.obj_com.w;
     let dc = cp.pos - opos;
     var best = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
@@ -477,7 +489,7 @@ fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4
             continue;
         }
         let pp = piece_pose_at(pd, opos, orot);
-        let c = collide_collider_piece(cd, cp, pd, prm.obj_scale, pp.pos, pp.rot);
+        let c = collide_collider_piece(cd, cp, pd, prm.obj_scale, pp.pos, pp.rot, margin);
         if (c.depth > best.depth) {
             best = c;
         }
@@ -492,7 +504,7 @@ const SWEPT_TOLERANCE: f32 = 3.0e-4;
 // substep if collider and object keep their velocities, when that is deeper than c would be by
 // then by more than SWEPT_TOLERANCE (taken back to the start of the substep along the relative
 // motion)
-fn swept_contact(ci: u32, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>) -> Contact {
+fn swept_contact(ci: u32, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>, margin: f32) -> Contact {
     if (c.depth <= -1.0) {
         return c;
     }
@@ -510,7 +522,7 @@ fn swept_contact(ci: u32, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, 
     let cp_end = ColliderPose(cp.pos + link_point_velocity(l, cp.pos) * h, quat_integrate(cp.rot, link_w[l], h));
     let orot_end = quat_integrate(st.obj_rot, ow, h);
     let opos_end = ocom + ovel * h - quat_rotate(orot_end, prm.obj_com.xyz);
-    let end = collide_hand_object_at(ci, cp_end, opos_end, orot_end);
+    let end = collide_hand_object_at(ci, cp_end, opos_end, orot_end, margin);
     if (end.depth <= -1.0) {
         return c;
     }
@@ -526,8 +538,9 @@ fn swept_contact(ci: u32, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, 
     return out;
 }
 
-// a hand collider against object piece pd (lengths scaled by scale, at opos, orot)
-fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, scale: f32, opos: vec3<f32>, orot: vec4<f32>) -> Contact {
+// a hand collider against object piece pd (lengths scaled by scale, at opos, orot); apart by
+// more than margin, depth −1
+fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, scale: f32, opos: vec3<f32>, orot: vec4<f32>, margin: f32) -> Contact {
     let code = pd.shape;
     let size = pd.size.xyz * scale;
     let oinv = quat_conj(orot);
@@ -538,7 +551,7 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
     // the piece farther from the collider's centre than the collider reaches (with the margin):
     // no contact
     let y0 = piece_project(pd, scale, size, c_o).point;
-    let reach = bounding_radius(cd.shape, cd.size.xyz) + CONTACT_MARGIN;
+    let reach = bounding_radius(cd.shape, cd.size.xyz) + margin;
     let d0 = c_o - y0;
     if (dot(d0, d0) > reach * reach) {
         out.depth = -1.0;
@@ -1422,13 +1435,14 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
         let l = colliders[ci].link;
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
-        let raw = collide_hand_object(ci);
+        let margin = speculative_margin(ci, h, ocom, ovel, ow);
+        let raw = collide_hand_object(ci, margin);
         // the statistics' penetration: the pair's overlap at the substep's poses, not a swept
         // contact's depth (physics.rs)
         max_pen_ho = max(max_pen_ho, raw.depth);
         max_pen = max(max_pen, raw.depth);
-        let c = swept_contact(ci, raw, h, ocom, ovel, ow);
-        if (c.depth > -CONTACT_MARGIN) {
+        let c = swept_contact(ci, raw, h, ocom, ovel, ow, margin);
+        if (c.depth > -margin) {
             let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
             if (dot(cf.force, c.normal) > 0.0) {
                 hand_object_force(ci, c, cf, ocom, ow, vec3<f32>(0.0), vec3<f32>(0.0), mu_ho, h);
@@ -1500,7 +1514,9 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
                 continue;
             }
             let l = colliders[ci].link;
-            let c = swept_contact(ci, collide_hand_object(ci), h, ocom, pred.vel, pred.w);
+            // the first pass's margin (from the present velocities): the same raw contact
+            let margin = speculative_margin(ci, h, ocom, ovel, ow);
+            let c = swept_contact(ci, collide_hand_object(ci, margin), h, ocom, pred.vel, pred.w, margin);
             let v_other = pred.vel + cross(pred.w, c.point - ocom);
             let cf = solve_hand_contact(spring_base + ci, l, c, v_other, prm.obj_contact_c, mu_ho, h);
             // the object's force linearised about the predicted velocity: + D·J·(u_p − u₀)

@@ -23,7 +23,7 @@
 //!    the contact's own push through the hand's mobility along the normal (`hand_mobility`),
 //!    `Fn = (k·d − (k·h + c)·vn) / (1 + h·w_n·(k·h + c))`. Stable at any stiffness on the lightest
 //!    fingers (as MuJoCo's implicit constraint forces are), exactly `Fn = k·d` at rest, and a gap
-//!    closing within the substep pushes already (speculative contacts within `CONTACT_MARGIN`), so
+//!    closing within the substep pushes already (speculative contacts within `speculative_margin`), so
 //!    a fast finger stops at the surface. The object takes the opposite force, with its derivative
 //!    in the object's velocity in its implicit solve. The hand–object pairs within the margin that
 //!    did not push are solved a second time after all the others, against the object's velocity at
@@ -62,7 +62,8 @@ pub const PROJ_ITERS: usize = 4;
 pub const BOX_PROJ_ITERS: usize = 16;
 /// How far apart (m) a hand collider and the object or table may be for their contact to be solved:
 /// a gap that closes within the substep pushes already (`hand_contact_force`). A finger at its
-/// speed limit travels ~1.3 mm in a 2 ms substep.
+/// speed limit travels ~1.3 mm in a 2 ms substep; against the object the margin grows with the
+/// pair's speed (`speculative_margin`).
 pub const CONTACT_MARGIN: f32 = 0.003;
 /// The weight (m) of the piece's nearest point y where a hand box's contact point moves toward the
 /// piece's support points deeper than y, each weighted by how much deeper (`box_piece_contact`).
@@ -619,22 +620,37 @@ pub fn object_com(st: &EnvState, p: &EnvParams) -> Vec3 {
     v3(st.obj_pos) + quat_rotate(v4(st.obj_rot), v3(p.obj_com))
 }
 
+/// The speculative margin (m) of hand collider `ci` against the object (its centre of mass `ocom`
+/// moving at `ovel`, turning at `ow`): `CONTACT_MARGIN`, or how far the pair's points can close
+/// within the substep where that is more — h times a bound on their relative speed, the speed at
+/// the collider's centre plus its bounding radius times the pair's relative turn rate (the
+/// relative velocity of two rigid bodies is affine in the point). A fingertip hitting a spinning
+/// cube at 2.3–2.7 m/s closes 5 mm in a substep, past the fixed margin: first seen already 1–2 mm in.
+pub fn speculative_margin(m: &Model, s: &Scratch, ci: usize, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3) -> f32 {
+    let cd = &m.colliders[ci];
+    let l = cd.link as usize;
+    let (cpos, _) = collider_pose(m, s, ci);
+    let v = link_point_velocity(s, l, cpos) - (ovel + ow.cross(cpos - ocom));
+    let r = bounding_radius(cd.shape, v3(cd.size));
+    (h * (v.length() + r * (s.link_w[l] - ow).length())).max(CONTACT_MARGIN)
+}
+
 /// Narrow phase between hand collider `ci` and the env's object: the deepest contact over the
 /// object's pieces (normal from object to hand; a negative depth is the gap of a pair within
-/// `CONTACT_MARGIN`). Pairs whose bounding spheres, grown by the margin, do not touch (the whole
-/// object's first, then each piece's) are rejected (depth −1).
+/// `margin`, `speculative_margin`). Pairs whose bounding spheres, grown by the margin, do not
+/// touch (the whole object's first, then each piece's) are rejected (depth −1).
 #[inline]
-pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize) -> Contact {
+pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, margin: f32) -> Contact {
     let (cpos, crot) = collider_pose(m, s, ci);
-    collide_hand_object_at(p, m, ci, cpos, crot, v3(st.obj_pos), v4(st.obj_rot))
+    collide_hand_object_at(p, m, ci, cpos, crot, v3(st.obj_pos), v4(st.obj_rot), margin)
 }
 
 /// `collide_hand_object` with the collider at `cpos`, `crot` and the object's frame at `opos`,
 /// `orot`.
 #[allow(clippy::too_many_arguments)]
-pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, crot: Vec4, opos: Vec3, orot: Vec4) -> Contact {
+pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, crot: Vec4, opos: Vec3, orot: Vec4, margin: f32) -> Contact {
     let cd = &m.colliders[ci];
-    let rc = bounding_radius(cd.shape, v3(cd.size)) + CONTACT_MARGIN;
+    let rc = bounding_radius(cd.shape, v3(cd.size)) + margin;
     let reach = rc + p.obj_com[3];
     let mut best = contact_at(-1.0, Vec3::Z, opos);
     if (cpos - opos).length_squared() > reach * reach {
@@ -651,7 +667,7 @@ pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, c
             continue;
         }
         let (ppos, prot, _) = piece_pose_at(p, pd, opos, orot);
-        let c = collide_collider_piece(m, cd, cpos, crot, pd, p.obj_scale, ppos, prot);
+        let c = collide_collider_piece(m, cd, cpos, crot, pd, p.obj_scale, ppos, prot, margin);
         if c.depth > best.depth {
             best = c;
         }
@@ -672,7 +688,7 @@ pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, c
 /// `SWEPT_TOLERANCE` deeper than `c`'s prediction within the substep, and those too far apart for
 /// any to touch by its end are left alone.
 #[allow(clippy::too_many_arguments)]
-pub fn swept_contact(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, c: Contact, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3) -> Contact {
+pub fn swept_contact(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, c: Contact, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32) -> Contact {
     let cd = &m.colliders[ci];
     let l = cd.link as usize;
     if c.depth <= -1.0 {
@@ -697,7 +713,7 @@ pub fn swept_contact(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: u
     let crot_end = quat_integrate(crot, s.link_w[l], h);
     let orot_end = quat_integrate(v4(st.obj_rot), ow, h);
     let opos_end = ocom + ovel * h - quat_rotate(orot_end, v3(p.obj_com));
-    let end = collide_hand_object_at(p, m, ci, cpos_end, crot_end, opos_end, orot_end);
+    let end = collide_hand_object_at(p, m, ci, cpos_end, crot_end, opos_end, orot_end, margin);
     if end.depth <= -1.0 {
         return c;
     }
@@ -710,8 +726,10 @@ pub fn swept_contact(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: u
 }
 
 /// Narrow phase between a hand collider (`cd` at `cpos`, `crot`) and object piece `pd` (its
-/// lengths scaled by `scale`, at `opos`, `orot`); normal from the piece to the hand.
-pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Vec4, pd: &PieceDesc, scale: f32, opos: Vec3, orot: Vec4) -> Contact {
+/// lengths scaled by `scale`, at `opos`, `orot`); normal from the piece to the hand; apart by
+/// more than `margin`, depth −1 (or the gap).
+#[allow(clippy::too_many_arguments)]
+pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Vec4, pd: &PieceDesc, scale: f32, opos: Vec3, orot: Vec4, margin: f32) -> Contact {
     let code = pd.shape;
     let size = v3(pd.size) * scale;
     let oinv = quat_conj(orot);
@@ -722,7 +740,7 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
     // the piece farther from the collider's centre than the collider reaches (with the margin):
     // no contact
     let (y0, _) = piece_project(m, pd, scale, size, c_o);
-    let reach = bounding_radius(cd.shape, v3(cd.size)) + CONTACT_MARGIN;
+    let reach = bounding_radius(cd.shape, v3(cd.size)) + margin;
     if (c_o - y0).length_squared() > reach * reach {
         out.depth = -1.0;
         return out;
@@ -1640,14 +1658,15 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
         let l = m.colliders[ci].link as usize;
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
-        let raw = collide_hand_object(st, p, m, s, ci);
+        let margin = speculative_margin(m, s, ci, h, ocom, ovel, ow);
+        let raw = collide_hand_object(st, p, m, s, ci, margin);
         // the penetration the statistics record: the pair's overlap at the substep's poses, not
         // a swept contact's depth (where the pair would be by the substep's end if nothing
         // pushed, taken back along the motion: not a pose the env reaches)
         s.max_pen_ho = s.max_pen_ho.max(raw.depth);
         s.max_pen = s.max_pen.max(raw.depth);
-        let c = swept_contact(st, p, m, s, ci, raw, h, ocom, ovel, ow);
-        if c.depth > -CONTACT_MARGIN {
+        let c = swept_contact(st, p, m, s, ci, raw, h, ocom, ovel, ow, margin);
+        if c.depth > -margin {
             let (f, a, b) = solve_hand_contact(p, m, s, springs, sho, l, &c, ovel + ow.cross(c.point - ocom), p.obj_contact_c, mu_ho, h);
             if f.dot(c.normal) > 0.0 {
                 hand_object_force(p, m, s, h, ci, &c, f, a, b, ocom, ow, Vec3::ZERO, Vec3::ZERO, mu_ho, on_contact);
@@ -1723,9 +1742,11 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
                 continue;
             }
             let l = m.colliders[ci].link as usize;
-            let raw = if n_seen < n_cached { cached[n_seen] } else { collide_hand_object(st, p, m, s, ci) };
+            // the first pass's margin (from the present velocities): the same raw contact
+            let margin = speculative_margin(m, s, ci, h, ocom, ovel, ow);
+            let raw = if n_seen < n_cached { cached[n_seen] } else { collide_hand_object(st, p, m, s, ci, margin) };
             n_seen += 1;
-            let c = swept_contact(st, p, m, s, ci, raw, h, ocom, vel_p, w_p);
+            let c = swept_contact(st, p, m, s, ci, raw, h, ocom, vel_p, w_p, margin);
             let v_other = vel_p + w_p.cross(c.point - ocom);
             let (f, a, b) = solve_hand_contact(p, m, s, springs, spring_slot::hand_object(ci as u32) as usize, l, &c, v_other, p.obj_contact_c, mu_ho, h);
             // the object's force is linearised about the predicted velocity, not the present one:

@@ -39,7 +39,7 @@ use anyhow::{Result, bail};
 use glam::{Mat3, Quat, Vec3};
 
 use super::grasp::{nominal_object, open_posture, palm_links, surface_point};
-use crate::env::physics::{Scratch, collide_hand_object, hand_kinematics};
+use crate::env::physics::{CONTACT_MARGIN, Scratch, collide_hand_object, hand_kinematics};
 use crate::env::SimModel;
 use crate::geom::Pose;
 use crate::hand::{ColliderShape, HandModel};
@@ -223,7 +223,7 @@ fn depth_of(model: &SimModel, wrist: &Pose, q: &[f32], which: &[bool]) -> f32 {
     st.q[..q.len()].copy_from_slice(q);
     let mut s = Scratch::default();
     hand_kinematics(&st, &m, &mut s);
-    (0..model.colliders.len()).filter(|&ci| which[model.hand.colliders[ci].link]).map(|ci| collide_hand_object(&st, &p, &m, &s, ci).depth).fold(-1.0, f32::max)
+    (0..model.colliders.len()).filter(|&ci| which[model.hand.colliders[ci].link]).map(|ci| collide_hand_object(&st, &p, &m, &s, ci, CONTACT_MARGIN).depth).fold(-1.0, f32::max)
 }
 
 /// Plans the enveloping grasp of the config's first object (module documentation).

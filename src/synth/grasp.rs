@@ -41,7 +41,7 @@ use anyhow::{Result, bail};
 use glam::{Quat, Vec3};
 
 use crate::task::ik::{IkParams, ik_solve, ik_tip_positions};
-use crate::env::physics::{Scratch, collide_hand_object, hand_kinematics, piece_pose, piece_project};
+use crate::env::physics::{CONTACT_MARGIN, Scratch, collide_hand_object, hand_kinematics, piece_pose, piece_project};
 use crate::env::reset::reset_params;
 use crate::env::{EnvParams, EnvState, SimModel};
 use crate::geom::Pose;
@@ -492,7 +492,7 @@ pub fn hand_object_depths(model: &SimModel, wrist: &Pose, q: &[f32], object: &Po
     hand_kinematics(&st, &m, &mut s);
     let (mut all, mut off_tips) = (-1.0f32, -1.0f32);
     for ci in 0..model.colliders.len() {
-        let d = collide_hand_object(&st, &p, &m, &s, ci).depth;
+        let d = collide_hand_object(&st, &p, &m, &s, ci, CONTACT_MARGIN).depth;
         all = all.max(d);
         if model.colliders[ci].tip == NO_JOINT {
             off_tips = off_tips.max(d);

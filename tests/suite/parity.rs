@@ -265,6 +265,18 @@ fn a_cube_thrown_flat_at_the_palm_steps_the_same_on_both_backends() {
     });
 }
 
+/// A cube lying nearly flat under the palm (tilted 0.5°), 5 mm apart and thrown at it at 3 m/s
+/// (past the fixed 3 mm margin within a substep): the speculative margin grown with the pair's
+/// speed (`speculative_margin`) meets it; one physics step agrees.
+#[test]
+fn a_cube_thrown_fast_at_the_palm_steps_the_same_on_both_backends() {
+    let Some(ctx) = gpu_context("a_cube_thrown_fast_at_the_palm_steps_the_same_on_both_backends") else { return };
+    cube_under_the_palm_steps_the_same(ctx, -0.005, 0.5, |_, model, st| {
+        let up = toward_palm(model, st) * 3.0;
+        st.obj_vel = [up.x, up.y, up.z, 0.0];
+    });
+}
+
 /// A cube tilted `tilt_deg` under the palm, its near edge `depth` in (negative: apart), 4 mm
 /// further sideways in each of 8 envs, its velocities set by `moving` (env, model, state), the hand
 /// held where it is: one physics step agrees.
@@ -378,7 +390,7 @@ fn a_cube_along_a_fingertip_steps_the_same_on_both_backends() {
         .map(|(st, p)| {
             let mut scratch = dextrain::env::physics::Scratch::default();
             dextrain::env::physics::hand_kinematics(st, &model.view(), &mut scratch);
-            dextrain::env::physics::collide_hand_object(st, p, &model.view(), &scratch, ci).spring_count
+            dextrain::env::physics::collide_hand_object(st, p, &model.view(), &scratch, ci, dextrain::env::physics::CONTACT_MARGIN).spring_count
         })
         .collect();
     assert!(springs[0] > 1.9 && springs[7] == 1.0, "spring counts {springs:?}");
