@@ -1647,11 +1647,11 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
     // hand–object pairs within the margin that did not push: solved again once the object's
     // velocity this substep is predicted (bit ci % 32 of word ci / 32)
     let mut revisit = [0u32; REVISIT_WORDS];
-    // the first REVISIT_CACHE of those pairs' contacts, in collider order: the link poses do not
-    // change within the substep, so the second pass's narrow phase would find them again (the
-    // shader finds them again: a per-invocation array of contacts costs a GPU more than the
-    // narrow phase)
-    let mut cached = [Contact::default(); REVISIT_CACHE];
+    // the first REVISIT_CACHE of those pairs' contacts and margins, in collider order: the link
+    // poses do not change within the substep, so the second pass's narrow phase would find them
+    // again (the shader finds them again: a per-invocation array of contacts costs a GPU more
+    // than the narrow phase)
+    let mut cached = [(Contact::default(), 0.0f32); REVISIT_CACHE];
     let mut n_cached = 0usize;
     for ci in 0..g.n_colliders as usize {
         let (sho, sht) = (spring_slot::hand_object(ci as u32) as usize, spring_slot::hand_table(n_c, ci as u32) as usize);
@@ -1673,7 +1673,7 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
             } else {
                 revisit[ci / 32] |= 1 << (ci % 32);
                 if n_cached < REVISIT_CACHE {
-                    cached[n_cached] = raw;
+                    cached[n_cached] = (raw, margin);
                     n_cached += 1;
                 }
             }
@@ -1742,9 +1742,14 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
                 continue;
             }
             let l = m.colliders[ci].link as usize;
-            // the first pass's margin (from the present velocities): the same raw contact
-            let margin = speculative_margin(m, s, ci, h, ocom, ovel, ow);
-            let raw = if n_seen < n_cached { cached[n_seen] } else { collide_hand_object(st, p, m, s, ci, margin) };
+            // past the cache, the first pass's margin again (from the present velocities): the
+            // same raw contact
+            let (raw, margin) = if n_seen < n_cached {
+                cached[n_seen]
+            } else {
+                let margin = speculative_margin(m, s, ci, h, ocom, ovel, ow);
+                (collide_hand_object(st, p, m, s, ci, margin), margin)
+            };
             n_seen += 1;
             let c = swept_contact(st, p, m, s, ci, raw, h, ocom, vel_p, w_p, margin);
             let v_other = vel_p + w_p.cross(c.point - ocom);
