@@ -563,7 +563,12 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
         // faces: box_box_contact; else the support points below (physics.rs: collide_collider_piece)
         var sat = BoxSeparation(1.0, vec3<f32>(0.0, 0.0, 1.0), 0u);
         if (code == SHAPE_BOX) {
-            sat = box_box_separation(c_o, r_o, h, size);
+            sat = box_box_separation(c_o, r_o, h, size, margin);
+        }
+        // apart along an axis by more than the margin: at least that far apart, out of reach
+        if (sat.sep > margin) {
+            out.depth = -1.0;
+            return out;
         }
         if (sat.sep <= 0.0 && sat.k < 3u) {
             let bb = box_box_contact(c_o, r_o, h, size, sat.axis, sat.k);
@@ -761,8 +766,9 @@ const EDGE_AXIS_SHARE: f32 = 0.1;
 // edges skipped), that axis from the second box to the first, and its index (0–2 the first box's
 // faces, 3–5 the second's, 6 + 3i + j edge i × edge j; an edge axis only where it beats the faces'
 // best by EDGE_AXIS_BIAS and EDGE_AXIS_SHARE of its overlap): > 0 a lower bound on their
-// distance, ≤ 0 they overlap (SAT)
-fn box_box_separation(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>) -> BoxSeparation {
+// distance, ≤ 0 they overlap (SAT); as soon as an axis taken separates them by more than
+// apart_beyond, that axis
+fn box_box_separation(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>, apart_beyond: f32) -> BoxSeparation {
     // the first box's axes (the second's are x̂, ŷ, ẑ)
     let a = quat_axes(r);
     var best = BoxSeparation(-3.0e38, vec3<f32>(0.0, 0.0, 1.0), 0u);
@@ -806,6 +812,9 @@ fn box_box_separation(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>) 
         let bias = select(0.0, EDGE_AXIS_BIAS + EDGE_AXIS_SHARE * max(-best.sep, 0.0), k >= 6u);
         if (sep > best.sep + bias) {
             best = BoxSeparation(sep, select(-l, l, t >= 0.0) * inv_len, k);
+            if (best.sep > apart_beyond) {
+                return best;
+            }
         }
     }
     return best;

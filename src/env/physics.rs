@@ -580,7 +580,7 @@ pub fn piece_project(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, p: Vec3)
 }
 
 /// World pose of hand collider `ci`.
-#[inline]
+#[inline(always)]
 pub fn collider_pose(m: &Model, s: &Scratch, ci: usize) -> (Vec3, Vec4) {
     let cd = &m.colliders[ci];
     let l = cd.link as usize;
@@ -627,12 +627,27 @@ pub fn object_com(st: &EnvState, p: &EnvParams) -> Vec3 {
 /// relative velocity of two rigid bodies is affine in the point). A fingertip hitting a spinning
 /// cube at 2.3–2.7 m/s closes 5 mm in a substep, past the fixed margin: first seen already 1–2 mm in.
 pub fn speculative_margin(m: &Model, s: &Scratch, ci: usize, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3) -> f32 {
+    speculative_margin_at(m, s, ci, collider_pose(m, s, ci).0, h, ocom, ovel, ow)
+}
+
+/// `speculative_margin` with the collider's centre at `cpos` (the CPU's contact pass computes
+/// each collider's pose once per substep).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn speculative_margin_at(m: &Model, s: &Scratch, ci: usize, cpos: Vec3, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3) -> f32 {
     let cd = &m.colliders[ci];
     let l = cd.link as usize;
-    let (cpos, _) = collider_pose(m, s, ci);
     let v = link_point_velocity(s, l, cpos) - (ovel + ow.cross(cpos - ocom));
+    let dw = s.link_w[l] - ow;
+    // (|v| + r|Δω|)² ≤ 2(|v|² + r²|Δω|²): where h² times that bound is within 0.99 of the fixed
+    // margin's square, h(|v| + r|Δω|) is under the margin however it rounds, and the margin is
+    // the fixed one, as the shader finds it (no square roots for the many pairs closing slowly)
+    let r2 = if cd.shape == SHAPE_BOX { v3(cd.size).length_squared() } else { bounding_radius(cd.shape, v3(cd.size)).powi(2) };
+    if 2.0 * h * h * (v.length_squared() + r2 * dw.length_squared()) <= 0.99 * CONTACT_MARGIN * CONTACT_MARGIN {
+        return CONTACT_MARGIN;
+    }
     let r = bounding_radius(cd.shape, v3(cd.size));
-    (h * (v.length() + r * (s.link_w[l] - ow).length())).max(CONTACT_MARGIN)
+    (h * (v.length() + r * dw.length())).max(CONTACT_MARGIN)
 }
 
 /// Narrow phase between hand collider `ci` and the env's object: the deepest contact over the
@@ -689,6 +704,16 @@ pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, c
 /// any to touch by its end are left alone.
 #[allow(clippy::too_many_arguments)]
 pub fn swept_contact(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, c: Contact, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32) -> Contact {
+    if c.depth <= -1.0 {
+        return c;
+    }
+    let (cpos, crot) = collider_pose(m, s, ci);
+    swept_contact_at(st, p, m, s, ci, cpos, crot, c, h, ocom, ovel, ow, margin)
+}
+
+/// `swept_contact` with the collider at `cpos`, `crot` (its pose at the substep's start).
+#[allow(clippy::too_many_arguments)]
+fn swept_contact_at(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, cpos: Vec3, crot: Vec4, c: Contact, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32) -> Contact {
     let cd = &m.colliders[ci];
     let l = cd.link as usize;
     if c.depth <= -1.0 {
@@ -708,7 +733,6 @@ pub fn swept_contact(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: u
     }
     // the poses at the end of the substep: the collider moves with its link, the object's frame
     // turns about its centre of mass, which moves at ovel (as `integrate_object`)
-    let (cpos, crot) = collider_pose(m, s, ci);
     let cpos_end = cpos + link_point_velocity(s, l, cpos) * h;
     let crot_end = quat_integrate(crot, s.link_w[l], h);
     let orot_end = quat_integrate(v4(st.obj_rot), ow, h);
@@ -752,7 +776,13 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
         // faces or an edge pair, the support points below (with those, LEAP lost its enveloping
         // grasp of a 1.1 kg box and its antipodal grasp of the cube sank 8.8 mm:
         // docs/not-done-yet.md)
-        let sat = if code == SHAPE_BOX { box_box_separation(c_o, r_o, h, size) } else { (1.0, Vec3::Z, 0) };
+        let sat = if code == SHAPE_BOX { box_box_separation(c_o, r_o, h, size, margin) } else { (1.0, Vec3::Z, 0) };
+        // apart along an axis by more than the margin: the boxes are at least that far apart (the
+        // separation is a lower bound on their distance), out of reach within the substep
+        if sat.0 > margin {
+            out.depth = -1.0;
+            return out;
+        }
         if sat.0 <= 0.0 && sat.2 < 3 {
             let c = box_box_contact(c_o, r_o, h, size, sat.1, sat.2);
             if c.depth > 0.0 {
@@ -956,8 +986,9 @@ pub const EDGE_AXIS_SHARE: f32 = 0.1;
 /// by `EDGE_AXIS_BIAS` and `EDGE_AXIS_SHARE` of that face's overlap. Positive: a lower bound on
 /// the boxes' distance, equal to it where their nearest features are a face and what lies
 /// against it; zero or less: they overlap, by its magnitude along the axis (the separating-axis
-/// theorem).
-pub fn box_box_separation(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3) -> (f32, Vec3, usize) {
+/// theorem). As soon as an axis taken separates them by more than `apart_beyond`, that axis (the
+/// narrow phase needs no more of boxes apart by more than the margin).
+pub fn box_box_separation(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3, apart_beyond: f32) -> (f32, Vec3, usize) {
     // the first box's axes aᵢ (the second's are x̂, ŷ, ẑ)
     let a = quat_axes(r);
     let mut best = (-3.0e38f32, Vec3::Z, 0usize);
@@ -994,6 +1025,9 @@ pub fn box_box_separation(c: Vec3, r: Vec4, ha: Vec3, hb: Vec3) -> (f32, Vec3, u
         let bias = if k >= 6 { EDGE_AXIS_BIAS + EDGE_AXIS_SHARE * (-best.0).max(0.0) } else { 0.0 };
         if sep > best.0 + bias {
             best = (sep, if t >= 0.0 { l * inv_len } else { -l * inv_len }, k);
+            if best.0 > apart_beyond {
+                return best;
+            }
         }
     }
     best
@@ -1255,8 +1289,13 @@ pub fn piece_support_point(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, k:
 
 /// Narrow phase between hand collider `ci` and the table (its lowest point).
 pub fn collide_hand_table(m: &Model, s: &Scratch, ci: usize) -> Contact {
-    let cd = &m.colliders[ci];
     let (cpos, crot) = collider_pose(m, s, ci);
+    collide_hand_table_at(m, ci, cpos, crot)
+}
+
+/// `collide_hand_table` with the collider at `cpos`, `crot`.
+fn collide_hand_table_at(m: &Model, ci: usize, cpos: Vec3, crot: Vec4) -> Contact {
+    let cd = &m.colliders[ci];
     let mut low = cpos;
     let mut r = cd.size[0];
     if cd.shape == SHAPE_CAPSULE {
@@ -1565,9 +1604,16 @@ pub fn solve_hand_contact(p: &EnvParams, m: &Model, s: &mut Scratch, springs: &m
     let g = m.g;
     let vrel = link_point_velocity(s, l, c.point) - v_other;
     let dv = hand_point_velocity_change(m, s, l, c.point);
-    let (w_n, w_tr) = hand_mobility(p, m, s, l, c.point, c.normal, h);
     // a manifold of point springs in parallel: their stiffness, friction spring and damping add up
     let n_s = c.spring_count;
+    // no push where `hand_contact_force`'s Fn has a numerator k·d − K·vn ≤ 0 (its denominator is
+    // positive): the same zero force without the hand's mobility (CPU only; the same arithmetic)
+    let (k_s, damp_s) = (g.hand_contact_k * n_s, damp * n_s);
+    if k_s * c.depth - (k_s * h + damp_s) * (vrel + dv).dot(c.normal) <= 0.0 {
+        springs[slot] = [0.0, 0.0, 0.0, if c.depth > 0.0 { 1.0 } else { 0.0 }];
+        return (Vec3::ZERO, 0.0, 0.0);
+    }
+    let (w_n, w_tr) = hand_mobility(p, m, s, l, c.point, c.normal, h);
     let (f, spring, a, b) = hand_contact_force(c, vrel, dv, v3(springs[slot]), g.hand_contact_k * n_s, g.hand_contact_kt * n_s, damp * n_s, mu, h, w_n, w_tr - w_n);
     if f.dot(c.normal) > 0.0 {
         springs[slot] = [spring.x, spring.y, spring.z, 1.0];
@@ -1640,6 +1686,7 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
     let ocom = object_com(st, p);
     let ovel = v3(st.obj_vel);
     let ow = v3(st.obj_angvel);
+    let (opos, orot) = (v3(st.obj_pos), v4(st.obj_rot));
     let mu_ho = 0.5 * (p.hand_friction + p.obj_friction);
     let mu_ht = 0.5 * (p.hand_friction + p.table_friction);
     let mu_ot = 0.5 * (p.obj_friction + p.table_friction);
@@ -1658,14 +1705,17 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
         let l = m.colliders[ci].link as usize;
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
-        let margin = speculative_margin(m, s, ci, h, ocom, ovel, ow);
-        let raw = collide_hand_object(st, p, m, s, ci, margin);
+        // the collider's pose once for the margin, the narrow phase and the swept contact (the
+        // shader computes it in each)
+        let (cpos, crot) = collider_pose(m, s, ci);
+        let margin = speculative_margin_at(m, s, ci, cpos, h, ocom, ovel, ow);
+        let raw = collide_hand_object_at(p, m, ci, cpos, crot, opos, orot, margin);
         // the penetration the statistics record: the pair's overlap at the substep's poses, not
         // a swept contact's depth (where the pair would be by the substep's end if nothing
         // pushed, taken back along the motion: not a pose the env reaches)
         s.max_pen_ho = s.max_pen_ho.max(raw.depth);
         s.max_pen = s.max_pen.max(raw.depth);
-        let c = swept_contact(st, p, m, s, ci, raw, h, ocom, ovel, ow, margin);
+        let c = swept_contact_at(st, p, m, s, ci, cpos, crot, raw, h, ocom, ovel, ow, margin);
         if c.depth > -margin {
             let (f, a, b) = solve_hand_contact(p, m, s, springs, sho, l, &c, ovel + ow.cross(c.point - ocom), p.obj_contact_c, mu_ho, h);
             if f.dot(c.normal) > 0.0 {
@@ -1682,7 +1732,7 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
         }
         // hand–table
         if g.hand_table != 0 {
-            let c = collide_hand_table(m, s, ci);
+            let c = collide_hand_table_at(m, ci, cpos, crot);
             if c.depth > -CONTACT_MARGIN {
                 let (f, _, _) = solve_hand_contact(p, m, s, springs, sht, l, &c, Vec3::ZERO, p.hand_table_c, mu_ht, h);
                 if f.dot(c.normal) > 0.0 || c.depth > 0.0 {
