@@ -565,8 +565,9 @@ fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, sca
         if (code == SHAPE_BOX) {
             sat = box_box_separation(c_o, r_o, h, size, margin);
         }
-        // apart along an axis by more than the margin: at least that far apart, out of reach
-        if (sat.sep > margin) {
+        // a box piece apart along an axis by more than the margin: at least that far apart, out
+        // of reach (other pieces have no separation)
+        if (code == SHAPE_BOX && sat.sep > margin) {
             out.depth = -1.0;
             return out;
         }

@@ -777,9 +777,10 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
         // grasp of a 1.1 kg box and its antipodal grasp of the cube sank 8.8 mm:
         // docs/not-done-yet.md)
         let sat = if code == SHAPE_BOX { box_box_separation(c_o, r_o, h, size, margin) } else { (1.0, Vec3::Z, 0) };
-        // apart along an axis by more than the margin: the boxes are at least that far apart (the
-        // separation is a lower bound on their distance), out of reach within the substep
-        if sat.0 > margin {
+        // a box piece apart along an axis by more than the margin: the boxes are at least that
+        // far apart (the separation is a lower bound on their distance), out of reach within the
+        // substep (other pieces have no separation: `sat` stands in for it)
+        if code == SHAPE_BOX && sat.0 > margin {
             out.depth = -1.0;
             return out;
         }

@@ -348,6 +348,35 @@ fn palm_contact_with_tilted_cube(depth: f32, tilt: f32, lateral: f32) -> (dextra
     (k, edge, model, st, p)
 }
 
+/// A hand box meets a piece that is not a box wherever they overlap: the narrow phase's early
+/// rejection of a box piece that the separating axes find apart by more than the margin leaves
+/// other pieces (which have no separation) alone. A sphere 1 mm into the palm's face, anywhere
+/// under it, is met 1 mm deep.
+#[test]
+fn a_palm_pressed_into_a_sphere_meets_it_as_deep_as_it_is() {
+    use dextrain::env::physics::{CONTACT_MARGIN, Scratch, collide_hand_object, hand_kinematics};
+    use glam::Vec3;
+    let radius = 0.03;
+    let mut c = base_config(1);
+    c.object.shape = Some(ObjectShape::Sphere { radius });
+    let mut b = cpu_batch(&c);
+    let model = b.model().clone();
+    let h = Vec3::from_slice(&model.colliders[0].size[..3]);
+    for lateral in [0.0f32, 0.01] {
+        let mut states = b.states().unwrap();
+        // the object lies on the palm's −z side (toward_palm is the palm's +z)
+        let palm = palm_pose(&model, &states[0]);
+        let centre = palm.transform_point(Vec3::new(lateral, 0.0, -(h.z + radius - 0.001)));
+        states[0].obj_pos = [centre.x, centre.y, centre.z, 0.0];
+        b.set_states(&states).unwrap();
+        let (st, p) = (b.states().unwrap()[0], b.params().unwrap()[0]);
+        let mut s = Scratch::default();
+        hand_kinematics(&st, &model.view(), &mut s);
+        let k = collide_hand_object(&st, &p, &model.view(), &s, 0, CONTACT_MARGIN);
+        assert!((k.depth - 0.001).abs() < 1e-4, "a sphere 1 mm into the palm ({lateral} m off its centre) met {:.3} mm deep", k.depth * 1e3);
+    }
+}
+
 /// A hand box overlapping a box piece is a manifold of point springs (`box_box_contact`): pressed
 /// flat 1 mm onto a cube's face it stands for the face's four corners (spring count 4, its point
 /// at the face's centre, the corners' spread about it), tilted 3° for its deep edge's two corners
