@@ -1615,7 +1615,7 @@ pub fn solve_hand_contact(p: &EnvParams, m: &Model, s: &mut Scratch, springs: &m
         return (Vec3::ZERO, 0.0, 0.0);
     }
     let (w_n, w_tr) = hand_mobility(p, m, s, l, c.point, c.normal, h);
-    let (f, spring, a, b) = hand_contact_force(c, vrel, dv, v3(springs[slot]), g.hand_contact_k * n_s, g.hand_contact_kt * n_s, damp * n_s, mu, h, w_n, w_tr - w_n);
+    let (f, spring, a, b) = hand_contact_force(c, vrel, dv, v3(springs[slot]), k_s, g.hand_contact_kt * n_s, damp_s, mu, h, w_n, w_tr - w_n);
     if f.dot(c.normal) > 0.0 {
         springs[slot] = [spring.x, spring.y, spring.z, 1.0];
         apply_hand_force(p, m, s, l, c.point, f, h);
@@ -1798,8 +1798,9 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
             let (raw, margin) = if n_seen < n_cached {
                 cached[n_seen]
             } else {
-                let margin = speculative_margin(m, s, ci, h, ocom, ovel, ow);
-                (collide_hand_object(st, p, m, s, ci, margin), margin)
+                let (cpos, crot) = collider_pose(m, s, ci);
+                let margin = speculative_margin_at(m, s, ci, cpos, h, ocom, ovel, ow);
+                (collide_hand_object_at(p, m, ci, cpos, crot, opos, orot, margin), margin)
             };
             n_seen += 1;
             let c = swept_contact(st, p, m, s, ci, raw, h, ocom, vel_p, w_p, margin);

@@ -324,7 +324,7 @@ fn a_cube_pressed_flat_into_the_palm_steps_the_same_on_both_backends() {
 
 /// A cube pressed into the palm across the palm's rim (`cube_across_the_palm_rim`), 0.2 mm
 /// less to 0.5 mm further in and up to 3.5 mm sideways over the 8 envs: the edge–edge axes near the palm's
-/// normal give way to its face (`EDGE_AXIS_FACE_COS2`), whose clipped points meet the cube; one
+/// normal give way to its face (`EDGE_AXIS_SHARE`), whose clipped points meet the cube; one
 /// physics step agrees.
 #[test]
 fn a_cube_pressed_into_the_palm_across_its_rim_steps_the_same_on_both_backends() {

@@ -409,7 +409,7 @@ fn a_palm_pressed_on_a_cube_s_face_stands_for_the_corners_below_it() {
 /// overlap least along an edge–edge axis a few degrees off the palm's normal) is met on the palm's
 /// face, as deep as the boxes overlap: the support points alone (the cube's corners inside the
 /// palm) met it 0.1 mm deep where it was 1.7 mm in, until a turn of a fraction of a degree made
-/// the face's axis the least and the contact jumped to 1.4 mm (`EDGE_AXIS_FACE_COS2`).
+/// the face's axis the least and the contact jumped to 1.4 mm (`EDGE_AXIS_SHARE`).
 #[test]
 fn a_cube_pressed_into_the_palm_across_its_rim_is_met_as_deep_as_it_is() {
     use dextrain::env::physics::{CONTACT_MARGIN, Scratch, collide_hand_object, hand_kinematics};
