@@ -261,16 +261,41 @@ pub fn hand_kinematics(st: &EnvState, m: &Model, s: &mut Scratch) {
     for j in 0..m.g.n_joints as usize {
         let jd = &m.joints[j];
         let p = jd.parent_link as usize;
-        let frame_rot = quat_mul(s.link_rot[p], v4(jd.origin_rot));
+        // most URDF joint frames are not turned from their parent's: the product with the
+        // identity is the parent's rotation (to the bit, but for the sign of a zero)
+        let frame_rot = if jd.origin_rot == [0.0, 0.0, 0.0, 1.0] { s.link_rot[p] } else { quat_mul(s.link_rot[p], v4(jd.origin_rot)) };
         let o = s.link_pos[p] + quat_rotate(s.link_rot[p], v3(jd.origin_pos));
         let axis = quat_rotate(frame_rot, v3(jd.axis));
         s.joint_axis[j] = axis;
         s.link_pos[j + 1] = o;
-        s.link_rot[j + 1] = quat_mul(frame_rot, quat_from_axis_angle(v3(jd.axis), st.q[j]));
+        s.link_rot[j + 1] = quat_mul_axis_angle(frame_rot, v3(jd.axis), st.q[j]);
         // ω_child = ω_parent + a q̇;  v_child = v_parent + ω_parent × (o − p_parent)
         s.link_w[j + 1] = s.link_w[p] + axis * st.qd[j];
         s.link_v[j + 1] = s.link_v[p] + s.link_w[p].cross(o - s.link_pos[p]);
     }
+}
+
+/// `quat_mul(a, quat_from_axis_angle(axis, angle))`, to the bit but for the sign of a zero; for a
+/// joint axis along ±x, ±y or ±z of its frame (most URDF joints), the terms the axis's zeros
+/// make zero left out (CPU only).
+#[inline(always)]
+fn quat_mul_axis_angle(a: Vec4, axis: Vec3, angle: f32) -> Vec4 {
+    let (sn, c) = ((0.5 * angle).sin(), (0.5 * angle).cos());
+    // b = (axis·sin(θ/2), cos(θ/2)); quat_mul's rows with b's zero entries dropped, the others
+    // summed in its order
+    if axis.y == 0.0 && axis.z == 0.0 && axis.x.abs() == 1.0 {
+        let bx = axis.x * sn;
+        return Vec4::new(a.w * bx + a.x * c, a.y * c + a.z * bx, -(a.y * bx) + a.z * c, a.w * c - a.x * bx);
+    }
+    if axis.x == 0.0 && axis.z == 0.0 && axis.y.abs() == 1.0 {
+        let by = axis.y * sn;
+        return Vec4::new(a.x * c - a.z * by, a.w * by + a.y * c, a.x * by + a.z * c, a.w * c - a.y * by);
+    }
+    if axis.x == 0.0 && axis.y == 0.0 && axis.z.abs() == 1.0 {
+        let bz = axis.z * sn;
+        return Vec4::new(a.x * c + a.y * bz, -(a.x * bz) + a.y * c, a.w * bz + a.z * c, a.w * c - a.z * bz);
+    }
+    quat_mul(a, Vec4::new(axis.x * sn, axis.y * sn, axis.z * sn, c))
 }
 
 /// Velocity of the point `x` (world) fixed to hand link `l`.
@@ -681,8 +706,15 @@ pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, c
         if (c_obj - v3(pd.pos) * p.obj_scale).length_squared() > r * r {
             continue;
         }
-        let (ppos, prot, _) = piece_pose_at(p, pd, opos, orot);
-        let c = collide_collider_piece(m, cd, cpos, crot, pd, p.obj_scale, ppos, prot, margin);
+        // a piece whose frame is the object's (a primitive object's one piece): its pose is the
+        // object's (`piece_pose_at` returns it to the bit, but for the sign of a zero), and the
+        // collider's centre in it is c_obj
+        let c = if pd.pos[..3] == [0.0; 3] && pd.rot == [0.0, 0.0, 0.0, 1.0] {
+            collide_collider_piece_in(m, cd, c_obj, quat_mul(quat_conj(orot), crot), pd, p.obj_scale, opos, orot, margin)
+        } else {
+            let (ppos, prot, _) = piece_pose_at(p, pd, opos, orot);
+            collide_collider_piece(m, cd, cpos, crot, pd, p.obj_scale, ppos, prot, margin)
+        };
         if c.depth > best.depth {
             best = c;
         }
@@ -708,35 +740,53 @@ pub fn swept_contact(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: u
         return c;
     }
     let (cpos, crot) = collider_pose(m, s, ci);
-    swept_contact_at(st, p, m, s, ci, cpos, crot, c, h, ocom, ovel, ow, margin)
+    let mut obj_end = None;
+    swept_contact_at(st, p, m, s, ci, cpos, crot, c, h, ocom, ovel, ow, margin, &mut obj_end)
 }
 
-/// `swept_contact` with the collider at `cpos`, `crot` (its pose at the substep's start).
+/// `swept_contact` with the collider at `cpos`, `crot` (its pose at the substep's start); the
+/// test that leaves a pair alone inlined, the search at the end of the substep not
+/// (`swept_search`). `obj_end`: the object's frame at the end of the substep for these
+/// velocities, found by the first search of a pass and kept for the others.
 #[allow(clippy::too_many_arguments)]
-fn swept_contact_at(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, cpos: Vec3, crot: Vec4, c: Contact, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32) -> Contact {
-    let cd = &m.colliders[ci];
-    let l = cd.link as usize;
+#[inline(always)]
+fn swept_contact_at(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, cpos: Vec3, crot: Vec4, c: Contact, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32, obj_end: &mut Option<(Vec3, Vec4)>) -> Contact {
     if c.depth <= -1.0 {
         return c;
     }
-    // v_hand − v_object at x: positive along the normal where the pair separates
-    let v_rel = |x: Vec3| link_point_velocity(s, l, x) - (ovel + ow.cross(x - ocom));
-    // c's own depth by the end of the substep
-    let c_end = c.depth - h * v_rel(c.point).dot(c.normal);
+    let cd = &m.colliders[ci];
+    let l = cd.link as usize;
+    // c's own depth by the end of the substep (v_hand − v_object at c along n: separating speed)
+    let c_end = c.depth - h * (link_point_velocity(s, l, c.point) - (ovel + ow.cross(c.point - ocom))).dot(c.normal);
     // points of the collider's bounding sphere (radius r) move relative to the object at
     // v_rel(c) + (ω_link − ω_obj) × (x − c): any two differ by at most 2r·|ω_link − ω_obj|, so no
     // feature gets deeper than c's own prediction by more than h times that: nothing to find
     // where that is within the tolerance, or where even so nothing would be touching by then
+    // (a bound of r + |c − centre| instead of 2r skipped a fifth of the searches that found a
+    // deeper contact: the bound is a first-order one)
     let sweep = h * 2.0 * bounding_radius(cd.shape, v3(cd.size)) * (s.link_w[l] - ow).length();
     if sweep <= SWEPT_TOLERANCE || c_end + sweep <= 0.0 {
         return c;
     }
+    swept_search(st, p, m, s, ci, cpos, crot, c, c_end, h, ocom, ovel, ow, margin, obj_end)
+}
+
+/// The search of `swept_contact_at` for a pair that may meet deeper by the substep's end (`c_end`:
+/// `c`'s own depth by then).
+#[allow(clippy::too_many_arguments)]
+#[inline(never)]
+fn swept_search(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, cpos: Vec3, crot: Vec4, c: Contact, c_end: f32, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32, obj_end: &mut Option<(Vec3, Vec4)>) -> Contact {
+    let l = m.colliders[ci].link as usize;
+    // v_hand − v_object at x: positive along the normal where the pair separates
+    let v_rel = |x: Vec3| link_point_velocity(s, l, x) - (ovel + ow.cross(x - ocom));
     // the poses at the end of the substep: the collider moves with its link, the object's frame
     // turns about its centre of mass, which moves at ovel (as `integrate_object`)
     let cpos_end = cpos + link_point_velocity(s, l, cpos) * h;
     let crot_end = quat_integrate(crot, s.link_w[l], h);
-    let orot_end = quat_integrate(v4(st.obj_rot), ow, h);
-    let opos_end = ocom + ovel * h - quat_rotate(orot_end, v3(p.obj_com));
+    let (opos_end, orot_end) = *obj_end.get_or_insert_with(|| {
+        let orot_end = quat_integrate(v4(st.obj_rot), ow, h);
+        (ocom + ovel * h - quat_rotate(orot_end, v3(p.obj_com)), orot_end)
+    });
     let end = collide_hand_object_at(p, m, ci, cpos_end, crot_end, opos_end, orot_end, margin);
     if end.depth <= -1.0 {
         return c;
@@ -754,12 +804,17 @@ fn swept_contact_at(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: us
 /// more than `margin`, depth −1 (or the gap).
 #[allow(clippy::too_many_arguments)]
 pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Vec4, pd: &PieceDesc, scale: f32, opos: Vec3, orot: Vec4, margin: f32) -> Contact {
-    let code = pd.shape;
-    let size = v3(pd.size) * scale;
     let oinv = quat_conj(orot);
     // collider in the object's frame
-    let c_o = quat_rotate(oinv, cpos - opos);
-    let r_o = quat_mul(oinv, crot);
+    collide_collider_piece_in(m, cd, quat_rotate(oinv, cpos - opos), quat_mul(oinv, crot), pd, scale, opos, orot, margin)
+}
+
+/// `collide_collider_piece` with the collider's centre `c_o` and rotation `r_o` in the piece's
+/// frame (CPU only: `collide_hand_object_at` has them for a piece whose frame is the object's).
+#[allow(clippy::too_many_arguments)]
+fn collide_collider_piece_in(m: &Model, cd: &ColliderDesc, c_o: Vec3, r_o: Vec4, pd: &PieceDesc, scale: f32, opos: Vec3, orot: Vec4, margin: f32) -> Contact {
+    let code = pd.shape;
+    let size = v3(pd.size) * scale;
     let mut out = Contact::default();
     // the piece farther from the collider's centre than the collider reaches (with the margin):
     // no contact
@@ -1701,38 +1756,55 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
     // than the narrow phase)
     let mut cached = [(Contact::default(), 0.0f32); REVISIT_CACHE];
     let mut n_cached = 0usize;
+    // the object's frame at the end of the substep, found by the pass's first swept search
+    let mut obj_end = None;
     for ci in 0..g.n_colliders as usize {
         let (sho, sht) = (spring_slot::hand_object(ci as u32) as usize, spring_slot::hand_table(n_c, ci as u32) as usize);
-        let l = m.colliders[ci].link as usize;
+        let cd = &m.colliders[ci];
+        let l = cd.link as usize;
+        let r_c = bounding_radius(cd.shape, v3(cd.size));
+        // the collider's pose once for the margin, the narrow phase, the swept contact and the
+        // table (the shader computes it in each); its turn only for a collider near the object or
+        // the table (the rest find no contact: `collide_hand_object_at`'s first test, a depth
+        // under −CONTACT_MARGIN against the table)
+        let cpos = s.link_pos[l] + quat_rotate(s.link_rot[l], v3(cd.pos));
+        let margin = speculative_margin_at(m, s, ci, cpos, h, ocom, ovel, ow);
+        let reach = r_c + margin + p.obj_com[3];
+        // (as that test: a NaN pose goes on to the narrow phase)
+        let near_object = !((cpos - opos).length_squared() > reach * reach);
+        // the collider's lowest point is at least r_c below its centre: a 1 mm allowance over
+        // the margin for the rounding of `collide_hand_table_at`
+        let near_table = g.hand_table != 0 && cpos.z <= r_c + CONTACT_MARGIN + 1.0e-3;
+        let crot = if near_object || near_table { quat_mul(s.link_rot[l], v4(cd.rot)) } else { Vec4::W };
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
-        // the collider's pose once for the margin, the narrow phase and the swept contact (the
-        // shader computes it in each)
-        let (cpos, crot) = collider_pose(m, s, ci);
-        let margin = speculative_margin_at(m, s, ci, cpos, h, ocom, ovel, ow);
-        let raw = collide_hand_object_at(p, m, ci, cpos, crot, opos, orot, margin);
-        // the penetration the statistics record: the pair's overlap at the substep's poses, not
-        // a swept contact's depth (where the pair would be by the substep's end if nothing
-        // pushed, taken back along the motion: not a pose the env reaches)
-        s.max_pen_ho = s.max_pen_ho.max(raw.depth);
-        s.max_pen = s.max_pen.max(raw.depth);
-        let c = swept_contact_at(st, p, m, s, ci, cpos, crot, raw, h, ocom, ovel, ow, margin);
-        if c.depth > -margin {
-            let (f, a, b) = solve_hand_contact(p, m, s, springs, sho, l, &c, ovel + ow.cross(c.point - ocom), p.obj_contact_c, mu_ho, h);
-            if f.dot(c.normal) > 0.0 {
-                hand_object_force(p, m, s, h, ci, &c, f, a, b, ocom, ow, Vec3::ZERO, Vec3::ZERO, mu_ho, on_contact);
-            } else {
-                revisit[ci / 32] |= 1 << (ci % 32);
-                if n_cached < REVISIT_CACHE {
-                    cached[n_cached] = (raw, margin);
-                    n_cached += 1;
+        if near_object {
+            let raw = collide_hand_object_at(p, m, ci, cpos, crot, opos, orot, margin);
+            // the penetration the statistics record: the pair's overlap at the substep's poses,
+            // not a swept contact's depth (where the pair would be by the substep's end if
+            // nothing pushed, taken back along the motion: not a pose the env reaches)
+            s.max_pen_ho = s.max_pen_ho.max(raw.depth);
+            s.max_pen = s.max_pen.max(raw.depth);
+            let c = swept_contact_at(st, p, m, s, ci, cpos, crot, raw, h, ocom, ovel, ow, margin, &mut obj_end);
+            if c.depth > -margin {
+                let (f, a, b) = solve_hand_contact(p, m, s, springs, sho, l, &c, ovel + ow.cross(c.point - ocom), p.obj_contact_c, mu_ho, h);
+                if f.dot(c.normal) > 0.0 {
+                    hand_object_force(p, m, s, h, ci, &c, f, a, b, ocom, ow, Vec3::ZERO, Vec3::ZERO, mu_ho, on_contact);
+                } else {
+                    revisit[ci / 32] |= 1 << (ci % 32);
+                    if n_cached < REVISIT_CACHE {
+                        cached[n_cached] = (raw, margin);
+                        n_cached += 1;
+                    }
                 }
+            } else {
+                springs[sho] = [0.0; 4];
             }
         } else {
             springs[sho] = [0.0; 4];
         }
         // hand–table
-        if g.hand_table != 0 {
+        if near_table {
             let c = collide_hand_table_at(m, ci, cpos, crot);
             if c.depth > -CONTACT_MARGIN {
                 let (f, _, _) = solve_hand_contact(p, m, s, springs, sht, l, &c, Vec3::ZERO, p.hand_table_c, mu_ht, h);
@@ -1744,6 +1816,8 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
             } else {
                 springs[sht] = [0.0; 4];
             }
+        } else if g.hand_table != 0 {
+            springs[sht] = [0.0; 4];
         }
     }
     // object–table: every support point of every piece, in order (spring slots 0.. of the object);
@@ -1788,6 +1862,7 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
         let (vel_p, w_p) = object_velocity_change(st, p, m, s, h);
         let mut pushed = false;
         let mut n_seen = 0usize;
+        let mut obj_end_p = None;
         for ci in 0..g.n_colliders as usize {
             if revisit[ci / 32] & (1 << (ci % 32)) == 0 {
                 continue;
@@ -1795,15 +1870,15 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
             let l = m.colliders[ci].link as usize;
             // past the cache, the first pass's margin again (from the present velocities): the
             // same raw contact
+            let (cpos, crot) = collider_pose(m, s, ci);
             let (raw, margin) = if n_seen < n_cached {
                 cached[n_seen]
             } else {
-                let (cpos, crot) = collider_pose(m, s, ci);
                 let margin = speculative_margin_at(m, s, ci, cpos, h, ocom, ovel, ow);
                 (collide_hand_object_at(p, m, ci, cpos, crot, opos, orot, margin), margin)
             };
             n_seen += 1;
-            let c = swept_contact(st, p, m, s, ci, raw, h, ocom, vel_p, w_p, margin);
+            let c = swept_contact_at(st, p, m, s, ci, cpos, crot, raw, h, ocom, vel_p, w_p, margin, &mut obj_end_p);
             let v_other = vel_p + w_p.cross(c.point - ocom);
             let (f, a, b) = solve_hand_contact(p, m, s, springs, spring_slot::hand_object(ci as u32) as usize, l, &c, v_other, p.obj_contact_c, mu_ho, h);
             // the object's force is linearised about the predicted velocity, not the present one:
@@ -1894,14 +1969,21 @@ pub fn integrate_hand(st: &mut EnvState, p: &EnvParams, m: &Model, s: &Scratch, 
     st.wrist_rot = quat_integrate(v4(st.wrist_rot), w_n, h).to_array();
 }
 
-/// Solves A x = b for a symmetric positive definite 6×6 A (row-major) by Cholesky.
+/// Solves A x = b for a symmetric positive definite 6×6 A (row-major) by Cholesky. Every loop
+/// runs over 0..6 with its bound as a test inside, so that the compiler unrolls them all and keeps
+/// L in registers (the same operations in the same order as loops to i and j: the shader's twin).
 pub fn solve6(a: &[f32; 36], b: [f32; 6]) -> [f32; 6] {
     let mut l = [0.0f32; 36];
     for i in 0..6 {
-        for j in 0..=i {
+        for j in 0..6 {
+            if j > i {
+                continue;
+            }
             let mut sum = a[i * 6 + j];
-            for k in 0..j {
-                sum -= l[i * 6 + k] * l[j * 6 + k];
+            for k in 0..6 {
+                if k < j {
+                    sum -= l[i * 6 + k] * l[j * 6 + k];
+                }
             }
             if i == j {
                 l[i * 6 + i] = sum.max(1e-20).sqrt();
@@ -1913,8 +1995,10 @@ pub fn solve6(a: &[f32; 36], b: [f32; 6]) -> [f32; 6] {
     let mut y = [0.0f32; 6];
     for i in 0..6 {
         let mut sum = b[i];
-        for k in 0..i {
-            sum -= l[i * 6 + k] * y[k];
+        for k in 0..6 {
+            if k < i {
+                sum -= l[i * 6 + k] * y[k];
+            }
         }
         y[i] = sum / l[i * 6 + i];
     }
@@ -1922,8 +2006,10 @@ pub fn solve6(a: &[f32; 36], b: [f32; 6]) -> [f32; 6] {
     for ii in 0..6 {
         let i = 5 - ii;
         let mut sum = y[i];
-        for k in (i + 1)..6 {
-            sum -= l[k * 6 + i] * x[k];
+        for k in 0..6 {
+            if k > i {
+                sum -= l[k * 6 + i] * x[k];
+            }
         }
         x[i] = sum / l[i * 6 + i];
     }
