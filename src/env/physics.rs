@@ -1771,6 +1771,7 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
         let margin = speculative_margin_at(m, s, ci, cpos, h, ocom, ovel, ow);
         let reach = r_c + margin + p.obj_com[3];
         // (as that test: a NaN pose goes on to the narrow phase)
+        #[allow(clippy::neg_cmp_op_on_partial_ord)]
         let near_object = !((cpos - opos).length_squared() > reach * reach);
         // the collider's lowest point is at least r_c below its centre: a 1 mm allowance over
         // the margin for the rounding of `collide_hand_table_at`
