@@ -607,10 +607,23 @@ pub fn piece_project(m: &Model, pd: &PieceDesc, scale: f32, size: Vec3, p: Vec3)
 /// World pose of hand collider `ci`.
 #[inline(always)]
 pub fn collider_pose(m: &Model, s: &Scratch, ci: usize) -> (Vec3, Vec4) {
+    (collider_centre(m, s, ci), collider_rotation(m, s, ci))
+}
+
+/// The centre of `collider_pose` alone (CPU only: the contact pass turns only the colliders near
+/// the object or the table).
+#[inline(always)]
+fn collider_centre(m: &Model, s: &Scratch, ci: usize) -> Vec3 {
     let cd = &m.colliders[ci];
     let l = cd.link as usize;
-    let pos = s.link_pos[l] + quat_rotate(s.link_rot[l], v3(cd.pos));
-    (pos, quat_mul(s.link_rot[l], v4(cd.rot)))
+    s.link_pos[l] + quat_rotate(s.link_rot[l], v3(cd.pos))
+}
+
+/// The rotation of `collider_pose` alone (CPU only).
+#[inline(always)]
+fn collider_rotation(m: &Model, s: &Scratch, ci: usize) -> Vec4 {
+    let cd = &m.colliders[ci];
+    quat_mul(s.link_rot[cd.link as usize], v4(cd.rot))
 }
 
 /// Radius of a sphere about the centre that bounds a shape (sphere/box/capsule/cylinder `code`, size).
@@ -691,9 +704,8 @@ pub fn collide_hand_object(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch,
 pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, crot: Vec4, opos: Vec3, orot: Vec4, margin: f32) -> Contact {
     let cd = &m.colliders[ci];
     let rc = bounding_radius(cd.shape, v3(cd.size)) + margin;
-    let reach = rc + p.obj_com[3];
     let mut best = contact_at(-1.0, Vec3::Z, opos);
-    if (cpos - opos).length_squared() > reach * reach {
+    if !object_in_reach(p, cd, cpos, opos, margin) {
         return best;
     }
     let od = &m.objects[p.obj_index as usize];
@@ -720,6 +732,17 @@ pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, c
         }
     }
     best
+}
+
+/// `collide_hand_object_at`'s first test: the collider's bounding sphere, grown by `margin`,
+/// meets the object's (a NaN pose passes, on to the narrow phase). CPU only: the contact pass
+/// takes it first, to leave a far collider unturned.
+#[inline(always)]
+fn object_in_reach(p: &EnvParams, cd: &ColliderDesc, cpos: Vec3, opos: Vec3, margin: f32) -> bool {
+    let reach = bounding_radius(cd.shape, v3(cd.size)) + margin + p.obj_com[3];
+    #[allow(clippy::neg_cmp_op_on_partial_ord)]
+    let within = !((cpos - opos).length_squared() > reach * reach);
+    within
 }
 
 /// Hand–object contact `c` of collider `ci`, or the pair's contact where the collider and the
@@ -1767,16 +1790,13 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
         // table (the shader computes it in each); its turn only for a collider near the object or
         // the table (the rest find no contact: `collide_hand_object_at`'s first test, a depth
         // under −CONTACT_MARGIN against the table)
-        let cpos = s.link_pos[l] + quat_rotate(s.link_rot[l], v3(cd.pos));
+        let cpos = collider_centre(m, s, ci);
         let margin = speculative_margin_at(m, s, ci, cpos, h, ocom, ovel, ow);
-        let reach = r_c + margin + p.obj_com[3];
-        // (as that test: a NaN pose goes on to the narrow phase)
-        #[allow(clippy::neg_cmp_op_on_partial_ord)]
-        let near_object = !((cpos - opos).length_squared() > reach * reach);
+        let near_object = object_in_reach(p, cd, cpos, opos, margin);
         // the collider's lowest point is at least r_c below its centre: a 1 mm allowance over
         // the margin for the rounding of `collide_hand_table_at`
         let near_table = g.hand_table != 0 && cpos.z <= r_c + CONTACT_MARGIN + 1.0e-3;
-        let crot = if near_object || near_table { quat_mul(s.link_rot[l], v4(cd.rot)) } else { Vec4::W };
+        let crot = if near_object || near_table { collider_rotation(m, s, ci) } else { Vec4::W };
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
         if near_object {
