@@ -115,16 +115,43 @@ fn hand_kinematics() {
     for (var j = 0u; j < g.n_joints; j++) {
         let jd = joints[j];
         let p = jd.parent_link;
-        let frame_rot = quat_mul(link_rot[p], jd.origin_rot);
+        // most URDF joint frames are not turned from their parent's: the product with the
+        // identity is the parent's rotation (to the bit, but for the sign of a zero)
+        var frame_rot = link_rot[p];
+        if (any(jd.origin_rot != vec4<f32>(0.0, 0.0, 0.0, 1.0))) {
+            frame_rot = quat_mul(link_rot[p], jd.origin_rot);
+        }
         let o = link_pos[p] + quat_rotate(link_rot[p], jd.origin_pos.xyz);
         let axis = quat_rotate(frame_rot, jd.axis.xyz);
         joint_axis[j] = axis;
         link_pos[j + 1u] = o;
-        link_rot[j + 1u] = quat_mul(frame_rot, quat_from_axis_angle(jd.axis.xyz, st.q[j]));
+        link_rot[j + 1u] = quat_mul_axis_angle(frame_rot, jd.axis.xyz, st.q[j]);
         // ω_child = ω_parent + a q̇;  v_child = v_parent + ω_parent × (o − p_parent)
         link_w[j + 1u] = link_w[p] + axis * st.qd[j];
         link_v[j + 1u] = link_v[p] + cross(link_w[p], o - link_pos[p]);
     }
+}
+
+// physics.rs: quat_mul_axis_angle. quat_mul(a, quat_from_axis_angle(axis, angle)); for an axis
+// along ±x, ±y or ±z of its frame (most URDF joints), the terms its zeros make zero left out
+fn quat_mul_axis_angle(a: vec4<f32>, axis: vec3<f32>, angle: f32) -> vec4<f32> {
+    let sn = sin(0.5 * angle);
+    let c = cos(0.5 * angle);
+    // b = (axis·sin(θ/2), cos(θ/2)); quat_mul's rows with b's zero entries dropped, the others
+    // summed in its order
+    if (axis.y == 0.0 && axis.z == 0.0 && abs(axis.x) == 1.0) {
+        let bx = axis.x * sn;
+        return vec4<f32>(a.w * bx + a.x * c, a.y * c + a.z * bx, -(a.y * bx) + a.z * c, a.w * c - a.x * bx);
+    }
+    if (axis.x == 0.0 && axis.z == 0.0 && abs(axis.y) == 1.0) {
+        let by = axis.y * sn;
+        return vec4<f32>(a.x * c - a.z * by, a.w * by + a.y * c, a.x * by + a.z * c, a.w * c - a.y * by);
+    }
+    if (axis.x == 0.0 && axis.y == 0.0 && abs(axis.z) == 1.0) {
+        let bz = axis.z * sn;
+        return vec4<f32>(a.x * c + a.y * bz, -(a.x * bz) + a.y * c, a.w * bz + a.z * c, a.w * c - a.z * bz);
+    }
+    return quat_mul(a, vec4<f32>(axis * sn, c));
 }
 
 fn link_point_velocity(l: u32, x: vec3<f32>) -> vec3<f32> {
@@ -454,9 +481,14 @@ fn object_com() -> vec3<f32> {
 // physics.rs: speculative_margin. CONTACT_MARGIN, or how far hand collider ci's points can close
 // on the object's within the substep: h (|v_rel at its centre| + r |ω_link − ω_obj|)
 fn speculative_margin(ci: u32, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>) -> f32 {
+    return speculative_margin_at(ci, collider_pose(ci).pos, h, ocom, ovel, ow);
+}
+
+// physics.rs: speculative_margin_at. speculative_margin with the collider's centre at cpos (the
+// contact pass computes each collider's pose once per substep)
+fn speculative_margin_at(ci: u32, cpos: vec3<f32>, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>) -> f32 {
     let cd = colliders[ci];
     let l = cd.link;
-    let cpos = collider_pose(ci).pos;
     let v = link_point_velocity(l, cpos) - (ovel + cross(ow, cpos - ocom));
     let r = bounding_radius(cd.shape, cd.size.xyz);
     return max(h * (length(v) + r * length(link_w[l] - ow)), CONTACT_MARGIN);
@@ -488,6 +520,8 @@ fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4
         if (dot(dp, dp) > r * r) {
             continue;
         }
+        // (physics.rs takes a piece whose frame is the object's in the object's frame directly; here
+        // that shortcut made the bench scene's envs blow up on lavapipe, cause not found: left out)
         let pp = piece_pose_at(pd, opos, orot);
         let c = collide_collider_piece(cd, cp, pd, prm.obj_scale, pp.pos, pp.rot, margin);
         if (c.depth > best.depth) {
@@ -508,6 +542,15 @@ fn swept_contact(ci: u32, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, 
     if (c.depth <= -1.0) {
         return c;
     }
+    return swept_contact_at(ci, collider_pose(ci), c, h, ocom, ovel, ow, margin);
+}
+
+// physics.rs: swept_contact_at. swept_contact with the collider at cp (its pose at the substep's
+// start)
+fn swept_contact_at(ci: u32, cp: ColliderPose, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>, margin: f32) -> Contact {
+    if (c.depth <= -1.0) {
+        return c;
+    }
     let cd = colliders[ci];
     let l = cd.link;
     // c's own depth by the end of the substep (v_hand − v_object along n: separating speed)
@@ -518,7 +561,6 @@ fn swept_contact(ci: u32, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, 
     if (sweep <= SWEPT_TOLERANCE || c_end + sweep <= 0.0) {
         return c;
     }
-    let cp = collider_pose(ci);
     let cp_end = ColliderPose(cp.pos + link_point_velocity(l, cp.pos) * h, quat_integrate(cp.rot, link_w[l], h));
     let orot_end = quat_integrate(st.obj_rot, ow, h);
     let opos_end = ocom + ovel * h - quat_rotate(orot_end, prm.obj_com.xyz);
@@ -541,12 +583,16 @@ fn swept_contact(ci: u32, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, 
 // a hand collider against object piece pd (lengths scaled by scale, at opos, orot); apart by
 // more than margin, depth −1
 fn collide_collider_piece(cd: ColliderDesc, cp: ColliderPose, pd: PieceDesc, scale: f32, opos: vec3<f32>, orot: vec4<f32>, margin: f32) -> Contact {
-    let code = pd.shape;
-    let size = pd.size.xyz * scale;
     let oinv = quat_conj(orot);
     // collider in the object's frame
-    let c_o = quat_rotate(oinv, cp.pos - opos);
-    let r_o = quat_mul(oinv, cp.rot);
+    return collide_collider_piece_in(cd, quat_rotate(oinv, cp.pos - opos), quat_mul(oinv, cp.rot), pd, scale, opos, orot, margin);
+}
+
+// physics.rs: collide_collider_piece_in. collide_collider_piece with the collider's centre c_o and
+// rotation r_o in the piece's frame
+fn collide_collider_piece_in(cd: ColliderDesc, c_o: vec3<f32>, r_o: vec4<f32>, pd: PieceDesc, scale: f32, opos: vec3<f32>, orot: vec4<f32>, margin: f32) -> Contact {
+    let code = pd.shape;
+    let size = pd.size.xyz * scale;
     var out = contact_at(0.0, vec3<f32>(0.0), vec3<f32>(0.0));
     // the piece farther from the collider's centre than the collider reaches (with the margin):
     // no contact
@@ -1076,8 +1122,12 @@ fn piece_support_point(pd: PieceDesc, scale: f32, size: vec3<f32>, k: u32) -> Su
 }
 
 fn collide_hand_table(ci: u32) -> Contact {
+    return collide_hand_table_at(ci, collider_pose(ci));
+}
+
+// physics.rs: collide_hand_table_at. collide_hand_table with the collider at cp
+fn collide_hand_table_at(ci: u32, cp: ColliderPose) -> Contact {
     let cd = colliders[ci];
-    let cp = collider_pose(ci);
     var low = cp.pos;
     var r = cd.size.x;
     if (cd.shape == SHAPE_CAPSULE) {
@@ -1441,31 +1491,55 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
     // velocity this substep is predicted (bit ci % 32 of word ci / 32)
     var revisit: array<u32, REVISIT_WORDS>;
     var any_revisit = false;
+    let opos = st.obj_pos.xyz;
+    let orot = st.obj_rot;
     for (var ci = 0u; ci < g.n_colliders; ci++) {
-        let l = colliders[ci].link;
+        let cd = colliders[ci];
+        let l = cd.link;
+        let r_c = bounding_radius(cd.shape, cd.size.xyz);
+        // the collider's pose once for the margin, the narrow phase, the swept contact and the
+        // table; its turn only for a collider near the object or the table (the rest find no
+        // contact: collide_hand_object_at's first test, a depth under −CONTACT_MARGIN against the
+        // table)
+        let cpos = link_pos[l] + quat_rotate(link_rot[l], cd.pos.xyz);
+        let margin = speculative_margin_at(ci, cpos, h, ocom, ovel, ow);
+        let reach = r_c + margin + prm.obj_com.w;
+        let dc = cpos - opos;
+        // (as that test: a NaN pose goes on to the narrow phase)
+        let near_object = !(dot(dc, dc) > reach * reach);
+        // the collider's lowest point is at least r_c below its centre: a 1 mm allowance over the
+        // margin for the rounding of collide_hand_table_at
+        let near_table = g.hand_table != 0u && cpos.z <= r_c + CONTACT_MARGIN + 1.0e-3;
+        var cp = ColliderPose(cpos, vec4<f32>(0.0, 0.0, 0.0, 1.0));
+        if (near_object || near_table) {
+            cp.rot = quat_mul(link_rot[l], cd.rot);
+        }
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
-        let margin = speculative_margin(ci, h, ocom, ovel, ow);
-        let raw = collide_hand_object(ci, margin);
-        // the statistics' penetration: the pair's overlap at the substep's poses, not a swept
-        // contact's depth (physics.rs)
-        max_pen_ho = max(max_pen_ho, raw.depth);
-        max_pen = max(max_pen, raw.depth);
-        let c = swept_contact(ci, raw, h, ocom, ovel, ow, margin);
-        if (c.depth > -margin) {
-            let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
-            if (dot(cf.force, c.normal) > 0.0) {
-                hand_object_force(ci, c, cf, ocom, ow, vec3<f32>(0.0), vec3<f32>(0.0), mu_ho, h);
+        if (near_object) {
+            let raw = collide_hand_object_at(ci, cp, opos, orot, margin);
+            // the statistics' penetration: the pair's overlap at the substep's poses, not a swept
+            // contact's depth (physics.rs)
+            max_pen_ho = max(max_pen_ho, raw.depth);
+            max_pen = max(max_pen, raw.depth);
+            let c = swept_contact_at(ci, cp, raw, h, ocom, ovel, ow, margin);
+            if (c.depth > -margin) {
+                let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
+                if (dot(cf.force, c.normal) > 0.0) {
+                    hand_object_force(ci, c, cf, ocom, ow, vec3<f32>(0.0), vec3<f32>(0.0), mu_ho, h);
+                } else {
+                    revisit[ci / 32u] |= 1u << (ci % 32u);
+                    any_revisit = true;
+                }
             } else {
-                revisit[ci / 32u] |= 1u << (ci % 32u);
-                any_revisit = true;
+                springs[spring_base + ci] = vec4<f32>(0.0);
             }
         } else {
             springs[spring_base + ci] = vec4<f32>(0.0);
         }
         // hand–table
-        if (g.hand_table != 0u) {
-            let c2 = collide_hand_table(ci);
+        if (near_table) {
+            let c2 = collide_hand_table_at(ci, cp);
             if (c2.depth > -CONTACT_MARGIN) {
                 let cf = solve_hand_contact(spring_base + g.n_colliders + ci, l, c2, vec3<f32>(0.0), prm.hand_table_c, mu_ht, h);
                 if (dot(cf.force, c2.normal) > 0.0 || c2.depth > 0.0) {
@@ -1475,6 +1549,8 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
             } else {
                 springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
             }
+        } else if (g.hand_table != 0u) {
+            springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
         }
     }
     // object–table: every support point of every piece, in order (spring slots 0.. of the object)
@@ -1525,8 +1601,9 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
             }
             let l = colliders[ci].link;
             // the first pass's margin (from the present velocities): the same raw contact
-            let margin = speculative_margin(ci, h, ocom, ovel, ow);
-            let c = swept_contact(ci, collide_hand_object(ci, margin), h, ocom, pred.vel, pred.w, margin);
+            let cp = collider_pose(ci);
+            let margin = speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow);
+            let c = swept_contact_at(ci, cp, collide_hand_object_at(ci, cp, opos, orot, margin), h, ocom, pred.vel, pred.w, margin);
             let v_other = pred.vel + cross(pred.w, c.point - ocom);
             let cf = solve_hand_contact(spring_base + ci, l, c, v_other, prm.obj_contact_c, mu_ho, h);
             // the object's force linearised about the predicted velocity: + D·J·(u_p − u₀)

@@ -277,9 +277,9 @@ pub fn hand_kinematics(st: &EnvState, m: &Model, s: &mut Scratch) {
 
 /// `quat_mul(a, quat_from_axis_angle(axis, angle))`, to the bit but for the sign of a zero; for a
 /// joint axis along ±x, ±y or ±z of its frame (most URDF joints), the terms the axis's zeros
-/// make zero left out (CPU only).
+/// make zero left out.
 #[inline(always)]
-fn quat_mul_axis_angle(a: Vec4, axis: Vec3, angle: f32) -> Vec4 {
+pub fn quat_mul_axis_angle(a: Vec4, axis: Vec3, angle: f32) -> Vec4 {
     let (sn, c) = ((0.5 * angle).sin(), (0.5 * angle).cos());
     // b = (axis·sin(θ/2), cos(θ/2)); quat_mul's rows with b's zero entries dropped, the others
     // summed in its order
@@ -672,7 +672,7 @@ pub fn speculative_margin(m: &Model, s: &Scratch, ci: usize, h: f32, ocom: Vec3,
 /// each collider's pose once per substep).
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn speculative_margin_at(m: &Model, s: &Scratch, ci: usize, cpos: Vec3, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3) -> f32 {
+pub fn speculative_margin_at(m: &Model, s: &Scratch, ci: usize, cpos: Vec3, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3) -> f32 {
     let cd = &m.colliders[ci];
     let l = cd.link as usize;
     let v = link_point_velocity(s, l, cpos) - (ovel + ow.cross(cpos - ocom));
@@ -720,7 +720,9 @@ pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, c
         }
         // a piece whose frame is the object's (a primitive object's one piece): its pose is the
         // object's (`piece_pose_at` returns it to the bit, but for the sign of a zero), and the
-        // collider's centre in it is c_obj
+        // collider's centre in it is c_obj (CPU only: in the shader this shortcut blew up the
+        // bench scene's envs on lavapipe, cause not found; BENCHMARKS.md "The shader takes the
+        // CPU's exact cuts")
         let c = if pd.pos[..3] == [0.0; 3] && pd.rot == [0.0, 0.0, 0.0, 1.0] {
             collide_collider_piece_in(m, cd, c_obj, quat_mul(quat_conj(orot), crot), pd, p.obj_scale, opos, orot, margin)
         } else {
@@ -735,8 +737,8 @@ pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, c
 }
 
 /// `collide_hand_object_at`'s first test: the collider's bounding sphere, grown by `margin`,
-/// meets the object's (a NaN pose passes, on to the narrow phase). CPU only: the contact pass
-/// takes it first, to leave a far collider unturned.
+/// meets the object's (a NaN pose passes, on to the narrow phase). The contact pass takes it first
+/// (the shader writes it out there), to leave a far collider unturned.
 #[inline(always)]
 fn object_in_reach(p: &EnvParams, cd: &ColliderDesc, cpos: Vec3, opos: Vec3, margin: f32) -> bool {
     let reach = bounding_radius(cd.shape, v3(cd.size)) + margin + p.obj_com[3];
@@ -773,7 +775,7 @@ pub fn swept_contact(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: u
 /// velocities, found by the first search of a pass and kept for the others.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
-fn swept_contact_at(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, cpos: Vec3, crot: Vec4, c: Contact, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32, obj_end: &mut Option<(Vec3, Vec4)>) -> Contact {
+pub fn swept_contact_at(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, cpos: Vec3, crot: Vec4, c: Contact, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32, obj_end: &mut Option<(Vec3, Vec4)>) -> Contact {
     if c.depth <= -1.0 {
         return c;
     }
@@ -833,9 +835,9 @@ pub fn collide_collider_piece(m: &Model, cd: &ColliderDesc, cpos: Vec3, crot: Ve
 }
 
 /// `collide_collider_piece` with the collider's centre `c_o` and rotation `r_o` in the piece's
-/// frame (CPU only: `collide_hand_object_at` has them for a piece whose frame is the object's).
+/// frame (`collide_hand_object_at` has them for a piece whose frame is the object's).
 #[allow(clippy::too_many_arguments)]
-fn collide_collider_piece_in(m: &Model, cd: &ColliderDesc, c_o: Vec3, r_o: Vec4, pd: &PieceDesc, scale: f32, opos: Vec3, orot: Vec4, margin: f32) -> Contact {
+pub fn collide_collider_piece_in(m: &Model, cd: &ColliderDesc, c_o: Vec3, r_o: Vec4, pd: &PieceDesc, scale: f32, opos: Vec3, orot: Vec4, margin: f32) -> Contact {
     let code = pd.shape;
     let size = v3(pd.size) * scale;
     let mut out = Contact::default();
@@ -1373,7 +1375,7 @@ pub fn collide_hand_table(m: &Model, s: &Scratch, ci: usize) -> Contact {
 }
 
 /// `collide_hand_table` with the collider at `cpos`, `crot`.
-fn collide_hand_table_at(m: &Model, ci: usize, cpos: Vec3, crot: Vec4) -> Contact {
+pub fn collide_hand_table_at(m: &Model, ci: usize, cpos: Vec3, crot: Vec4) -> Contact {
     let cd = &m.colliders[ci];
     let mut low = cpos;
     let mut r = cd.size[0];
@@ -1787,7 +1789,7 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
         let l = cd.link as usize;
         let r_c = bounding_radius(cd.shape, v3(cd.size));
         // the collider's pose once for the margin, the narrow phase, the swept contact and the
-        // table (the shader computes it in each); its turn only for a collider near the object or
+        // table (as the shader); its turn only for a collider near the object or
         // the table (the rest find no contact: `collide_hand_object_at`'s first test, a depth
         // under −CONTACT_MARGIN against the table)
         let cpos = collider_centre(m, s, ci);
