@@ -437,10 +437,20 @@ fn piece_project(pd: PieceDesc, scale: f32, size: vec3<f32>, p: vec3<f32>) -> Pr
 }
 
 fn collider_pose(ci: u32) -> ColliderPose {
+    return ColliderPose(collider_centre(ci), collider_rotation(ci));
+}
+
+// physics.rs: collider_centre. The centre of collider_pose alone (the contact pass turns only the
+// colliders near the object or the table)
+fn collider_centre(ci: u32) -> vec3<f32> {
     let cd = colliders[ci];
-    let l = cd.link;
-    let pos = link_pos[l] + quat_rotate(link_rot[l], cd.pos.xyz);
-    return ColliderPose(pos, quat_mul(link_rot[l], cd.rot));
+    return link_pos[cd.link] + quat_rotate(link_rot[cd.link], cd.pos.xyz);
+}
+
+// physics.rs: collider_rotation. The rotation of collider_pose alone
+fn collider_rotation(ci: u32) -> vec4<f32> {
+    let cd = colliders[ci];
+    return quat_mul(link_rot[cd.link], cd.rot);
 }
 
 fn bounding_radius(code: u32, size: vec3<f32>) -> f32 {
@@ -478,14 +488,9 @@ fn object_com() -> vec3<f32> {
     return st.obj_pos.xyz + quat_rotate(st.obj_rot, prm.obj_com.xyz);
 }
 
-// physics.rs: speculative_margin. CONTACT_MARGIN, or how far hand collider ci's points can close
-// on the object's within the substep: h (|v_rel at its centre| + r |ω_link − ω_obj|)
-fn speculative_margin(ci: u32, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>) -> f32 {
-    return speculative_margin_at(ci, collider_pose(ci).pos, h, ocom, ovel, ow);
-}
-
-// physics.rs: speculative_margin_at. speculative_margin with the collider's centre at cpos (the
-// contact pass computes each collider's pose once per substep)
+// physics.rs: speculative_margin_at. CONTACT_MARGIN, or how far hand collider ci (its centre at
+// cpos) and the object's points can close within the substep: h (|v_rel at its centre| +
+// r |ω_link − ω_obj|)
 fn speculative_margin_at(ci: u32, cpos: vec3<f32>, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>) -> f32 {
     let cd = colliders[ci];
     let l = cd.link;
@@ -494,20 +499,13 @@ fn speculative_margin_at(ci: u32, cpos: vec3<f32>, h: f32, ocom: vec3<f32>, ovel
     return max(h * (length(v) + r * length(link_w[l] - ow)), CONTACT_MARGIN);
 }
 
-// the deepest contact of hand collider ci over the object's pieces (bounding spheres grown by
-// margin first)
-fn collide_hand_object(ci: u32, margin: f32) -> Contact {
-    return collide_hand_object_at(ci, collider_pose(ci), st.obj_pos.xyz, st.obj_rot, margin);
-}
-
-// physics.rs: collide_hand_object_at. The collider at cp, the object's frame at opos, orot
+// physics.rs: collide_hand_object_at. The deepest contact of hand collider ci (at cp) over the
+// object's pieces (its frame at opos, orot; bounding spheres grown by margin first)
 fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4<f32>, margin: f32) -> Contact {
     let cd = colliders[ci];
     let rc = bounding_radius(cd.shape, cd.size.xyz) + margin;
-    let reach = rc + prm.obj_com.w;
-    let dc = cp.pos - opos;
     var best = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
-    if (dot(dc, dc) > reach * reach) {
+    if (!object_in_reach(cd, cp.pos, opos, margin)) {
         return best;
     }
     let od = objects[prm.obj_index];
@@ -531,22 +529,22 @@ fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4
     return best;
 }
 
+// physics.rs: object_in_reach. collide_hand_object_at's first test: the collider's bounding
+// sphere, grown by margin, meets the object's (a NaN pose passes, on to the narrow phase); the
+// contact pass takes it first, to leave a far collider unturned
+fn object_in_reach(cd: ColliderDesc, cpos: vec3<f32>, opos: vec3<f32>, margin: f32) -> bool {
+    let reach = bounding_radius(cd.shape, cd.size.xyz) + margin + prm.obj_com.w;
+    let dc = cpos - opos;
+    return !(dot(dc, dc) > reach * reach);
+}
+
 // physics.rs: SWEPT_TOLERANCE
 const SWEPT_TOLERANCE: f32 = 3.0e-4;
 
-// physics.rs: swept_contact. Contact c of collider ci, or the pair's contact at the end of the
-// substep if collider and object keep their velocities, when that is deeper than c would be by
-// then by more than SWEPT_TOLERANCE (taken back to the start of the substep along the relative
-// motion)
-fn swept_contact(ci: u32, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>, margin: f32) -> Contact {
-    if (c.depth <= -1.0) {
-        return c;
-    }
-    return swept_contact_at(ci, collider_pose(ci), c, h, ocom, ovel, ow, margin);
-}
-
-// physics.rs: swept_contact_at. swept_contact with the collider at cp (its pose at the substep's
-// start)
+// physics.rs: swept_contact_at. Contact c of collider ci (at cp, its pose at the substep's
+// start), or the pair's contact at the end of the substep if collider and object keep their
+// velocities, when that is deeper than c would be by then by more than SWEPT_TOLERANCE (taken
+// back to the start of the substep along the relative motion)
 fn swept_contact_at(ci: u32, cp: ColliderPose, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>, margin: f32) -> Contact {
     if (c.depth <= -1.0) {
         return c;
@@ -1121,11 +1119,7 @@ fn piece_support_point(pd: PieceDesc, scale: f32, size: vec3<f32>, k: u32) -> Su
     return object_support_point(pd.shape, size, k);
 }
 
-fn collide_hand_table(ci: u32) -> Contact {
-    return collide_hand_table_at(ci, collider_pose(ci));
-}
-
-// physics.rs: collide_hand_table_at. collide_hand_table with the collider at cp
+// physics.rs: collide_hand_table_at. The contact of hand collider ci (at cp) with the table
 fn collide_hand_table_at(ci: u32, cp: ColliderPose) -> Contact {
     let cd = colliders[ci];
     var low = cp.pos;
@@ -1501,18 +1495,15 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
         // table; its turn only for a collider near the object or the table (the rest find no
         // contact: collide_hand_object_at's first test, a depth under −CONTACT_MARGIN against the
         // table)
-        let cpos = link_pos[l] + quat_rotate(link_rot[l], cd.pos.xyz);
+        let cpos = collider_centre(ci);
         let margin = speculative_margin_at(ci, cpos, h, ocom, ovel, ow);
-        let reach = r_c + margin + prm.obj_com.w;
-        let dc = cpos - opos;
-        // (as that test: a NaN pose goes on to the narrow phase)
-        let near_object = !(dot(dc, dc) > reach * reach);
+        let near_object = object_in_reach(cd, cpos, opos, margin);
         // the collider's lowest point is at least r_c below its centre: a 1 mm allowance over the
         // margin for the rounding of collide_hand_table_at
         let near_table = g.hand_table != 0u && cpos.z <= r_c + CONTACT_MARGIN + 1.0e-3;
         var cp = ColliderPose(cpos, vec4<f32>(0.0, 0.0, 0.0, 1.0));
         if (near_object || near_table) {
-            cp.rot = quat_mul(link_rot[l], cd.rot);
+            cp.rot = collider_rotation(ci);
         }
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)

@@ -610,18 +610,18 @@ pub fn collider_pose(m: &Model, s: &Scratch, ci: usize) -> (Vec3, Vec4) {
     (collider_centre(m, s, ci), collider_rotation(m, s, ci))
 }
 
-/// The centre of `collider_pose` alone (CPU only: the contact pass turns only the colliders near
-/// the object or the table).
+/// The centre of `collider_pose` alone (the contact pass turns only the colliders near the object
+/// or the table).
 #[inline(always)]
-fn collider_centre(m: &Model, s: &Scratch, ci: usize) -> Vec3 {
+pub fn collider_centre(m: &Model, s: &Scratch, ci: usize) -> Vec3 {
     let cd = &m.colliders[ci];
     let l = cd.link as usize;
     s.link_pos[l] + quat_rotate(s.link_rot[l], v3(cd.pos))
 }
 
-/// The rotation of `collider_pose` alone (CPU only).
+/// The rotation of `collider_pose` alone.
 #[inline(always)]
-fn collider_rotation(m: &Model, s: &Scratch, ci: usize) -> Vec4 {
+pub fn collider_rotation(m: &Model, s: &Scratch, ci: usize) -> Vec4 {
     let cd = &m.colliders[ci];
     quat_mul(s.link_rot[cd.link as usize], v4(cd.rot))
 }
@@ -737,10 +737,10 @@ pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, c
 }
 
 /// `collide_hand_object_at`'s first test: the collider's bounding sphere, grown by `margin`,
-/// meets the object's (a NaN pose passes, on to the narrow phase). The contact pass takes it first
-/// (the shader writes it out there), to leave a far collider unturned.
+/// meets the object's (a NaN pose passes, on to the narrow phase). The contact pass takes it first,
+/// to leave a far collider unturned.
 #[inline(always)]
-fn object_in_reach(p: &EnvParams, cd: &ColliderDesc, cpos: Vec3, opos: Vec3, margin: f32) -> bool {
+pub fn object_in_reach(p: &EnvParams, cd: &ColliderDesc, cpos: Vec3, opos: Vec3, margin: f32) -> bool {
     let reach = bounding_radius(cd.shape, v3(cd.size)) + margin + p.obj_com[3];
     #[allow(clippy::neg_cmp_op_on_partial_ord)]
     let within = !((cpos - opos).length_squared() > reach * reach);
