@@ -541,41 +541,61 @@ fn object_in_reach(cd: ColliderDesc, cpos: vec3<f32>, opos: vec3<f32>, margin: f
 // physics.rs: SWEPT_TOLERANCE
 const SWEPT_TOLERANCE: f32 = 3.0e-4;
 
-// physics.rs: swept_contact_at. Contact c of collider ci (at cp, its pose at the substep's
-// start), or the pair's contact at the end of the substep if collider and object keep their
-// velocities, when that is deeper than c would be by then by more than SWEPT_TOLERANCE (taken
-// back to the start of the substep along the relative motion)
-fn swept_contact_at(ci: u32, cp: ColliderPose, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>, margin: f32) -> Contact {
-    if (c.depth <= -1.0) {
-        return c;
-    }
+// physics.rs: hand_object_pair. Hand collider ci (at cp, its pose at the substep's start) against
+// the object: `raw`, the pair's contact at the substep's poses (collide_hand_object_at; the
+// statistics' penetration), and `c`, the contact it is solved with: raw, or the pair's contact at the
+// end of the substep if collider and object keep their velocities (ovel, ow) when that is deeper
+// than raw would be by then by more than SWEPT_TOLERANCE, taken back to the start of the substep
+// along the relative motion (physics.rs: swept_contact_at). Both queries go through one call of
+// the narrow phase in a loop: a shader compiler inlines every call, and with the second call
+// (and the four calls of clip_polygon) the bench scene stepped 1.9x slower on lavapipe, the same
+// contacts (BENCHMARKS.md "The physics shader's call sites")
+struct PairContact {
+    raw: Contact,
+    c: Contact,
+}
+
+fn hand_object_pair(ci: u32, cp: ColliderPose, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>, margin: f32) -> PairContact {
     let cd = colliders[ci];
     let l = cd.link;
-    // c's own depth by the end of the substep (v_hand − v_object along n: separating speed)
-    let c_end = c.depth - h * dot(link_point_velocity(l, c.point) - (ovel + cross(ow, c.point - ocom)), c.normal);
-    // no feature gets deeper than c's own prediction by more than h·2r·|ω_link − ω_obj|: nothing to
-    // find within the tolerance, or where even so nothing would be touching by then
-    let sweep = h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length(link_w[l] - ow);
-    if (sweep <= SWEPT_TOLERANCE || c_end + sweep <= 0.0) {
-        return c;
+    // query 0: the substep's poses; query 1: both at the end of the substep
+    var q_pose = cp;
+    var q_opos = st.obj_pos.xyz;
+    var q_orot = st.obj_rot;
+    var raw = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), q_opos);
+    // raw's own depth by the end of the substep
+    var c_end = 0.0;
+    for (var q = 0u; q < 2u; q++) {
+        let found = collide_hand_object_at(ci, q_pose, q_opos, q_orot, margin);
+        if (q == 0u) {
+            raw = found;
+            if (found.depth <= -1.0) {
+                break;
+            }
+            // v_hand − v_object at the contact along n: its separating speed
+            c_end = found.depth - h * dot(link_point_velocity(l, found.point) - (ovel + cross(ow, found.point - ocom)), found.normal);
+            // no feature gets deeper than raw's own prediction by more than h·2r·|ω_link − ω_obj|:
+            // nothing to find within the tolerance, or where even so nothing would be touching by then
+            let sweep = h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length(link_w[l] - ow);
+            if (sweep <= SWEPT_TOLERANCE || c_end + sweep <= 0.0) {
+                break;
+            }
+            // the collider moves with its link, the object's frame turns about its centre of mass,
+            // which moves at ovel (integrate_object)
+            q_pose = ColliderPose(cp.pos + link_point_velocity(l, cp.pos) * h, quat_integrate(cp.rot, link_w[l], h));
+            q_orot = quat_integrate(st.obj_rot, ow, h);
+            q_opos = ocom + ovel * h - quat_rotate(q_orot, prm.obj_com.xyz);
+        } else if (found.depth > -1.0 && found.depth > c_end + SWEPT_TOLERANCE) {
+            // back to the start of the substep: the point with the object, d = d_end + h·(v_rel·n)
+            let x = found.point - (ovel + cross(ow, found.point - ocom)) * h;
+            let v_rel = link_point_velocity(l, x) - (ovel + cross(ow, x - ocom));
+            var out = found;
+            out.depth = found.depth + h * dot(v_rel, found.normal);
+            out.point = x;
+            return PairContact(raw, out);
+        }
     }
-    let cp_end = ColliderPose(cp.pos + link_point_velocity(l, cp.pos) * h, quat_integrate(cp.rot, link_w[l], h));
-    let orot_end = quat_integrate(st.obj_rot, ow, h);
-    let opos_end = ocom + ovel * h - quat_rotate(orot_end, prm.obj_com.xyz);
-    let end = collide_hand_object_at(ci, cp_end, opos_end, orot_end, margin);
-    if (end.depth <= -1.0) {
-        return c;
-    }
-    if (end.depth <= c_end + SWEPT_TOLERANCE) {
-        return c;
-    }
-    // back to the start of the substep: the point with the object, d = d_end + h·(v_rel·n)
-    let x = end.point - (ovel + cross(ow, end.point - ocom)) * h;
-    let v_rel = link_point_velocity(l, x) - (ovel + cross(ow, x - ocom));
-    var out = end;
-    out.depth = end.depth + h * dot(v_rel, end.normal);
-    out.point = x;
-    return out;
+    return PairContact(raw, raw);
 }
 
 // a hand collider against object piece pd (lengths scaled by scale, at opos, orot); apart by
@@ -929,10 +949,11 @@ fn box_box_contact(c: vec3<f32>, r: vec4<f32>, ha: vec3<f32>, hb: vec3<f32>, axi
     // clipped to the hand box face's rectangle along its two other axes
     let t1 = (k + 1u) % 3u;
     let t2 = (k + 2u) % 3u;
-    poly = clip_polygon(poly, t1, 1.0, ha[t1]);
-    poly = clip_polygon(poly, t1, -1.0, ha[t1]);
-    poly = clip_polygon(poly, t2, 1.0, ha[t2]);
-    poly = clip_polygon(poly, t2, -1.0, ha[t2]);
+    // (in a loop: one call site, one inlined copy; the order of physics.rs's four calls)
+    for (var e = 0u; e < 4u; e++) {
+        let t = select(t1, t2, e >= 2u);
+        poly = clip_polygon(poly, t, select(1.0, -1.0, (e & 1u) == 1u), ha[t]);
+    }
     // each point's depth below the hand box's face: dᵢ = h_k − s·q_k
     let s_ref = sgn(dot(nref, a[k]));
     var springs = Manifold(0.0, 0.0, vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
@@ -1486,7 +1507,6 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
     var revisit: array<u32, REVISIT_WORDS>;
     var any_revisit = false;
     let opos = st.obj_pos.xyz;
-    let orot = st.obj_rot;
     for (var ci = 0u; ci < g.n_colliders; ci++) {
         let cd = colliders[ci];
         let l = cd.link;
@@ -1508,12 +1528,13 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
         if (near_object) {
-            let raw = collide_hand_object_at(ci, cp, opos, orot, margin);
+            let pair = hand_object_pair(ci, cp, h, ocom, ovel, ow, margin);
+            let raw = pair.raw;
             // the statistics' penetration: the pair's overlap at the substep's poses, not a swept
             // contact's depth (physics.rs)
             max_pen_ho = max(max_pen_ho, raw.depth);
             max_pen = max(max_pen, raw.depth);
-            let c = swept_contact_at(ci, cp, raw, h, ocom, ovel, ow, margin);
+            let c = pair.c;
             if (c.depth > -margin) {
                 let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
                 if (dot(cf.force, c.normal) > 0.0) {
@@ -1594,7 +1615,7 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
             // the first pass's margin (from the present velocities): the same raw contact
             let cp = collider_pose(ci);
             let margin = speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow);
-            let c = swept_contact_at(ci, cp, collide_hand_object_at(ci, cp, opos, orot, margin), h, ocom, pred.vel, pred.w, margin);
+            let c = hand_object_pair(ci, cp, h, ocom, pred.vel, pred.w, margin).c;
             let v_other = pred.vel + cross(pred.w, c.point - ocom);
             let cf = solve_hand_contact(spring_base + ci, l, c, v_other, prm.obj_contact_c, mu_ho, h);
             // the object's force linearised about the predicted velocity: + D·J·(u_p − u₀)

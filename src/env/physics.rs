@@ -824,6 +824,17 @@ fn swept_search(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize,
     Contact { depth: end.depth + h * v_rel(x).dot(end.normal), point: x, ..end }
 }
 
+/// Hand collider `ci` (at `cpos`, `crot`, its pose at the substep's start) against the object:
+/// the pair's contact at the substep's poses (`collide_hand_object_at`; the statistics'
+/// penetration) and the contact it is solved with (`swept_contact_at`'s choice, against the
+/// object's velocities `ovel`, `ow`). The shader's twin makes both queries through one call of the
+/// narrow phase in a loop (one inlined copy of it where two calls made two).
+#[allow(clippy::too_many_arguments)]
+pub fn hand_object_pair(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, cpos: Vec3, crot: Vec4, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32, obj_end: &mut Option<(Vec3, Vec4)>) -> (Contact, Contact) {
+    let raw = collide_hand_object_at(p, m, ci, cpos, crot, v3(st.obj_pos), v4(st.obj_rot), margin);
+    (raw, swept_contact_at(st, p, m, s, ci, cpos, crot, raw, h, ocom, ovel, ow, margin, obj_end))
+}
+
 /// Narrow phase between a hand collider (`cd` at `cpos`, `crot`) and object piece `pd` (its
 /// lengths scaled by `scale`, at `opos`, `orot`); normal from the piece to the hand; apart by
 /// more than `margin`, depth −1 (or the gap).
@@ -1777,8 +1788,8 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
     let mut revisit = [0u32; REVISIT_WORDS];
     // the first REVISIT_CACHE of those pairs' contacts and margins, in collider order: the link
     // poses do not change within the substep, so the second pass's narrow phase would find them
-    // again (the shader finds them again: a per-invocation array of contacts costs a GPU more
-    // than the narrow phase)
+    // again (the shader finds them again: on lavapipe its cache of them cost 1.03x, unmeasured on
+    // a GPU, where a warp runs that narrow phase for every collider any of its envs revisits)
     let mut cached = [(Contact::default(), 0.0f32); REVISIT_CACHE];
     let mut n_cached = 0usize;
     // the object's frame at the end of the substep, found by the pass's first swept search
@@ -1802,13 +1813,12 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
         if near_object {
-            let raw = collide_hand_object_at(p, m, ci, cpos, crot, opos, orot, margin);
+            let (raw, c) = hand_object_pair(st, p, m, s, ci, cpos, crot, h, ocom, ovel, ow, margin, &mut obj_end);
             // the penetration the statistics record: the pair's overlap at the substep's poses,
             // not a swept contact's depth (where the pair would be by the substep's end if
             // nothing pushed, taken back along the motion: not a pose the env reaches)
             s.max_pen_ho = s.max_pen_ho.max(raw.depth);
             s.max_pen = s.max_pen.max(raw.depth);
-            let c = swept_contact_at(st, p, m, s, ci, cpos, crot, raw, h, ocom, ovel, ow, margin, &mut obj_end);
             if c.depth > -margin {
                 let (f, a, b) = solve_hand_contact(p, m, s, springs, sho, l, &c, ovel + ow.cross(c.point - ocom), p.obj_contact_c, mu_ho, h);
                 if f.dot(c.normal) > 0.0 {
