@@ -561,6 +561,32 @@ fn scripted_grasp_and_lift_has_the_same_outcome_on_both_backends() {
     assert!((cpu.peak_penetration_mm - gpu.peak_penetration_mm).abs() < 0.5);
 }
 
+/// The bench scene's rollout (`dextrain bench`: 0.9 s of approach into a grasp, then chunks of 24
+/// env steps of noisy grasp targets from it) at 256 envs on both backends: no env blows up, and the
+/// contacts per physics step agree within 2 %. The single steps and short rollouts above can agree
+/// while a shader goes wrong over many contact-rich steps: two variants of physics.wgsl that passed
+/// every parity test above blew up 44–390 of the bench's envs on lavapipe, with 4–8 % more
+/// contacts (BENCHMARKS.md "The physics shader's call sites").
+#[test]
+fn the_bench_scene_s_rollout_has_the_same_contacts_on_both_backends() {
+    let test = "the_bench_scene_s_rollout_has_the_same_contacts_on_both_backends";
+    let Some(ctx) = gpu_context(test) else { return };
+    let mut c = dextrain::bench::bench_config(256);
+    c.base_dir = concat!(env!("CARGO_MANIFEST_DIR"), "/configs").into();
+    let model = dextrain::env::SimModel::from_config(&c).unwrap();
+    let opts = dextrain::bench::BenchOptions { min_chunks: 2, min_seconds: 0.0 };
+    let on_cpu = dextrain::bench::run_bench(&mut cpu_batch(&c), &model, &opts).unwrap();
+    let on_gpu = dextrain::bench::run_bench(&mut gpu_batch(&c, ctx), &model, &opts).unwrap();
+    for r in [&on_cpu, &on_gpu] {
+        assert_eq!(r["bad_resets"].as_u64(), Some(0), "{}: envs blew up in the bench scene ({} contacts per physics step)", r["backend"], r["contacts_per_physics_step"]);
+    }
+    let contacts = |r: &serde_json::Value| r["contacts_per_physics_step"].as_f64().unwrap();
+    let (a, b) = (contacts(&on_cpu), contacts(&on_gpu));
+    eprintln!("{test}: contacts per physics step: cpu {a:.5}, gpu {b:.5}");
+    assert!(a > 1.0, "the bench scene's grasp should touch: {a} contacts per physics step");
+    assert!((a - b).abs() <= 0.02 * a, "contacts per physics step: cpu {a:.5}, gpu {b:.5} (more than 2 % apart)");
+}
+
 /// `run_kernel` (the harness of the shader-function parity tests) on common.wgsl's quaternion
 /// maths and counter hash: the shader and the CPU twins in `env::common` agree.
 #[test]
