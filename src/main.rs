@@ -95,6 +95,12 @@ enum Command {
         /// Least timed wall time (s).
         #[arg(long, default_value_t = 3.0)]
         seconds: f64,
+        /// Env-step bench on a GPU backend: the simulator's WGSL module (shaders/common.wgsl,
+        /// reset.wgsl and physics.wgsl concatenated, as the built-in one) read from this file, to
+        /// time a variant of the physics shader on a GPU without rebuilding dextrain. It must bind
+        /// and lay out its buffers as the built-in module does; the report names the file.
+        #[arg(long, value_name = "FILE")]
+        physics_wgsl: Option<PathBuf>,
     },
     /// Train a policy with PPO from a TOML config (or resume a run).
     Train(dextrain::run::TrainArgs),
@@ -188,7 +194,7 @@ fn run(cli: Cli) -> Result<()> {
             console::status(dextrain::task::spec::layout_table(&task.priv_layout, "critic observation").trim_end());
             Ok(())
         }
-        Command::Bench { ppo, sac, matmul, routines, contacts, video, video_format, video_size, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds } => {
+        Command::Bench { ppo, sac, matmul, routines, contacts, video, video_format, video_size, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds, physics_wgsl } => {
             if let Some(t) = threads {
                 rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot size the thread pool")?;
             }
@@ -251,8 +257,21 @@ fn run(cli: Cli) -> Result<()> {
             }
             cfg.validate()?;
             let model = SimModel::from_config(&cfg)?;
-            let mut env = make_env_batch(&cfg, model.clone())?;
+            let mut env = match &physics_wgsl {
+                None => make_env_batch(&cfg, model.clone())?,
+                Some(path) => {
+                    let flag = format!("bench --physics-wgsl {}", path.display());
+                    let source = std::fs::read_to_string(path).with_context(|| format!("{flag}: cannot read the file"))?;
+                    let Some(ctx) = dextrain::env::sim_gpu_context(&cfg)? else {
+                        anyhow::bail!("{flag}: the env runs on the CPU (backend {}); expected --backend gpu or gpu:NAME", cfg.sim.backend)
+                    };
+                    Box::new(dextrain::env::gpu::GpuEnvBatch::with_physics_source(ctx, model.clone(), &source).with_context(|| flag.clone())?)
+                }
+            };
             let mut report = run_bench(env.as_mut(), &model, &BenchOptions { min_chunks: chunks, min_seconds: seconds })?;
+            if let Some(path) = &physics_wgsl {
+                report["physics_wgsl"] = serde_json::Value::String(path.display().to_string());
+            }
             report["config"] = serde_json::Value::String(config.map(|p| p.display().to_string()).unwrap_or_else(|| "<bench scene>".into()));
             console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
             Ok(())

@@ -59,6 +59,17 @@ impl GpuEnvBatch {
     /// [`GpuEnvBatch::new`] with a readback buffer of at least `min_readback_bytes_per_env` per env
     /// (the task layer reads its per-env states through it).
     pub fn with_readback(ctx: GpuContext, model: SimModel, min_readback_bytes_per_env: u64) -> Result<GpuEnvBatch> {
+        GpuEnvBatch::build(ctx, model, min_readback_bytes_per_env, &shader_source())
+    }
+
+    /// [`GpuEnvBatch::new`] with the simulator's WGSL module `source` in place of the built-in one
+    /// ([`shader_source`]: common, reset and physics; `dextrain bench --physics-wgsl`, to time a
+    /// variant of the physics shader). A module that fails validation is an error naming the shader.
+    pub fn with_physics_source(ctx: GpuContext, model: SimModel, source: &str) -> Result<GpuEnvBatch> {
+        GpuEnvBatch::build(ctx, model, 0, source)
+    }
+
+    fn build(ctx: GpuContext, model: SimModel, min_readback_bytes_per_env: u64, source: &str) -> Result<GpuEnvBatch> {
         let n = model.spec.num_envs;
         // the largest per-env buffer, checked before anything is allocated
         let state_bytes = (n * std::mem::size_of::<EnvState>()) as u64;
@@ -86,7 +97,7 @@ impl GpuEnvBatch {
         let task_bytes = n as u64 * min_readback_bytes_per_env;
         let readback = ctx.create_staging_buffer("env readback", state_bytes.max(spring_bytes).max(task_bytes)).with_context(per_env)?;
         let [step_pipeline, reset_pipeline] =
-            ctx.compute_pipelines(SIM_GROUP.shader, &shader_source(), [STEP_MAIN.entry_point, RESET_MAIN.entry_point])?;
+            ctx.compute_pipelines(SIM_GROUP.shader, source, [STEP_MAIN.entry_point, RESET_MAIN.entry_point])?;
         let buffers = [
             (GLOBALS, &globals),
             (JOINTS, &joints),

@@ -90,6 +90,38 @@ fn bench_prints_one_json_line_with_the_figures() {
     assert_eq!(b["bad_resets"], 0);
 }
 
+/// `bench --physics-wgsl FILE`: the simulator's WGSL module read from a file (a shader variant timed
+/// without a rebuild). Without a GPU backend, or with a file that is not there, a one-line error
+/// naming the flag; on a GPU a module that fails validation is an error naming the file and the
+/// shader, and the built-in module's text read from a file steps the bench scene.
+#[test]
+fn bench_steps_a_physics_module_read_from_a_file() {
+    let test = "bench_steps_a_physics_module_read_from_a_file";
+    let dir = tempfile::tempdir().unwrap();
+    let module = dir.path().join("sim.wgsl");
+    std::fs::write(&module, dextrain::gpu::shaders::shader_source()).unwrap();
+    let module = module.to_str().unwrap();
+    let (ok, _, err) = dextrain(&["bench", "--backend", "cpu", "--envs", "8", "--physics-wgsl", module]);
+    assert!(!ok && err.contains("--physics-wgsl") && err.contains("expected --backend gpu"), "{err}");
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    let (ok, _, err) = dextrain(&["bench", "--backend", "cpu", "--physics-wgsl", "no_such_module.wgsl"]);
+    assert!(!ok && err.contains("no_such_module.wgsl") && err.contains("cannot read"), "{err}");
+    let Some(ctx) = crate::common::gpu_context(test) else { return };
+    let backend = format!("gpu:{}", ctx.info.name);
+    drop(ctx);
+    let broken = dir.path().join("broken.wgsl");
+    std::fs::write(&broken, format!("{}\nfn broken( {{\n", dextrain::gpu::shaders::shader_source())).unwrap();
+    let (ok, _, err) = dextrain(&["bench", "--backend", &backend, "--envs", "64", "--physics-wgsl", broken.to_str().unwrap()]);
+    assert!(!ok && err.contains("broken.wgsl") && err.contains("dextrain physics"), "{err}");
+    let (ok, stdout, err) = dextrain(&["bench", "--backend", &backend, "--envs", "64", "--chunks", "1", "--seconds", "0", "--physics-wgsl", module]);
+    assert!(ok, "{err}");
+    let b = json_line(&stdout);
+    assert_eq!(b["physics_wgsl"], module);
+    assert!(b["backend"].as_str().unwrap().starts_with("gpu"), "{}", b["backend"]);
+    assert!(b["contacts_per_physics_step"].as_f64().unwrap() > 1.0, "the scene must be contact rich");
+    assert_eq!(b["bad_resets"], 0);
+}
+
 #[test]
 fn bad_reference_files_are_one_line_errors() {
     let dir = tempfile::tempdir().unwrap();
