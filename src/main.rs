@@ -99,7 +99,7 @@ enum Command {
         /// reset.wgsl and physics.wgsl concatenated, as the built-in one) read from this file, to
         /// time a variant of the physics shader on a GPU without rebuilding dextrain. It must bind
         /// and lay out its buffers as the built-in module does; the report names the file.
-        #[arg(long, value_name = "FILE")]
+        #[arg(long, value_name = "FILE", conflicts_with_all = ["ppo", "sac", "matmul", "contacts", "video"])]
         physics_wgsl: Option<PathBuf>,
     },
     /// Train a policy with PPO from a TOML config (or resume a run).

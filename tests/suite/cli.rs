@@ -91,8 +91,8 @@ fn bench_prints_one_json_line_with_the_figures() {
 }
 
 /// `bench --physics-wgsl FILE`: the simulator's WGSL module read from a file (a shader variant timed
-/// without a rebuild). Without a GPU backend, or with a file that is not there, a one-line error
-/// naming the flag; on a GPU a module that fails validation is an error naming the file and the
+/// without a rebuild). Without a GPU backend, with a file that is not there, or with another bench
+/// (--ppo), an error naming the flag; on a GPU a module that fails validation is an error naming the file and the
 /// shader, and the built-in module's text read from a file steps the bench scene.
 #[test]
 fn bench_steps_a_physics_module_read_from_a_file() {
@@ -106,6 +106,9 @@ fn bench_steps_a_physics_module_read_from_a_file() {
     assert_eq!(err.trim_end().lines().count(), 1, "{err}");
     let (ok, _, err) = dextrain(&["bench", "--backend", "cpu", "--physics-wgsl", "no_such_module.wgsl"]);
     assert!(!ok && err.contains("no_such_module.wgsl") && err.contains("cannot read"), "{err}");
+    // only the env-step bench steps the simulator's module
+    let (ok, _, err) = dextrain(&["bench", "--ppo", "--physics-wgsl", module]);
+    assert!(!ok && err.contains("--physics-wgsl") && err.contains("cannot be used with"), "{err}");
     let Some(ctx) = crate::common::gpu_context(test) else { return };
     let backend = format!("gpu:{}", ctx.info.name);
     drop(ctx);

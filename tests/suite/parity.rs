@@ -565,7 +565,7 @@ fn scripted_grasp_and_lift_has_the_same_outcome_on_both_backends() {
 /// env steps of noisy grasp targets from it) at 256 envs on both backends: no env blows up, and the
 /// contacts per physics step agree within 2 %. The single steps and short rollouts above can agree
 /// while a shader goes wrong over many contact-rich steps: two variants of physics.wgsl that passed
-/// every parity test above blew up 44–390 of the bench's envs on lavapipe, with 4–8 % more
+/// every parity test above blew up 34–390 of the bench's envs on lavapipe, with 4 % to 2× more
 /// contacts (BENCHMARKS.md "The physics shader's call sites").
 #[test]
 fn the_bench_scene_s_rollout_has_the_same_contacts_on_both_backends() {
