@@ -92,8 +92,8 @@ fn bench_prints_one_json_line_with_the_figures() {
 
 /// `bench --physics-wgsl FILE`: the simulator's WGSL module read from a file (a shader variant timed
 /// without a rebuild). Without a GPU backend, with a file that is not there, or with another bench
-/// (--ppo), an error naming the flag; on a GPU a module that fails validation is an error naming the file and the
-/// shader, and the built-in module's text read from a file steps the bench scene.
+/// (--ppo), an error naming the flag; on a GPU a module that fails validation is an error naming
+/// the file and the shader, and the built-in module's text read from a file steps the bench scene.
 #[test]
 fn bench_steps_a_physics_module_read_from_a_file() {
     let test = "bench_steps_a_physics_module_read_from_a_file";
