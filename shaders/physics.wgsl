@@ -541,61 +541,58 @@ fn object_in_reach(cd: ColliderDesc, cpos: vec3<f32>, opos: vec3<f32>, margin: f
 // physics.rs: SWEPT_TOLERANCE
 const SWEPT_TOLERANCE: f32 = 3.0e-4;
 
-// physics.rs: hand_object_pair. Hand collider ci (at cp, its pose at the substep's start) against
-// the object: `raw`, the pair's contact at the substep's poses (collide_hand_object_at; the
-// statistics' penetration), and `c`, the contact it is solved with: raw, or the pair's contact at the
-// end of the substep if collider and object keep their velocities (ovel, ow) when that is deeper
-// than raw would be by then by more than SWEPT_TOLERANCE, taken back to the start of the substep
-// along the relative motion (physics.rs: swept_contact_at). Both queries go through one call of
-// the narrow phase in a loop: a shader compiler inlines every call, and with the second call
-// (and the four calls of clip_polygon) the bench scene stepped 1.9x slower on lavapipe, the same
-// contacts (BENCHMARKS.md "The physics shader's call sites")
-struct PairContact {
-    raw: Contact,
-    c: Contact,
+// the object's frame (its origin and rotation)
+struct ObjectFrame {
+    pos: vec3<f32>,
+    rot: vec4<f32>,
 }
 
-fn hand_object_pair(ci: u32, cp: ColliderPose, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>, margin: f32) -> PairContact {
+// physics.rs: object_frame_at_end. The object's frame at the end of the substep if it keeps its
+// velocities (its centre of mass ocom moving at ovel, turning at ow), as integrate_object moves it:
+// the frame turns about the centre of mass
+fn object_frame_at_end(h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>) -> ObjectFrame {
+    let rot = quat_integrate(st.obj_rot, ow, h);
+    return ObjectFrame(ocom + ovel * h - quat_rotate(rot, prm.obj_com.xyz), rot);
+}
+
+// physics.rs: collider_pose_at_end. Collider pose cp (on link l) at the end of the substep: it
+// moves with its link
+fn collider_pose_at_end(l: u32, cp: ColliderPose, h: f32) -> ColliderPose {
+    return ColliderPose(cp.pos + link_point_velocity(l, cp.pos) * h, quat_integrate(cp.rot, link_w[l], h));
+}
+
+// physics.rs: swept_test. Whether the swept search of hand collider ci's contact c (at the
+// substep's poses, against the object's velocities ovel, ow) may find a contact deeper than c
+// would be by the end of the substep, and c's own depth by then (c_end)
+struct SweptTest {
+    search: bool,
+    c_end: f32,
+}
+
+fn swept_test(ci: u32, c: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>) -> SweptTest {
+    if (c.depth <= -1.0) {
+        return SweptTest(false, 0.0);
+    }
     let cd = colliders[ci];
     let l = cd.link;
-    // query 0: the substep's poses; query 1: both at the end of the substep
-    var q_pose = cp;
-    var q_opos = st.obj_pos.xyz;
-    var q_orot = st.obj_rot;
-    var raw = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), q_opos);
-    // raw's own depth by the end of the substep
-    var c_end = 0.0;
-    for (var q = 0u; q < 2u; q++) {
-        let found = collide_hand_object_at(ci, q_pose, q_opos, q_orot, margin);
-        if (q == 0u) {
-            raw = found;
-            if (found.depth <= -1.0) {
-                break;
-            }
-            // v_hand − v_object at the contact along n: its separating speed
-            c_end = found.depth - h * dot(link_point_velocity(l, found.point) - (ovel + cross(ow, found.point - ocom)), found.normal);
-            // no feature gets deeper than raw's own prediction by more than h·2r·|ω_link − ω_obj|:
-            // nothing to find within the tolerance, or where even so nothing would be touching by then
-            let sweep = h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length(link_w[l] - ow);
-            if (sweep <= SWEPT_TOLERANCE || c_end + sweep <= 0.0) {
-                break;
-            }
-            // the collider moves with its link, the object's frame turns about its centre of mass,
-            // which moves at ovel (integrate_object)
-            q_pose = ColliderPose(cp.pos + link_point_velocity(l, cp.pos) * h, quat_integrate(cp.rot, link_w[l], h));
-            q_orot = quat_integrate(st.obj_rot, ow, h);
-            q_opos = ocom + ovel * h - quat_rotate(q_orot, prm.obj_com.xyz);
-        } else if (found.depth > -1.0 && found.depth > c_end + SWEPT_TOLERANCE) {
-            // back to the start of the substep: the point with the object, d = d_end + h·(v_rel·n)
-            let x = found.point - (ovel + cross(ow, found.point - ocom)) * h;
-            let v_rel = link_point_velocity(l, x) - (ovel + cross(ow, x - ocom));
-            var out = found;
-            out.depth = found.depth + h * dot(v_rel, found.normal);
-            out.point = x;
-            return PairContact(raw, out);
-        }
-    }
-    return PairContact(raw, raw);
+    // v_hand − v_object at the contact along n: its separating speed
+    let c_end = c.depth - h * dot(link_point_velocity(l, c.point) - (ovel + cross(ow, c.point - ocom)), c.normal);
+    // no feature gets deeper than c's own prediction by more than h·2r·|ω_link − ω_obj|: nothing
+    // to find within the tolerance, or where even so nothing would be touching by then
+    let sweep = h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length(link_w[l] - ow);
+    return SweptTest(!(sweep <= SWEPT_TOLERANCE || c_end + sweep <= 0.0), c_end);
+}
+
+// physics.rs: swept_contact_from_end. The contact `end` that the swept search found at the end of
+// the substep for link l, taken back to the start of the substep along the relative motion: its
+// point with the object, its depth d = d_end + h·(v_rel·n)
+fn swept_contact_from_end(l: u32, end: Contact, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>) -> Contact {
+    let x = end.point - (ovel + cross(ow, end.point - ocom)) * h;
+    let v_rel = link_point_velocity(l, x) - (ovel + cross(ow, x - ocom));
+    var out = end;
+    out.depth = end.depth + h * dot(v_rel, end.normal);
+    out.point = x;
+    return out;
 }
 
 // a hand collider against object piece pd (lengths scaled by scale, at opos, orot); apart by
@@ -1506,35 +1503,108 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
     // velocity this substep is predicted (bit ci % 32 of word ci / 32)
     var revisit: array<u32, REVISIT_WORDS>;
     var any_revisit = false;
+    // the first REVISIT_CACHE of those pairs' contacts at the substep's poses, in collider order:
+    // the link poses do not change within the substep, so the second pass would find them again
+    var cached: array<Contact, REVISIT_CACHE>;
+    var n_cached = 0u;
     let opos = st.obj_pos.xyz;
+    let orot = st.obj_rot;
+    // Each env walks its own list of jobs: a warp runs a branch when any of its envs takes it, so
+    // a loop over the colliders with the narrow phase inside ran it for every collider that any of
+    // the warp's envs had near the object, and again for every collider any of them searched
+    // (BENCHMARKS.md "The GPU window of 2026-11-29"); walking each env's near colliders and their
+    // swept searches as one list, one query a round, a warp runs as many rounds as its busiest
+    // env has queries. Each env solves the same pairs in the same order as physics.rs.
+    // First the colliders near the object (near_obj) or the table (jobs), the rest's springs
+    // cleared
+    var jobs: array<u32, REVISIT_WORDS>;
+    var near_obj: array<u32, REVISIT_WORDS>;
     for (var ci = 0u; ci < g.n_colliders; ci++) {
         let cd = colliders[ci];
-        let l = cd.link;
         let r_c = bounding_radius(cd.shape, cd.size.xyz);
-        // the collider's pose once for the margin, the narrow phase, the swept contact and the
-        // table; its turn only for a collider near the object or the table (the rest find no
-        // contact: collide_hand_object_at's first test, a depth under −CONTACT_MARGIN against the
-        // table)
         let cpos = collider_centre(ci);
         let margin = speculative_margin_at(ci, cpos, h, ocom, ovel, ow);
-        let near_object = object_in_reach(cd, cpos, opos, margin);
+        let bit = 1u << (ci % 32u);
+        if (object_in_reach(cd, cpos, opos, margin)) {
+            near_obj[ci / 32u] |= bit;
+            jobs[ci / 32u] |= bit;
+        } else {
+            springs[spring_base + ci] = vec4<f32>(0.0);
+        }
         // the collider's lowest point is at least r_c below its centre: a 1 mm allowance over the
         // margin for the rounding of collide_hand_table_at
-        let near_table = g.hand_table != 0u && cpos.z <= r_c + CONTACT_MARGIN + 1.0e-3;
-        var cp = ColliderPose(cpos, vec4<f32>(0.0, 0.0, 0.0, 1.0));
-        if (near_object || near_table) {
-            cp.rot = collider_rotation(ci);
+        if (g.hand_table != 0u && cpos.z <= r_c + CONTACT_MARGIN + 1.0e-3) {
+            jobs[ci / 32u] |= bit;
+        } else if (g.hand_table != 0u) {
+            springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
+        }
+    }
+    // the object's frame at the end of the substep, for the swept searches
+    let oend = object_frame_at_end(h, ocom, ovel, ow);
+    // the job in hand: collider ci (its pose cp, margin) and, while sweeping, its contact at the
+    // substep's poses (raw) and raw's own depth by the end of the substep (c_end)
+    var word = 0u;
+    var ci = 0u;
+    var sweeping = false;
+    var near_object = false;
+    var cp = ColliderPose(vec3<f32>(0.0), vec4<f32>(0.0, 0.0, 0.0, 1.0));
+    var margin = 0.0;
+    var raw = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
+    var c_end = 0.0;
+    loop {
+        var q_pose = cp;
+        var q_frame = ObjectFrame(opos, orot);
+        if (sweeping) {
+            q_pose = collider_pose_at_end(colliders[ci].link, cp, h);
+            q_frame = oend;
+        } else {
+            // the next collider of the list, in order
+            while (word < REVISIT_WORDS && jobs[word] == 0u) {
+                word++;
+            }
+            if (word >= REVISIT_WORDS) {
+                break;
+            }
+            let b = firstTrailingBit(jobs[word]);
+            jobs[word] &= jobs[word] - 1u;
+            ci = word * 32u + b;
+            near_object = (near_obj[word] & (1u << b)) != 0u;
+            // the collider's pose once for the margin, the narrow phase, the swept search and the
+            // table
+            cp = collider_pose(ci);
+            margin = speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow);
+            q_pose = cp;
+        }
+        // the one narrow phase of the round: the substep's poses, or both at the end of the
+        // substep while sweeping
+        var found = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
+        if (near_object) {
+            found = collide_hand_object_at(ci, q_pose, q_frame.pos, q_frame.rot, margin);
+        }
+        let l = colliders[ci].link;
+        var c = raw;
+        if (sweeping) {
+            sweeping = false;
+            if (found.depth > -1.0 && found.depth > c_end + SWEPT_TOLERANCE) {
+                c = swept_contact_from_end(l, found, h, ocom, ovel, ow);
+            }
+        } else if (near_object) {
+            raw = found;
+            c = found;
+            let t = swept_test(ci, raw, h, ocom, ovel, ow);
+            if (t.search) {
+                sweeping = true;
+                c_end = t.c_end;
+                continue;
+            }
         }
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
         if (near_object) {
-            let pair = hand_object_pair(ci, cp, h, ocom, ovel, ow, margin);
-            let raw = pair.raw;
             // the statistics' penetration: the pair's overlap at the substep's poses, not a swept
             // contact's depth (physics.rs)
             max_pen_ho = max(max_pen_ho, raw.depth);
             max_pen = max(max_pen, raw.depth);
-            let c = pair.c;
             if (c.depth > -margin) {
                 let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
                 if (dot(cf.force, c.normal) > 0.0) {
@@ -1542,15 +1612,18 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
                 } else {
                     revisit[ci / 32u] |= 1u << (ci % 32u);
                     any_revisit = true;
+                    if (n_cached < REVISIT_CACHE) {
+                        cached[n_cached] = raw;
+                        n_cached++;
+                    }
                 }
             } else {
                 springs[spring_base + ci] = vec4<f32>(0.0);
             }
-        } else {
-            springs[spring_base + ci] = vec4<f32>(0.0);
         }
         // hand–table
-        if (near_table) {
+        let cd = colliders[ci];
+        if (g.hand_table != 0u && cp.pos.z <= bounding_radius(cd.shape, cd.size.xyz) + CONTACT_MARGIN + 1.0e-3) {
             let c2 = collide_hand_table_at(ci, cp);
             if (c2.depth > -CONTACT_MARGIN) {
                 let cf = solve_hand_contact(spring_base + g.n_colliders + ci, l, c2, vec3<f32>(0.0), prm.hand_table_c, mu_ht, h);
@@ -1561,8 +1634,6 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
             } else {
                 springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
             }
-        } else if (g.hand_table != 0u) {
-            springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
         }
     }
     // object–table: every support point of every piece, in order (spring slots 0.. of the object)
@@ -1603,19 +1674,68 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
         }
     }
     // the second pass: the pairs that did not push, against the object's velocity at the end of
-    // the substep as the forces so far make it (physics.rs: contacts_and_forces)
+    // the substep as the forces so far make it (physics.rs: contacts_and_forces), each env walking
+    // its own list of them and their swept searches as the first pass does
     if (any_revisit) {
         let pred = object_velocity_change(h);
+        let pend = object_frame_at_end(h, ocom, pred.vel, pred.w);
         var pushed = false;
-        for (var ci = 0u; ci < g.n_colliders; ci++) {
-            if ((revisit[ci / 32u] & (1u << (ci % 32u))) == 0u) {
-                continue;
+        word = 0u;
+        sweeping = false;
+        var n_seen = 0u;
+        loop {
+            // the round's query: 0 at the substep's poses, 1 at the end of the substep (the swept
+            // search), 2 none (a cached contact that needs no search)
+            var stage = 1u;
+            if (!sweeping) {
+                while (word < REVISIT_WORDS && revisit[word] == 0u) {
+                    word++;
+                }
+                if (word >= REVISIT_WORDS) {
+                    break;
+                }
+                let b = firstTrailingBit(revisit[word]);
+                revisit[word] &= revisit[word] - 1u;
+                ci = word * 32u + b;
+                // the first pass's margin (from the present velocities): the same raw contact
+                cp = collider_pose(ci);
+                margin = speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow);
+                stage = 0u;
+                if (n_seen < n_cached) {
+                    raw = cached[n_seen];
+                    let t = swept_test(ci, raw, h, ocom, pred.vel, pred.w);
+                    c_end = t.c_end;
+                    stage = select(2u, 1u, t.search);
+                }
+                n_seen++;
+            }
+            var q_pose = cp;
+            var q_frame = ObjectFrame(opos, orot);
+            if (stage == 1u) {
+                q_pose = collider_pose_at_end(colliders[ci].link, cp, h);
+                q_frame = pend;
+            }
+            var found = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
+            if (stage != 2u) {
+                found = collide_hand_object_at(ci, q_pose, q_frame.pos, q_frame.rot, margin);
             }
             let l = colliders[ci].link;
-            // the first pass's margin (from the present velocities): the same raw contact
-            let cp = collider_pose(ci);
-            let margin = speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow);
-            let c = hand_object_pair(ci, cp, h, ocom, pred.vel, pred.w, margin).c;
+            var c = raw;
+            if (stage == 1u) {
+                sweeping = false;
+                if (found.depth > -1.0 && found.depth > c_end + SWEPT_TOLERANCE) {
+                    c = swept_contact_from_end(l, found, h, ocom, pred.vel, pred.w);
+                }
+            } else if (stage == 0u) {
+                raw = found;
+                c = found;
+                let t = swept_test(ci, raw, h, ocom, pred.vel, pred.w);
+                if (t.search) {
+                    sweeping = true;
+                    c_end = t.c_end;
+                    continue;
+                }
+            }
             let v_other = pred.vel + cross(pred.w, c.point - ocom);
             let cf = solve_hand_contact(spring_base + ci, l, c, v_other, prm.obj_contact_c, mu_ho, h);
             // the object's force linearised about the predicted velocity: + D·J·(u_p − u₀)

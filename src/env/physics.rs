@@ -747,6 +747,59 @@ pub fn object_in_reach(p: &EnvParams, cd: &ColliderDesc, cpos: Vec3, opos: Vec3,
     within
 }
 
+/// The object's frame (origin, rotation) at the end of the substep if it keeps its velocities (its
+/// centre of mass `ocom` moving at `ovel`, turning at `ow`), as `integrate_object` moves it: the
+/// frame turns about the centre of mass.
+#[inline(always)]
+pub fn object_frame_at_end(st: &EnvState, p: &EnvParams, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3) -> (Vec3, Vec4) {
+    let rot = quat_integrate(v4(st.obj_rot), ow, h);
+    (ocom + ovel * h - quat_rotate(rot, v3(p.obj_com)), rot)
+}
+
+/// A collider's pose (`cpos`, `crot`, on link `l`) at the end of the substep: it moves with its link.
+#[inline(always)]
+pub fn collider_pose_at_end(s: &Scratch, l: usize, cpos: Vec3, crot: Vec4, h: f32) -> (Vec3, Vec4) {
+    (cpos + link_point_velocity(s, l, cpos) * h, quat_integrate(crot, s.link_w[l], h))
+}
+
+/// The test of `swept_contact_at` for hand collider `ci`'s contact `c` at the substep's poses,
+/// against the object's velocities `ovel`, `ow`: `Some(c_end)`, `c`'s own depth by the end of the
+/// substep, where the swept search may find a contact deeper than that by more than
+/// `SWEPT_TOLERANCE`; `None` where it cannot.
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub fn swept_test(m: &Model, s: &Scratch, ci: usize, c: &Contact, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3) -> Option<f32> {
+    if c.depth <= -1.0 {
+        return None;
+    }
+    let cd = &m.colliders[ci];
+    let l = cd.link as usize;
+    // c's own depth by the end of the substep (v_hand − v_object at c along n: separating speed)
+    let c_end = c.depth - h * (link_point_velocity(s, l, c.point) - (ovel + ow.cross(c.point - ocom))).dot(c.normal);
+    // points of the collider's bounding sphere (radius r) move relative to the object at
+    // v_rel(c) + (ω_link − ω_obj) × (x − c): any two differ by at most 2r·|ω_link − ω_obj|, so no
+    // feature gets deeper than c's own prediction by more than h times that: nothing to find
+    // where that is within the tolerance, or where even so nothing would be touching by then
+    // (a bound of r + |c − centre| instead of 2r skipped a fifth of the searches that found a
+    // deeper contact: the bound is a first-order one)
+    let sweep = h * 2.0 * bounding_radius(cd.shape, v3(cd.size)) * (s.link_w[l] - ow).length();
+    if sweep <= SWEPT_TOLERANCE || c_end + sweep <= 0.0 {
+        return None;
+    }
+    Some(c_end)
+}
+
+/// The contact `end` that the swept search found at the end of the substep for link `l`, taken
+/// back to the start of the substep along the relative motion: its point with the object, its
+/// depth d = d_end + h·(v_rel·n).
+#[allow(clippy::too_many_arguments)]
+pub fn swept_contact_from_end(s: &Scratch, l: usize, end: &Contact, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3) -> Contact {
+    let x = end.point - (ovel + ow.cross(end.point - ocom)) * h;
+    // v_hand − v_object at x: positive along the normal where the pair separates
+    let v_rel = link_point_velocity(s, l, x) - (ovel + ow.cross(x - ocom));
+    Contact { depth: end.depth + h * v_rel.dot(end.normal), point: x, ..*end }
+}
+
 /// Hand–object contact `c` of collider `ci`, or the pair's contact where the collider and the
 /// object will be at the end of the substep if they keep their velocities (the object's centre of
 /// mass `ocom` moving at `ovel`, turning at `ow`) when that one is deeper than `c` itself would be
@@ -776,24 +829,10 @@ pub fn swept_contact(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: u
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 pub fn swept_contact_at(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, cpos: Vec3, crot: Vec4, c: Contact, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32, obj_end: &mut Option<(Vec3, Vec4)>) -> Contact {
-    if c.depth <= -1.0 {
-        return c;
+    match swept_test(m, s, ci, &c, h, ocom, ovel, ow) {
+        Some(c_end) => swept_search(st, p, m, s, ci, cpos, crot, c, c_end, h, ocom, ovel, ow, margin, obj_end),
+        None => c,
     }
-    let cd = &m.colliders[ci];
-    let l = cd.link as usize;
-    // c's own depth by the end of the substep (v_hand − v_object at c along n: separating speed)
-    let c_end = c.depth - h * (link_point_velocity(s, l, c.point) - (ovel + ow.cross(c.point - ocom))).dot(c.normal);
-    // points of the collider's bounding sphere (radius r) move relative to the object at
-    // v_rel(c) + (ω_link − ω_obj) × (x − c): any two differ by at most 2r·|ω_link − ω_obj|, so no
-    // feature gets deeper than c's own prediction by more than h times that: nothing to find
-    // where that is within the tolerance, or where even so nothing would be touching by then
-    // (a bound of r + |c − centre| instead of 2r skipped a fifth of the searches that found a
-    // deeper contact: the bound is a first-order one)
-    let sweep = h * 2.0 * bounding_radius(cd.shape, v3(cd.size)) * (s.link_w[l] - ow).length();
-    if sweep <= SWEPT_TOLERANCE || c_end + sweep <= 0.0 {
-        return c;
-    }
-    swept_search(st, p, m, s, ci, cpos, crot, c, c_end, h, ocom, ovel, ow, margin, obj_end)
 }
 
 /// The search of `swept_contact_at` for a pair that may meet deeper by the substep's end (`c_end`:
@@ -802,16 +841,9 @@ pub fn swept_contact_at(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci
 #[inline(never)]
 fn swept_search(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, cpos: Vec3, crot: Vec4, c: Contact, c_end: f32, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32, obj_end: &mut Option<(Vec3, Vec4)>) -> Contact {
     let l = m.colliders[ci].link as usize;
-    // v_hand − v_object at x: positive along the normal where the pair separates
-    let v_rel = |x: Vec3| link_point_velocity(s, l, x) - (ovel + ow.cross(x - ocom));
-    // the poses at the end of the substep: the collider moves with its link, the object's frame
-    // turns about its centre of mass, which moves at ovel (as `integrate_object`)
-    let cpos_end = cpos + link_point_velocity(s, l, cpos) * h;
-    let crot_end = quat_integrate(crot, s.link_w[l], h);
-    let (opos_end, orot_end) = *obj_end.get_or_insert_with(|| {
-        let orot_end = quat_integrate(v4(st.obj_rot), ow, h);
-        (ocom + ovel * h - quat_rotate(orot_end, v3(p.obj_com)), orot_end)
-    });
+    // the poses at the end of the substep
+    let (cpos_end, crot_end) = collider_pose_at_end(s, l, cpos, crot, h);
+    let (opos_end, orot_end) = *obj_end.get_or_insert_with(|| object_frame_at_end(st, p, h, ocom, ovel, ow));
     let end = collide_hand_object_at(p, m, ci, cpos_end, crot_end, opos_end, orot_end, margin);
     if end.depth <= -1.0 {
         return c;
@@ -819,20 +851,7 @@ fn swept_search(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize,
     if end.depth <= c_end + SWEPT_TOLERANCE {
         return c;
     }
-    // back to the start of the substep: the point with the object, d = d_end + h·(v_rel·n)
-    let x = end.point - (ovel + ow.cross(end.point - ocom)) * h;
-    Contact { depth: end.depth + h * v_rel(x).dot(end.normal), point: x, ..end }
-}
-
-/// Hand collider `ci` (at `cpos`, `crot`, its pose at the substep's start) against the object:
-/// the pair's contact at the substep's poses (`collide_hand_object_at`; the statistics'
-/// penetration) and the contact it is solved with (`swept_contact_at`'s choice, against the
-/// object's velocities `ovel`, `ow`). The shader's twin makes both queries through one call of the
-/// narrow phase in a loop (one inlined copy of it where two calls made two).
-#[allow(clippy::too_many_arguments)]
-pub fn hand_object_pair(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, cpos: Vec3, crot: Vec4, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32, obj_end: &mut Option<(Vec3, Vec4)>) -> (Contact, Contact) {
-    let raw = collide_hand_object_at(p, m, ci, cpos, crot, v3(st.obj_pos), v4(st.obj_rot), margin);
-    (raw, swept_contact_at(st, p, m, s, ci, cpos, crot, raw, h, ocom, ovel, ow, margin, obj_end))
+    swept_contact_from_end(s, l, &end, h, ocom, ovel, ow)
 }
 
 /// Narrow phase between a hand collider (`cd` at `cpos`, `crot`) and object piece `pd` (its
@@ -1788,8 +1807,7 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
     let mut revisit = [0u32; REVISIT_WORDS];
     // the first REVISIT_CACHE of those pairs' contacts and margins, in collider order: the link
     // poses do not change within the substep, so the second pass's narrow phase would find them
-    // again (the shader finds them again: on lavapipe its cache of them cost 1.03x, unmeasured on
-    // a GPU, where a warp runs that narrow phase for every collider any of its envs revisits)
+    // again (the shader keeps the contacts alone and finds the margins again)
     let mut cached = [(Contact::default(), 0.0f32); REVISIT_CACHE];
     let mut n_cached = 0usize;
     // the object's frame at the end of the substep, found by the pass's first swept search
@@ -1813,7 +1831,8 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
         // hand–object: a touching pair, or one apart by less than the speculative margin (at the
         // end of the substep where the object's turn brings a feature in elsewhere)
         if near_object {
-            let (raw, c) = hand_object_pair(st, p, m, s, ci, cpos, crot, h, ocom, ovel, ow, margin, &mut obj_end);
+            let raw = collide_hand_object_at(p, m, ci, cpos, crot, opos, orot, margin);
+            let c = swept_contact_at(st, p, m, s, ci, cpos, crot, raw, h, ocom, ovel, ow, margin, &mut obj_end);
             // the penetration the statistics record: the pair's overlap at the substep's poses,
             // not a swept contact's depth (where the pair would be by the substep's end if
             // nothing pushed, taken back along the motion: not a pose the env reaches)

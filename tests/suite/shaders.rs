@@ -144,6 +144,7 @@ fn shader_constants_match_rust() {
         ("PROJ_ITERS", dextrain::env::physics::PROJ_ITERS),
         ("BOX_PROJ_ITERS", dextrain::env::physics::BOX_PROJ_ITERS),
         ("REVISIT_WORDS", dextrain::env::physics::REVISIT_WORDS),
+        ("REVISIT_CACHE", dextrain::env::physics::REVISIT_CACHE),
         ("MAX_REACTIONS", dextrain::env::physics::MAX_REACTIONS),
     ] {
         assert!(src.contains(&format!("const {name}: u32 = {v}u;")), "{name} should be {v} in the WGSL");
