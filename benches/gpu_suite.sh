@@ -22,10 +22,17 @@
 #      TRAIN_PPO_HOST_S seconds with `train.device_rollouts = false` (observations through the host
 #      every env step: what the device-resident rollouts save). Each run's summary line gives its
 #      device memory (the simulator's buffers and burn's reserved pool, and their sum per env).
+#   4. (step "baseline", only with BASELINE_WGSL set: a simulator WGSL module, common + reset +
+#      physics, as `benches/physics_module.sh COMMIT` writes it) the env-only bench at BASELINE_ENVS
+#      envs with the built-in physics and with that module (`bench --physics-wgsl`), alternated over
+#      BASELINE_ROUNDS rounds, and the median of the rounds' ratios: what a physics change costs on
+#      this GPU against the commit it is measured from (issue 36: f7d02e5, the physics before its
+#      contacts).
 # --quick runs the same steps at tiny sizes (any adapter, lavapipe included) so that the script
 # can be checked anywhere. Environment: ENVS (space-separated env counts), TRAIN_PPO_S, TRAIN_SAC_S, TRAIN_PPO_HOST_S,
 # BENCH_S (least timed seconds per env-only point), OBJ_ENVS, ADAPTER (gpu or gpu:NAME, default gpu),
-# STEPS (the steps to run, default "env objects learner train"; the others' JSON values are null).
+# STEPS (the steps to run, default "env objects learner train", plus "baseline" when BASELINE_WGSL is
+# set; the others' JSON values are null), BASELINE_WGSL, BASELINE_ENVS, BASELINE_ROUNDS.
 set -uo pipefail
 
 bin=target/release/dextrain
@@ -45,10 +52,12 @@ if [ "$quick" = 1 ]; then
     envs=${ENVS:-"64 128"}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; ppo_host_s=${TRAIN_PPO_HOST_S:-10}; bench_s=${BENCH_S:-0.5}; obj_envs=${OBJ_ENVS:-64}
     small=(--set sim.num_envs=64 --set train.steps_per_env=4 --set 'policy.actor_hidden=[32]' --set 'policy.critic_hidden=[32]')
     sac_small=(--set sac.batch_size=64 --set sac.learning_starts=8 --set sac.buffer_capacity=64)
+    baseline_envs=${BASELINE_ENVS:-64}; baseline_rounds=${BASELINE_ROUNDS:-1}
     ppo_sizes=(--envs 64 --iters 1); sac_sizes=(--envs 64 --iters 1 --batch 256 --gradient-steps 2); matmul_sizes=()  # (every routine compiles its kernels: minutes on lavapipe)
 else
     envs=${ENVS:-"4096 16384 65536 262144"}; ppo_s=${TRAIN_PPO_S:-210}; sac_s=${TRAIN_SAC_S:-90}; ppo_host_s=${TRAIN_PPO_HOST_S:-30}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
     small=(); sac_small=(); ppo_sizes=(--iters 3); sac_sizes=(--iters 3); matmul_sizes=(--iters 3)
+    baseline_envs=${BASELINE_ENVS:-65536}; baseline_rounds=${BASELINE_ROUNDS:-3}
 fi
 runs=$out/runs
 mkdir -p "$runs"
@@ -106,7 +115,8 @@ train_for() {
     echo "exit $?" >>"$out/$name.log"
 }
 
-steps=" ${STEPS:-env objects learner train} "
+baseline_wgsl=${BASELINE_WGSL:-}
+steps=" ${STEPS:-env objects learner train${baseline_wgsl:+ baseline}} "
 runs_step() { case "$steps" in *" $1 "*) return 0 ;; *) return 1 ;; esac; }
 
 start=$(date +%s)
@@ -133,6 +143,29 @@ for o in $objects; do
     "$bin" bench configs/bench_$o.toml --backend "$adapter" --envs "$obj_envs" --chunks 5 --seconds "$bench_s" >"$out/object_$o.json" 2>"$out/object_$o.log"
     obj_json="$obj_json${obj_json:+, }$(json_of "$out/object_$o.json")"
 done
+baseline_json=null
+if runs_step baseline; then
+    if [ -z "$baseline_wgsl" ] || [ ! -f "$baseline_wgsl" ]; then
+        echo "gpu_suite: step baseline needs BASELINE_WGSL, a simulator WGSL module file (benches/physics_module.sh COMMIT > FILE); got '$baseline_wgsl'" >&2
+        exit 2
+    fi
+    rounds_json=""
+    for r in $(seq 1 "$baseline_rounds"); do
+        echo "gpu_suite: built-in physics against $baseline_wgsl at $baseline_envs envs, round $r" >&2
+        "$bin" bench --backend "$adapter" --envs "$baseline_envs" --chunks 5 --seconds "$bench_s" >"$out/baseline_builtin_$r.json" 2>"$out/baseline_builtin_$r.log"
+        "$bin" bench --backend "$adapter" --envs "$baseline_envs" --chunks 5 --seconds "$bench_s" --physics-wgsl "$baseline_wgsl" >"$out/baseline_module_$r.json" 2>"$out/baseline_module_$r.log"
+        rounds_json="$rounds_json${rounds_json:+, }{\"builtin\": $(json_of "$out/baseline_builtin_$r.json"), \"baseline\": $(json_of "$out/baseline_module_$r.json")}"
+    done
+    # each round's ratio of env-steps/s, baseline over built-in (the built-in's cost in the
+    # baseline's units), and their median
+    ratios=$(for r in $(seq 1 "$baseline_rounds"); do
+        for f in "$out/baseline_module_$r.json" "$out/baseline_builtin_$r.json"; do
+            tail -n 1 "$f" 2>/dev/null | grep -o '"env_steps_per_s":{[^}]*"median":[0-9.e+-]*' | grep -o '[0-9.e+-]*$' || echo 0
+        done | paste -sd' ' | awk '{ if ($1 > 0 && $2 > 0) printf "%.4f\n", $1 / $2 }'
+    done | sort -g)
+    median=$(printf '%s\n' "$ratios" | awk 'NF { v[n++] = $1 } END { if (n == 0) print "null"; else if (n % 2) print v[(n - 1) / 2]; else print (v[n / 2 - 1] + v[n / 2]) / 2 }')
+    baseline_json="{\"module\": \"$baseline_wgsl\", \"envs\": $baseline_envs, \"cost_ratio_median\": $median, \"rounds\": [$rounds_json]}"
+fi
 # a step that did not run reports null, never an earlier run's files
 ppo_json=null; sac_json=null; matmul_json=null; train_ppo=null; train_sac=null; train_host=null; ppo_run=null; sac_run=null
 if runs_step learner; then
@@ -163,6 +196,7 @@ driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,
     printf ' "objects": [%s],\n' "$obj_json"
     printf ' "ppo_update": %s,\n "sac_update": %s,\n "matmul_routines": %s,\n' "$ppo_json" "$sac_json" "$matmul_json"
     printf ' "train_ppo": %s,\n "train_sac": %s,\n "train_ppo_host_path": %s,\n' "$train_ppo" "$train_sac" "$train_host"
-    printf ' "train_ppo_run": %s,\n "train_sac_run": %s}\n' "$ppo_run" "$sac_run"
+    printf ' "train_ppo_run": %s,\n "train_sac_run": %s,\n' "$ppo_run" "$sac_run"
+    printf ' "physics_baseline": %s}\n' "$baseline_json"
 } >"$out/gpu_suite.json"
 cat "$out/gpu_suite.json"

@@ -370,11 +370,15 @@ fn gpu_suite_quick_writes_every_figure() {
     let adapter = format!("gpu:{}", ctx.info.name.split(" (").next().unwrap_or(&ctx.info.name));
     drop(ctx);
     let tmp = tempfile::tempdir().unwrap();
+    // a baseline physics module: today's own, as benches/physics_module.sh writes a commit's
+    let module = tmp.path().join("baseline.wgsl");
+    std::fs::write(&module, dextrain::gpu::shaders::shader_source()).unwrap();
     let suite = |steps: &str| -> (serde_json::Value, String) {
         let out = Command::new("bash")
             .args(["benches/gpu_suite.sh", "--quick", "--bin", env!("CARGO_BIN_EXE_dextrain"), "--out"])
             .arg(tmp.path())
             .envs([("ADAPTER", adapter.as_str()), ("ENVS", "64"), ("BENCH_S", "0.2"), ("STEPS", steps)])
+            .env("BASELINE_WGSL", &module)
             .envs([("TRAIN_PPO_S", "14"), ("TRAIN_SAC_S", "12"), ("TRAIN_PPO_HOST_S", "10")])
             .current_dir(ROOT)
             .output()
@@ -420,9 +424,20 @@ fn gpu_suite_quick_writes_every_figure() {
         let m = &j[k]["device_memory"];
         assert!(m["sim_bytes"].as_u64().unwrap_or(0) > 0 && m["learner_bytes"].as_u64().unwrap_or(0) > 0 && m["bytes_per_env"].as_f64().unwrap_or(0.0) > 0.0, "{k}: {text}");
     }
-    // the steps left out are null, not figures from the run before in the same folder
-    let (j, text) = suite("objects");
+    assert!(j["physics_baseline"].is_null(), "a step not asked for ran: {text}");
+    // the steps left out are null, not figures from the run before in the same folder; the
+    // baseline step times the built-in physics against a module read from a file
+    let (j, text) = suite("objects baseline");
     assert_eq!(j["objects"].as_array().map(|a| a.len()), Some(3), "{text}");
+    let b = &j["physics_baseline"];
+    assert_eq!(b["envs"].as_u64(), Some(64), "{text}");
+    let round = &b["rounds"][0];
+    assert!(rate(&round["builtin"]) > 0.0 && rate(&round["baseline"]) > 0.0, "{text}");
+    assert!(round["builtin"]["physics_wgsl"].is_null() && round["baseline"]["physics_wgsl"].as_str() == module.to_str(), "{text}");
+    // the same module both ways: the same contacts, and a ratio of the two rates
+    assert_eq!(round["builtin"]["contacts_per_physics_step"], round["baseline"]["contacts_per_physics_step"], "{text}");
+    let ratio = b["cost_ratio_median"].as_f64().unwrap_or(f64::NAN);
+    assert!((ratio - rate(&round["baseline"]) / rate(&round["builtin"])).abs() < 1e-3 * ratio.max(1.0) + 1e-4, "{text}");
     assert_eq!(j["env_only"].as_array().map(|a| a.len()), Some(0), "{text}");
     for k in ["ppo_update", "sac_update", "train_ppo", "train_sac", "train_ppo_host_path", "train_ppo_run", "train_sac_run"] {
         assert!(j[k].is_null(), "{k}: {text}");
