@@ -1515,10 +1515,11 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
     // (BENCHMARKS.md "The GPU window of 2026-11-29"); walking each env's near colliders and their
     // swept searches as one list, one query a round, a warp runs as many rounds as its busiest
     // env has queries. Each env solves the same pairs in the same order as physics.rs.
-    // First the colliders near the object (near_obj) or the table (jobs), the rest's springs
-    // cleared
+    // First the colliders near the object (near_obj) or the table (near_tab), the rest's springs
+    // cleared; jobs: the colliders of either list not yet walked
     var jobs: array<u32, REVISIT_WORDS>;
     var near_obj: array<u32, REVISIT_WORDS>;
+    var near_tab: array<u32, REVISIT_WORDS>;
     for (var ci = 0u; ci < g.n_colliders; ci++) {
         let cd = colliders[ci];
         let r_c = bounding_radius(cd.shape, cd.size.xyz);
@@ -1534,6 +1535,7 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
         // the collider's lowest point is at least r_c below its centre: a 1 mm allowance over the
         // margin for the rounding of collide_hand_table_at
         if (g.hand_table != 0u && cpos.z <= r_c + CONTACT_MARGIN + 1.0e-3) {
+            near_tab[ci / 32u] |= bit;
             jobs[ci / 32u] |= bit;
         } else if (g.hand_table != 0u) {
             springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
@@ -1547,6 +1549,7 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
     var ci = 0u;
     var sweeping = false;
     var near_object = false;
+    var near_table = false;
     var cp = ColliderPose(vec3<f32>(0.0), vec4<f32>(0.0, 0.0, 0.0, 1.0));
     var margin = 0.0;
     var raw = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
@@ -1569,6 +1572,7 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
             jobs[word] &= jobs[word] - 1u;
             ci = word * 32u + b;
             near_object = (near_obj[word] & (1u << b)) != 0u;
+            near_table = (near_tab[word] & (1u << b)) != 0u;
             // the collider's pose once for the margin, the narrow phase, the swept search and the
             // table
             cp = collider_pose(ci);
@@ -1622,8 +1626,7 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
             }
         }
         // hand–table
-        let cd = colliders[ci];
-        if (g.hand_table != 0u && cp.pos.z <= bounding_radius(cd.shape, cd.size.xyz) + CONTACT_MARGIN + 1.0e-3) {
+        if (near_table) {
             let c2 = collide_hand_table_at(ci, cp);
             if (c2.depth > -CONTACT_MARGIN) {
                 let cf = solve_hand_contact(spring_base + g.n_colliders + ci, l, c2, vec3<f32>(0.0), prm.hand_table_c, mu_ht, h);
