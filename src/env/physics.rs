@@ -721,8 +721,8 @@ pub fn collide_hand_object_at(p: &EnvParams, m: &Model, ci: usize, cpos: Vec3, c
         // a piece whose frame is the object's (a primitive object's one piece): its pose is the
         // object's (`piece_pose_at` returns it to the bit, but for the sign of a zero), and the
         // collider's centre in it is c_obj (CPU only: in the shader this shortcut blew up the
-        // bench scene's envs on lavapipe, cause not found; BENCHMARKS.md "The shader takes the
-        // CPU's exact cuts")
+        // bench scene's envs on lavapipe, cause not found, BENCHMARKS.md "The shader takes the
+        // CPU's exact cuts"; since 2026-11-30 it does not, but is slower there)
         let c = if pd.pos[..3] == [0.0; 3] && pd.rot == [0.0, 0.0, 0.0, 1.0] {
             collide_collider_piece_in(m, cd, c_obj, quat_mul(quat_conj(orot), crot), pd, p.obj_scale, opos, orot, margin)
         } else {
