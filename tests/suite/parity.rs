@@ -133,7 +133,7 @@ fn a_grasp_pressed_onto_the_table_steps_the_same_on_both_backends() {
     }
     // the hand lowered until its lowest point is 2 mm into the table, each env by a little more
     // (the envs differ; in the bench grasp the fingertips reach the table's plane), the cube no
-    // lower than resting on it, the wrist's target lowered with it
+    // more than 0.5 mm into the table, the wrist's target lowered with it
     let mut states = cpu.states().unwrap();
     for (e, st) in states.iter_mut().enumerate() {
         let links = model.hand.forward_kinematics(&st.q[..model.hand.joints.len()]);
@@ -149,8 +149,8 @@ fn a_grasp_pressed_onto_the_table_steps_the_same_on_both_backends() {
                 let z = pose.transform_point(glam::Vec3::from_slice(&cd.pos[..3])).z;
                 let reach = |k: usize, half: f32| (rot * glam::Vec3::AXES[k]).z.abs() * half;
                 match cd.shape {
-                    1 => z - reach(0, cd.size[0]) - reach(1, cd.size[1]) - reach(2, cd.size[2]),
-                    2 => z - reach(2, cd.size[1]) - cd.size[0],
+                    dextrain::geom::SHAPE_BOX => z - reach(0, cd.size[0]) - reach(1, cd.size[1]) - reach(2, cd.size[2]),
+                    dextrain::geom::SHAPE_CAPSULE => z - reach(2, cd.size[1]) - cd.size[0],
                     _ => z - cd.size[0],
                 }
             })
