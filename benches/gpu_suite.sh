@@ -28,7 +28,8 @@
 #      BASELINE_ROUNDS rounds, and the median of the rounds' ratios: what a physics change costs on
 #      this GPU against the commit it is measured from (issue 36: f7d02e5, the physics before its
 #      contacts).
-# On an H200 the default steps take ~10 minutes and the baseline step ~2.5 more: where one command
+# On an H200 the default steps take ~10 minutes and the baseline step ~2.5 more (estimates from the
+# steps' parts timed in earlier windows, the suite not yet run whole there): where one command
 # may run less (a device window's call), split them with STEPS, e.g. STEPS="env baseline" then
 # STEPS="objects learner train".
 # --quick runs the same steps at tiny sizes (any adapter, lavapipe included) so that the script
