@@ -1486,6 +1486,25 @@ fn hand_object_force(ci: u32, c: Contact, cf: HandContactForce, ocom: vec3<f32>,
 // physics.rs: contacts_and_forces. Every contact of the substep; `exact` when the second pass
 // predicted the object's velocities and none of its pairs pushed (they are then the end of the
 // substep's: nothing the object's implicit solve reads has changed since)
+// next_in_list's answer for an empty list
+const NO_COLLIDER: u32 = 0xffffffffu;
+
+// physics.rs: next_in_list. The first collider of bit list `list` (bit ci % 32 of word ci / 32)
+// from word `word` on, taken off the list (`word` left at its word); NO_COLLIDER once it is empty.
+// Walking a list so, a warp runs as many rounds as its busiest env has colliders on it
+fn next_in_list(list: ptr<function, array<u32, REVISIT_WORDS>>, word: ptr<function, u32>) -> u32 {
+    while (*word < REVISIT_WORDS && (*list)[*word] == 0u) {
+        *word += 1u;
+    }
+    if (*word >= REVISIT_WORDS) {
+        return NO_COLLIDER;
+    }
+    let bits = (*list)[*word];
+    // the lowest bit cleared
+    (*list)[*word] = bits & (bits - 1u);
+    return *word * 32u + firstTrailingBit(bits);
+}
+
 struct ObjectPrediction {
     u: ObjectVelocity,
     exact: bool,
@@ -1564,17 +1583,13 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
             q_frame = oend;
         } else {
             // the next collider of the list, in order
-            while (word < REVISIT_WORDS && jobs[word] == 0u) {
-                word++;
-            }
-            if (word >= REVISIT_WORDS) {
+            ci = next_in_list(&jobs, &word);
+            if (ci == NO_COLLIDER) {
                 break;
             }
-            let b = firstTrailingBit(jobs[word]);
-            jobs[word] &= jobs[word] - 1u;
-            ci = word * 32u + b;
-            near_object = (near_obj[word] & (1u << b)) != 0u;
-            near_table = (near_tab[word] & (1u << b)) != 0u;
+            let bit = 1u << (ci % 32u);
+            near_object = (near_obj[ci / 32u] & bit) != 0u;
+            near_table = (near_tab[ci / 32u] & bit) != 0u;
             // the collider's pose once for the margin, the narrow phase, the swept search and the
             // table
             cp = collider_pose(ci);
@@ -1693,18 +1708,10 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
             // search), 2 none (a cached contact that needs no search)
             var stage = 1u;
             if (!sweeping) {
-                while (word < REVISIT_WORDS && revisit[word] == 0u) {
-                    word++;
-                }
-                if (word >= REVISIT_WORDS) {
+                ci = next_in_list(&revisit, &word);
+                if (ci == NO_COLLIDER) {
                     break;
                 }
-                let b = firstTrailingBit(revisit[word]);
-                revisit[word] &= revisit[word] - 1u;
-                ci = word * 32u + b;
-                // the first pass's margin (from the present velocities): the same raw contact
-                cp = collider_pose(ci);
-                margin = speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow);
                 stage = 0u;
                 if (n_seen < n_cached) {
                     raw = cached[n_seen];
@@ -1713,6 +1720,12 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
                     stage = select(2u, 1u, t.search);
                 }
                 n_seen++;
+                // a pair that queries: the collider's pose and the first pass's margin (from the
+                // present velocities: the same raw contact)
+                if (stage != 2u) {
+                    cp = collider_pose(ci);
+                    margin = speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow);
+                }
             }
             var q_pose = cp;
             var q_frame = ObjectFrame(opos, orot);

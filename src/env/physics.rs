@@ -1781,6 +1781,20 @@ pub fn hand_object_force(p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, ci: 
     }
 }
 
+/// The first collider of bit list `list` (bit ci % 32 of word ci / 32) from word `word` on, taken
+/// off the list (`word` left at its word); `None` once it is empty. The shader walks its passes'
+/// lists so (a warp then runs as many rounds as its busiest env has colliders on them).
+#[inline(always)]
+pub fn next_in_list(list: &mut [u32; REVISIT_WORDS], word: &mut usize) -> Option<usize> {
+    while *word < REVISIT_WORDS && list[*word] == 0 {
+        *word += 1;
+    }
+    let bits = *list.get(*word)?;
+    // the lowest bit cleared
+    list[*word] = bits & (bits - 1);
+    Some(*word * 32 + bits.trailing_zeros() as usize)
+}
+
 /// Evaluates every contact of the substep: forces on hand and object, springs (`springs`: this
 /// env's `[n_springs]` slots, see [`spring_slot`]), statistics. `on_contact` sees each contact
 /// that touches or pushes, with the force on its first body (the hand; the object against the
@@ -1915,10 +1929,8 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
         let mut pushed = false;
         let mut n_seen = 0usize;
         let mut obj_end_p = None;
-        for ci in 0..g.n_colliders as usize {
-            if revisit[ci / 32] & (1 << (ci % 32)) == 0 {
-                continue;
-            }
+        let mut word = 0;
+        while let Some(ci) = next_in_list(&mut revisit, &mut word) {
             let l = m.colliders[ci].link as usize;
             // past the cache, the first pass's margin again (from the present velocities): the
             // same raw contact
