@@ -367,6 +367,9 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
         "gpu_matmul_fallbacks": crate::learn::kernels::gpu_matmul::fallbacks(),
         // the GPU products' routine and, with `dextrain_tuned`, each product's timed tile shapes
         "gpu_matmul": crate::learn::kernels::gpu_matmul::chosen().name(),
+        // acting's forward passes: one kernel per MLP ("fused") or a product per layer
+        // ("layers": DEXTRAIN_MLP_FORWARD=layers)
+        "mlp_forward": crate::learn::kernels::mlp_forward::mode_name(),
         "matmul_tuning": crate::learn::kernels::matmul_tuning::report(),
         "threads": rayon::current_num_threads(),
         "config": {"num_envs": o.envs, "num_steps_per_env": o.steps, "obs_dim": o.obs, "critic_obs_dim": o.priv_obs,
@@ -490,6 +493,9 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
         "gpu_matmul_fallbacks": crate::learn::kernels::gpu_matmul::fallbacks(),
         // the GPU products' routine and, with `dextrain_tuned`, each product's timed tile shapes
         "gpu_matmul": crate::learn::kernels::gpu_matmul::chosen().name(),
+        // acting's forward passes: one kernel per MLP ("fused") or a product per layer
+        // ("layers": DEXTRAIN_MLP_FORWARD=layers)
+        "mlp_forward": crate::learn::kernels::mlp_forward::mode_name(),
         "matmul_tuning": crate::learn::kernels::matmul_tuning::report(),
         "threads": rayon::current_num_threads(),
         "batch": o.batch, "gradient_steps": o.gradient_steps, "hidden": o.hidden, "activation": "elu",

@@ -119,6 +119,13 @@ fn forward_split(params: &[Tensor<2>], device: &Device, rows: usize) -> usize {
 
 /// `h = act(h W + b)` for every layer but the last: x [B, in] → [B, out].
 pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tensor<2> {
+    if act == Activation::Elu && is_gpu(&x.device()) && !params.first().is_some_and(|p| p.is_autodiff()) {
+        // acting on a GPU: the whole MLP in one kernel of ours where it applies, the same values
+        // as the layers below (`kernels::mlp_forward`)
+        if let Some(y) = super::kernels::mlp_forward::forward(params, &x) {
+            return y;
+        }
+    }
     let layers = params.len() / 2;
     let split = forward_split(params, &x.device(), x.dims()[0]);
     let mut h = x;
@@ -281,6 +288,11 @@ impl MlpLayout {
 
     /// x [B, input] → [B, output]: `h = act(LN(h W + b))` per hidden layer, then `h W + b`.
     pub fn forward(&self, params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tensor<2> {
+        if !self.layer_norm {
+            // without LayerNorm the parameters are `mlp_shapes`' list: acting on a GPU takes the
+            // one kernel where it applies
+            return mlp_forward(params, x, act);
+        }
         let split = forward_split(params, &x.device(), x.dims()[0]);
         self.forward_from(params, x, None, split, act)
     }

@@ -1210,11 +1210,14 @@ fn every_tile_shape_gives_the_same_bits_and_the_tuner_picks_one() {
             let differing = got.iter().zip(&by_shape).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
             assert_eq!(differing, 0, "{name}: {} gives {differing} entries other bits than the shape rule's", v.label());
         }
-        let before = records().len();
+        // this product's records (tests side by side may tune other products in this process)
+        let sizes = [lhs.dims()[0] as u32, rhs.dims()[1] as u32, lhs.dims()[1] as u32, 1];
+        let mine = || records().into_iter().filter(|r| r.key.sizes == sizes && r.key.vector_reads).collect::<Vec<_>>();
+        assert!(mine().is_empty(), "{name}: not tuned before");
         let tuned = host(matmul_then(&l, &r, TileChoice::Tuned { vector_reads: true }, epilogue).unwrap());
         assert!(tuned.iter().zip(&by_shape).all(|(a, b)| a.to_bits() == b.to_bits()), "{name}: the tuned product's bits");
-        let recs = records();
-        assert_eq!(recs.len(), before + 1, "{name}: one product tuned");
+        let recs = mine();
+        assert_eq!(recs.len(), 1, "{name}: one product tuned");
         let rec = recs.last().unwrap();
         assert_eq!(rec.micros.iter().map(|(v, _)| *v).collect::<Vec<_>>(), variants, "{name}: every variant timed");
         assert!(rec.micros.iter().all(|(_, us)| us.is_finite() && *us > 0.0), "{name}: {:?}", rec.micros);
@@ -1223,6 +1226,59 @@ fn every_tile_shape_gives_the_same_bits_and_the_tuner_picks_one() {
         // the second product of the shape takes the remembered pick without timing again
         let again = host(matmul_then(&l, &r, TileChoice::Tuned { vector_reads: true }, epilogue).unwrap());
         assert_eq!(again, tuned, "{name}: the tuned product repeats");
-        assert_eq!(records().len(), before + 1, "{name}: no second timing of the shape");
+        assert_eq!(mine().len(), 1, "{name}: no second timing of the shape");
+    }
+}
+
+/// An MLP's forward pass for acting in one kernel (`learn::kernels::mlp_forward`, on the GPU) gives
+/// the per-layer products' values bit for bit — hidden and output widths that are not multiples of
+/// the kernel's tiles, rows that are not a multiple of its 32, one layer alone — in one launch, and
+/// `nets::mlp_forward` takes it for acting; the CPU, autodiff parameters and other activations keep
+/// the per-layer path.
+#[test]
+fn an_mlp_forward_in_one_kernel_gives_the_layers_bits() {
+    use dextrain::gpu_counts::{Event, GpuCounts};
+    use dextrain::learn::kernels::affine::{fused_affine, fused_affine_elu};
+    use dextrain::learn::kernels::mlp_forward::forward;
+    use dextrain::learn::nets::{Activation, init_mlp, mlp_forward, mlp_shapes};
+    let Some((_ctx, gpu)) = crate::common::wgpu_learner("an_mlp_forward_in_one_kernel_gives_the_layers_bits") else { return };
+    let dev = gpu.clone().inner();
+    let mut rng = Rng::new(23, 5);
+    for (rows, input, hidden, output) in [(300usize, 45usize, vec![70usize, 33], 22usize), (1000, 96, vec![130, 64, 16], 22), (77, 5, vec![], 1), (33, 128, vec![256, 128, 64], 1)] {
+        let shapes = mlp_shapes(input, &hidden, output);
+        let params: Vec<Tensor<2>> = init_mlp(&shapes, &mut rng).into_iter().zip(&shapes).map(|(v, s)| to_tensor(v, *s, &dev)).collect();
+        let x_host: Vec<f32> = (0..rows * input).map(|_| 2.0 * rng.normal() as f32).collect();
+        let x = to_tensor(x_host.clone(), [rows, input], &dev);
+        // the per-layer path: one of dextrain's products per layer, bias and ELU in its epilogue
+        let mut h = x.clone();
+        for l in 0..params.len() / 2 {
+            let (w, b) = (params[2 * l].clone(), params[2 * l + 1].clone());
+            h = if 2 * l + 2 < params.len() { fused_affine_elu(h, w, b) } else { fused_affine(h, w, b) };
+        }
+        let want = to_host(h).unwrap();
+        let before = GpuCounts::now();
+        let got = forward(&params, &x).expect("the fused kernel takes the MLP");
+        let counts = GpuCounts::now().since(&before);
+        let got = to_host(got).unwrap();
+        let ours = counts.by_source.get(&(Event::Kernel, "dextrain:mlp_forward".to_string())).copied();
+        assert_eq!((counts.total(Event::Kernel), ours), (1, Some(1)), "{rows} × {input} → {hidden:?} → {output}: one launch, ours: {counts:?}");
+        assert_eq!(got.len(), rows * output);
+        let differing = got.iter().zip(&want).filter(|(a, b)| a.to_bits() != b.to_bits() && !(**a == 0.0 && **b == 0.0)).count();
+        assert_eq!(differing, 0, "{rows} × {input} → {hidden:?} → {output}: {differing} entries differ from the layers' (e.g. {:?} vs {:?})", &got[..4.min(got.len())], &want[..4.min(want.len())]);
+        assert!(got.iter().any(|v| *v != 0.0), "a forward pass that computed something");
+        // nets::mlp_forward acts with it; the CPU's values agree to rounding
+        assert_eq!(to_host(mlp_forward(&params, x.clone(), Activation::Elu)).unwrap(), got, "mlp_forward acts through the kernel");
+        let cpu_params: Vec<Tensor<2>> = params.iter().map(|p| to_tensor(to_host(p.clone()).unwrap(), p.dims(), &cpu())).collect();
+        let on_cpu = to_host(mlp_forward(&cpu_params, to_tensor(x_host, [rows, input], &cpu()), Activation::Elu)).unwrap();
+        let worst = got.iter().zip(&on_cpu).map(|(a, b)| (a - b).abs() / (1.0 + b.abs())).fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "the GPU's forward pass differs from the CPU's by {worst}");
+        // parameters under autodiff (an update's forward pass) are not the kernel's
+        let tracked: Vec<Tensor<2>> = params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
+        assert!(forward(&tracked, &x).is_none(), "autodiff parameters take the layers' path");
+        // an input with autodiff in no graph (a device-resident rollout's) is a constant: the
+        // kernel, its output with autodiff as the layers' would be; a tracked input is not
+        let y = forward(&params, &x.clone().autodiff()).expect("an untracked autodiff input takes the kernel");
+        assert!(y.is_autodiff() && to_host(y).unwrap() == got, "the same values, with autodiff");
+        assert!(forward(&params, &x.clone().autodiff().require_grad()).is_none(), "a tracked input takes the layers' path");
     }
 }

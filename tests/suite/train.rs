@@ -307,7 +307,7 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     assert_eq!(model_bytes(&adaptive, 2), model_bytes(&resumed, 2), "final model differs after resume");
     // what the GPU is asked to do, pinned (the same on any adapter; docs/gpu.md "What the GPU is asked
     // to do"): per env step of the device-resident loop, the policy's kernels (the normalisers'
-    // 4 of normalizer.wgsl, two MLPs of 3 layers, the actions), the task step's 5 of task.wgsl and
+    // 4 of normalizer.wgsl, the actor's and the critic's forward passes, one each, the actions), the task step's 5 of task.wgsl and
     // the loop's sums, and one host read per iteration (the sums); per PPO update of 5 × 4
     // minibatches, adam.wgsl's optimiser steps and one read. A change that adds kernels or reads
     // fails here: measure it, then update the figures here and in BENCHMARKS.md.
@@ -328,13 +328,15 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
 /// × 4 steps), its second iteration: 149.5 before issue 33's work, 72.75 before the dense layers'
 /// bias and ELU went into dextrain's matmul kernel, 46.75 before the output record grew from 17 to
 /// 21 floats (issue 36's grasp terms: up to 12 term slots), 47.75 before the loop's per-env sums
-/// were one kernel of ours, 29.75 before PPO's reward and done flag of a step were one.
-const PINNED_KERNELS_PER_STEP: f64 = 23.75;
+/// were one kernel of ours, 29.75 before PPO's reward and done flag of a step were one, 23.75
+/// before the actor's and the critic's forward passes were one kernel each (`mlp_forward.wgsl`).
+const PINNED_KERNELS_PER_STEP: f64 = 19.75;
 /// Kernels per PPO update of the same run (5 epochs × 4 minibatches): 9,306 before issue 33's work,
 /// 4,912 before the matmul kernel's epilogues, 4,379 before ELU's gradient was one kernel of ours,
 /// 4,219 before PPO's loss (two kernels each way) and the adaptive learning rate (one) were
-/// kernels of ours, 1,386 before GAE was one (this run's rollouts are 4 steps long).
-const PINNED_KERNELS_PER_UPDATE: f64 = 1354.0;
+/// kernels of ours, 1,386 before GAE was one (this run's rollouts are 4 steps long), 1,354 before
+/// the critic's value of the state after the rollout was one kernel.
+const PINNED_KERNELS_PER_UPDATE: f64 = 1352.0;
 
 /// SAC with its replay buffer on the GPU (lavapipe in CI): the device-resident run gives the host
 /// path's run to float rounding (every metric, every policy value), its host traffic per iteration

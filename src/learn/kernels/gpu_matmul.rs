@@ -145,6 +145,11 @@ impl GpuMatmul {
         self.ours().is_some()
     }
 
+    /// Whether the routine is dextrain's own kernel (whose sums `mlp_forward.wgsl` repeats).
+    pub fn is_ours(self) -> bool {
+        self.ours().is_some()
+    }
+
     /// Whether the routine is dextrain's own kernel, and how it picks the tile shape.
     fn ours(self) -> Option<TileChoice> {
         match self {

@@ -21,6 +21,8 @@
 //!   `adaptive_lr.rs`: PPO's adaptive learning rate as one kernel on the GPU; `standardize.rs`: a
 //!   GPU learner's host-path observations standardised by one kernel; `ppo_rollout.rs`: PPO's
 //!   device-resident step reward and GAE as kernels of ours;
+//! - `mlp_forward.rs`: an MLP's forward pass for acting as one kernel on the GPU
+//!   (shaders/mlp_forward.wgsl; the per-layer products' values bit for bit);
 //! - `row_sums.rs`: sums over the batch's rows in two stages on the GPU (losses, ∂b, ∂ log σ);
 //! - `fused_adam.rs`: Adam with global-norm clipping as kernels of ours on the GPU
 //!   (shaders/adam.wgsl); `fused_normalizer.rs`: the device-resident observation normalisers
@@ -35,6 +37,7 @@ pub mod gpu_matmul;
 pub mod isa;
 pub mod layer_norm;
 pub mod matmul_tuning;
+pub mod mlp_forward;
 pub mod ppo_loss;
 pub mod ppo_rollout;
 pub mod row_sums;

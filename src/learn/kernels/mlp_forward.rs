@@ -1,0 +1,227 @@
+//! An MLP's forward pass for acting as one kernel of ours on the GPU (shaders/mlp_forward.wgsl):
+//! `h_{l+1} = ELU(h_l W_l + b_l)` for the hidden layers and `h_l W_l + b_l` for the last, where
+//! the per-layer path (`nets::mlp_forward`) launches one of dextrain's products per layer. A
+//! policy's inference and a rollout step's actor and critic are launch-bound on a hardware GPU
+//! (each launch ~25–40 µs of the host's time on an H200's host, BENCHMARKS.md): a [512, 256, 128]
+//! actor is 4 launches, the actor and critic of a device-resident rollout step 8; here 1 and 2.
+//!
+//! Each entry is summed as dextrain's product sums it (k in increasing order with fused
+//! multiply-adds from 0, then the bias, then ELU's expression), so where the learner's products
+//! are dextrain's (`gpu_matmul`'s default routines) the result is the per-layer path's bit for bit
+//! and a run is the run it was, only with fewer launches; with another routine the per-layer path
+//! stays (the update's forward pass, through the routine, must see what acting saw).
+//! `DEXTRAIN_MLP_FORWARD=layers` keeps the per-layer path for a measurement.
+//!
+//! Used for parameters without autodiff (acting: `inference_params`), ELU hidden layers, up to
+//! [`MAX_LAYERS`] layers, where the adapter binds its 2 + 2·layers (+ 1 with a hidden layer)
+//! storage buffers in one stage; elsewhere the caller runs the per-layer path.
+
+use std::sync::OnceLock;
+
+use burn::backend::Cube;
+use burn::backend::ops::FloatTensorOps;
+use burn::backend::tensor::FloatTensor;
+use burn::prelude::Tensor;
+use burn::tensor::{FloatDType, Shape};
+
+use super::wgsl_kernel::{WgslKernel, is_plain, launch};
+
+/// shaders/mlp_forward.wgsl (a template).
+const SHADER: &str = include_str!("../../../shaders/mlp_forward.wgsl");
+
+/// The most layers (hidden and output) the kernel takes.
+pub const MAX_LAYERS: usize = 6;
+
+/// Rows per workgroup (the shader's BM).
+const ROWS_PER_GROUP: usize = 32;
+
+/// The environment variable that keeps the per-layer path (`layers`) for a measurement; unset or
+/// `fused`: the kernel.
+pub const ENV_VAR: &str = "DEXTRAIN_MLP_FORWARD";
+
+/// The widths of an MLP as the kernel's variant: `widths[0..=layers]` (input, hidden…, output).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct MlpWidths {
+    /// Input, hidden and output widths; entries past `layers` are 0.
+    pub widths: [u32; MAX_LAYERS + 1],
+    /// Dense layers (hidden and output).
+    pub layers: u32,
+}
+
+impl MlpWidths {
+    /// The widest hidden layer (1 without one: the scratch buffer is then unused).
+    fn widest_hidden(&self) -> u32 {
+        self.widths[1..self.layers as usize].iter().copied().max().unwrap_or(1).max(1)
+    }
+}
+
+/// Whether the fused kernel is on (`DEXTRAIN_MLP_FORWARD`, read once per process).
+pub fn enabled() -> bool {
+    static ON: OnceLock<bool> = OnceLock::new();
+    *ON.get_or_init(|| std::env::var(ENV_VAR).map(|v| v != "layers").unwrap_or(true))
+}
+
+/// How acting runs its forward passes in this process, as the benches report it: `fused` or
+/// `layers`.
+pub fn mode_name() -> &'static str {
+    if enabled() { "fused" } else { "layers" }
+}
+
+/// The kernel's text for `shape`: the widths and one block per layer written into the template.
+pub fn shader_source(shape: MlpWidths) -> String {
+    let layers = shape.layers as usize;
+    let w = &shape.widths;
+    let mut bindings = String::new();
+    for l in 0..layers {
+        bindings += &format!(
+            "@group(0) @binding({}) var<storage, read_write> mf_w{l}: array<f32>; // W_{l} [{}, {}]\n@group(0) @binding({}) var<storage, read_write> mf_b{l}: array<f32>; // b_{l} [1, {}]\n",
+            2 + 2 * l,
+            w[l],
+            w[l + 1],
+            3 + 2 * l,
+            w[l + 1]
+        );
+    }
+    if layers > 1 {
+        bindings += &format!("@group(0) @binding({}) var<storage, read_write> mf_h: array<f32>; // [B, 2 · WH]: the hidden layers' outputs\n", 2 + 2 * layers);
+    }
+    let mut blocks = String::new();
+    for l in 0..layers {
+        let (k, n) = (w[l], w[l + 1]);
+        let last = l + 1 == layers;
+        // where layer l reads its input (row r, column k) and writes its output (row r, column c)
+        let input = if l == 0 { format!("mf_x[r * {k}u + k]") } else { format!("mf_h[r * H_ROW + {}u + k]", ((l - 1) % 2) as u32 * shape.widest_hidden()) };
+        let output = if last {
+            format!("mf_y[r * {n}u + c] = acc[j] + mf_b{l}[c]; // h W + b")
+        } else {
+            format!("mf_h[r * H_ROW + {}u + c] = elu(acc[j] + mf_b{l}[c]); // ELU(h W + b)", (l % 2) as u32 * shape.widest_hidden())
+        };
+        blocks += &format!(
+            r#"    // layer {l}: [B, {k}] · [{k}, {n}] + b{act}
+    for (var col0 = 0u; col0 < {n}u; col0 += BN) {{
+        var acc0 = vec4<f32>(0.0); // row row0 + 2·ty, columns col0 + 4·tx .. + 4
+        var acc1 = vec4<f32>(0.0); // row row0 + 2·ty + 1
+        for (var k0 = 0u; k0 < {k}u; k0 += BK) {{
+            for (var s = 0u; s < 2u; s++) {{
+                let r = row0 + a_r0 + s * 16u;
+                let k = k0 + a_d;
+                var v = 0.0;
+                if r < mc.rows && k < {k}u {{
+                    v = {input};
+                }}
+                mf_sa[a_d * BM + a_r0 + s * 16u] = v;
+            }}
+            {{
+                let k = k0 + b_d;
+                var w = vec4<f32>(0.0);
+                if k < {k}u {{
+                    for (var j = 0u; j < 4u; j++) {{
+                        let c = col0 + b_c + j;
+                        if c < {n}u {{
+                            w[j] = mf_w{l}[k * {n}u + c];
+                        }}
+                    }}
+                }}
+                mf_sb[b_d * (BN / 4u) + b_c / 4u] = w;
+            }}
+            workgroupBarrier();
+            for (var d = 0u; d < BK; d++) {{
+                // acc[r, c] += h[r, k0 + d] · W[k0 + d, c]
+                let w = mf_sb[d * (BN / 4u) + tx];
+                acc0 = fma(vec4<f32>(mf_sa[d * BM + 2u * ty]), w, acc0);
+                acc1 = fma(vec4<f32>(mf_sa[d * BM + 2u * ty + 1u]), w, acc1);
+            }}
+            workgroupBarrier();
+        }}
+        for (var i = 0u; i < 2u; i++) {{
+            let r = row0 + 2u * ty + i;
+            let acc = select(acc0, acc1, i == 1u);
+            if r < mc.rows {{
+                for (var j = 0u; j < 4u; j++) {{
+                    let c = col0 + 4u * tx + j;
+                    if c < {n}u {{
+                        {output}
+                    }}
+                }}
+            }}
+        }}
+    }}
+{barrier}"#,
+            act = if last { "" } else { ", ELU" },
+            barrier = if last { "" } else { "    // the layer's output, written by this workgroup's threads, read by them next\n    storageBarrier();\n    workgroupBarrier();\n" },
+        );
+    }
+    SHADER
+        .replace("$PARAM_BINDINGS", bindings.trim_end())
+        .replace("$UNIFORM_BINDING", &buffer_count(layers).to_string())
+        .replace("$WH", &shape.widest_hidden().to_string())
+        .replace("$LAYERS", blocks.trim_end())
+}
+
+/// The storage buffers the kernel binds for `layers` layers: x, y, each layer's W and b, and the
+/// scratch buffer where there is a hidden layer.
+fn buffer_count(layers: usize) -> usize {
+    2 + 2 * layers + usize::from(layers > 1)
+}
+
+/// `t`'s primitive on burn's wgpu device if it is a contiguous f32 tensor of `shape` without
+/// autodiff (the parameters for acting); else None.
+fn plain(t: &Tensor<2>, shape: [usize; 2]) -> Option<FloatTensor<Cube>> {
+    if t.is_autodiff() {
+        return None;
+    }
+    let p = t.clone().try_into_primitive::<Cube>().ok()?;
+    is_plain(&p, shape).then_some(p)
+}
+
+/// The MLP `params` (`[W_0, b_0, …]`, `nets::mlp_shapes`' order) with ELU hidden layers applied
+/// to `x` [B, in] → [B, out] in one kernel; None where it does not apply (the CPU, parameters
+/// with autodiff or an input in an autodiff graph, another matmul routine, too many layers or bindings, tensors that are not contiguous f32, or
+/// `DEXTRAIN_MLP_FORWARD=layers`): the caller then runs the per-layer path.
+pub fn forward(params: &[Tensor<2>], x: &Tensor<2>) -> Option<Tensor<2>> {
+    let layers = params.len() / 2;
+    if !enabled() || layers == 0 || layers > MAX_LAYERS || params.len() % 2 != 0 || !super::gpu_matmul::chosen().is_ours() {
+        return None;
+    }
+    let [rows, input] = x.dims();
+    let groups = u32::try_from(rows.div_ceil(ROWS_PER_GROUP)).ok().filter(|&g| (1..=65_535).contains(&g))?;
+    let mut widths = [0u32; MAX_LAYERS + 1];
+    widths[0] = u32::try_from(input).ok()?;
+    let mut prims = Vec::with_capacity(params.len());
+    for l in 0..layers {
+        let [k, n] = params[2 * l].dims();
+        if k as u32 != widths[l] || n == 0 {
+            return None;
+        }
+        widths[l + 1] = u32::try_from(n).ok()?;
+        prims.push(plain(&params[2 * l], [k, n])?);
+        prims.push(plain(&params[2 * l + 1], [1, n])?);
+    }
+    // an input with autodiff but in no graph (a device-resident rollout's observations) is a
+    // constant to the layers: the kernel reads its memory, and the output gets autodiff back as
+    // the layers' output would have it
+    if x.is_tracked() {
+        return None;
+    }
+    let x_prim = plain(&x.clone().inner(), [rows, input])?;
+    let shape = MlpWidths { widths, layers: layers as u32 };
+    // every index the kernel forms stays under 2^32
+    let widest = (0..=layers).map(|l| widths[l] as usize).max().unwrap_or(0).max(2 * shape.widest_hidden() as usize);
+    u32::try_from(rows.checked_mul(widest)?).ok()?;
+    let ctx = crate::learn::device::gpu_context_of(&x.device())?;
+    if (ctx.device.limits().max_storage_buffers_per_shader_stage as usize) < buffer_count(layers) {
+        return None;
+    }
+    let device = &x_prim.device;
+    let out = Cube::float_empty(Shape::new([rows, widths[layers] as usize]), device, FloatDType::F32); // written whole
+    let scratch = Cube::float_empty(Shape::new([rows, 2 * shape.widest_hidden() as usize]), device, FloatDType::F32);
+    let mut buffers: Vec<&FloatTensor<Cube>> = vec![&x_prim, &out];
+    buffers.extend(prims.iter());
+    if layers > 1 {
+        buffers.push(&scratch);
+    }
+    let kernel = WgslKernel { name: "dextrain_mlp_forward", key: shape, source: shader_source, entry_point: "mlp_forward", workgroup: [16, 16] };
+    launch(kernel, [groups, 1, 1], &buffers, &[rows as u32, 0]);
+    let y = Tensor::from_primitive::<Cube>(out);
+    Some(if x.is_autodiff() { y.autodiff() } else { y })
+}
