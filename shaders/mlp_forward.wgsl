@@ -10,11 +10,13 @@
 // expression — so on one adapter the result is matmul.wgsl's layer by layer, bit for bit.
 //
 // A template: mlp_forward.rs writes in the widths (the markers that begin with a dollar sign), the
-// layers' parameter bindings and one block per layer, which reads its own bindings.
+// layers' parameter bindings and one block per layer, which reads its own bindings. A policy's
+// variant also writes the sampled actions a = μ + σ ε beside its output μ (σ, ε and a bound after
+// the scratch buffer).
 
 struct MlpCfg {
     rows: u32, // B
-    _pad: u32,
+    eps_row0: u32, // with the actions: this step's first row of ε
 }
 
 // bound by cubecl in this order: the buffers, then the launch's constants as a uniform. Every

@@ -122,7 +122,7 @@ pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tenso
     if act == Activation::Elu && is_gpu(&x.device()) && !params.first().is_some_and(|p| p.is_autodiff()) {
         // acting on a GPU: the whole MLP in one kernel of ours where it applies, the same values
         // as the layers below (`kernels::mlp_forward`)
-        if let Some(y) = super::kernels::mlp_forward::forward(params, &x) {
+        if let Some(y) = super::kernels::mlp_forward::forward(params, &x, act) {
             return y;
         }
     }

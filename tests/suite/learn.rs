@@ -1239,7 +1239,7 @@ fn every_tile_shape_gives_the_same_bits_and_the_tuner_picks_one() {
 fn an_mlp_forward_in_one_kernel_gives_the_layers_bits() {
     use dextrain::gpu_counts::{Event, GpuCounts};
     use dextrain::learn::kernels::affine::{fused_affine, fused_affine_elu};
-    use dextrain::learn::kernels::mlp_forward::forward;
+    use dextrain::learn::kernels::mlp_forward::{ActionNoise, forward, forward_acting};
     use dextrain::learn::nets::{Activation, init_mlp, mlp_forward, mlp_shapes};
     let Some((_ctx, gpu)) = crate::common::wgpu_learner("an_mlp_forward_in_one_kernel_gives_the_layers_bits") else { return };
     let dev = gpu.clone().inner();
@@ -1257,7 +1257,7 @@ fn an_mlp_forward_in_one_kernel_gives_the_layers_bits() {
         }
         let want = to_host(h).unwrap();
         let before = GpuCounts::now();
-        let got = forward(&params, &x).expect("the fused kernel takes the MLP");
+        let got = forward(&params, &x, Activation::Elu).expect("the fused kernel takes the MLP");
         let counts = GpuCounts::now().since(&before);
         let got = to_host(got).unwrap();
         let ours = counts.by_source.get(&(Event::Kernel, "dextrain:mlp_forward".to_string())).copied();
@@ -1274,11 +1274,24 @@ fn an_mlp_forward_in_one_kernel_gives_the_layers_bits() {
         assert!(worst < 1e-4, "the GPU's forward pass differs from the CPU's by {worst}");
         // parameters under autodiff (an update's forward pass) are not the kernel's
         let tracked: Vec<Tensor<2>> = params.iter().map(|p| p.clone().autodiff().require_grad()).collect();
-        assert!(forward(&tracked, &x).is_none(), "autodiff parameters take the layers' path");
+        assert!(forward(&tracked, &x, Activation::Elu).is_none(), "autodiff parameters take the layers' path");
+        assert!(forward(&params, &x, Activation::Relu).is_none(), "ReLU layers take the layers' path");
         // an input with autodiff in no graph (a device-resident rollout's) is a constant: the
         // kernel, its output with autodiff as the layers' would be; a tracked input is not
-        let y = forward(&params, &x.clone().autodiff()).expect("an untracked autodiff input takes the kernel");
+        let y = forward(&params, &x.clone().autodiff(), Activation::Elu).expect("an untracked autodiff input takes the kernel");
         assert!(y.is_autodiff() && to_host(y).unwrap() == got, "the same values, with autodiff");
-        assert!(forward(&params, &x.clone().autodiff().require_grad()).is_none(), "a tracked input takes the layers' path");
+        assert!(forward(&params, &x.clone().autodiff().require_grad(), Activation::Elu).is_none(), "a tracked input takes the layers' path");
+        // a policy's actions in the same kernel: μ as above and a = μ + σ ε from this step's rows
+        // (from `first_row` on) of a block of draws, as the tensor ops give it
+        let eps_host: Vec<f32> = (0..3 * rows * output).map(|_| rng.normal() as f32).collect();
+        let eps = to_tensor(eps_host, [3 * rows, output], &dev);
+        let sigma = to_tensor((0..output).map(|c| 0.2 + 0.1 * c as f32).collect(), [1, output], &dev);
+        let (mu, actions) = forward_acting(&params, &x, Activation::Elu, Some(ActionNoise { sigma: &sigma, eps: &eps, first_row: rows })).expect("the kernel with the actions");
+        assert_eq!(to_host(mu.clone()).unwrap(), got, "μ with the actions");
+        let want_a = to_host(mu + sigma.clone() * eps.clone().narrow(0, rows, rows)).unwrap();
+        let got_a = to_host(actions.expect("the actions")).unwrap();
+        let worst = got_a.iter().zip(&want_a).map(|(a, b)| (a - b).abs() / (1.0 + b.abs())).fold(0.0f32, f32::max);
+        assert!(worst <= 2.0 * f32::EPSILON, "a = μ + σ ε differs from the tensor ops' by {worst}");
+        assert!(forward_acting(&params, &x, Activation::Elu, Some(ActionNoise { sigma: &sigma, eps: &eps, first_row: 2 * rows + 1 })).is_none(), "rows past the block's end");
     }
 }

@@ -307,9 +307,9 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     assert_eq!(model_bytes(&adaptive, 2), model_bytes(&resumed, 2), "final model differs after resume");
     // what the GPU is asked to do, pinned (the same on any adapter; docs/gpu.md "What the GPU is asked
     // to do"): per env step of the device-resident loop, the policy's kernels (the normalisers'
-    // 4 of normalizer.wgsl, the actor's and the critic's forward passes, one each, the actions), the task step's 5 of task.wgsl and
-    // the loop's sums, and one host read per iteration (the sums); per PPO update of 5 × 4
-    // minibatches, adam.wgsl's optimiser steps and one read. A change that adds kernels or reads
+    // 4 of normalizer.wgsl, the actor's forward pass with the sampled actions, the critic's), the
+    // task step's 5 of task.wgsl and the loop's sums, and one host read per iteration (the sums);
+    // per PPO update of 5 × 4 minibatches, adam.wgsl's optimiser steps and one read. A change that adds kernels or reads
     // fails here: measure it, then update the figures here and in BENCHMARKS.md.
     let (all_cols, all_rows) = read_csv(&adaptive.join("metrics.csv")).unwrap();
     let gpu = |name: &str| all_rows[1].1[all_cols.iter().position(|c| c == name).unwrap()];
@@ -329,8 +329,9 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
 /// bias and ELU went into dextrain's matmul kernel, 46.75 before the output record grew from 17 to
 /// 21 floats (issue 36's grasp terms: up to 12 term slots), 47.75 before the loop's per-env sums
 /// were one kernel of ours, 29.75 before PPO's reward and done flag of a step were one, 23.75
-/// before the actor's and the critic's forward passes were one kernel each (`mlp_forward.wgsl`).
-const PINNED_KERNELS_PER_STEP: f64 = 19.75;
+/// before the actor's and the critic's forward passes were one kernel each (`mlp_forward.wgsl`),
+/// 19.75 before the actor's kernel wrote the sampled actions too.
+const PINNED_KERNELS_PER_STEP: f64 = 17.75;
 /// Kernels per PPO update of the same run (5 epochs × 4 minibatches): 9,306 before issue 33's work,
 /// 4,912 before the matmul kernel's epilogues, 4,379 before ELU's gradient was one kernel of ours,
 /// 4,219 before PPO's loss (two kernels each way) and the adaptive learning rate (one) were

@@ -25,6 +25,7 @@ use burn::prelude::Tensor;
 use burn::tensor::{FloatDType, Shape};
 
 use super::wgsl_kernel::{WgslKernel, is_plain, launch};
+use crate::config::Activation;
 
 /// shaders/mlp_forward.wgsl (a template).
 const SHADER: &str = include_str!("../../../shaders/mlp_forward.wgsl");
@@ -46,6 +47,8 @@ pub struct MlpWidths {
     pub widths: [u32; MAX_LAYERS + 1],
     /// Dense layers (hidden and output).
     pub layers: u32,
+    /// Whether the kernel also writes a policy's sampled actions `μ + σ ε` beside `μ` (its output).
+    pub actions: bool,
 }
 
 impl MlpWidths {
@@ -85,13 +88,26 @@ pub fn shader_source(shape: MlpWidths) -> String {
     if layers > 1 {
         bindings += &format!("@group(0) @binding({}) var<storage, read_write> mf_h: array<f32>; // [B, 2 · WH]: the hidden layers' outputs\n", 2 + 2 * layers);
     }
+    if shape.actions {
+        let first = buffer_count(layers, false);
+        let a = w[layers];
+        bindings += &format!(
+            "@group(0) @binding({first}) var<storage, read_write> mf_sigma: array<f32>; // σ [1, {a}]\n@group(0) @binding({}) var<storage, read_write> mf_eps: array<f32>; // ε [K · B, {a}]: this step's rows from mc.eps_row0\n@group(0) @binding({}) var<storage, read_write> mf_a: array<f32>; // the actions [B, {a}]\n",
+            first + 1,
+            first + 2
+        );
+    }
     let mut blocks = String::new();
     for l in 0..layers {
         let (k, n) = (w[l], w[l + 1]);
         let last = l + 1 == layers;
         // where layer l reads its input (row r, column k) and writes its output (row r, column c)
         let input = if l == 0 { format!("mf_x[r * {k}u + k]") } else { format!("mf_h[r * H_ROW + {}u + k]", ((l - 1) % 2) as u32 * shape.widest_hidden()) };
-        let output = if last {
+        let output = if last && shape.actions {
+            format!(
+                "let mu = acc[j] + mf_b{l}[c]; // μ = h W + b\n                        mf_y[r * {n}u + c] = mu;\n                        mf_a[r * {n}u + c] = mu + mf_sigma[c] * mf_eps[(mc.eps_row0 + r) * {n}u + c]; // a = μ + σ ε"
+            )
+        } else if last {
             format!("mf_y[r * {n}u + c] = acc[j] + mf_b{l}[c]; // h W + b")
         } else {
             format!("mf_h[r * H_ROW + {}u + c] = elu(acc[j] + mf_b{l}[c]); // ELU(h W + b)", (l % 2) as u32 * shape.widest_hidden())
@@ -153,15 +169,15 @@ pub fn shader_source(shape: MlpWidths) -> String {
     }
     SHADER
         .replace("$PARAM_BINDINGS", bindings.trim_end())
-        .replace("$UNIFORM_BINDING", &buffer_count(layers).to_string())
+        .replace("$UNIFORM_BINDING", &buffer_count(layers, shape.actions).to_string())
         .replace("$WH", &shape.widest_hidden().to_string())
         .replace("$LAYERS", blocks.trim_end())
 }
 
-/// The storage buffers the kernel binds for `layers` layers: x, y, each layer's W and b, and the
-/// scratch buffer where there is a hidden layer.
-fn buffer_count(layers: usize) -> usize {
-    2 + 2 * layers + usize::from(layers > 1)
+/// The storage buffers the kernel binds for `layers` layers: x, y, each layer's W and b, the
+/// scratch buffer where there is a hidden layer, and σ, ε and the actions with `actions`.
+fn buffer_count(layers: usize, actions: bool) -> usize {
+    2 + 2 * layers + usize::from(layers > 1) + if actions { 3 } else { 0 }
 }
 
 /// `t`'s primitive on burn's wgpu device if it is a contiguous f32 tensor of `shape` without
@@ -174,13 +190,31 @@ fn plain(t: &Tensor<2>, shape: [usize; 2]) -> Option<FloatTensor<Cube>> {
     is_plain(&p, shape).then_some(p)
 }
 
-/// The MLP `params` (`[W_0, b_0, …]`, `nets::mlp_shapes`' order) with ELU hidden layers applied
-/// to `x` [B, in] → [B, out] in one kernel; None where it does not apply (the CPU, parameters
-/// with autodiff or an input in an autodiff graph, another matmul routine, too many layers or bindings, tensors that are not contiguous f32, or
+/// A policy's action noise for [`forward_acting`]: the kernel writes `a = μ + σ ε` beside `μ`.
+pub struct ActionNoise<'a> {
+    /// σ `[1, A]`.
+    pub sigma: &'a Tensor<2>,
+    /// ε `[K · B, A]`: a block of draws, this step's B rows from `first_row` on.
+    pub eps: &'a Tensor<2>,
+    /// The first row of this step's draws in `eps`.
+    pub first_row: usize,
+}
+
+/// The MLP `params` (`[W_0, b_0, …]`, `nets::mlp_shapes`' order) with `act` hidden layers applied
+/// to `x` [B, in] → [B, out] in one kernel; None where it does not apply (the CPU, an activation
+/// other than ELU, parameters with autodiff or an input in an autodiff graph, another matmul
+/// routine, too many layers or bindings, tensors that are not contiguous f32, or
 /// `DEXTRAIN_MLP_FORWARD=layers`): the caller then runs the per-layer path.
-pub fn forward(params: &[Tensor<2>], x: &Tensor<2>) -> Option<Tensor<2>> {
+pub fn forward(params: &[Tensor<2>], x: &Tensor<2>, act: Activation) -> Option<Tensor<2>> {
+    forward_acting(params, x, act, None).map(|(y, _)| y)
+}
+
+/// [`forward`], and with `noise` also a policy's actions `a = μ + σ ε` [B, out] for its output μ,
+/// in the same kernel (where the tensor ops launch two more): `(μ, Some(a))`. `μ + σ ε` is
+/// rounded as the tensor ops round it on lavapipe; a driver may contract it into one rounding.
+pub fn forward_acting(params: &[Tensor<2>], x: &Tensor<2>, act: Activation, noise: Option<ActionNoise<'_>>) -> Option<(Tensor<2>, Option<Tensor<2>>)> {
     let layers = params.len() / 2;
-    if !enabled() || layers == 0 || layers > MAX_LAYERS || params.len() % 2 != 0 || !super::gpu_matmul::chosen().is_ours() {
+    if act != Activation::Elu || !enabled() || layers == 0 || layers > MAX_LAYERS || params.len() % 2 != 0 || !super::gpu_matmul::chosen().is_ours() {
         return None;
     }
     let [rows, input] = x.dims();
@@ -204,24 +238,48 @@ pub fn forward(params: &[Tensor<2>], x: &Tensor<2>) -> Option<Tensor<2>> {
         return None;
     }
     let x_prim = plain(&x.clone().inner(), [rows, input])?;
-    let shape = MlpWidths { widths, layers: layers as u32 };
+    let out_width = widths[layers] as usize;
+    // σ [1, A] and the step's rows of ε, where the actions are asked for
+    let noise_prims = match &noise {
+        Some(n) => {
+            let eps_rows = n.eps.dims()[0];
+            if n.first_row.checked_add(rows)? > eps_rows {
+                return None;
+            }
+            Some((plain(n.sigma, [1, out_width])?, plain(n.eps, [eps_rows, out_width])?, u32::try_from(n.first_row).ok()?, eps_rows))
+        }
+        None => None,
+    };
+    let shape = MlpWidths { widths, layers: layers as u32, actions: noise.is_some() };
     // every index the kernel forms stays under 2^32
     let widest = (0..=layers).map(|l| widths[l] as usize).max().unwrap_or(0).max(2 * shape.widest_hidden() as usize);
     u32::try_from(rows.checked_mul(widest)?).ok()?;
+    if let Some((_, _, _, eps_rows)) = &noise_prims {
+        u32::try_from(eps_rows.checked_mul(out_width)?).ok()?;
+    }
     let ctx = crate::learn::device::gpu_context_of(&x.device())?;
-    if (ctx.device.limits().max_storage_buffers_per_shader_stage as usize) < buffer_count(layers) {
+    if (ctx.device.limits().max_storage_buffers_per_shader_stage as usize) < buffer_count(layers, shape.actions) {
         return None;
     }
     let device = &x_prim.device;
-    let out = Cube::float_empty(Shape::new([rows, widths[layers] as usize]), device, FloatDType::F32); // written whole
+    let out = Cube::float_empty(Shape::new([rows, out_width]), device, FloatDType::F32); // written whole
+    let actions = noise_prims.as_ref().map(|_| Cube::float_empty(Shape::new([rows, out_width]), device, FloatDType::F32)); // written whole
     let scratch = Cube::float_empty(Shape::new([rows, 2 * shape.widest_hidden() as usize]), device, FloatDType::F32);
     let mut buffers: Vec<&FloatTensor<Cube>> = vec![&x_prim, &out];
     buffers.extend(prims.iter());
     if layers > 1 {
         buffers.push(&scratch);
     }
+    let mut eps_row0 = 0;
+    if let (Some((sigma, eps, first, _)), Some(a)) = (&noise_prims, &actions) {
+        buffers.extend([sigma, eps, a]);
+        eps_row0 = *first;
+    }
     let kernel = WgslKernel { name: "dextrain_mlp_forward", key: shape, source: shader_source, entry_point: "mlp_forward", workgroup: [16, 16] };
-    launch(kernel, [groups, 1, 1], &buffers, &[rows as u32, 0]);
-    let y = Tensor::from_primitive::<Cube>(out);
-    Some(if x.is_autodiff() { y.autodiff() } else { y })
+    launch(kernel, [groups, 1, 1], &buffers, &[rows as u32, eps_row0]);
+    let like_x = |p: FloatTensor<Cube>| {
+        let t = Tensor::from_primitive::<Cube>(p);
+        if x.is_autodiff() { t.autodiff() } else { t }
+    };
+    Some((like_x(out), actions.map(like_x)))
 }

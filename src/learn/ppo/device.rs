@@ -22,6 +22,7 @@ use burn::prelude::*;
 
 use super::{Batch, LN_2PI, Ppo, UpdateStats};
 use crate::gpu::context::GpuContext;
+use crate::learn::kernels::mlp_forward::{ActionNoise, forward_acting};
 use crate::learn::kernels::ppo_rollout;
 use crate::learn::noise::DeviceNoise;
 use crate::learn::normalizer::DeviceNormalizers;
@@ -95,8 +96,6 @@ impl Ppo {
         let r = self.on_device.as_mut().ok_or_else(|| anyhow::anyhow!("act_device() before start_device_rollouts()"))?;
         let (obs_n, priv_n) = r.norms.update_and_normalize(obs, priv_obs, normalize)?; // merged first, then applied
         let params = self.net.inference_params();
-        let mu = self.net.actor(&params, obs_n.clone(), priv_n.clone()); // [N, A]
-        let values = self.net.critic(&params, priv_n.clone()); // [N, 1]
         let t = self.step;
         if r.noise_block.as_ref().is_none_or(|b| t < b.first || t >= b.first + b.steps) {
             // what the parameters fix for the rollout, once (per block): every step's noise in one
@@ -112,11 +111,24 @@ impl Ppo {
         }
         let noise = r.noise_block.as_ref().ok_or_else(|| anyhow::anyhow!("act_device(): the rollout's noise was not drawn"))?;
         let row = (t - noise.first) * n;
-        let eps = noise.eps.clone().narrow(0, row, n); // this step's ε [N, A]
         let log_prob = noise.log_prob.clone().narrow(0, row, n); // [N, 1]
         let sigma = noise.sigma.clone(); // [1, A]
         self.noise_draw = draw.wrapping_add(1);
-        let actions = mu.clone() + sigma.clone() * eps; // a = μ + σ ε
+        // μ [N, A] and a = μ + σ ε: without an encoder the actor's one kernel writes both (where it
+        // applies), else the actor's forward pass and two tensor ops
+        let n_actor = self.net.n_actor();
+        let step_noise = ActionNoise { sigma: &noise.sigma, eps: &noise.eps, first_row: row };
+        let fused = if self.net.encoder_shapes.is_empty() { forward_acting(&params[..n_actor], &obs_n, self.net.activation, Some(step_noise)) } else { None };
+        let (mu, actions) = match fused {
+            Some((mu, Some(actions))) => (mu, actions),
+            _ => {
+                let mu = self.net.actor(&params, obs_n.clone(), priv_n.clone()); // [N, A]
+                let eps = noise.eps.clone().narrow(0, row, n); // this step's ε [N, A]
+                let actions = mu.clone() + sigma.clone() * eps; // a = μ + σ ε
+                (mu, actions)
+            }
+        };
+        let values = self.net.critic(&params, priv_n.clone()); // [N, 1]
         r.steps.push(StepRecord {
             obs: obs_n,
             priv_obs: priv_n,
