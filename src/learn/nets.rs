@@ -119,9 +119,9 @@ fn forward_split(params: &[Tensor<2>], device: &Device, rows: usize) -> usize {
 
 /// `h = act(h W + b)` for every layer but the last: x [B, in] → [B, out].
 pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tensor<2> {
-    if act == Activation::Elu && is_gpu(&x.device()) && !params.first().is_some_and(|p| p.is_autodiff()) {
-        // acting on a GPU: the whole MLP in one kernel of ours where it applies, the same values
-        // as the layers below (`kernels::mlp_forward`)
+    if is_gpu(&x.device()) && !params.first().is_some_and(|p| p.is_autodiff()) {
+        // acting on a GPU: the whole MLP in one kernel of ours where it applies (ELU layers), the
+        // same values as the layers below (`kernels::mlp_forward`)
         if let Some(y) = super::kernels::mlp_forward::forward(params, &x, act) {
             return y;
         }

@@ -13,8 +13,9 @@
 //! `DEXTRAIN_MLP_FORWARD=layers` keeps the per-layer path for a measurement.
 //!
 //! Used for parameters without autodiff (acting: `inference_params`), ELU hidden layers, up to
-//! [`MAX_LAYERS`] layers, where the adapter binds its 2 + 2·layers (+ 1 with a hidden layer)
-//! storage buffers in one stage; elsewhere the caller runs the per-layer path.
+//! [`MAX_LAYERS`] layers, where the adapter binds its 2 + 2·layers storage buffers in one stage
+//! (one more with a hidden layer, three more with a policy's actions); elsewhere the caller runs
+//! the per-layer path.
 
 use std::sync::OnceLock;
 
@@ -264,12 +265,10 @@ pub fn forward_acting(params: &[Tensor<2>], x: &Tensor<2>, act: Activation, nois
     let device = &x_prim.device;
     let out = Cube::float_empty(Shape::new([rows, out_width]), device, FloatDType::F32); // written whole
     let actions = noise_prims.as_ref().map(|_| Cube::float_empty(Shape::new([rows, out_width]), device, FloatDType::F32)); // written whole
-    let scratch = Cube::float_empty(Shape::new([rows, 2 * shape.widest_hidden() as usize]), device, FloatDType::F32);
+    let scratch = (layers > 1).then(|| Cube::float_empty(Shape::new([rows, 2 * shape.widest_hidden() as usize]), device, FloatDType::F32));
     let mut buffers: Vec<&FloatTensor<Cube>> = vec![&x_prim, &out];
     buffers.extend(prims.iter());
-    if layers > 1 {
-        buffers.push(&scratch);
-    }
+    buffers.extend(scratch.as_ref());
     let mut eps_row0 = 0;
     if let (Some((sigma, eps, first, _)), Some(a)) = (&noise_prims, &actions) {
         buffers.extend([sigma, eps, a]);
