@@ -13,9 +13,9 @@
 #   1b. the same scene at OBJ_ENVS (65536) envs with the cube, the 3-piece bottle and the 16-piece mug
 #      (configs/bench_{cube,bottle,mug16}.toml): what a compound object costs per env step;
 #   2. the learner updates on the GPU at the peers' shapes (`bench --ppo` / `bench --sac --device gpu`),
-#      the PPO bench again with acting's forward passes a product per layer
-#      (`DEXTRAIN_MLP_FORWARD=layers`: what one kernel per MLP saves in the policy inference and the
-#      rollout), and the PPO minibatch's products with each matmul routine (`bench --matmul`);
+#      the PPO bench again with acting's forward passes one kernel per MLP at any batch
+#      (`DEXTRAIN_MLP_FORWARD=fused`; the default leaves the peer networks' 4096 rows to a product
+#      per layer: which is faster for the policy inference and the rollout), and the PPO minibatch's products with each matmul routine (`bench --matmul`);
 #   3. PPO training on configs/lift_cube_gpu.toml for TRAIN_PPO_S seconds (SIGINT: the run stops at
 #      the end of its iteration with a checkpoint), then SAC on configs/lift_cube_sac_gpu.toml for
 #      TRAIN_SAC_S seconds: env-steps/s with the learner, the best success rate and the wall time
@@ -173,17 +173,18 @@ if runs_step baseline; then
     baseline_json="{\"module\": \"$baseline_wgsl\", \"envs\": $baseline_envs, \"cost_ratio_median\": $median, \"rounds\": [$rounds_json]}"
 fi
 # a step that did not run reports null, never an earlier run's files
-ppo_json=null; ppo_layers_json=null; sac_json=null; matmul_json=null; train_ppo=null; train_sac=null; train_host=null; ppo_run=null; sac_run=null
+ppo_json=null; ppo_fused_json=null; sac_json=null; matmul_json=null; train_ppo=null; train_sac=null; train_host=null; ppo_run=null; sac_run=null
 if runs_step learner; then
     echo "gpu_suite: learner updates" >&2
     "$bin" bench --ppo --device "$adapter" "${ppo_sizes[@]}" >"$out/ppo_update.json" 2>"$out/ppo_update.log"
-    # the same with acting's forward passes a product per layer (what one kernel per MLP saves)
-    DEXTRAIN_MLP_FORWARD=layers "$bin" bench --ppo --device "$adapter" "${ppo_sizes[@]}" >"$out/ppo_update_layers.json" 2>"$out/ppo_update_layers.log"
+    # the same with acting's forward passes one kernel per MLP whatever the batch (the default,
+    # auto, leaves the peer networks at 4096 rows to a product per layer: which is faster here)
+    DEXTRAIN_MLP_FORWARD=fused "$bin" bench --ppo --device "$adapter" "${ppo_sizes[@]}" >"$out/ppo_update_fused.json" 2>"$out/ppo_update_fused.log"
     if [ ${#matmul_sizes[@]} -gt 0 ]; then
         "$bin" bench --matmul --device "$adapter" "${matmul_sizes[@]}" >"$out/matmul.json" 2>"$out/matmul.log"
     fi
     "$bin" bench --sac --device "$adapter" "${sac_sizes[@]}" >"$out/sac_update.json" 2>"$out/sac_update.log"
-    ppo_json=$(json_of "$out/ppo_update.json"); ppo_layers_json=$(json_of "$out/ppo_update_layers.json"); sac_json=$(json_of "$out/sac_update.json"); [ ${#matmul_sizes[@]} -gt 0 ] && matmul_json=$(json_of "$out/matmul.json")
+    ppo_json=$(json_of "$out/ppo_update.json"); ppo_fused_json=$(json_of "$out/ppo_update_fused.json"); sac_json=$(json_of "$out/sac_update.json"); [ ${#matmul_sizes[@]} -gt 0 ] && matmul_json=$(json_of "$out/matmul.json")
 fi
 if runs_step train; then
     echo "gpu_suite: PPO lift for ${ppo_s}s" >&2
@@ -202,7 +203,7 @@ driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,
         "$([ "$quick" = 1 ] && echo true || echo false)" "$(date -u +%FT%TZ)" "$driver" "$(($(date +%s) - start))"
     printf ' "env_only": [%s],\n' "$env_json"
     printf ' "objects": [%s],\n' "$obj_json"
-    printf ' "ppo_update": %s,\n "ppo_update_layers": %s,\n "sac_update": %s,\n "matmul_routines": %s,\n' "$ppo_json" "$ppo_layers_json" "$sac_json" "$matmul_json"
+    printf ' "ppo_update": %s,\n "ppo_update_fused": %s,\n "sac_update": %s,\n "matmul_routines": %s,\n' "$ppo_json" "$ppo_fused_json" "$sac_json" "$matmul_json"
     printf ' "train_ppo": %s,\n "train_sac": %s,\n "train_ppo_host_path": %s,\n' "$train_ppo" "$train_sac" "$train_host"
     printf ' "train_ppo_run": %s,\n "train_sac_run": %s,\n' "$ppo_run" "$sac_run"
     printf ' "physics_baseline": %s}\n' "$baseline_json"

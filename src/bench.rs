@@ -367,8 +367,8 @@ pub fn run_ppo_bench(o: &PpoBenchOptions, device: burn::prelude::Device, device_
         "gpu_matmul_fallbacks": crate::learn::kernels::gpu_matmul::fallbacks(),
         // the GPU products' routine and, with `dextrain_tuned`, each product's timed tile shapes
         "gpu_matmul": crate::learn::kernels::gpu_matmul::chosen().name(),
-        // acting's forward passes: one kernel per MLP ("fused") or a product per layer
-        // ("layers": DEXTRAIN_MLP_FORWARD=layers)
+        // how acting ran its forward passes (DEXTRAIN_MLP_FORWARD): "auto" (one kernel per MLP
+        // for small batches), "fused" (always) or "layers" (a product per layer)
         "mlp_forward": crate::learn::kernels::mlp_forward::mode_name(),
         "matmul_tuning": crate::learn::kernels::matmul_tuning::report(),
         "threads": rayon::current_num_threads(),
@@ -493,8 +493,8 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
         "gpu_matmul_fallbacks": crate::learn::kernels::gpu_matmul::fallbacks(),
         // the GPU products' routine and, with `dextrain_tuned`, each product's timed tile shapes
         "gpu_matmul": crate::learn::kernels::gpu_matmul::chosen().name(),
-        // acting's forward passes: one kernel per MLP ("fused") or a product per layer
-        // ("layers": DEXTRAIN_MLP_FORWARD=layers)
+        // how acting ran its forward passes (DEXTRAIN_MLP_FORWARD): "auto" (one kernel per MLP
+        // for small batches), "fused" (always) or "layers" (a product per layer)
         "mlp_forward": crate::learn::kernels::mlp_forward::mode_name(),
         "matmul_tuning": crate::learn::kernels::matmul_tuning::report(),
         "threads": rayon::current_num_threads(),

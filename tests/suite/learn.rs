@@ -1239,7 +1239,12 @@ fn every_tile_shape_gives_the_same_bits_and_the_tuner_picks_one() {
 fn an_mlp_forward_in_one_kernel_gives_the_layers_bits() {
     use dextrain::gpu_counts::{Event, GpuCounts};
     use dextrain::learn::kernels::affine::{fused_affine, fused_affine_elu};
-    use dextrain::learn::kernels::mlp_forward::{ActionNoise, forward, forward_acting};
+    use dextrain::learn::kernels::mlp_forward::{ActionNoise, MlpForwardMode, forward, forward_acting, takes};
+    // the default (auto) takes the kernel for the lift configs' policies and leaves the PPO
+    // bench's peer networks at 4,096 rows to the products; `fused` and `layers` always and never
+    assert!(takes(MlpForwardMode::Auto, 2048, &[86, 256, 128, 64, 22]) && takes(MlpForwardMode::Auto, 2048, &[128, 256, 128, 64, 1]));
+    assert!(!takes(MlpForwardMode::Auto, 4096, &[96, 512, 256, 128, 22]) && !takes(MlpForwardMode::Auto, 4096, &[130, 512, 256, 128, 1]));
+    assert!(takes(MlpForwardMode::Fused, 4096, &[96, 512, 256, 128, 22]) && !takes(MlpForwardMode::Layers, 8, &[4, 8, 2]));
     use dextrain::learn::nets::{Activation, init_mlp, mlp_forward, mlp_shapes};
     let Some((_ctx, gpu)) = crate::common::wgpu_learner("an_mlp_forward_in_one_kernel_gives_the_layers_bits") else { return };
     let dev = gpu.clone().inner();

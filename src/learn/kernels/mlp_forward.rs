@@ -1,16 +1,24 @@
 //! An MLP's forward pass for acting as one kernel of ours on the GPU (shaders/mlp_forward.wgsl):
 //! `h_{l+1} = ELU(h_l W_l + b_l)` for the hidden layers and `h_l W_l + b_l` for the last, where
-//! the per-layer path (`nets::mlp_forward`) launches one of dextrain's products per layer. A
-//! policy's inference and a rollout step's actor and critic are launch-bound on a hardware GPU
-//! (each launch ~25–40 µs of the host's time on an H200's host, BENCHMARKS.md): a [512, 256, 128]
-//! actor is 4 launches, the actor and critic of a device-resident rollout step 8; here 1 and 2.
+//! the per-layer path (`nets::mlp_forward`) launches one of dextrain's products per layer. On a
+//! hardware GPU each launch costs ~25–40 µs of the host's time (an H200's host, BENCHMARKS.md),
+//! and a policy's inference or a rollout step is a few small products: a [512, 256, 128]
+//! actor is 4 launches, the actor and critic of a device-resident rollout step 8; here 1 and 2
+//! (for the batches [`mode`] gives the kernel).
 //!
 //! Each entry is summed as dextrain's product sums it (k in increasing order with fused
 //! multiply-adds from 0, then the bias, then ELU's expression), so where the learner's products
 //! are dextrain's (`gpu_matmul`'s default routines) the result is the per-layer path's bit for bit
 //! and a run is the run it was, only with fewer launches; with another routine the per-layer path
 //! stays (the update's forward pass, through the routine, must see what acting saw).
-//! `DEXTRAIN_MLP_FORWARD=layers` keeps the per-layer path for a measurement.
+//!
+//! Which path acting takes (`DEXTRAIN_MLP_FORWARD`): `auto` (the default) the kernel where the MLP's
+//! work over the batch is at most [`AUTO_MACS_PER_LAYER`] multiply-adds per layer, the per-layer
+//! products above; `fused` the kernel always; `layers` the products always. The kernel holds 8
+//! accumulators a thread without double-buffering its slices and re-reads every layer's weights per
+//! 32 rows, so on a large batch of wide layers it may run well under the tuned product's ~20 TFLOP/s
+//! while it saves a few launches of ~25–40 µs: the bound is an estimate (not yet measured on a
+//! GPU; `benches/gpu_suite.sh` times the PPO bench with `auto` and with `fused`).
 //!
 //! Used for parameters without autodiff (acting: `inference_params`), ELU hidden layers, up to
 //! [`MAX_LAYERS`] layers, where the adapter binds its 2 + 2·layers storage buffers in one stage
@@ -37,9 +45,26 @@ pub const MAX_LAYERS: usize = 6;
 /// Rows per workgroup (the shader's BM).
 const ROWS_PER_GROUP: usize = 32;
 
-/// The environment variable that keeps the per-layer path (`layers`) for a measurement; unset or
-/// `fused`: the kernel.
+/// The environment variable that chooses the path: `auto` (unset), `fused` or `layers`.
 pub const ENV_VAR: &str = "DEXTRAIN_MLP_FORWARD";
+
+/// Under `auto`, the kernel runs an MLP of L layers over a batch when its multiply-adds (rows ×
+/// Σ in·out) are at most L times this: a launch's ~30 µs of host time is ~75 M multiply-adds at
+/// 5 TFLOP/s, a guess at the kernel's rate on an H200 for such batches. The lift configs' policies
+/// (2,048 rows through [256, 128, 64]: ~0.13 G per MLP) take the kernel; the PPO bench's peer
+/// networks at 4,096 rows ([512, 256, 128]: ~0.9 G) the products.
+pub const AUTO_MACS_PER_LAYER: usize = 75_000_000;
+
+/// How acting runs its MLPs' forward passes on a GPU (`DEXTRAIN_MLP_FORWARD`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MlpForwardMode {
+    /// The kernel up to [`AUTO_MACS_PER_LAYER`] per layer, the per-layer products above.
+    Auto,
+    /// The kernel wherever it applies.
+    Fused,
+    /// The per-layer products always.
+    Layers,
+}
 
 /// The widths of an MLP as the kernel's variant: `widths[0..=layers]` (input, hidden…, output).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -59,16 +84,35 @@ impl MlpWidths {
     }
 }
 
-/// Whether the fused kernel is on (`DEXTRAIN_MLP_FORWARD`, read once per process).
-pub fn enabled() -> bool {
-    static ON: OnceLock<bool> = OnceLock::new();
-    *ON.get_or_init(|| std::env::var(ENV_VAR).map(|v| v != "layers").unwrap_or(true))
+/// The path of this process (`DEXTRAIN_MLP_FORWARD`, read once; a value other than `fused` or
+/// `layers` is `auto`).
+pub fn mode() -> MlpForwardMode {
+    static MODE: OnceLock<MlpForwardMode> = OnceLock::new();
+    *MODE.get_or_init(|| match std::env::var(ENV_VAR).as_deref() {
+        Ok("fused") => MlpForwardMode::Fused,
+        Ok("layers") => MlpForwardMode::Layers,
+        _ => MlpForwardMode::Auto,
+    })
 }
 
-/// How acting runs its forward passes in this process, as the benches report it: `fused` or
-/// `layers`.
+/// The path as the benches report it: `auto`, `fused` or `layers`.
 pub fn mode_name() -> &'static str {
-    if enabled() { "fused" } else { "layers" }
+    match mode() {
+        MlpForwardMode::Auto => "auto",
+        MlpForwardMode::Fused => "fused",
+        MlpForwardMode::Layers => "layers",
+    }
+}
+
+/// Whether `mode` runs an MLP of `widths` (input, hidden…, output) over `rows` rows in the kernel.
+pub fn takes(mode: MlpForwardMode, rows: usize, widths: &[usize]) -> bool {
+    let layers = widths.len().saturating_sub(1);
+    let macs: usize = widths.windows(2).map(|w| w[0].saturating_mul(w[1])).fold(0, usize::saturating_add).saturating_mul(rows); // rows · Σ in·out
+    match mode {
+        MlpForwardMode::Auto => macs <= AUTO_MACS_PER_LAYER.saturating_mul(layers),
+        MlpForwardMode::Fused => true,
+        MlpForwardMode::Layers => false,
+    }
 }
 
 /// The kernel's text for `shape`: the widths and one block per layer written into the template.
@@ -204,8 +248,8 @@ pub struct ActionNoise<'a> {
 /// The MLP `params` (`[W_0, b_0, …]`, `nets::mlp_shapes`' order) with `act` hidden layers applied
 /// to `x` [B, in] → [B, out] in one kernel; None where it does not apply (the CPU, an activation
 /// other than ELU, parameters with autodiff or an input in an autodiff graph, another matmul
-/// routine, too many layers or bindings, tensors that are not contiguous f32, or
-/// `DEXTRAIN_MLP_FORWARD=layers`): the caller then runs the per-layer path.
+/// routine, too many layers or bindings, tensors that are not contiguous f32, or a batch that
+/// [`mode`] leaves to the products): the caller then runs the per-layer path.
 pub fn forward(params: &[Tensor<2>], x: &Tensor<2>, act: Activation) -> Option<Tensor<2>> {
     forward_acting(params, x, act, None).map(|(y, _)| y)
 }
@@ -215,7 +259,7 @@ pub fn forward(params: &[Tensor<2>], x: &Tensor<2>, act: Activation) -> Option<T
 /// rounded as the tensor ops round it on lavapipe; a driver may contract it into one rounding.
 pub fn forward_acting(params: &[Tensor<2>], x: &Tensor<2>, act: Activation, noise: Option<ActionNoise<'_>>) -> Option<(Tensor<2>, Option<Tensor<2>>)> {
     let layers = params.len() / 2;
-    if act != Activation::Elu || !enabled() || layers == 0 || layers > MAX_LAYERS || params.len() % 2 != 0 || !super::gpu_matmul::chosen().is_ours() {
+    if act != Activation::Elu || mode() == MlpForwardMode::Layers || layers == 0 || layers > MAX_LAYERS || params.len() % 2 != 0 || !super::gpu_matmul::chosen().is_ours() {
         return None;
     }
     let [rows, input] = x.dims();
@@ -236,6 +280,10 @@ pub fn forward_acting(params: &[Tensor<2>], x: &Tensor<2>, act: Activation, nois
     // constant to the layers: the kernel reads its memory, and the output gets autodiff back as
     // the layers' output would have it
     if x.is_tracked() {
+        return None;
+    }
+    let all_widths: Vec<usize> = widths[..=layers].iter().map(|&w| w as usize).collect();
+    if !takes(mode(), rows, &all_widths) {
         return None;
     }
     let x_prim = plain(&x.clone().inner(), [rows, input])?;
