@@ -33,7 +33,7 @@ use burn::backend::tensor::FloatTensor;
 use burn::prelude::Tensor;
 use burn::tensor::{FloatDType, Shape};
 
-use super::wgsl_kernel::{WgslKernel, is_plain, launch};
+use super::wgsl_kernel::{WgslKernel, launch, plain_primitive};
 use crate::config::Activation;
 
 /// shaders/mlp_forward.wgsl (a template).
@@ -231,8 +231,7 @@ fn plain(t: &Tensor<2>, shape: [usize; 2]) -> Option<FloatTensor<Cube>> {
     if t.is_autodiff() {
         return None;
     }
-    let p = t.clone().try_into_primitive::<Cube>().ok()?;
-    is_plain(&p, shape).then_some(p)
+    plain_primitive(t, shape).ok()
 }
 
 /// A policy's action noise for [`forward_acting`]: the kernel writes `a = μ + σ ε` beside `μ`.
