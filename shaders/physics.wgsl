@@ -29,10 +29,11 @@ var<private> link_contact: array<u32, 2>;
 // object's motion in its implicit solve
 const MAX_REACTIONS: u32 = 16u;
 // the hand–object pairs that pushed this substep (physics.rs: Scratch::reactions, Reaction):
-// the link, the point, (normal, a), (δv₀, b), (δω₀, b_r), (the manifold's spread diagonal,
-// its spring count), the spread's (xy, xz, yz)
+// the link, the collider, (the point, the depth of the contact solved), (normal, a), (δv₀, b),
+// (δω₀, b_r), (the manifold's spread diagonal, its spring count), the spread's (xy, xz, yz)
 var<private> react_link: array<u32, MAX_REACTIONS>;
-var<private> react_point: array<vec3<f32>, MAX_REACTIONS>;
+var<private> react_collider: array<u32, MAX_REACTIONS>;
+var<private> react_point: array<vec4<f32>, MAX_REACTIONS>;
 var<private> react_normal: array<vec4<f32>, MAX_REACTIONS>;
 var<private> react_dv0: array<vec4<f32>, MAX_REACTIONS>;
 var<private> react_dw0: array<vec4<f32>, MAX_REACTIONS>;
@@ -595,6 +596,22 @@ fn swept_contact_from_end(l: u32, end: Contact, h: f32, ocom: vec3<f32>, ovel: v
     out.depth = end.depth + h * dot(v_rel, end.normal);
     out.point = x;
     return out;
+}
+
+// physics.rs: swept_end_contact. The swept search's contact `end` (found at the end of the
+// substep for link l), taken back to the substep's start, where it is deeper than c_end (the
+// pair's own contact's depth by then) by more than SWEPT_TOLERANCE; found false where not (or
+// where the narrow phase found none)
+struct SweptEnd {
+    found: bool,
+    c: Contact,
+}
+
+fn swept_end_contact(l: u32, end: Contact, c_end: f32, h: f32, ocom: vec3<f32>, ovel: vec3<f32>, ow: vec3<f32>) -> SweptEnd {
+    if (end.depth <= -1.0 || end.depth <= c_end + SWEPT_TOLERANCE) {
+        return SweptEnd(false, end);
+    }
+    return SweptEnd(true, swept_contact_from_end(l, end, h, ocom, ovel, ow));
 }
 
 // a hand collider against object piece pd (lengths scaled by scale, at opos, orot); apart by
@@ -1425,18 +1442,27 @@ fn apply_object_force(com: vec3<f32>, x: vec3<f32>, f: vec3<f32>, n: vec3<f32>, 
 // at v_other, spring slot `slot` (xyz: the tangential spring, w: 1 while the pair touches); the
 // force is applied to the hand for the contacts after.
 fn solve_hand_contact(slot: u32, l: u32, c: Contact, v_other: vec3<f32>, damp: f32, mu: f32, h: f32) -> HandContactForce {
+    let cf = solve_hand_contact_from(springs[slot].xyz, l, c, v_other, damp, mu, h);
+    if (dot(cf.force, c.normal) > 0.0) {
+        springs[slot] = vec4<f32>(cf.spring, 1.0);
+    } else {
+        // touching without pushing (separating): no spring, still flagged as touching
+        springs[slot] = vec4<f32>(0.0, 0.0, 0.0, select(0.0, 1.0, c.depth > 0.0));
+    }
+    return cf;
+}
+
+// physics.rs: solve_hand_contact_from. solve_hand_contact from the tangential spring `anchor`,
+// leaving the spring slots alone (cf.spring: the spring it leaves)
+fn solve_hand_contact_from(anchor: vec3<f32>, l: u32, c: Contact, v_other: vec3<f32>, damp: f32, mu: f32, h: f32) -> HandContactForce {
     let vrel = link_point_velocity(l, c.point) - v_other;
     let dv = hand_point_velocity_change(l, c.point);
     let w = hand_mobility(l, c.point, c.normal, h);
     // a manifold of point springs in parallel: their stiffness, friction spring and damping add up
     let n_s = c.spring_count;
-    let cf = hand_contact_force(c, vrel, dv, springs[slot].xyz, g.hand_contact_k * n_s, g.hand_contact_kt * n_s, damp * n_s, mu, h, w.x, w.y - w.x);
+    let cf = hand_contact_force(c, vrel, dv, anchor, g.hand_contact_k * n_s, g.hand_contact_kt * n_s, damp * n_s, mu, h, w.x, w.y - w.x);
     if (dot(cf.force, c.normal) > 0.0) {
-        springs[slot] = vec4<f32>(cf.spring, 1.0);
         apply_hand_force(l, c.point, cf.force, h);
-    } else {
-        // touching without pushing (separating): no spring, still flagged as touching
-        springs[slot] = vec4<f32>(0.0, 0.0, 0.0, select(0.0, 1.0, c.depth > 0.0));
     }
     return cf;
 }
@@ -1463,7 +1489,8 @@ fn hand_object_force(ci: u32, c: Contact, cf: HandContactForce, ocom: vec3<f32>,
         apply_object_torque(n * (tor.damping * dot(n, dw)) - tor.torque, n, tor.damping);
         if (n_reactions < MAX_REACTIONS) {
             react_link[n_reactions] = l;
-            react_point[n_reactions] = c.point;
+            react_collider[n_reactions] = ci;
+            react_point[n_reactions] = vec4<f32>(c.point, c.depth);
             react_normal[n_reactions] = vec4<f32>(n, cf.ndamp);
             react_dv0[n_reactions] = vec4<f32>(dv_point, cf.tdamp);
             react_dw0[n_reactions] = vec4<f32>(dw, tor.damping);
@@ -1932,6 +1959,61 @@ fn object_velocity_change(h: f32) -> ObjectVelocity {
     return ObjectVelocity(st.obj_vel.xyz + vec3<f32>(du[0], du[1], du[2]), wg + vec3<f32>(du[3], du[4], du[5]));
 }
 
+// physics.rs: arriving_contacts. The features that arrive at the pushing pairs under the object's
+// solved velocities u: each pair that pushed, where the solved spin differs enough from the one it
+// was found with, tested as swept_test tests it, now against u; a
+// feature that would end the substep touching, deeper than the pair's contact by more than
+// SWEPT_TOLERANCE, joins as a contact of its own (no friction spring), solved against u and
+// linearised about it. Whether one pushed (the object's velocity change is then solved again)
+fn arriving_contacts(u: ObjectVelocity, h: f32) -> bool {
+    let ocom = object_com();
+    let ovel = st.obj_vel.xyz;
+    let ow = st.obj_angvel.xyz;
+    let mu_ho = 0.5 * (prm.hand_friction + prm.obj_friction);
+    // the object's frame at the end of the substep for u, found by the first search
+    var oend = ObjectFrame(vec3<f32>(0.0), vec4<f32>(0.0, 0.0, 0.0, 1.0));
+    var have_end = false;
+    var pushed = false;
+    // the pairs that pushed before this pass (those it adds are not looked at again)
+    let n0 = n_reactions;
+    for (var i = 0u; i < n0; i++) {
+        let ci = react_collider[i];
+        let l = react_link[i];
+        // the features' order by depth at the end of the substep changes with the object's turn
+        // alone, by at most h·2r·|Δω| (Δω: the solved spin less the one the pair was found with):
+        // where that cannot add SWEPT_TOLERANCE again, nothing new arrives
+        let cd = colliders[ci];
+        if (h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length((u.w - ow) - react_dw0[i].xyz) <= SWEPT_TOLERANCE) {
+            continue;
+        }
+        let t = swept_test(ci, contact_at(react_point[i].w, react_normal[i].xyz, react_point[i].xyz), h, ocom, u.vel, u.w);
+        if (!t.search) {
+            continue;
+        }
+        let cp = collider_pose(ci);
+        if (!have_end) {
+            oend = object_frame_at_end(h, ocom, u.vel, u.w);
+            have_end = true;
+        }
+        let end = collide_hand_object_at(ci, collider_pose_at_end(l, cp, h), oend.pos, oend.rot, CONTACT_MARGIN);
+        // a feature that would not be touching by the end of the substep needs no contact
+        if (end.depth <= 0.0) {
+            continue;
+        }
+        let se = swept_end_contact(l, end, t.c_end, h, ocom, u.vel, u.w);
+        if (!se.found) {
+            continue;
+        }
+        let x = se.c;
+        let cf = solve_hand_contact_from(vec3<f32>(0.0), l, x, u.vel + cross(u.w, x.point - ocom), prm.obj_contact_c, mu_ho, h);
+        // linearised about the solved velocities, as the second pass's pairs about the predicted ones
+        let dv_point = (u.vel - ovel) + cross(u.w - ow, x.point - ocom);
+        hand_object_force(ci, x, cf, ocom, u.w, dv_point, u.w - ow, mu_ho, h);
+        pushed = pushed || dot(cf.force, x.normal) > 0.0;
+    }
+    return pushed;
+}
+
 // The hand's side of the object's implicit solve (physics.rs: react_to_object_motion): each pushing
 // pair's link takes D·(J·Δu − δv₀) at the contact point and b_r·n·(n·Δω − n·δω₀) about the normal
 fn react_to_object_motion(u: ObjectVelocity, h: f32) {
@@ -1939,7 +2021,7 @@ fn react_to_object_motion(u: ObjectVelocity, h: f32) {
     let dv = u.vel - st.obj_vel.xyz;
     let dw = u.w - st.obj_angvel.xyz;
     for (var i = 0u; i < n_reactions; i++) {
-        let x = react_point[i];
+        let x = react_point[i].xyz;
         let l = react_link[i];
         let n = react_normal[i].xyz;
         // J·Δu − δv₀: the contact point's velocity change past the one linearised about
@@ -1987,6 +2069,10 @@ fn substep(h: f32) {
     // force has joined its implicit solve since
     var u = predicted.u;
     if (!predicted.exact) {
+        u = object_velocity_change(h);
+    }
+    // features the solved motion brings in at the pushing pairs: solved again with them
+    if (arriving_contacts(u, h)) {
         u = object_velocity_change(h);
     }
     react_to_object_motion(u, h);

@@ -401,9 +401,10 @@ pub fn hand_link_poses(model: &SimModel, st: &EnvState) -> Vec<crate::geom::Pose
 
 /// Every contact of a state, with the force the next substep would apply under `targets` (for
 /// recordings and kinematic replay): the CPU twin's contact pass itself
-/// ([`physics::contacts_and_forces`], after the hand's kinematics and servos), on copies of the
-/// state's springs: each force as its pair is solved, without the part the object's motion changes
-/// in its implicit solve ([`physics::react_to_object_motion`]). `springs` are the env's
+/// ([`physics::contacts_and_forces`], after the hand's kinematics and servos, then
+/// [`physics::arriving_contacts`]), on copies of the state's springs: each force as its pair is
+/// solved, without the part the object's motion changes in its implicit solve
+/// ([`physics::react_to_object_motion`]). `springs` are the env's
 /// `[n_springs]` contact springs.
 pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p: &EnvParams, targets: &Targets) -> Vec<crate::record::ContactRecord> {
     use crate::record::ContactRecord;
@@ -415,8 +416,12 @@ pub fn contact_records(model: &SimModel, st: &EnvState, springs: &[[f32; 4]], p:
     physics::hand_servo(st, p, targets, &m, &mut s, h);
     let mut springs = springs.to_vec();
     let mut out = Vec::new();
-    physics::contacts_and_forces(st, &mut springs, p, &m, &mut s, h, &mut |kind, index, c: &physics::Contact, f| {
+    let mut record = |kind, index: usize, c: &physics::Contact, f| {
         out.push(ContactRecord { kind, index: index as u32, pos: c.point, normal: c.normal, depth: c.depth, force: f });
-    });
+    };
+    let predicted = physics::contacts_and_forces(st, &mut springs, p, &m, &mut s, h, &mut record);
+    // and the contacts that the object's solved motion brings in (`physics::substep`)
+    let (vel_n, w_n) = predicted.unwrap_or_else(|| physics::object_velocity_change(st, p, &m, &s, h));
+    physics::arriving_contacts(st, p, &m, &mut s, h, vel_n, w_n, &mut record);
     out
 }

@@ -34,7 +34,11 @@
 //!    object feel equal and opposite forces and stiff contacts hold a light object still. A pair
 //!    whose contact where collider and object will be at the end of the substep is deeper than
 //!    its contact now predicts is solved at that one (`swept_contact`): a turning object brings
-//!    an edge into a finger away from the pair's one contact point within a substep.
+//!    an edge into a finger away from the pair's one contact point within a substep. Once the
+//!    object's velocity change is solved, each pushing pair is looked at once more under it
+//!    (`arriving_contacts`): a feature that the solved motion — a spin the pushes themselves
+//!    gave the object — brings into the pair by the end of the substep joins as a contact of its
+//!    own, and the object's velocity change is solved again with it.
 //! 4. Hand: finger joints are independent 1-DoF servos (PD with effort limit, damping, Coulomb friction,
 //!    armature + link inertia about the axis at q = 0), integrated semi-implicitly; mimic followers
 //!    follow their leader; the wrist is a free body pulled by a force/torque-limited PD toward its
@@ -161,6 +165,10 @@ pub struct Reaction {
     pub spring_count: f32,
     pub spread_diag: Vec3,
     pub spread_off: Vec3,
+    /// The hand collider of the pair and the depth of the contact it was solved with
+    /// (`arriving_contacts` looks again at the pair under the object's solved velocities).
+    pub collider: u32,
+    pub depth: f32,
 }
 
 impl Default for Scratch {
@@ -845,13 +853,19 @@ fn swept_search(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize,
     let (cpos_end, crot_end) = collider_pose_at_end(s, l, cpos, crot, h);
     let (opos_end, orot_end) = *obj_end.get_or_insert_with(|| object_frame_at_end(st, p, h, ocom, ovel, ow));
     let end = collide_hand_object_at(p, m, ci, cpos_end, crot_end, opos_end, orot_end, margin);
-    if end.depth <= -1.0 {
-        return c;
+    swept_end_contact(s, l, &end, c_end, h, ocom, ovel, ow).unwrap_or(c)
+}
+
+/// The swept search's contact `end` (found at the end of the substep for link `l`), taken back
+/// to the substep's start, where it is deeper than `c_end` (the pair's own contact's depth by
+/// then) by more than `SWEPT_TOLERANCE`; `None` where not (or where the narrow phase found none).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+pub fn swept_end_contact(s: &Scratch, l: usize, end: &Contact, c_end: f32, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3) -> Option<Contact> {
+    if end.depth <= -1.0 || end.depth <= c_end + SWEPT_TOLERANCE {
+        return None;
     }
-    if end.depth <= c_end + SWEPT_TOLERANCE {
-        return c;
-    }
-    swept_contact_from_end(s, l, &end, h, ocom, ovel, ow)
+    Some(swept_contact_from_end(s, l, end, h, ocom, ovel, ow))
 }
 
 /// Narrow phase between a hand collider (`cd` at `cpos`, `crot`) and object piece `pd` (its
@@ -1712,6 +1726,21 @@ pub fn apply_object_force(com: Vec3, s: &mut Scratch, x: Vec3, f: Vec3, n: Vec3,
 /// spring is cleared.
 #[allow(clippy::too_many_arguments)]
 pub fn solve_hand_contact(p: &EnvParams, m: &Model, s: &mut Scratch, springs: &mut [[f32; 4]], slot: usize, l: usize, c: &Contact, v_other: Vec3, damp: f32, mu: f32, h: f32) -> (Vec3, f32, f32) {
+    let (f, spring, a, b) = solve_hand_contact_from(p, m, s, v3(springs[slot]), l, c, v_other, damp, mu, h);
+    springs[slot] = if f.dot(c.normal) > 0.0 {
+        [spring.x, spring.y, spring.z, 1.0]
+    } else {
+        // touching without pushing (separating): no spring, still flagged as touching
+        [0.0, 0.0, 0.0, if c.depth > 0.0 { 1.0 } else { 0.0 }]
+    };
+    (f, a, b)
+}
+
+/// `solve_hand_contact` from the tangential spring `anchor`, leaving the spring slots alone: the
+/// force (applied to the hand when it pushes), the tangential spring it leaves, the object's
+/// damping (a, b). The pair's spring, where it has one, is the caller's to keep.
+#[allow(clippy::too_many_arguments)]
+pub fn solve_hand_contact_from(p: &EnvParams, m: &Model, s: &mut Scratch, anchor: Vec3, l: usize, c: &Contact, v_other: Vec3, damp: f32, mu: f32, h: f32) -> (Vec3, Vec3, f32, f32) {
     let g = m.g;
     let vrel = link_point_velocity(s, l, c.point) - v_other;
     let dv = hand_point_velocity_change(m, s, l, c.point);
@@ -1721,19 +1750,14 @@ pub fn solve_hand_contact(p: &EnvParams, m: &Model, s: &mut Scratch, springs: &m
     // positive): the same zero force without the hand's mobility (CPU only; the same arithmetic)
     let (k_s, damp_s) = (g.hand_contact_k * n_s, damp * n_s);
     if k_s * c.depth - (k_s * h + damp_s) * (vrel + dv).dot(c.normal) <= 0.0 {
-        springs[slot] = [0.0, 0.0, 0.0, if c.depth > 0.0 { 1.0 } else { 0.0 }];
-        return (Vec3::ZERO, 0.0, 0.0);
+        return (Vec3::ZERO, Vec3::ZERO, 0.0, 0.0);
     }
     let (w_n, w_tr) = hand_mobility(p, m, s, l, c.point, c.normal, h);
-    let (f, spring, a, b) = hand_contact_force(c, vrel, dv, v3(springs[slot]), k_s, g.hand_contact_kt * n_s, damp_s, mu, h, w_n, w_tr - w_n);
+    let (f, spring, a, b) = hand_contact_force(c, vrel, dv, anchor, k_s, g.hand_contact_kt * n_s, damp_s, mu, h, w_n, w_tr - w_n);
     if f.dot(c.normal) > 0.0 {
-        springs[slot] = [spring.x, spring.y, spring.z, 1.0];
         apply_hand_force(p, m, s, l, c.point, f, h);
-    } else {
-        // touching without pushing (separating): no spring, still flagged as touching
-        springs[slot] = [0.0, 0.0, 0.0, if c.depth > 0.0 { 1.0 } else { 0.0 }];
     }
-    (f, a, b)
+    (f, spring, a, b)
 }
 
 /// The object's side of hand–object contact `c` of collider `ci` (force `f` on the hand, the
@@ -1765,7 +1789,7 @@ pub fn hand_object_force(p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, ci: 
         // the torsion's damping, linearised likewise: + b_r n (n·δω)
         apply_object_torque(s, n * (br * n.dot(dw)) - tq, n, br);
         if (s.n_reactions as usize) < MAX_REACTIONS {
-            s.reactions[s.n_reactions as usize] = Reaction { link: l as u32, point: c.point, normal: n, a, b, br, dv0: dv_point, dw0: dw, spring_count: c.spring_count, spread_diag: c.spread_diag, spread_off: c.spread_off };
+            s.reactions[s.n_reactions as usize] = Reaction { link: l as u32, point: c.point, normal: n, a, b, br, dv0: dv_point, dw0: dw, spring_count: c.spring_count, spread_diag: c.spread_diag, spread_off: c.spread_off, collider: ci as u32, depth: c.depth };
             s.n_reactions += 1;
         }
         s.link_contact[l / 32] |= 1 << (l % 32);
@@ -2131,6 +2155,59 @@ pub fn object_velocity_change(st: &EnvState, p: &EnvParams, m: &Model, s: &Scrat
     (v3(st.obj_vel) + Vec3::new(du[0], du[1], du[2]), wg + Vec3::new(du[3], du[4], du[5]))
 }
 
+/// The features that arrive at the pushing pairs under the object's solved velocities `vel_n`,
+/// `w_n`: the pairs' contacts were found (and swept) against the object's velocities before the
+/// forces of the substep, and a corner struck at the palm, a cube squeezed between a finger and
+/// the palm, can change the object's spin within the substep so that another feature of the pair
+/// — the next corner, the rest of the face — is pressed 1 mm in by the next substep. Each pair
+/// that pushed, where the solved spin differs from the one it was found with by enough to bring
+/// a feature `SWEPT_TOLERANCE` deeper than its own search or test allowed (so a feature may end up
+/// to twice that deeper than the pair's contact predicts), is tested as `swept_test` tests it,
+/// now against `vel_n`, `w_n`; where a feature
+/// would end the substep deeper than the pair's contact by more than `SWEPT_TOLERANCE`, it joins
+/// as a contact of its own (no friction spring: it starts from none), solved against the solved
+/// velocities and linearised about them as the second pass's pairs are. Returns whether one
+/// pushed: the object's velocity change is then solved again with it (`substep`).
+#[allow(clippy::too_many_arguments)]
+pub fn arriving_contacts(st: &EnvState, p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, vel_n: Vec3, w_n: Vec3, on_contact: &mut impl FnMut(ContactKind, usize, &Contact, Vec3)) -> bool {
+    let ocom = object_com(st, p);
+    let (ovel, ow) = (v3(st.obj_vel), v3(st.obj_angvel));
+    let mu_ho = 0.5 * (p.hand_friction + p.obj_friction);
+    let mut obj_end = None;
+    let mut pushed = false;
+    // the pairs that pushed before this pass (those it adds are not looked at again)
+    for i in 0..s.n_reactions as usize {
+        let r = s.reactions[i];
+        let (ci, l) = (r.collider as usize, r.link as usize);
+        // the features' order by depth at the end of the substep changes with the object's turn
+        // alone, by at most h·2r·|Δω| (Δω: the solved spin less the one the pair was found
+        // with): its test or search then held every feature within SWEPT_TOLERANCE of its
+        // contact, and where the change cannot add as much again nothing new arrives
+        let cd = &m.colliders[ci];
+        if h * 2.0 * bounding_radius(cd.shape, v3(cd.size)) * ((w_n - ow) - r.dw0).length() <= SWEPT_TOLERANCE {
+            continue;
+        }
+        let c = contact_at(r.depth, r.normal, r.point);
+        let Some(c_end) = swept_test(m, s, ci, &c, h, ocom, vel_n, w_n) else { continue };
+        let (cpos, crot) = collider_pose(m, s, ci);
+        let (cpos_end, crot_end) = collider_pose_at_end(s, l, cpos, crot, h);
+        let (opos_end, orot_end) = *obj_end.get_or_insert_with(|| object_frame_at_end(st, p, h, ocom, vel_n, w_n));
+        let end = collide_hand_object_at(p, m, ci, cpos_end, crot_end, opos_end, orot_end, CONTACT_MARGIN);
+        // a feature that would not be touching by the end of the substep needs no contact
+        if end.depth <= 0.0 {
+            continue;
+        }
+        let Some(x) = swept_end_contact(s, l, &end, c_end, h, ocom, vel_n, w_n) else { continue };
+        let v_other = vel_n + w_n.cross(x.point - ocom);
+        let (f, _, a, b) = solve_hand_contact_from(p, m, s, Vec3::ZERO, l, &x, v_other, p.obj_contact_c, mu_ho, h);
+        // linearised about the solved velocities, as the second pass's pairs about the predicted ones
+        let dv_point = (vel_n - ovel) + (w_n - ow).cross(x.point - ocom);
+        hand_object_force(p, m, s, h, ci, &x, f, a, b, ocom, w_n, dv_point, w_n - ow, mu_ho, on_contact);
+        pushed = pushed || f.dot(x.normal) > 0.0;
+    }
+    pushed
+}
+
 /// The hand's side of the object's implicit solve: at its velocity change Δu = (`vel_n` − v,
 /// `w_n` − ω) the object took −(F + D·(J·Δu − δv₀)) from each pushing pair (`Reaction`), while the
 /// hand took F as solved against the object's velocity then; each pair's link now takes the
@@ -2186,7 +2263,11 @@ pub fn substep(st: &mut EnvState, springs: &mut [[f32; 4]], p: &EnvParams, t: &T
     let predicted = contacts_and_forces(st, springs, p, m, s, h, &mut |_, _, _, _| {});
     // the object's velocities at the end of the substep: the second pass's prediction when no
     // force has joined its implicit solve since
-    let (vel_n, w_n) = predicted.unwrap_or_else(|| object_velocity_change(st, p, m, s, h));
+    let (mut vel_n, mut w_n) = predicted.unwrap_or_else(|| object_velocity_change(st, p, m, s, h));
+    // features the solved motion brings in at the pushing pairs: solved again with them
+    if arriving_contacts(st, p, m, s, h, vel_n, w_n, &mut |_, _, _, _| {}) {
+        (vel_n, w_n) = object_velocity_change(st, p, m, s, h);
+    }
     react_to_object_motion(st, p, m, s, vel_n, w_n, h);
     integrate_hand(st, p, m, s, h);
     integrate_object(st, p, vel_n, w_n, h);

@@ -316,6 +316,20 @@ fn held_hand_step_agrees(c: dextrain::config::Config, cpu: &mut dextrain::env::c
     one_physics_step_agrees(c, &start, t, ctx);
 }
 
+/// A cube struck into the palm at 1 m/s, tilted 1° (`cube_struck_at_the_palm`): the strike turns
+/// the cube and the rest of its top face arrives within the substep, met by a contact of its own
+/// after the object's solve (`arriving_contacts`, the object solved again); one physics step
+/// agrees.
+#[test]
+fn a_cube_struck_into_the_palm_steps_the_same_on_both_backends() {
+    let Some(ctx) = gpu_context("a_cube_struck_into_the_palm_steps_the_same_on_both_backends") else { return };
+    let c = base_config(8);
+    let mut cpu = cpu_batch(&c);
+    cpu.reset_all().unwrap();
+    cube_struck_at_the_palm(&mut cpu, 1.0, 1.0);
+    held_hand_step_agrees(c, &mut cpu, ctx);
+}
+
 /// A cube lying nearly flat under the palm box (tilted 0.5°), 1 mm apart and thrown at it at 1 m/s:
 /// the palm's speculative contact from the boxes' separation over their separating axes
 /// (`box_box_separation`), where the projections overstate the gap; one physics step agrees.

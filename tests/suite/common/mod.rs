@@ -136,6 +136,35 @@ pub fn box_tilted_against_palm(b: &mut CpuEnvBatch, depth: f32, tilt_deg: f32, l
     edges
 }
 
+/// Puts every env's object of `b` (a box: the run's first piece) 0.5 mm under dexhand16's palm box
+/// (collider 0), tilted `tilt_deg` off flat about an axis in the palm's plane that turns 40° from
+/// env to env (and turned 0.3 rad more about the palm's normal each env), its centre on a grid 6 mm
+/// apart over the palm (8 per row), thrown at the palm at `speed` m/s: its highest corner or edge
+/// strikes first, and the strike turns the cube so that the rest of its top face comes up within
+/// the substep (`physics::arriving_contacts`).
+pub fn cube_struck_at_the_palm(b: &mut CpuEnvBatch, tilt_deg: f32, speed: f32) {
+    use dextrain::env::physics::object_support_point;
+    let model = b.model().clone();
+    let cd = model.colliders[0];
+    assert_eq!(cd.shape, dextrain::gpu::layout::SHAPE_BOX, "collider 0 is the palm box");
+    let piece = model.pieces[0];
+    assert_eq!(piece.shape, dextrain::gpu::layout::SHAPE_BOX, "the object is a box");
+    let (size, h) = (Vec3::from_slice(&piece.size[..3]), Vec3::from_slice(&cd.size[..3]));
+    let mut states = b.states().unwrap();
+    for (i, st) in states.iter_mut().enumerate() {
+        let axis = Vec3::new((0.7 * i as f32).cos(), (0.7 * i as f32).sin(), 0.0);
+        let turn = Quat::from_axis_angle(axis, tilt_deg.to_radians()) * Quat::from_rotation_z(0.3 * i as f32);
+        // the highest corner 0.5 mm below the palm's −z face
+        let top = (0..8).map(|k| (turn * object_support_point(piece.shape, size, k).0).z).fold(f32::MIN, f32::max);
+        let grid = Vec3::new(0.006 * ((i % 8) as f32 - 3.5), 0.006 * ((i / 8) as f32 - 3.5), 0.0);
+        let palm = palm_pose(&model, st);
+        object_at_rest_in_palm_frame(st, &palm, Vec3::new(0.0, 0.0, -h.z - 0.0005 - top) + grid, turn);
+        let v = palm.rot * Vec3::Z * speed;
+        st.obj_vel = [v.x, v.y, v.z, 0.0];
+    }
+    b.set_states(&states).unwrap();
+}
+
 /// Puts the object of `st` at rest with its frame at `centre`, turned `turn`, in the frame `palm`.
 fn object_at_rest_in_palm_frame(st: &mut dextrain::env::EnvState, palm: &Pose, centre: Vec3, turn: Quat) {
     let pos = palm.transform_point(centre);
