@@ -1510,9 +1510,8 @@ fn hand_object_force(ci: u32, c: Contact, cf: HandContactForce, ocom: vec3<f32>,
     }
 }
 
-// physics.rs: contacts_and_forces. Every contact of the substep; `exact` when the second pass
-// predicted the object's velocities and none of its pairs pushed (they are then the end of the
-// substep's: nothing the object's implicit solve reads has changed since)
+// physics.rs: contacts_and_forces, then arriving_contacts and the object's velocity change
+// (substep). Every contact of the substep and the object's velocities at its end
 // next_in_list's answer for an empty list
 const NO_COLLIDER: u32 = 0xffffffffu;
 
@@ -1532,12 +1531,7 @@ fn next_in_list(list: ptr<function, array<u32, REVISIT_WORDS>>, word: ptr<functi
     return *word * 32u + firstTrailingBit(bits);
 }
 
-struct ObjectPrediction {
-    u: ObjectVelocity,
-    exact: bool,
-}
-
-fn contacts_and_forces(h: f32) -> ObjectPrediction {
+fn contacts_and_forces(h: f32) -> ObjectVelocity {
     let k = g.contact_k;
     let kt = g.contact_kt;
     // the object's velocities are those of its centre of mass
@@ -1722,77 +1716,166 @@ fn contacts_and_forces(h: f32) -> ObjectPrediction {
     }
     // the second pass: the pairs that did not push, against the object's velocity at the end of
     // the substep as the forces so far make it (physics.rs: contacts_and_forces), each env walking
-    // its own list of them and their swept searches as the first pass does
+    // its own list of them and their swept searches as the first pass does; then the pass after
+    // the object's solve (physics.rs: arriving_contacts) in the same loop, so that the narrow
+    // phase has one call site for both (a third copy of it in the kernel slowed the step by ~13 %
+    // on lavapipe whether or not it ran)
+    var pred = ObjectVelocity(vec3<f32>(0.0), vec3<f32>(0.0));
+    var pend = ObjectFrame(opos, orot);
     if (any_revisit) {
-        let pred = object_velocity_change(h);
-        let pend = object_frame_at_end(h, ocom, pred.vel, pred.w);
-        var pushed = false;
-        word = 0u;
-        sweeping = false;
-        var n_seen = 0u;
-        loop {
-            // the round's query: 0 at the substep's poses, 1 at the end of the substep (the swept
-            // search), 2 none (a cached contact that needs no search)
-            var stage = 1u;
-            if (!sweeping) {
-                ci = next_in_list(&revisit, &word);
-                if (ci == NO_COLLIDER) {
-                    break;
+        pred = object_velocity_change(h);
+        pend = object_frame_at_end(h, ocom, pred.vel, pred.w);
+    }
+    var pushed = false;
+    word = 0u;
+    sweeping = false;
+    var n_seen = 0u;
+    // the arriving pass: the object's solved velocities u (its frame at the end of the substep
+    // for them, uend, found by the first search), the pushing pairs before it (n0), the next one
+    // (i_arr), whether one of its contacts pushed (arrived)
+    var arriving = false;
+    var u = pred;
+    var uend = pend;
+    var have_uend = false;
+    var n0 = 0u;
+    var i_arr = 0u;
+    var arrived = false;
+    loop {
+        // the round's query: 0 at the substep's poses, 1 at the end of the substep (the swept
+        // search), 2 none (a cached contact that needs no search), 3 an arriving pair's search at
+        // the end of the substep for u
+        var stage = 1u;
+        if (!sweeping && !arriving) {
+            ci = next_in_list(&revisit, &word);
+            if (ci == NO_COLLIDER) {
+                // the second pass is done: the object's velocities at the end of the substep, its
+                // prediction when none of the second pass's pairs pushed (nothing the implicit
+                // solve reads has changed since)
+                if (!any_revisit || pushed) {
+                    u = object_velocity_change(h);
                 }
-                stage = 0u;
-                if (n_seen < n_cached) {
-                    raw = cached[n_seen];
-                    let t = swept_test(ci, raw, h, ocom, pred.vel, pred.w);
-                    c_end = t.c_end;
-                    stage = select(2u, 1u, t.search);
-                }
-                n_seen++;
-                // a pair that queries: the collider's pose and the first pass's margin (from the
-                // present velocities: the same raw contact)
-                if (stage != 2u) {
-                    cp = collider_pose(ci);
-                    margin = speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow);
-                }
+                arriving = true;
+                n0 = n_reactions;
+                continue;
             }
-            var q_pose = cp;
-            var q_frame = ObjectFrame(opos, orot);
-            if (stage == 1u) {
-                q_pose = collider_pose_at_end(colliders[ci].link, cp, h);
-                q_frame = pend;
-            }
-            var found = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
-            if (stage != 2u) {
-                found = collide_hand_object_at(ci, q_pose, q_frame.pos, q_frame.rot, margin);
-            }
-            let l = colliders[ci].link;
-            var c = raw;
-            if (stage == 1u) {
-                sweeping = false;
-                if (found.depth > -1.0 && found.depth > c_end + SWEPT_TOLERANCE) {
-                    c = swept_contact_from_end(l, found, h, ocom, pred.vel, pred.w);
-                }
-            } else if (stage == 0u) {
-                raw = found;
-                c = found;
+            stage = 0u;
+            if (n_seen < n_cached) {
+                raw = cached[n_seen];
                 let t = swept_test(ci, raw, h, ocom, pred.vel, pred.w);
-                if (t.search) {
-                    sweeping = true;
+                c_end = t.c_end;
+                stage = select(2u, 1u, t.search);
+            }
+            n_seen++;
+            // a pair that queries: the collider's pose and the first pass's margin (from the
+            // present velocities: the same raw contact)
+            if (stage != 2u) {
+                cp = collider_pose(ci);
+                margin = speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow);
+            }
+        } else if (arriving) {
+            // the next pair that pushed whose solved spin differs enough from the one it was found
+            // with (the features' order by depth at the end of the substep changes with the
+            // object's turn alone, by at most h·2r·|Δω|) and whose swept test against u passes
+            var next = false;
+            while (i_arr < n0 && !next) {
+                let i = i_arr;
+                i_arr++;
+                ci = react_collider[i];
+                let cd = colliders[ci];
+                if (h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length((u.w - ow) - react_dw0[i].xyz) > SWEPT_TOLERANCE) {
+                    let t = swept_test(ci, contact_at(react_point[i].w, react_normal[i].xyz, react_point[i].xyz), h, ocom, u.vel, u.w);
                     c_end = t.c_end;
-                    continue;
+                    next = t.search;
                 }
             }
-            let v_other = pred.vel + cross(pred.w, c.point - ocom);
-            let cf = solve_hand_contact(spring_base + ci, l, c, v_other, prm.obj_contact_c, mu_ho, h);
-            // the object's force linearised about the predicted velocity: + D·J·(u_p − u₀)
-            let dv_point = (pred.vel - ovel) + cross(pred.w - ow, c.point - ocom);
-            hand_object_force(ci, c, cf, ocom, pred.w, dv_point, pred.w - ow, mu_ho, h);
-            pushed = pushed || dot(cf.force, c.normal) > 0.0;
+            if (!next) {
+                break;
+            }
+            stage = 3u;
+            cp = collider_pose(ci);
+            margin = CONTACT_MARGIN;
+            if (!have_uend) {
+                uend = object_frame_at_end(h, ocom, u.vel, u.w);
+                have_uend = true;
+            }
         }
-        if (!pushed) {
-            return ObjectPrediction(pred, true);
+        var q_pose = cp;
+        var q_frame = ObjectFrame(opos, orot);
+        if (stage == 1u) {
+            q_pose = collider_pose_at_end(colliders[ci].link, cp, h);
+            q_frame = pend;
+        } else if (stage == 3u) {
+            q_pose = collider_pose_at_end(colliders[ci].link, cp, h);
+            q_frame = uend;
+        }
+        var found = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
+        if (stage != 2u) {
+            found = collide_hand_object_at(ci, q_pose, q_frame.pos, q_frame.rot, margin);
+        }
+        let l = colliders[ci].link;
+        var c = raw;
+        // the velocities the pair is solved against: the predicted ones, or u when arriving
+        var vel = pred.vel;
+        var w = pred.w;
+        if (stage == 3u) {
+            // a feature that would not be touching by the end of the substep needs no contact
+            if (found.depth <= 0.0) {
+                continue;
+            }
+            let se = swept_end_contact(l, found, c_end, h, ocom, u.vel, u.w);
+            if (!se.found) {
+                continue;
+            }
+            c = se.c;
+            vel = u.vel;
+            w = u.w;
+        } else if (stage == 1u) {
+            sweeping = false;
+            let se = swept_end_contact(l, found, c_end, h, ocom, pred.vel, pred.w);
+            if (se.found) {
+                c = se.c;
+            }
+        } else if (stage == 0u) {
+            raw = found;
+            c = found;
+            let t = swept_test(ci, raw, h, ocom, pred.vel, pred.w);
+            if (t.search) {
+                sweeping = true;
+                c_end = t.c_end;
+                continue;
+            }
+        }
+        let v_other = vel + cross(w, c.point - ocom);
+        // an arriving contact has no friction spring (it starts from none and keeps none)
+        var anchor = vec3<f32>(0.0);
+        if (!arriving) {
+            anchor = springs[spring_base + ci].xyz;
+        }
+        let cf = solve_hand_contact_from(anchor, l, c, v_other, prm.obj_contact_c, mu_ho, h);
+        let push = dot(cf.force, c.normal) > 0.0;
+        if (!arriving) {
+            // as solve_hand_contact keeps the pair's spring
+            if (push) {
+                springs[spring_base + ci] = vec4<f32>(cf.spring, 1.0);
+            } else {
+                springs[spring_base + ci] = vec4<f32>(0.0, 0.0, 0.0, select(0.0, 1.0, c.depth > 0.0));
+            }
+        }
+        // the object's force linearised about the velocities it was solved against:
+        // + D·J·(u_p − u₀)
+        let dv_point = (vel - ovel) + cross(w - ow, c.point - ocom);
+        hand_object_force(ci, c, cf, ocom, w, dv_point, w - ow, mu_ho, h);
+        if (arriving) {
+            arrived = arrived || push;
+        } else {
+            pushed = pushed || push;
         }
     }
-    return ObjectPrediction(ObjectVelocity(vec3<f32>(0.0), vec3<f32>(0.0)), false);
+    // an arriving contact pushed: the object's velocity change solved again with it
+    if (arrived) {
+        u = object_velocity_change(h);
+    }
+    return u;
 }
 
 // The servos' part of the substep, before the contacts (physics.rs: hand_servo): each independent
@@ -1959,61 +2042,6 @@ fn object_velocity_change(h: f32) -> ObjectVelocity {
     return ObjectVelocity(st.obj_vel.xyz + vec3<f32>(du[0], du[1], du[2]), wg + vec3<f32>(du[3], du[4], du[5]));
 }
 
-// physics.rs: arriving_contacts. The features that arrive at the pushing pairs under the object's
-// solved velocities u: each pair that pushed, where the solved spin differs enough from the one it
-// was found with, tested as swept_test tests it, now against u; a
-// feature that would end the substep touching, deeper than the pair's contact by more than
-// SWEPT_TOLERANCE, joins as a contact of its own (no friction spring), solved against u and
-// linearised about it. Whether one pushed (the object's velocity change is then solved again)
-fn arriving_contacts(u: ObjectVelocity, h: f32) -> bool {
-    let ocom = object_com();
-    let ovel = st.obj_vel.xyz;
-    let ow = st.obj_angvel.xyz;
-    let mu_ho = 0.5 * (prm.hand_friction + prm.obj_friction);
-    // the object's frame at the end of the substep for u, found by the first search
-    var oend = ObjectFrame(vec3<f32>(0.0), vec4<f32>(0.0, 0.0, 0.0, 1.0));
-    var have_end = false;
-    var pushed = false;
-    // the pairs that pushed before this pass (those it adds are not looked at again)
-    let n0 = n_reactions;
-    for (var i = 0u; i < n0; i++) {
-        let ci = react_collider[i];
-        let l = react_link[i];
-        // the features' order by depth at the end of the substep changes with the object's turn
-        // alone, by at most h·2r·|Δω| (Δω: the solved spin less the one the pair was found with):
-        // where that cannot add SWEPT_TOLERANCE again, nothing new arrives
-        let cd = colliders[ci];
-        if (h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length((u.w - ow) - react_dw0[i].xyz) <= SWEPT_TOLERANCE) {
-            continue;
-        }
-        let t = swept_test(ci, contact_at(react_point[i].w, react_normal[i].xyz, react_point[i].xyz), h, ocom, u.vel, u.w);
-        if (!t.search) {
-            continue;
-        }
-        let cp = collider_pose(ci);
-        if (!have_end) {
-            oend = object_frame_at_end(h, ocom, u.vel, u.w);
-            have_end = true;
-        }
-        let end = collide_hand_object_at(ci, collider_pose_at_end(l, cp, h), oend.pos, oend.rot, CONTACT_MARGIN);
-        // a feature that would not be touching by the end of the substep needs no contact
-        if (end.depth <= 0.0) {
-            continue;
-        }
-        let se = swept_end_contact(l, end, t.c_end, h, ocom, u.vel, u.w);
-        if (!se.found) {
-            continue;
-        }
-        let x = se.c;
-        let cf = solve_hand_contact_from(vec3<f32>(0.0), l, x, u.vel + cross(u.w, x.point - ocom), prm.obj_contact_c, mu_ho, h);
-        // linearised about the solved velocities, as the second pass's pairs about the predicted ones
-        let dv_point = (u.vel - ovel) + cross(u.w - ow, x.point - ocom);
-        hand_object_force(ci, x, cf, ocom, u.w, dv_point, u.w - ow, mu_ho, h);
-        pushed = pushed || dot(cf.force, x.normal) > 0.0;
-    }
-    return pushed;
-}
-
 // The hand's side of the object's implicit solve (physics.rs: react_to_object_motion): each pushing
 // pair's link takes D·(J·Δu − δv₀) at the contact point and b_r·n·(n·Δω − n·δω₀) about the normal
 fn react_to_object_motion(u: ObjectVelocity, h: f32) {
@@ -2064,17 +2092,9 @@ fn substep(h: f32) {
     }
     n_reactions = 0u;
     hand_servo(h);
-    let predicted = contacts_and_forces(h);
-    // the object's velocities at the end of the substep: the second pass's prediction when no
-    // force has joined its implicit solve since
-    var u = predicted.u;
-    if (!predicted.exact) {
-        u = object_velocity_change(h);
-    }
-    // features the solved motion brings in at the pushing pairs: solved again with them
-    if (arriving_contacts(u, h)) {
-        u = object_velocity_change(h);
-    }
+    // the contacts and the object's velocities at the end of the substep (with the features its
+    // solved motion brings in at the pushing pairs: physics.rs, substep)
+    let u = contacts_and_forces(h);
     react_to_object_motion(u, h);
     integrate_hand(h);
     integrate_object(u, h);
