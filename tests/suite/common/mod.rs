@@ -112,11 +112,8 @@ pub fn box_tilted_against_palm(b: &mut CpuEnvBatch, depth: f32, tilt_deg: f32, l
     use glam::{Quat, Vec3};
     let model = b.model().clone();
     let cd = model.colliders[0];
-    assert_eq!(cd.shape, dextrain::gpu::layout::SHAPE_BOX, "collider 0 is the palm box");
-    let piece = model.pieces[0];
-    assert_eq!(piece.shape, dextrain::gpu::layout::SHAPE_BOX, "the object is a box");
+    let (piece, size, h) = object_box_and_palm(&model);
     assert!(piece.pos[..3].iter().all(|x| *x == 0.0) && piece.rot == [0.0, 0.0, 0.0, 1.0], "one box at the object's frame");
-    let (size, h) = (Vec3::from_slice(&piece.size[..3]), Vec3::from_slice(&cd.size[..3]));
     let turn = Quat::from_rotation_x(tilt_deg.to_radians());
     // the turned box's corners in the palm frame, about its centre; the top ones along +z
     let corners: Vec<Vec3> = (0..8).map(|k| turn * object_support_point(piece.shape, size, k).0).collect();
@@ -145,11 +142,7 @@ pub fn box_tilted_against_palm(b: &mut CpuEnvBatch, depth: f32, tilt_deg: f32, l
 pub fn cube_struck_at_the_palm(b: &mut CpuEnvBatch, tilt_deg: f32, speed: f32) {
     use dextrain::env::physics::object_support_point;
     let model = b.model().clone();
-    let cd = model.colliders[0];
-    assert_eq!(cd.shape, dextrain::gpu::layout::SHAPE_BOX, "collider 0 is the palm box");
-    let piece = model.pieces[0];
-    assert_eq!(piece.shape, dextrain::gpu::layout::SHAPE_BOX, "the object is a box");
-    let (size, h) = (Vec3::from_slice(&piece.size[..3]), Vec3::from_slice(&cd.size[..3]));
+    let (piece, size, h) = object_box_and_palm(&model);
     let mut states = b.states().unwrap();
     for (i, st) in states.iter_mut().enumerate() {
         let axis = Vec3::new((0.7 * i as f32).cos(), (0.7 * i as f32).sin(), 0.0);
@@ -163,6 +156,16 @@ pub fn cube_struck_at_the_palm(b: &mut CpuEnvBatch, tilt_deg: f32, speed: f32) {
         st.obj_vel = [v.x, v.y, v.z, 0.0];
     }
     b.set_states(&states).unwrap();
+}
+
+/// The object's first piece (asserted a box), its half extents, and the half extents of dexhand16's
+/// palm box (collider 0, asserted a box): what the palm scenes place.
+fn object_box_and_palm(model: &SimModel) -> (dextrain::gpu::layout::PieceDesc, Vec3, Vec3) {
+    let cd = model.colliders[0];
+    assert_eq!(cd.shape, dextrain::gpu::layout::SHAPE_BOX, "collider 0 is the palm box");
+    let piece = model.pieces[0];
+    assert_eq!(piece.shape, dextrain::gpu::layout::SHAPE_BOX, "the object is a box");
+    (piece, Vec3::from_slice(&piece.size[..3]), Vec3::from_slice(&cd.size[..3]))
 }
 
 /// Puts the object of `st` at rest with its frame at `centre`, turned `turn`, in the frame `palm`.
@@ -203,11 +206,7 @@ pub fn cube_under_the_palm_as_recorded(b: &mut CpuEnvBatch, recorded: (Vec3, Vec
     use dextrain::env::physics::object_support_point;
     use glam::Mat3;
     let model = b.model().clone();
-    let cd = model.colliders[0];
-    assert_eq!(cd.shape, dextrain::gpu::layout::SHAPE_BOX, "collider 0 is the palm box");
-    let piece = model.pieces[0];
-    assert_eq!(piece.shape, dextrain::gpu::layout::SHAPE_BOX, "the object is a box");
-    let (size, h) = (Vec3::from_slice(&piece.size[..3]), Vec3::from_slice(&cd.size[..3]));
+    let (piece, size, h) = object_box_and_palm(&model);
     // the palm's axes and centre in the cube's frame, as recorded (the axes orthonormalised)
     let (x, y, c_o) = recorded;
     let x = x.normalize();
