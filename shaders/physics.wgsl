@@ -1443,12 +1443,7 @@ fn apply_object_force(com: vec3<f32>, x: vec3<f32>, f: vec3<f32>, n: vec3<f32>, 
 // force is applied to the hand for the contacts after.
 fn solve_hand_contact(slot: u32, l: u32, c: Contact, v_other: vec3<f32>, damp: f32, mu: f32, h: f32) -> HandContactForce {
     let cf = solve_hand_contact_from(springs[slot].xyz, l, c, v_other, damp, mu, h);
-    if (dot(cf.force, c.normal) > 0.0) {
-        springs[slot] = vec4<f32>(cf.spring, 1.0);
-    } else {
-        // touching without pushing (separating): no spring, still flagged as touching
-        springs[slot] = vec4<f32>(0.0, 0.0, 0.0, select(0.0, 1.0, c.depth > 0.0));
-    }
+    springs[slot] = hand_spring_after(c, cf);
     return cf;
 }
 
@@ -1465,6 +1460,15 @@ fn solve_hand_contact_from(anchor: vec3<f32>, l: u32, c: Contact, v_other: vec3<
         apply_hand_force(l, c.point, cf.force, h);
     }
     return cf;
+}
+
+// physics.rs: hand_spring_after. What a hand contact's spring slot keeps once contact c is solved
+// to cf: the spring while it pushes (w: 1); else none, still flagged as touching where c is in
+fn hand_spring_after(c: Contact, cf: HandContactForce) -> vec4<f32> {
+    if (dot(cf.force, c.normal) > 0.0) {
+        return vec4<f32>(cf.spring, 1.0);
+    }
+    return vec4<f32>(0.0, 0.0, 0.0, select(0.0, 1.0, c.depth > 0.0));
 }
 
 // physics.rs: hand_object_force. The object's side of hand–object contact c of collider ci (the
@@ -1854,12 +1858,7 @@ fn contacts_and_forces(h: f32) -> ObjectVelocity {
         let cf = solve_hand_contact_from(anchor, l, c, v_other, prm.obj_contact_c, mu_ho, h);
         let push = dot(cf.force, c.normal) > 0.0;
         if (!arriving) {
-            // as solve_hand_contact keeps the pair's spring
-            if (push) {
-                springs[spring_base + ci] = vec4<f32>(cf.spring, 1.0);
-            } else {
-                springs[spring_base + ci] = vec4<f32>(0.0, 0.0, 0.0, select(0.0, 1.0, c.depth > 0.0));
-            }
+            springs[spring_base + ci] = hand_spring_after(c, cf);
         }
         // the object's force linearised about the velocities it was solved against:
         // + D·J·(u_p − u₀)

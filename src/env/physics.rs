@@ -1727,12 +1727,7 @@ pub fn apply_object_force(com: Vec3, s: &mut Scratch, x: Vec3, f: Vec3, n: Vec3,
 #[allow(clippy::too_many_arguments)]
 pub fn solve_hand_contact(p: &EnvParams, m: &Model, s: &mut Scratch, springs: &mut [[f32; 4]], slot: usize, l: usize, c: &Contact, v_other: Vec3, damp: f32, mu: f32, h: f32) -> (Vec3, f32, f32) {
     let (f, spring, a, b) = solve_hand_contact_from(p, m, s, v3(springs[slot]), l, c, v_other, damp, mu, h);
-    springs[slot] = if f.dot(c.normal) > 0.0 {
-        [spring.x, spring.y, spring.z, 1.0]
-    } else {
-        // touching without pushing (separating): no spring, still flagged as touching
-        [0.0, 0.0, 0.0, if c.depth > 0.0 { 1.0 } else { 0.0 }]
-    };
+    springs[slot] = hand_spring_after(c, f, spring);
     (f, a, b)
 }
 
@@ -1758,6 +1753,17 @@ pub fn solve_hand_contact_from(p: &EnvParams, m: &Model, s: &mut Scratch, anchor
         apply_hand_force(p, m, s, l, c.point, f, h);
     }
     (f, spring, a, b)
+}
+
+/// What a hand contact's spring slot keeps once contact `c` is solved to force `f` leaving the
+/// tangential spring `spring`: the spring while it pushes (w: 1, touching); else none, still
+/// flagged as touching where `c` is in (separating without pushing).
+pub fn hand_spring_after(c: &Contact, f: Vec3, spring: Vec3) -> [f32; 4] {
+    if f.dot(c.normal) > 0.0 {
+        [spring.x, spring.y, spring.z, 1.0]
+    } else {
+        [0.0, 0.0, 0.0, if c.depth > 0.0 { 1.0 } else { 0.0 }]
+    }
 }
 
 /// The object's side of hand–object contact `c` of collider `ci` (force `f` on the hand, the
