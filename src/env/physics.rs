@@ -848,12 +848,20 @@ pub fn swept_contact_at(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci
 #[allow(clippy::too_many_arguments)]
 #[inline(never)]
 fn swept_search(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, cpos: Vec3, crot: Vec4, c: Contact, c_end: f32, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32, obj_end: &mut Option<(Vec3, Vec4)>) -> Contact {
-    let l = m.colliders[ci].link as usize;
-    // the poses at the end of the substep
-    let (cpos_end, crot_end) = collider_pose_at_end(s, l, cpos, crot, h);
+    let end = contact_at_end(st, p, m, s, ci, cpos, crot, h, ocom, ovel, ow, margin, obj_end);
+    swept_end_contact(s, m.colliders[ci].link as usize, &end, c_end, h, ocom, ovel, ow).unwrap_or(c)
+}
+
+/// Hand collider `ci`'s contact with the object where both will be at the end of the substep
+/// (the collider at `cpos`, `crot` now, moving with its link; the object's centre of mass `ocom`
+/// moving at `ovel`, turning at `ow`; `obj_end`: its frame then, found by a pass's first search
+/// and kept for the others).
+#[allow(clippy::too_many_arguments)]
+#[inline(always)]
+fn contact_at_end(st: &EnvState, p: &EnvParams, m: &Model, s: &Scratch, ci: usize, cpos: Vec3, crot: Vec4, h: f32, ocom: Vec3, ovel: Vec3, ow: Vec3, margin: f32, obj_end: &mut Option<(Vec3, Vec4)>) -> Contact {
+    let (cpos_end, crot_end) = collider_pose_at_end(s, m.colliders[ci].link as usize, cpos, crot, h);
     let (opos_end, orot_end) = *obj_end.get_or_insert_with(|| object_frame_at_end(st, p, h, ocom, ovel, ow));
-    let end = collide_hand_object_at(p, m, ci, cpos_end, crot_end, opos_end, orot_end, margin);
-    swept_end_contact(s, l, &end, c_end, h, ocom, ovel, ow).unwrap_or(c)
+    collide_hand_object_at(p, m, ci, cpos_end, crot_end, opos_end, orot_end, margin)
 }
 
 /// The swept search's contact `end` (found at the end of the substep for link `l`), taken back
@@ -2196,9 +2204,7 @@ pub fn arriving_contacts(st: &EnvState, p: &EnvParams, m: &Model, s: &mut Scratc
         let c = contact_at(r.depth, r.normal, r.point);
         let Some(c_end) = swept_test(m, s, ci, &c, h, ocom, vel_n, w_n) else { continue };
         let (cpos, crot) = collider_pose(m, s, ci);
-        let (cpos_end, crot_end) = collider_pose_at_end(s, l, cpos, crot, h);
-        let (opos_end, orot_end) = *obj_end.get_or_insert_with(|| object_frame_at_end(st, p, h, ocom, vel_n, w_n));
-        let end = collide_hand_object_at(p, m, ci, cpos_end, crot_end, opos_end, orot_end, CONTACT_MARGIN);
+        let end = contact_at_end(st, p, m, s, ci, cpos, crot, h, ocom, vel_n, w_n, CONTACT_MARGIN, &mut obj_end);
         // a feature that would not be touching by the end of the substep needs no contact
         if end.depth <= 0.0 {
             continue;
