@@ -26,25 +26,46 @@ pub struct Guard {
 
 /// Joins the MPI job this process was launched in (`--features mpi`), or stays rank 0 of 1.
 /// Call once, first thing in `main`; keep the guard until the end.
-pub fn init() -> Guard {
+///
+/// Fails when the launcher declared a world of N processes (`PMI_SIZE`, `OMPI_COMM_WORLD_SIZE`) and
+/// MPI made this process one of another number: MPICH's `MPI_Init` quietly starts a process alone
+/// ("singleton") when it cannot reach its launcher (no `PMI_FD`/`PMI_PORT`, an `mpiexec` of another
+/// MPI implementation, a launcher connection that failed), and N processes that each believed they
+/// were rank 0 of 1 would all create the same run directory and train it at once.
+pub fn init() -> anyhow::Result<Guard> {
     #[cfg(feature = "mpi")]
     {
         // a process that no launcher started runs alone: no MPI at all (tests, `dextrain check`)
         if !launched_by_mpi() {
-            return Guard { _universe: None };
+            return Ok(Guard { _universe: None });
         }
         let universe = mpi::initialize();
         if let Some(u) = &universe {
             let w = u.world();
-            RANK.store(w.rank() as usize, Ordering::Relaxed);
-            SIZE.store(w.size() as usize, Ordering::Relaxed);
+            let (rank, size) = (w.rank() as usize, w.size() as usize);
+            if let Some((key, declared)) = launcher_world_size() {
+                if declared != size {
+                    anyhow::bail!(
+                        "launched as one of {declared} MPI processes ({key}={declared}), but MPI_Init made this process rank {rank} of {size}: the MPI library did not join the launcher's job (an mpiexec of another MPI implementation than the one dextrain links, or a launcher connection that failed); nothing was written"
+                    );
+                }
+            }
+            RANK.store(rank, Ordering::Relaxed);
+            SIZE.store(size, Ordering::Relaxed);
             // the ranks of this node, in world-rank order
             LOCAL_RANK.store(w.split_shared(w.rank()).rank() as usize, Ordering::Relaxed);
         }
-        Guard { _universe: universe }
+        Ok(Guard { _universe: universe })
     }
     #[cfg(not(feature = "mpi"))]
-    Guard {}
+    Ok(Guard {})
+}
+
+/// The number of processes the launcher started this one among, where it says: MPICH's and Intel
+/// MPI's (and SLURM's PMI) `PMI_SIZE`, Open MPI's `OMPI_COMM_WORLD_SIZE`; with the variable's name.
+#[cfg(feature = "mpi")]
+fn launcher_world_size() -> Option<(&'static str, usize)> {
+    ["PMI_SIZE", "OMPI_COMM_WORLD_SIZE"].into_iter().find_map(|k| Some((k, std::env::var(k).ok()?.trim().parse().ok()?)))
 }
 
 /// True when an MPI launcher started this process (MPICH's and Intel MPI's `PMI_RANK`, Open MPI's

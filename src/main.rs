@@ -328,7 +328,13 @@ fn main() -> ExitCode {
     }
     // an MPI job's rank joins it here (`--features mpi`, launched by mpiexec or srun); MPI is
     // finalised when `_mpi` drops at the end of main
-    let _mpi = dextrain::dist::init();
+    let _mpi = match dextrain::dist::init() {
+        Ok(guard) => guard,
+        Err(e) => {
+            console::status(&format!("error: {}", dextrain::text::one_line(&format!("{e:#}"))));
+            return ExitCode::FAILURE;
+        }
+    };
     match run(Cli::parse()) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {

@@ -95,8 +95,17 @@ pub fn create(runs_root: &Path, name: &str, force: bool) -> Result<PathBuf> {
         }
         std::fs::remove_dir_all(&dir).with_context(|| format!("cannot remove {}", dir.display()))?;
     }
-    std::fs::create_dir_all(&dir).with_context(|| format!("cannot create the run directory {}", dir.display()))?;
-    Ok(dir)
+    std::fs::create_dir_all(runs_root).with_context(|| format!("cannot create the runs directory {}", runs_root.display()))?;
+    // the run's own directory made by this process alone: a second process starting a run of the
+    // same name at the same moment (passed the test above as well) gets the one-line error, not a
+    // share of this run (nor, failing later, the removal of it by `remove_failed_start`)
+    match std::fs::create_dir(&dir) {
+        Ok(()) => Ok(dir),
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => {
+            bail!("{}: the run directory exists (another process just created it); pick another --name", dir.display())
+        }
+        Err(e) => Err(e).with_context(|| format!("cannot create the run directory {}", dir.display())),
+    }
 }
 
 /// Removes the directory of a new run that failed before its first iteration, when it holds only

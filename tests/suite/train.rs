@@ -516,6 +516,34 @@ fn a_failed_start_leaves_nothing_that_force_refuses() {
     assert!(run.join("checkpoints").is_dir());
 }
 
+/// Two processes starting a run of the same name at the same moment: one gets the directory, the
+/// other the one-line "exists" error (both passed the existence test once, made the directory and
+/// trained it at once: seen when MPI started two ranks each as rank 0 of 1). 200 rounds of two
+/// threads released together.
+#[test]
+fn two_runs_of_one_name_started_at_once_make_one_directory() {
+    let tmp = tempfile::tempdir().unwrap();
+    let runs = tmp.path().to_path_buf();
+    for round in 0..200 {
+        let name = format!("r{round}");
+        let go = std::sync::Arc::new(std::sync::Barrier::new(2));
+        let both: Vec<_> = (0..2)
+            .map(|_| {
+                let (go, runs, name) = (go.clone(), runs.clone(), name.clone());
+                std::thread::spawn(move || {
+                    go.wait();
+                    dextrain::run_dir::create(&runs, &name, false).map_err(|e| format!("{e:#}"))
+                })
+            })
+            .collect();
+        let results: Vec<_> = both.into_iter().map(|t| t.join().unwrap()).collect();
+        let made = results.iter().filter(|r| r.is_ok()).count();
+        assert_eq!(made, 1, "round {round}: {results:?}");
+        let err = results.iter().find_map(|r| r.as_ref().err()).unwrap();
+        assert!(err.contains("exists") && !err.contains('\n'), "{err}");
+    }
+}
+
 /// With no hardware adapter, the error says what Vulkan found: the loader, each driver manifest
 /// and why its library does not load, the packages that usually fix it and the next step.
 #[test]
