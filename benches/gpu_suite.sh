@@ -30,6 +30,10 @@
 #      BASELINE_ROUNDS rounds, and the median of the rounds' ratios: what a physics change costs on
 #      this GPU against the commit it is measured from (issue 36: f7d02e5, the physics before its
 #      contacts).
+#   5. (step "variants", only with VARIANTS_WGSL set: space-separated simulator modules, e.g. the
+#      knock-outs `benches/physics_variants.py MODULE DIR` writes) the env-only bench at
+#      BASELINE_ENVS envs with the built-in physics, then with each module, over BASELINE_ROUNDS
+#      rounds, and each module's median ratio of rates: where this GPU spends the env step.
 # On an H200 the default steps take ~10 minutes and the baseline step ~2.5 more (estimates from the
 # steps' parts timed in earlier windows, the suite not yet run whole there): where one command
 # may run less (a device window's call), split them with STEPS, e.g. STEPS="env baseline" then
@@ -38,7 +42,8 @@
 # can be checked anywhere. Environment: ENVS (space-separated env counts), TRAIN_PPO_S, TRAIN_SAC_S, TRAIN_PPO_HOST_S,
 # BENCH_S (least timed seconds per env-only point), OBJ_ENVS, ADAPTER (gpu or gpu:NAME, default gpu),
 # STEPS (the steps to run, default "env objects learner train", plus "baseline" when BASELINE_WGSL is
-# set; the others' JSON values are null), BASELINE_WGSL, BASELINE_ENVS, BASELINE_ROUNDS.
+# set and "variants" when VARIANTS_WGSL is; the others' JSON values are null), BASELINE_WGSL,
+# VARIANTS_WGSL, BASELINE_ENVS, BASELINE_ROUNDS.
 set -uo pipefail
 
 bin=target/release/dextrain
@@ -122,7 +127,8 @@ train_for() {
 }
 
 baseline_wgsl=${BASELINE_WGSL:-}
-steps=" ${STEPS:-env objects learner train${baseline_wgsl:+ baseline}} "
+variants_wgsl=${VARIANTS_WGSL:-}
+steps=" ${STEPS:-env objects learner train${baseline_wgsl:+ baseline}${variants_wgsl:+ variants}} "
 runs_step() { case "$steps" in *" $1 "*) return 0 ;; *) return 1 ;; esac; }
 
 start=$(date +%s)
@@ -172,6 +178,48 @@ if runs_step baseline; then
     median=$(printf '%s\n' "$ratios" | awk 'NF { v[n++] = $1 } END { if (n == 0) print "null"; else if (n % 2) print v[(n - 1) / 2]; else print (v[n / 2 - 1] + v[n / 2]) / 2 }')
     baseline_json="{\"module\": \"$baseline_wgsl\", \"envs\": $baseline_envs, \"cost_ratio_median\": $median, \"rounds\": [$rounds_json]}"
 fi
+# the env-only rate in a bench's JSON, or 0
+rate_of() {
+    tail -n 1 "$1" 2>/dev/null | grep -o '"env_steps_per_s":{[^}]*"median":[0-9.e+-]*' | grep -o '[0-9.e+-]*$' || echo 0
+}
+# the median of numbers on stdin, one a line (null for none)
+median_of() {
+    sort -g | awk 'NF { v[n++] = $1 } END { if (n == 0) print "null"; else if (n % 2) print v[(n - 1) / 2]; else print (v[n / 2 - 1] + v[n / 2]) / 2 }'
+}
+variants_json=null
+if runs_step variants; then
+    for m in $variants_wgsl; do
+        if [ ! -f "$m" ]; then
+            echo "gpu_suite: step variants needs VARIANTS_WGSL, simulator WGSL module files (benches/physics_variants.py); no file '$m'" >&2
+            exit 2
+        fi
+    done
+    rounds_json=""
+    for r in $(seq 1 "$baseline_rounds"); do
+        echo "gpu_suite: built-in physics and $(echo $variants_wgsl | wc -w) variant modules at $baseline_envs envs, round $r" >&2
+        "$bin" bench --backend "$adapter" --envs "$baseline_envs" --chunks 5 --seconds "$bench_s" >"$out/variants_builtin_$r.json" 2>"$out/variants_builtin_$r.log"
+        mods_json=""
+        i=0
+        for m in $variants_wgsl; do
+            i=$((i + 1))
+            "$bin" bench --backend "$adapter" --envs "$baseline_envs" --chunks 5 --seconds "$bench_s" --physics-wgsl "$m" >"$out/variant_${i}_$r.json" 2>"$out/variant_${i}_$r.log"
+            mods_json="$mods_json${mods_json:+, }$(json_of "$out/variant_${i}_$r.json")"
+        done
+        rounds_json="$rounds_json${rounds_json:+, }{\"builtin\": $(json_of "$out/variants_builtin_$r.json"), \"variants\": [$mods_json]}"
+    done
+    # each module's rate over the built-in's of its round (above 1: the part it switches off costs
+    # that factor), the median over the rounds
+    ratios_json=""
+    i=0
+    for m in $variants_wgsl; do
+        i=$((i + 1))
+        median=$(for r in $(seq 1 "$baseline_rounds"); do
+            echo "$(rate_of "$out/variant_${i}_$r.json") $(rate_of "$out/variants_builtin_$r.json")" | awk '{ if ($1 > 0 && $2 > 0) printf "%.4f\n", $1 / $2 }'
+        done | median_of)
+        ratios_json="$ratios_json${ratios_json:+, }{\"module\": \"$m\", \"rate_ratio_median\": $median}"
+    done
+    variants_json="{\"envs\": $baseline_envs, \"ratios\": [$ratios_json], \"rounds\": [$rounds_json]}"
+fi
 # a step that did not run reports null, never an earlier run's files
 ppo_json=null; ppo_fused_json=null; sac_json=null; matmul_json=null; train_ppo=null; train_sac=null; train_host=null; ppo_run=null; sac_run=null
 if runs_step learner; then
@@ -206,6 +254,7 @@ driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,
     printf ' "ppo_update": %s,\n "ppo_update_fused": %s,\n "sac_update": %s,\n "matmul_routines": %s,\n' "$ppo_json" "$ppo_fused_json" "$sac_json" "$matmul_json"
     printf ' "train_ppo": %s,\n "train_sac": %s,\n "train_ppo_host_path": %s,\n' "$train_ppo" "$train_sac" "$train_host"
     printf ' "train_ppo_run": %s,\n "train_sac_run": %s,\n' "$ppo_run" "$sac_run"
-    printf ' "physics_baseline": %s}\n' "$baseline_json"
+    printf ' "physics_baseline": %s,\n' "$baseline_json"
+    printf ' "physics_variants": %s}\n' "$variants_json"
 } >"$out/gpu_suite.json"
 cat "$out/gpu_suite.json"

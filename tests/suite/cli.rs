@@ -364,6 +364,38 @@ fn gpu_suite_stops_first_without_an_adapter() {
     assert!(!tmp.path().join("gpu_suite.json").exists() && !tmp.path().join("env_64.json").exists(), "a step ran: {err}");
 }
 
+/// `benches/physics_variants.py` patches today's simulator module (so that it cannot rot when the
+/// shader changes): each variant is the module with its part switched off behind a runtime-false
+/// test, and a module without the text a variant patches is a one-line error naming it.
+#[test]
+fn physics_variants_patch_today_s_module() {
+    let tmp = tempfile::tempdir().unwrap();
+    let module = tmp.path().join("today.wgsl");
+    let source = dextrain::gpu::shaders::shader_source();
+    std::fs::write(&module, &source).unwrap();
+    let run = |m: &Path| Command::new("python3").arg("benches/physics_variants.py").arg(m).arg(tmp.path().join("v")).current_dir(ROOT).output().expect("python3 on the PATH");
+    let out = run(&module);
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let names = ["no_arriving_pass", "no_hand_object", "no_hand_object_code", "no_second_pass", "no_swept_search"];
+    let mut found: Vec<String> = std::fs::read_dir(tmp.path().join("v")).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().trim_end_matches(".wgsl").to_string()).collect();
+    found.sort();
+    assert_eq!(found, names);
+    for n in names {
+        let v = std::fs::read_to_string(tmp.path().join("v").join(format!("{n}.wgsl"))).unwrap();
+        assert!(v != source && v.contains("g.n_colliders > 1000u") && !source.contains("g.n_colliders > 1000u"), "{n}");
+        // the patch only adds: every line of the module but the patched ones is kept
+        let kept = source.lines().filter(|l| v.contains(l)).count();
+        assert!(kept + 4 >= source.lines().count(), "{n}: {kept} of {} lines kept", source.lines().count());
+    }
+    // the shader changed under the script: one line naming the variant
+    let old = tmp.path().join("old.wgsl");
+    std::fs::write(&old, source.replace("n0 = n_reactions;", "n0 = n_reactions + 0u;")).unwrap();
+    let out = run(&old);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("no_arriving_pass") && err.contains("the shader changed") && err.trim().lines().count() == 1, "{err}");
+}
+
 #[test]
 fn gpu_suite_quick_writes_every_figure() {
     let Some(ctx) = crate::common::gpu_context("gpu_suite_quick_writes_every_figure") else { return };
@@ -379,6 +411,7 @@ fn gpu_suite_quick_writes_every_figure() {
             .arg(tmp.path())
             .envs([("ADAPTER", adapter.as_str()), ("ENVS", "64"), ("BENCH_S", "0.2"), ("STEPS", steps)])
             .env("BASELINE_WGSL", &module)
+            .env("VARIANTS_WGSL", &module)
             .envs([("TRAIN_PPO_S", "14"), ("TRAIN_SAC_S", "12"), ("TRAIN_PPO_HOST_S", "10")])
             .current_dir(ROOT)
             .output()
@@ -433,10 +466,10 @@ fn gpu_suite_quick_writes_every_figure() {
         let m = &j[k]["device_memory"];
         assert!(m["sim_bytes"].as_u64().unwrap_or(0) > 0 && m["learner_bytes"].as_u64().unwrap_or(0) > 0 && m["bytes_per_env"].as_f64().unwrap_or(0.0) > 0.0, "{k}: {text}");
     }
-    assert!(j["physics_baseline"].is_null(), "a step not asked for ran: {text}");
+    assert!(j["physics_baseline"].is_null() && j["physics_variants"].is_null(), "a step not asked for ran: {text}");
     // the steps left out are null, not figures from the run before in the same folder; the
     // baseline step times the built-in physics against a module read from a file
-    let (j, text) = suite("objects baseline");
+    let (j, text) = suite("objects baseline variants");
     assert_eq!(j["objects"].as_array().map(|a| a.len()), Some(3), "{text}");
     let b = &j["physics_baseline"];
     assert_eq!(b["envs"].as_u64(), Some(64), "{text}");
@@ -447,6 +480,14 @@ fn gpu_suite_quick_writes_every_figure() {
     assert_eq!(round["builtin"]["contacts_per_physics_step"], round["baseline"]["contacts_per_physics_step"], "{text}");
     let ratio = b["cost_ratio_median"].as_f64().unwrap_or(f64::NAN);
     assert!((ratio - rate(&round["baseline"]) / rate(&round["builtin"])).abs() < 1e-3 * ratio.max(1.0) + 1e-4, "{text}");
+    // the variants step: each module's rate over the built-in's of its round (the built-in module
+    // itself here: the same contacts)
+    let v = &j["physics_variants"];
+    let vround = &v["rounds"][0];
+    assert_eq!(vround["variants"][0]["contacts_per_physics_step"], vround["builtin"]["contacts_per_physics_step"], "{text}");
+    let vratio = v["ratios"][0]["rate_ratio_median"].as_f64().unwrap_or(f64::NAN);
+    assert_eq!(v["ratios"][0]["module"].as_str(), module.to_str(), "{text}");
+    assert!((vratio - rate(&vround["variants"][0]) / rate(&vround["builtin"])).abs() < 1e-3 * vratio.max(1.0) + 1e-4, "{text}");
     assert_eq!(j["env_only"].as_array().map(|a| a.len()), Some(0), "{text}");
     for k in ["ppo_update", "ppo_update_fused", "sac_update", "train_ppo", "train_sac", "train_ppo_host_path", "train_ppo_run", "train_sac_run"] {
         assert!(j[k].is_null(), "{k}: {text}");

@@ -1,0 +1,85 @@
+#!/usr/bin/env python3
+"""Knock-out variants of the simulator's WGSL module, to see where a GPU spends the env step.
+
+    benches/physics_module.sh HEAD > head.wgsl
+    benches/physics_variants.py head.wgsl variants/
+    VARIANTS_WGSL="$(ls variants/*.wgsl)" benches/gpu_suite.sh --bin ./dextrain   # step "variants"
+
+Each variant is the module with one part of the hand–object contact pass switched off. A part
+"never run" keeps its code behind a test on a uniform that is always false at run time
+(`g.n_colliders > 1000u`), so the compiler keeps it and its cost is its running alone; a part
+"gone" is cut off by an early return, so its code goes too. On the H200 (2026-11-29) the swept
+search and the second pass cost by running; on lavapipe (2026-11-30) the narrow phase's code costs
+~1.8x by its presence alone (BENCHMARKS.md "Where lavapipe's step goes"). The variants change the
+physics (the bench's contacts differ): they time parts, they are not physics to train with.
+
+Exits with status 1, naming the variant, when the module no longer holds the text a variant
+patches (the shader changed: this script follows it).
+"""
+
+import sys
+from pathlib import Path
+
+# a runtime false that no compiler can fold away (the bench scene has 17 colliders)
+NEVER = "g.n_colliders > 1000u"
+
+# name -> (what it times, [(text in the module, its replacement)])
+VARIANTS = {
+    "no_hand_object": (
+        "the hand-object pairs never queried (their code kept): the rest of the env step",
+        [("        if (object_in_reach(cd, cpos, opos, margin)) {\n            near_obj[ci / 32u] |= bit;",
+          f"        if (object_in_reach(cd, cpos, opos, margin) && {NEVER}) {{\n            near_obj[ci / 32u] |= bit;")],
+    ),
+    "no_hand_object_code": (
+        "the hand-object pairs never queried and the narrow phase's code gone",
+        [("        if (object_in_reach(cd, cpos, opos, margin)) {\n            near_obj[ci / 32u] |= bit;",
+          f"        if (object_in_reach(cd, cpos, opos, margin) && {NEVER}) {{\n            near_obj[ci / 32u] |= bit;"),
+         ("fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4<f32>, margin: f32) -> Contact {\n",
+          "fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4<f32>, margin: f32) -> Contact {\n"
+          "    return contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);\n")],
+    ),
+    "no_swept_search": (
+        "the first pass's swept searches never run",
+        [("            let t = swept_test(ci, raw, h, ocom, ovel, ow);\n            if (t.search) {",
+          f"            let t = swept_test(ci, raw, h, ocom, ovel, ow);\n            if (t.search && {NEVER}) {{")],
+    ),
+    "no_second_pass": (
+        "no pair revisited by the second pass (the arriving pass kept)",
+        [("revisit[ci / 32u] |= 1u << (ci % 32u);\n                    any_revisit = true;",
+          f"revisit[ci / 32u] |= select(0u, 1u << (ci % 32u), {NEVER});\n                    any_revisit = any_revisit || {NEVER};")],
+    ),
+    "no_arriving_pass": (
+        "the arriving pass never runs",
+        [("                arriving = true;\n                n0 = n_reactions;",
+          f"                arriving = true;\n                n0 = select(0u, n_reactions, {NEVER});")],
+    ),
+}
+
+
+def main() -> int:
+    if len(sys.argv) != 3:
+        print("physics_variants.py: expected MODULE OUT_DIR (MODULE: benches/physics_module.sh COMMIT > MODULE)", file=sys.stderr)
+        return 2
+    module = Path(sys.argv[1])
+    out = Path(sys.argv[2])
+    try:
+        text = module.read_text()
+    except OSError as e:
+        print(f"physics_variants.py: {module}: {e.strerror}", file=sys.stderr)
+        return 2
+    out.mkdir(parents=True, exist_ok=True)
+    for name, (what, patches) in VARIANTS.items():
+        v = text
+        for old, new in patches:
+            if v.count(old) != 1:
+                first = old.strip().splitlines()[0]
+                print(f"physics_variants.py: {module}: variant {name}: expected the text {first!r} once, found it {v.count(old)} times (the shader changed)", file=sys.stderr)
+                return 1
+            v = v.replace(old, new)
+        (out / f"{name}.wgsl").write_text(v)
+        print(f"{out / (name + '.wgsl')}: {what}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
