@@ -1,0 +1,43 @@
+#!/usr/bin/env bash
+# One call of a lent GPU machine: installs the carried Vulkan and GL libraries where the machine
+# lacks a Vulkan loader, unpacks the carried binary and runs benches/gpu_suite.sh's steps, then packs
+# every result into one tarball under $OUT (only a few files come back from a call).
+#     (here)     cargo build --release && benches/device_pack.sh device
+#     (device)   benches/device_window.sh device      # the device tool's run, carry ["device"]
+# Environment: STEPS (default "env baseline variants": ~4 minutes on an H200; "learner train" the
+# rest of the figures, ~5 more), and whatever gpu_suite.sh reads (ENVS, BENCH_S, TRAIN_PPO_S, …).
+# The defaults fit one call of 10 minutes: ENVS "16384 65536", BENCH_S 2, BASELINE_ROUNDS 3,
+# TRAIN_PPO_S 60, TRAIN_SAC_S 40, TRAIN_PPO_HOST_S 15.
+set -uo pipefail
+dir=${1:-device}
+out=${OUT:-device_out}
+mkdir -p "$out"
+log="$out/window.log"
+if [ ! -f "$dir/dextrain.gz" ]; then
+    echo "device_window.sh: no $dir/dextrain.gz (benches/device_pack.sh $dir makes it)" >&2
+    exit 2
+fi
+{
+    echo "device_window.sh: $(cat "$dir/commit" 2>/dev/null || echo '?') against $(cat "$dir/baseline_commit" 2>/dev/null || echo '?'), $(date -u +%FT%TZ)"
+    nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader 2>&1 || true
+    # the Vulkan loader and the GL vendor libraries, where the machine has none
+    if ! ldconfig -p | grep -q 'libvulkan.so.1'; then
+        for f in "$dir"/debs/*.deb; do dpkg -x "$f" /; done
+        ldconfig
+        echo "installed: $(ls "$dir"/debs | tr '\n' ' ')"
+    fi
+} >"$log" 2>&1
+gunzip -c "$dir/dextrain.gz" >"$out/dextrain.bin" && chmod +x "$out/dextrain.bin"
+baseline=$(ls "$dir"/*.wgsl 2>/dev/null | grep -v '/head.wgsl$' | head -n 1)
+STEPS=${STEPS:-env baseline variants} ENVS=${ENVS:-16384 65536} BENCH_S=${BENCH_S:-2} BASELINE_ROUNDS=${BASELINE_ROUNDS:-3} \
+    TRAIN_PPO_S=${TRAIN_PPO_S:-60} TRAIN_SAC_S=${TRAIN_SAC_S:-40} TRAIN_PPO_HOST_S=${TRAIN_PPO_HOST_S:-15} \
+    BASELINE_WGSL=${BASELINE_WGSL:-$baseline} VARIANTS_WGSL=${VARIANTS_WGSL:-$(ls "$dir"/variants/*.wgsl 2>/dev/null | tr '\n' ' ')} \
+    benches/gpu_suite.sh --bin "$out/dextrain.bin" --out "$out/suite" "${@:2}" >>"$log" 2>&1
+status=$?
+echo "gpu_suite.sh exit $status" >>"$log"
+rm -f "$out/dextrain.bin"
+rm -rf "$out/suite/runs/"*/checkpoints
+tar czf "$out/results.tgz" -C "$out" window.log suite
+echo "device_window.sh: $out/results.tgz ($(du -k "$out/results.tgz" | cut -f1) KiB), gpu_suite.sh exit $status"
+tail -n 25 "$log"
+exit "$status"
