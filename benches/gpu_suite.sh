@@ -83,6 +83,15 @@ json_of() {
     esac
 }
 
+# the env-only rate in a bench's JSON, or 0
+rate_of() {
+    tail -n 1 "$1" 2>/dev/null | grep -o '"env_steps_per_s":{[^}]*"median":[0-9.e+-]*' | grep -o '[0-9.e+-]*$' || echo 0
+}
+# the median of numbers on stdin, one a line (null for none)
+median_of() {
+    sort -g | awk 'NF { v[n++] = $1 } END { if (n == 0) print "null"; else if (n % 2) print v[(n - 1) / 2]; else print (v[n / 2 - 1] + v[n / 2]) / 2 }'
+}
+
 # the summary line a training run printed (its last JSON line: env backend, learner device, device
 # memory), or null
 run_json() {
@@ -170,22 +179,11 @@ if runs_step baseline; then
     done
     # each round's ratio of env-steps/s, baseline over built-in (the built-in's cost in the
     # baseline's units), and their median
-    ratios=$(for r in $(seq 1 "$baseline_rounds"); do
-        for f in "$out/baseline_module_$r.json" "$out/baseline_builtin_$r.json"; do
-            tail -n 1 "$f" 2>/dev/null | grep -o '"env_steps_per_s":{[^}]*"median":[0-9.e+-]*' | grep -o '[0-9.e+-]*$' || echo 0
-        done | paste -sd' ' | awk '{ if ($1 > 0 && $2 > 0) printf "%.4f\n", $1 / $2 }'
-    done | sort -g)
-    median=$(printf '%s\n' "$ratios" | awk 'NF { v[n++] = $1 } END { if (n == 0) print "null"; else if (n % 2) print v[(n - 1) / 2]; else print (v[n / 2 - 1] + v[n / 2]) / 2 }')
+    median=$(for r in $(seq 1 "$baseline_rounds"); do
+        echo "$(rate_of "$out/baseline_module_$r.json") $(rate_of "$out/baseline_builtin_$r.json")" | awk '{ if ($1 > 0 && $2 > 0) printf "%.4f\n", $1 / $2 }'
+    done | median_of)
     baseline_json="{\"module\": \"$baseline_wgsl\", \"envs\": $baseline_envs, \"cost_ratio_median\": $median, \"rounds\": [$rounds_json]}"
 fi
-# the env-only rate in a bench's JSON, or 0
-rate_of() {
-    tail -n 1 "$1" 2>/dev/null | grep -o '"env_steps_per_s":{[^}]*"median":[0-9.e+-]*' | grep -o '[0-9.e+-]*$' || echo 0
-}
-# the median of numbers on stdin, one a line (null for none)
-median_of() {
-    sort -g | awk 'NF { v[n++] = $1 } END { if (n == 0) print "null"; else if (n % 2) print v[(n - 1) / 2]; else print (v[n / 2 - 1] + v[n / 2]) / 2 }'
-}
 variants_json=null
 if runs_step variants; then
     for m in $variants_wgsl; do
