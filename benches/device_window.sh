@@ -4,10 +4,11 @@
 # every result into one tarball under $OUT (only a few files come back from a call).
 #     (here)     cargo build --release && benches/device_pack.sh device
 #     (device)   benches/device_window.sh device      # the device tool's run, carry ["device"]
-# Environment: STEPS (default "env baseline variants": ~4 minutes on an H200; "learner train" the
-# rest of the figures, ~5 more), and whatever gpu_suite.sh reads (ENVS, BENCH_S, TRAIN_PPO_S, …).
-# The defaults fit one call of 10 minutes: ENVS "16384 65536", BENCH_S 2, BASELINE_ROUNDS 3,
-# TRAIN_PPO_S 60, TRAIN_SAC_S 40, TRAIN_PPO_HOST_S 15.
+# Environment: STEPS (default "env baseline variants": ~6 minutes on an H200 by the earlier windows'
+# bench times, not yet run together there; then, in a second call, "learner train": the rest of
+# the figures, ~5 minutes), and whatever gpu_suite.sh reads (ENVS, BENCH_S, TRAIN_PPO_S, …). With
+# these defaults each of the two fits one call of 10 minutes: ENVS "16384 65536", BENCH_S 2,
+# BASELINE_ROUNDS 3, TRAIN_PPO_S 60, TRAIN_SAC_S 40, TRAIN_PPO_HOST_S 15.
 set -uo pipefail
 dir=${1:-device}
 out=${OUT:-device_out}
