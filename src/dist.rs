@@ -57,13 +57,23 @@ pub fn init() -> anyhow::Result<Guard> {
         }
         Ok(Guard { _universe: universe })
     }
+    // a build without MPI started as one of N > 1 processes by a launcher would train N copies of
+    // one run, each alone: it stops instead, saying how to build with MPI
     #[cfg(not(feature = "mpi"))]
-    Ok(Guard {})
+    {
+        if let Some((key, declared)) = launcher_world_size() {
+            if declared > 1 {
+                anyhow::bail!(
+                    "launched as one of {declared} MPI processes ({key}={declared}), but this dextrain was built without MPI: build it with `cargo build --release --features mpi` (docs/mpi.md); nothing was written"
+                );
+            }
+        }
+        Ok(Guard {})
+    }
 }
 
 /// The number of processes the launcher started this one among, where it says: MPICH's and Intel
 /// MPI's (and SLURM's PMI) `PMI_SIZE`, Open MPI's `OMPI_COMM_WORLD_SIZE`; with the variable's name.
-#[cfg(feature = "mpi")]
 fn launcher_world_size() -> Option<(&'static str, usize)> {
     ["PMI_SIZE", "OMPI_COMM_WORLD_SIZE"].into_iter().find_map(|k| Some((k, std::env::var(k).ok()?.trim().parse().ok()?)))
 }

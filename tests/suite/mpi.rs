@@ -76,6 +76,37 @@ fn the_ranks_minibatches_are_the_one_process_minibatches_split_by_env() {
     }
 }
 
+/// A build without MPI started by a launcher as one of 2 processes (`PMI_SIZE=2`) would train
+/// two copies of one run, each alone: it stops with a one-line error saying how to build with MPI,
+/// and writes nothing; started as one of 1 it trains as ever.
+#[cfg(not(feature = "mpi"))]
+#[test]
+fn a_build_without_mpi_launched_as_one_of_two_is_a_one_line_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let runs = tmp.path().join("runs");
+    let train = |size: &str| {
+        Command::new(env!("CARGO_BIN_EXE_dextrain"))
+            .args(["train", "configs/lift_cube_cpu.toml", "--runs-dir"])
+            .arg(&runs)
+            .args(["--name", "n", "--quiet", "--set", "train.iterations=1", "--set", "sim.num_envs=16", "--set", "train.steps_per_env=2"])
+            .args(["--set", "policy.actor_hidden=[16]", "--set", "policy.critic_hidden=[16]", "--set", "sim.backend=cpu", "--set=train.device=cpu"])
+            .env("PMI_RANK", "0")
+            .env("PMI_SIZE", size)
+            .current_dir(ROOT)
+            .output()
+            .unwrap()
+    };
+    let out = train("2");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("PMI_SIZE=2") && err.contains("built without MPI") && err.contains("--features mpi"), "{err}");
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(!runs.exists(), "a run directory was written");
+    let out = train("1");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(runs.join("n/checkpoints").is_dir());
+}
+
 #[cfg(feature = "mpi")]
 mod with_mpi {
     use super::ROOT;
