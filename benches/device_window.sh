@@ -4,7 +4,7 @@
 # every result into one tarball under $OUT (only a few files come back from a call).
 #     (here)     cargo build --release && benches/device_pack.sh device
 #     (device)   benches/device_window.sh device      # the device tool's run, carry ["device"]
-# Environment: STEPS (default "env baseline variants": ~6 minutes on an H200 by the earlier windows'
+# Environment: STEPS (default "shader_stats env baseline variants": ~6 minutes on an H200 by the earlier windows'
 # bench times, not yet run together there; then, in a second call, "learner train": the rest of
 # the figures, ~5 minutes), and whatever gpu_suite.sh reads (ENVS, BENCH_S, TRAIN_PPO_S, …). With
 # these defaults each of the two fits one call of 10 minutes: ENVS "16384 65536", BENCH_S 2,
@@ -30,7 +30,7 @@ fi
 } >"$log" 2>&1
 gunzip -c "$dir/dextrain.gz" >"$out/dextrain.bin" && chmod +x "$out/dextrain.bin"
 baseline=$(ls "$dir"/*.wgsl 2>/dev/null | grep -v '/head.wgsl$' | head -n 1)
-STEPS=${STEPS:-env baseline variants} ENVS=${ENVS:-16384 65536} BENCH_S=${BENCH_S:-2} BASELINE_ROUNDS=${BASELINE_ROUNDS:-3} \
+STEPS=${STEPS:-shader_stats env baseline variants} ENVS=${ENVS:-16384 65536} BENCH_S=${BENCH_S:-2} BASELINE_ROUNDS=${BASELINE_ROUNDS:-3} \
     TRAIN_PPO_S=${TRAIN_PPO_S:-60} TRAIN_SAC_S=${TRAIN_SAC_S:-40} TRAIN_PPO_HOST_S=${TRAIN_PPO_HOST_S:-15} \
     BASELINE_WGSL=${BASELINE_WGSL:-$baseline} VARIANTS_WGSL=${VARIANTS_WGSL:-$(ls "$dir"/variants/*.wgsl 2>/dev/null | tr '\n' ' ')} \
     benches/gpu_suite.sh --bin "$out/dextrain.bin" --out "$out/suite" "${@:2}" >>"$log" 2>&1

@@ -34,6 +34,10 @@
 #      knock-outs `benches/physics_variants.py MODULE DIR` writes) the env-only bench at
 #      BASELINE_ENVS envs with the built-in physics, then with each module, over BASELINE_ROUNDS
 #      rounds, and each module's median ratio of rates: where this GPU spends the env step.
+#   6. (step "shader_stats") what the adapter's Vulkan compiler makes of the simulator's kernels
+#      (`dextrain bench --shader-stats`: registers, code size, and on AMD's compiler spills and
+#      scratch), for the built-in module and each of BASELINE_WGSL and VARIANTS_WGSL; seconds. A
+#      driver that reports none (lavapipe) gives {"module", "error"} entries.
 # On an H200 the default steps take ~10 minutes and the baseline step ~2.5 more (estimates from the
 # steps' parts timed in earlier windows, the suite not yet run whole there): where one command
 # may run less (a device window's call), split them with STEPS, e.g. STEPS="env baseline" then
@@ -41,7 +45,7 @@
 # --quick runs the same steps at tiny sizes (any adapter, lavapipe included) so that the script
 # can be checked anywhere. Environment: ENVS (space-separated env counts), TRAIN_PPO_S, TRAIN_SAC_S, TRAIN_PPO_HOST_S,
 # BENCH_S (least timed seconds per env-only point), OBJ_ENVS, ADAPTER (gpu or gpu:NAME, default gpu),
-# STEPS (the steps to run, default "env objects learner train", plus "baseline" when BASELINE_WGSL is
+# STEPS (the steps to run, default "shader_stats env objects learner train", plus "baseline" when BASELINE_WGSL is
 # set and "variants" when VARIANTS_WGSL is; the others' JSON values are null), BASELINE_WGSL,
 # VARIANTS_WGSL, BASELINE_ENVS, BASELINE_ROUNDS.
 set -uo pipefail
@@ -137,7 +141,7 @@ train_for() {
 
 baseline_wgsl=${BASELINE_WGSL:-}
 variants_wgsl=${VARIANTS_WGSL:-}
-steps=" ${STEPS:-env objects learner train${baseline_wgsl:+ baseline}${variants_wgsl:+ variants}} "
+steps=" ${STEPS:-shader_stats env objects learner train${baseline_wgsl:+ baseline}${variants_wgsl:+ variants}} "
 runs_step() { case "$steps" in *" $1 "*) return 0 ;; *) return 1 ;; esac; }
 
 start=$(date +%s)
@@ -148,6 +152,28 @@ if ! "$bin" bench --backend "$adapter" --envs 64 --chunks 1 --seconds 0 >"$out/a
     echo "gpu_suite: stopped: no usable GPU adapter ($adapter):" >&2
     grep -v XDG_RUNTIME_DIR "$out/adapter_probe.log" >&2
     exit 1
+fi
+# the last line a command wrote on stderr, as a JSON string's contents
+error_of() {
+    grep -v XDG_RUNTIME_DIR "$1" 2>/dev/null | tail -n 1 | sed 's/\\/\\\\/g; s/"/\\"/g'
+}
+stats_json=null
+if runs_step shader_stats; then
+    echo "gpu_suite: shader statistics of the simulator's kernels" >&2
+    stats_json=""
+    i=0
+    for m in builtin ${baseline_wgsl:-} ${variants_wgsl:-}; do
+        i=$((i + 1))
+        if [ "$m" = builtin ]; then
+            "$bin" bench --shader-stats --backend "$adapter" >"$out/shader_stats_$i.json" 2>"$out/shader_stats_$i.log"
+        else
+            "$bin" bench --shader-stats --backend "$adapter" --physics-wgsl "$m" >"$out/shader_stats_$i.json" 2>"$out/shader_stats_$i.log"
+        fi
+        entry=$(json_of "$out/shader_stats_$i.json")
+        [ "$entry" = null ] && entry="{\"module\": \"$m\", \"error\": \"$(error_of "$out/shader_stats_$i.log")\"}"
+        stats_json="$stats_json${stats_json:+, }$entry"
+    done
+    stats_json="[$stats_json]"
 fi
 env_json=""
 runs_step env || envs=""
@@ -253,6 +279,7 @@ driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,
     printf ' "train_ppo": %s,\n "train_sac": %s,\n "train_ppo_host_path": %s,\n' "$train_ppo" "$train_sac" "$train_host"
     printf ' "train_ppo_run": %s,\n "train_sac_run": %s,\n' "$ppo_run" "$sac_run"
     printf ' "physics_baseline": %s,\n' "$baseline_json"
-    printf ' "physics_variants": %s}\n' "$variants_json"
+    printf ' "physics_variants": %s,\n' "$variants_json"
+    printf ' "shader_stats": %s}\n' "$stats_json"
 } >"$out/gpu_suite.json"
 cat "$out/gpu_suite.json"

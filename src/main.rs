@@ -101,6 +101,13 @@ enum Command {
         /// and lay out its buffers as the built-in module does; the report names the file.
         #[arg(long, value_name = "FILE", conflicts_with_all = ["ppo", "sac", "matmul", "contacts", "video"])]
         physics_wgsl: Option<PathBuf>,
+        /// Compile the simulator's kernels (or --physics-wgsl FILE's) on a Vulkan driver and print
+        /// the statistics its compiler reports (registers, spills, scratch, instructions: the
+        /// driver's names) instead of timing anything. --backend gpu:NAME picks the device (default:
+        /// the first that reports them; lavapipe does not). Without an AMD GPU,
+        /// RADV_FORCE_FAMILY=navi21 gives RADV's compiler (docs/gpu.md).
+        #[arg(long, conflicts_with_all = ["ppo", "sac", "matmul", "contacts", "video"])]
+        shader_stats: bool,
     },
     /// Train a policy with PPO from a TOML config (or resume a run).
     Train(dextrain::run::TrainArgs),
@@ -194,7 +201,7 @@ fn run(cli: Cli) -> Result<()> {
             console::status(dextrain::task::spec::layout_table(&task.priv_layout, "critic observation").trim_end());
             Ok(())
         }
-        Command::Bench { ppo, sac, matmul, routines, contacts, video, video_format, video_size, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds, physics_wgsl } => {
+        Command::Bench { ppo, sac, matmul, routines, contacts, video, video_format, video_size, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds, physics_wgsl, shader_stats } => {
             if let Some(t) = threads {
                 rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot size the thread pool")?;
             }
@@ -242,6 +249,26 @@ fn run(cli: Cli) -> Result<()> {
             }
             if contacts {
                 let report = dextrain::bench_contacts::run_contact_bench(&backend.unwrap_or(dextrain::config::BackendChoice::Cpu))?;
+                console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
+                return Ok(());
+            }
+            if shader_stats {
+                let adapter = match &backend {
+                    None => None,
+                    Some(dextrain::config::BackendChoice::Gpu(name)) => name.as_deref(),
+                    Some(other) => anyhow::bail!("bench --shader-stats: --backend {other}: expected gpu or gpu:NAME (the Vulkan device whose compiler reports)"),
+                };
+                let (source, module) = match &physics_wgsl {
+                    Some(path) => {
+                        let source = std::fs::read_to_string(path).with_context(|| format!("bench --physics-wgsl {}: cannot read the file", path.display()))?;
+                        (source, path.display().to_string())
+                    }
+                    None => (dextrain::gpu::shaders::shader_source(), "<built-in simulator module>".to_string()),
+                };
+                let stats = dextrain::gpu::shader_stats::compile_stats(&source, &module, adapter)?;
+                let mut report = stats.to_json();
+                report["bench"] = serde_json::Value::String("shader_stats".into());
+                report["module"] = serde_json::Value::String(module);
                 console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
                 return Ok(());
             }

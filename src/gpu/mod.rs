@@ -1,11 +1,13 @@
 //! The GPU context and the shader ABI, below the simulator (docs/design.md §11): the wgpu device and
 //! its error handling (`context`), the Pod structs mirrored in WGSL (`layout`), the binding tables
-//! (`bindings`), the shader sources (`shaders`), a burn tensor's wgpu buffer (`io`) and why no
-//! hardware adapter was found (`vulkan_probe`).
+//! (`bindings`), the shader sources (`shaders`), a burn tensor's wgpu buffer (`io`), why no
+//! hardware adapter was found (`vulkan_probe`) and what a driver's compiler makes of a kernel
+//! (`shader_stats`).
 
 pub mod bindings;
 pub mod context;
 pub mod io;
 pub mod layout;
+pub mod shader_stats;
 pub mod shaders;
 pub mod vulkan_probe;
