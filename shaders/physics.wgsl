@@ -10,10 +10,18 @@ var<private> link_pos: array<vec3<f32>, MAX_LINKS>;
 var<private> link_rot: array<vec4<f32>, MAX_LINKS>;
 var<private> link_v: array<vec3<f32>, MAX_LINKS>;
 var<private> link_w: array<vec3<f32>, MAX_LINKS>;
-var<private> joint_axis: array<vec3<f32>, MAX_JOINTS>;
-// the change this substep of each independent joint's velocity and of the wrist's: the servos'
-// part first, then each hand contact's as it is solved (physics.rs: Scratch::dqd)
-var<private> dqd: array<f32, MAX_JOINTS>;
+// each joint this substep: its axis in the world (hand_kinematics) and the change of its velocity
+// (independent joints only; physics.rs: Scratch::dqd): the servos' part first, then each hand
+// contact's as it is solved. One array of both, not two: a GPU compiler keeps a private array of
+// at most 256 bytes in registers (RADV's does, expanding each dynamic index into it), and 32
+// joints' dqd alone is 128 bytes; one array of 512 bytes goes to scratch memory, and the physics
+// step is ~8 % fewer instructions on RADV's compiler (BENCHMARKS.md "What a GPU's compiler makes
+// of the physics kernel")
+struct JointNow {
+    axis: vec3<f32>,
+    dqd: f32,
+}
+var<private> joint_now: array<JointNow, MAX_JOINTS>;
 var<private> wrist_dv: vec3<f32>;
 var<private> wrist_dw: vec3<f32>;
 var<private> obj_f: vec3<f32>;
@@ -30,15 +38,22 @@ var<private> link_contact: array<u32, 2>;
 const MAX_REACTIONS: u32 = 16u;
 // the hand–object pairs that pushed this substep (physics.rs: Scratch::reactions, Reaction):
 // the link, the collider, (the point, the depth of the contact solved), (normal, a), (δv₀, b),
-// (δω₀, b_r), (the manifold's spread diagonal, its spring count), the spread's (xy, xz, yz)
-var<private> react_link: array<u32, MAX_REACTIONS>;
-var<private> react_collider: array<u32, MAX_REACTIONS>;
-var<private> react_point: array<vec4<f32>, MAX_REACTIONS>;
-var<private> react_normal: array<vec4<f32>, MAX_REACTIONS>;
-var<private> react_dv0: array<vec4<f32>, MAX_REACTIONS>;
-var<private> react_dw0: array<vec4<f32>, MAX_REACTIONS>;
-var<private> react_spread_d: array<vec4<f32>, MAX_REACTIONS>;
-var<private> react_spread_o: array<vec3<f32>, MAX_REACTIONS>;
+// (δω₀, b_r), (the manifold's spread diagonal, its spring count), the spread's (xy, xz, yz).
+// One array of structs (1.7 kB, in scratch memory), not an array per field: RADV's compiler kept
+// each field's array of ≤ 256 bytes in registers and expanded every dynamic index into it, which
+// made the physics step 44 % larger there (71.5 k → 40.3 k instructions, spilled VGPRs 15.5 k →
+// 4.6 k; BENCHMARKS.md "What a GPU's compiler makes of the physics kernel")
+struct Reaction {
+    link: u32,
+    collider: u32,
+    point: vec4<f32>,
+    normal: vec4<f32>,
+    dv0: vec4<f32>,
+    dw0: vec4<f32>,
+    spread_d: vec4<f32>,
+    spread_o: vec3<f32>,
+}
+var<private> reactions: array<Reaction, MAX_REACTIONS>;
 var<private> n_reactions: u32;
 // index of this env's first contact spring in `springs`
 var<private> spring_base: u32;
@@ -124,7 +139,7 @@ fn hand_kinematics() {
         }
         let o = link_pos[p] + quat_rotate(link_rot[p], jd.origin_pos.xyz);
         let axis = quat_rotate(frame_rot, jd.axis.xyz);
-        joint_axis[j] = axis;
+        joint_now[j].axis = axis;
         link_pos[j + 1u] = o;
         link_rot[j + 1u] = quat_mul_axis_angle(frame_rot, jd.axis.xyz, st.q[j]);
         // ω_child = ω_parent + a q̇;  v_child = v_parent + ω_parent × (o − p_parent)
@@ -1262,8 +1277,8 @@ fn apply_hand_force(l: u32, x: vec3<f32>, f: vec3<f32>, h: f32) {
     while (link > 0u) {
         let j = link - 1u;
         let ld = joint_lead(j);
-        let tq = dot(joint_axis[j], cross(x - link_pos[link], f));
-        dqd[ld.joint] += h * ld.mult * tq / joint_impulse_inertia(ld.joint, h);
+        let tq = dot(joint_now[j].axis, cross(x - link_pos[link], f));
+        joint_now[ld.joint].dqd += h * ld.mult * tq / joint_impulse_inertia(ld.joint, h);
         link = joints[j].parent_link;
     }
 }
@@ -1276,7 +1291,7 @@ fn apply_hand_torque(l: u32, tq: vec3<f32>, h: f32) {
     while (link > 0u) {
         let j = link - 1u;
         let ld = joint_lead(j);
-        dqd[ld.joint] += h * ld.mult * dot(joint_axis[j], tq) / joint_impulse_inertia(ld.joint, h);
+        joint_now[ld.joint].dqd += h * ld.mult * dot(joint_now[j].axis, tq) / joint_impulse_inertia(ld.joint, h);
         link = joints[j].parent_link;
     }
 }
@@ -1288,7 +1303,7 @@ fn hand_point_velocity_change(l: u32, x: vec3<f32>) -> vec3<f32> {
     while (link > 0u) {
         let j = link - 1u;
         let ld = joint_lead(j);
-        dv += cross(joint_axis[j], x - link_pos[link]) * (ld.mult * dqd[ld.joint]);
+        dv += cross(joint_now[j].axis, x - link_pos[link]) * (ld.mult * joint_now[ld.joint].dqd);
         link = joints[j].parent_link;
     }
     return dv;
@@ -1315,7 +1330,7 @@ fn hand_mobility(l: u32, x: vec3<f32>, n: vec3<f32>, h: f32) -> vec2<f32> {
             coupled = true;
             break;
         }
-        let jac = cross(joint_axis[j], x - link_pos[link]);
+        let jac = cross(joint_now[j].axis, x - link_pos[link]);
         let inv_i = 1.0 / joint_impulse_inertia(j, h);
         w_n += dot(jac, n) * dot(jac, n) * inv_i;
         w_tr += dot(jac, jac) * inv_i;
@@ -1341,7 +1356,7 @@ fn hand_mobility(l: u32, x: vec3<f32>, n: vec3<f32>, h: f32) -> vec2<f32> {
                 if (k_link > link) {
                     first = false;
                 }
-                jac += cross(joint_axis[k], x - link_pos[k_link]) * lk.mult;
+                jac += cross(joint_now[k].axis, x - link_pos[k_link]) * lk.mult;
             }
             k_link = joints[k].parent_link;
         }
@@ -1492,14 +1507,7 @@ fn hand_object_force(ci: u32, c: Contact, cf: HandContactForce, ocom: vec3<f32>,
         apply_hand_torque(l, tor.torque, h);
         apply_object_torque(n * (tor.damping * dot(n, dw)) - tor.torque, n, tor.damping);
         if (n_reactions < MAX_REACTIONS) {
-            react_link[n_reactions] = l;
-            react_collider[n_reactions] = ci;
-            react_point[n_reactions] = vec4<f32>(c.point, c.depth);
-            react_normal[n_reactions] = vec4<f32>(n, cf.ndamp);
-            react_dv0[n_reactions] = vec4<f32>(dv_point, cf.tdamp);
-            react_dw0[n_reactions] = vec4<f32>(dw, tor.damping);
-            react_spread_d[n_reactions] = vec4<f32>(c.spread_diag, c.spring_count);
-            react_spread_o[n_reactions] = c.spread_off;
+            reactions[n_reactions] = Reaction(l, ci, vec4<f32>(c.point, c.depth), vec4<f32>(n, cf.ndamp), vec4<f32>(dv_point, cf.tdamp), vec4<f32>(dw, tor.damping), vec4<f32>(c.spread_diag, c.spring_count), c.spread_off);
             n_reactions += 1u;
         }
         link_contact[l / 32u] |= 1u << (l % 32u);
@@ -1784,10 +1792,11 @@ fn contacts_and_forces(h: f32) -> ObjectVelocity {
             while (i_arr < n0 && !next) {
                 let i = i_arr;
                 i_arr++;
-                ci = react_collider[i];
+                let r = reactions[i];
+                ci = r.collider;
                 let cd = colliders[ci];
-                if (h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length((u.w - ow) - react_dw0[i].xyz) > SWEPT_TOLERANCE) {
-                    let t = swept_test(ci, contact_at(react_point[i].w, react_normal[i].xyz, react_point[i].xyz), h, ocom, u.vel, u.w);
+                if (h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length((u.w - ow) - r.dw0.xyz) > SWEPT_TOLERANCE) {
+                    let t = swept_test(ci, contact_at(r.point.w, r.normal.xyz, r.point.xyz), h, ocom, u.vel, u.w);
                     c_end = t.c_end;
                     next = t.search;
                 }
@@ -1883,7 +1892,7 @@ fn hand_servo(h: f32) {
     let n = g.n_joints;
     for (var j = 0u; j < n; j++) {
         let jd = joints[j];
-        dqd[j] = 0.0;
+        joint_now[j].dqd = 0.0;
         if (jd.mimic_leader != NO_JOINT) {
             continue;
         }
@@ -1897,7 +1906,7 @@ fn hand_servo(h: f32) {
         // Coulomb friction, regularised over 0.01 rad/s
         let tau_f = -jd.friction * clamp(qd / 0.01, -1.0, 1.0);
         // joint damping implicit: q̇' = (q̇ + h τ / I) / (1 + h d / I)
-        dqd[j] = (qd + h * (tau_pd + tau_f) / inertia) / (1.0 + h * jd.damping * prm.kd_scale / inertia) - qd;
+        joint_now[j].dqd = (qd + h * (tau_pd + tau_f) / inertia) / (1.0 + h * jd.damping * prm.kd_scale / inertia) - qd;
     }
     // wrist: F = clamp(kp (p* − p) − kd v, Fmax); the hand's weight is compensated
     let mi = wrist_mass_inertia();
@@ -1920,7 +1929,7 @@ fn integrate_hand(h: f32) {
         }
         let lo = jd.lower * prm.limit_scale;
         let hi = jd.upper * prm.limit_scale;
-        var qd = clamp(st.qd[j] + dqd[j], -jd.velocity, jd.velocity);
+        var qd = clamp(st.qd[j] + joint_now[j].dqd, -jd.velocity, jd.velocity);
         var qn = st.q[j] + h * qd;
         if (qn < lo) {
             qn = lo;
@@ -2048,21 +2057,22 @@ fn react_to_object_motion(u: ObjectVelocity, h: f32) {
     let dv = u.vel - st.obj_vel.xyz;
     let dw = u.w - st.obj_angvel.xyz;
     for (var i = 0u; i < n_reactions; i++) {
-        let x = react_point[i].xyz;
-        let l = react_link[i];
-        let n = react_normal[i].xyz;
+        let r = reactions[i];
+        let x = r.point.xyz;
+        let l = r.link;
+        let n = r.normal.xyz;
         // J·Δu − δv₀: the contact point's velocity change past the one linearised about
-        let du = dv + cross(dw, x - com) - react_dv0[i].xyz;
+        let du = dv + cross(dw, x - com) - r.dv0.xyz;
         let dun = dot(du, n);
         // D·(J·Δu − δv₀) with D = a nnᵀ + b (I − nnᵀ)
-        let f = n * (react_normal[i].w * dun) + (du - n * dun) * react_dv0[i].w;
+        let f = n * (r.normal.w * dun) + (du - n * dun) * r.dv0.w;
         apply_hand_force(l, x, f, h);
         // the torsion's damping: b_r n (n·Δω − n·δω₀)
-        var tq = n * (react_dw0[i].w * (dot(n, dw) - dot(n, react_dw0[i].xyz)));
-        if (react_spread_d[i].w > 1.0) {
+        var tq = n * (r.dw0.w * (dot(n, dw) - dot(n, r.dw0.xyz)));
+        if (r.spread_d.w > 1.0) {
             // a manifold's resistance to the object's turning: E (Δω − δω₀)
-            let e = spread_matrix(react_spread_d[i].xyz, react_spread_o[i], n, react_normal[i].w, react_dv0[i].w);
-            let x = dw - react_dw0[i].xyz;
+            let e = spread_matrix(r.spread_d.xyz, r.spread_o, n, r.normal.w, r.dv0.w);
+            let x = dw - r.dw0.xyz;
             tq += e[0] * x.x + e[1] * x.y + e[2] * x.z;
         }
         apply_hand_torque(l, tq, h);
