@@ -36,36 +36,54 @@ struct IkFrame {
 }
 
 // ---- per-invocation working memory (the twin's IkScratch) ----
+// The per-slot and per-joint fields are arrays of structs (ik_tip, ik_joint), not an array per
+// field: a GPU compiler keeps a private array of at most 256 bytes in registers (RADV's does,
+// expanding each dynamic index into it), and task_act was 1.5× its size so on RADV's compiler
+// (BENCHMARKS.md "What a GPU's compiler makes of the physics kernel")
 var<private> ik_link_pos: array<vec3<f32>, MAX_LINKS>;
 var<private> ik_link_rot: array<vec4<f32>, MAX_LINKS>;
-// fingertip t's chain (root → tip) at t * MAX_JOINTS + i, its length, and whether entry i is the
-// first driven by its actuated joint
+// fingertip t's chain (root → tip) at t * MAX_JOINTS + i (its length: ik_tip[t].chain_n), and
+// whether entry i is the first driven by its actuated joint
 var<private> ik_chain_j: array<u32, IK_JAC_LEN>;
-var<private> ik_chain_n: array<u32, MAX_TIPS>;
 var<private> ik_first: array<u32, IK_JAC_LEN>;
 var<private> ik_chain_o: array<vec3<f32>, MAX_JOINTS>;
 var<private> ik_chain_a: array<vec3<f32>, MAX_JOINTS>;
-// actuated joints driving active slot a's chain: ik_lead[a * MAX_JOINTS + i], i < ik_lead_n[a]
+// actuated joints driving active slot a's chain: ik_lead[a * MAX_JOINTS + i], i < ik_tip[a].lead_n
 var<private> ik_lead: array<u32, IK_JAC_LEN>;
-var<private> ik_lead_n: array<u32, MAX_TIPS>;
-// bit a: actuated joint k drives active slot a's chain; bit b of ik_couple[a]: slots a, b share a joint
-var<private> ik_slots: array<u32, MAX_JOINTS>;
-var<private> ik_couple: array<u32, MAX_TIPS>;
+// fingertip slot a's working values
+struct IkTip {
+    // residual (at most IK_ERR_CLAMP long)
+    err: vec3<f32>,
+    // the residual's full length
+    res: f32,
+    // multiplier y of (J Jᵀ + Λ) y = ê − J b (the right-hand side before ik_cholesky)
+    y: vec3<f32>,
+    // the residual's component from the tip toward its chain's first joint
+    shorten: f32,
+    // the chain's length (ik_chain_j)
+    chain_n: u32,
+    // the actuated joints driving the chain (ik_lead)
+    lead_n: u32,
+    // bit b: slots a and b share a joint
+    couple: u32,
+    // damping λₐ²
+    lam2: f32,
+}
+var<private> ik_tip: array<IkTip, MAX_TIPS>;
+// joint k's working values
+struct IkJoint {
+    // bit a: actuated joint k drives active slot a's chain
+    slots: u32,
+    // 1 when the joint is locked
+    lock: u32,
+    // preferred step bₖ
+    pref: f32,
+}
+var<private> ik_joint: array<IkJoint, MAX_JOINTS>;
 // 1 when the model has mimic followers
 var<private> ik_followers: u32;
-var<private> ik_lock: array<u32, MAX_JOINTS>;
 // [slot][joint]: column of actuated joint k for active slot a at a * MAX_JOINTS + k
 var<private> ik_jac: array<vec3<f32>, IK_JAC_LEN>;
-// residual (at most IK_ERR_CLAMP long) and its full length per slot; multipliers y of
-// (J Jᵀ + Λ) y = ê − J b (the right-hand side before ik_cholesky)
-var<private> ik_err: array<vec3<f32>, MAX_TIPS>;
-var<private> ik_res: array<f32, MAX_TIPS>;
-// the residual's component from the tip toward its chain's first joint
-var<private> ik_shorten: array<f32, MAX_TIPS>;
-var<private> ik_y: array<vec3<f32>, MAX_TIPS>;
-// damping λₐ² per slot, preferred step bₖ per joint
-var<private> ik_lam2: array<f32, MAX_TIPS>;
-var<private> ik_pref: array<f32, MAX_JOINTS>;
 // lower block triangle of J Jᵀ + Λ ((a, b), b ≤ a, at a(a+1)/2 + b), then of its block
 // Cholesky factor, with L_aa⁻¹ in the diagonal blocks
 var<private> ik_blk: array<mat3x3<f32>, IK_BLOCKS>;
@@ -158,8 +176,8 @@ fn ik_leader(j: u32) -> u32 {
 fn ik_setup(mask: u32) -> u32 {
     ik_followers = 0u;
     for (var k = 0u; k < MAX_JOINTS; k++) {
-        ik_slots[k] = 0u;
-        ik_lock[k] = 0u;
+        ik_joint[k].slots = 0u;
+        ik_joint[k].lock = 0u;
         if (k < g.n_joints && joints[k].mimic_leader != NO_JOINT) {
             ik_followers = 1u;
         }
@@ -168,7 +186,7 @@ fn ik_setup(mask: u32) -> u32 {
     for (var t = 0u; t < g.n_tips; t++) {
         if (((mask >> t) & 1u) != 0u) {
             let n = ik_chain(t);
-            ik_chain_n[t] = n;
+            ik_tip[t].chain_n = n;
             for (var k = 0u; k < g.n_joints; k++) {
                 ik_jac[a * MAX_JOINTS + k] = vec3<f32>(0.0);
             }
@@ -176,29 +194,29 @@ fn ik_setup(mask: u32) -> u32 {
             for (var i = 0u; i < n; i++) {
                 let k = ik_leader(ik_chain_j[t * MAX_JOINTS + i]);
                 // each leader once per slot
-                let first = ((ik_slots[k] >> a) & 1u) == 0u;
+                let first = ((ik_joint[k].slots >> a) & 1u) == 0u;
                 ik_first[t * MAX_JOINTS + i] = select(0u, 1u, first);
                 if (first) {
                     ik_lead[a * MAX_JOINTS + cnt] = k;
                     cnt += 1u;
                 }
-                ik_slots[k] |= 1u << a;
+                ik_joint[k].slots |= 1u << a;
             }
-            ik_lead_n[a] = cnt;
+            ik_tip[a].lead_n = cnt;
             a += 1u;
         }
     }
     for (var b = 0u; b < a; b++) {
-        ik_couple[b] = 0u;
-        for (var i = 0u; i < ik_lead_n[b]; i++) {
-            ik_couple[b] |= ik_slots[ik_lead[b * MAX_JOINTS + i]];
+        ik_tip[b].couple = 0u;
+        for (var i = 0u; i < ik_tip[b].lead_n; i++) {
+            ik_tip[b].couple |= ik_joint[ik_lead[b * MAX_JOINTS + i]].slots;
         }
     }
     return a;
 }
 
 fn ik_tip_jacobian(t: u32, a: u32, goal: vec3<f32>) -> vec3<f32> {
-    let n = ik_chain_n[t];
+    let n = ik_tip[t].chain_n;
     let q = ik_q;
     let x = ik_chain_fk(t, n, q);
     for (var i = 0u; i < n; i++) {
@@ -216,12 +234,12 @@ fn ik_tip_jacobian(t: u32, a: u32, goal: vec3<f32>) -> vec3<f32> {
     // e = x* − x, aimed at no farther than IK_ERR_CLAMP per iteration
     let e = goal - x;
     let len = length(e);
-    ik_err[a] = select(e, e * (IK_ERR_CLAMP / len), len > IK_ERR_CLAMP);
+    ik_tip[a].err = select(e, e * (IK_ERR_CLAMP / len), len > IK_ERR_CLAMP);
     // sₐ = e · (o₀ − x) / |o₀ − x|: how far the target lies nearer to the chain's first joint o₀
     // than the tip (> 0: the finger must get shorter)
     let root = select(x, ik_chain_o[0], n > 0u);
     let inward = root - x;
-    ik_shorten[a] = dot(e, inward) / max(length(inward), 1e-6);
+    ik_tip[a].shorten = dot(e, inward) / max(length(inward), 1e-6);
     return e;
 }
 
@@ -253,12 +271,12 @@ fn ik_build_gram(n_active: u32) {
         for (var b = 0u; b <= a; b++) {
             var sum = mat3x3<f32>(vec3<f32>(0.0), vec3<f32>(0.0), vec3<f32>(0.0));
             if (a == b) {
-                let l2 = ik_lam2[a];
+                let l2 = ik_tip[a].lam2;
                 sum = mat3x3<f32>(vec3<f32>(l2, 0.0, 0.0), vec3<f32>(0.0, l2, 0.0), vec3<f32>(0.0, 0.0, l2));
             }
             // chains that share no joint leave their block zero
-            if (((ik_couple[a] >> b) & 1u) != 0u) {
-                for (var i = 0u; i < ik_lead_n[a]; i++) {
+            if (((ik_tip[a].couple >> b) & 1u) != 0u) {
+                for (var i = 0u; i < ik_tip[a].lead_n; i++) {
                     let k = ik_lead[a * MAX_JOINTS + i];
                     sum += ik_outer(ik_jac[a * MAX_JOINTS + k], ik_jac[b * MAX_JOINTS + k]);
                 }
@@ -268,7 +286,7 @@ fn ik_build_gram(n_active: u32) {
     }
 }
 
-// (J Jᵀ + Λ) y = r in place (r in ik_y on entry) by block Cholesky, then L z = r and Lᵀ y = z
+// (J Jᵀ + Λ) y = r in place (r in ik_tip[·].y on entry) by block Cholesky, then L z = r and Lᵀ y = z
 fn ik_cholesky(n_active: u32) {
     for (var i = 0u; i < n_active; i++) {
         for (var j = 0u; j <= i; j++) {
@@ -284,22 +302,22 @@ fn ik_cholesky(n_active: u32) {
             }
         }
     }
-    // L z = r: z_i = L_ii⁻¹ (r_i − Σ_{k<i} L_ik z_k), z_k (k < i) already in ik_y
+    // L z = r: z_i = L_ii⁻¹ (r_i − Σ_{k<i} L_ik z_k), z_k (k < i) already in ik_tip[·].y
     for (var i = 0u; i < n_active; i++) {
-        var r = ik_y[i];
+        var r = ik_tip[i].y;
         for (var k = 0u; k < i; k++) {
-            r -= ik_blk[i * (i + 1u) / 2u + k] * ik_y[k];
+            r -= ik_blk[i * (i + 1u) / 2u + k] * ik_tip[k].y;
         }
-        ik_y[i] = ik_blk[i * (i + 1u) / 2u + i] * r;
+        ik_tip[i].y = ik_blk[i * (i + 1u) / 2u + i] * r;
     }
     // Lᵀ y = z: y_i = L_ii⁻ᵀ (z_i − Σ_{k>i} L_kiᵀ y_k)
     for (var ii = 0u; ii < n_active; ii++) {
         let i = n_active - 1u - ii;
-        var r = ik_y[i];
+        var r = ik_tip[i].y;
         for (var k = i + 1u; k < n_active; k++) {
-            r -= transpose(ik_blk[k * (k + 1u) / 2u + i]) * ik_y[k];
+            r -= transpose(ik_blk[k * (k + 1u) / 2u + i]) * ik_tip[k].y;
         }
-        ik_y[i] = transpose(ik_blk[i * (i + 1u) / 2u + i]) * r;
+        ik_tip[i].y = transpose(ik_blk[i * (i + 1u) / 2u + i]) * r;
     }
 }
 
@@ -307,22 +325,22 @@ fn ik_cholesky(n_active: u32) {
 fn ik_dls_step(n_active: u32) {
     // r_a = ê_a − Σₖ Jₐₖ bₖ: the solve takes back what J sees of b
     for (var a = 0u; a < n_active; a++) {
-        var r = ik_err[a];
-        for (var i = 0u; i < ik_lead_n[a]; i++) {
+        var r = ik_tip[a].err;
+        for (var i = 0u; i < ik_tip[a].lead_n; i++) {
             let k = ik_lead[a * MAX_JOINTS + i];
-            r -= ik_jac[a * MAX_JOINTS + k] * ik_pref[k];
+            r -= ik_jac[a * MAX_JOINTS + k] * ik_joint[k].pref;
         }
-        ik_y[a] = r;
+        ik_tip[a].y = r;
     }
     ik_build_gram(n_active);
     ik_cholesky(n_active);
     for (var k = 0u; k < g.n_joints; k++) {
-        ik_dq[k] = ik_pref[k];
+        ik_dq[k] = ik_joint[k].pref;
     }
     for (var a = 0u; a < n_active; a++) {
-        for (var i = 0u; i < ik_lead_n[a]; i++) {
+        for (var i = 0u; i < ik_tip[a].lead_n; i++) {
             let k = ik_lead[a * MAX_JOINTS + i];
-            ik_dq[k] += dot(ik_jac[a * MAX_JOINTS + k], ik_y[a]);
+            ik_dq[k] += dot(ik_jac[a * MAX_JOINTS + k], ik_tip[a].y);
         }
     }
 }
@@ -331,9 +349,9 @@ fn ik_dls_step(n_active: u32) {
 fn ik_damping(n_active: u32, prm: IkParams) {
     for (var a = 0u; a < n_active; a++) {
         // λ = damping · clamp(|e| / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1)
-        let l = prm.damping * clamp(ik_res[a] / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1.0);
+        let l = prm.damping * clamp(ik_tip[a].res / IK_DAMPING_DIST, IK_DAMPING_FLOOR, 1.0);
         // λ² + C·|ê|: the dropped Hessian term |ê| · lever, ê the residual the step aims at
-        ik_lam2[a] = l * l + IK_DAMPING_CURV * min(ik_res[a], IK_ERR_CLAMP);
+        ik_tip[a].lam2 = l * l + IK_DAMPING_CURV * min(ik_tip[a].res, IK_ERR_CLAMP);
     }
 }
 
@@ -341,17 +359,17 @@ fn ik_damping(n_active: u32, prm: IkParams) {
 fn ik_bias(n_active: u32) {
     let n = g.n_joints;
     for (var k = 0u; k < n; k++) {
-        ik_pref[k] = 0.0;
+        ik_joint[k].pref = 0.0;
     }
-    // ρₖ = max over k's slots of ρₐ, gathered in ik_pref
+    // ρₖ = max over k's slots of ρₐ, gathered in ik_joint[·].pref
     for (var a = 0u; a < n_active; a++) {
         // wₐ = clamp(1 + 2 sₐ / |eₐ|, 0, 1): 1 unless the target lies beyond the tip
-        let toward = clamp(1.0 + 2.0 * ik_shorten[a] / max(ik_res[a], 1e-30), 0.0, 1.0);
+        let toward = clamp(1.0 + 2.0 * ik_tip[a].shorten / max(ik_tip[a].res, 1e-30), 0.0, 1.0);
         // ρₐ = min(|eₐ| / IK_DAMPING_DIST, 1) · wₐ
-        let rho = min(ik_res[a] / IK_DAMPING_DIST, 1.0) * toward;
-        for (var i = 0u; i < ik_lead_n[a]; i++) {
+        let rho = min(ik_tip[a].res / IK_DAMPING_DIST, 1.0) * toward;
+        for (var i = 0u; i < ik_tip[a].lead_n; i++) {
             let k = ik_lead[a * MAX_JOINTS + i];
-            ik_pref[k] = max(ik_pref[k], rho);
+            ik_joint[k].pref = max(ik_joint[k].pref, rho);
         }
     }
     for (var k = 0u; k < n; k++) {
@@ -359,9 +377,9 @@ fn ik_bias(n_active: u32) {
         // unlimited joints (±1e30) have no middle
         if (jd.lower > -1e29 && jd.upper < 1e29) {
             // bₖ = IK_BIAS · ρₖ · ((lower + upper) / 2 − qₖ)
-            ik_pref[k] = IK_BIAS * ik_pref[k] * (0.5 * (jd.lower + jd.upper) - ik_q[k]);
+            ik_joint[k].pref = IK_BIAS * ik_joint[k].pref * (0.5 * (jd.lower + jd.upper) - ik_q[k]);
         } else {
-            ik_pref[k] = 0.0;
+            ik_joint[k].pref = 0.0;
         }
     }
 }
@@ -374,7 +392,7 @@ fn ik_iterate(targets: array<vec3<f32>, MAX_TIPS>, mask: u32, n_active: u32, prm
     for (var t = 0u; t < g.n_tips; t++) {
         if (((mask >> t) & 1u) != 0u) {
             let e = length(ik_tip_jacobian(t, a, targets[t]));
-            ik_res[a] = e;
+            ik_tip[a].res = e;
             worst = max(worst, e);
             // NaN fails the comparison
             finite = finite && e < 1e30;
@@ -396,14 +414,14 @@ fn ik_iterate(targets: array<vec3<f32>, MAX_TIPS>, mask: u32, n_active: u32, prm
         for (var k = 0u; k < n; k++) {
             let jd = joints[k];
             let d = ik_dq[k];
-            if (ik_lock[k] == 0u && ((ik_q[k] <= jd.lower && d < 0.0) || (ik_q[k] >= jd.upper && d > 0.0))) {
-                ik_lock[k] = 1u;
+            if (ik_joint[k].lock == 0u && ((ik_q[k] <= jd.lower && d < 0.0) || (ik_q[k] >= jd.upper && d > 0.0))) {
+                ik_joint[k].lock = 1u;
                 locked = true;
-                ik_pref[k] = 0.0;
+                ik_joint[k].pref = 0.0;
                 for (var b = 0u; b < n_active; b++) {
                     ik_jac[b * MAX_JOINTS + k] = vec3<f32>(0.0);
                 }
-            } else if (ik_lock[k] == 0u) {
+            } else if (ik_joint[k].lock == 0u) {
                 dmax = max(dmax, abs(d));
                 // NaN fails the comparison
                 finite = finite && abs(d) < 1e30;
@@ -423,11 +441,11 @@ fn ik_iterate(targets: array<vec3<f32>, MAX_TIPS>, mask: u32, n_active: u32, prm
     let scale = select(1.0, prm.max_step / dmax, dmax > prm.max_step) * fade;
     for (var k = 0u; k < n; k++) {
         let jd = joints[k];
-        if (ik_slots[k] != 0u && ik_lock[k] == 0u) {
+        if (ik_joint[k].slots != 0u && ik_joint[k].lock == 0u) {
             ik_q[k] = clamp(ik_q[k] + scale * ik_dq[k], jd.lower, jd.upper);
         }
         // the locks hold for one iteration
-        ik_lock[k] = 0u;
+        ik_joint[k].lock = 0u;
     }
     if (ik_followers != 0u) {
         var qm = ik_q;

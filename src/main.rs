@@ -101,11 +101,11 @@ enum Command {
         /// and lay out its buffers as the built-in module does; the report names the file.
         #[arg(long, value_name = "FILE", conflicts_with_all = ["ppo", "sac", "matmul", "contacts", "video"])]
         physics_wgsl: Option<PathBuf>,
-        /// Compile the simulator's kernels (or --physics-wgsl FILE's) on a Vulkan driver and print
-        /// the statistics its compiler reports (registers, spills, scratch, instructions: the
-        /// driver's names) instead of timing anything. --backend gpu:NAME picks the device (default:
-        /// the first that reports them; lavapipe does not). Without an AMD GPU,
-        /// RADV_FORCE_FAMILY=navi21 gives RADV's compiler (docs/gpu.md).
+        /// Compile the simulator's and the task layer's kernels (or --physics-wgsl FILE's) on a
+        /// Vulkan driver and print the statistics its compiler reports (registers, spills,
+        /// scratch, instructions: the driver's names) instead of timing anything. --backend
+        /// gpu:NAME picks the device (default: the first that reports them; lavapipe does not).
+        /// Without an AMD GPU, RADV_FORCE_FAMILY=navi21 gives RADV's compiler (docs/gpu.md).
         #[arg(long, conflicts_with_all = ["ppo", "sac", "matmul", "contacts", "video"])]
         shader_stats: bool,
     },
@@ -258,17 +258,32 @@ fn run(cli: Cli) -> Result<()> {
                     Some(dextrain::config::BackendChoice::Gpu(name)) => name.as_deref(),
                     Some(other) => anyhow::bail!("bench --shader-stats: --backend {other}: expected gpu or gpu:NAME (the Vulkan device whose compiler reports)"),
                 };
-                let (source, module) = match &physics_wgsl {
+                use dextrain::gpu::shader_stats::compile_stats;
+                let mut report = match &physics_wgsl {
                     Some(path) => {
                         let source = std::fs::read_to_string(path).with_context(|| format!("bench --physics-wgsl {}: cannot read the file", path.display()))?;
-                        (source, path.display().to_string())
+                        let module = path.display().to_string();
+                        let mut report = compile_stats(&source, &module, adapter, &|_| true)?.to_json();
+                        report["module"] = serde_json::Value::String(module);
+                        report
                     }
-                    None => (dextrain::gpu::shaders::shader_source(), "<built-in simulator module>".to_string()),
+                    None => {
+                        // the simulator's kernels, then the task layer's own (its module holds the
+                        // simulator's too: those are not compiled twice)
+                        let sim = compile_stats(&dextrain::gpu::shaders::shader_source(), "the simulator's module", adapter, &|_| true)?;
+                        let task = compile_stats(&dextrain::task::shaders::task_shader_source(), "the task layer's module", adapter, &|e| e.starts_with("task_"))?;
+                        let mut report = sim.to_json();
+                        let kernels = report["kernels"].as_array_mut().expect("to_json lists the kernels");
+                        kernels.iter_mut().for_each(|k| k["module"] = serde_json::Value::String("simulator".into()));
+                        for mut k in task.to_json()["kernels"].as_array().cloned().unwrap_or_default() {
+                            k["module"] = serde_json::Value::String("task".into());
+                            kernels.push(k);
+                        }
+                        report["module"] = serde_json::Value::String("<built-in simulator and task modules>".into());
+                        report
+                    }
                 };
-                let stats = dextrain::gpu::shader_stats::compile_stats(&source, &module, adapter)?;
-                let mut report = stats.to_json();
                 report["bench"] = serde_json::Value::String("shader_stats".into());
-                report["module"] = serde_json::Value::String(module);
                 console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
                 return Ok(());
             }

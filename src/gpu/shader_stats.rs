@@ -125,10 +125,11 @@ struct BufferBinding {
     uniform: bool,
 }
 
-/// The SPIR-V of each compute entry point of the WGSL module `source` (`label` names it in errors),
+/// The SPIR-V of each compute entry point of the WGSL module `source` that `wanted` accepts (`label`
+/// names the module in errors),
 /// written as wgpu writes it for a Vulkan device without robust buffer access 2 (SPIR-V 1.3, array
 /// and buffer indices clamped, loops bounded), and the module's buffer bindings.
-fn spirv_kernels(source: &str, label: &str) -> Result<(Vec<(String, Vec<u32>)>, Vec<BufferBinding>)> {
+fn spirv_kernels(source: &str, label: &str, wanted: &dyn Fn(&str) -> bool) -> Result<(Vec<(String, Vec<u32>)>, Vec<BufferBinding>)> {
     // naga's report's first line, without its own "error: "
     let first_line = |report: String| report.lines().next().unwrap_or_default().trim_start_matches("error: ").to_string();
     let module = naga::front::wgsl::parse_str(source).map_err(|e| anyhow!("{label}: not valid WGSL: {}", first_line(e.emit_to_string(source))))?;
@@ -156,13 +157,13 @@ fn spirv_kernels(source: &str, label: &str) -> Result<(Vec<(String, Vec<u32>)>, 
         ..Default::default()
     };
     let mut kernels = Vec::new();
-    for ep in module.entry_points.iter().filter(|ep| ep.stage == naga::ShaderStage::Compute) {
+    for ep in module.entry_points.iter().filter(|ep| ep.stage == naga::ShaderStage::Compute && wanted(&ep.name)) {
         let pipeline = naga::back::spv::PipelineOptions { shader_stage: naga::ShaderStage::Compute, entry_point: ep.name.clone() };
         let words = naga::back::spv::write_vec(&module, &info, &options, Some(&pipeline)).map_err(|e| anyhow!("{label}: cannot write SPIR-V for entry point {}: {e}", ep.name))?;
         kernels.push((ep.name.clone(), words));
     }
     if kernels.is_empty() {
-        bail!("{label}: no compute entry point");
+        bail!("{label}: no compute entry point to compile");
     }
     Ok((kernels, bindings))
 }
@@ -187,13 +188,13 @@ impl Drop for Vulkan {
     }
 }
 
-/// Compiles every compute entry point of the WGSL module `source` on a Vulkan device and returns
-/// the driver's statistics. `adapter`: a device whose name contains it (case-insensitive); None:
+/// Compiles the compute entry points of the WGSL module `source` that `wanted` accepts on a Vulkan
+/// device and returns the driver's statistics. `adapter`: a device whose name contains it (case-insensitive); None:
 /// the first device that reports statistics. `label` names the module in errors. An error names
 /// the module or the device and says what was expected (a device without the extension: which
 /// devices there are, and that RADV_FORCE_FAMILY gives RADV's compiler without an AMD GPU).
-pub fn compile_stats(source: &str, label: &str, adapter: Option<&str>) -> Result<ModuleStats> {
-    let (kernels, bindings) = spirv_kernels(source, label)?;
+pub fn compile_stats(source: &str, label: &str, adapter: Option<&str>, wanted: &dyn Fn(&str) -> bool) -> Result<ModuleStats> {
+    let (kernels, bindings) = spirv_kernels(source, label, wanted)?;
     // SAFETY: plain Vulkan calls on objects this function creates and destroys (Vulkan's Drop);
     // every create-info outlives the call that reads it.
     unsafe {

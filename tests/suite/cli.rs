@@ -399,10 +399,11 @@ fn physics_variants_patch_today_s_module() {
 /// `dextrain bench --shader-stats` reads what a GPU's compiler makes of the simulator's kernels
 /// (docs/gpu.md "What a GPU's compiler makes of the physics"): here RADV's (AMD's), which Mesa runs
 /// without an AMD GPU under RADV_FORCE_FAMILY, as CI's Debian machine has it. The report names the
-/// device and driver and gives each entry point's statistics; the physics step is the large kernel
-/// and its size on Debian 12's Mesa 22.3 is pinned (a change that grows the step's code by more than
-/// ~11 %, or its spills by more than ~14 %, fails here: raise the pins deliberately, with the
-/// figures in BENCHMARKS.md). A device without statistics (lavapipe) and a module that is not WGSL
+/// device and driver and gives each entry point's statistics, the simulator's and the task layer's;
+/// the physics step is the large kernel, and its size and the task's action's (the fingertip IK)
+/// on Debian 12's Mesa 22.3 are pinned (a change that grows the step's code by more than ~11 %, or
+/// its spills by more than ~14 %, fails here: raise the pins deliberately, with the figures in
+/// BENCHMARKS.md). A device without statistics (lavapipe) and a module that is not WGSL
 /// are one-line errors.
 #[test]
 fn shader_stats_read_radv_s_compiler_without_an_amd_gpu() {
@@ -430,10 +431,15 @@ fn shader_stats_read_radv_s_compiler_without_an_amd_gpu() {
     let (ok, stdout, err) = run(&["bench", "--shader-stats", "--backend", "gpu:radv"]);
     assert!(ok, "{err}");
     let j = json_line(&stdout);
-    assert_eq!((j["bench"].as_str(), j["module"].as_str()), (Some("shader_stats"), Some("<built-in simulator module>")), "{j}");
+    assert_eq!((j["bench"].as_str(), j["module"].as_str()), (Some("shader_stats"), Some("<built-in simulator and task modules>")), "{j}");
     assert!(j["adapter"].as_str().unwrap_or("").contains("RADV") && j["driver"].as_str().unwrap_or("").contains("Mesa"), "{j}");
     let kernel = |entry: &str| j["kernels"].as_array().unwrap().iter().find(|k| k["entry_point"] == entry).unwrap_or_else(|| panic!("no {entry}: {j}")).clone();
-    let (reset, step) = (kernel("reset_main"), kernel("step_main"));
+    let (reset, step, act) = (kernel("reset_main"), kernel("step_main"), kernel("task_act"));
+    // the simulator's two kernels and the task layer's four (its module holds the simulator's
+    // too: not compiled twice)
+    let modules: Vec<(String, String)> = j["kernels"].as_array().unwrap().iter().map(|k| (k["module"].as_str().unwrap_or("").to_string(), k["entry_point"].as_str().unwrap_or("").to_string())).collect();
+    let expected = [("simulator", "reset_main"), ("simulator", "step_main"), ("task", "task_act"), ("task", "task_reward"), ("task", "task_observe"), ("task", "task_observe_final")];
+    assert_eq!(modules, expected.map(|(m, e)| (m.to_string(), e.to_string())), "{j}");
     let stat = |k: &serde_json::Value, name: &str| k["stats"][name].as_f64().unwrap_or_else(|| panic!("no {name}: {k}"));
     // the step (kinematics, contacts, solves, integration) is far larger than the reset's draws
     assert!(stat(&step, "Instructions") > 20.0 * stat(&reset, "Instructions"), "{j}");
@@ -444,6 +450,9 @@ fn shader_stats_read_radv_s_compiler_without_an_amd_gpu() {
         // 36's contacts: 10,321 and 53; BENCHMARKS.md)
         assert!(stat(&step, "Instructions") <= 41_000.0, "the physics step grew: {step}");
         assert!(stat(&step, "Spilled VGPRs") <= 4_600.0, "the physics step spills more: {step}");
+        // the task's action (the fingertip IK): 15,485 and 950 (22,924 and 2,983 with the IK's
+        // per-slot and per-joint arrays one per field)
+        assert!(stat(&act, "Instructions") <= 17_200.0 && stat(&act, "Spilled VGPRs") <= 1_100.0, "task_act grew: {act}");
     } else {
         eprintln!("shader_stats_read_radv_s_compiler_without_an_amd_gpu: the pins are Mesa 22.3's; this driver is {}: not compared", j["driver"]);
     }
