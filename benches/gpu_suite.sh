@@ -34,10 +34,11 @@
 #      knock-outs `benches/physics_variants.py MODULE DIR` writes) the env-only bench at
 #      BASELINE_ENVS envs with the built-in physics, then with each module, over BASELINE_ROUNDS
 #      rounds, and each module's median ratio of rates: where this GPU spends the env step.
-#   6. (step "shader_stats") what the adapter's Vulkan compiler makes of the simulator's kernels
+#   6. (step "shader_stats", run first) what the adapter's Vulkan compiler makes of the kernels
 #      (`dextrain bench --shader-stats`: registers, code size, and on AMD's compiler spills and
-#      scratch), for the built-in module and each of BASELINE_WGSL and VARIANTS_WGSL; seconds. A
-#      driver that reports none (lavapipe) gives {"module", "error"} entries.
+#      scratch): the built-in simulator's and task layer's, then each module of BASELINE_WGSL and
+#      VARIANTS_WGSL; seconds. A driver that reports none (lavapipe) gives {"module", "error"}
+#      entries.
 # On an H200 the default steps take ~10 minutes and the baseline step ~2.5 more (estimates from the
 # steps' parts timed in earlier windows, the suite not yet run whole there): where one command
 # may run less (a device window's call), split them with STEPS, e.g. STEPS="env baseline" then
@@ -159,7 +160,7 @@ error_of() {
 }
 stats_json=null
 if runs_step shader_stats; then
-    echo "gpu_suite: shader statistics of the simulator's kernels" >&2
+    echo "gpu_suite: shader statistics of the kernels" >&2
     stats_json=""
     i=0
     for m in builtin ${baseline_wgsl:-} ${variants_wgsl:-}; do
