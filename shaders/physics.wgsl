@@ -41,8 +41,8 @@ const MAX_REACTIONS: u32 = 16u;
 // (δω₀, b_r), (the manifold's spread diagonal, its spring count), the spread's (xy, xz, yz).
 // One array of structs (1.7 kB, in scratch memory), not an array per field: RADV's compiler kept
 // each field's array of ≤ 256 bytes in registers and expanded every dynamic index into it, which
-// made the physics step 44 % larger there (71.5 k → 40.3 k instructions, spilled VGPRs 15.5 k →
-// 4.6 k; BENCHMARKS.md "What a GPU's compiler makes of the physics kernel")
+// made the physics step 1.8× its size there (71.5 k instructions against 40.3 k, spilled VGPRs
+// 15.5 k against 4.6 k; BENCHMARKS.md "What a GPU's compiler makes of the physics kernel")
 struct Reaction {
     link: u32,
     collider: u32,
