@@ -189,8 +189,9 @@ impl Drop for Vulkan {
 }
 
 /// Compiles the compute entry points of the WGSL module `source` that `wanted` accepts on a Vulkan
-/// device and returns the driver's statistics. `adapter`: a device whose name contains it (case-insensitive); None:
-/// the first device that reports statistics. `label` names the module in errors. An error names
+/// device and returns the driver's statistics. `adapter`: a device whose name contains it
+/// (case-insensitive); None: the first device that reports statistics. `label` names the module
+/// in errors. An error names
 /// the module or the device and says what was expected (a device without the extension: which
 /// devices there are, and that RADV_FORCE_FAMILY gives RADV's compiler without an AMD GPU).
 pub fn compile_stats(source: &str, label: &str, adapter: Option<&str>, wanted: &dyn Fn(&str) -> bool) -> Result<ModuleStats> {
@@ -213,9 +214,9 @@ pub fn compile_stats(source: &str, label: &str, adapter: Option<&str>, wanted: &
                 .enumerate_device_extension_properties(pd)
                 .map(|exts| exts.iter().any(|e| e.extension_name_as_c_str() == Ok(STATS_EXTENSION)))
                 .unwrap_or(false);
-            let wanted = adapter.is_none_or(|a| name.to_lowercase().contains(&a.to_lowercase()));
+            let named = adapter.is_none_or(|a| name.to_lowercase().contains(&a.to_lowercase()));
             listed.push(format!("{name} ({})", if has_stats { "reports statistics" } else { "no statistics" }));
-            if chosen.is_none() && wanted && (has_stats || adapter.is_some()) {
+            if chosen.is_none() && named && (has_stats || adapter.is_some()) {
                 chosen = Some((pd, name, has_stats));
             }
         }
