@@ -63,13 +63,6 @@ pub struct KernelStats {
     pub executables: Vec<ExecutableStats>,
 }
 
-impl KernelStats {
-    /// The first executable's statistic called `name` (exactly as the driver names it).
-    pub fn stat(&self, name: &str) -> Option<&StatValue> {
-        self.executables.first()?.stats.iter().find(|(n, _)| n == name).map(|(_, v)| v)
-    }
-}
-
 /// Every compute kernel of a module, compiled on one Vulkan device.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ModuleStats {
@@ -83,11 +76,6 @@ pub struct ModuleStats {
 }
 
 impl ModuleStats {
-    /// The kernel of entry point `entry_point`.
-    pub fn kernel(&self, entry_point: &str) -> Option<&KernelStats> {
-        self.kernels.iter().find(|k| k.entry_point == entry_point)
-    }
-
     /// `{"adapter": …, "driver": …, "kernels": [{"entry_point", "compile_s", "executable", "stats": {name: value}}]}`
     /// (the first executable of each kernel; the others under "other_executables").
     pub fn to_json(&self) -> serde_json::Value {
@@ -125,10 +113,10 @@ struct BufferBinding {
     uniform: bool,
 }
 
-/// The SPIR-V of each compute entry point of the WGSL module `source` that `wanted` accepts (`label`
-/// names the module in errors),
-/// written as wgpu writes it for a Vulkan device without robust buffer access 2 (SPIR-V 1.3, array
-/// and buffer indices clamped, loops bounded), and the module's buffer bindings.
+/// The SPIR-V of each compute entry point of the WGSL module `source` that `wanted` accepts
+/// (`label` names the module in errors), written as wgpu writes it for a Vulkan device without
+/// robust buffer access 2 (SPIR-V 1.3, array and buffer indices clamped, loops bounded), and the
+/// module's buffer bindings.
 fn spirv_kernels(source: &str, label: &str, wanted: &dyn Fn(&str) -> bool) -> Result<(Vec<(String, Vec<u32>)>, Vec<BufferBinding>)> {
     // naga's report's first line, without its own "error: "
     let first_line = |report: String| report.lines().next().unwrap_or_default().trim_start_matches("error: ").to_string();
@@ -166,6 +154,11 @@ fn spirv_kernels(source: &str, label: &str, wanted: &dyn Fn(&str) -> bool) -> Re
         bail!("{label}: no compute entry point to compile");
     }
     Ok((kernels, bindings))
+}
+
+/// A driver's fixed-size name field as text ("" where it holds no NUL).
+fn c_text(c: Result<&CStr, std::ffi::FromBytesUntilNulError>) -> String {
+    c.map(|c| c.to_string_lossy().into_owned()).unwrap_or_default()
 }
 
 /// The Vulkan objects, destroyed in reverse order however the work ends.
@@ -208,7 +201,7 @@ pub fn compile_stats(source: &str, label: &str, adapter: Option<&str>, wanted: &
         let mut chosen = None;
         for pd in physical {
             let props = vulkan.instance.get_physical_device_properties(pd);
-            let name = props.device_name_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default();
+            let name = c_text(props.device_name_as_c_str());
             let has_stats = vulkan
                 .instance
                 .enumerate_device_extension_properties(pd)
@@ -217,24 +210,23 @@ pub fn compile_stats(source: &str, label: &str, adapter: Option<&str>, wanted: &
             let named = adapter.is_none_or(|a| name.to_lowercase().contains(&a.to_lowercase()));
             listed.push(format!("{name} ({})", if has_stats { "reports statistics" } else { "no statistics" }));
             if chosen.is_none() && named && (has_stats || adapter.is_some()) {
-                chosen = Some((pd, name, has_stats));
+                chosen = Some((pd, name, has_stats, props.api_version));
             }
         }
         let devices = if listed.is_empty() { "none".to_string() } else { listed.join(", ") };
         let hint = "RADV_FORCE_FAMILY=navi21 lists RADV's compiler without an AMD GPU";
-        let (pd, name, has_stats) = match (chosen, adapter) {
+        let (pd, name, has_stats, api_version) = match (chosen, adapter) {
             (Some(c), _) => c,
             (None, Some(a)) => bail!("shader statistics: no Vulkan device named like '{a}' (devices: {devices}); {hint}"),
             (None, None) => bail!("shader statistics: no Vulkan device reports pipeline statistics (VK_KHR_pipeline_executable_properties; devices: {devices}); {hint}"),
         };
         // the driver and its version (VkPhysicalDeviceDriverProperties: Vulkan 1.2)
         let mut driver = String::new();
-        if vk::api_version_minor(vulkan.instance.get_physical_device_properties(pd).api_version) >= 2 {
+        if vk::api_version_minor(api_version) >= 2 {
             let mut dp = vk::PhysicalDeviceDriverProperties::default();
             let mut p2 = vk::PhysicalDeviceProperties2::default().push_next(&mut dp);
             vulkan.instance.get_physical_device_properties2(pd, &mut p2);
-            let text = |c: Result<&CStr, _>| c.map(|c| c.to_string_lossy().into_owned()).unwrap_or_default();
-            driver = format!("{}, {}", text(dp.driver_name_as_c_str()), text(dp.driver_info_as_c_str()));
+            driver = format!("{}, {}", c_text(dp.driver_name_as_c_str()), c_text(dp.driver_info_as_c_str()));
         }
         if !has_stats {
             bail!("shader statistics: the Vulkan device {name} does not report pipeline statistics (VK_KHR_pipeline_executable_properties; devices: {devices}); {hint}");
@@ -262,14 +254,37 @@ pub fn compile_stats(source: &str, label: &str, adapter: Option<&str>, wanted: &
     }
 }
 
+/// One kernel's Vulkan objects, destroyed (those made so far) however compile_kernel ends.
+struct KernelObjects<'d> {
+    device: &'d ash::Device,
+    module: vk::ShaderModule,
+    set_layouts: Vec<vk::DescriptorSetLayout>,
+    layout: vk::PipelineLayout,
+    pipeline: vk::Pipeline,
+}
+
+impl Drop for KernelObjects<'_> {
+    fn drop(&mut self) {
+        // SAFETY: each handle was made on `device` (a null handle is ignored by the destroy calls),
+        // and nothing uses them after compile_kernel.
+        unsafe {
+            self.device.destroy_pipeline(self.pipeline, None);
+            self.device.destroy_pipeline_layout(self.layout, None);
+            self.set_layouts.iter().for_each(|l| self.device.destroy_descriptor_set_layout(*l, None));
+            self.device.destroy_shader_module(self.module, None);
+        }
+    }
+}
+
 /// One kernel's pipeline on `device`: its layout from `bindings`, compiled with the statistics
 /// captured, read, and every object destroyed again.
 unsafe fn compile_kernel(device: &ash::Device, props_fn: &ash::khr::pipeline_executable_properties::Device, entry_point: &str, words: &[u32], bindings: &[BufferBinding]) -> Result<KernelStats> {
-    // SAFETY (the whole body): objects made here are destroyed here, after their last use.
+    let name = CString::new(entry_point).context("the entry point's name holds a NUL")?;
+    let mut objects = KernelObjects { device, module: vk::ShaderModule::null(), set_layouts: Vec::new(), layout: vk::PipelineLayout::null(), pipeline: vk::Pipeline::null() };
+    // SAFETY (the whole body): plain Vulkan calls; what they make is destroyed by `objects`.
     unsafe {
-        let module = device.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(words), None).context("cannot create the shader module")?;
+        objects.module = device.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(words), None).context("cannot create the shader module")?;
         let groups = bindings.iter().map(|b| b.group + 1).max().unwrap_or(0);
-        let mut set_layouts = Vec::new();
         for g in 0..groups {
             let entries: Vec<vk::DescriptorSetLayoutBinding> = bindings
                 .iter()
@@ -279,67 +294,35 @@ unsafe fn compile_kernel(device: &ash::Device, props_fn: &ash::khr::pipeline_exe
                     vk::DescriptorSetLayoutBinding::default().binding(b.binding).descriptor_type(ty).descriptor_count(1).stage_flags(vk::ShaderStageFlags::COMPUTE)
                 })
                 .collect();
-            match device.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&entries), None) {
-                Ok(l) => set_layouts.push(l),
-                Err(e) => {
-                    set_layouts.iter().for_each(|l| device.destroy_descriptor_set_layout(*l, None));
-                    device.destroy_shader_module(module, None);
-                    bail!("cannot create the descriptor set layout of group {g}: {e}");
-                }
-            }
+            let l = device.create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&entries), None).with_context(|| format!("cannot create the descriptor set layout of group {g}"))?;
+            objects.set_layouts.push(l);
         }
-        let destroy_layouts = |layout: Option<vk::PipelineLayout>| {
-            if let Some(l) = layout {
-                device.destroy_pipeline_layout(l, None);
-            }
-            set_layouts.iter().for_each(|l| device.destroy_descriptor_set_layout(*l, None));
-            device.destroy_shader_module(module, None);
-        };
-        let layout = match device.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts), None) {
-            Ok(l) => l,
-            Err(e) => {
-                destroy_layouts(None);
-                bail!("cannot create the pipeline layout: {e}");
-            }
-        };
-        let name = CString::new(entry_point).context("the entry point's name holds a NUL")?;
-        let stage = vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::COMPUTE).module(module).name(&name);
-        let create = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout).flags(vk::PipelineCreateFlags::CAPTURE_STATISTICS_KHR)];
+        objects.layout = device.create_pipeline_layout(&vk::PipelineLayoutCreateInfo::default().set_layouts(&objects.set_layouts), None).context("cannot create the pipeline layout")?;
+        let stage = vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::COMPUTE).module(objects.module).name(&name);
+        let create = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(objects.layout).flags(vk::PipelineCreateFlags::CAPTURE_STATISTICS_KHR)];
         let t0 = std::time::Instant::now();
-        let pipeline = match device.create_compute_pipelines(vk::PipelineCache::null(), &create, None) {
-            Ok(p) => p[0],
-            Err((_, e)) => {
-                destroy_layouts(Some(layout));
-                bail!("the driver did not compile it: {e}");
-            }
-        };
+        objects.pipeline = device.create_compute_pipelines(vk::PipelineCache::null(), &create, None).map_err(|(_, e)| anyhow!("the driver did not compile it: {e}"))?[0];
         let compile_s = t0.elapsed().as_secs_f64();
-        let read = || -> Result<Vec<ExecutableStats>> {
-            let execs = props_fn.get_pipeline_executable_properties(&vk::PipelineInfoKHR::default().pipeline(pipeline)).context("cannot list the pipeline's executables")?;
-            let mut out = Vec::new();
-            for (i, e) in execs.iter().enumerate() {
-                let info = vk::PipelineExecutableInfoKHR::default().pipeline(pipeline).executable_index(i as u32);
-                let stats = props_fn.get_pipeline_executable_statistics(&info).context("cannot read the executable's statistics")?;
-                let stats = stats
-                    .iter()
-                    .map(|s| {
-                        let n = s.name_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default();
-                        let v = match s.format {
-                            vk::PipelineExecutableStatisticFormatKHR::BOOL32 => StatValue::Bool(s.value.b32 != 0),
-                            vk::PipelineExecutableStatisticFormatKHR::INT64 => StatValue::Int(s.value.i64),
-                            vk::PipelineExecutableStatisticFormatKHR::UINT64 => StatValue::UInt(s.value.u64),
-                            _ => StatValue::Float(s.value.f64),
-                        };
-                        (n, v)
-                    })
-                    .collect();
-                out.push(ExecutableStats { name: e.name_as_c_str().map(|c| c.to_string_lossy().into_owned()).unwrap_or_default(), stats });
-            }
-            Ok(out)
-        };
-        let executables = read();
-        device.destroy_pipeline(pipeline, None);
-        destroy_layouts(Some(layout));
-        Ok(KernelStats { entry_point: entry_point.to_string(), compile_s, executables: executables? })
+        let pipeline = objects.pipeline;
+        let execs = props_fn.get_pipeline_executable_properties(&vk::PipelineInfoKHR::default().pipeline(pipeline)).context("cannot list the pipeline's executables")?;
+        let mut executables = Vec::new();
+        for (i, e) in execs.iter().enumerate() {
+            let info = vk::PipelineExecutableInfoKHR::default().pipeline(pipeline).executable_index(i as u32);
+            let stats = props_fn.get_pipeline_executable_statistics(&info).context("cannot read the executable's statistics")?;
+            let stats = stats
+                .iter()
+                .map(|s| {
+                    let v = match s.format {
+                        vk::PipelineExecutableStatisticFormatKHR::BOOL32 => StatValue::Bool(s.value.b32 != 0),
+                        vk::PipelineExecutableStatisticFormatKHR::INT64 => StatValue::Int(s.value.i64),
+                        vk::PipelineExecutableStatisticFormatKHR::UINT64 => StatValue::UInt(s.value.u64),
+                        _ => StatValue::Float(s.value.f64),
+                    };
+                    (c_text(s.name_as_c_str()), v)
+                })
+                .collect();
+            executables.push(ExecutableStats { name: c_text(e.name_as_c_str()), stats });
+        }
+        Ok(KernelStats { entry_point: entry_point.to_string(), compile_s, executables })
     }
 }
