@@ -408,11 +408,15 @@ pub struct SacBenchOptions {
     pub gradient_steps: usize,
     pub warmup: usize,
     pub iters: usize,
+    /// Transitions per return (`sac.n_step`): 1 as skrl's SAC.
+    pub n_step: u32,
+    /// LayerNorm in the critics (`sac.critic_layer_norm`): off as skrl's SAC.
+    pub critic_layer_norm: bool,
 }
 
 impl Default for SacBenchOptions {
     fn default() -> Self {
-        SacBenchOptions { envs: 4096, memory: 64, obs: 96, priv_obs: 130, actions: 22, hidden: vec![512, 256, 128], batch: 4096, gradient_steps: 8, warmup: 1, iters: 5 }
+        SacBenchOptions { envs: 4096, memory: 64, obs: 96, priv_obs: 130, actions: 22, hidden: vec![512, 256, 128], batch: 4096, gradient_steps: 8, warmup: 1, iters: 5, n_step: 1, critic_layer_norm: false }
     }
 }
 
@@ -420,7 +424,8 @@ impl Default for SacBenchOptions {
 /// buffer of `envs × memory` random transitions (1 % terminated), then `warmup + iters` updates of
 /// `gradient_steps` gradient steps each; one gradient step = a critic update of both critics
 /// (target from the target critics and a fresh next action), an actor update, a temperature update
-/// and a Polyak step of both targets (n = 1, clipped double-Q, ELU, no LayerNorm: skrl's SAC).
+/// and a Polyak step of both targets (n = 1, clipped double-Q, ELU, no LayerNorm: skrl's SAC;
+/// `n_step` and `critic_layer_norm` give the shipped lift configs' shape).
 /// Returns one JSON object with `ms_per_gradient_step` (median, min, max over the timed updates).
 ///
 /// On a GPU, `gpu_counts`: the kernels, submissions and host synchronisations per gradient step
@@ -434,7 +439,7 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
     use crate::rng::Rng;
     use crate::learn::sac::Sac;
     use crate::learn::sac::buffer::Transitions;
-    let cfg = SacConfig { batch_size: o.batch as u32, buffer_capacity: o.memory as u32, learning_starts: u32::MAX, tau: 0.005, init_alpha: 0.2, ..SacConfig::default() };
+    let cfg = SacConfig { batch_size: o.batch as u32, buffer_capacity: o.memory as u32, learning_starts: u32::MAX, tau: 0.005, init_alpha: 0.2, n_step: o.n_step, critic_layer_norm: o.critic_layer_norm, ..SacConfig::default() };
     let pol = PolicyConfig { actor_hidden: o.hidden.clone(), critic_hidden: o.hidden.clone(), ..PolicyConfig::default() };
     let dims = Dims { obs: o.obs, priv_obs: o.priv_obs, act: o.actions };
     let mut sac = Sac::new(dims, o.envs, &cfg, &pol, device, 0)?;
@@ -499,6 +504,7 @@ pub fn run_sac_bench(o: &SacBenchOptions, device: burn::prelude::Device, device_
         "matmul_tuning": crate::learn::kernels::matmul_tuning::report(),
         "threads": rayon::current_num_threads(),
         "batch": o.batch, "gradient_steps": o.gradient_steps, "hidden": o.hidden, "activation": "elu",
+        "n_step": o.n_step, "critic_layer_norm": o.critic_layer_norm,
         "obs": o.obs, "state": o.priv_obs, "actions": o.actions, "num_envs": o.envs, "memory_size": o.memory,
         "ms_per_gradient_step": st,
         "gradient_steps_per_s": 1e3 / median,

@@ -178,9 +178,34 @@ impl cubecl_runtime::logging::LaunchObserver for CountLaunches {
         let name = short_kernel_name(kernel);
         match name.strip_prefix("dextrain_") {
             Some(ours) => add(Event::Kernel, &format!("dextrain:{ours}")), // dextrain's kernels on burn's stream
+            None if count_call_sites() => add(Event::Kernel, &format!("burn:{name} @ {}", call_site())),
             None => add(Event::Kernel, &format!("burn:{name}")),
         }
     }
+}
+
+/// Whether burn's kernels are counted by the line of dextrain's code that launched them
+/// (`DEXTRAIN_COUNT_CALL_SITES=1`: `burn:KernelBinop @ src/learn/sac/mod.rs:412`), a diagnosis of
+/// where launches come from; each launch then captures a backtrace (milliseconds), so the
+/// figures' times are not meant to be read.
+fn count_call_sites() -> bool {
+    static ON: OnceLock<bool> = OnceLock::new();
+    *ON.get_or_init(|| std::env::var("DEXTRAIN_COUNT_CALL_SITES").is_ok_and(|v| v == "1"))
+}
+
+/// The innermost frame of dextrain's own code (`src/…:line`, this file's left out) on the stack
+/// of a launch, or `?` where the backtrace has no line tables.
+fn call_site() -> String {
+    let trace = std::backtrace::Backtrace::force_capture().to_string();
+    // frames print their location as `at <path>:<line>:<column>`
+    trace
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("at "))
+        .filter(|loc| !loc.contains("/.cargo/") && !loc.contains("/rustc/"))
+        .filter_map(|loc| Some(&loc[loc.find("src/")?..]))
+        .find(|loc| !loc.starts_with("src/gpu_counts.rs"))
+        .map(|loc| loc.rsplit_once(':').map_or(loc, |(file_line, _column)| file_line).to_string())
+        .unwrap_or_else(|| "?".into())
 }
 
 /// Installs the counter of burn's kernel launches (once per process; idempotent). Called where

@@ -72,6 +72,12 @@ enum Command {
         /// SAC bench: gradient steps per timed update.
         #[arg(long, default_value_t = 8)]
         gradient_steps: usize,
+        /// SAC bench: transitions per return (`sac.n_step`; 1 is skrl's SAC, the shipped lift configs take 3).
+        #[arg(long, default_value_t = 1, requires = "sac")]
+        n_step: u32,
+        /// SAC bench: LayerNorm after every hidden layer of the critics (`sac.critic_layer_norm`, as the shipped lift configs).
+        #[arg(long, requires = "sac")]
+        critic_layer_norm: bool,
         /// Worker threads of the CPU backends (default: one per core).
         #[arg(long)]
         threads: Option<usize>,
@@ -201,7 +207,7 @@ fn run(cli: Cli) -> Result<()> {
             console::status(dextrain::task::spec::layout_table(&task.priv_layout, "critic observation").trim_end());
             Ok(())
         }
-        Command::Bench { ppo, sac, matmul, routines, contacts, video, video_format, video_size, batch, gradient_steps, threads, device, iters, config, backend, envs, chunks, seconds, physics_wgsl, shader_stats } => {
+        Command::Bench { ppo, sac, matmul, routines, contacts, video, video_format, video_size, batch, gradient_steps, n_step, critic_layer_norm, threads, device, iters, config, backend, envs, chunks, seconds, physics_wgsl, shader_stats } => {
             if let Some(t) = threads {
                 rayon::ThreadPoolBuilder::new().num_threads(t.max(1)).build_global().context("cannot size the thread pool")?;
             }
@@ -231,7 +237,7 @@ fn run(cli: Cli) -> Result<()> {
             }
             if sac {
                 let (dev, name, ctx) = dextrain::learn::device::learner_device_and_context(&device)?;
-                let opts = dextrain::bench::SacBenchOptions { envs: envs.unwrap_or(4096), iters: iters.max(1), batch: batch.max(1), gradient_steps: gradient_steps.max(1), ..Default::default() };
+                let opts = dextrain::bench::SacBenchOptions { envs: envs.unwrap_or(4096), iters: iters.max(1), batch: batch.max(1), gradient_steps: gradient_steps.max(1), n_step, critic_layer_norm, ..Default::default() };
                 let report = dextrain::bench::run_sac_bench(&opts, dev, &name, ctx.as_ref())?;
                 console::result(&serde_json::to_string(&report).context("cannot serialise the report")?);
                 return Ok(());

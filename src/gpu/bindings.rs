@@ -267,6 +267,64 @@ pub const ELU_BACKWARD: EntryBindings = EntryBindings { entry_point: "elu_backwa
 /// ELU's gradient module (shaders/elu_backward.wgsl alone).
 pub const ELU_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain elu backward", bindings: &[ELU_Y, ELU_GRAD, ELU_OUT, ELU_CFG], entry_points: &[ELU_BACKWARD] };
 
+// ---- ELU (elu_forward.wgsl, a module of its own, launched by learn/kernels/elu.rs on burn's stream:
+// cubecl binds the buffers in order, then the uniform) ----
+
+/// `array<f32>` `[count]`: ELU's input x.
+pub const ELU_X: Binding = binding(0, "elu_x", StorageReadWrite);
+/// `array<f32>` `[count]`: ELU(x).
+pub const ELU_Y_OUT: Binding = binding(1, "elu_y_out", StorageReadWrite);
+/// `EluForwardCfg`: the entry count and the grid's row length.
+pub const ELU_FORWARD_CFG: Binding = binding(2, "efc", Uniform);
+
+/// `elu_forward`: one entry per invocation.
+pub const ELU_FORWARD: EntryBindings = EntryBindings { entry_point: "elu_forward", bindings: &[ELU_X, ELU_Y_OUT, ELU_FORWARD_CFG] };
+
+/// ELU's module (shaders/elu_forward.wgsl alone).
+pub const ELU_FORWARD_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain elu forward", bindings: &[ELU_X, ELU_Y_OUT, ELU_FORWARD_CFG], entry_points: &[ELU_FORWARD] };
+
+// ---- SAC's device-resident batch (replay_gather.wgsl and replay_window.wgsl, a module each,
+// launched by learn/kernels/replay_sample.rs on burn's stream: cubecl binds the buffers in order,
+// then the uniform) ----
+
+/// `array<u32>` `[≥ n]`: the ring rows to gather.
+pub const RG_ROWS: Binding = binding(0, "rg_rows", StorageReadWrite);
+/// `array<f32>` `[piece_rows, dim]`: one piece of a ring.
+pub const RG_PIECE: Binding = binding(1, "rg_piece", StorageReadWrite);
+/// `array<f32>` `[1, ≥ cols]`: the normaliser's μ.
+pub const RG_MEAN: Binding = binding(2, "rg_mean", StorageReadWrite);
+/// `array<f32>` `[1, ≥ cols]`: the normaliser's 1 / (σ + ε).
+pub const RG_SCALE: Binding = binding(3, "rg_scale", StorageReadWrite);
+/// `array<f32>` `[out_first + n, cols]`: the gathered rows.
+pub const RG_OUT: Binding = binding(4, "rg_out", StorageReadWrite);
+/// `GatherCfg`: the rows, columns, piece and normalisation of one launch.
+pub const RG_CFG: Binding = binding(5, "gc", Uniform);
+
+/// `replay_gather`: one output entry per invocation.
+pub const REPLAY_GATHER: EntryBindings = EntryBindings { entry_point: "replay_gather", bindings: &[RG_ROWS, RG_PIECE, RG_MEAN, RG_SCALE, RG_OUT, RG_CFG] };
+
+/// The replay gather's module (shaders/replay_gather.wgsl alone).
+pub const RG_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain replay gather", bindings: &[RG_ROWS, RG_PIECE, RG_MEAN, RG_SCALE, RG_OUT, RG_CFG], entry_points: &[REPLAY_GATHER] };
+
+/// `array<u32>` `[2 · n_step · B]`: each window step's ring rows, then whether each is written.
+pub const RW_IDX: Binding = binding(0, "rw_idx", StorageReadWrite);
+/// `array<f32>` `[3 · n_step · B]`: those rows' rewards, done and terminated flags.
+pub const RW_FLAGS: Binding = binding(1, "rw_flags", StorageReadWrite);
+/// `array<f32>` `[B]`: the n-step return.
+pub const RW_RETURN: Binding = binding(2, "rw_return", StorageReadWrite);
+/// `array<f32>` `[B]`: the bootstrap factor.
+pub const RW_BOOTSTRAP: Binding = binding(3, "rw_bootstrap", StorageReadWrite);
+/// `array<u32>` `[B]`: each window's last row.
+pub const RW_LAST: Binding = binding(4, "rw_last", StorageReadWrite);
+/// `WindowCfg`: the batch, n and γ − 1.
+pub const RW_CFG: Binding = binding(5, "wc", Uniform);
+
+/// `replay_window`: one batch row per invocation.
+pub const REPLAY_WINDOW: EntryBindings = EntryBindings { entry_point: "replay_window", bindings: &[RW_IDX, RW_FLAGS, RW_RETURN, RW_BOOTSTRAP, RW_LAST, RW_CFG] };
+
+/// The replay windows' module (shaders/replay_window.wgsl alone).
+pub const RW_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain replay window", bindings: &[RW_IDX, RW_FLAGS, RW_RETURN, RW_BOOTSTRAP, RW_LAST, RW_CFG], entry_points: &[REPLAY_WINDOW] };
+
 // ---- LayerNorm (layer_norm_common.wgsl with layer_norm.wgsl, and with layer_norm_backward.wgsl:
 // two modules, launched by learn/kernels/layer_norm.rs on burn's stream: cubecl binds the buffers in
 // order, then the uniform) ----

@@ -490,7 +490,15 @@ fn fused_elu_and_its_gradient_match_the_reference() {
         }
     }
     if let Some((_ctx, gpu)) = crate::common::wgpu_learner("fused_elu_and_its_gradient_match_the_reference") {
-        check(gpu, "wgpu");
+        check(gpu.clone(), "wgpu");
+        // the forward kernel of ours gives the tensor ops it replaced bit for bit:
+        // clamp(x, 0, ∞) + (exp(clamp(x, −∞, 0)) − 1)
+        let x = to_tensor(xs.clone(), [1, n], &gpu);
+        let ops = x.clone().clamp(0.0, f32::MAX) + x.clone().clamp(-f32::MAX, 0.0).exp().sub_scalar(1.0);
+        let (ours, theirs) = (to_host(elu(x)).unwrap(), to_host(ops).unwrap());
+        for i in 0..n {
+            assert_eq!(ours[i].to_bits(), theirs[i].to_bits(), "wgpu: ELU({}) = {} against the tensor ops' {}", xs[i], ours[i], theirs[i]);
+        }
     }
 }
 

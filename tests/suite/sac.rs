@@ -415,8 +415,9 @@ fn sac_state_restores_a_learner_that_continues_exactly() {
 /// learner (297 before the critics' and the actor's losses were kernels of ours, 262 before the
 /// host path's batch was standardised on the device by one kernel of ours, 248 before the actor's
 /// forward pass for the next states' actions, which no gradient flows through, was one kernel:
-/// `mlp_forward.wgsl`).
-const PINNED_SAC_KERNELS_PER_GRADIENT_STEP: u64 = 246;
+/// `mlp_forward.wgsl`; 246 before ELU's forward pass after the critics' LayerNorm was one kernel
+/// of ours, where the tensor ops were five).
+const PINNED_SAC_KERNELS_PER_GRADIENT_STEP: u64 = 198;
 
 #[test]
 fn the_wgpu_sac_learner_matches_the_cpu_learner() {
@@ -451,4 +452,74 @@ fn the_wgpu_sac_learner_matches_the_cpu_learner() {
     assert!((a_cpu - a_gpu).abs() < 1e-6, "α {a_cpu} vs {a_gpu}");
     let fresh = filled(&cfg, cpu(), 6);
     assert_ne!(values(&fresh.actor), p_cpu[..fresh.actor.len()].to_vec(), "the step changed the actor");
+}
+
+/// SAC's device-resident batch as kernels of ours (`learn::kernels::replay_sample`: the rings' rows
+/// gathered and normalised, the n-step windows walked) against the tensor ops they replace
+/// (`DeviceReplay::sample` and the normaliser): 8 envs × 6 slots written 7 times (the ring wrapped),
+/// time-outs and terminations inside the windows, n = 3, γ = 0.9, statistics whose mean and scale
+/// are far from 0 and 1; whole rings and rings in pieces of 2 slots (the flag rings too); the
+/// actor's observations kept and taken from the head of the critic's; normalised and raw. Every
+/// tensor is the tensor ops' bit for bit (lavapipe), and a batch is one gather per ring piece of
+/// each array and one window kernel.
+#[test]
+fn the_device_batch_kernels_match_the_tensor_ops() {
+    use dextrain::gpu_counts::{Event, GpuCounts};
+    use dextrain::learn::normalizer::{DeviceNormalizers, Normalizer};
+    use dextrain::learn::sac::device::DeviceReplay;
+    let Some((ctx, gpu)) = crate::common::wgpu_learner("the_device_batch_kernels_match_the_tensor_ops") else { return };
+    let (envs, cap, od, pd, ad, b, n_step) = (8usize, 6usize, 3usize, 5usize, 2usize, 64usize, 3usize);
+    let mut rng = Rng::new(3, 4);
+    let mut normal = |k: usize, scale: f64, shift: f64| -> Vec<f32> { (0..k).map(|_| (shift + scale * rng.normal()) as f32).collect() };
+    let (mut on, mut pn) = (Normalizer::new(od), Normalizer::new(pd));
+    on.update(&normal(40 * od, 3.0, 1.5));
+    pn.update(&normal(40 * pd, 0.2, -4.0));
+    let norms = DeviceNormalizers::from_host(&on, &pn, &gpu);
+    for keep_obs in [true, false] {
+        let mut host = ReplayBuffer::new(envs, cap, if keep_obs { od } else { 0 }, pd, ad);
+        for j in 0..7 {
+            let (o, p, a, r) = (normal(envs * od, 1.0, 0.0), normal(envs * pd, 1.0, -4.0), normal(envs * ad, 1.0, 0.0), normal(envs, 1.0, 0.0));
+            let (o2, p2) = (normal(envs * od, 1.0, 0.0), normal(envs * pd, 1.0, -4.0));
+            let done: Vec<bool> = (0..envs).map(|i| (i + j) % 3 == 0).collect();
+            let terminated: Vec<bool> = (0..envs).map(|i| (i + j) % 3 == 0 && (i + 2 * j) % 2 == 0).collect();
+            let kept = |v: &Vec<f32>| if keep_obs { v.clone() } else { vec![] };
+            host.push(&Transitions { obs: &kept(&o), priv_obs: &p, actions: &a, rewards: &r, done: &done, terminated: &terminated, next_obs: &kept(&o2), next_priv_obs: &p2 }).unwrap();
+        }
+        // one slot of the critic's observations a piece: every ring in pieces (6 of the critic's
+        // and of the actor's, 3 of the actions', 2 of each flag ring)
+        for piece_bytes in [0u64, (4 * envs * pd) as u64] {
+            let replay = DeviceReplay::new(&ctx, &gpu, &host, piece_bytes).unwrap();
+            replay.load(&host).unwrap();
+            let pieces = |dim: usize| if piece_bytes == 0 { 1 } else { cap.div_ceil(((piece_bytes as usize) / (4 * envs * dim)).min(cap)) };
+            let arrays: Vec<usize> = if keep_obs { vec![od, od, pd, pd, ad, 1, 1, 1] } else { vec![pd, pd, pd, pd, ad, 1, 1, 1] };
+            let gathers: usize = arrays.iter().map(|&d| pieces(d)).sum();
+            let draw = host.draw(b, n_step, &mut Rng::new(9, 9)).unwrap();
+            for normalize in [true, false] {
+                let what = format!("actor obs kept {keep_obs}, piece bytes {piece_bytes}, normalised {normalize}");
+                let before = GpuCounts::now();
+                let k = replay.sample_batch(&draw, 0.9, od, &norms, normalize).unwrap();
+                let counts = GpuCounts::now().since(&before);
+                let launched = |name: &str| counts.total_from(Event::Kernel, name) as usize;
+                assert_eq!((launched("dextrain:replay_gather"), launched("dextrain:replay_window")), (gathers, 1), "{what}: {counts:?}");
+                assert_eq!(counts.total(Event::Kernel) as usize, gathers + 1, "{what}: no other kernel: {counts:?}");
+                let (obs, priv_obs, actions, returns, bootstrap, next_obs, next_priv) = replay.sample(&draw, 0.9).unwrap();
+                let actor = |kept: Option<Tensor<2>>, critic: &Tensor<2>| kept.unwrap_or_else(|| critic.clone().slice([0..b, 0..od]));
+                let (obs, next_obs) = (actor(obs, &priv_obs), actor(next_obs, &next_priv));
+                let pairs = [
+                    ("obs", k.obs, norms.obs.normalized(obs, normalize)),
+                    ("next obs", k.next_obs, norms.obs.normalized(next_obs, normalize)),
+                    ("critic obs", k.priv_obs, norms.priv_obs.normalized(priv_obs, normalize)),
+                    ("next critic obs", k.next_priv, norms.priv_obs.normalized(next_priv, normalize)),
+                    ("actions", k.actions, actions),
+                    ("returns", k.returns, returns),
+                    ("bootstrap", k.bootstrap, bootstrap),
+                ];
+                for (name, ours, theirs) in pairs {
+                    assert_eq!(ours.dims(), theirs.dims(), "{what}: {name}");
+                    let (x, y) = (to_host(ours).unwrap(), to_host(theirs.inner()).unwrap());
+                    assert!(x.iter().zip(&y).all(|(p, q)| p.to_bits() == q.to_bits()), "{what}: {name}:\n{x:?}\n{y:?}");
+                }
+            }
+        }
+    }
 }

@@ -8,8 +8,8 @@
 //! - burn flex (the CPU): one pass each way, in place where the tensor is not shared, with a
 //!   vectorised `exp` (Cephes' expf polynomial, ≤ 2 ulp on [−87, 0]) compiled for AVX-512 and for
 //!   AVX2 + FMA and picked at run time ([`crate::learn::kernels::isa::isa`]), split over the rayon pool for large tensors;
-//! - cubecl (the GPU): the same values as tensor ops in fewer kernels (`impl EluOps for Cube`),
-//!   the backward pass one kernel of ours (shaders/elu_backward.wgsl);
+//! - cubecl (the GPU): one kernel of ours each way (shaders/elu_forward.wgsl,
+//!   shaders/elu_backward.wgsl), the values of the tensor ops they replace (`impl EluOps for Cube`);
 //! - autodiff: the backward pass above, from the saved output.
 
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
@@ -53,14 +53,20 @@ pub trait EluOps: Backend {
     }
 }
 
-/// cubecl (the GPU): 5 kernels forward and 3 backward where [`elu_ops`] and
-/// [`elu_backward_ops`] launch 9 and 6 (cubecl's `relu` and `clamp_max` are two kernels each, its
-/// `clamp` one): `ELU(x) = clamp(x, 0, ∞) + (exp(clamp(x, −∞, 0)) − 1)`, the same values as
-/// [`elu_ops`] bit for bit, and `∂L/∂x = grad · min(y + 1, 1)`, bit for bit
-/// `grad · (1 − relu(−y))`.
+/// cubecl (the GPU): one kernel of ours each way where the tensors are plain contiguous f32, else
+/// 5 kernels forward and 3 backward where [`elu_ops`] and [`elu_backward_ops`] launch 9 and 6
+/// (cubecl's `relu` and `clamp_max` are two kernels each, its `clamp` one):
+/// `ELU(x) = clamp(x, 0, ∞) + (exp(clamp(x, −∞, 0)) − 1)`, the same values as [`elu_ops`] bit for
+/// bit (and the kernel's `x > 0 ? x : eˣ − 1` theirs), and `∂L/∂x = grad · min(y + 1, 1)`, bit
+/// for bit `grad · (1 − relu(−y))`.
 impl EluOps for Cube {
     fn elu_fused(x: FloatTensor<Self>) -> FloatTensor<Self> {
-        elu_clamp_ops::<Self>(x)
+        // one kernel of ours (shaders/elu_forward.wgsl) where the tensor is plain contiguous f32,
+        // the same values as the ops below
+        match elu_forward_kernel(&x) {
+            Some(y) => y,
+            None => elu_clamp_ops::<Self>(x),
+        }
     }
 
     fn elu_fused_backward(y: FloatTensor<Self>, grad: FloatTensor<Self>) -> FloatTensor<Self> {
@@ -71,6 +77,39 @@ impl EluOps for Cube {
             None => elu_clamp_backward_ops::<Self>(y, grad),
         }
     }
+}
+
+/// shaders/elu_forward.wgsl.
+const SHADER_ELU_FORWARD: &str = include_str!("../../../shaders/elu_forward.wgsl");
+
+/// The text of shaders/elu_forward.wgsl (the kernel has one variant).
+pub fn elu_forward_source(_: ()) -> String {
+    SHADER_ELU_FORWARD.to_string()
+}
+
+/// Entries of a plain contiguous f32 tensor that one launch of a 256-wide element-wise kernel of
+/// ours covers with 32-bit indices, or None (not f32, not contiguous, empty or too many).
+fn plain_count(t: &FloatTensor<Cube>) -> Option<u32> {
+    use burn::backend::TensorMetadata;
+    if t.dtype != DType::F32 || !t.is_contiguous() || !t.is_contiguous_buffer() {
+        return None;
+    }
+    u32::try_from(t.shape().num_elements()).ok().filter(|&c| c > 0 && c < u32::MAX - 65_535 * 256)
+}
+
+/// `ELU(x)` as one kernel on burn's stream (matmul.wgsl's epilogue expression: the values of
+/// [`elu_clamp_ops`]), or None where [`plain_count`] refuses `x`.
+fn elu_forward_kernel(x: &FloatTensor<Cube>) -> Option<FloatTensor<Cube>> {
+    use burn::backend::TensorMetadata;
+    use burn::backend::ops::FloatTensorOps;
+    use burn::tensor::FloatDType;
+    let count = plain_count(x)?;
+    let (gx, gy) = crate::gpu::shaders::workgroups_of(count, 256);
+    let out = Cube::float_empty(x.shape(), &x.device, FloatDType::F32); // written whole below
+    let kernel = WgslKernel { name: "dextrain_elu_forward", key: (), source: elu_forward_source, entry_point: "elu_forward", workgroup: [256, 1] };
+    // EluForwardCfg: count, entries per row of the grid
+    launch(kernel, [gx, gy, 1], &[x, &out], &[count, gx * 256, 0, 0]);
+    Some(out)
 }
 
 /// shaders/elu_backward.wgsl.
@@ -87,11 +126,10 @@ fn elu_backward_kernel(y: &FloatTensor<Cube>, grad: &FloatTensor<Cube>) -> Optio
     use burn::backend::TensorMetadata;
     use burn::backend::ops::FloatTensorOps;
     use burn::tensor::FloatDType;
-    let plain = |t: &FloatTensor<Cube>| t.dtype == DType::F32 && t.is_contiguous() && t.is_contiguous_buffer();
-    if !plain(y) || !plain(grad) || y.shape() != grad.shape() {
+    if y.shape() != grad.shape() {
         return None;
     }
-    let count = u32::try_from(y.shape().num_elements()).ok().filter(|&c| c > 0 && c < u32::MAX - 65_535 * 256)?;
+    let count = plain_count(y).and(plain_count(grad))?;
     let (gx, gy) = crate::gpu::shaders::workgroups_of(count, 256);
     let out = Cube::float_empty(y.shape(), &y.device, FloatDType::F32); // written whole below
     let kernel = WgslKernel { name: "dextrain_elu_backward", key: (), source: elu_backward_source, entry_point: "elu_backward", workgroup: [256, 1] };

@@ -6,8 +6,8 @@
 //!   (no copies on the CPU; one kernel of ours on the GPU);
 //! - `layer_norm.rs`: LayerNorm over the features as one operation with its own gradient (one pass
 //!   per row on the CPU; a kernel of ours each way on the GPU, shaders/layer_norm*.wgsl);
-//! - `elu.rs`: ELU as one operation with its own gradient (vectorised on the CPU; its gradient one
-//!   kernel of ours on the GPU, shaders/elu_backward.wgsl);
+//! - `elu.rs`: ELU as one operation with its own gradient (vectorised on the CPU; one kernel of
+//!   ours each way on the GPU, shaders/elu_forward.wgsl and shaders/elu_backward.wgsl);
 //! - `sgemm.rs`: dextrain's own AVX2 + FMA matrix product; `isa.rs`: which vector instruction set
 //!   the CPU kernels run (`DEXTRAIN_SIMD`);
 //! - `gpu_matmul.rs`: the routine of the GPU learner's products (chosen by measurement,
@@ -20,7 +20,9 @@
 //!   one operation each with its own gradient (kernels of ours on the GPU, tensor ops elsewhere);
 //!   `adaptive_lr.rs`: PPO's adaptive learning rate as one kernel on the GPU; `standardize.rs`: a
 //!   GPU learner's host-path observations standardised by one kernel; `ppo_rollout.rs`: PPO's
-//!   device-resident step reward and GAE as kernels of ours;
+//!   device-resident step reward and GAE as kernels of ours; `replay_sample.rs`: SAC's
+//!   device-resident batch (the rings' rows gathered and normalised, the n-step windows) as kernels
+//!   of ours;
 //! - `mlp_forward.rs`: an MLP's forward pass for acting as one kernel on the GPU
 //!   (shaders/mlp_forward.wgsl; the per-layer products' values bit for bit);
 //! - `row_sums.rs`: sums over the batch's rows in two stages on the GPU (losses, ∂b, ∂ log σ);
@@ -40,6 +42,7 @@ pub mod matmul_tuning;
 pub mod mlp_forward;
 pub mod ppo_loss;
 pub mod ppo_rollout;
+pub mod replay_sample;
 pub mod row_sums;
 pub mod sac_loss;
 pub mod sgemm;

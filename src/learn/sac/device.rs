@@ -37,6 +37,11 @@ struct Ring {
     pieces: Vec<TensorBuffer>,
 }
 
+/// A ring as the gather kernel reads it: its pieces in order.
+fn ring_view(r: &Ring) -> crate::learn::kernels::replay_sample::RingView<'_> {
+    crate::learn::kernels::replay_sample::RingView { pieces: r.pieces.iter().map(|p| &p.tensor).collect(), dim: r.dim }
+}
+
 impl Ring {
     /// Rows of one full piece.
     fn rows_per_piece(&self) -> usize {
@@ -100,6 +105,20 @@ pub struct DeviceReplay {
     /// One push's data on its way (wgpu copies no buffer into itself, and burn's tensors may share
     /// one): every array's `[N, dim]` back to back.
     scratch: wgpu::Buffer,
+}
+
+/// What a gradient step takes from the device buffer ([`DeviceReplay::sample_batch`]): the actor's
+/// and the critic's observations of each window's first transition and after its last
+/// (`[B, O]`, `[B, P]`, normalised when asked), the actions `[B, A]`, the n-step return and the
+/// bootstrap factor `[B, 1]`; tensors of burn's wgpu device without autodiff.
+pub struct SampledBatch {
+    pub obs: Tensor<2>,
+    pub next_obs: Tensor<2>,
+    pub priv_obs: Tensor<2>,
+    pub next_priv: Tensor<2>,
+    pub actions: Tensor<2>,
+    pub returns: Tensor<2>,
+    pub bootstrap: Tensor<2>,
 }
 
 /// One push: every env's transition, `[N, dim]` tensors (flags 0 or 1, `[N, 1]`).
@@ -204,7 +223,80 @@ impl DeviceReplay {
         self.ctx.submit(enc, "replay buffer push (device-resident)")
     }
 
-    /// The rows `draw` picks and their n-step windows (discount `gamma`): raw actor observations
+    /// A gradient step's rows from the rings: the rows `draw` picks and their n-step windows
+    /// (discount `gamma`), the observations normalised by `norms` when `normalize` (the actor's
+    /// taken from the head of the critic's, `obs_dim` columns, where the buffer keeps none). On
+    /// burn's wgpu runtime as kernels of ours (`learn::kernels::replay_sample`: a launch per ring
+    /// piece for each array, one for the windows, where [`DeviceReplay::sample`]'s tensor ops and
+    /// the normaliser's launched ~17 kernels per window step and ~25 more); the tensor ops where a
+    /// kernel cannot bind its tensors.
+    pub fn sample_batch(&self, draw: &Draw, gamma: f64, obs_dim: usize, norms: &DeviceNormalizers, normalize: bool) -> Result<SampledBatch> {
+        if let Ok(batch) = self.sample_batch_kernels(draw, gamma, obs_dim, norms, normalize) {
+            return Ok(batch);
+        }
+        let b = draw.batch;
+        let (obs, priv_obs, actions, returns, bootstrap, next_obs, next_priv) = self.sample(draw, gamma)?;
+        // the actor's observations: kept, or the clean ones at the head of the critic's
+        let actor_rows = |kept: Option<Tensor<2>>, critic: &Tensor<2>| kept.unwrap_or_else(|| critic.clone().slice([0..b, 0..obs_dim]));
+        let (obs, next_obs) = (actor_rows(obs, &priv_obs), actor_rows(next_obs, &next_priv));
+        Ok(SampledBatch {
+            obs: norms.obs.normalized(obs, normalize),
+            next_obs: norms.obs.normalized(next_obs, normalize),
+            priv_obs: norms.priv_obs.normalized(priv_obs, normalize),
+            next_priv: norms.priv_obs.normalized(next_priv, normalize),
+            actions,
+            returns,
+            bootstrap,
+        })
+    }
+
+    /// [`DeviceReplay::sample_batch`] as kernels of ours: the rows and flags uploaded once, the
+    /// three flag rings gathered into one `[3 · n_step · B, 1]` tensor, the windows walked, then
+    /// each array's rows gathered (and normalised) from the first row of each window or its last.
+    fn sample_batch_kernels(&self, draw: &Draw, gamma: f64, obs_dim: usize, norms: &DeviceNormalizers, normalize: bool) -> Result<SampledBatch> {
+        use crate::learn::kernels::replay_sample::{GatherNorm, empty_like, gather_into, tensor_of, upload_rows, windows};
+        let b = draw.batch;
+        let n_step = draw.valid.len() / b.max(1);
+        let nb = n_step * b;
+        ensure!(b > 0 && n_step > 0 && draw.window.len() == nb, "SAC's device-resident batch: {} window rows and {} flags for a batch of {b}", draw.window.len(), draw.valid.len());
+        let mut idx = Vec::with_capacity(2 * nb);
+        for &r in &draw.window {
+            idx.push(u32::try_from(r).context("SAC's device-resident batch: a ring row over 32 bits")?);
+        }
+        idx.extend(draw.valid.iter().map(|&v| v as u32));
+        let idx = upload_rows(&idx, &self.device)?; // [2 · n_step · B]: window rows, then written flags
+        let like = &self.priv_obs.pieces[0].tensor;
+        let (po, pp) = (&norms.obs, &norms.priv_obs);
+        let raw = GatherNorm { mean: &pp.mean, scale: &pp.scale, apply: false };
+        // the rewards, done and terminated flags of every window step's row
+        let flags = empty_like(like, 3 * nb, 1)?;
+        for (k, ring) in [&self.rewards, &self.done, &self.terminated].into_iter().enumerate() {
+            gather_into(&idx, nb, &ring_view(ring), 1, &raw, &flags, k * nb)?;
+        }
+        let (returns, bootstrap, last) = windows(&idx, &flags, b, n_step, gamma)?;
+        // each array's rows: from the windows' first rows (idx's first B) or their last
+        let gather = |rows: &Tensor<2>, ring: &Ring, cols: usize, norm: &GatherNorm<'_>| -> Result<Tensor<2>> {
+            let out = empty_like(like, b, cols)?;
+            gather_into(rows, b, &ring_view(ring), cols, norm, &out, 0)?;
+            Ok(tensor_of(out))
+        };
+        let obs_norm = GatherNorm { mean: &po.mean, scale: &po.scale, apply: normalize };
+        let priv_norm = GatherNorm { mean: &pp.mean, scale: &pp.scale, apply: normalize };
+        // the actor's observations: kept, or the head of the critic's
+        let (obs_ring, next_obs_ring) = (self.obs.as_ref().unwrap_or(&self.priv_obs), self.next_obs.as_ref().unwrap_or(&self.next_priv_obs));
+        Ok(SampledBatch {
+            obs: gather(&idx, obs_ring, obs_dim, &obs_norm)?,
+            next_obs: gather(&last, next_obs_ring, obs_dim, &obs_norm)?,
+            priv_obs: gather(&idx, &self.priv_obs, self.priv_obs.dim, &priv_norm)?,
+            next_priv: gather(&last, &self.next_priv_obs, self.next_priv_obs.dim, &priv_norm)?,
+            actions: gather(&idx, &self.actions, self.actions.dim, &raw)?,
+            returns,
+            bootstrap,
+        })
+    }
+
+    /// The rows `draw` picks and their n-step windows (discount `gamma`) as tensor ops (the
+    /// reference of [`DeviceReplay::sample_batch`]'s kernels, and their fallback): raw actor observations
     /// (None without them), critic observations and actions of the first transition, the return
     /// and bootstrap factor `[B, 1]`, and the raw observations after the window.
     #[allow(clippy::type_complexity)]
@@ -429,22 +521,19 @@ impl Sac {
         let draw = self.buffer.draw(b, n_step, &mut self.rng)?;
         let (seed, normalize) = (self.noise_seed, self.normalize);
         let dv = self.on_device.as_ref().ok_or_else(|| anyhow::anyhow!("a device batch before start_device_rollouts()"))?;
-        let (obs, priv_obs, actions, returns, bootstrap, next_obs, next_priv) = dv.replay.sample(&draw, self.cfg.gamma as f64)?;
-        // the actor's observations: kept, or the clean ones at the head of the critic's
-        let actor_rows = |kept: Option<Tensor<2>>, critic: &Tensor<2>| kept.unwrap_or_else(|| critic.clone().slice([0..b, 0..d.obs]));
-        let (obs, next_obs) = (actor_rows(obs, &priv_obs), actor_rows(next_obs, &next_priv));
+        let s = dv.replay.sample_batch(&draw, self.cfg.gamma as f64, d.obs, &dv.norms, normalize)?;
         let lift = Tensor::from_inner; // untracked, on the autodiff device, as the host path's uploads
         // both draws in one kernel: rows 0..B the target's (draws.0), B..2B the actor's (draws.1)
         ensure!(draws.1 == draws.0.wrapping_add(1), "a gradient step's noise draws must be consecutive");
         let noise = dv.noise.normals_block(seed, draws.0, 2, b, d.act)?; // [2B, A]
         Ok(GradBatch {
-            obs: lift(dv.norms.obs.normalized(obs, normalize)),
-            next_obs: lift(dv.norms.obs.normalized(next_obs, normalize)),
-            priv_obs: lift(dv.norms.priv_obs.normalized(priv_obs, normalize)),
-            next_priv: lift(dv.norms.priv_obs.normalized(next_priv, normalize)),
-            actions: lift(actions),
-            returns,
-            bootstrap,
+            obs: lift(s.obs),
+            next_obs: lift(s.next_obs),
+            priv_obs: lift(s.priv_obs),
+            next_priv: lift(s.next_priv),
+            actions: lift(s.actions),
+            returns: s.returns,
+            bootstrap: s.bootstrap,
             eps_actor: lift(noise.clone().narrow(0, b, b)),
             eps_next: noise.narrow(0, 0, b),
         })
