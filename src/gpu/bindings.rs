@@ -325,6 +325,22 @@ pub const REPLAY_WINDOW: EntryBindings = EntryBindings { entry_point: "replay_wi
 /// The replay windows' module (shaders/replay_window.wgsl alone).
 pub const RW_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain replay window", bindings: &[RW_IDX, RW_FLAGS, RW_RETURN, RW_BOOTSTRAP, RW_LAST, RW_CFG], entry_points: &[REPLAY_WINDOW] };
 
+// ---- Column sums (column_sums.wgsl, a module of its own, launched by learn/kernels/row_sums.rs on
+// burn's stream: cubecl binds the buffers in order, then the uniform) ----
+
+/// `array<f32>` `[R, C]`: the matrix summed over its rows.
+pub const CS_IN: Binding = binding(0, "cs_in", StorageReadWrite);
+/// `array<f32>` `[C]`: its column sums.
+pub const CS_OUT: Binding = binding(1, "cs_out", StorageReadWrite);
+/// `ColumnSumsCfg`: rows, columns and the blocks of the first stage.
+pub const CS_CFG: Binding = binding(2, "csc", Uniform);
+
+/// `column_sums`: 16 columns per workgroup.
+pub const COLUMN_SUMS: EntryBindings = EntryBindings { entry_point: "column_sums", bindings: &[CS_IN, CS_OUT, CS_CFG] };
+
+/// The column sums' module (shaders/column_sums.wgsl alone).
+pub const CS_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain column sums", bindings: &[CS_IN, CS_OUT, CS_CFG], entry_points: &[COLUMN_SUMS] };
+
 // ---- LayerNorm (layer_norm_common.wgsl with layer_norm.wgsl, and with layer_norm_backward.wgsl:
 // two modules, launched by learn/kernels/layer_norm.rs on burn's stream: cubecl binds the buffers in
 // order, then the uniform) ----

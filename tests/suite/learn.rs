@@ -1033,12 +1033,16 @@ fn row_sums_and_matmul_routines_match_their_tensor_twins() {
     let dev = gpu.clone().inner();
     let mut rng = Rng::new(9, 9);
     let mut draw = |len: usize| -> Vec<f32> { (0..len).map(|_| rng.normal() as f32).collect() };
-    for (rows, cols) in [(4096usize, 22usize), (4096, 1), (3001, 5)] {
+    for (rows, cols) in [(4096usize, 22usize), (4096, 1), (3001, 5), (6144, 517), (2056, 3), (100, 2)] {
         let host = draw(rows * cols);
         let g = to_tensor(host.clone(), [rows, cols], &dev);
         let got = to_host(column_sums(g.clone())).unwrap();
         let again = to_host(column_sums(g.clone())).unwrap();
         assert_eq!(got, again, "{rows}×{cols}: the column sums repeat bit for bit");
+        // the kernel of ours (two columns or more) adds in the order of burn's two stages (or its
+        // one): the same bits as those reductions
+        let stages = to_host(Tensor::<2>::from_primitive::<burn::backend::Cube>(dextrain::learn::kernels::row_sums::column_sums_ops::<burn::backend::Cube>(g.clone().try_into_primitive::<burn::backend::Cube>().unwrap()))).unwrap();
+        assert!(got.iter().zip(&stages).all(|(a, b)| a.to_bits() == b.to_bits()), "{rows}×{cols}: the kernel against burn's stages:\n{got:?}\n{stages:?}");
         for c in 0..cols {
             let want: f64 = (0..rows).map(|r| host[r * cols + c] as f64).sum();
             assert!((got[c] as f64 - want).abs() < 1e-4 * (1.0 + want.abs()), "{rows}×{cols} column {c}: {} vs {want}", got[c]);

@@ -11,8 +11,8 @@
 //!   cache), backward one pass per row plus the column sums, rows split over the rayon pool;
 //! - cubecl (the GPU): forward one kernel of ours (shaders/layer_norm.wgsl: a workgroup per row),
 //!   backward one kernel (shaders/layer_norm_backward.wgsl: ∂h and ∂y ĥ; both after
-//!   layer_norm_common.wgsl) plus the two column sums
-//!   in two stages (`row_sums`), where the tensor ops launched ten and about fourteen kernels; the
+//!   layer_norm_common.wgsl) plus the two column sums, a kernel each in the order of two stages
+//!   (`row_sums`), where the tensor ops launched ten and about fourteen kernels; the
 //!   ops remain for tensors the kernels do not take (not contiguous f32, indices over 32 bits);
 //! - autodiff: the backward above from the saved ĥ and r, for the tracked inputs.
 
@@ -27,7 +27,7 @@ use burn::tensor::{Bytes, DType, Shape};
 use burn_flex::{FlexTensor, Layout};
 use rayon::prelude::*;
 
-use super::row_sums::column_sums_ops;
+use super::row_sums::column_sums_cube;
 
 /// ε under the variance (torch's and ONNX's `LayerNormalization` default).
 pub const LAYER_NORM_EPS: f32 = 1e-5;
@@ -109,8 +109,8 @@ impl LayerNormOps for Cube {
         dy: FloatTensor<Self>,
     ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
         match gpu::backward(&normed, &r, &g, &dy) {
-            // ∂g = Σ_rows ∂y ĥ and ∂s = Σ_rows ∂y, each in two stages
-            Some((dh, dy_normed)) => (dh, column_sums_ops::<Self>(dy_normed), column_sums_ops::<Self>(dy)),
+            // ∂g = Σ_rows ∂y ĥ and ∂s = Σ_rows ∂y, each one kernel in the two stages' order
+            Some((dh, dy_normed)) => (dh, column_sums_cube(dy_normed), column_sums_cube(dy)),
             None => backward_ops::<Self>(normed, r, g, dy),
         }
     }

@@ -12,6 +12,10 @@
 //! The stages pay on the GPU only: the CPU (burn flex, `affine.rs`) sums a column in one pass over
 //! memory already, and its sums keep their order (`is_gpu` callers choose).
 //!
+//! On burn's wgpu runtime the two stages are one kernel of ours (shaders/column_sums.wgsl, the
+//! same additions in the same order; [`column_sums_cube`]) where `g` is a contiguous f32 matrix
+//! of two columns or more.
+//!
 //! Also here: [`rows_of`], a [1, C] row repeated over the batch whose gradient is the two-stage
 //! column sum, for a parameter that meets the batch by broadcasting (PPO's log σ): burn's own
 //! broadcast takes the one-stage sum in its backward.
@@ -90,7 +94,53 @@ pub trait RowsOps: Backend {
 }
 
 impl RowsOps for Flex {}
-impl RowsOps for Cube {}
+
+impl RowsOps for Cube {
+    fn column_sums(g: FloatTensor<Self>) -> FloatTensor<Self> {
+        column_sums_cube(g)
+    }
+}
+
+/// shaders/column_sums.wgsl.
+const SHADER_COLUMN_SUMS: &str = include_str!("../../../shaders/column_sums.wgsl");
+
+/// The column-sum kernel's module (one variant).
+pub fn column_sums_source(_: ()) -> String {
+    SHADER_COLUMN_SUMS.to_string()
+}
+
+/// `1ᵀ g` on burn's wgpu runtime: one kernel of ours (shaders/column_sums.wgsl) in the order of
+/// [`column_sums_ops`]' two stages (the same bits, one launch where they were two), or those
+/// stages where the kernel does not take `g`: not a contiguous f32 `[R, C]`, indices over 32 bits,
+/// or one column (burn's reduction then runs along the contiguous rows in vectors, in another
+/// order of additions).
+pub fn column_sums_cube(g: FloatTensor<Cube>) -> FloatTensor<Cube> {
+    match column_sums_kernel(&g) {
+        Some(out) => out,
+        None => column_sums_ops::<Cube>(g),
+    }
+}
+
+fn column_sums_kernel(g: &FloatTensor<Cube>) -> Option<FloatTensor<Cube>> {
+    use burn::backend::ops::FloatTensorOps;
+    use burn::tensor::FloatDType;
+    use super::wgsl_kernel::{WgslKernel, is_plain, launch};
+    let shape = g.shape();
+    if shape.num_dims() != 2 {
+        return None;
+    }
+    let (rows, cols) = (shape[0], shape[1]);
+    if cols < 2 || rows == 0 || !is_plain(g, [rows, cols]) || u32::try_from(rows * cols).is_err() {
+        return None;
+    }
+    let blocks = blocks_for(rows).unwrap_or(1); // column_sums_ops' stages
+    let groups = u32::try_from(cols.div_ceil(16)).ok().filter(|&x| x <= 65_535)?;
+    let out = Cube::float_empty(Shape::new([1, cols]), &g.device, FloatDType::F32); // written whole below
+    let kernel = WgslKernel { name: "dextrain_column_sums", key: (), source: column_sums_source, entry_point: "column_sums", workgroup: [16, 16] };
+    // ColumnSumsCfg: rows, cols, blocks, padding
+    launch(kernel, [groups, 1, 1], &[g, &out], &[rows as u32, cols as u32, blocks as u32, 0]);
+    Some(out)
+}
 
 impl<B: Backend + RowsOps, C: CheckpointStrategy> RowsOps for Autodiff<B, C> {
     fn rows_of(x: FloatTensor<Self>, rows: usize) -> FloatTensor<Self> {
