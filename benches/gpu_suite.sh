@@ -15,7 +15,9 @@
 #   2. the learner updates on the GPU at the peers' shapes (`bench --ppo` / `bench --sac --device gpu`),
 #      the PPO bench again with acting's forward passes one kernel per MLP at any batch
 #      (`DEXTRAIN_MLP_FORWARD=fused`; the default leaves the peer networks' 4096 rows to a product
-#      per layer: which is faster for the policy inference and the rollout), and the PPO minibatch's products with each matmul routine (`bench --matmul`);
+#      per layer: which is faster for the policy inference and the rollout), SAC's gradient step of the
+#      shipped SAC configs' shape (`--n-step 3 --critic-layer-norm`, 1024 envs, batch 2048), and the
+#      PPO minibatch's products with each matmul routine (`bench --matmul`);
 #   3. PPO training on configs/lift_cube_gpu.toml for TRAIN_PPO_S seconds (SIGINT: the run stops at
 #      the end of its iteration with a checkpoint), then SAC on configs/lift_cube_sac_gpu.toml for
 #      TRAIN_SAC_S seconds: env-steps/s with the learner, the best success rate and the wall time
@@ -70,9 +72,12 @@ if [ "$quick" = 1 ]; then
     sac_small=(--set sac.batch_size=64 --set sac.learning_starts=8 --set sac.buffer_capacity=64)
     baseline_envs=${BASELINE_ENVS:-64}; baseline_rounds=${BASELINE_ROUNDS:-1}
     ppo_sizes=(--envs 64 --iters 1); sac_sizes=(--envs 64 --iters 1 --batch 256 --gradient-steps 2); matmul_sizes=()  # (every routine compiles its kernels: minutes on lavapipe)
+    sac_lift_sizes=("${sac_sizes[@]}")
 else
     envs=${ENVS:-"4096 16384 65536 262144"}; ppo_s=${TRAIN_PPO_S:-210}; sac_s=${TRAIN_SAC_S:-90}; ppo_host_s=${TRAIN_PPO_HOST_S:-30}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
     small=(); sac_small=(); ppo_sizes=(--iters 3); sac_sizes=(--iters 3); matmul_sizes=(--iters 3)
+    # configs/lift_cube_sac_gpu.toml's shape: 1024 envs, batch 2048 (with --n-step 3 --critic-layer-norm below)
+    sac_lift_sizes=(--envs 1024 --batch 2048 --iters 3)
     baseline_envs=${BASELINE_ENVS:-65536}; baseline_rounds=${BASELINE_ROUNDS:-3}
 fi
 runs=$out/runs
@@ -246,7 +251,7 @@ if runs_step variants; then
     variants_json="{\"envs\": $baseline_envs, \"ratios\": [$ratios_json], \"rounds\": [$rounds_json]}"
 fi
 # a step that did not run reports null, never an earlier run's files
-ppo_json=null; ppo_fused_json=null; sac_json=null; matmul_json=null; train_ppo=null; train_sac=null; train_host=null; ppo_run=null; sac_run=null
+ppo_json=null; ppo_fused_json=null; sac_json=null; sac_lift_json=null; matmul_json=null; train_ppo=null; train_sac=null; train_host=null; ppo_run=null; sac_run=null
 if runs_step learner; then
     echo "gpu_suite: learner updates" >&2
     "$bin" bench --ppo --device "$adapter" "${ppo_sizes[@]}" >"$out/ppo_update.json" 2>"$out/ppo_update.log"
@@ -257,7 +262,10 @@ if runs_step learner; then
         "$bin" bench --matmul --device "$adapter" "${matmul_sizes[@]}" >"$out/matmul.json" 2>"$out/matmul.log"
     fi
     "$bin" bench --sac --device "$adapter" "${sac_sizes[@]}" >"$out/sac_update.json" 2>"$out/sac_update.log"
+    # the gradient step of the shipped SAC configs' shape: 3-step returns, LayerNorm critics
+    "$bin" bench --sac --device "$adapter" "${sac_lift_sizes[@]}" --n-step 3 --critic-layer-norm >"$out/sac_update_lift.json" 2>"$out/sac_update_lift.log"
     ppo_json=$(json_of "$out/ppo_update.json"); ppo_fused_json=$(json_of "$out/ppo_update_fused.json"); sac_json=$(json_of "$out/sac_update.json"); [ ${#matmul_sizes[@]} -gt 0 ] && matmul_json=$(json_of "$out/matmul.json")
+    sac_lift_json=$(json_of "$out/sac_update_lift.json")
 fi
 if runs_step train; then
     echo "gpu_suite: PPO lift for ${ppo_s}s" >&2
@@ -276,7 +284,7 @@ driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,
         "$([ "$quick" = 1 ] && echo true || echo false)" "$(date -u +%FT%TZ)" "$driver" "$(($(date +%s) - start))"
     printf ' "env_only": [%s],\n' "$env_json"
     printf ' "objects": [%s],\n' "$obj_json"
-    printf ' "ppo_update": %s,\n "ppo_update_fused": %s,\n "sac_update": %s,\n "matmul_routines": %s,\n' "$ppo_json" "$ppo_fused_json" "$sac_json" "$matmul_json"
+    printf ' "ppo_update": %s,\n "ppo_update_fused": %s,\n "sac_update": %s,\n "sac_update_lift": %s,\n "matmul_routines": %s,\n' "$ppo_json" "$ppo_fused_json" "$sac_json" "$sac_lift_json" "$matmul_json"
     printf ' "train_ppo": %s,\n "train_sac": %s,\n "train_ppo_host_path": %s,\n' "$train_ppo" "$train_sac" "$train_host"
     printf ' "train_ppo_run": %s,\n "train_sac_run": %s,\n' "$ppo_run" "$sac_run"
     printf ' "physics_baseline": %s,\n' "$baseline_json"

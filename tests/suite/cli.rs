@@ -505,6 +505,11 @@ fn gpu_suite_quick_writes_every_figure() {
     assert!(j["ppo_update"]["update_ms"]["median"].as_f64().unwrap_or(0.0) > 0.0, "{text}");
     assert!(j["ppo_update"]["device"].as_str().unwrap_or("").starts_with("gpu"), "{text}");
     assert!(j["sac_update"]["ms_per_gradient_step"]["median"].as_f64().unwrap_or(0.0) > 0.0, "{text}");
+    // the shipped SAC configs' shape: 3-step returns, LayerNorm critics, the batch from the
+    // device buffer as kernels of ours (one window kernel a gradient step)
+    let lift = &j["sac_update_lift"];
+    assert_eq!((lift["n_step"].as_u64(), lift["critic_layer_norm"].as_bool()), (Some(3), Some(true)), "{text}");
+    assert_eq!(lift["device_resident"]["gpu_counts"]["per_gradient_step"]["kernels"]["by_source"]["dextrain:replay_window"].as_f64(), Some(1.0), "{text}");
     for k in ["train_ppo", "train_sac", "train_ppo_host_path"] {
         assert!(j[k]["iterations"].as_u64().unwrap_or(0) >= 1 && j[k]["env_steps_per_s_last"].as_f64().unwrap_or(0.0) > 0.0, "{k}: {text}");
     }
@@ -561,7 +566,7 @@ fn gpu_suite_quick_writes_every_figure() {
     assert_eq!(v["ratios"][0]["module"].as_str(), module.to_str(), "{text}");
     assert!((vratio - rate(&vround["variants"][0]) / rate(&vround["builtin"])).abs() < 1e-3 * vratio.max(1.0) + 1e-4, "{text}");
     assert_eq!(j["env_only"].as_array().map(|a| a.len()), Some(0), "{text}");
-    for k in ["ppo_update", "ppo_update_fused", "sac_update", "train_ppo", "train_sac", "train_ppo_host_path", "train_ppo_run", "train_sac_run", "shader_stats"] {
+    for k in ["ppo_update", "ppo_update_fused", "sac_update", "sac_update_lift", "train_ppo", "train_sac", "train_ppo_host_path", "train_ppo_run", "train_sac_run", "shader_stats"] {
         assert!(j[k].is_null(), "{k}: {text}");
     }
     // the shader statistics of the built-in module, the baseline and each variant: the kernels'
