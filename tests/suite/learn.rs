@@ -492,12 +492,19 @@ fn fused_elu_and_its_gradient_match_the_reference() {
     if let Some((_ctx, gpu)) = crate::common::wgpu_learner("fused_elu_and_its_gradient_match_the_reference") {
         check(gpu.clone(), "wgpu");
         // the forward kernel of ours gives the tensor ops it replaced bit for bit:
-        // clamp(x, 0, ∞) + (exp(clamp(x, −∞, 0)) − 1)
-        let x = to_tensor(xs.clone(), [1, n], &gpu);
+        // clamp(x, 0, ∞) + (exp(clamp(x, −∞, 0)) − 1) (the inputs padded to whole 16-byte words:
+        // the kernel takes tensors whose memory is exactly theirs)
+        let mut xs4 = xs.clone();
+        xs4.resize(n.next_multiple_of(4), -2.5);
+        let x = to_tensor(xs4.clone(), [1, xs4.len()], &gpu);
         let ops = x.clone().clamp(0.0, f32::MAX) + x.clone().clamp(-f32::MAX, 0.0).exp().sub_scalar(1.0);
-        let (ours, theirs) = (to_host(elu(x)).unwrap(), to_host(ops).unwrap());
-        for i in 0..n {
-            assert_eq!(ours[i].to_bits(), theirs[i].to_bits(), "wgpu: ELU({}) = {} against the tensor ops' {}", xs[i], ours[i], theirs[i]);
+        let before = dextrain::gpu_counts::GpuCounts::now();
+        let ours = to_host(elu(x)).unwrap();
+        let launched = dextrain::gpu_counts::GpuCounts::now().since(&before).total_from(dextrain::gpu_counts::Event::Kernel, "dextrain:elu_forward");
+        assert_eq!(launched, 1, "wgpu: ELU's forward pass is one kernel of ours");
+        let theirs = to_host(ops).unwrap();
+        for i in 0..xs4.len() {
+            assert_eq!(ours[i].to_bits(), theirs[i].to_bits(), "wgpu: ELU({}) = {} against the tensor ops' {}", xs4[i], ours[i], theirs[i]);
         }
     }
 }
@@ -1036,7 +1043,11 @@ fn row_sums_and_matmul_routines_match_their_tensor_twins() {
     for (rows, cols) in [(4096usize, 22usize), (4096, 1), (3001, 5), (6144, 517), (2056, 3), (100, 2)] {
         let host = draw(rows * cols);
         let g = to_tensor(host.clone(), [rows, cols], &dev);
+        let before = dextrain::gpu_counts::GpuCounts::now();
         let got = to_host(column_sums(g.clone())).unwrap();
+        // two columns or more: one launch of the kernel of ours; one column: burn's stages
+        let ours = dextrain::gpu_counts::GpuCounts::now().since(&before).total_from(dextrain::gpu_counts::Event::Kernel, "dextrain:column_sums");
+        assert_eq!(ours, (cols >= 2) as u64, "{rows}×{cols}: launches of the column-sum kernel");
         let again = to_host(column_sums(g.clone())).unwrap();
         assert_eq!(got, again, "{rows}×{cols}: the column sums repeat bit for bit");
         // the kernel of ours (two columns or more) adds in the order of burn's two stages (or its

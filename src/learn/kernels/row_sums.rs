@@ -121,6 +121,8 @@ pub fn column_sums_cube(g: FloatTensor<Cube>) -> FloatTensor<Cube> {
     }
 }
 
+/// [`column_sums_cube`]'s kernel: `[1, C]` from one launch of ⌈C / 16⌉ workgroups, or None where
+/// it does not take `g`.
 fn column_sums_kernel(g: &FloatTensor<Cube>) -> Option<FloatTensor<Cube>> {
     use burn::backend::ops::FloatTensorOps;
     use burn::tensor::FloatDType;
