@@ -3,8 +3,9 @@
 # (default device/), to be named in the device tool's `carry`: the stripped, gzipped release
 # binary, the Vulkan loader's and the GL vendor libraries' Debian packages (the bare machine has
 # the NVIDIA driver but not these: without libglvnd0/libegl1 wgpu finds no adapter), the simulator
-# module of BASELINE_COMMIT (default f7d02e5, the physics before issue 36's contacts) and the
-# knock-out variants of today's module (benches/physics_variants.py).
+# module of BASELINE_COMMIT (default f7d02e5, the physics before issue 36's contacts), the
+# knock-out variants of today's module (benches/physics_variants.py) and PREVIOUS_COMMIT's module
+# (default af98c83, before the narrow-phase rounds) beside them.
 #     cargo build --release && benches/device_pack.sh [DIR]
 # Run from the repository root, on the machine with the toolchain (it needs `apt-get download`).
 set -euo pipefail
@@ -27,6 +28,10 @@ gzip -9 "$dir/dextrain"
 benches/physics_module.sh "$baseline" >"$dir/$baseline.wgsl"
 benches/physics_module.sh HEAD >"$dir/head.wgsl"
 benches/physics_variants.py "$dir/head.wgsl" "$dir/variants" >/dev/null
+# the module before the narrow phases were shared out over the workgroup (each env walking its own
+# list of queries), timed against today's by the suite's step `variants` like the knock-outs
+previous=${PREVIOUS_COMMIT:-af98c83}
+benches/physics_module.sh "$previous" >"$dir/variants/before_rounds_$previous.wgsl"
 echo "$baseline" >"$dir/baseline_commit"
 git rev-parse --short HEAD >"$dir/commit"
 size=$(du -sm "$dir" | cut -f1)

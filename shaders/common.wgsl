@@ -10,7 +10,6 @@ const MAX_PIECES: u32 = 32u;
 const PROJ_ITERS: u32 = 4u;
 const BOX_PROJ_ITERS: u32 = 16u;
 const REVISIT_WORDS: u32 = 8u;
-const REVISIT_CACHE: u32 = 16u;
 
 const SHAPE_SPHERE: u32 = 0u;
 const SHAPE_BOX: u32 = 1u;

@@ -490,13 +490,14 @@ struct PiecePose {
 
 // world pose and scaled size of an object piece: centre = p_obj + R_obj (s c), rotation = R_obj R_piece
 fn piece_pose(pd: PieceDesc) -> PiecePose {
-    return piece_pose_at(pd, st.obj_pos.xyz, st.obj_rot);
+    return piece_pose_at(pd, prm.obj_scale, st.obj_pos.xyz, st.obj_rot);
 }
 
-// physics.rs: piece_pose_at. piece_pose with the object's frame at opos, orot
-fn piece_pose_at(pd: PieceDesc, opos: vec3<f32>, orot: vec4<f32>) -> PiecePose {
-    let pos = opos + quat_rotate(orot, pd.pos.xyz * prm.obj_scale);
-    return PiecePose(pos, quat_mul(orot, pd.rot), pd.size.xyz * prm.obj_scale);
+// physics.rs: piece_pose_at. piece_pose with the object's frame at opos, orot (its lengths scaled
+// by scale: the env's, which a narrow phase run for another env of the workgroup passes)
+fn piece_pose_at(pd: PieceDesc, scale: f32, opos: vec3<f32>, orot: vec4<f32>) -> PiecePose {
+    let pos = opos + quat_rotate(orot, pd.pos.xyz * scale);
+    return PiecePose(pos, quat_mul(orot, pd.rot), pd.size.xyz * scale);
 }
 
 // the object's centre of mass (world): p_obj + R_obj c
@@ -515,22 +516,33 @@ fn speculative_margin_at(ci: u32, cpos: vec3<f32>, h: f32, ocom: vec3<f32>, ovel
     return max(h * (length(v) + r * length(link_w[l] - ow)), CONTACT_MARGIN);
 }
 
+// an env's object as the narrow phase needs it (physics.rs reads it from EnvParams): which of the
+// run's objects, its scale and its bounding sphere's radius (EnvParams::obj_com.w). The narrow
+// phase takes it as an argument, not from the invocation's own `prm`: an invocation runs queries
+// of other envs of its workgroup (narrow_rounds.wgsl)
+struct ObjectShape {
+    index: u32,
+    scale: f32,
+    radius: f32,
+}
+
 // physics.rs: collide_hand_object_at. The deepest contact of hand collider ci (at cp) over the
-// object's pieces (its frame at opos, orot; bounding spheres grown by margin first)
-fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4<f32>, margin: f32) -> Contact {
+// object's pieces (the object `obj`, its frame at opos, orot; bounding spheres grown by margin
+// first)
+fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4<f32>, margin: f32, obj: ObjectShape) -> Contact {
     let cd = colliders[ci];
     let rc = bounding_radius(cd.shape, cd.size.xyz) + margin;
     var best = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
-    if (!object_in_reach(cd, cp.pos, opos, margin)) {
+    if (!object_in_reach(cd, cp.pos, opos, margin, obj.radius)) {
         return best;
     }
-    let od = objects[prm.obj_index];
+    let od = objects[obj.index];
     // the collider's centre in the object frame: each piece's bounding sphere is tested there
     let c_obj = quat_rotate(quat_conj(orot), cp.pos - opos);
     for (var k = 0u; k < od.n_pieces; k++) {
         let pd = pieces[od.first_piece + k];
-        let r = rc + pd.pos.w * prm.obj_scale;
-        let dp = c_obj - pd.pos.xyz * prm.obj_scale;
+        let r = rc + pd.pos.w * obj.scale;
+        let dp = c_obj - pd.pos.xyz * obj.scale;
         if (dot(dp, dp) > r * r) {
             continue;
         }
@@ -538,8 +550,8 @@ fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4
         // that shortcut made the bench scene's envs blow up on lavapipe, cause not found; with each
         // env's own list of queries (2026-11-30) it no longer does, but steps 0.67x as fast on
         // lavapipe: left out)
-        let pp = piece_pose_at(pd, opos, orot);
-        let c = collide_collider_piece(cd, cp, pd, prm.obj_scale, pp.pos, pp.rot, margin);
+        let pp = piece_pose_at(pd, obj.scale, opos, orot);
+        let c = collide_collider_piece(cd, cp, pd, obj.scale, pp.pos, pp.rot, margin);
         if (c.depth > best.depth) {
             best = c;
         }
@@ -548,10 +560,10 @@ fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4
 }
 
 // physics.rs: object_in_reach. collide_hand_object_at's first test: the collider's bounding
-// sphere, grown by margin, meets the object's (a NaN pose passes, on to the narrow phase); the
-// contact pass takes it first, to leave a far collider unturned
-fn object_in_reach(cd: ColliderDesc, cpos: vec3<f32>, opos: vec3<f32>, margin: f32) -> bool {
-    let reach = bounding_radius(cd.shape, cd.size.xyz) + margin + prm.obj_com.w;
+// sphere, grown by margin, meets the object's (radius obj_radius; a NaN pose passes, on to the
+// narrow phase); the contact pass takes it first, to leave a far collider unturned
+fn object_in_reach(cd: ColliderDesc, cpos: vec3<f32>, opos: vec3<f32>, margin: f32, obj_radius: f32) -> bool {
+    let reach = bounding_radius(cd.shape, cd.size.xyz) + margin + obj_radius;
     let dc = cpos - opos;
     return !(dot(dc, dc) > reach * reach);
 }
@@ -1522,14 +1534,11 @@ fn hand_object_force(ci: u32, c: Contact, cf: HandContactForce, ocom: vec3<f32>,
     }
 }
 
-// physics.rs: contacts_and_forces, then arriving_contacts and the object's velocity change
-// (substep). Every contact of the substep and the object's velocities at its end
 // next_in_list's answer for an empty list
 const NO_COLLIDER: u32 = 0xffffffffu;
 
 // physics.rs: next_in_list. The first collider of bit list `list` (bit ci % 32 of word ci / 32)
 // from word `word` on, taken off the list (`word` left at its word); NO_COLLIDER once it is empty.
-// Walking a list so, a warp runs as many rounds as its busiest env has colliders on it
 fn next_in_list(list: ptr<function, array<u32, REVISIT_WORDS>>, word: ptr<function, u32>) -> u32 {
     while (*word < REVISIT_WORDS && (*list)[*word] == 0u) {
         *word += 1u;
@@ -1543,6 +1552,21 @@ fn next_in_list(list: ptr<function, array<u32, REVISIT_WORDS>>, word: ptr<functi
     return *word * 32u + firstTrailingBit(bits);
 }
 
+// physics.rs: contacts_and_forces, then arriving_contacts and the object's velocity change
+// (substep). Every contact of the substep and the object's velocities at its end.
+//
+// The hand–object narrow phases are not run where each pair is solved, one env per invocation:
+// a warp runs a branch when any of its envs takes it, so walking each env's own pairs it ran as
+// many narrow phases as its busiest env had, and both the palm box's and the capsules' code in
+// most of them (BENCHMARKS.md "Each env's own list of queries"). Each pass instead posts its
+// queries (narrow_rounds.wgsl: post_query), the workgroup shares out all of its envs' queries
+// of the pass over its invocations, the box colliders' first (narrow_phase_round), and each env
+// then solves its pairs in the order physics.rs does with the contacts found (query_contact).
+// Four rounds a substep: the first pass's pairs at the substep's poses, their swept searches,
+// the second pass's swept searches, the arriving pass's; each query has the arguments and the
+// arithmetic physics.rs gives it, so the contacts are its. Every invocation of the workgroup
+// reaches each round (an env past the batch, `in_batch` false, posts none), and the env's own work
+// between them is behind `in_batch`.
 fn contacts_and_forces(h: f32) -> ObjectVelocity {
     let k = g.contact_k;
     let kt = g.contact_kt;
@@ -1553,335 +1577,299 @@ fn contacts_and_forces(h: f32) -> ObjectVelocity {
     let mu_ho = 0.5 * (prm.hand_friction + prm.obj_friction);
     let mu_ht = 0.5 * (prm.hand_friction + prm.table_friction);
     let mu_ot = 0.5 * (prm.obj_friction + prm.table_friction);
-    // hand–object pairs within the margin that did not push: solved again once the object's
-    // velocity this substep is predicted (bit ci % 32 of word ci / 32)
-    var revisit: array<u32, REVISIT_WORDS>;
-    var any_revisit = false;
-    // the first REVISIT_CACHE of those pairs' contacts at the substep's poses, in collider order:
-    // the link poses do not change within the substep, so the second pass would find them again
-    var cached: array<Contact, REVISIT_CACHE>;
-    var n_cached = 0u;
     let opos = st.obj_pos.xyz;
     let orot = st.obj_rot;
-    // Each env walks its own list of jobs: a warp runs a branch when any of its envs takes it, so
-    // a loop over the colliders with the narrow phase inside ran it for every collider that any of
-    // the warp's envs had near the object, and again for every collider any of them searched
-    // (BENCHMARKS.md "The GPU window of 2026-11-29"); walking each env's near colliders and their
-    // swept searches as one list, one query a round, a warp runs as many rounds as its busiest
-    // env has queries. Each env solves the same pairs in the same order as physics.rs.
-    // First the colliders near the object (near_obj) or the table (near_tab), the rest's springs
-    // cleared; jobs: the colliders of either list not yet walked
-    var jobs: array<u32, REVISIT_WORDS>;
+    let obj = ObjectShape(prm.obj_index, prm.obj_scale, prm.obj_com.w);
+    // the colliders near the object (near_obj) or the table (near_tab), the rest's springs cleared
     var near_obj: array<u32, REVISIT_WORDS>;
     var near_tab: array<u32, REVISIT_WORDS>;
-    for (var ci = 0u; ci < g.n_colliders; ci++) {
-        let cd = colliders[ci];
-        let r_c = bounding_radius(cd.shape, cd.size.xyz);
-        let cpos = collider_centre(ci);
-        let margin = speculative_margin_at(ci, cpos, h, ocom, ovel, ow);
-        let bit = 1u << (ci % 32u);
-        if (object_in_reach(cd, cpos, opos, margin)) {
-            near_obj[ci / 32u] |= bit;
-            jobs[ci / 32u] |= bit;
-        } else {
-            springs[spring_base + ci] = vec4<f32>(0.0);
-        }
-        // the collider's lowest point is at least r_c below its centre: a 1 mm allowance over the
-        // margin for the rounding of collide_hand_table_at
-        if (g.hand_table != 0u && cpos.z <= r_c + CONTACT_MARGIN + 1.0e-3) {
-            near_tab[ci / 32u] |= bit;
-            jobs[ci / 32u] |= bit;
-        } else if (g.hand_table != 0u) {
-            springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
-        }
-    }
-    // the object's frame at the end of the substep, for the swept searches
-    let oend = object_frame_at_end(h, ocom, ovel, ow);
-    // the job in hand: collider ci (its pose cp, margin) and, while sweeping, its contact at the
-    // substep's poses (raw) and raw's own depth by the end of the substep (c_end)
-    var word = 0u;
-    var ci = 0u;
-    var sweeping = false;
-    var near_object = false;
-    var near_table = false;
-    var cp = ColliderPose(vec3<f32>(0.0), vec4<f32>(0.0, 0.0, 0.0, 1.0));
-    var margin = 0.0;
-    var raw = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
-    var c_end = 0.0;
-    loop {
-        var q_pose = cp;
-        var q_frame = ObjectFrame(opos, orot);
-        if (sweeping) {
-            q_pose = collider_pose_at_end(colliders[ci].link, cp, h);
-            q_frame = oend;
-        } else {
-            // the next collider of the list, in order
-            ci = next_in_list(&jobs, &word);
-            if (ci == NO_COLLIDER) {
-                break;
-            }
-            let bit = 1u << (ci % 32u);
-            near_object = (near_obj[ci / 32u] & bit) != 0u;
-            near_table = (near_tab[ci / 32u] & bit) != 0u;
-            // the collider's pose once for the margin, the narrow phase, the swept search and the
-            // table
-            cp = collider_pose(ci);
-            margin = speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow);
-            q_pose = cp;
-        }
-        // the one narrow phase of the round: the substep's poses, or both at the end of the
-        // substep while sweeping
-        var found = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
-        if (near_object) {
-            found = collide_hand_object_at(ci, q_pose, q_frame.pos, q_frame.rot, margin);
-        }
-        let l = colliders[ci].link;
-        var c = raw;
-        if (sweeping) {
-            sweeping = false;
-            if (found.depth > -1.0 && found.depth > c_end + SWEPT_TOLERANCE) {
-                c = swept_contact_from_end(l, found, h, ocom, ovel, ow);
-            }
-        } else if (near_object) {
-            raw = found;
-            c = found;
-            let t = swept_test(ci, raw, h, ocom, ovel, ow);
-            if (t.search) {
-                sweeping = true;
-                c_end = t.c_end;
-                continue;
-            }
-        }
-        // hand–object: a touching pair, or one apart by less than the speculative margin (at the
-        // end of the substep where the object's turn brings a feature in elsewhere)
-        if (near_object) {
-            // the statistics' penetration: the pair's overlap at the substep's poses, not a swept
-            // contact's depth (physics.rs)
-            max_pen_ho = max(max_pen_ho, raw.depth);
-            max_pen = max(max_pen, raw.depth);
-            if (c.depth > -margin) {
-                let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
-                if (dot(cf.force, c.normal) > 0.0) {
-                    hand_object_force(ci, c, cf, ocom, ow, vec3<f32>(0.0), vec3<f32>(0.0), mu_ho, h);
-                } else {
-                    revisit[ci / 32u] |= 1u << (ci % 32u);
-                    any_revisit = true;
-                    if (n_cached < REVISIT_CACHE) {
-                        cached[n_cached] = raw;
-                        n_cached++;
-                    }
-                }
-            } else {
-                springs[spring_base + ci] = vec4<f32>(0.0);
-            }
-        }
-        // hand–table
-        if (near_table) {
-            let c2 = collide_hand_table_at(ci, cp);
-            if (c2.depth > -CONTACT_MARGIN) {
-                let cf = solve_hand_contact(spring_base + g.n_colliders + ci, l, c2, vec3<f32>(0.0), prm.hand_table_c, mu_ht, h);
-                if (dot(cf.force, c2.normal) > 0.0 || c2.depth > 0.0) {
-                    n_contacts += 1u;
-                    max_pen = max(max_pen, c2.depth);
-                }
-            } else {
-                springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
-            }
-        }
-    }
-    // object–table: every support point of every piece, in order (spring slots 0.. of the object)
-    // a piece whose bounding sphere is above the table has none touching (its springs are cleared)
-    let od = objects[prm.obj_index];
-    var kp = 0u;
-    let above = st.obj_pos.z > prm.obj_com.w;
-    for (var pi = 0u; pi < od.n_pieces; pi++) {
-        let pd = pieces[od.first_piece + pi];
-        var pp = PiecePose(vec3<f32>(0.0, 0.0, 1.0), vec4<f32>(0.0, 0.0, 0.0, 1.0), vec3<f32>(0.0));
-        if (!above) {
-            pp = piece_pose(pd);
-        }
-        if (above || pp.pos.z > pd.pos.w * prm.obj_scale) {
-            for (var j = 0u; j < pd.n_support; j++) {
-                springs[spring_base + 2u * g.n_colliders + kp] = vec4<f32>(0.0);
-                kp += 1u;
-            }
-            continue;
-        }
-        for (var j = 0u; j < pd.n_support; j++) {
-            let ki = spring_base + 2u * g.n_colliders + kp;
-            kp += 1u;
-            let c = collide_piece_table(pd, prm.obj_scale, pp.size, pp.pos, pp.rot, j);
-            if (c.depth > 0.0) {
-                let vo = ovel + cross(ow, c.point - ocom);
-                let cf = contact_force(c, vo, springs[ki].xyz, k, kt, prm.obj_contact_c, mu_ot, h);
-                springs[ki] = vec4<f32>(cf.spring, 1.0);
-                let a = select(0.0, k * h + prm.obj_contact_c, dot(cf.force, c.normal) > 0.0);
-                apply_object_force(ocom, c.point, cf.force, c.normal, a, cf.tdamp);
-                let tor = torsion_torque(c.normal, ow, dot(cf.force, c.normal), mu_ot, g.torsion_radius);
-                apply_object_torque(tor.torque, c.normal, tor.damping);
-                n_contacts += 1u;
-                max_pen = max(max_pen, c.depth);
-            } else {
-                springs[ki] = vec4<f32>(0.0);
-            }
-        }
-    }
-    // the second pass: the pairs that did not push, against the object's velocity at the end of
-    // the substep as the forces so far make it (physics.rs: contacts_and_forces), each env walking
-    // its own list of them and their swept searches as the first pass does; then the pass after
-    // the object's solve (physics.rs: arriving_contacts) in the same loop, so that the narrow
-    // phase has one call site for both (a third copy of it in the kernel slowed the step by ~13 %
-    // on lavapipe whether or not it ran)
+    // the first pass's pairs whose swept search runs (swept), the second pass's (swept2), the
+    // arriving pass's (arriving_list)
+    var swept: array<u32, REVISIT_WORDS>;
+    var swept2: array<u32, REVISIT_WORDS>;
+    var arriving_list: array<u32, REVISIT_WORDS>;
+    // hand–object pairs within the margin that did not push: solved again once the object's
+    // velocity this substep is predicted (bit ci % 32 of word ci / 32). Their contacts at the
+    // substep's poses are the first round's, kept in its slots (physics.rs keeps the first
+    // REVISIT_CACHE of them and finds the rest again: the same contacts)
+    var revisit: array<u32, REVISIT_WORDS>;
+    var any_revisit = false;
+    // the object's predicted (pred) and solved (u) velocities at the end of the substep, and its
+    // frame at the end of the substep for them (pend, uend)
     var pred = ObjectVelocity(vec3<f32>(0.0), vec3<f32>(0.0));
     var pend = ObjectFrame(opos, orot);
-    if (any_revisit) {
-        pred = object_velocity_change(h);
-        pend = object_frame_at_end(h, ocom, pred.vel, pred.w);
-    }
-    var pushed = false;
-    word = 0u;
-    sweeping = false;
-    var n_seen = 0u;
-    // the arriving pass: the object's solved velocities u (its frame at the end of the substep
-    // for them, uend, found by the first search), the pushing pairs before it (n0), the next one
-    // (i_arr), whether one of its contacts pushed (arrived)
-    var arriving = false;
     var u = pred;
-    var uend = pend;
-    var have_uend = false;
     var n0 = 0u;
-    var i_arr = 0u;
-    var arrived = false;
-    loop {
-        // the round's query: 0 at the substep's poses, 1 at the end of the substep (the swept
-        // search), 2 none (a cached contact that needs no search), 3 an arriving pair's search at
-        // the end of the substep for u
-        var stage = 1u;
-        if (!sweeping && !arriving) {
-            ci = next_in_list(&revisit, &word);
-            if (ci == NO_COLLIDER) {
-                // the second pass is done: the object's velocities at the end of the substep, its
-                // prediction when none of the second pass's pairs pushed (nothing the implicit
-                // solve reads has changed since)
+    // one call site of the rounds (a driver inlines the narrow phase at each): stage s solves
+    // the pairs of the rounds before it and posts the queries of round s, stage 4 the last
+    // solves; every invocation runs each stage (an env past the batch only its rounds)
+    for (var stage = 0u; stage < 5u; stage++) {
+        if (in_batch) {
+            switch stage {
+                case 0u: {
+                for (var ci = 0u; ci < g.n_colliders; ci++) {
+                    let cd = colliders[ci];
+                    let r_c = bounding_radius(cd.shape, cd.size.xyz);
+                    let cpos = collider_centre(ci);
+                    let margin = speculative_margin_at(ci, cpos, h, ocom, ovel, ow);
+                    let bit = 1u << (ci % 32u);
+                    if (object_in_reach(cd, cpos, opos, margin, obj.radius)) {
+                        near_obj[ci / 32u] |= bit;
+                        // the pair's query at the substep's poses (the collider's pose once for the
+                        // margin, the narrow phase, the swept search and the table)
+                        let cp = collider_pose(ci);
+                        post_query(0u, ci, cp, ObjectFrame(opos, orot), speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow));
+                    } else {
+                        springs[spring_base + ci] = vec4<f32>(0.0);
+                    }
+                    // the collider's lowest point is at least r_c below its centre: a 1 mm allowance over
+                    // the margin for the rounding of collide_hand_table_at
+                    if (g.hand_table != 0u && cpos.z <= r_c + CONTACT_MARGIN + 1.0e-3) {
+                        near_tab[ci / 32u] |= bit;
+                    } else if (g.hand_table != 0u) {
+                        springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
+                    }
+                }
+                }
+                case 1u: {
+                // the swept searches: where the object's turn may bring a feature deeper than the pair's
+                // own contact would be by the end of the substep, the pair at the end of the substep
+                let oend = object_frame_at_end(h, ocom, ovel, ow);
+                var list = near_obj;
+                var word = 0u;
+                loop {
+                    let ci = next_in_list(&list, &word);
+                    if (ci == NO_COLLIDER) {
+                        break;
+                    }
+                    let t = swept_test(ci, query_contact(0u, ci), h, ocom, ovel, ow);
+                    if (t.search) {
+                        swept[ci / 32u] |= 1u << (ci % 32u);
+                        post_query(1u, ci, collider_pose_at_end(colliders[ci].link, collider_pose(ci), h), oend, query_margin(0u, ci));
+                    }
+                }
+                }
+                case 2u: {
+                // the first pass: the colliders of either list, in order
+                var jobs: array<u32, REVISIT_WORDS>;
+                for (var w = 0u; w < REVISIT_WORDS; w++) {
+                    jobs[w] = near_obj[w] | near_tab[w];
+                }
+                var word = 0u;
+                loop {
+                    let ci = next_in_list(&jobs, &word);
+                    if (ci == NO_COLLIDER) {
+                        break;
+                    }
+                    let bit = 1u << (ci % 32u);
+                    let l = colliders[ci].link;
+                    // hand–object: a touching pair, or one apart by less than the speculative margin (at
+                    // the end of the substep where the object's turn brings a feature in elsewhere)
+                    if ((near_obj[ci / 32u] & bit) != 0u) {
+                        let raw = query_contact(0u, ci);
+                        let margin = query_margin(0u, ci);
+                        var c = raw;
+                        if ((swept[ci / 32u] & bit) != 0u) {
+                            let t = swept_test(ci, raw, h, ocom, ovel, ow);
+                            let found = query_contact(1u, ci);
+                            if (found.depth > -1.0 && found.depth > t.c_end + SWEPT_TOLERANCE) {
+                                c = swept_contact_from_end(l, found, h, ocom, ovel, ow);
+                            }
+                        }
+                        // the statistics' penetration: the pair's overlap at the substep's poses, not a
+                        // swept contact's depth (physics.rs)
+                        max_pen_ho = max(max_pen_ho, raw.depth);
+                        max_pen = max(max_pen, raw.depth);
+                        if (c.depth > -margin) {
+                            let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
+                            if (dot(cf.force, c.normal) > 0.0) {
+                                hand_object_force(ci, c, cf, ocom, ow, vec3<f32>(0.0), vec3<f32>(0.0), mu_ho, h);
+                            } else {
+                                revisit[ci / 32u] |= bit;
+                                any_revisit = true;
+                            }
+                        } else {
+                            springs[spring_base + ci] = vec4<f32>(0.0);
+                        }
+                    }
+                    // hand–table
+                    if ((near_tab[ci / 32u] & bit) != 0u) {
+                        let c2 = collide_hand_table_at(ci, collider_pose(ci));
+                        if (c2.depth > -CONTACT_MARGIN) {
+                            let cf = solve_hand_contact(spring_base + g.n_colliders + ci, l, c2, vec3<f32>(0.0), prm.hand_table_c, mu_ht, h);
+                            if (dot(cf.force, c2.normal) > 0.0 || c2.depth > 0.0) {
+                                n_contacts += 1u;
+                                max_pen = max(max_pen, c2.depth);
+                            }
+                        } else {
+                            springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
+                        }
+                    }
+                }
+                // object–table: every support point of every piece, in order (spring slots 0.. of the
+                // object); a piece whose bounding sphere is above the table has none touching (its
+                // springs are cleared)
+                let od = objects[prm.obj_index];
+                var kp = 0u;
+                let above = st.obj_pos.z > prm.obj_com.w;
+                for (var pi = 0u; pi < od.n_pieces; pi++) {
+                    let pd = pieces[od.first_piece + pi];
+                    var pp = PiecePose(vec3<f32>(0.0, 0.0, 1.0), vec4<f32>(0.0, 0.0, 0.0, 1.0), vec3<f32>(0.0));
+                    if (!above) {
+                        pp = piece_pose(pd);
+                    }
+                    if (above || pp.pos.z > pd.pos.w * prm.obj_scale) {
+                        for (var j = 0u; j < pd.n_support; j++) {
+                            springs[spring_base + 2u * g.n_colliders + kp] = vec4<f32>(0.0);
+                            kp += 1u;
+                        }
+                        continue;
+                    }
+                    for (var j = 0u; j < pd.n_support; j++) {
+                        let ki = spring_base + 2u * g.n_colliders + kp;
+                        kp += 1u;
+                        let c = collide_piece_table(pd, prm.obj_scale, pp.size, pp.pos, pp.rot, j);
+                        if (c.depth > 0.0) {
+                            let vo = ovel + cross(ow, c.point - ocom);
+                            let cf = contact_force(c, vo, springs[ki].xyz, k, kt, prm.obj_contact_c, mu_ot, h);
+                            springs[ki] = vec4<f32>(cf.spring, 1.0);
+                            let a = select(0.0, k * h + prm.obj_contact_c, dot(cf.force, c.normal) > 0.0);
+                            apply_object_force(ocom, c.point, cf.force, c.normal, a, cf.tdamp);
+                            let tor = torsion_torque(c.normal, ow, dot(cf.force, c.normal), mu_ot, g.torsion_radius);
+                            apply_object_torque(tor.torque, c.normal, tor.damping);
+                            n_contacts += 1u;
+                            max_pen = max(max_pen, c.depth);
+                        } else {
+                            springs[ki] = vec4<f32>(0.0);
+                        }
+                    }
+                }
+                // the second pass (physics.rs: contacts_and_forces): the pairs that did not push, against
+                // the object's velocity at the end of the substep as the forces so far make it; their
+                // swept searches for those velocities
+                if (any_revisit) {
+                    pred = object_velocity_change(h);
+                    pend = object_frame_at_end(h, ocom, pred.vel, pred.w);
+                    var list = revisit;
+                    word = 0u;
+                    loop {
+                        let ci = next_in_list(&list, &word);
+                        if (ci == NO_COLLIDER) {
+                            break;
+                        }
+                        let t = swept_test(ci, query_contact(0u, ci), h, ocom, pred.vel, pred.w);
+                        if (t.search) {
+                            swept2[ci / 32u] |= 1u << (ci % 32u);
+                            post_query(1u, ci, collider_pose_at_end(colliders[ci].link, collider_pose(ci), h), pend, query_margin(0u, ci));
+                        }
+                    }
+                }
+                }
+                case 3u: {
+                var pushed = false;
+                var list = revisit;
+                var word = 0u;
+                loop {
+                    let ci = next_in_list(&list, &word);
+                    if (ci == NO_COLLIDER) {
+                        break;
+                    }
+                    let l = colliders[ci].link;
+                    let raw = query_contact(0u, ci);
+                    var c = raw;
+                    if ((swept2[ci / 32u] & (1u << (ci % 32u))) != 0u) {
+                        let t = swept_test(ci, raw, h, ocom, pred.vel, pred.w);
+                        let se = swept_end_contact(l, query_contact(1u, ci), t.c_end, h, ocom, pred.vel, pred.w);
+                        if (se.found) {
+                            c = se.c;
+                        }
+                    }
+                    let v_other = pred.vel + cross(pred.w, c.point - ocom);
+                    let cf = solve_hand_contact(spring_base + ci, l, c, v_other, prm.obj_contact_c, mu_ho, h);
+                    // the object's force linearised about the predicted velocities: + D·J·(u_p − u₀)
+                    let dv_point = (pred.vel - ovel) + cross(pred.w - ow, c.point - ocom);
+                    hand_object_force(ci, c, cf, ocom, pred.w, dv_point, pred.w - ow, mu_ho, h);
+                    pushed = pushed || dot(cf.force, c.normal) > 0.0;
+                }
+                // the object's velocities at the end of the substep: the prediction when none of the
+                // second pass's pairs pushed (nothing the implicit solve reads has changed since)
+                u = pred;
                 if (!any_revisit || pushed) {
                     u = object_velocity_change(h);
                 }
-                arriving = true;
+                // the arriving pass (physics.rs: arriving_contacts): the pairs that pushed before it
+                // whose solved spin differs enough from the one they were found with (the features'
+                // order by depth at the end of the substep changes with the object's turn alone, by at
+                // most h·2r·|Δω|) and whose swept test against u passes, searched at the end of the
+                // substep for u. A collider pushes once a substep, so each has one slot
                 n0 = n_reactions;
-                continue;
-            }
-            stage = 0u;
-            if (n_seen < n_cached) {
-                raw = cached[n_seen];
-                let t = swept_test(ci, raw, h, ocom, pred.vel, pred.w);
-                c_end = t.c_end;
-                stage = select(2u, 1u, t.search);
-            }
-            n_seen++;
-            // a pair that queries: the collider's pose and the first pass's margin (from the
-            // present velocities: the same raw contact)
-            if (stage != 2u) {
-                cp = collider_pose(ci);
-                margin = speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow);
-            }
-        } else if (arriving) {
-            // the next pair that pushed whose solved spin differs enough from the one it was found
-            // with (the features' order by depth at the end of the substep changes with the
-            // object's turn alone, by at most h·2r·|Δω|) and whose swept test against u passes
-            var next = false;
-            while (i_arr < n0 && !next) {
-                let i = i_arr;
-                i_arr++;
-                let r = reactions[i];
-                ci = r.collider;
-                let cd = colliders[ci];
-                if (h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length((u.w - ow) - r.dw0.xyz) > SWEPT_TOLERANCE) {
+                var have_uend = false;
+                var uend = pend;
+                for (var i = 0u; i < n0; i++) {
+                    let r = reactions[i];
+                    let ci = r.collider;
+                    let cd = colliders[ci];
+                    if (h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length((u.w - ow) - r.dw0.xyz) > SWEPT_TOLERANCE) {
+                        let t = swept_test(ci, contact_at(r.point.w, r.normal.xyz, r.point.xyz), h, ocom, u.vel, u.w);
+                        if (t.search) {
+                            if (!have_uend) {
+                                uend = object_frame_at_end(h, ocom, u.vel, u.w);
+                                have_uend = true;
+                            }
+                            arriving_list[ci / 32u] |= 1u << (ci % 32u);
+                            post_query(1u, ci, collider_pose_at_end(cd.link, collider_pose(ci), h), uend, CONTACT_MARGIN);
+                        }
+                    }
+                }
+                }
+                default: {
+                var arrived = false;
+                for (var i = 0u; i < n0; i++) {
+                    let r = reactions[i];
+                    let ci = r.collider;
+                    if ((arriving_list[ci / 32u] & (1u << (ci % 32u))) == 0u) {
+                        continue;
+                    }
+                    let l = colliders[ci].link;
                     let t = swept_test(ci, contact_at(r.point.w, r.normal.xyz, r.point.xyz), h, ocom, u.vel, u.w);
-                    c_end = t.c_end;
-                    next = t.search;
+                    let found = query_contact(1u, ci);
+                    // a feature that would not be touching by the end of the substep needs no contact
+                    if (found.depth <= 0.0) {
+                        continue;
+                    }
+                    let se = swept_end_contact(l, found, t.c_end, h, ocom, u.vel, u.w);
+                    if (!se.found) {
+                        continue;
+                    }
+                    let c = se.c;
+                    let v_other = u.vel + cross(u.w, c.point - ocom);
+                    // an arriving contact has no friction spring (it starts from none and keeps none)
+                    let cf = solve_hand_contact_from(vec3<f32>(0.0), l, c, v_other, prm.obj_contact_c, mu_ho, h);
+                    // linearised about the solved velocities, as the second pass's pairs about the
+                    // predicted ones
+                    let dv_point = (u.vel - ovel) + cross(u.w - ow, c.point - ocom);
+                    hand_object_force(ci, c, cf, ocom, u.w, dv_point, u.w - ow, mu_ho, h);
+                    arrived = arrived || dot(cf.force, c.normal) > 0.0;
+                }
+                // an arriving contact pushed: the object's velocity change solved again with it
+                if (arrived) {
+                    u = object_velocity_change(h);
+                }
                 }
             }
-            if (!next) {
-                break;
+        }
+        if (stage < 4u) {
+            // the round's colliders: those whose queries the stage posted
+            var posted = near_obj;
+            if (stage == 1u) {
+                posted = swept;
+            } else if (stage == 2u) {
+                posted = swept2;
+            } else if (stage == 3u) {
+                posted = arriving_list;
             }
-            stage = 3u;
-            cp = collider_pose(ci);
-            margin = CONTACT_MARGIN;
-            if (!have_uend) {
-                uend = object_frame_at_end(h, ocom, u.vel, u.w);
-                have_uend = true;
-            }
+            narrow_phase_round(select(1u, 0u, stage == 0u), posted);
         }
-        var q_pose = cp;
-        var q_frame = ObjectFrame(opos, orot);
-        if (stage == 1u) {
-            q_pose = collider_pose_at_end(colliders[ci].link, cp, h);
-            q_frame = pend;
-        } else if (stage == 3u) {
-            q_pose = collider_pose_at_end(colliders[ci].link, cp, h);
-            q_frame = uend;
-        }
-        var found = contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);
-        if (stage != 2u) {
-            found = collide_hand_object_at(ci, q_pose, q_frame.pos, q_frame.rot, margin);
-        }
-        let l = colliders[ci].link;
-        var c = raw;
-        // the velocities the pair is solved against: the predicted ones, or u when arriving
-        var vel = pred.vel;
-        var w = pred.w;
-        if (stage == 3u) {
-            // a feature that would not be touching by the end of the substep needs no contact
-            if (found.depth <= 0.0) {
-                continue;
-            }
-            let se = swept_end_contact(l, found, c_end, h, ocom, u.vel, u.w);
-            if (!se.found) {
-                continue;
-            }
-            c = se.c;
-            vel = u.vel;
-            w = u.w;
-        } else if (stage == 1u) {
-            sweeping = false;
-            let se = swept_end_contact(l, found, c_end, h, ocom, pred.vel, pred.w);
-            if (se.found) {
-                c = se.c;
-            }
-        } else if (stage == 0u) {
-            raw = found;
-            c = found;
-            let t = swept_test(ci, raw, h, ocom, pred.vel, pred.w);
-            if (t.search) {
-                sweeping = true;
-                c_end = t.c_end;
-                continue;
-            }
-        }
-        let v_other = vel + cross(w, c.point - ocom);
-        // an arriving contact has no friction spring (it starts from none and keeps none)
-        var anchor = vec3<f32>(0.0);
-        if (!arriving) {
-            anchor = springs[spring_base + ci].xyz;
-        }
-        let cf = solve_hand_contact_from(anchor, l, c, v_other, prm.obj_contact_c, mu_ho, h);
-        let push = dot(cf.force, c.normal) > 0.0;
-        if (!arriving) {
-            springs[spring_base + ci] = hand_spring_after(c, cf);
-        }
-        // the object's force linearised about the velocities it was solved against:
-        // + D·J·(u_p − u₀)
-        let dv_point = (vel - ovel) + cross(w - ow, c.point - ocom);
-        hand_object_force(ci, c, cf, ocom, w, dv_point, w - ow, mu_ho, h);
-        if (arriving) {
-            arrived = arrived || push;
-        } else {
-            pushed = pushed || push;
-        }
-    }
-    // an arriving contact pushed: the object's velocity change solved again with it
-    if (arrived) {
-        u = object_velocity_change(h);
     }
     return u;
 }
@@ -2092,21 +2080,27 @@ fn integrate_object(u: ObjectVelocity, h: f32) {
     st.obj_rot = rot_n;
 }
 
+// (every invocation of the workgroup runs it, for contacts_and_forces' rounds; an env past the
+// batch does nothing else)
 fn substep(h: f32) {
-    hand_kinematics();
-    obj_f = vec3<f32>(0.0);
-    obj_t = vec3<f32>(0.0);
-    for (var i = 0u; i < 36u; i++) {
-        obj_d[i] = 0.0;
+    if (in_batch) {
+        hand_kinematics();
+        obj_f = vec3<f32>(0.0);
+        obj_t = vec3<f32>(0.0);
+        for (var i = 0u; i < 36u; i++) {
+            obj_d[i] = 0.0;
+        }
+        n_reactions = 0u;
+        hand_servo(h);
     }
-    n_reactions = 0u;
-    hand_servo(h);
     // the contacts and the object's velocities at the end of the substep (with the features its
     // solved motion brings in at the pushing pairs: physics.rs, substep)
     let u = contacts_and_forces(h);
-    react_to_object_motion(u, h);
-    integrate_hand(h);
-    integrate_object(u, h);
+    if (in_batch) {
+        react_to_object_motion(u, h);
+        integrate_hand(h);
+        integrate_object(u, h);
+    }
 }
 
 fn is_finite3(v: vec3<f32>) -> bool {
@@ -2133,6 +2127,9 @@ fn env_step(env: u32) -> StepStats {
     let n_sub = g.decimation * g.substeps;
     for (var i = 0u; i < n_sub; i++) {
         substep(h);
+    }
+    if (!in_batch) {
+        return out;
     }
     st.time += g.dt * f32(g.decimation);
     st.step += 1u;
@@ -2162,18 +2159,25 @@ fn env_step(env: u32) -> StepStats {
     return out;
 }
 
+// Every invocation of the workgroup steps through env_step, an env past the batch too (in_batch
+// false): the substeps' narrow-phase rounds (narrow_rounds.wgsl) take the whole workgroup.
 @compute @workgroup_size(64)
-fn step_main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
+fn step_main(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
     let env = env_index(gid, nwg);
-    if (env >= g.n_envs) {
-        return;
+    lane = lid;
+    lane_env = env;
+    in_batch = env < g.n_envs;
+    find_box_colliders();
+    if (in_batch) {
+        st = states[env];
+        prm = params[env];
+        tg = targets[env];
+        spring_base = env * g.n_springs;
     }
-    st = states[env];
-    prm = params[env];
-    tg = targets[env];
-    spring_base = env * g.n_springs;
     let out = env_step(env);
-    states[env] = st;
-    params[env] = prm;
-    stats[env] = out;
+    if (in_batch) {
+        states[env] = st;
+        params[env] = prm;
+        stats[env] = out;
+    }
 }

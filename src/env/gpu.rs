@@ -8,7 +8,7 @@ use bytemuck::Pod;
 
 use super::{EnvBatch, EnvSpec, SimModel};
 use crate::gpu::bindings::{COLLIDERS, GLOBALS, HULLS, JOINTS, OBJECTS, PARAMS, PIECES, REF_OBJECTS, RESET_MASK, STATES, STATS, TARGETS};
-use crate::gpu::bindings::{RESET_MAIN, SIM_GROUP, SPRINGS, STEP_MAIN};
+use crate::gpu::bindings::{NARROW_QUERIES, RESET_MAIN, SIM_GROUP, SPRINGS, STEP_MAIN, STEP_MAIN_WITHOUT_ROUNDS};
 use crate::gpu::context::{BufferRole, GpuContext, ReadbackCopy};
 use crate::gpu::layout::*;
 use crate::gpu::shaders::{shader_source, workgroups_for};
@@ -34,6 +34,9 @@ pub struct GpuEnvBatch {
     pub(crate) reset_mask: wgpu::Buffer,
     /// [`SPRINGS`]: `[N, n_springs]` `vec4<f32>`.
     pub(crate) springs: wgpu::Buffer,
+    /// [`NARROW_QUERIES`]: `[N, 2, n_colliders, 4]` `vec4<f32>`, the step's scratch (held here
+    /// for its bind group).
+    narrow_queries: wgpu::Buffer,
     /// Staging buffer of [`GpuEnvBatch::read`] (the size of the env states or of the springs,
     /// whichever is larger).
     readback: wgpu::Buffer,
@@ -78,6 +81,10 @@ impl GpuEnvBatch {
         let spring_bytes = (n_springs * 16) as u64;
         ctx.check_buffer_size(SPRINGS.name, spring_bytes, BufferRole::Storage)
             .with_context(|| format!("sim.num_envs = {n} × {} contact springs per env", model.globals.n_springs))?;
+        // the narrow-phase rounds' slots: 2 regions × n_colliders × 4 vec4 per env
+        let query_bytes = n as u64 * 2 * model.globals.n_colliders as u64 * 64;
+        ctx.check_buffer_size(NARROW_QUERIES.name, query_bytes, BufferRole::Storage)
+            .with_context(|| format!("sim.num_envs = {n} × {} hand colliders × 128 bytes of narrow-phase queries", model.globals.n_colliders))?;
         let none = wgpu::BufferUsages::empty();
         let globals = ctx.create_binding_buffer(GLOBALS, std::slice::from_ref(&model.globals), none)?;
         let joints = ctx.create_binding_buffer(JOINTS, &model.joints, none)?;
@@ -93,6 +100,7 @@ impl GpuEnvBatch {
         let stats = ctx.create_binding_buffer(STATS, &vec![<StepStats as bytemuck::Zeroable>::zeroed(); n], none).with_context(per_env)?;
         let reset_mask = ctx.create_binding_buffer(RESET_MASK, &vec![0u32; n], none).with_context(per_env)?;
         let springs = ctx.create_binding_buffer(SPRINGS, &vec![[0.0f32; 4]; n_springs.max(1)], none).with_context(per_env)?;
+        let narrow_queries = ctx.create_scratch_buffer(NARROW_QUERIES, query_bytes).with_context(per_env)?;
         // the largest per-env readback: env states, contact springs or what the caller reads (the task layer's states)
         let task_bytes = n as u64 * min_readback_bytes_per_env;
         let readback = ctx.create_staging_buffer("env readback", state_bytes.max(spring_bytes).max(task_bytes)).with_context(per_env)?;
@@ -112,8 +120,15 @@ impl GpuEnvBatch {
             (OBJECTS, &objects),
             (HULLS, &hulls),
             (REF_OBJECTS, &ref_objects),
+            (NARROW_QUERIES, &narrow_queries),
         ];
-        let step_group = ctx.bind_group(&step_pipeline, &STEP_MAIN, &buffers)?;
+        // a module from before the narrow-phase rounds (`bench --physics-wgsl`) binds without them
+        let step_uses = if source.contains(&format!("@binding({}) var<storage, read_write> {}", NARROW_QUERIES.index, NARROW_QUERIES.name)) {
+            &STEP_MAIN
+        } else {
+            &STEP_MAIN_WITHOUT_ROUNDS
+        };
+        let step_group = ctx.bind_group(&step_pipeline, step_uses, &buffers)?;
         let reset_group = ctx.bind_group(&reset_pipeline, &RESET_MAIN, &buffers)?;
         let mut b = GpuEnvBatch {
             ctx,
@@ -126,6 +141,7 @@ impl GpuEnvBatch {
             stats,
             reset_mask,
             springs,
+            narrow_queries,
             readback,
             step_pipeline,
             reset_pipeline,
@@ -209,7 +225,7 @@ impl EnvBatch for GpuEnvBatch {
     }
 
     fn device_bytes(&self) -> u64 {
-        [&self.globals, &self.joints, &self.states, &self.params, &self.targets, &self.stats, &self.reset_mask, &self.springs, &self.readback].iter().map(|b| b.size()).sum()
+        [&self.globals, &self.joints, &self.states, &self.params, &self.targets, &self.stats, &self.reset_mask, &self.springs, &self.narrow_queries, &self.readback].iter().map(|b| b.size()).sum()
     }
 
     fn backend_name(&self) -> String {

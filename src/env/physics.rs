@@ -87,8 +87,9 @@ pub const SWEPT_TOLERANCE: f32 = 3.0e-4;
 /// pair past this many keeps the force it was solved with (the shader holds them in private
 /// memory).
 pub const MAX_REACTIONS: usize = 16;
-/// The CPU twin's second pass reuses the first pass's contacts of this many pairs (the rest, and
-/// the shader's, are found again, to the same bits).
+/// The CPU's second pass reuses the first pass's contacts of this many pairs (the rest are found
+/// again, to the same bits; the shader keeps all of them in its narrow-phase rounds' slots,
+/// shaders/narrow_rounds.wgsl). CPU only.
 pub const REVISIT_CACHE: usize = 16;
 
 /// Read-only description of the run shared by all envs (the shader's bindings 0–3, 18–21).
@@ -1821,7 +1822,7 @@ pub fn hand_object_force(p: &EnvParams, m: &Model, s: &mut Scratch, h: f32, ci: 
 
 /// The first collider of bit list `list` (bit ci % 32 of word ci / 32) from word `word` on, taken
 /// off the list (`word` left at its word); `None` once it is empty. The shader walks its passes'
-/// lists so (a warp then runs as many rounds as its busiest env has colliders on them).
+/// lists so, to post their queries and to solve their pairs in this file's order.
 #[inline(always)]
 pub fn next_in_list(list: &mut [u32; REVISIT_WORDS], word: &mut usize) -> Option<usize> {
     while *word < REVISIT_WORDS && list[*word] == 0 {
@@ -1859,7 +1860,7 @@ pub fn contacts_and_forces(st: &EnvState, springs: &mut [[f32; 4]], p: &EnvParam
     let mut revisit = [0u32; REVISIT_WORDS];
     // the first REVISIT_CACHE of those pairs' contacts and margins, in collider order: the link
     // poses do not change within the substep, so the second pass's narrow phase would find them
-    // again (the shader keeps the contacts alone and finds the margins again)
+    // again (the shader keeps every pair's contact and margin in its narrow-phase rounds' slots)
     let mut cached = [(Contact::default(), 0.0f32); REVISIT_CACHE];
     let mut n_cached = 0usize;
     // the object's frame at the end of the substep, found by the pass's first swept search

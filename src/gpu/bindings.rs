@@ -6,10 +6,10 @@
 //! every global, and the globals each entry point really uses), so a binding renamed or moved on one
 //! side only fails a test that needs no GPU instead of a pipeline at run time.
 //!
-//! Bindings 0–8, 16 and 18–21 are the simulator's (common.wgsl), 9–12 and 17 the task layer's
-//! (task.wgsl), 13–15 the reference bank's (reference.wgsl), 22–23 the learner's action noise
-//! (noise.wgsl). Indices from 24 up are free for the test kernels of `gpu::run_kernel` (the parity
-//! tests use 30 and up).
+//! Bindings 0–8, 16 and 18–21 are the simulator's (common.wgsl), 24 its narrow-phase rounds'
+//! (narrow_rounds.wgsl), 9–12 and 17 the task layer's (task.wgsl), 13–15 the reference bank's
+//! (reference.wgsl), 22–23 the learner's action noise (noise.wgsl). Indices from 25 up are free
+//! for the test kernels of `gpu::run_kernel` (the parity tests use 30 and up).
 
 /// Where a binding lives in WGSL: its address space and, for storage, its access mode.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -80,6 +80,9 @@ pub const OBJECTS: Binding = binding(19, "objects", StorageRead);
 pub const HULLS: Binding = binding(20, "hulls", StorageRead);
 /// `array<u32>`: the object of each reference (`SimModel::ref_objects`).
 pub const REF_OBJECTS: Binding = binding(21, "ref_objects", StorageRead);
+/// `array<vec4<f32>>` `[N, 2, n_colliders, 4]`: the physics step's hand–object queries and their
+/// contacts (narrow_rounds.wgsl; scratch of one env step, never read by the host).
+pub const NARROW_QUERIES: Binding = binding(24, "narrow_queries", StorageReadWrite);
 
 // ---- the task layer (task.wgsl; bound by task_gpu.rs) ----
 /// `TaskGlobals`: the task's constants.
@@ -130,7 +133,13 @@ pub struct ShaderGroup {
 }
 
 /// `step_main`: one control step of every env.
-pub const STEP_MAIN: EntryBindings =
+pub const STEP_MAIN: EntryBindings = EntryBindings {
+    entry_point: "step_main",
+    bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS, NARROW_QUERIES],
+};
+/// `step_main` of a simulator module from before the narrow-phase rounds (commits before
+/// 2026-12-01, read by `bench --physics-wgsl` to time them against today's): no `narrow_queries`.
+pub const STEP_MAIN_WITHOUT_ROUNDS: EntryBindings =
     EntryBindings { entry_point: "step_main", bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS] };
 /// `reset_main`: the resets that `reset_mask` asks for.
 pub const RESET_MAIN: EntryBindings = EntryBindings { entry_point: "reset_main", bindings: &[GLOBALS, JOINTS, STATES, PARAMS, RESET_MASK, SPRINGS, OBJECTS, REF_OBJECTS] };
@@ -158,7 +167,7 @@ pub const TASK_OBSERVE_FINAL: EntryBindings = EntryBindings {
 /// The simulator's module (`gpu::shader_source`: common + reset + physics).
 pub const SIM_GROUP: ShaderGroup = ShaderGroup {
     shader: "dextrain physics",
-    bindings: &[GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS],
+    bindings: &[GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS, NARROW_QUERIES],
     entry_points: &[STEP_MAIN, RESET_MAIN],
 };
 
@@ -167,7 +176,7 @@ pub const TASK_GROUP: ShaderGroup = ShaderGroup {
     shader: "dextrain task",
     bindings: &[
         GLOBALS, JOINTS, COLLIDERS, TIPS, STATES, PARAMS, TARGETS, STATS, RESET_MASK, TASK_CFG, TASK_STATES, ACTIONS, TASK_OUT, REF_FRAMES,
-        REF_INFO, REF_CFG, SPRINGS, FINAL_OUT, PIECES, OBJECTS, HULLS, REF_OBJECTS,
+        REF_INFO, REF_CFG, SPRINGS, FINAL_OUT, PIECES, OBJECTS, HULLS, REF_OBJECTS, NARROW_QUERIES,
     ],
     entry_points: &[TASK_ACT, TASK_REWARD, TASK_OBSERVE, TASK_OBSERVE_FINAL],
 };

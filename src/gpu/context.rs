@@ -290,6 +290,19 @@ impl GpuContext {
         self.create_buffer_with(binding.name, bytes, binding.space.into(), binding.space.usage() | extra)
     }
 
+    /// Creates the buffer of `binding` of `bytes` bytes (at least 16) that the device alone writes
+    /// and reads (a kernel's scratch memory: nothing uploaded; wgpu hands it over zeroed).
+    pub fn create_scratch_buffer(&self, binding: Binding, bytes: u64) -> Result<wgpu::Buffer> {
+        let size = bytes.max(16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
+        self.check_buffer_size(binding.name, size, binding.space.into())?;
+        self.scoped(
+            || format!("creating GPU buffer `{}` of {size} bytes", binding.name),
+            || {
+                self.device.create_buffer(&wgpu::BufferDescriptor { label: Some(binding.name), size, usage: binding.space.usage(), mapped_at_creation: false })
+            },
+        )
+    }
+
     /// Creates the host-mappable staging buffer `name` of `bytes` bytes that readbacks copy into.
     pub fn create_staging_buffer(&self, name: &str, bytes: u64) -> Result<wgpu::Buffer> {
         let size = bytes.max(16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);

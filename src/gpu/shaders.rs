@@ -8,6 +8,9 @@ pub const SHADER_COMMON: &str = include_str!("../../shaders/common.wgsl");
 pub const SHADER_RESET: &str = include_str!("../../shaders/reset.wgsl");
 /// shaders/physics.wgsl: `step_main`, one control step.
 pub const SHADER_PHYSICS: &str = include_str!("../../shaders/physics.wgsl");
+/// shaders/narrow_rounds.wgsl: the physics step's hand–object narrow phases shared out over the
+/// workgroup (GPU only; physics.wgsl calls it, every module holding physics.wgsl joins it after).
+pub const SHADER_NARROW_ROUNDS: &str = include_str!("../../shaders/narrow_rounds.wgsl");
 /// The learner's action noise (appended to common.wgsl; `learn::noise`).
 pub const SHADER_NOISE: &str = include_str!("../../shaders/noise.wgsl");
 /// The learner's optimiser (a module of its own; `learn::kernels::fused_adam`).
@@ -18,9 +21,10 @@ pub const SHADER_NORMALIZER: &str = include_str!("../../shaders/normalizer.wgsl"
 /// Invocations per workgroup (keep in sync with `WORKGROUP_SIZE` in common.wgsl).
 pub const WORKGROUP_SIZE: u32 = 64;
 
-/// The WGSL module the simulator runs: common, reset and physics concatenated.
+/// The WGSL module the simulator runs: common, reset, physics and its narrow-phase rounds
+/// concatenated.
 pub fn shader_source() -> String {
-    [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS].join("\n")
+    [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_NARROW_ROUNDS].join("\n")
 }
 
 /// Workgroups (x, y) of a dispatch of `invocations` invocations (one per env, or per number drawn):

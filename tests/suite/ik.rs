@@ -10,7 +10,7 @@ use crate::common::*;
 use dextrain::env::SimModel;
 use dextrain::env::common::rand_uniform;
 use dextrain::gpu::context::{GpuContext, KernelBinding, run_kernel};
-use dextrain::gpu::shaders::{SHADER_COMMON, SHADER_PHYSICS, SHADER_RESET};
+use dextrain::gpu::shaders::{SHADER_COMMON, SHADER_NARROW_ROUNDS, SHADER_PHYSICS, SHADER_RESET};
 use dextrain::task::shaders::SHADER_IK;
 use dextrain::task::ik::*;
 use dextrain::gpu::layout::NO_JOINT;
@@ -89,7 +89,7 @@ fn shader_validates_and_mirrors_its_twin() {
     // alone with common.wgsl, and after common + reset + physics as in the task module (whose
     // full source tests/suite/shaders.rs validates)
     validate(&[SHADER_COMMON, SHADER_IK].join("\n"));
-    validate(&[SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_IK].join("\n"));
+    validate(&[SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_NARROW_ROUNDS, SHADER_IK].join("\n"));
     // docs/design.md §4: same function names in the same order
     let fns = |src: &str, prefix: &str| -> Vec<String> {
         src.lines()
@@ -462,7 +462,7 @@ fn t_main(@builtin(global_invocation_id) gid: vec3<u32>) {
 /// Runs `kernel` (the parity kernel or a variant) after the IK's shader chain, one invocation per
 /// case, and returns its outputs.
 fn run_ik_kernel(ctx: &GpuContext, sm: &SimModel, kernel: &str, cases: &[IkCase]) -> Vec<IkOut> {
-    let source = [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_IK, kernel].join("\n");
+    let source = [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_NARROW_ROUNDS, SHADER_IK, kernel].join("\n");
     let out = run_kernel(
         ctx,
         &source,
