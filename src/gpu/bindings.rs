@@ -137,8 +137,8 @@ pub const STEP_MAIN: EntryBindings = EntryBindings {
     entry_point: "step_main",
     bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS, NARROW_QUERIES],
 };
-/// `step_main` of a simulator module from before the narrow-phase rounds (commits before
-/// 2026-12-01, read by `bench --physics-wgsl` to time them against today's): no `narrow_queries`.
+/// `step_main` of a simulator module from before the narrow-phase rounds (commits before f750473,
+/// read by `bench --physics-wgsl` to time them against today's): no `narrow_queries`.
 pub const STEP_MAIN_WITHOUT_ROUNDS: EntryBindings =
     EntryBindings { entry_point: "step_main", bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS] };
 /// `reset_main`: the resets that `reset_mask` asks for.
