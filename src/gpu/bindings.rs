@@ -137,7 +137,7 @@ pub const STEP_MAIN: EntryBindings = EntryBindings {
     entry_point: "step_main",
     bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS, NARROW_QUERIES],
 };
-/// `step_main` of a simulator module from before the narrow-phase rounds (commits before f750473,
+/// `step_main` of a simulator module from before the narrow-phase rounds (af98c83 and earlier,
 /// read by `bench --physics-wgsl` to time them against today's): no `narrow_queries`.
 pub const STEP_MAIN_WITHOUT_ROUNDS: EntryBindings =
     EntryBindings { entry_point: "step_main", bindings: &[GLOBALS, JOINTS, COLLIDERS, STATES, PARAMS, TARGETS, STATS, SPRINGS, PIECES, OBJECTS, HULLS, REF_OBJECTS] };
