@@ -1605,6 +1605,8 @@ fn contacts_and_forces(h: f32) -> ObjectVelocity {
     // solves; every invocation runs each stage (an env past the batch only its rounds)
     for (var stage = 0u; stage < 5u; stage++) {
         if (in_batch) {
+            // whether the stage needs the object's velocity change solved
+            var solve_object = false;
             switch stage {
                 case 0u: {
                 for (var ci = 0u; ci < g.n_colliders; ci++) {
@@ -1744,29 +1746,109 @@ fn contacts_and_forces(h: f32) -> ObjectVelocity {
                         }
                     }
                 }
-                // the second pass (physics.rs: contacts_and_forces): the pairs that did not push, against
-                // the object's velocity at the end of the substep as the forces so far make it; their
-                // swept searches for those velocities
-                if (any_revisit) {
-                    pred = object_velocity_change(h);
-                    pend = object_frame_at_end(h, ocom, pred.vel, pred.w);
-                    var list = revisit;
-                    word = 0u;
-                    loop {
-                        let ci = next_in_list(&list, &word);
+                // the second pass needs the object's predicted velocities
+                solve_object = any_revisit;
+                }
+                default: {
+                // stage 3: the second pass's pairs (those revisited, in collider order, against
+                // the predicted velocities); stage 4: the arriving pass's (in the order they
+                // pushed, against the solved ones). One loop for both, so that the kernel holds
+                // one copy of the solve (a driver inlines one at each call)
+                let arriving = stage == 4u;
+                var vel = pred.vel;
+                var w = pred.w;
+                if (arriving) {
+                    vel = u.vel;
+                    w = u.w;
+                }
+                var any_push = false;
+                var list = revisit;
+                var word = 0u;
+                var i = 0u;
+                loop {
+                    // the pair's collider, its contact before the search (the first round's, or
+                    // the one it pushed with) and whether a round searched it
+                    var ci = 0u;
+                    var base: Contact;
+                    var searched = false;
+                    if (!arriving) {
+                        ci = next_in_list(&list, &word);
                         if (ci == NO_COLLIDER) {
                             break;
                         }
-                        let t = swept_test(ci, query_contact(0u, ci), h, ocom, pred.vel, pred.w);
-                        if (t.search) {
-                            swept2[ci / 32u] |= 1u << (ci % 32u);
-                            post_query(1u, ci, collider_pose_at_end(colliders[ci].link, collider_pose(ci), h), pend, query_margin(0u, ci));
+                        base = query_contact(0u, ci);
+                        searched = (swept2[ci / 32u] & (1u << (ci % 32u))) != 0u;
+                    } else {
+                        if (i >= n0) {
+                            break;
+                        }
+                        let r = reactions[i];
+                        i++;
+                        ci = r.collider;
+                        if ((arriving_list[ci / 32u] & (1u << (ci % 32u))) == 0u) {
+                            continue;
+                        }
+                        base = contact_at(r.point.w, r.normal.xyz, r.point.xyz);
+                        searched = true;
+                    }
+                    let l = colliders[ci].link;
+                    var c = base;
+                    if (searched) {
+                        let t = swept_test(ci, base, h, ocom, vel, w);
+                        let found = query_contact(1u, ci);
+                        // an arriving feature that would not be touching by the end of the
+                        // substep needs no contact
+                        if (arriving && found.depth <= 0.0) {
+                            continue;
+                        }
+                        let se = swept_end_contact(l, found, t.c_end, h, ocom, vel, w);
+                        if (se.found) {
+                            c = se.c;
+                        } else if (arriving) {
+                            continue;
                         }
                     }
+                    let v_other = vel + cross(w, c.point - ocom);
+                    // an arriving contact has no friction spring (it starts from none and keeps none)
+                    var anchor = vec3<f32>(0.0);
+                    if (!arriving) {
+                        anchor = springs[spring_base + ci].xyz;
+                    }
+                    let cf = solve_hand_contact_from(anchor, l, c, v_other, prm.obj_contact_c, mu_ho, h);
+                    if (!arriving) {
+                        springs[spring_base + ci] = hand_spring_after(c, cf);
+                    }
+                    // the object's force linearised about the velocities the pair was solved
+                    // against: + D·J·(u_p − u₀)
+                    let dv_point = (vel - ovel) + cross(w - ow, c.point - ocom);
+                    hand_object_force(ci, c, cf, ocom, w, dv_point, w - ow, mu_ho, h);
+                    any_push = any_push || dot(cf.force, c.normal) > 0.0;
+                }
+                // the object's velocities at the end of the substep: after the second pass its
+                // prediction when none of its pairs pushed (nothing the implicit solve reads has
+                // changed since); after the arriving pass solved again where one of its pushed
+                solve_object = any_push;
+                if (!arriving) {
+                    u = pred;
+                    solve_object = !any_revisit || any_push;
                 }
                 }
-                case 3u: {
-                var pushed = false;
+            }
+            // the object's velocity change, one call site (a driver inlines a copy of the 6 × 6
+            // solve at each): stage 2's prediction for the second pass, stages 3's and 4's
+            if (solve_object) {
+                let v = object_velocity_change(h);
+                if (stage == 2u) {
+                    pred = v;
+                } else {
+                    u = v;
+                }
+            }
+            if (stage == 2u && any_revisit) {
+                // the second pass (physics.rs: contacts_and_forces): the pairs that did not push,
+                // against the object's velocity at the end of the substep as the forces so far
+                // make it; their swept searches for those velocities
+                pend = object_frame_at_end(h, ocom, pred.vel, pred.w);
                 var list = revisit;
                 var word = 0u;
                 loop {
@@ -1774,87 +1856,38 @@ fn contacts_and_forces(h: f32) -> ObjectVelocity {
                     if (ci == NO_COLLIDER) {
                         break;
                     }
-                    let l = colliders[ci].link;
-                    let raw = query_contact(0u, ci);
-                    var c = raw;
-                    if ((swept2[ci / 32u] & (1u << (ci % 32u))) != 0u) {
-                        let t = swept_test(ci, raw, h, ocom, pred.vel, pred.w);
-                        let se = swept_end_contact(l, query_contact(1u, ci), t.c_end, h, ocom, pred.vel, pred.w);
-                        if (se.found) {
-                            c = se.c;
-                        }
+                    let t = swept_test(ci, query_contact(0u, ci), h, ocom, pred.vel, pred.w);
+                    if (t.search) {
+                        swept2[ci / 32u] |= 1u << (ci % 32u);
+                        post_query(1u, ci, collider_pose_at_end(colliders[ci].link, collider_pose(ci), h), pend, query_margin(0u, ci));
                     }
-                    let v_other = pred.vel + cross(pred.w, c.point - ocom);
-                    let cf = solve_hand_contact(spring_base + ci, l, c, v_other, prm.obj_contact_c, mu_ho, h);
-                    // the object's force linearised about the predicted velocities: + D·J·(u_p − u₀)
-                    let dv_point = (pred.vel - ovel) + cross(pred.w - ow, c.point - ocom);
-                    hand_object_force(ci, c, cf, ocom, pred.w, dv_point, pred.w - ow, mu_ho, h);
-                    pushed = pushed || dot(cf.force, c.normal) > 0.0;
                 }
-                // the object's velocities at the end of the substep: the prediction when none of the
-                // second pass's pairs pushed (nothing the implicit solve reads has changed since)
-                u = pred;
-                if (!any_revisit || pushed) {
-                    u = object_velocity_change(h);
-                }
-                // the arriving pass (physics.rs: arriving_contacts): the pairs that pushed before it
-                // whose solved spin differs enough from the one they were found with (the features'
-                // order by depth at the end of the substep changes with the object's turn alone, by at
-                // most h·2r·|Δω|) and whose swept test against u passes, searched at the end of the
-                // substep for u. A collider pushes once a substep, so each has one slot
+            }
+            if (stage == 3u) {
+                // the arriving pass (physics.rs: arriving_contacts): the pairs that pushed before
+                // it whose solved spin differs enough from the one they were found with (the
+                // features' order by depth at the end of the substep changes with the object's
+                // turn alone, by at most h·2r·|Δω|) and whose swept test against u passes,
+                // searched at the end of the substep for u. A collider pushes once a substep, so
+                // each has one slot
                 n0 = n_reactions;
                 var have_uend = false;
                 var uend = pend;
-                for (var i = 0u; i < n0; i++) {
-                    let r = reactions[i];
-                    let ci = r.collider;
-                    let cd = colliders[ci];
+                for (var k = 0u; k < n0; k++) {
+                    let r = reactions[k];
+                    let cj = r.collider;
+                    let cd = colliders[cj];
                     if (h * 2.0 * bounding_radius(cd.shape, cd.size.xyz) * length((u.w - ow) - r.dw0.xyz) > SWEPT_TOLERANCE) {
-                        let t = swept_test(ci, contact_at(r.point.w, r.normal.xyz, r.point.xyz), h, ocom, u.vel, u.w);
+                        let t = swept_test(cj, contact_at(r.point.w, r.normal.xyz, r.point.xyz), h, ocom, u.vel, u.w);
                         if (t.search) {
                             if (!have_uend) {
                                 uend = object_frame_at_end(h, ocom, u.vel, u.w);
                                 have_uend = true;
                             }
-                            arriving_list[ci / 32u] |= 1u << (ci % 32u);
-                            post_query(1u, ci, collider_pose_at_end(cd.link, collider_pose(ci), h), uend, CONTACT_MARGIN);
+                            arriving_list[cj / 32u] |= 1u << (cj % 32u);
+                            post_query(1u, cj, collider_pose_at_end(cd.link, collider_pose(cj), h), uend, CONTACT_MARGIN);
                         }
                     }
-                }
-                }
-                default: {
-                var arrived = false;
-                for (var i = 0u; i < n0; i++) {
-                    let r = reactions[i];
-                    let ci = r.collider;
-                    if ((arriving_list[ci / 32u] & (1u << (ci % 32u))) == 0u) {
-                        continue;
-                    }
-                    let l = colliders[ci].link;
-                    let t = swept_test(ci, contact_at(r.point.w, r.normal.xyz, r.point.xyz), h, ocom, u.vel, u.w);
-                    let found = query_contact(1u, ci);
-                    // a feature that would not be touching by the end of the substep needs no contact
-                    if (found.depth <= 0.0) {
-                        continue;
-                    }
-                    let se = swept_end_contact(l, found, t.c_end, h, ocom, u.vel, u.w);
-                    if (!se.found) {
-                        continue;
-                    }
-                    let c = se.c;
-                    let v_other = u.vel + cross(u.w, c.point - ocom);
-                    // an arriving contact has no friction spring (it starts from none and keeps none)
-                    let cf = solve_hand_contact_from(vec3<f32>(0.0), l, c, v_other, prm.obj_contact_c, mu_ho, h);
-                    // linearised about the solved velocities, as the second pass's pairs about the
-                    // predicted ones
-                    let dv_point = (u.vel - ovel) + cross(u.w - ow, c.point - ocom);
-                    hand_object_force(ci, c, cf, ocom, u.w, dv_point, u.w - ow, mu_ho, h);
-                    arrived = arrived || dot(cf.force, c.normal) > 0.0;
-                }
-                // an arriving contact pushed: the object's velocity change solved again with it
-                if (arrived) {
-                    u = object_velocity_change(h);
-                }
                 }
             }
         }

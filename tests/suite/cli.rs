@@ -445,13 +445,14 @@ fn shader_stats_read_radv_s_compiler_without_an_amd_gpu() {
     assert!(stat(&step, "Instructions") > 20.0 * stat(&reset, "Instructions"), "{j}");
     assert!(stat(&step, "VGPRs") <= 256.0 && stat(&reset, "VGPRs") > 0.0 && stat(&reset, "Spilled VGPRs") == 0.0, "{j}");
     if j["driver"].as_str().unwrap_or("").contains("Mesa 22.3") {
-        // 2026-11-30, Mesa 22.3.6: 33,380 instructions, 3,762 spilled VGPRs with the narrow-phase
-        // rounds (36,825 and 4,032 before them; 71,515 and 15,539 with the reactions' and the
-        // joints' private arrays one per field; f7d02e5, before issue 36's contacts: 10,321 and
-        // 53; BENCHMARKS.md). The rounds called at each of their four points
-        // (a copy of the narrow phase each) took it to 58,566
-        assert!(stat(&step, "Instructions") <= 37_000.0, "the physics step grew: {step}");
-        assert!(stat(&step, "Spilled VGPRs") <= 4_300.0, "the physics step spills more: {step}");
+        // 2026-11-30, Mesa 22.3.6: 26,286 instructions, 2,973 spilled VGPRs with the narrow-phase
+        // rounds and one call site each of the later passes' solve and of the object's (36,825
+        // and 4,032 before the rounds; 71,515 and 15,539 with the reactions' and the joints'
+        // private arrays one per field; f7d02e5, before issue 36's contacts: 10,321 and 53;
+        // BENCHMARKS.md). A driver inlines a copy of a function at each call: the rounds called
+        // at each of their four points took it to 58,566
+        assert!(stat(&step, "Instructions") <= 29_500.0, "the physics step grew: {step}");
+        assert!(stat(&step, "Spilled VGPRs") <= 3_400.0, "the physics step spills more: {step}");
         // the task's action (the fingertip IK): 15,485 and 950 (22,924 and 2,983 with the IK's
         // per-slot and per-joint arrays one per field)
         assert!(stat(&act, "Instructions") <= 17_200.0 && stat(&act, "Spilled VGPRs") <= 1_100.0, "task_act grew: {act}");
