@@ -27,26 +27,26 @@ NEVER = "g.n_colliders > 1000u"
 VARIANTS = {
     "no_hand_object": (
         "the hand-object pairs never queried (their code kept): the rest of the env step",
-        [("                    if (object_in_reach(cd, cpos, opos, margin, obj.radius)) {\n                        near_obj[ci / 32u] |= bit;",
-          f"                    if (object_in_reach(cd, cpos, opos, margin, obj.radius) && {NEVER}) {{\n                        near_obj[ci / 32u] |= bit;")],
+        [("                        if (object_in_reach(cd, cpos, opos, margin, obj.radius)) {\n                            near_obj[ci / 32u] |= bit;",
+          f"                        if (object_in_reach(cd, cpos, opos, margin, obj.radius) && {NEVER}) {{\n                            near_obj[ci / 32u] |= bit;")],
     ),
     "no_hand_object_code": (
         "the hand-object pairs never queried and the narrow phase's code gone",
-        [("                    if (object_in_reach(cd, cpos, opos, margin, obj.radius)) {\n                        near_obj[ci / 32u] |= bit;",
-          f"                    if (object_in_reach(cd, cpos, opos, margin, obj.radius) && {NEVER}) {{\n                        near_obj[ci / 32u] |= bit;"),
+        [("                        if (object_in_reach(cd, cpos, opos, margin, obj.radius)) {\n                            near_obj[ci / 32u] |= bit;",
+          f"                        if (object_in_reach(cd, cpos, opos, margin, obj.radius) && {NEVER}) {{\n                            near_obj[ci / 32u] |= bit;"),
          ("fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4<f32>, margin: f32, obj: ObjectShape) -> Contact {\n",
           "fn collide_hand_object_at(ci: u32, cp: ColliderPose, opos: vec3<f32>, orot: vec4<f32>, margin: f32, obj: ObjectShape) -> Contact {\n"
           "    return contact_at(-1.0, vec3<f32>(0.0, 0.0, 1.0), opos);\n")],
     ),
     "no_swept_search": (
         "the first pass's swept searches never run",
-        [("                    let t = swept_test(ci, query_contact(0u, ci), h, ocom, ovel, ow);\n                    if (t.search) {",
-          f"                    let t = swept_test(ci, query_contact(0u, ci), h, ocom, ovel, ow);\n                    if (t.search && {NEVER}) {{")],
+        [("                        let t = swept_test(ci, query_contact(0u, ci), h, ocom, ovel, ow);\n                        if (t.search) {",
+          f"                        let t = swept_test(ci, query_contact(0u, ci), h, ocom, ovel, ow);\n                        if (t.search && {NEVER}) {{")],
     ),
     "no_second_pass": (
         "no pair revisited by the second pass (the arriving pass kept)",
-        [("revisit[ci / 32u] |= bit;\n                                any_revisit = true;",
-          f"revisit[ci / 32u] |= select(0u, bit, {NEVER});\n                                any_revisit = any_revisit || {NEVER};")],
+        [("revisit[ci / 32u] |= bit;\n                                    any_revisit = true;",
+          f"revisit[ci / 32u] |= select(0u, bit, {NEVER});\n                                    any_revisit = any_revisit || {NEVER};")],
     ),
     "no_arriving_pass": (
         "the arriving pass never runs",

@@ -1609,229 +1609,233 @@ fn contacts_and_forces(h: f32) -> ObjectVelocity {
             var solve_object = false;
             switch stage {
                 case 0u: {
-                for (var ci = 0u; ci < g.n_colliders; ci++) {
-                    let cd = colliders[ci];
-                    let r_c = bounding_radius(cd.shape, cd.size.xyz);
-                    let cpos = collider_centre(ci);
-                    let margin = speculative_margin_at(ci, cpos, h, ocom, ovel, ow);
-                    let bit = 1u << (ci % 32u);
-                    if (object_in_reach(cd, cpos, opos, margin, obj.radius)) {
-                        near_obj[ci / 32u] |= bit;
-                        // the pair's query at the substep's poses (the collider's pose once for the
-                        // margin, the narrow phase, the swept search and the table)
-                        let cp = collider_pose(ci);
-                        post_query(0u, ci, cp, ObjectFrame(opos, orot), speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow));
-                    } else {
-                        springs[spring_base + ci] = vec4<f32>(0.0);
-                    }
-                    // the collider's lowest point is at least r_c below its centre: a 1 mm allowance over
-                    // the margin for the rounding of collide_hand_table_at
-                    if (g.hand_table != 0u && cpos.z <= r_c + CONTACT_MARGIN + 1.0e-3) {
-                        near_tab[ci / 32u] |= bit;
-                    } else if (g.hand_table != 0u) {
-                        springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
-                    }
-                }
-                }
-                case 1u: {
-                // the swept searches: where the object's turn may bring a feature deeper than the pair's
-                // own contact would be by the end of the substep, the pair at the end of the substep
-                let oend = object_frame_at_end(h, ocom, ovel, ow);
-                var list = near_obj;
-                var word = 0u;
-                loop {
-                    let ci = next_in_list(&list, &word);
-                    if (ci == NO_COLLIDER) {
-                        break;
-                    }
-                    let t = swept_test(ci, query_contact(0u, ci), h, ocom, ovel, ow);
-                    if (t.search) {
-                        swept[ci / 32u] |= 1u << (ci % 32u);
-                        post_query(1u, ci, collider_pose_at_end(colliders[ci].link, collider_pose(ci), h), oend, query_margin(0u, ci));
-                    }
-                }
-                }
-                case 2u: {
-                // the first pass: the colliders of either list, in order
-                var jobs: array<u32, REVISIT_WORDS>;
-                for (var w = 0u; w < REVISIT_WORDS; w++) {
-                    jobs[w] = near_obj[w] | near_tab[w];
-                }
-                var word = 0u;
-                loop {
-                    let ci = next_in_list(&jobs, &word);
-                    if (ci == NO_COLLIDER) {
-                        break;
-                    }
-                    let bit = 1u << (ci % 32u);
-                    let l = colliders[ci].link;
-                    // hand–object: a touching pair, or one apart by less than the speculative margin (at
-                    // the end of the substep where the object's turn brings a feature in elsewhere)
-                    if ((near_obj[ci / 32u] & bit) != 0u) {
-                        let raw = query_contact(0u, ci);
-                        let margin = query_margin(0u, ci);
-                        var c = raw;
-                        if ((swept[ci / 32u] & bit) != 0u) {
-                            let t = swept_test(ci, raw, h, ocom, ovel, ow);
-                            let found = query_contact(1u, ci);
-                            if (found.depth > -1.0 && found.depth > t.c_end + SWEPT_TOLERANCE) {
-                                c = swept_contact_from_end(l, found, h, ocom, ovel, ow);
-                            }
-                        }
-                        // the statistics' penetration: the pair's overlap at the substep's poses, not a
-                        // swept contact's depth (physics.rs)
-                        max_pen_ho = max(max_pen_ho, raw.depth);
-                        max_pen = max(max_pen, raw.depth);
-                        if (c.depth > -margin) {
-                            let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
-                            if (dot(cf.force, c.normal) > 0.0) {
-                                hand_object_force(ci, c, cf, ocom, ow, vec3<f32>(0.0), vec3<f32>(0.0), mu_ho, h);
-                            } else {
-                                revisit[ci / 32u] |= bit;
-                                any_revisit = true;
-                            }
+                    for (var ci = 0u; ci < g.n_colliders; ci++) {
+                        let cd = colliders[ci];
+                        let r_c = bounding_radius(cd.shape, cd.size.xyz);
+                        let cpos = collider_centre(ci);
+                        let margin = speculative_margin_at(ci, cpos, h, ocom, ovel, ow);
+                        let bit = 1u << (ci % 32u);
+                        if (object_in_reach(cd, cpos, opos, margin, obj.radius)) {
+                            near_obj[ci / 32u] |= bit;
+                            // the pair's query at the substep's poses (the collider's pose once for
+                            // the margin, the narrow phase, the swept search and the table)
+                            let cp = collider_pose(ci);
+                            post_query(0u, ci, cp, ObjectFrame(opos, orot), speculative_margin_at(ci, cp.pos, h, ocom, ovel, ow));
                         } else {
                             springs[spring_base + ci] = vec4<f32>(0.0);
                         }
-                    }
-                    // hand–table
-                    if ((near_tab[ci / 32u] & bit) != 0u) {
-                        let c2 = collide_hand_table_at(ci, collider_pose(ci));
-                        if (c2.depth > -CONTACT_MARGIN) {
-                            let cf = solve_hand_contact(spring_base + g.n_colliders + ci, l, c2, vec3<f32>(0.0), prm.hand_table_c, mu_ht, h);
-                            if (dot(cf.force, c2.normal) > 0.0 || c2.depth > 0.0) {
-                                n_contacts += 1u;
-                                max_pen = max(max_pen, c2.depth);
-                            }
-                        } else {
+                        // the collider's lowest point is at least r_c below its centre: a 1 mm
+                        // allowance over the margin for the rounding of collide_hand_table_at
+                        if (g.hand_table != 0u && cpos.z <= r_c + CONTACT_MARGIN + 1.0e-3) {
+                            near_tab[ci / 32u] |= bit;
+                        } else if (g.hand_table != 0u) {
                             springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
                         }
                     }
                 }
-                // object–table: every support point of every piece, in order (spring slots 0.. of the
-                // object); a piece whose bounding sphere is above the table has none touching (its
-                // springs are cleared)
-                let od = objects[prm.obj_index];
-                var kp = 0u;
-                let above = st.obj_pos.z > prm.obj_com.w;
-                for (var pi = 0u; pi < od.n_pieces; pi++) {
-                    let pd = pieces[od.first_piece + pi];
-                    var pp = PiecePose(vec3<f32>(0.0, 0.0, 1.0), vec4<f32>(0.0, 0.0, 0.0, 1.0), vec3<f32>(0.0));
-                    if (!above) {
-                        pp = piece_pose(pd);
-                    }
-                    if (above || pp.pos.z > pd.pos.w * prm.obj_scale) {
-                        for (var j = 0u; j < pd.n_support; j++) {
-                            springs[spring_base + 2u * g.n_colliders + kp] = vec4<f32>(0.0);
-                            kp += 1u;
-                        }
-                        continue;
-                    }
-                    for (var j = 0u; j < pd.n_support; j++) {
-                        let ki = spring_base + 2u * g.n_colliders + kp;
-                        kp += 1u;
-                        let c = collide_piece_table(pd, prm.obj_scale, pp.size, pp.pos, pp.rot, j);
-                        if (c.depth > 0.0) {
-                            let vo = ovel + cross(ow, c.point - ocom);
-                            let cf = contact_force(c, vo, springs[ki].xyz, k, kt, prm.obj_contact_c, mu_ot, h);
-                            springs[ki] = vec4<f32>(cf.spring, 1.0);
-                            let a = select(0.0, k * h + prm.obj_contact_c, dot(cf.force, c.normal) > 0.0);
-                            apply_object_force(ocom, c.point, cf.force, c.normal, a, cf.tdamp);
-                            let tor = torsion_torque(c.normal, ow, dot(cf.force, c.normal), mu_ot, g.torsion_radius);
-                            apply_object_torque(tor.torque, c.normal, tor.damping);
-                            n_contacts += 1u;
-                            max_pen = max(max_pen, c.depth);
-                        } else {
-                            springs[ki] = vec4<f32>(0.0);
-                        }
-                    }
-                }
-                // the second pass needs the object's predicted velocities
-                solve_object = any_revisit;
-                }
-                default: {
-                // stage 3: the second pass's pairs (those revisited, in collider order, against
-                // the predicted velocities); stage 4: the arriving pass's (in the order they
-                // pushed, against the solved ones). One loop for both, so that the kernel holds
-                // one copy of the solve (a driver inlines one at each call)
-                let arriving = stage == 4u;
-                var vel = pred.vel;
-                var w = pred.w;
-                if (arriving) {
-                    vel = u.vel;
-                    w = u.w;
-                }
-                var any_push = false;
-                var list = revisit;
-                var word = 0u;
-                var i = 0u;
-                loop {
-                    // the pair's collider, its contact before the search (the first round's, or
-                    // the one it pushed with) and whether a round searched it
-                    var ci = 0u;
-                    var base: Contact;
-                    var searched = false;
-                    if (!arriving) {
-                        ci = next_in_list(&list, &word);
+                case 1u: {
+                    // the swept searches: where the object's turn may bring a feature deeper than
+                    // the pair's own contact would be by the end of the substep, the pair at the
+                    // end of the substep
+                    let oend = object_frame_at_end(h, ocom, ovel, ow);
+                    var list = near_obj;
+                    var word = 0u;
+                    loop {
+                        let ci = next_in_list(&list, &word);
                         if (ci == NO_COLLIDER) {
                             break;
                         }
-                        base = query_contact(0u, ci);
-                        searched = (swept2[ci / 32u] & (1u << (ci % 32u))) != 0u;
-                    } else {
-                        if (i >= n0) {
+                        let t = swept_test(ci, query_contact(0u, ci), h, ocom, ovel, ow);
+                        if (t.search) {
+                            swept[ci / 32u] |= 1u << (ci % 32u);
+                            post_query(1u, ci, collider_pose_at_end(colliders[ci].link, collider_pose(ci), h), oend, query_margin(0u, ci));
+                        }
+                    }
+                }
+                case 2u: {
+                    // the first pass: the colliders of either list, in order
+                    var jobs: array<u32, REVISIT_WORDS>;
+                    for (var w = 0u; w < REVISIT_WORDS; w++) {
+                        jobs[w] = near_obj[w] | near_tab[w];
+                    }
+                    var word = 0u;
+                    loop {
+                        let ci = next_in_list(&jobs, &word);
+                        if (ci == NO_COLLIDER) {
                             break;
                         }
-                        let r = reactions[i];
-                        i++;
-                        ci = r.collider;
-                        if ((arriving_list[ci / 32u] & (1u << (ci % 32u))) == 0u) {
+                        let bit = 1u << (ci % 32u);
+                        let l = colliders[ci].link;
+                        // hand–object: a touching pair, or one apart by less than the speculative
+                        // margin (at the end of the substep where the object's turn brings a
+                        // feature in elsewhere)
+                        if ((near_obj[ci / 32u] & bit) != 0u) {
+                            let raw = query_contact(0u, ci);
+                            let margin = query_margin(0u, ci);
+                            var c = raw;
+                            if ((swept[ci / 32u] & bit) != 0u) {
+                                let t = swept_test(ci, raw, h, ocom, ovel, ow);
+                                let found = query_contact(1u, ci);
+                                if (found.depth > -1.0 && found.depth > t.c_end + SWEPT_TOLERANCE) {
+                                    c = swept_contact_from_end(l, found, h, ocom, ovel, ow);
+                                }
+                            }
+                            // the statistics' penetration: the pair's overlap at the substep's
+                            // poses, not a swept contact's depth (physics.rs)
+                            max_pen_ho = max(max_pen_ho, raw.depth);
+                            max_pen = max(max_pen, raw.depth);
+                            if (c.depth > -margin) {
+                                let cf = solve_hand_contact(spring_base + ci, l, c, ovel + cross(ow, c.point - ocom), prm.obj_contact_c, mu_ho, h);
+                                if (dot(cf.force, c.normal) > 0.0) {
+                                    hand_object_force(ci, c, cf, ocom, ow, vec3<f32>(0.0), vec3<f32>(0.0), mu_ho, h);
+                                } else {
+                                    revisit[ci / 32u] |= bit;
+                                    any_revisit = true;
+                                }
+                            } else {
+                                springs[spring_base + ci] = vec4<f32>(0.0);
+                            }
+                        }
+                        // hand–table
+                        if ((near_tab[ci / 32u] & bit) != 0u) {
+                            let c2 = collide_hand_table_at(ci, collider_pose(ci));
+                            if (c2.depth > -CONTACT_MARGIN) {
+                                let cf = solve_hand_contact(spring_base + g.n_colliders + ci, l, c2, vec3<f32>(0.0), prm.hand_table_c, mu_ht, h);
+                                if (dot(cf.force, c2.normal) > 0.0 || c2.depth > 0.0) {
+                                    n_contacts += 1u;
+                                    max_pen = max(max_pen, c2.depth);
+                                }
+                            } else {
+                                springs[spring_base + g.n_colliders + ci] = vec4<f32>(0.0);
+                            }
+                        }
+                    }
+                    // object–table: every support point of every piece, in order (spring slots 0..
+                    // of the object); a piece whose bounding sphere is above the table has none
+                    // touching (its springs are cleared)
+                    let od = objects[prm.obj_index];
+                    var kp = 0u;
+                    let above = st.obj_pos.z > prm.obj_com.w;
+                    for (var pi = 0u; pi < od.n_pieces; pi++) {
+                        let pd = pieces[od.first_piece + pi];
+                        var pp = PiecePose(vec3<f32>(0.0, 0.0, 1.0), vec4<f32>(0.0, 0.0, 0.0, 1.0), vec3<f32>(0.0));
+                        if (!above) {
+                            pp = piece_pose(pd);
+                        }
+                        if (above || pp.pos.z > pd.pos.w * prm.obj_scale) {
+                            for (var j = 0u; j < pd.n_support; j++) {
+                                springs[spring_base + 2u * g.n_colliders + kp] = vec4<f32>(0.0);
+                                kp += 1u;
+                            }
                             continue;
                         }
-                        base = contact_at(r.point.w, r.normal.xyz, r.point.xyz);
-                        searched = true;
-                    }
-                    let l = colliders[ci].link;
-                    var c = base;
-                    if (searched) {
-                        let t = swept_test(ci, base, h, ocom, vel, w);
-                        let found = query_contact(1u, ci);
-                        // an arriving feature that would not be touching by the end of the
-                        // substep needs no contact
-                        if (arriving && found.depth <= 0.0) {
-                            continue;
+                        for (var j = 0u; j < pd.n_support; j++) {
+                            let ki = spring_base + 2u * g.n_colliders + kp;
+                            kp += 1u;
+                            let c = collide_piece_table(pd, prm.obj_scale, pp.size, pp.pos, pp.rot, j);
+                            if (c.depth > 0.0) {
+                                let vo = ovel + cross(ow, c.point - ocom);
+                                let cf = contact_force(c, vo, springs[ki].xyz, k, kt, prm.obj_contact_c, mu_ot, h);
+                                springs[ki] = vec4<f32>(cf.spring, 1.0);
+                                let a = select(0.0, k * h + prm.obj_contact_c, dot(cf.force, c.normal) > 0.0);
+                                apply_object_force(ocom, c.point, cf.force, c.normal, a, cf.tdamp);
+                                let tor = torsion_torque(c.normal, ow, dot(cf.force, c.normal), mu_ot, g.torsion_radius);
+                                apply_object_torque(tor.torque, c.normal, tor.damping);
+                                n_contacts += 1u;
+                                max_pen = max(max_pen, c.depth);
+                            } else {
+                                springs[ki] = vec4<f32>(0.0);
+                            }
                         }
-                        let se = swept_end_contact(l, found, t.c_end, h, ocom, vel, w);
-                        if (se.found) {
-                            c = se.c;
-                        } else if (arriving) {
-                            continue;
-                        }
                     }
-                    let v_other = vel + cross(w, c.point - ocom);
-                    // an arriving contact has no friction spring (it starts from none and keeps none)
-                    var anchor = vec3<f32>(0.0);
-                    if (!arriving) {
-                        anchor = springs[spring_base + ci].xyz;
-                    }
-                    let cf = solve_hand_contact_from(anchor, l, c, v_other, prm.obj_contact_c, mu_ho, h);
-                    if (!arriving) {
-                        springs[spring_base + ci] = hand_spring_after(c, cf);
-                    }
-                    // the object's force linearised about the velocities the pair was solved
-                    // against: + D·J·(u_p − u₀)
-                    let dv_point = (vel - ovel) + cross(w - ow, c.point - ocom);
-                    hand_object_force(ci, c, cf, ocom, w, dv_point, w - ow, mu_ho, h);
-                    any_push = any_push || dot(cf.force, c.normal) > 0.0;
+                    // the second pass needs the object's predicted velocities
+                    solve_object = any_revisit;
                 }
-                // the object's velocities at the end of the substep: after the second pass its
-                // prediction when none of its pairs pushed (nothing the implicit solve reads has
-                // changed since); after the arriving pass solved again where one of its pushed
-                solve_object = any_push;
-                if (!arriving) {
-                    u = pred;
-                    solve_object = !any_revisit || any_push;
-                }
+                default: {
+                    // stage 3: the second pass's pairs (those revisited, in collider order, against
+                    // the predicted velocities); stage 4: the arriving pass's (in the order they
+                    // pushed, against the solved ones). One loop for both, so that the kernel holds
+                    // one copy of the solve (a driver inlines one at each call)
+                    let arriving = stage == 4u;
+                    var vel = pred.vel;
+                    var w = pred.w;
+                    if (arriving) {
+                        vel = u.vel;
+                        w = u.w;
+                    }
+                    var any_push = false;
+                    var list = revisit;
+                    var word = 0u;
+                    var i = 0u;
+                    loop {
+                        // the pair's collider, its contact before the search (the first round's, or
+                        // the one it pushed with) and whether a round searched it
+                        var ci = 0u;
+                        var base: Contact;
+                        var searched = false;
+                        if (!arriving) {
+                            ci = next_in_list(&list, &word);
+                            if (ci == NO_COLLIDER) {
+                                break;
+                            }
+                            base = query_contact(0u, ci);
+                            searched = (swept2[ci / 32u] & (1u << (ci % 32u))) != 0u;
+                        } else {
+                            if (i >= n0) {
+                                break;
+                            }
+                            let r = reactions[i];
+                            i++;
+                            ci = r.collider;
+                            if ((arriving_list[ci / 32u] & (1u << (ci % 32u))) == 0u) {
+                                continue;
+                            }
+                            base = contact_at(r.point.w, r.normal.xyz, r.point.xyz);
+                            searched = true;
+                        }
+                        let l = colliders[ci].link;
+                        var c = base;
+                        if (searched) {
+                            let t = swept_test(ci, base, h, ocom, vel, w);
+                            let found = query_contact(1u, ci);
+                            // an arriving feature that would not be touching by the end of the
+                            // substep needs no contact
+                            if (arriving && found.depth <= 0.0) {
+                                continue;
+                            }
+                            let se = swept_end_contact(l, found, t.c_end, h, ocom, vel, w);
+                            if (se.found) {
+                                c = se.c;
+                            } else if (arriving) {
+                                continue;
+                            }
+                        }
+                        let v_other = vel + cross(w, c.point - ocom);
+                        // an arriving contact has no friction spring (it starts from none and keeps
+                        // none)
+                        var anchor = vec3<f32>(0.0);
+                        if (!arriving) {
+                            anchor = springs[spring_base + ci].xyz;
+                        }
+                        let cf = solve_hand_contact_from(anchor, l, c, v_other, prm.obj_contact_c, mu_ho, h);
+                        if (!arriving) {
+                            springs[spring_base + ci] = hand_spring_after(c, cf);
+                        }
+                        // the object's force linearised about the velocities the pair was solved
+                        // against: + D·J·(u_p − u₀)
+                        let dv_point = (vel - ovel) + cross(w - ow, c.point - ocom);
+                        hand_object_force(ci, c, cf, ocom, w, dv_point, w - ow, mu_ho, h);
+                        any_push = any_push || dot(cf.force, c.normal) > 0.0;
+                    }
+                    // the object's velocities at the end of the substep: after the second pass its
+                    // prediction when none of its pairs pushed (nothing the implicit solve reads
+                    // has changed since); after the arriving pass solved again where one of its
+                    // pushed
+                    solve_object = any_push;
+                    if (!arriving) {
+                        u = pred;
+                        solve_object = !any_revisit || any_push;
+                    }
                 }
             }
             // the object's velocity change, one call site (a driver inlines a copy of the 6 × 6
