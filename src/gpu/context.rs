@@ -293,30 +293,23 @@ impl GpuContext {
     /// Creates the buffer of `binding` of `bytes` bytes (at least 16) that the device alone writes
     /// and reads (a kernel's scratch memory: nothing uploaded; wgpu hands it over zeroed).
     pub fn create_scratch_buffer(&self, binding: Binding, bytes: u64) -> Result<wgpu::Buffer> {
-        let size = bytes.max(16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
-        self.check_buffer_size(binding.name, size, binding.space.into())?;
-        self.scoped(
-            || format!("creating GPU buffer `{}` of {size} bytes", binding.name),
-            || {
-                self.device.create_buffer(&wgpu::BufferDescriptor { label: Some(binding.name), size, usage: binding.space.usage(), mapped_at_creation: false })
-            },
-        )
+        self.create_empty_buffer(binding.name, "GPU buffer", bytes, binding.space.into(), binding.space.usage())
     }
 
     /// Creates the host-mappable staging buffer `name` of `bytes` bytes that readbacks copy into.
     pub fn create_staging_buffer(&self, name: &str, bytes: u64) -> Result<wgpu::Buffer> {
+        self.create_empty_buffer(name, "GPU staging buffer", bytes, BufferRole::Staging, wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST)
+    }
+
+    /// Creates buffer `name` (a `kind`, as errors call it) of `bytes` bytes, at least 16 and a
+    /// multiple of the copy alignment, with nothing written to it: the size checked for `role`
+    /// first, wgpu's errors named.
+    fn create_empty_buffer(&self, name: &str, kind: &str, bytes: u64, role: BufferRole, usage: wgpu::BufferUsages) -> Result<wgpu::Buffer> {
         let size = bytes.max(16).next_multiple_of(wgpu::COPY_BUFFER_ALIGNMENT);
-        self.check_buffer_size(name, size, BufferRole::Staging)?;
+        self.check_buffer_size(name, size, role)?;
         self.scoped(
-            || format!("creating GPU staging buffer `{name}` of {size} bytes"),
-            || {
-                self.device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some(name),
-                    size,
-                    usage: wgpu::BufferUsages::MAP_READ | wgpu::BufferUsages::COPY_DST,
-                    mapped_at_creation: false,
-                })
-            },
+            || format!("creating {kind} `{name}` of {size} bytes"),
+            || self.device.create_buffer(&wgpu::BufferDescriptor { label: Some(name), size, usage, mapped_at_creation: false }),
         )
     }
 
