@@ -10,8 +10,12 @@ Each variant is the module with one part of the hand–object contact pass switc
 (`g.n_colliders > 1000u`), so the compiler keeps it and its cost is its running alone; a part
 "gone" is cut off by an early return, so its code goes too. On the H200 (2026-11-29) the swept
 search and the second pass cost by running; on lavapipe (2026-11-30) the narrow phase's code costs
-~1.8x by its presence alone (BENCHMARKS.md "Where lavapipe's step goes"). The variants change the
-physics (the bench's contacts differ): they time parts, they are not physics to train with.
+~1.8x by its presence alone (BENCHMARKS.md "Where lavapipe's step goes"). The knock-outs change
+the physics (the bench's contacts differ): they time parts, they are not physics to train with.
+A "twice" variant runs one part twice, in a loop whose count (2) and whose argument's offset
+(0.0) are runtime values, and keeps the last result: the physics is the module's to every digit,
+and the time it adds is that part's own (on the H200, 2026-12-01: the narrow phases 24 % of the
+env step, BENCHMARKS.md "The GPU window of 2026-12-01").
 
 Exits with status 1, naming the variant, when the module no longer holds the text a variant
 patches (the shader changed: this script follows it).
@@ -22,6 +26,9 @@ from pathlib import Path
 
 # a runtime false that no compiler can fold away (the bench scene has 17 colliders)
 NEVER = "g.n_colliders > 1000u"
+# a runtime 2 and a runtime 0.0 (the "twice" variants)
+TWICE = "select(2u, 1u, g.n_colliders > 1000u)"
+ZERO = "select(0.0, 1.0, g.n_colliders > 1000u)"
 
 # name -> (what it times, [(text in the module, its replacement)])
 VARIANTS = {
@@ -52,6 +59,27 @@ VARIANTS = {
         "the arriving pass never runs",
         [("                n0 = n_reactions;",
           f"                n0 = select(0u, n_reactions, {NEVER});")],
+    ),
+    # "twice": a part run twice with the same result (the loop's count and the argument's offset
+    # are runtime values no compiler can fold: 2 and 0), so the time a variant adds is that
+    # part's own, with the physics unchanged
+    "queries_twice": (
+        "every hand-object narrow phase of the rounds run twice",
+        [("    let c = collide_hand_object_at(ci, ColliderPose(a.xyz, rot), o.xyz, orot, a.w, obj);\n",
+          f"    var c: Contact;\n    for (var rep = 0u; rep < {TWICE}; rep++) {{\n"
+          f"        c = collide_hand_object_at(ci, ColliderPose(a.xyz, rot), o.xyz, orot, a.w + f32(rep) * {ZERO}, obj);\n    }}\n")],
+    ),
+    "mobility_twice": (
+        "the hand's mobility at every solved contact computed twice (the walks up the chain)",
+        [("    let w = hand_mobility(l, c.point, c.normal, h);\n",
+          f"    var w: vec2<f32>;\n    for (var rep = 0u; rep < {TWICE}; rep++) {{\n"
+          f"        w = hand_mobility(l, c.point, c.normal, h + f32(rep) * {ZERO});\n    }}\n")],
+    ),
+    "object_solve_twice": (
+        "the object's 6 x 6 velocity solve run twice",
+        [("                let v = object_velocity_change(h);\n",
+          f"                var v: ObjectVelocity;\n                for (var rep = 0u; rep < {TWICE}; rep++) {{\n"
+          f"                    v = object_velocity_change(h + f32(rep) * {ZERO});\n                }}\n")],
     ),
 }
 

@@ -365,8 +365,9 @@ fn gpu_suite_stops_first_without_an_adapter() {
 }
 
 /// `benches/physics_variants.py` patches today's simulator module (so that it cannot rot when the
-/// shader changes): each variant is the module with its part switched off behind a runtime-false
-/// test, and a module without the text a variant patches is a one-line error naming it.
+/// shader changes): each knock-out is the module with its part switched off behind a runtime-false
+/// test, each "twice" variant the module with its part run twice in a loop of a runtime count (the
+/// same result), and a module without the text a variant patches is a one-line error naming it.
 #[test]
 fn physics_variants_patch_today_s_module() {
     let tmp = tempfile::tempdir().unwrap();
@@ -376,7 +377,7 @@ fn physics_variants_patch_today_s_module() {
     let run = |m: &Path| Command::new("python3").arg("benches/physics_variants.py").arg(m).arg(tmp.path().join("v")).current_dir(ROOT).output().expect("python3 on the PATH");
     let out = run(&module);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let names = ["no_arriving_pass", "no_hand_object", "no_hand_object_code", "no_second_pass", "no_swept_search"];
+    let names = ["mobility_twice", "no_arriving_pass", "no_hand_object", "no_hand_object_code", "no_second_pass", "no_swept_search", "object_solve_twice", "queries_twice"];
     let mut found: Vec<String> = std::fs::read_dir(tmp.path().join("v")).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().trim_end_matches(".wgsl").to_string()).collect();
     found.sort();
     assert_eq!(found, names);
