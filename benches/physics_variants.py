@@ -82,6 +82,19 @@ VARIANTS = {
           f"                    v = object_velocity_change(h + f32(rep) * {ZERO});\n                }}\n")],
     ),
 }
+# "workgroup_N": the step (and the reset) at N invocations a workgroup where the built-in module
+# has 64 (the simulator dispatches a module's entry points by their own sizes): the same physics,
+# the narrow-phase rounds shared out over N envs. A driver may cap the registers by the size (a
+# workgroup of 512 on a multiprocessor of 64 k registers leaves each invocation at most 128), and
+# a small batch spreads over more or fewer multiprocessors (2,048 envs are 32 workgroups of 64,
+# 64 of 32)
+for size in (32, 128, 256, 512):
+    VARIANTS[f"workgroup_{size}"] = (
+        f"the step and the reset at {size} invocations a workgroup (the rounds over {size} envs)",
+        [("const WORKGROUP_SIZE: u32 = 64u;", f"const WORKGROUP_SIZE: u32 = {size}u;"),
+         ("@compute @workgroup_size(64)\nfn reset_main(", f"@compute @workgroup_size({size})\nfn reset_main("),
+         ("@compute @workgroup_size(64)\nfn step_main(", f"@compute @workgroup_size({size})\nfn step_main(")],
+    )
 
 
 def main() -> int:

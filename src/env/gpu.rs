@@ -11,7 +11,7 @@ use crate::gpu::bindings::{COLLIDERS, GLOBALS, HULLS, JOINTS, OBJECTS, PARAMS, P
 use crate::gpu::bindings::{NARROW_QUERIES, RESET_MAIN, SIM_GROUP, SPRINGS, STEP_MAIN, STEP_MAIN_WITHOUT_ROUNDS};
 use crate::gpu::context::{BufferRole, GpuContext, ReadbackCopy};
 use crate::gpu::layout::*;
-use crate::gpu::shaders::{shader_source, workgroups_for};
+use crate::gpu::shaders::{module_workgroups, shader_source, workgroups_for, workgroups_of};
 
 /// The env batch on a GPU. The task layer (`task_gpu`) binds its buffers and dispatches its
 /// pipelines inside its own command encoders.
@@ -44,6 +44,10 @@ pub struct GpuEnvBatch {
     pub(crate) reset_pipeline: wgpu::ComputePipeline,
     pub(crate) step_group: wgpu::BindGroup,
     pub(crate) reset_group: wgpu::BindGroup,
+    /// Invocations per workgroup of the module's `step_main` and `reset_main` (the built-in's:
+    /// [`crate::gpu::shaders::WORKGROUP_SIZE`]; a `--physics-wgsl` module's its own).
+    step_workgroup_size: u32,
+    reset_workgroup_size: u32,
     mask_host: Vec<u32>,
     /// The last `step`'s dispatch, recorded but not yet submitted: the next readback appends its
     /// copy and submits both at once (one submission per env step of a loop that reads each
@@ -104,6 +108,16 @@ impl GpuEnvBatch {
         // the largest per-env readback: env states, contact springs or what the caller reads (the task layer's states)
         let task_bytes = n as u64 * min_readback_bytes_per_env;
         let readback = ctx.create_staging_buffer("env readback", state_bytes.max(spring_bytes).max(task_bytes)).with_context(per_env)?;
+        // the entry points' workgroup sizes, and the module's workgroup memory against the device's
+        // limit, before anything is compiled
+        let (sizes, workgroup_bytes) = module_workgroups(source, &[STEP_MAIN.entry_point, RESET_MAIN.entry_point]).with_context(|| format!("shader `{}`", SIM_GROUP.shader))?;
+        let (step_workgroup_size, reset_workgroup_size) = (sizes[0], sizes[1]);
+        let limit = ctx.device.limits().max_compute_workgroup_storage_size;
+        ensure!(
+            workgroup_bytes <= limit,
+            "shader `{}`: {workgroup_bytes} bytes of workgroup memory (`var<workgroup>`), over the device's {limit} (max_compute_workgroup_storage_size)",
+            SIM_GROUP.shader
+        );
         let [step_pipeline, reset_pipeline] =
             ctx.compute_pipelines(SIM_GROUP.shader, source, [STEP_MAIN.entry_point, RESET_MAIN.entry_point])?;
         let buffers = [
@@ -147,6 +161,8 @@ impl GpuEnvBatch {
             reset_pipeline,
             step_group,
             reset_group,
+            step_workgroup_size,
+            reset_workgroup_size,
             mask_host: vec![0; n],
             pending: std::sync::Mutex::new(None),
         };
@@ -159,14 +175,22 @@ impl GpuEnvBatch {
         &self.ctx
     }
 
-    /// Workgroups of a dispatch over all envs (x, y: 2-D past 65535 workgroups).
+    /// Workgroups of a dispatch over all envs (x, y: 2-D past 65535 workgroups) of kernels of
+    /// [`crate::gpu::shaders::WORKGROUP_SIZE`] invocations: the task layer's, which it dispatches
+    /// with the built-in module's `step_main` in one pass list.
     pub(crate) fn workgroups(&self) -> (u32, u32) {
+        debug_assert_eq!(self.step_workgroup_size, crate::gpu::shaders::WORKGROUP_SIZE, "the task layer runs the built-in step");
         workgroups_for(self.model.spec.num_envs as u32)
     }
 
-    fn dispatch(&self, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, what: &str) -> Result<()> {
+    /// Workgroups of a dispatch over all envs of an entry point of `size` invocations a workgroup.
+    fn workgroups_of_size(&self, size: u32) -> (u32, u32) {
+        workgroups_of(self.model.spec.num_envs as u32, size)
+    }
+
+    fn dispatch(&self, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, workgroups: (u32, u32), what: &str) -> Result<()> {
         self.flush_pending()?;
-        let enc = self.ctx.encode_passes(&[(pipeline, group)], self.workgroups(), what);
+        let enc = self.ctx.encode_passes(&[(pipeline, group)], workgroups, what);
         self.ctx.submit(enc, what)
     }
 
@@ -189,7 +213,7 @@ impl GpuEnvBatch {
     fn run_reset(&mut self) -> Result<()> {
         self.flush_pending()?;
         self.ctx.upload(RESET_MASK.name, &self.reset_mask, bytemuck::cast_slice(&self.mask_host))?;
-        self.dispatch(&self.reset_pipeline, &self.reset_group, "dispatching reset_main")
+        self.dispatch(&self.reset_pipeline, &self.reset_group, self.workgroups_of_size(self.reset_workgroup_size), "dispatching reset_main")
     }
 
     /// Overwrites the parameters (checkpoint restore).
@@ -250,7 +274,7 @@ impl EnvBatch for GpuEnvBatch {
         self.flush_pending()?;
         self.ctx.upload(TARGETS.name, &self.targets, bytemuck::cast_slice(targets))?;
         // recorded now, submitted with the next readback or before the next use of the queue
-        let enc = self.ctx.encode_passes(&[(&self.step_pipeline, &self.step_group)], self.workgroups(), "dispatching step_main");
+        let enc = self.ctx.encode_passes(&[(&self.step_pipeline, &self.step_group)], self.workgroups_of_size(self.step_workgroup_size), "dispatching step_main");
         *self.pending.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(enc);
         Ok(())
     }

@@ -27,6 +27,30 @@ pub fn shader_source() -> String {
     [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_NARROW_ROUNDS].join("\n")
 }
 
+/// What a WGSL module's dispatches need to know of it: the invocations per workgroup
+/// (`@workgroup_size(x)`, one-dimensional) of each entry point asked for, in their order, and
+/// the bytes of workgroup memory the module declares (all of its `var<workgroup>`s: at least what
+/// any one entry point takes). The built-in modules' kernels take [`WORKGROUP_SIZE`]; a module
+/// given to `dextrain bench --physics-wgsl` may choose its own for `step_main` and `reset_main`
+/// (benches/physics_variants.py's `workgroup_N`), and the simulator dispatches each entry point by
+/// its own size. wgpu does not check the workgroup memory against the device's limit, and a
+/// driver may run a module over it with the memory overlapping (lavapipe did, at 36 kB against its
+/// 32 kB): the simulator checks it.
+pub fn module_workgroups(source: &str, entry_points: &[&str]) -> anyhow::Result<(Vec<u32>, u32)> {
+    let module = naga::front::wgsl::parse_str(source).map_err(|e| anyhow::anyhow!("not valid WGSL: {}", e.emit_to_string(source).lines().next().unwrap_or("")))?;
+    let mut sizes = Vec::with_capacity(entry_points.len());
+    for &name in entry_points {
+        let entry = module.entry_points.iter().find(|e| e.name == name).ok_or_else(|| anyhow::anyhow!("the module has no entry point `{name}`"))?;
+        let [x, y, z] = entry.workgroup_size;
+        anyhow::ensure!(x >= 1 && y == 1 && z == 1, "entry point `{name}`: @workgroup_size({x}, {y}, {z}); expected one dimension, @workgroup_size(N)");
+        sizes.push(x);
+    }
+    let mut layouter = naga::proc::Layouter::default();
+    layouter.update(module.to_ctx()).map_err(|e| anyhow::anyhow!("cannot lay out the module's types: {e}"))?;
+    let bytes = module.global_variables.iter().filter(|(_, v)| v.space == naga::AddressSpace::WorkGroup).map(|(_, v)| layouter[v.ty].size).sum();
+    Ok((sizes, bytes))
+}
+
 /// Workgroups (x, y) of a dispatch of `invocations` invocations (one per env, or per number drawn):
 /// 2-D past 65,535 workgroups, as `env_index` in common.wgsl reads them; at least one.
 pub fn workgroups_for(invocations: u32) -> (u32, u32) {

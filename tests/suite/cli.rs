@@ -367,7 +367,8 @@ fn gpu_suite_stops_first_without_an_adapter() {
 /// `benches/physics_variants.py` patches today's simulator module (so that it cannot rot when the
 /// shader changes): each knock-out is the module with its part switched off behind a runtime-false
 /// test, each "twice" variant the module with its part run twice in a loop of a runtime count (the
-/// same result), and a module without the text a variant patches is a one-line error naming it.
+/// same result), each `workgroup_N` the module with its step and reset at N invocations a workgroup,
+/// and a module without the text a variant patches is a one-line error naming it.
 #[test]
 fn physics_variants_patch_today_s_module() {
     let tmp = tempfile::tempdir().unwrap();
@@ -377,13 +378,30 @@ fn physics_variants_patch_today_s_module() {
     let run = |m: &Path| Command::new("python3").arg("benches/physics_variants.py").arg(m).arg(tmp.path().join("v")).current_dir(ROOT).output().expect("python3 on the PATH");
     let out = run(&module);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let names = ["mobility_twice", "no_arriving_pass", "no_hand_object", "no_hand_object_code", "no_second_pass", "no_swept_search", "object_solve_twice", "queries_twice"];
+    let names = [
+        "mobility_twice",
+        "no_arriving_pass",
+        "no_hand_object",
+        "no_hand_object_code",
+        "no_second_pass",
+        "no_swept_search",
+        "object_solve_twice",
+        "queries_twice",
+        "workgroup_128",
+        "workgroup_256",
+        "workgroup_32",
+        "workgroup_512",
+    ];
     let mut found: Vec<String> = std::fs::read_dir(tmp.path().join("v")).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().trim_end_matches(".wgsl").to_string()).collect();
     found.sort();
     assert_eq!(found, names);
     for n in names {
         let v = std::fs::read_to_string(tmp.path().join("v").join(format!("{n}.wgsl"))).unwrap();
-        assert!(v != source && v.contains("g.n_colliders > 1000u") && !source.contains("g.n_colliders > 1000u"), "{n}");
+        match n.strip_prefix("workgroup_") {
+            // the step and the reset at that size, the rest of the module as it is
+            Some(size) => assert!(v.matches(&format!("@workgroup_size({size})")).count() == 2 && v.contains(&format!("const WORKGROUP_SIZE: u32 = {size}u;")), "{n}"),
+            None => assert!(v != source && v.contains("g.n_colliders > 1000u") && !source.contains("g.n_colliders > 1000u"), "{n}"),
+        }
         // the patch only adds: every line of the module but the patched ones is kept
         let kept = source.lines().filter(|l| v.contains(l)).count();
         assert!(kept + 4 >= source.lines().count(), "{n}: {kept} of {} lines kept", source.lines().count());
