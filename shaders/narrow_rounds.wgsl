@@ -10,7 +10,9 @@
 // ran both the palm box's code (separating axes, clipping, projections) and the finger
 // capsules' (BENCHMARKS.md "Each env's own list of queries"). Shared out, a workgroup of 64 envs
 // runs its ~500 queries of a substep in about as many rounds as their number over 64, the box
-// colliders' queries first so that most warps run one shape's code.
+// colliders' queries first so that most warps run one shape's code. The workgroup's size is
+// WORKGROUP_SIZE, which the simulator sets by the batch (32 to 512 envs: gpu/shaders.rs,
+// step_workgroup_size; as written, 64).
 
 // The queries' slots: per env, two regions (0: the pairs at the substep's poses, kept for the
 // whole substep; 1: a pass's swept searches) of n_colliders slots of 4 vec4, one per collider.
@@ -135,7 +137,7 @@ fn run_query(env: u32, region: u32, ci: u32) {
 
 // One round: every invocation of the workgroup calls it at the same point with the colliders
 // whose queries it posted in region `region` (`list`); the workgroup's queries, the box
-// colliders' first, are shared out over its invocations (query t by invocation t % 64), and on
+// colliders' first, are shared out over its invocations (query t by invocation t % WORKGROUP_SIZE), and on
 // return each invocation's slots hold its contacts. Called in uniform control flow only (its
 // barriers).
 fn narrow_phase_round(region: u32, list: array<u32, REVISIT_WORDS>) {

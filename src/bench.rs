@@ -182,6 +182,8 @@ pub fn run_bench(env: &mut dyn EnvBatch, model: &SimModel, opts: &BenchOptions) 
         "bad_resets": bad,
         // the simulator's buffers per env (0 on the CPU)
         "device_bytes_per_env": env.device_bytes() as f64 / n.max(1) as f64,
+        // invocations per workgroup of the simulator's step on a GPU (null on the CPU)
+        "step_workgroup_size": env.step_workgroup_size(),
         // per env step of all envs: the step and the statistics read (the simulator's own
         // submissions are all of the queue's)
         "gpu_counts_per_env_step": if env.device_bytes() > 0 { step_counts.to_json(CHUNK_STEPS as f64, Some(step_counts.total(crate::gpu_counts::Event::Submission))) } else { serde_json::Value::Null },

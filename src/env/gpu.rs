@@ -9,9 +9,9 @@ use bytemuck::Pod;
 use super::{EnvBatch, EnvSpec, SimModel};
 use crate::gpu::bindings::{COLLIDERS, GLOBALS, HULLS, JOINTS, OBJECTS, PARAMS, PIECES, REF_OBJECTS, RESET_MASK, STATES, STATS, TARGETS};
 use crate::gpu::bindings::{NARROW_QUERIES, RESET_MAIN, SIM_GROUP, SPRINGS, STEP_MAIN, STEP_MAIN_WITHOUT_ROUNDS};
-use crate::gpu::context::{BufferRole, GpuContext, ReadbackCopy};
+use crate::gpu::context::{BufferRole, GpuContext, Pass, ReadbackCopy};
 use crate::gpu::layout::*;
-use crate::gpu::shaders::{module_workgroups, shader_source, workgroups_for, workgroups_of};
+use crate::gpu::shaders::{module_workgroups, shader_source_at, step_workgroup_size, workgroups_for, workgroups_of};
 
 /// The env batch on a GPU. The task layer (`task_gpu`) binds its buffers and dispatches its
 /// pipelines inside its own command encoders.
@@ -40,12 +40,12 @@ pub struct GpuEnvBatch {
     /// Staging buffer of [`GpuEnvBatch::read`] (the size of the env states or of the springs,
     /// whichever is larger).
     readback: wgpu::Buffer,
-    pub(crate) step_pipeline: wgpu::ComputePipeline,
-    pub(crate) reset_pipeline: wgpu::ComputePipeline,
-    pub(crate) step_group: wgpu::BindGroup,
-    pub(crate) reset_group: wgpu::BindGroup,
+    step_pipeline: wgpu::ComputePipeline,
+    reset_pipeline: wgpu::ComputePipeline,
+    step_group: wgpu::BindGroup,
+    reset_group: wgpu::BindGroup,
     /// Invocations per workgroup of the module's `step_main` and `reset_main` (the built-in's:
-    /// [`crate::gpu::shaders::WORKGROUP_SIZE`]; a `--physics-wgsl` module's its own).
+    /// chosen by the batch's size, [`step_workgroup_size`]; a `--physics-wgsl` module's its own).
     step_workgroup_size: u32,
     reset_workgroup_size: u32,
     mask_host: Vec<u32>,
@@ -66,18 +66,36 @@ impl GpuEnvBatch {
     /// [`GpuEnvBatch::new`] with a readback buffer of at least `min_readback_bytes_per_env` per env
     /// (the task layer reads its per-env states through it).
     pub fn with_readback(ctx: GpuContext, model: SimModel, min_readback_bytes_per_env: u64) -> Result<GpuEnvBatch> {
-        GpuEnvBatch::build(ctx, model, min_readback_bytes_per_env, &shader_source())
+        GpuEnvBatch::build(ctx, model, min_readback_bytes_per_env, None)
     }
 
     /// [`GpuEnvBatch::new`] with the simulator's WGSL module `source` in place of the built-in one
-    /// ([`shader_source`]: common, reset and physics; `dextrain bench --physics-wgsl`, to time a
-    /// variant of the physics shader). A module that fails validation is an error naming the shader.
+    /// ([`crate::gpu::shaders::shader_source`]: common, reset and physics; `dextrain bench
+    /// --physics-wgsl`, to time a variant of the physics shader), its entry points dispatched at
+    /// their own workgroup sizes. A module that fails validation is an error naming the shader.
     pub fn with_physics_source(ctx: GpuContext, model: SimModel, source: &str) -> Result<GpuEnvBatch> {
-        GpuEnvBatch::build(ctx, model, 0, source)
+        GpuEnvBatch::build(ctx, model, 0, Some(source))
     }
 
-    fn build(ctx: GpuContext, model: SimModel, min_readback_bytes_per_env: u64, source: &str) -> Result<GpuEnvBatch> {
+    /// The batch on `source`, or (None) on the built-in module at the step's workgroup size for
+    /// this many envs on this device ([`step_workgroup_size`]).
+    fn build(ctx: GpuContext, model: SimModel, min_readback_bytes_per_env: u64, source: Option<&str>) -> Result<GpuEnvBatch> {
         let n = model.spec.num_envs;
+        let built_in;
+        let source = match source {
+            Some(source) => source,
+            None => {
+                let l = ctx.device.limits();
+                // a size fits where its invocations and its module's workgroup memory are within the device's limits
+                let fits = |size: u32| {
+                    size <= l.max_compute_invocations_per_workgroup
+                        && size <= l.max_compute_workgroup_size_x
+                        && module_workgroups(&shader_source_at(size), &[]).is_ok_and(|(_, bytes)| bytes <= l.max_compute_workgroup_storage_size)
+                };
+                built_in = shader_source_at(step_workgroup_size(n, fits));
+                &built_in
+            }
+        };
         // the largest per-env buffer, checked before anything is allocated
         let state_bytes = (n * std::mem::size_of::<EnvState>()) as u64;
         ctx.check_buffer_size(STATES.name, state_bytes, BufferRole::Storage).with_context(|| format!("sim.num_envs = {n}"))?;
@@ -176,11 +194,19 @@ impl GpuEnvBatch {
     }
 
     /// Workgroups of a dispatch over all envs (x, y: 2-D past 65535 workgroups) of kernels of
-    /// [`crate::gpu::shaders::WORKGROUP_SIZE`] invocations: the task layer's, which it dispatches
-    /// with the built-in module's `step_main` in one pass list.
+    /// [`crate::gpu::shaders::WORKGROUP_SIZE`] invocations (the task layer's).
     pub(crate) fn workgroups(&self) -> (u32, u32) {
-        debug_assert_eq!(self.step_workgroup_size, crate::gpu::shaders::WORKGROUP_SIZE, "the task layer runs the built-in step");
         workgroups_for(self.model.spec.num_envs as u32)
+    }
+
+    /// The step's dispatch over all envs: `step_main`, its bind group and workgroups.
+    pub(crate) fn step_pass(&self) -> Pass<'_> {
+        (&self.step_pipeline, &self.step_group, self.workgroups_of_size(self.step_workgroup_size))
+    }
+
+    /// The reset's dispatch over all envs: `reset_main`, its bind group and workgroups.
+    pub(crate) fn reset_pass(&self) -> Pass<'_> {
+        (&self.reset_pipeline, &self.reset_group, self.workgroups_of_size(self.reset_workgroup_size))
     }
 
     /// Workgroups of a dispatch over all envs of an entry point of `size` invocations a workgroup.
@@ -188,9 +214,9 @@ impl GpuEnvBatch {
         workgroups_of(self.model.spec.num_envs as u32, size)
     }
 
-    fn dispatch(&self, pipeline: &wgpu::ComputePipeline, group: &wgpu::BindGroup, workgroups: (u32, u32), what: &str) -> Result<()> {
+    fn dispatch(&self, pass: Pass<'_>, what: &str) -> Result<()> {
         self.flush_pending()?;
-        let enc = self.ctx.encode_passes(&[(pipeline, group)], workgroups, what);
+        let enc = self.ctx.encode_dispatches(&[pass], what);
         self.ctx.submit(enc, what)
     }
 
@@ -213,7 +239,7 @@ impl GpuEnvBatch {
     fn run_reset(&mut self) -> Result<()> {
         self.flush_pending()?;
         self.ctx.upload(RESET_MASK.name, &self.reset_mask, bytemuck::cast_slice(&self.mask_host))?;
-        self.dispatch(&self.reset_pipeline, &self.reset_group, self.workgroups_of_size(self.reset_workgroup_size), "dispatching reset_main")
+        self.dispatch(self.reset_pass(), "dispatching reset_main")
     }
 
     /// Overwrites the parameters (checkpoint restore).
@@ -248,6 +274,10 @@ impl EnvBatch for GpuEnvBatch {
         &self.model.spec
     }
 
+    fn step_workgroup_size(&self) -> Option<u32> {
+        Some(self.step_workgroup_size)
+    }
+
     fn device_bytes(&self) -> u64 {
         [&self.globals, &self.joints, &self.states, &self.params, &self.targets, &self.stats, &self.reset_mask, &self.springs, &self.narrow_queries, &self.readback].iter().map(|b| b.size()).sum()
     }
@@ -274,7 +304,7 @@ impl EnvBatch for GpuEnvBatch {
         self.flush_pending()?;
         self.ctx.upload(TARGETS.name, &self.targets, bytemuck::cast_slice(targets))?;
         // recorded now, submitted with the next readback or before the next use of the queue
-        let enc = self.ctx.encode_passes(&[(&self.step_pipeline, &self.step_group)], self.workgroups_of_size(self.step_workgroup_size), "dispatching step_main");
+        let enc = self.ctx.encode_dispatches(&[self.step_pass()], "dispatching step_main");
         *self.pending.lock().unwrap_or_else(std::sync::PoisonError::into_inner) = Some(enc);
         Ok(())
     }

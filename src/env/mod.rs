@@ -61,6 +61,11 @@ pub trait EnvBatch: Send {
     fn device_bytes(&self) -> u64 {
         0
     }
+    /// Invocations per workgroup of the simulator's step on a GPU (chosen by the batch's size:
+    /// `gpu::shaders::step_workgroup_size`); None on the CPU.
+    fn step_workgroup_size(&self) -> Option<u32> {
+        None
+    }
     /// Starts episode 0 of every env.
     fn reset_all(&mut self) -> Result<()>;
     /// Starts the next episode of every env whose mask entry is true.

@@ -42,6 +42,9 @@ pub struct GpuContext {
     uncaptured: Arc<Mutex<Vec<String>>>,
 }
 
+/// One dispatch of a compute pass: the pipeline, its bind group 0 and its workgroups (x, y).
+pub type Pass<'a> = (&'a wgpu::ComputePipeline, &'a wgpu::BindGroup, (u32, u32));
+
 /// What a buffer is bound as, which decides the device limits on its size.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BufferRole {
@@ -390,14 +393,21 @@ impl GpuContext {
     /// bind group 0), each over `workgroups` (x, y); wgpu orders dispatches that share buffers.
     /// The dispatches are counted as kernels of `what` ([`crate::gpu_counts`]).
     pub fn encode_passes(&self, passes: &[(&wgpu::ComputePipeline, &wgpu::BindGroup)], workgroups: (u32, u32), what: &str) -> wgpu::CommandEncoder {
+        let passes: Vec<Pass<'_>> = passes.iter().map(|&(pipeline, group)| (pipeline, group, workgroups)).collect();
+        self.encode_dispatches(&passes, what)
+    }
+
+    /// [`GpuContext::encode_passes`] with each dispatch's own workgroups (x, y): the simulator's
+    /// step and reset at theirs among the task layer's kernels.
+    pub fn encode_dispatches(&self, passes: &[Pass<'_>], what: &str) -> wgpu::CommandEncoder {
         gpu_counts::add_n(Event::Kernel, &format!("dextrain:{what}"), passes.len() as u64);
         let mut enc = self.device.create_command_encoder(&Default::default());
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
-            for (pipeline, group) in passes {
+            for &(pipeline, group, (x, y)) in passes {
                 pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, *group, &[]);
-                pass.dispatch_workgroups(workgroups.0, workgroups.1, 1);
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(x, y, 1);
             }
         }
         enc

@@ -22,9 +22,49 @@ pub const SHADER_NORMALIZER: &str = include_str!("../../shaders/normalizer.wgsl"
 pub const WORKGROUP_SIZE: u32 = 64;
 
 /// The WGSL module the simulator runs: common, reset, physics and its narrow-phase rounds
-/// concatenated.
+/// concatenated, its kernels at [`WORKGROUP_SIZE`] invocations a workgroup.
 pub fn shader_source() -> String {
     [SHADER_COMMON, SHADER_RESET, SHADER_PHYSICS, SHADER_NARROW_ROUNDS].join("\n")
+}
+
+/// The texts of the simulator's module that set its workgroup size (common.wgsl's constant, which
+/// the rounds' lists and `env_index` read, and the two entry points' attributes), each once in
+/// [`shader_source`].
+const WORKGROUP_SIZE_TEXTS: [(&str, &str); 3] = [
+    ("const WORKGROUP_SIZE: u32 = 64u;", "const WORKGROUP_SIZE: u32 = {}u;"),
+    ("@compute @workgroup_size(64)\nfn reset_main(", "@compute @workgroup_size({})\nfn reset_main("),
+    ("@compute @workgroup_size(64)\nfn step_main(", "@compute @workgroup_size({})\nfn step_main("),
+];
+
+/// [`shader_source`] with `step_main` and `reset_main` at `workgroup_size` invocations a workgroup
+/// (the narrow-phase rounds shared out over that many envs): the same physics, query for query.
+pub fn shader_source_at(workgroup_size: u32) -> String {
+    let mut source = shader_source();
+    for (text, sized) in WORKGROUP_SIZE_TEXTS {
+        debug_assert_eq!(source.matches(text).count(), 1, "the simulator's module should hold {text:?} once");
+        source = source.replace(text, &sized.replace("{}", &workgroup_size.to_string()));
+    }
+    source
+}
+
+/// The step's workgroup sizes the simulator chooses from, largest first.
+pub const STEP_WORKGROUP_SIZES: [u32; 5] = [512, 256, 128, 64, 32];
+
+/// The workgroups a batch's step should at least make (about one per multiprocessor of an H100 or
+/// H200, which have 132).
+pub const MIN_STEP_WORKGROUPS: usize = 128;
+
+/// The simulator step's workgroup size for `n_envs` envs: the largest of
+/// [`STEP_WORKGROUP_SIZES`] that leaves at least [`MIN_STEP_WORKGROUPS`] workgroups and that
+/// `fits` the device (its workgroup memory and invocation limits), else the smallest. On an H200
+/// (2026-12-01, BENCHMARKS.md "The step's workgroup size") the bench scene at 65,536 envs stepped
+/// 1.50× faster in workgroups of 512 than of 64 (the driver left 128 registers an invocation
+/// where it took 168, and each round shared its queries over 512 envs), 1.33× in 256, 1.20× in
+/// 128, 0.82× in 32; at 2,048 envs (the lift configs') workgroups of 32 were 1.16× faster than
+/// of 64 (64 multiprocessors at work instead of 32), 512 0.50×.
+pub fn step_workgroup_size(n_envs: usize, fits: impl Fn(u32) -> bool) -> u32 {
+    let smallest = STEP_WORKGROUP_SIZES[STEP_WORKGROUP_SIZES.len() - 1];
+    STEP_WORKGROUP_SIZES.into_iter().find(|&size| n_envs >= MIN_STEP_WORKGROUPS * size as usize && fits(size)).unwrap_or(smallest)
 }
 
 /// What a WGSL module's dispatches need to know of it: the invocations per workgroup

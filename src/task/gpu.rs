@@ -20,7 +20,7 @@ use super::task::OUT_MISC;
 use super::{DeviceStep, StepBatch, TaskBatch, check_actions, check_targets, decode_snapshot, encode_snapshot};
 use super::shaders::task_shader_source;
 use crate::env::gpu::GpuEnvBatch;
-use crate::gpu::context::{BufferRole, GpuContext, ReadbackCopy};
+use crate::gpu::context::{BufferRole, GpuContext, Pass, ReadbackCopy};
 use crate::gpu::bindings::{ACTIONS, GLOBALS, JOINTS, PARAMS, REF_CFG, REF_FRAMES, REF_INFO, RESET_MASK, SPRINGS, STATES, STATS, TARGETS, TIPS};
 use crate::gpu::bindings::{Binding, FINAL_OUT, TASK_ACT, TASK_CFG, TASK_GROUP, TASK_OBSERVE, TASK_OBSERVE_FINAL, TASK_OUT, TASK_REWARD, TASK_STATES};
 use crate::gpu::layout::*;
@@ -189,19 +189,21 @@ impl GpuTaskBatch {
     fn run_step(&mut self, act: bool) -> Result<&StepBatch> {
         let e = &self.env;
         e.flush_pending()?;
-        let mut passes = Vec::with_capacity(5);
+        // the task's kernels over its workgroups, the simulator's step and reset over theirs
+        let wg = e.workgroups();
+        let mut passes: Vec<Pass<'_>> = Vec::with_capacity(5);
         if act {
-            passes.push((&self.act_pipeline, &self.act_group));
+            passes.push((&self.act_pipeline, &self.act_group, wg));
         }
-        passes.extend([(&e.step_pipeline, &e.step_group), (&self.reward_pipeline, &self.reward_group)]);
+        passes.extend([e.step_pass(), (&self.reward_pipeline, &self.reward_group, wg)]);
         if self.final_readback.is_some() {
-            passes.push((&self.final_pipeline, &self.final_group));
+            passes.push((&self.final_pipeline, &self.final_group, wg));
         }
-        passes.extend([(&e.reset_pipeline, &e.reset_group), (&self.observe_pipeline, &self.observe_group)]);
+        passes.extend([e.reset_pass(), (&self.observe_pipeline, &self.observe_group, wg)]);
         match &self.final_readback {
             None => dispatch_and_read(e, &passes, &self.out, &self.readback, self.out_bytes, &mut self.host, "task step")?,
             Some(final_readback) => {
-                let enc = e.ctx.encode_passes(&passes, e.workgroups(), "task step");
+                let enc = e.ctx.encode_dispatches(&passes, "task step");
                 let (od, pd) = (self.spec.obs_dim, self.spec.priv_dim);
                 let n = self.spec.num_envs;
                 let fin_bytes = (n * (od + pd) * 4) as u64;
@@ -263,7 +265,7 @@ impl TaskBatch for GpuTaskBatch {
     fn reset_all(&mut self) -> Result<&StepBatch> {
         // reset_mask = 2 everywhere: task_observe initialises every env's task state
         self.env.reset_all()?;
-        dispatch_and_read(&self.env, &[(&self.observe_pipeline, &self.observe_group)], &self.out, &self.readback, self.out_bytes, &mut self.host, "task reset_all")?;
+        dispatch_and_read(&self.env, &[(&self.observe_pipeline, &self.observe_group, self.env.workgroups())], &self.out, &self.readback, self.out_bytes, &mut self.host, "task reset_all")?;
         self.unpack_obs();
         self.batch.clear_misc();
         Ok(&self.batch)
@@ -303,12 +305,13 @@ impl TaskBatch for GpuTaskBatch {
         // the final observations [N, od], [N, pd] back to back in `final_out`) into the tensors
         let mut copy_in = e.ctx.device.create_command_encoder(&Default::default());
         copy_in.copy_buffer_to_buffer(act.buffer(), act.offset(), &self.actions, 0, act.size());
-        let mut passes = vec![(&self.act_pipeline, &self.act_group), (&e.step_pipeline, &e.step_group), (&self.reward_pipeline, &self.reward_group)];
+        let wg = e.workgroups();
+        let mut passes = vec![(&self.act_pipeline, &self.act_group, wg), e.step_pass(), (&self.reward_pipeline, &self.reward_group, wg)];
         if finals.is_some() {
-            passes.push((&self.final_pipeline, &self.final_group));
+            passes.push((&self.final_pipeline, &self.final_group, wg));
         }
-        passes.extend([(&e.reset_pipeline, &e.reset_group), (&self.observe_pipeline, &self.observe_group)]);
-        let mut enc = e.ctx.encode_passes(&passes, e.workgroups(), "task step (device-resident)");
+        passes.extend([e.reset_pass(), (&self.observe_pipeline, &self.observe_group, wg)]);
+        let mut enc = e.ctx.encode_dispatches(&passes, "task step (device-resident)");
         for (src, dsts) in [(&self.out, &outs[..]), (&self.final_out, finals.as_ref().map_or(&[][..], |f| &f[..]))] {
             let mut from = 0u64;
             for o in dsts {
@@ -451,7 +454,7 @@ fn host_ended(host: &[f32], n: usize, row: usize, i: usize) -> bool {
 /// and reads it into `host`. `what` names the call in errors.
 fn dispatch_and_read(
     env: &GpuEnvBatch,
-    passes: &[(&wgpu::ComputePipeline, &wgpu::BindGroup)],
+    passes: &[Pass<'_>],
     out: &wgpu::Buffer,
     readback: &wgpu::Buffer,
     out_bytes: u64,
@@ -459,7 +462,7 @@ fn dispatch_and_read(
     what: &str,
 ) -> Result<()> {
     env.flush_pending()?;
-    let enc = env.ctx.encode_passes(passes, env.workgroups(), what);
+    let enc = env.ctx.encode_dispatches(passes, what);
     let copy = ReadbackCopy { name: TASK_OUT.name, src: out, staging: readback, bytes: out_bytes };
     // host as bytes: any f32 slice is a valid byte slice, so no alignment question arises
     env.ctx.submit_and_read(enc, &[copy], what, |_, bytes| bytemuck::cast_slice_mut::<f32, u8>(host).copy_from_slice(bytes))

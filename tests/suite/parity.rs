@@ -664,50 +664,46 @@ fn the_bench_scene_s_rollout_has_the_same_contacts_on_both_backends() {
     assert!((a - b).abs() <= 0.02 * a, "contacts per physics step: cpu {a:.5}, gpu {b:.5} (more than 2 % apart)");
 }
 
-/// A simulator module whose step and reset take another workgroup size than the built-in's 64
-/// (benches/physics_variants.py's `workgroup_N`, stepped by `bench --physics-wgsl`) is dispatched by
-/// its own size: at 100 envs, three workgroups of 32 and part of a fourth, its bench-scene rollout
-/// leaves every env's state the built-in module's to the bit (the rounds share the same queries
-/// out over 32 envs instead of 64). A module whose workgroup memory is over the device's limit is
-/// a one-line error naming the shader and the limit: wgpu does not check it, and lavapipe ran such
-/// a module (36 kB over its 32 kB) with the memory overlapping and the contacts wrong.
+/// The simulator's step runs at the workgroup size its batch's size picks
+/// (`gpu::shaders::step_workgroup_size`: 32 invocations a workgroup at 100 envs, three
+/// workgroups and part of a fourth), and a module at another size (`bench --physics-wgsl`;
+/// benches/physics_variants.py's `workgroup_N`) is dispatched at its own: the bench scene's
+/// rollout leaves every env's state the same to the bit in workgroups of 32 as of 64 (the rounds
+/// share the same queries out over fewer envs). A module whose workgroup memory is over the
+/// device's limit is a one-line error naming the shader and the limit: wgpu does not check it, and
+/// lavapipe ran such a module (36 kB over its 32 kB) with the memory overlapping and the contacts
+/// wrong.
 #[test]
-fn a_physics_module_of_another_workgroup_size_steps_the_same_envs() {
+fn the_step_s_workgroup_size_leaves_the_envs_as_they_were() {
     use dextrain::env::gpu::GpuEnvBatch;
     use dextrain::gpu::shaders::shader_source;
-    let test = "a_physics_module_of_another_workgroup_size_steps_the_same_envs";
+    let test = "the_step_s_workgroup_size_leaves_the_envs_as_they_were";
     let Some(ctx) = gpu_context(test) else { return };
     let adapter = ctx.info.name.clone();
     let mut c = dextrain::bench::bench_config(100);
     c.base_dir = concat!(env!("CARGO_MANIFEST_DIR"), "/configs").into();
     let model = dextrain::env::SimModel::from_config(&c).unwrap();
-    let mut at_32 = shader_source();
-    for (from, to) in [
-        ("const WORKGROUP_SIZE: u32 = 64u;", "const WORKGROUP_SIZE: u32 = 32u;"),
-        ("@compute @workgroup_size(64)\nfn reset_main(", "@compute @workgroup_size(32)\nfn reset_main("),
-        ("@compute @workgroup_size(64)\nfn step_main(", "@compute @workgroup_size(32)\nfn step_main("),
-    ] {
-        assert_eq!(at_32.matches(from).count(), 1, "the module should hold {from:?} once");
-        at_32 = at_32.replace(from, to);
-    }
     let opts = dextrain::bench::BenchOptions { min_chunks: 1, min_seconds: 0.0 };
-    let mut built_in = GpuEnvBatch::new(ctx, model.clone()).unwrap();
-    let a = dextrain::bench::run_bench(&mut built_in, &model, &opts).unwrap();
+    let mut by_32 = GpuEnvBatch::new(ctx, model.clone()).unwrap();
+    assert_eq!(by_32.step_workgroup_size(), Some(32), "100 envs step in workgroups of 32");
+    let a = dextrain::bench::run_bench(&mut by_32, &model, &opts).unwrap();
+    assert_eq!(a["step_workgroup_size"], 32);
     let other_ctx = dextrain::gpu::context::GpuContext::with_limits(Some(&adapter), |l| l).unwrap();
-    let mut by_32 = GpuEnvBatch::with_physics_source(other_ctx, model.clone(), &at_32).unwrap();
-    let b = dextrain::bench::run_bench(&mut by_32, &model, &opts).unwrap();
+    let mut by_64 = GpuEnvBatch::with_physics_source(other_ctx, model.clone(), &shader_source()).unwrap();
+    assert_eq!(by_64.step_workgroup_size(), Some(64), "the module's own size");
+    let b = dextrain::bench::run_bench(&mut by_64, &model, &opts).unwrap();
     assert!(a["contacts_per_physics_step"].as_f64().unwrap() > 1.0, "the bench scene's grasp should touch: {a}");
     assert_eq!(a["contacts_per_physics_step"], b["contacts_per_physics_step"]);
     assert_eq!(b["bad_resets"].as_u64(), Some(0));
-    let (sa, sb) = (built_in.states().unwrap(), by_32.states().unwrap());
+    let (sa, sb) = (by_32.states().unwrap(), by_64.states().unwrap());
     assert_eq!(sa.len(), 100);
     for (i, (x, y)) in sa.iter().zip(&sb).enumerate() {
-        assert!(bytemuck::bytes_of(x) == bytemuck::bytes_of(y), "env {i}: the state differs between workgroups of 64 and of 32");
+        assert!(bytemuck::bytes_of(x) == bytemuck::bytes_of(y), "env {i}: the state differs between workgroups of 32 and of 64");
     }
-    // the built-in module's workgroup memory (the rounds' lists: 4,616 bytes) on a device allowing 4 kB
+    // the module at 64 (the rounds' lists: 4,616 bytes of workgroup memory) on a device allowing 4 kB
     let small = dextrain::gpu::context::GpuContext::with_limits(Some(&adapter), |l| wgpu::Limits { max_compute_workgroup_storage_size: 4096, ..l }).unwrap();
-    let err = format!("{:#}", GpuEnvBatch::new(small, model).err().expect("the module's workgroup memory is over 4 kB"));
-    for part in ["dextrain physics", "bytes of workgroup memory", "4096", "max_compute_workgroup_storage_size"] {
+    let err = format!("{:#}", GpuEnvBatch::with_physics_source(small, model, &shader_source()).err().expect("the module's workgroup memory is over 4 kB"));
+    for part in ["dextrain physics", "4616 bytes of workgroup memory", "4096", "max_compute_workgroup_storage_size"] {
         assert!(err.contains(part), "the error should say {part:?}: {err}");
     }
     assert!(!err.contains('\n'), "one line: {err}");

@@ -383,3 +383,32 @@ fn binding_tables_match_the_wgsl_globals() {
     let (declared, _) = wgsl_bindings(&moved);
     assert_ne!(declared, table(SIM_GROUP.bindings), "moving `{}` to binding 17 should break the match", COLLIDERS.name);
 }
+
+/// The simulator step's workgroup size by batch (`step_workgroup_size`): the largest size that
+/// leaves 128 workgroups and fits the device, else 32; and the built-in module at each size
+/// (`shader_source_at`) declares that size for both entry points, its rounds' workgroup memory
+/// growing with it (what a device's limit is checked against).
+#[test]
+fn the_step_s_workgroup_size_follows_the_batch() {
+    use dextrain::gpu::shaders::{STEP_WORKGROUP_SIZES, module_workgroups, shader_source_at, step_workgroup_size};
+    let all = |_: u32| true;
+    assert_eq!(step_workgroup_size(100, all), 32);
+    assert_eq!(step_workgroup_size(2048, all), 32);
+    assert_eq!(step_workgroup_size(8192, all), 64);
+    assert_eq!(step_workgroup_size(16384, all), 128);
+    assert_eq!(step_workgroup_size(65536, all), 512);
+    assert_eq!(step_workgroup_size(1 << 20, all), 512);
+    // a device that takes none above 256 (lavapipe's 32 kB of workgroup memory)
+    assert_eq!(step_workgroup_size(65536, |s| s <= 256), 256);
+    assert_eq!(step_workgroup_size(65536, |_| false), 32);
+    let mut last = 0;
+    for size in STEP_WORKGROUP_SIZES.into_iter().rev() {
+        let source = shader_source_at(size);
+        validate(&source);
+        let (sizes, bytes) = module_workgroups(&source, &["step_main", "reset_main"]).unwrap();
+        assert_eq!(sizes, [size, size]);
+        assert!(bytes > last, "workgroup memory at {size}: {bytes} bytes");
+        last = bytes;
+    }
+    assert_eq!(shader_source_at(64), dextrain::gpu::shaders::shader_source(), "64 is the module as written");
+}
