@@ -11,7 +11,7 @@ use crate::gpu::bindings::{COLLIDERS, GLOBALS, HULLS, JOINTS, OBJECTS, PARAMS, P
 use crate::gpu::bindings::{NARROW_QUERIES, RESET_MAIN, SIM_GROUP, SPRINGS, STEP_MAIN, STEP_MAIN_WITHOUT_ROUNDS};
 use crate::gpu::context::{BufferRole, GpuContext, Pass, ReadbackCopy};
 use crate::gpu::layout::*;
-use crate::gpu::shaders::{module_workgroups, shader_source_at, step_workgroup_size, workgroups_for, workgroups_of};
+use crate::gpu::shaders::{collider_words, module_workgroups, shader_source_at, step_workgroup_size, workgroups_for, workgroups_of};
 
 /// The env batch on a GPU. The task layer (`task_gpu`) binds its buffers and dispatches its
 /// pipelines inside its own command encoders.
@@ -78,7 +78,8 @@ impl GpuEnvBatch {
     }
 
     /// The batch on `source`, or (None) on the built-in module at the step's workgroup size for
-    /// this many envs on this device ([`step_workgroup_size`]).
+    /// this many envs on this device ([`step_workgroup_size`]) and with the collider lists of the
+    /// model's hand ([`collider_words`]).
     fn build(ctx: GpuContext, model: SimModel, min_readback_bytes_per_env: u64, source: Option<&str>) -> Result<GpuEnvBatch> {
         let n = model.spec.num_envs;
         let built_in;
@@ -86,13 +87,15 @@ impl GpuEnvBatch {
             Some(source) => source,
             None => {
                 let l = ctx.device.limits();
+                // the collider lists' words for this hand
+                let words = collider_words(model.globals.n_colliders as usize);
                 // a size fits where its invocations and its module's workgroup memory are within the device's limits
                 let fits = |size: u32| {
                     size <= l.max_compute_invocations_per_workgroup
                         && size <= l.max_compute_workgroup_size_x
-                        && module_workgroups(&shader_source_at(size), &[]).is_ok_and(|(_, bytes)| bytes <= l.max_compute_workgroup_storage_size)
+                        && module_workgroups(&shader_source_at(size, words), &[]).is_ok_and(|(_, bytes)| bytes <= l.max_compute_workgroup_storage_size)
                 };
-                built_in = shader_source_at(step_workgroup_size(n, fits));
+                built_in = shader_source_at(step_workgroup_size(n, fits), words);
                 &built_in
             }
         };

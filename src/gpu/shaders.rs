@@ -36,13 +36,27 @@ const WORKGROUP_SIZE_TEXTS: [(&str, &str); 3] = [
     ("@compute @workgroup_size(64)\nfn step_main(", "@compute @workgroup_size({})\nfn step_main("),
 ];
 
-/// [`shader_source`] with `step_main` and `reset_main` at `workgroup_size` invocations a workgroup
-/// (the narrow-phase rounds shared out over that many envs): the same physics, query for query.
-pub fn shader_source_at(workgroup_size: u32) -> String {
+/// The text of the simulator's module that sets the words of its collider bit lists
+/// (common.wgsl's `REVISIT_WORDS`: 8, for `hand::MAX_COLLIDERS` = 256), once in [`shader_source`].
+const COLLIDER_WORDS_TEXT: (&str, &str) = ("const REVISIT_WORDS: u32 = 8u;", "const REVISIT_WORDS: u32 = {}u;");
+
+/// The words of a collider bit list (bit ci % 32 of word ci / 32) for a hand of `n_colliders`
+/// colliders: 1 to 8.
+pub fn collider_words(n_colliders: usize) -> u32 {
+    n_colliders.div_ceil(32).clamp(1, crate::hand::MAX_COLLIDERS / 32) as u32
+}
+
+/// [`shader_source`] for a batch: `step_main` and `reset_main` at `workgroup_size` invocations a
+/// workgroup (the narrow-phase rounds shared out over that many envs), and the collider bit lists
+/// (the pass's lists of pairs, the rounds' lists in workgroup memory) of `collider_words` words,
+/// [`collider_words`] of the model's hand, where the text has room for 256 colliders. The same
+/// physics, query for query: a list's words past the hand's colliders are always zero.
+pub fn shader_source_at(workgroup_size: u32, collider_words: u32) -> String {
     let mut source = shader_source();
-    for (text, sized) in WORKGROUP_SIZE_TEXTS {
+    let texts = WORKGROUP_SIZE_TEXTS.map(|t| (t, workgroup_size)).into_iter().chain([(COLLIDER_WORDS_TEXT, collider_words)]);
+    for ((text, sized), value) in texts {
         debug_assert_eq!(source.matches(text).count(), 1, "the simulator's module should hold {text:?} once");
-        source = source.replace(text, &sized.replace("{}", &workgroup_size.to_string()));
+        source = source.replace(text, &sized.replace("{}", &value.to_string()));
     }
     source
 }

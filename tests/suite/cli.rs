@@ -368,7 +368,8 @@ fn gpu_suite_stops_first_without_an_adapter() {
 /// shader changes): each knock-out is the module with its part switched off behind a runtime-false
 /// test, each "twice" variant the module with its part run twice in a loop of a runtime count (the
 /// same result), each `workgroup_N` the module with its step and reset at N invocations a workgroup,
-/// and a module without the text a variant patches is a one-line error naming it.
+/// `collider_words_1` its collider lists of one word, and a module without the text a variant
+/// patches is a one-line error naming it.
 #[test]
 fn physics_variants_patch_today_s_module() {
     let tmp = tempfile::tempdir().unwrap();
@@ -379,6 +380,7 @@ fn physics_variants_patch_today_s_module() {
     let out = run(&module);
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
     let names = [
+        "collider_words_1",
         "mobility_twice",
         "no_arriving_pass",
         "no_hand_object",
@@ -397,10 +399,11 @@ fn physics_variants_patch_today_s_module() {
     assert_eq!(found, names);
     for n in names {
         let v = std::fs::read_to_string(tmp.path().join("v").join(format!("{n}.wgsl"))).unwrap();
-        match n.strip_prefix("workgroup_") {
+        match (n.strip_prefix("workgroup_"), n.strip_prefix("collider_words_")) {
             // the step and the reset at that size, the rest of the module as it is
-            Some(size) => assert!(v.matches(&format!("@workgroup_size({size})")).count() == 2 && v.contains(&format!("const WORKGROUP_SIZE: u32 = {size}u;")), "{n}"),
-            None => assert!(v != source && v.contains("g.n_colliders > 1000u") && !source.contains("g.n_colliders > 1000u"), "{n}"),
+            (Some(size), _) => assert!(v.matches(&format!("@workgroup_size({size})")).count() == 2 && v.contains(&format!("const WORKGROUP_SIZE: u32 = {size}u;")), "{n}"),
+            (_, Some(words)) => assert!(v.contains(&format!("const REVISIT_WORDS: u32 = {words}u;")) && !v.contains("const REVISIT_WORDS: u32 = 8u;"), "{n}"),
+            _ => assert!(v != source && v.contains("g.n_colliders > 1000u") && !source.contains("g.n_colliders > 1000u"), "{n}"),
         }
         // the patch only adds: every line of the module but the patched ones is kept
         let kept = source.lines().filter(|l| v.contains(l)).count();

@@ -666,10 +666,11 @@ fn the_bench_scene_s_rollout_has_the_same_contacts_on_both_backends() {
 
 /// The simulator's step runs at the workgroup size its batch's size picks
 /// (`gpu::shaders::step_workgroup_size`: 32 invocations a workgroup at 100 envs, three
-/// workgroups and part of a fourth), and a module at another size (`bench --physics-wgsl`;
+/// workgroups and part of a fourth) with collider lists of its hand's words (one for the bench
+/// hand's 17 colliders), and a module at another size (`bench --physics-wgsl`;
 /// benches/physics_variants.py's `workgroup_N`) is dispatched at its own: the bench scene's
-/// rollout leaves every env's state the same to the bit in workgroups of 32 as of 64 (the rounds
-/// share the same queries out over fewer envs). A module whose workgroup memory is over the
+/// rollout leaves every env's state the same to the bit as the module as written (64, 8 words:
+/// the rounds share the same queries out over fewer envs). A module whose workgroup memory is over the
 /// device's limit is a one-line error naming the shader and the limit: wgpu does not check it, and
 /// lavapipe ran such a module (36 kB over its 32 kB) with the memory overlapping and the contacts
 /// wrong.

@@ -385,12 +385,13 @@ fn binding_tables_match_the_wgsl_globals() {
 }
 
 /// The simulator step's workgroup size by batch (`step_workgroup_size`): the largest size that
-/// leaves 128 workgroups and fits the device, else 32; and the built-in module at each size
+/// leaves 128 workgroups and fits the device, else 32; the built-in module at each size
 /// (`shader_source_at`) declares that size for both entry points, its rounds' workgroup memory
-/// growing with it (what a device's limit is checked against).
+/// growing with it (what a device's limit is checked against); and the collider lists' words by
+/// hand (`collider_words`), the rounds' lists shrinking with them.
 #[test]
 fn the_step_s_workgroup_size_follows_the_batch() {
-    use dextrain::gpu::shaders::{STEP_WORKGROUP_SIZES, module_workgroups, shader_source_at, step_workgroup_size};
+    use dextrain::gpu::shaders::{STEP_WORKGROUP_SIZES, collider_words, module_workgroups, shader_source_at, step_workgroup_size};
     let all = |_: u32| true;
     assert_eq!(step_workgroup_size(100, all), 32);
     assert_eq!(step_workgroup_size(2048, all), 32);
@@ -403,12 +404,17 @@ fn the_step_s_workgroup_size_follows_the_batch() {
     assert_eq!(step_workgroup_size(65536, |_| false), 32);
     let mut last = 0;
     for size in STEP_WORKGROUP_SIZES.into_iter().rev() {
-        let source = shader_source_at(size);
+        let source = shader_source_at(size, 8);
         validate(&source);
         let (sizes, bytes) = module_workgroups(&source, &["step_main", "reset_main"]).unwrap();
         assert_eq!(sizes, [size, size]);
         assert!(bytes > last, "workgroup memory at {size}: {bytes} bytes");
         last = bytes;
     }
-    assert_eq!(shader_source_at(64), dextrain::gpu::shaders::shader_source(), "64 is the module as written");
+    assert_eq!(shader_source_at(64, 8), dextrain::gpu::shaders::shader_source(), "64 and 8 words are the module as written");
+    // the collider lists' words by hand: the bench hand's 17 colliders 1, 71 colliders 3, at most 8
+    assert_eq!([collider_words(0), collider_words(17), collider_words(32), collider_words(33), collider_words(71), collider_words(256)], [1, 1, 1, 2, 3, 8]);
+    let (_, one_word) = module_workgroups(&shader_source_at(512, 1), &[]).unwrap();
+    validate(&shader_source_at(512, 1));
+    assert!(one_word * 4 < last, "the rounds' lists of one word: {one_word} bytes against {last} of 8 words");
 }
