@@ -4,10 +4,13 @@
 # every result into one tarball under $OUT (only a few files come back from a call).
 #     (here)     cargo build --release && benches/device_pack.sh device
 #     (device)   benches/device_window.sh device      # the device tool's run, carry ["device"]
-# Environment: STEPS (default "shader_stats env baseline variants": ~6 minutes on an H200 by the earlier windows'
-# bench times, not yet run together there; then, in a second call, "learner train": the rest of
-# the figures, ~5 minutes), and whatever gpu_suite.sh reads (ENVS, BENCH_S, TRAIN_PPO_S, …). With
-# these defaults each of the two fits one call of 10 minutes: ENVS "16384 65536", BENCH_S 2,
+# Environment: STEPS (default "shader_stats env baseline variants"; then, in a second call,
+# "learner train": the rest of the figures), VARIANTS_WGSL (default: the variants of
+# device/variants/ not yet timed on an H200), and whatever gpu_suite.sh reads (ENVS, BENCH_S,
+# TRAIN_PPO_S, …). On an H200 (2026-12-01) a bench run at 65,536 envs took ~12 s with BENCH_S 2:
+# "baseline variants" with 5 variants over 2 rounds 172 s, "shader_stats env variants learner
+# train" with 3 variants, ENVS "4096 16384", TRAIN_PPO_S 30, TRAIN_SAC_S 20 and TRAIN_PPO_HOST_S 10
+# 291 s; a machine's start ~30 s more. The defaults: ENVS "16384 65536", BENCH_S 2,
 # BASELINE_ROUNDS 3, TRAIN_PPO_S 60, TRAIN_SAC_S 40, TRAIN_PPO_HOST_S 15.
 set -uo pipefail
 dir=${1:-device}
@@ -30,9 +33,14 @@ fi
 } >"$log" 2>&1
 gunzip -c "$dir/dextrain.gz" >"$out/dextrain.bin" && chmod +x "$out/dextrain.bin"
 baseline=$(ls "$dir"/*.wgsl 2>/dev/null | grep -v '/head.wgsl$' | head -n 1)
+# the variants the step times by default: those not yet timed on an H200 (the knock-outs, the
+# "twice" variants, the module before the rounds and the workgroup sizes were, on 2026-12-01:
+# BENCHMARKS.md "The GPU window of 2026-12-01" and "The step's workgroup size"; VARIANTS_WGSL
+# names any of device/variants/ to time them again)
+default_variants=$(ls "$dir"/variants/collider_words_*.wgsl 2>/dev/null | tr '\n' ' ')
 STEPS=${STEPS:-shader_stats env baseline variants} ENVS=${ENVS:-16384 65536} BENCH_S=${BENCH_S:-2} BASELINE_ROUNDS=${BASELINE_ROUNDS:-3} \
     TRAIN_PPO_S=${TRAIN_PPO_S:-60} TRAIN_SAC_S=${TRAIN_SAC_S:-40} TRAIN_PPO_HOST_S=${TRAIN_PPO_HOST_S:-15} \
-    BASELINE_WGSL=${BASELINE_WGSL:-$baseline} VARIANTS_WGSL=${VARIANTS_WGSL:-$(ls "$dir"/variants/*.wgsl 2>/dev/null | tr '\n' ' ')} \
+    BASELINE_WGSL=${BASELINE_WGSL:-$baseline} VARIANTS_WGSL=${VARIANTS_WGSL:-$default_variants} \
     benches/gpu_suite.sh --bin "$out/dextrain.bin" --out "$out/suite" "${@:2}" >>"$log" 2>&1
 status=$?
 echo "gpu_suite.sh exit $status" >>"$log"
