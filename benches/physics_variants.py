@@ -82,12 +82,6 @@ VARIANTS = {
           f"                    v = object_velocity_change(h + f32(rep) * {ZERO});\n                }}\n")],
     ),
 }
-# "workgroup_N": the step (and the reset) at N invocations a workgroup where the built-in module
-# has 64 (the simulator dispatches a module's entry points by their own sizes): the same physics,
-# the narrow-phase rounds shared out over N envs. A driver may cap the registers by the size (a
-# workgroup of 512 on a multiprocessor of 64 k registers leaves each invocation at most 128), and
-# a small batch spreads over more or fewer multiprocessors (2,048 envs are 32 workgroups of 64,
-# 64 of 32)
 # the collider bit lists of one word where the module has 8 (room for 256 colliders): the
 # simulator sizes them by the model's hand (gpu/shaders.rs, collider_words; the bench hand's 17
 # colliders take one), so this times that against the module as written
@@ -95,6 +89,12 @@ VARIANTS["collider_words_1"] = (
     "the collider bit lists of one word (32 colliders; the bench hand has 17)",
     [("const REVISIT_WORDS: u32 = 8u;", "const REVISIT_WORDS: u32 = 1u;")],
 )
+# "workgroup_N": the step (and the reset) at N invocations a workgroup where the built-in module
+# has 64 (the simulator dispatches a module's entry points by their own sizes): the same physics,
+# the narrow-phase rounds shared out over N envs. A driver may cap the registers by the size (a
+# workgroup of 512 on a multiprocessor of 64 k registers leaves each invocation at most 128), and
+# a small batch spreads over more or fewer multiprocessors (2,048 envs are 32 workgroups of 64,
+# 64 of 32)
 for size in (32, 128, 256, 512):
     VARIANTS[f"workgroup_{size}"] = (
         f"the step and the reset at {size} invocations a workgroup (the rounds over {size} envs)",
