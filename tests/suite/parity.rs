@@ -689,7 +689,7 @@ fn the_step_s_workgroup_size_leaves_the_envs_as_they_were() {
     assert_eq!(by_32.step_workgroup_size(), Some(32), "100 envs step in workgroups of 32");
     let a = dextrain::bench::run_bench(&mut by_32, &model, &opts).unwrap();
     assert_eq!(a["step_workgroup_size"], 32);
-    let other_ctx = dextrain::gpu::context::GpuContext::with_limits(Some(&adapter), |l| l).unwrap();
+    let Some(other_ctx) = gpu_context(test) else { return };
     let mut by_64 = GpuEnvBatch::with_physics_source(other_ctx, model.clone(), &shader_source()).unwrap();
     assert_eq!(by_64.step_workgroup_size(), Some(64), "the module's own size");
     let b = dextrain::bench::run_bench(&mut by_64, &model, &opts).unwrap();
