@@ -25,12 +25,58 @@ pub struct Normalizer {
     pub m2: Vec<f64>,
     /// ε added to σ in the denominator (rsl_rl: 1e-2).
     pub eps: f64,
+    /// The statistics as a GPU learner last uploaded them (not part of the statistics).
+    pub uploaded: UploadedStats,
+}
+
+/// The statistics `[2, dim]` (μ, then s = 1 / (σ + ε), f32) that [`Normalizer::upload_normalized`]
+/// last sent to the device, kept there while they stand: an inference, or a SAC batch on the host
+/// path, then uploads its rows alone (one upload and one cubecl write where it made two, and
+/// SAC's batch four fewer). Keyed by the f32 values themselves and the device, so any change of the
+/// statistics — a merge, a load, a field set by hand — uploads them again. It is no part of
+/// the statistics: a clone starts empty and any two compare equal.
+#[derive(Default)]
+pub struct UploadedStats(std::sync::Mutex<Option<(Vec<f32>, Tensor<2>)>>);
+
+impl Clone for UploadedStats {
+    fn clone(&self) -> UploadedStats {
+        UploadedStats::default()
+    }
+}
+
+impl PartialEq for UploadedStats {
+    fn eq(&self, _: &UploadedStats) -> bool {
+        true
+    }
+}
+
+impl std::fmt::Debug for UploadedStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str("UploadedStats")
+    }
+}
+
+impl UploadedStats {
+    /// `stats` `[2, dim]` as a tensor on `device`: the one kept if it holds these values on
+    /// this device, else a fresh upload, kept for the next call.
+    fn tensor(&self, stats: Vec<f32>, dim: usize, device: &Device) -> Tensor<2> {
+        let mut kept = self.0.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((values, t)) = kept.as_ref()
+            && *values == stats
+            && t.device() == *device
+        {
+            return t.clone();
+        }
+        let t = to_tensor(stats.clone(), [2, dim], device);
+        *kept = Some((stats, t.clone()));
+        t
+    }
 }
 
 impl Normalizer {
     /// Empty statistics for `dim` components.
     pub fn new(dim: usize) -> Normalizer {
-        Normalizer { count: 0.0, mean: vec![0.0; dim], m2: vec![0.0; dim], eps: 1e-2 }
+        Normalizer { count: 0.0, mean: vec![0.0; dim], m2: vec![0.0; dim], eps: 1e-2, uploaded: UploadedStats::default() }
     }
 
     /// Number of components.
@@ -105,7 +151,8 @@ impl Normalizer {
     /// s = 1 / (σ + ε) `[1, dim]` worked out on the host in f64 and rounded to f32, when `on`;
     /// else the rows as they are. On burn's wgpu runtime the rows are written straight into a
     /// fresh tensor's memory (`nets::upload`: no host copy of them), the statistics go up as one
-    /// `[2, dim]` tensor, and one kernel of ours applies them (`kernels::standardize`); elsewhere
+    /// `[2, dim]` tensor when they changed since the last call ([`UploadedStats`]), and one
+    /// kernel of ours applies them (`kernels::standardize`); elsewhere
     /// two element-wise tensor ops, the same f32 arithmetic. The host's [`Normalizer::apply`]
     /// rounds once, at the end: the two differ by an f32 rounding.
     pub fn upload_normalized(&self, rows: &[f32], n: usize, device: &Device, on: bool) -> Tensor<2> {
@@ -117,7 +164,7 @@ impl Normalizer {
         stats.extend(self.mean.iter().map(|&m| m as f32)); // row 0: μ
         stats.extend(self.var().iter().map(|v| (1.0 / (v.sqrt() + self.eps)) as f32)); // row 1: s
         let inner = device.clone().inner();
-        let stats = to_tensor(stats, [2, d], &inner);
+        let stats = self.uploaded.tensor(stats, d, &inner); // uploaded once while they stand
         // the rows written straight into a fresh tensor's memory (`nets::upload`), then one kernel of
         // ours; the tensor ops where the kernel does not apply
         if let Ok(x) = super::nets::upload(rows, [n, d], &inner)
@@ -166,6 +213,7 @@ impl Normalizer {
             mean: state.f64s(file, &format!("{prefix}.mean"), Some(dim))?,
             m2: state.f64s(file, &format!("{prefix}.m2"), Some(dim))?,
             eps: state.f64s(file, &format!("{prefix}.eps"), Some(1))?[0],
+            uploaded: UploadedStats::default(),
         })
     }
 }
@@ -208,7 +256,7 @@ impl DeviceNormalizer {
     /// The statistics on the host (f32 values widened: a save and a load give them back exactly).
     pub fn to_host(&self) -> Result<Normalizer> {
         let f = |t: &Tensor<2>| -> Result<Vec<f64>> { Ok(to_host(t.clone())?.into_iter().map(|x| x as f64).collect()) };
-        Ok(Normalizer { count: self.count, mean: f(&self.mean)?, m2: f(&self.m2)?, eps: self.eps })
+        Ok(Normalizer { count: self.count, mean: f(&self.mean)?, m2: f(&self.m2)?, eps: self.eps, uploaded: UploadedStats::default() })
     }
 
     /// Merges the rows of `x` `[B, D]` ([`Normalizer::update`] as tensor ops).

@@ -342,9 +342,12 @@ fn pass_through_student(adapt: dextrain::export::onnx::Adaptation, step_dim: usi
 
 /// The same small PPO iteration on burn's wgpu backend (on the simulator's kind of device, e.g.
 /// lavapipe) and on the CPU backend: the updated parameters agree to float rounding, and so do the
-/// policy means of `act_mean` (normalised on the device on the GPU, on the host on the CPU).
+/// policy means of `act_mean` (normalised on the device on the GPU, on the host on the CPU), before
+/// and after the statistics change. On the GPU an inference uploads its rows alone while the
+/// statistics stand (they stay on the device), and the statistics again once they change.
 #[test]
 fn the_wgpu_learner_matches_the_cpu_learner() {
+    use dextrain::gpu_counts::{Event, GpuCounts};
     let Some((_ctx, gpu)) = crate::common::wgpu_learner("the_wgpu_learner_matches_the_cpu_learner") else { return };
     let (n, steps) = (16, 4);
     let cfg = PpoConfig { minibatches: 2, epochs: 2, ..PpoConfig::default() };
@@ -362,12 +365,26 @@ fn the_wgpu_learner_matches_the_cpu_learner() {
             ppo.process_step(&rewards, &vec![false; n], &vec![false; n]);
         }
         let stats = ppo.update(&priv_obs).unwrap();
-        actions.push(ppo.act_mean(&obs, &priv_obs).unwrap());
-        (ppo.net.values().unwrap(), actions, stats)
+        // inferences: the statistics as they stand (twice), then after another batch is merged;
+        // the uploads of the last two counted (from burn's `from_data` / as the rows)
+        let mut uploads = Vec::new();
+        for k in 0..3 {
+            if k == 2 {
+                ppo.obs_norm.update(&priv_obs[..n * 3]);
+            }
+            let before = GpuCounts::now();
+            actions.push(ppo.act_mean(&obs, &priv_obs).unwrap());
+            let c = GpuCounts::now().since(&before);
+            uploads.push((c.total_from(Event::Upload, "burn:from_data"), c.total_from(Event::Upload, "dextrain:host rows")));
+        }
+        (ppo.net.values().unwrap(), actions, stats, uploads)
     };
-    let (p_cpu, a_cpu, s_cpu) = run(cpu());
-    let (p_gpu, a_gpu, s_gpu) = run(gpu);
-    assert_eq!(a_cpu.len(), steps + 1);
+    let (p_cpu, a_cpu, s_cpu, _) = run(cpu());
+    let (p_gpu, a_gpu, s_gpu, uploads) = run(gpu);
+    assert_eq!(uploads[1..], [(0, 1), (1, 1)], "the rows alone while the statistics stand, the statistics again after a merge");
+    assert_eq!(a_gpu[steps], a_gpu[steps + 1], "the kept statistics normalise as the uploaded ones did");
+    assert!(a_cpu[steps + 2] != a_cpu[steps + 1], "the merge changed the statistics");
+    assert_eq!(a_cpu.len(), steps + 3);
     for (x, y) in a_cpu.iter().flatten().zip(a_gpu.iter().flatten()) {
         assert!((x - y).abs() < 1e-4, "sampled actions differ: {x} vs {y}");
     }
