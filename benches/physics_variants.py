@@ -21,6 +21,7 @@ Exits with status 1, naming the variant, when the module no longer holds the tex
 patches (the shader changed: this script follows it).
 """
 
+import re
 import sys
 from pathlib import Path
 
@@ -103,6 +104,46 @@ for size in (32, 128, 256, 512):
          ("@compute @workgroup_size(64)\nfn step_main(", f"@compute @workgroup_size({size})\nfn step_main(")],
     )
 
+# The env's private arrays (hypotheses for a small batch's latency-bound step; docs/gpu.md "The
+# physics kernel's memory"). Each starts from the module the simulator builds for the batch, so
+# that it differs from its control in one thing: "wgN_words1" is the built-in at N invocations
+# and one-word lists (what the simulator builds for the bench scene at 2,048 envs, N = 32, and at
+# 65,536, N = 512: a control, expected at ~1.00 of the built-in); "_links17" sizes the links'
+# private arrays to the bench hand's 17 links where the text has room for 33 (the links'
+# poses, rotations and velocities: 2.1 kB of local memory per invocation → 1.1 kB; RADV's
+# compiler made more of it, 2026-12-01, the NVIDIA driver's untried); "_shared" moves the two
+# arrays each contact's solve walks — the links' positions and the joints' axes and velocity
+# changes, read at every joint of a chain by hand_mobility, apply_hand_force and
+# hand_point_velocity_change — from private (local) memory into workgroup memory, one row per
+# invocation (25 kB a workgroup of 32 with 17 links: under lavapipe's 32 kB and the H200's
+# 48 kB). The same physics in all: the bench's contacts are the built-in's.
+SIZED = lambda size: [
+    ("const WORKGROUP_SIZE: u32 = 64u;", f"const WORKGROUP_SIZE: u32 = {size}u;"),
+    ("@compute @workgroup_size(64)\nfn reset_main(", f"@compute @workgroup_size({size})\nfn reset_main("),
+    ("@compute @workgroup_size(64)\nfn step_main(", f"@compute @workgroup_size({size})\nfn step_main("),
+    ("const REVISIT_WORDS: u32 = 8u;", "const REVISIT_WORDS: u32 = 1u;"),
+]
+LINKS_17 = [("const MAX_LINKS: u32 = 33u;", "const MAX_LINKS: u32 = 17u;")]
+SHARED = [
+    ("var<private> link_pos: array<vec3<f32>, MAX_LINKS>;",
+     "var<workgroup> wg_link_pos: array<array<vec3<f32>, MAX_LINKS>, WORKGROUP_SIZE>;"),
+    ("var<private> joint_now: array<JointNow, MAX_JOINTS>;",
+     "var<workgroup> wg_joint_now: array<array<JointNow, MAX_JOINTS>, WORKGROUP_SIZE>;"),
+    (re.compile(r"\blink_pos\["), "wg_link_pos[lane]["),
+    (re.compile(r"\bjoint_now\["), "wg_joint_now[lane]["),
+]
+for size in (32, 512):
+    VARIANTS[f"wg{size}_words1"] = (f"the built-in at {size} invocations and one-word lists (the control)", SIZED(size))
+    VARIANTS[f"wg{size}_words1_links17"] = (f"the same, the links' private arrays of 17 (the bench hand's links)", SIZED(size) + LINKS_17)
+VARIANTS["wg32_words1_shared"] = (
+    "the built-in at 32, the links' positions and the joints' axes and velocity changes in workgroup memory",
+    SIZED(32) + SHARED,
+)
+VARIANTS["wg32_words1_links17_shared"] = (
+    "the same with the links' arrays of 17",
+    SIZED(32) + LINKS_17 + SHARED,
+)
+
 
 def main() -> int:
     if len(sys.argv) != 3:
@@ -119,6 +160,13 @@ def main() -> int:
     for name, (what, patches) in VARIANTS.items():
         v = text
         for old, new in patches:
+            # a pattern replaces every match (at least one), a text exactly one
+            if isinstance(old, re.Pattern):
+                v, n = old.subn(new, v)
+                if n == 0:
+                    print(f"physics_variants.py: {module}: variant {name}: expected the pattern {old.pattern!r}, found none (the shader changed)", file=sys.stderr)
+                    return 1
+                continue
             if v.count(old) != 1:
                 first = old.strip().splitlines()[0]
                 print(f"physics_variants.py: {module}: variant {name}: expected the text {first!r} once, found it {v.count(old)} times (the shader changed)", file=sys.stderr)

@@ -368,8 +368,9 @@ fn gpu_suite_stops_first_without_an_adapter() {
 /// shader changes): each knock-out is the module with its part switched off behind a runtime-false
 /// test, each "twice" variant the module with its part run twice in a loop of a runtime count (the
 /// same result), each `workgroup_N` the module with its step and reset at N invocations a workgroup,
-/// `collider_words_1` its collider lists of one word, and a module without the text a variant
-/// patches is a one-line error naming it.
+/// `collider_words_1` its collider lists of one word, the `wgN_words1…` memory variants the
+/// module a batch gets with the links' arrays sized or in workgroup memory, and a module without
+/// the text a variant patches is a one-line error naming it.
 #[test]
 fn physics_variants_patch_today_s_module() {
     let tmp = tempfile::tempdir().unwrap();
@@ -389,6 +390,12 @@ fn physics_variants_patch_today_s_module() {
         "no_swept_search",
         "object_solve_twice",
         "queries_twice",
+        "wg32_words1",
+        "wg32_words1_links17",
+        "wg32_words1_links17_shared",
+        "wg32_words1_shared",
+        "wg512_words1",
+        "wg512_words1_links17",
         "workgroup_128",
         "workgroup_256",
         "workgroup_32",
@@ -399,15 +406,28 @@ fn physics_variants_patch_today_s_module() {
     assert_eq!(found, names);
     for n in names {
         let v = std::fs::read_to_string(tmp.path().join("v").join(format!("{n}.wgsl"))).unwrap();
-        match (n.strip_prefix("workgroup_"), n.strip_prefix("collider_words_")) {
+        let sized = |size: &str| v.matches(&format!("@workgroup_size({size})")).count() == 2 && v.contains(&format!("const WORKGROUP_SIZE: u32 = {size}u;"));
+        match (n.strip_prefix("workgroup_"), n.strip_prefix("collider_words_"), n.strip_prefix("wg")) {
             // the step and the reset at that size, the rest of the module as it is
-            (Some(size), _) => assert!(v.matches(&format!("@workgroup_size({size})")).count() == 2 && v.contains(&format!("const WORKGROUP_SIZE: u32 = {size}u;")), "{n}"),
-            (_, Some(words)) => assert!(v.contains(&format!("const REVISIT_WORDS: u32 = {words}u;")) && !v.contains("const REVISIT_WORDS: u32 = 8u;"), "{n}"),
+            (Some(size), _, _) => assert!(sized(size), "{n}"),
+            (_, Some(words), _) => assert!(v.contains(&format!("const REVISIT_WORDS: u32 = {words}u;")) && !v.contains("const REVISIT_WORDS: u32 = 8u;"), "{n}"),
+            // the memory variants: the batch's size and one-word lists, the links' arrays of 17
+            // where named, and the two walked arrays in workgroup memory, every use of them
+            (_, _, Some(rest)) => {
+                let size = rest.split('_').next().unwrap();
+                assert!(sized(size) && v.contains("const REVISIT_WORDS: u32 = 1u;"), "{n}");
+                assert_eq!(v.contains("const MAX_LINKS: u32 = 17u;"), n.contains("links17"), "{n}");
+                let shared = v.contains("var<workgroup> wg_link_pos") && v.contains("var<workgroup> wg_joint_now");
+                let private_left = ["link_pos", "joint_now"].iter().any(|a| v.match_indices(&format!("{a}[")).any(|(i, _)| !v[..i].ends_with("wg_")));
+                assert_eq!((shared, private_left), (n.ends_with("_shared"), !n.ends_with("_shared")), "{n}");
+            }
             _ => assert!(v != source && v.contains("g.n_colliders > 1000u") && !source.contains("g.n_colliders > 1000u"), "{n}"),
         }
-        // the patch only adds: every line of the module but the patched ones is kept
+        // the patch only adds: every line of the module but the patched ones is kept (the
+        // shared variants rename the arrays at each use)
         let kept = source.lines().filter(|l| v.contains(l)).count();
-        assert!(kept + 4 >= source.lines().count(), "{n}: {kept} of {} lines kept", source.lines().count());
+        let patched = if n.ends_with("_shared") { 30 } else { 6 };
+        assert!(kept + patched >= source.lines().count(), "{n}: {kept} of {} lines kept", source.lines().count());
     }
     // the shader changed under the script: one line naming the variant
     let old = tmp.path().join("old.wgsl");
