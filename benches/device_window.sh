@@ -38,7 +38,7 @@ baseline=$(ls "$dir"/*.wgsl 2>/dev/null | grep -v '/head.wgsl$' | head -n 1)
 # workgroup sizes were, on 2026-12-01: BENCHMARKS.md "The GPU window of 2026-12-01" and "The
 # step's workgroup size"; VARIANTS_WGSL names any of device/variants/ to time them again). The
 # small batch's memory variants want a call of their own at the lift configs' 2,048 envs:
-#     STEPS=variants BASELINE_ENVS=2048 BASELINE_ROUNDS=2 BENCH_S=1 \
+#     STEPS="shader_stats variants" BASELINE_ENVS=2048 BASELINE_ROUNDS=2 BENCH_S=1 \
 #         VARIANTS_WGSL="$(ls device/variants/wg32_*.wgsl)" benches/device_window.sh device
 default_variants=$(ls "$dir"/variants/collider_words_*.wgsl "$dir"/variants/wg512_*.wgsl 2>/dev/null | tr '\n' ' ')
 STEPS=${STEPS:-shader_stats env baseline variants} ENVS=${ENVS:-16384 65536} BENCH_S=${BENCH_S:-2} BASELINE_ROUNDS=${BASELINE_ROUNDS:-3} \

@@ -110,13 +110,14 @@ for size in (32, 128, 256, 512):
 # and one-word lists (what the simulator builds for the bench scene at 2,048 envs, N = 32, and at
 # 65,536, N = 512: a control, expected at ~1.00 of the built-in); "_links17" sizes the links'
 # private arrays to the bench hand's 17 links where the text has room for 33 (the links'
-# poses, rotations and velocities: 2.1 kB of local memory per invocation → 1.1 kB; RADV's
-# compiler made more of it, 2026-12-01, the NVIDIA driver's untried); "_shared" moves the two
-# arrays each contact's solve walks — the links' positions and the joints' axes and velocity
-# changes, read at every joint of a chain by hand_mobility, apply_hand_force and
-# hand_point_velocity_change — from private (local) memory into workgroup memory, one row per
-# invocation (25 kB a workgroup of 32 with 17 links: under lavapipe's 32 kB and the H200's
-# 48 kB). The same physics in all: the bench's contacts are the built-in's.
+# poses, rotations and velocities: 2.1 kB of local memory per invocation → 1.1 kB; on RADV's
+# compiler it backfires, the smaller arrays kept in registers: 34.1 k instructions against
+# 23.7 k; NVIDIA's untried); "_shared" moves the two arrays each contact's solve walks — the
+# links' positions and the joints' axes and velocity changes, read at every joint of a chain by
+# hand_mobility, apply_hand_force and hand_point_velocity_change — from private (local) memory
+# into workgroup memory, one row per invocation (33.8 kB a workgroup of 32 with the rounds'
+# lists, under the H200's 48 kB and over lavapipe's 32 kB; 25 kB with 17 links). The same
+# physics in all: the bench's contacts are the built-in's.
 SIZED = lambda size: [
     ("const WORKGROUP_SIZE: u32 = 64u;", f"const WORKGROUP_SIZE: u32 = {size}u;"),
     ("@compute @workgroup_size(64)\nfn reset_main(", f"@compute @workgroup_size({size})\nfn reset_main("),
