@@ -48,8 +48,8 @@ VARIANTS = {
     ),
     "no_swept_search": (
         "the first pass's swept searches never run",
-        [("                        let t = swept_test(ci, query_contact(0u, ci), h, ocom, ovel, ow);\n                        if (t.search) {",
-          f"                        let t = swept_test(ci, query_contact(0u, ci), h, ocom, ovel, ow);\n                        if (t.search && {NEVER}) {{")],
+        [("                    let t = swept_test(ci, query_contact(0u, ci), h, ocom, vel, w);\n                    if (t.search) {",
+          f"                    let t = swept_test(ci, query_contact(0u, ci), h, ocom, vel, w);\n                    if (t.search && (stage == 2u || {NEVER})) {{")],
     ),
     "no_second_pass": (
         "no pair revisited by the second pass (the arriving pass kept)",

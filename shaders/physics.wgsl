@@ -1634,23 +1634,8 @@ fn contacts_and_forces(h: f32) -> ObjectVelocity {
                     }
                 }
                 case 1u: {
-                    // the swept searches: where the object's turn may bring a feature deeper than
-                    // the pair's own contact would be by the end of the substep, the pair at the
-                    // end of the substep
-                    let oend = object_frame_at_end(h, ocom, ovel, ow);
-                    var list = near_obj;
-                    var word = 0u;
-                    loop {
-                        let ci = next_in_list(&list, &word);
-                        if (ci == NO_COLLIDER) {
-                            break;
-                        }
-                        let t = swept_test(ci, query_contact(0u, ci), h, ocom, ovel, ow);
-                        if (t.search) {
-                            swept[ci / 32u] |= 1u << (ci % 32u);
-                            post_query(1u, ci, collider_pose_at_end(colliders[ci].link, collider_pose(ci), h), oend, query_margin(0u, ci));
-                        }
-                    }
+                    // the first pass's swept searches: below, at the call site they share with
+                    // the second pass's
                 }
                 case 2u: {
                     // the first pass: the colliders of either list, in order
@@ -1848,23 +1833,41 @@ fn contacts_and_forces(h: f32) -> ObjectVelocity {
                     u = v;
                 }
             }
-            if (stage == 2u && any_revisit) {
-                // the second pass (physics.rs: contacts_and_forces): the pairs that did not push,
-                // against the object's velocity at the end of the substep as the forces so far
-                // make it; their swept searches for those velocities
-                pend = object_frame_at_end(h, ocom, pred.vel, pred.w);
-                var list = revisit;
+            if (stage == 1u || (stage == 2u && any_revisit)) {
+                // the swept searches, one call site (a driver inlines the test and the posting at
+                // each): where the object's turn may bring a feature deeper than the pair's own
+                // contact would be by the end of the substep, the pair at the end of the substep.
+                // Stage 1: the first pass's pairs near the object, for the object's velocities at
+                // the start of the substep; stage 2: the second pass's (physics.rs:
+                // contacts_and_forces: the pairs that did not push, against the object's velocity
+                // at the end of the substep as the forces so far make it), for those
+                var vel = ovel;
+                var w = ow;
+                var list = near_obj;
+                if (stage == 2u) {
+                    vel = pred.vel;
+                    w = pred.w;
+                    list = revisit;
+                }
+                let end = object_frame_at_end(h, ocom, vel, w);
+                var searched: array<u32, REVISIT_WORDS>;
                 var word = 0u;
                 loop {
                     let ci = next_in_list(&list, &word);
                     if (ci == NO_COLLIDER) {
                         break;
                     }
-                    let t = swept_test(ci, query_contact(0u, ci), h, ocom, pred.vel, pred.w);
+                    let t = swept_test(ci, query_contact(0u, ci), h, ocom, vel, w);
                     if (t.search) {
-                        swept2[ci / 32u] |= 1u << (ci % 32u);
-                        post_query(1u, ci, collider_pose_at_end(colliders[ci].link, collider_pose(ci), h), pend, query_margin(0u, ci));
+                        searched[ci / 32u] |= 1u << (ci % 32u);
+                        post_query(1u, ci, collider_pose_at_end(colliders[ci].link, collider_pose(ci), h), end, query_margin(0u, ci));
                     }
+                }
+                if (stage == 1u) {
+                    swept = searched;
+                } else {
+                    pend = end;
+                    swept2 = searched;
                 }
             }
             if (stage == 3u) {
