@@ -119,6 +119,19 @@ impl GpuCounts {
         self.by_source.iter().filter(|((k, s), _)| *k == kind && s.starts_with(prefix)).map(|(_, v)| v).sum()
     }
 
+    /// The queue's submissions, burn's included: wgpu's submission index advances between two
+    /// [`queue_submissions`] readings less the map requests counted here, or, where the index was
+    /// not read (`None`: a simulator without burn), dextrain's own submissions.
+    pub fn queue_submissions(&self, index_advances: Option<u64>) -> u64 {
+        index_advances.map_or(self.total(Event::Submission), |q| q.saturating_sub(self.map_requests()))
+    }
+
+    /// The staging-buffer map requests counted: dextrain's maps and burn's reads (cubecl maps one
+    /// staging buffer per tensor read, and `learn::nets::to_host` reads one tensor a call).
+    pub fn map_requests(&self) -> u64 {
+        self.total(Event::Map) + self.total_from(Event::Read, "burn:")
+    }
+
     /// Host synchronisations: the blocking reads (each of dextrain's readbacks maps its staging
     /// buffers and waits once inside it; burn's reads wait inside cubecl).
     pub fn host_syncs(&self) -> u64 {
@@ -127,8 +140,10 @@ impl GpuCounts {
 
     /// The report: per kind the total and the sources (`{"kernels": {"total": 41, "by_source":
     /// {"burn:matmul_entry": 12, …}}, …}`), every count divided by `per` (e.g. the env steps the
-    /// snapshot covers), and `"queue_submissions"` (all submissions, burn's included) when known.
-    pub fn to_json(&self, per: f64, queue_submissions: Option<u64>) -> serde_json::Value {
+    /// snapshot covers), `"queue_submissions"` ([`GpuCounts::queue_submissions`]) and
+    /// `"queue_index_advances"` (wgpu's submission index between two [`queue_submissions`]
+    /// readings, as read; null where not read).
+    pub fn to_json(&self, per: f64, index_advances: Option<u64>) -> serde_json::Value {
         let per = per.max(1e-12);
         let mut out = serde_json::Map::new();
         for kind in Event::ALL {
@@ -141,15 +156,20 @@ impl GpuCounts {
             out.insert(kind.name().to_string(), serde_json::json!({ "total": self.total(kind) as f64 / per, "by_source": sources }));
         }
         out.insert("host_syncs".into(), serde_json::json!(self.host_syncs() as f64 / per));
-        out.insert("queue_submissions".into(), queue_submissions.map_or(serde_json::Value::Null, |q| serde_json::json!(q as f64 / per)));
-        serde_json::Value::Object(out)
+        let per_json = |n: Option<u64>| n.map_or(serde_json::Value::Null, |q| serde_json::json!(q as f64 / per));
+        out.insert("queue_index_advances".into(), per_json(index_advances));
+        out.insert("queue_submissions".into(), serde_json::json!(self.queue_submissions(index_advances) as f64 / per));
+                serde_json::Value::Object(out)
     }
 }
 
-/// The submissions made on `queue` so far (wgpu's submission index, which counts every
-/// `queue.submit` on the device, burn's included): the reading itself submits an empty command
-/// list, so the submissions between two readings `a`, `b` are `b − a − 1`. None if wgpu's index
-/// cannot be read (its only public form is its `Debug` text).
+/// wgpu's submission index on `queue` so far. It advances at every `queue.submit` on the device
+/// (burn's included) and also at every `map_async` (wgpu-core 30 reserves an index to flush the
+/// queue's pending writes to the buffer, and advances it whether or not it submits anything) and
+/// `on_submitted_work_done`: the submissions between two readings are the advances less those
+/// ([`GpuCounts::to_json`] takes off the map requests it counted). The reading itself submits an
+/// empty command list, so the advances between two readings `a`, `b` are `b − a − 1`. None if
+/// wgpu's index cannot be read (its only public form is its `Debug` text).
 pub fn queue_submissions(queue: &wgpu::Queue) -> Option<u64> {
     let index = queue.submit(std::iter::empty());
     let text = format!("{index:?}"); // "SubmissionIndex { index: 42 }"
@@ -157,8 +177,8 @@ pub fn queue_submissions(queue: &wgpu::Queue) -> Option<u64> {
     digits.parse().ok()
 }
 
-/// The submissions between two [`queue_submissions`] readings `a` then `b` (the second reading's
-/// own empty submission not counted).
+/// wgpu's submission index advances between two [`queue_submissions`] readings `a` then `b` (the
+/// second reading's own empty submission not counted): the submissions and map requests between.
 pub fn submissions_between(a: Option<u64>, b: Option<u64>) -> Option<u64> {
     Some(b?.checked_sub(a?)?.saturating_sub(1))
 }

@@ -634,8 +634,7 @@ impl GpuCounter {
     fn until(&self, later: &GpuCounter) -> [f64; 3] {
         use crate::gpu_counts::Event;
         let d = later.counts.since(&self.counts);
-        let own = d.total(Event::Submission);
-        let submissions = crate::gpu_counts::submissions_between(self.queue, later.queue).unwrap_or(own);
+        let submissions = d.queue_submissions(crate::gpu_counts::submissions_between(self.queue, later.queue));
         [d.total(Event::Kernel) as f64, submissions as f64, d.host_syncs() as f64]
     }
 }

@@ -568,6 +568,10 @@ fn gpu_suite_quick_writes_every_figure() {
     let ppo_counts = &j["ppo_update"]["gpu_counts"];
     assert_eq!(counts(&ppo_counts["per_update"], "reads"), 2.0, "{ppo_counts}");
     assert_eq!(counts(&ppo_counts["per_policy_inference"], "reads"), 1.0, "{ppo_counts}");
+    // an inference is two submissions (burn's kernels, then the copy of the actions to cubecl's
+    // staging buffer); the map of that buffer advances wgpu's submission index as well
+    let inference = &ppo_counts["per_policy_inference"];
+    assert_eq!((inference["queue_submissions"].as_f64(), inference["queue_index_advances"].as_f64()), (Some(2.0), Some(3.0)), "{inference}");
     assert!(counts(&ppo_counts["per_update"], "kernels") > 0.0 && ppo_counts["per_update"]["kernels"]["by_source"]["dextrain:adam"].as_f64().unwrap_or(0.0) > 0.0, "{ppo_counts}");
     // acting's forward passes: one kernel per MLP (the actor's for an inference, the actor's and
     // the critic's for a rollout step) at the quick suite's 64 envs by default, and in the run
