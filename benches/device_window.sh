@@ -5,7 +5,7 @@
 #     (here)     cargo build --release && benches/device_pack.sh device
 #     (device)   benches/device_window.sh device      # the device tool's run, carry ["device"]
 # Environment: STEPS (default "shader_stats env baseline variants"; then, in a second call,
-# "learner train": the rest of the figures), VARIANTS_WGSL (default: the variants of
+# "learner train profile": the rest of the figures), VARIANTS_WGSL (default: the variants of
 # device/variants/ not yet timed on an H200), and whatever gpu_suite.sh reads (ENVS, BENCH_S,
 # TRAIN_PPO_S, …). On an H200 (2026-12-01) a bench run at 65,536 envs took ~12 s with BENCH_S 2:
 # "baseline variants" with 5 variants over 2 rounds 172 s, "shader_stats env variants learner

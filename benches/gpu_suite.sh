@@ -26,6 +26,9 @@
 #      TRAIN_PPO_HOST_S seconds with `train.device_rollouts = false` (observations through the host
 #      every env step: what the device-resident rollouts save). Each run's summary line gives its
 #      device memory (the simulator's buffers and burn's reserved pool, and their sum per env).
+#      Step "profile": the PPO lift again for TRAIN_PROFILE_S seconds with `--gpu-profile`
+#      (`gpu_profile_ppo_lift`: the GPU time of each kernel of ours and of each stretch of the
+#      learner's work, from timestamp queries; docs/gpu.md "Where a GPU's time goes").
 #   4. (step "baseline", only with BASELINE_WGSL set: a simulator WGSL module, common + reset +
 #      physics, as `benches/physics_module.sh COMMIT` writes it) the env-only bench at BASELINE_ENVS
 #      envs with the built-in physics and with that module (`bench --physics-wgsl`), alternated over
@@ -47,8 +50,9 @@
 # STEPS="objects learner train".
 # --quick runs the same steps at tiny sizes (any adapter, lavapipe included) so that the script
 # can be checked anywhere. Environment: ENVS (space-separated env counts), TRAIN_PPO_S, TRAIN_SAC_S, TRAIN_PPO_HOST_S,
+# TRAIN_PROFILE_S (the profiled PPO lift's seconds),
 # BENCH_S (least timed seconds per env-only point), OBJ_ENVS, ADAPTER (gpu or gpu:NAME, default gpu),
-# STEPS (the steps to run, default "shader_stats env objects learner train", plus "baseline" when BASELINE_WGSL is
+# STEPS (the steps to run, default "shader_stats env objects learner train profile", plus "baseline" when BASELINE_WGSL is
 # set and "variants" when VARIANTS_WGSL is; the others' JSON values are null), BASELINE_WGSL,
 # VARIANTS_WGSL, BASELINE_ENVS, BASELINE_ROUNDS.
 set -uo pipefail
@@ -67,14 +71,14 @@ done
 mkdir -p "$out"
 adapter=${ADAPTER:-gpu}
 if [ "$quick" = 1 ]; then
-    envs=${ENVS:-"64 128"}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; ppo_host_s=${TRAIN_PPO_HOST_S:-10}; bench_s=${BENCH_S:-0.5}; obj_envs=${OBJ_ENVS:-64}
+    envs=${ENVS:-"64 128"}; profile_s=${TRAIN_PROFILE_S:-10}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; ppo_host_s=${TRAIN_PPO_HOST_S:-10}; bench_s=${BENCH_S:-0.5}; obj_envs=${OBJ_ENVS:-64}
     small=(--set sim.num_envs=64 --set train.steps_per_env=4 --set 'policy.actor_hidden=[32]' --set 'policy.critic_hidden=[32]')
     sac_small=(--set sac.batch_size=64 --set sac.learning_starts=8 --set sac.buffer_capacity=64)
     baseline_envs=${BASELINE_ENVS:-64}; baseline_rounds=${BASELINE_ROUNDS:-1}
     ppo_sizes=(--envs 64 --iters 1); sac_sizes=(--envs 64 --iters 1 --batch 256 --gradient-steps 2); matmul_sizes=()  # (every routine compiles its kernels: minutes on lavapipe)
     sac_lift_sizes=("${sac_sizes[@]}")
 else
-    envs=${ENVS:-"4096 16384 65536 262144"}; ppo_s=${TRAIN_PPO_S:-210}; sac_s=${TRAIN_SAC_S:-90}; ppo_host_s=${TRAIN_PPO_HOST_S:-30}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
+    envs=${ENVS:-"4096 16384 65536 262144"}; profile_s=${TRAIN_PROFILE_S:-20}; ppo_s=${TRAIN_PPO_S:-210}; sac_s=${TRAIN_SAC_S:-90}; ppo_host_s=${TRAIN_PPO_HOST_S:-30}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
     small=(); sac_small=(); ppo_sizes=(--iters 3); sac_sizes=(--iters 3); matmul_sizes=(--iters 3)
     # configs/lift_cube_sac_gpu.toml's shape: 1024 envs, batch 2048 (with --n-step 3 --critic-layer-norm below)
     sac_lift_sizes=(--envs 1024 --batch 2048 --iters 3)
@@ -147,7 +151,7 @@ train_for() {
 
 baseline_wgsl=${BASELINE_WGSL:-}
 variants_wgsl=${VARIANTS_WGSL:-}
-steps=" ${STEPS:-shader_stats env objects learner train${baseline_wgsl:+ baseline}${variants_wgsl:+ variants}} "
+steps=" ${STEPS:-shader_stats env objects learner train profile${baseline_wgsl:+ baseline}${variants_wgsl:+ variants}} "
 runs_step() { case "$steps" in *" $1 "*) return 0 ;; *) return 1 ;; esac; }
 
 start=$(date +%s)
@@ -278,6 +282,14 @@ if runs_step train; then
     train_host=$(train_summary "$runs/gpu_ppo_host/metrics.csv")
     ppo_run=$(run_json "$out/gpu_ppo.log"); sac_run=$(run_json "$out/gpu_sac.log")
 fi
+profile_json=null
+if runs_step profile; then
+    # where the lift's iteration spends the GPU's time (docs/gpu.md "Where a GPU's time goes"):
+    # each kernel of ours and each stretch of the learner's work, from timestamp queries
+    echo "gpu_suite: PPO lift with --gpu-profile for ${profile_s}s" >&2
+    train_for gpu_ppo_profiled "$profile_s" configs/lift_cube_gpu.toml --gpu-profile --set sim.backend="$adapter" --set train.device="$adapter" "${small[@]}"
+    profile_json=$(json_of "$runs/gpu_ppo_profiled/gpu_profile.json")
+fi
 driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader 2>/dev/null || echo unknown) | head -n 1)
 {
     printf '{"suite": "dextrain_gpu", "quick": %s, "date": "%s", "driver": "%s", "wall_s": %s,\n' \
@@ -287,6 +299,7 @@ driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,
     printf ' "ppo_update": %s,\n "ppo_update_fused": %s,\n "sac_update": %s,\n "sac_update_lift": %s,\n "matmul_routines": %s,\n' "$ppo_json" "$ppo_fused_json" "$sac_json" "$sac_lift_json" "$matmul_json"
     printf ' "train_ppo": %s,\n "train_sac": %s,\n "train_ppo_host_path": %s,\n' "$train_ppo" "$train_sac" "$train_host"
     printf ' "train_ppo_run": %s,\n "train_sac_run": %s,\n' "$ppo_run" "$sac_run"
+    printf ' "gpu_profile_ppo_lift": %s,\n' "$profile_json"
     printf ' "physics_baseline": %s,\n' "$baseline_json"
     printf ' "physics_variants": %s,\n' "$variants_json"
     printf ' "shader_stats": %s}\n' "$stats_json"

@@ -53,7 +53,10 @@ pub fn default_name(config: &Path) -> String {
 }
 
 /// What dextrain writes at the top of a run directory (besides TensorBoard's `events.out.tfevents.*`).
-pub const RUN_ENTRIES: [&str; 8] = ["config.toml", "metrics.csv", "plots", "checkpoints", "eval", "export", "ranks", FOXGLOVE_LAYOUT];
+pub const RUN_ENTRIES: [&str; 9] = ["config.toml", "metrics.csv", "plots", "checkpoints", "eval", "export", "ranks", FOXGLOVE_LAYOUT, GPU_PROFILE];
+
+/// The GPU time profile of a run's training loop (`train --gpu-profile`: `gpu::profile`).
+pub const GPU_PROFILE: &str = "gpu_profile.json";
 
 /// The Foxglove layout of a run's live view (`train --live`: the run's reward terms plotted).
 pub const FOXGLOVE_LAYOUT: &str = "foxglove_layout.json";

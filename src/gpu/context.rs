@@ -19,7 +19,10 @@ use anyhow::{Context, Result, anyhow, bail, ensure};
 use bytemuck::Pod;
 use wgpu::util::DeviceExt;
 
+use std::collections::HashMap;
+
 use super::bindings::{Binding, BindingSpace, EntryBindings};
+use super::profile::GpuProfiler;
 use super::shaders::WORKGROUP_SIZE;
 use crate::gpu_counts::{self, Event};
 
@@ -40,6 +43,10 @@ pub struct GpuContext {
     /// One line per error that reached the uncaptured-error handler or the device-lost callback
     /// since the last [`GpuContext::check_uncaptured`].
     uncaptured: Arc<Mutex<Vec<String>>>,
+    /// The device-time profile (`--gpu-profile` on an adapter with timestamp queries; else None).
+    profiler: Option<Arc<Mutex<GpuProfiler>>>,
+    /// Each compute pipeline's entry point, for the profile's names (filled while profiling only).
+    pipeline_names: Arc<Mutex<HashMap<wgpu::ComputePipeline, String>>>,
 }
 
 /// One dispatch of a compute pass: the pipeline, its bind group 0 and its workgroups (x, y).
@@ -202,7 +209,16 @@ impl GpuContext {
         device.set_device_lost_callback(move |reason, message| {
             record.lock().unwrap_or_else(PoisonError::into_inner).push(format!("device lost ({reason:?}): {}", crate::text::one_line(&message)));
         });
-        Ok(GpuContext { instance, adapter: chosen, device, queue, info, uncaptured })
+        let profiler = if super::profile::requested() {
+            let p = GpuProfiler::new(&device, &queue);
+            if p.is_none() {
+                crate::console::status(&format!("--gpu-profile: adapter {} writes no timestamps in compute passes and between commands; no profile", info.name));
+            }
+            p.map(|p| Arc::new(Mutex::new(p)))
+        } else {
+            None
+        };
+        Ok(GpuContext { instance, adapter: chosen, device, queue, info, uncaptured, profiler, pipeline_names: Arc::default() })
     }
 
     /// Whether the adapter is a software rasteriser (lavapipe / llvmpipe) rather than a GPU.
@@ -341,6 +357,12 @@ impl GpuContext {
                 },
             )?);
         }
+        if self.profiler.is_some() {
+            let mut names = self.pipeline_names.lock().unwrap_or_else(PoisonError::into_inner);
+            for (p, e) in pipelines.iter().zip(entry_points) {
+                names.insert(p.clone(), e.to_string());
+            }
+        }
         pipelines.try_into().map_err(|p: Vec<_>| anyhow!("shader `{shader}`: {} pipelines for {N} entry points", p.len()))
     }
 
@@ -402,6 +424,21 @@ impl GpuContext {
     pub fn encode_dispatches(&self, passes: &[Pass<'_>], what: &str) -> wgpu::CommandEncoder {
         gpu_counts::add_n(Event::Kernel, &format!("dextrain:{what}"), passes.len() as u64);
         let mut enc = self.device.create_command_encoder(&Default::default());
+        if let Some(profiler) = &self.profiler {
+            // a pass per dispatch, stamped at its start and end (gpu::profile)
+            let mut profiler = profiler.lock().unwrap_or_else(PoisonError::into_inner);
+            let names = self.pipeline_names.lock().unwrap_or_else(PoisonError::into_inner);
+            for &(pipeline, group, (x, y)) in passes {
+                let name = format!("kernel:{}", names.get(pipeline).map_or("(unnamed)", |n| n.as_str()));
+                let first = profiler.reserve(&name);
+                let timestamp_writes = first.map(|f| profiler.pass_writes(f));
+                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes });
+                pass.set_pipeline(pipeline);
+                pass.set_bind_group(0, group, &[]);
+                pass.dispatch_workgroups(x, y, 1);
+            }
+            return enc;
+        }
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
             for &(pipeline, group, (x, y)) in passes {
@@ -488,6 +525,80 @@ impl GpuContext {
         waited.map_err(|e| anyhow!("{what}: waiting for adapter {}: {e}", self.info.name))?;
         self.check_uncaptured(what)?;
         first_error.map_or(Ok(()), Err)
+    }
+
+    /// Whether this context keeps a device-time profile (`gpu::profile`).
+    pub fn profiles(&self) -> bool {
+        self.profiler.is_some()
+    }
+
+    /// The profiler, for a pass of its own to stamp (`learn/kernels/fused_adam.rs`); None when not
+    /// profiling.
+    pub fn profiler(&self) -> Option<std::sync::MutexGuard<'_, GpuProfiler>> {
+        self.profiler.as_ref().map(|p| p.lock().unwrap_or_else(PoisonError::into_inner))
+    }
+
+    /// Stamps the queue (a submission of its own): with `first` None, the start of a new span
+    /// `name` (its index returned; None when the query set is full or nothing profiles), else the
+    /// end of span `first`. A nearly full query set is read first.
+    pub fn profile_stamp(&self, first: Option<u32>, name: &str) -> Result<Option<u32>> {
+        let Some(profiler) = &self.profiler else { return Ok(None) };
+        if first.is_none() && profiler.lock().unwrap_or_else(PoisonError::into_inner).nearly_full() {
+            self.profile_read()?;
+        }
+        let mut p = profiler.lock().unwrap_or_else(PoisonError::into_inner);
+        let (index, out) = match first {
+            None => match p.reserve(name) {
+                Some(f) => (f, Some(f)),
+                None => return Ok(None),
+            },
+            Some(f) => (f + 1, None),
+        };
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        p.stamp(&mut enc, index);
+        drop(p);
+        self.submit(enc, "gpu profile stamp")?;
+        Ok(out)
+    }
+
+    /// Reads the profile's timestamps recorded so far into its totals (one readback; nothing when
+    /// none wait). Call it where every stamped command has been submitted.
+    pub fn profile_read(&self) -> Result<()> {
+        let Some(profiler) = &self.profiler else { return Ok(()) };
+        let mut p = profiler.lock().unwrap_or_else(PoisonError::into_inner);
+        if !p.has_pending() {
+            return Ok(());
+        }
+        let mut enc = self.device.create_command_encoder(&Default::default());
+        p.encode_resolve(&mut enc);
+        let (resolve, staging, bytes) = p.buffers();
+        let copy = ReadbackCopy { name: "gpu profile", src: resolve, staging, bytes };
+        let mut ticks = Vec::new();
+        self.submit_and_read(enc, &[copy], "reading the gpu profile", |_, b| ticks = b.to_vec())?;
+        p.take(&ticks);
+        Ok(())
+    }
+
+    /// Starts the profile afresh: what was stamped so far is read and forgotten (a run's set-up,
+    /// before its loop).
+    pub fn profile_restart(&self) -> Result<()> {
+        self.profile_read()?;
+        if let Some(mut p) = self.profiler() {
+            p.clear();
+        }
+        Ok(())
+    }
+
+    /// The profile so far (`GpuProfiler::to_json` with the adapter), after reading what waits;
+    /// None when this context does not profile.
+    pub fn profile_report(&self) -> Result<Option<serde_json::Value>> {
+        if self.profiler.is_none() {
+            return Ok(None);
+        }
+        self.profile_read()?;
+        let mut j = self.profiler().expect("profiles").to_json();
+        j["adapter"] = serde_json::json!(self.describe());
+        Ok(Some(j))
     }
 }
 

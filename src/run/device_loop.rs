@@ -5,6 +5,7 @@
 //! iteration ([`DeviceLoop::take_sums`]); the observations and accumulators come to the host only
 //! for a checkpoint ([`DeviceLoop::to_host`]).
 
+use crate::gpu::profile::around_burn;
 use anyhow::{Result, bail};
 use burn::prelude::*;
 
@@ -65,19 +66,25 @@ impl DeviceLoop {
     /// A live view reads the shown envs after a step, when it sends a scene.
     pub(super) fn collect(&mut self, task: &mut dyn TaskBatch, algo: &mut dyn Algorithm, steps: usize, mut live: Option<&mut crate::live::LiveView>) -> Result<()> {
         let n = task.spec().num_envs;
+        // `--gpu-profile` (gpu::profile): the learner's acting and observing as spans of their own;
+        // the task's kernels are stamped one by one where they are recorded
+        let ctx = crate::learn::device::gpu_context_of(&self.device);
+        let ctx = ctx.as_ref();
         for _ in 0..steps {
-            let actions = algo.act_device(&self.obs, &self.priv_obs)?;
+            let actions = around_burn(ctx, &self.device, "act", || algo.act_device(&self.obs, &self.priv_obs))?;
             let out = task.step_on_device(&actions, &self.device)?;
-            let (acc, [reward, terminated, time_out]) = step_sums(&actions, &out.misc, &self.acc)?;
-            self.acc = acc;
-            algo.observe_device(&DeviceOutcome {
-                reward: &reward,
-                terminated: &terminated,
-                time_out: &time_out,
-                obs: &out.obs,
-                priv_obs: &out.priv_obs,
-                final_obs: out.final_obs.as_ref(),
-                final_priv_obs: out.final_priv_obs.as_ref(),
+            around_burn(ctx, &self.device, "observe", || {
+                let (acc, [reward, terminated, time_out]) = step_sums(&actions, &out.misc, &self.acc)?;
+                self.acc = acc;
+                algo.observe_device(&DeviceOutcome {
+                    reward: &reward,
+                    terminated: &terminated,
+                    time_out: &time_out,
+                    obs: &out.obs,
+                    priv_obs: &out.priv_obs,
+                    final_obs: out.final_obs.as_ref(),
+                    final_priv_obs: out.final_priv_obs.as_ref(),
+                })
             })?;
             self.obs = out.obs;
             self.priv_obs = out.priv_obs;

@@ -66,6 +66,11 @@ pub struct TrainArgs {
     /// The live view (`--live`, `--live-envs`, `--live-hz`, `--live-wait`).
     #[command(flatten)]
     pub live: crate::live::LiveArgs,
+    /// Time each of dextrain's kernels and each stretch of the learner's work on the GPU
+    /// (timestamp queries; docs/gpu.md "Where a GPU's time goes"): `gpu_profile.json` in the run
+    /// directory and in the summary line. Slows the run a little.
+    #[arg(long)]
+    pub gpu_profile: bool,
 }
 
 static STOP: AtomicBool = AtomicBool::new(false);
@@ -339,6 +344,8 @@ fn absolute(p: &Path) -> String {
 /// Runs (or resumes) the training run `loaded` with the algorithm that `make` builds, after its
 /// `preflight` check; returns its directory.
 pub fn run(args: &TrainArgs, loaded: LoadedRun, make: MakeAlgorithm, preflight: Preflight) -> Result<PathBuf> {
+    // before any GPU context is made (each keeps its own profiler)
+    crate::gpu::profile::request(args.gpu_profile);
     // several ranks (`mpiexec`): rank 0 makes the run directory first, then the others theirs
     // inside it (`super::ranks`); each waits for rank 0, and a rank that failed stops them all
     let first = crate::dist::rank() == 0;
@@ -482,6 +489,13 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
         ProgressStyle::with_template("{bar:30} {pos}/{len} it | {msg} | {elapsed_precise} ETA {eta_precise}")
             .unwrap_or_else(|_| ProgressStyle::default_bar()),
     );
+    // `--gpu-profile`: the context whose profile the run reports (the simulator's, else the learner's)
+    let learner_ctx = crate::learn::device::gpu_context_of(&device);
+    let profiled = task.gpu_context().or(learner_ctx.as_ref()).filter(|c| c.profiles()).cloned();
+    let profiled = profiled.as_ref();
+    if let Some(ctx) = profiled {
+        ctx.profile_restart()?; // the training loop's profile: the set-up's kernels left out
+    }
     let started = Instant::now();
     let mut last_saved = iteration;
     let mut last_row = Vec::new();
@@ -501,17 +515,22 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
                 }
                 let collect_s = t0.elapsed().as_secs_f64();
                 let counts1 = GpuCounter::start(task.gpu_context());
-                (sums, algo.update_device(&dl.obs, &dl.priv_obs)?, collect_s, counts1)
+                let update = crate::gpu::profile::around_burn(learner_ctx.as_ref(), &device, "update", || algo.update_device(&dl.obs, &dl.priv_obs))?;
+                (sums, update, collect_s, counts1)
             }
             None => {
                 let sums = collect(task.as_mut(), algo.as_mut(), &mut obs, &mut priv_obs, &mut eps, steps, live.as_mut())?;
                 let collect_s = t0.elapsed().as_secs_f64();
                 let counts1 = GpuCounter::start(task.gpu_context());
-                (sums, algo.update(&obs, &priv_obs)?, collect_s, counts1)
+                let update = crate::gpu::profile::around_burn(learner_ctx.as_ref(), &device, "update", || algo.update(&obs, &priv_obs))?;
+                (sums, update, collect_s, counts1)
             }
         };
         let host_bytes = crate::host_traffic::total() - bytes0;
         let counts2 = GpuCounter::start(task.gpu_context());
+        if let Some(ctx) = profiled {
+            ctx.profile_read()?; // the iteration's stamps (one read; its counts fall in the next iteration's)
+        }
         let (per_step, per_update) = (counts0.until(&counts1), counts1.until(&counts2));
         let env_step_count = steps.max(1) as f64;
         let gpu = [
@@ -611,6 +630,16 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
     });
     if let Some(l) = &live {
         summary["live"] = l.summary();
+    }
+    if let Some(ctx) = profiled
+        && let Some(mut profile) = ctx.profile_report()?
+    {
+        profile["loop_wall_s"] = json!(started.elapsed().as_secs_f64());
+        let path = dir.join(crate::run_dir::GPU_PROFILE);
+        let tmp = crate::files::temp_path_beside(&path)?;
+        std::fs::write(&tmp, format!("{profile}\n")).with_context(|| format!("cannot write {}", tmp.display()))?;
+        std::fs::rename(&tmp, &path).with_context(|| format!("cannot write {}", path.display()))?;
+        summary["gpu_profile"] = profile;
     }
     if crate::dist::size() > 1 {
         summary["ranks"] = json!({ "size": crate::dist::size(), "rank": crate::dist::rank(), "max_parameter_deviation": deviation });

@@ -25,7 +25,7 @@ const TINY: [&str; 9] = ["sim.backend=cpu", "train.device=cpu", "sim.num_envs=8"
 fn teacher(runs: &Path) -> PathBuf {
     let mut sets = s(&TINY);
     sets.extend(s(&["train.iterations=2", "policy.encoder.inputs=[\"obj_mass\", \"obj_vel\", \"tip_contact\"]", "policy.encoder.hidden=[8]", "policy.encoder.latent=3"]));
-    train(&TrainArgs { config: Some(CONFIG.into()), sets, name: Some("teacher".into()), resume: None, force: false, runs_dir: runs.into(), stop_after: None, quiet: true, live: Default::default() }).unwrap()
+    train(&TrainArgs { config: Some(CONFIG.into()), sets, name: Some("teacher".into()), resume: None, force: false, runs_dir: runs.into(), stop_after: None, quiet: true, live: Default::default(), gpu_profile: false }).unwrap()
 }
 
 fn student_sets(teacher: &Path, extra: &[&str]) -> Vec<String> {
@@ -171,6 +171,7 @@ fn a_distillation_run_resumes_exactly_and_bad_teachers_are_one_line_errors() {
         stop_after: None,
         quiet: true,
         live: Default::default(),
+        gpu_profile: false,
     };
     let a = train(&args("a")).unwrap();
     let mut b_args = args("b");
@@ -305,7 +306,7 @@ fn a_tcn_student_learns_exports_and_plays() {
     two_updates_lower_both_losses(&mut d, task.as_mut(), &b);
     let mut sets = student_sets(&t, &tcn);
     sets.push("train.iterations=2".into());
-    let run = train(&TrainArgs { config: Some(CONFIG.into()), sets, name: Some("tcn".into()), resume: None, force: false, runs_dir: tmp.path().into(), stop_after: None, quiet: true, live: Default::default() }).unwrap();
+    let run = train(&TrainArgs { config: Some(CONFIG.into()), sets, name: Some("tcn".into()), resume: None, force: false, runs_dir: tmp.path().into(), stop_after: None, quiet: true, live: Default::default(), gpu_profile: false }).unwrap();
     // read back from the checkpoint: the TCN with its convolutions, and the same parameters
     let back = dextrain::learn::distill::StudentPolicy::load(&run.join("checkpoints/2"), task.spec().obs_dim, &Device::flex()).unwrap();
     assert_eq!(back.student.adaptation, dextrain::learn::distill::Adaptation::Tcn { convs: vec![(2, 2), (2, 1)] });

@@ -93,7 +93,7 @@ fn a_teacher_with_an_encoder_trains_resumes_exactly_and_exports() {
     .iter()
     .map(|s| s.to_string())
     .collect();
-    let args = |name: &str| TrainArgs { config: Some(CONFIG.into()), sets: sets.clone(), name: Some(name.into()), resume: None, force: false, runs_dir: tmp.path().into(), stop_after: None, quiet: true, live: Default::default() };
+    let args = |name: &str| TrainArgs { config: Some(CONFIG.into()), sets: sets.clone(), name: Some(name.into()), resume: None, force: false, runs_dir: tmp.path().into(), stop_after: None, quiet: true, live: Default::default(), gpu_profile: false };
     let a = train(&args("a")).unwrap();
     let mut b_args = args("b");
     b_args.stop_after = Some(2);

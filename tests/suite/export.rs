@@ -209,7 +209,7 @@ fn export_writes_a_verified_model_and_its_contract() {
         .iter()
         .map(|s| s.to_string())
         .collect();
-    let args = TrainArgs { config: Some(format!("{ROOT}/configs/lift_cube_cpu.toml").into()), sets, name: Some("lift".into()), resume: None, force: false, runs_dir: tmp.path().into(), stop_after: None, quiet: true, live: Default::default() };
+    let args = TrainArgs { config: Some(format!("{ROOT}/configs/lift_cube_cpu.toml").into()), sets, name: Some("lift".into()), resume: None, force: false, runs_dir: tmp.path().into(), stop_after: None, quiet: true, live: Default::default(), gpu_profile: false };
     let run = train(&args).unwrap();
     let a = ExportArgs { run: run.clone(), checkpoint: "latest".into(), out: None, verify: true };
     let r = export(&a).unwrap();

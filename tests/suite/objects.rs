@@ -318,7 +318,7 @@ fn eval_reports_success_per_object() {
         "policy.critic_hidden=[16]".into(),
     ]
     .to_vec();
-    let args = dextrain::run::TrainArgs { config: Some(cfg), sets, name: Some("three".into()), resume: None, force: false, runs_dir: tmp.path().into(), stop_after: None, quiet: true, live: Default::default() };
+    let args = dextrain::run::TrainArgs { config: Some(cfg), sets, name: Some("three".into()), resume: None, force: false, runs_dir: tmp.path().into(), stop_after: None, quiet: true, live: Default::default(), gpu_profile: false };
     let dir = dextrain::run::train(&args).expect("train");
     // the saved config names the mesh by its absolute path and loads from the run directory
     let saved = Config::load(&dir.join("config.toml")).unwrap();

@@ -21,7 +21,7 @@ fn s(v: &[&str]) -> Vec<String> {
 fn tiny_run(runs: &Path, name: &str, config: &str, extra: &[&str]) -> PathBuf {
     let mut sets = s(&["sim.backend=cpu", "train.device=cpu", "sim.num_envs=4", "train.iterations=1", "train.steps_per_env=8", "train.plot_interval=0", "policy.actor_hidden=[16]", "policy.critic_hidden=[16]"]);
     sets.extend(s(extra));
-    let args = TrainArgs { config: Some(format!("{ROOT}/configs/{config}").into()), sets, name: Some(name.into()), resume: None, force: false, runs_dir: runs.into(), stop_after: None, quiet: true, live: Default::default() };
+    let args = TrainArgs { config: Some(format!("{ROOT}/configs/{config}").into()), sets, name: Some(name.into()), resume: None, force: false, runs_dir: runs.into(), stop_after: None, quiet: true, live: Default::default(), gpu_profile: false };
     train(&args).unwrap()
 }
 

@@ -409,6 +409,7 @@ fn residual_run_trains_and_evaluates_against_the_open_loop_baseline() {
         stop_after: None,
         quiet: true,
         live: Default::default(),
+        gpu_profile: false,
     };
     let dir = train(&args).expect("train");
     // metrics.csv logs the object's tracking error for the reference kinds

@@ -48,6 +48,7 @@ fn args(runs: &Path, name: &str) -> TrainArgs {
         stop_after: None,
         quiet: true,
         live: Default::default(),
+        gpu_profile: false,
     }
 }
 
@@ -270,6 +271,9 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     let host = train(&gpu_args("host", &["train.device_rollouts=false", fixed])).expect("train on the GPU, host path");
     let dev = train(&gpu_args("dev", &[fixed])).expect("train on the GPU, device-resident");
     let adaptive = train(&gpu_args("adaptive", &[])).expect("train on the GPU, device-resident, adaptive learning rate");
+    let mut profiled_args = gpu_args("profiled", &[]);
+    profiled_args.gpu_profile = true;
+    let profiled = train(&profiled_args).expect("train on the GPU, device-resident, profiled");
     let mut half = gpu_args("half", &[]);
     half.stop_after = Some(1);
     let resumed = train(&half).expect("first half");
@@ -305,6 +309,31 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     let rows_adaptive = metrics(&adaptive).1;
     assert!(same_bits(&rows_adaptive, &metrics(&resumed).1), "the resumed device-resident run differs:\n{rows_adaptive:?}\n{:?}", metrics(&resumed).1);
     assert_eq!(model_bytes(&adaptive, 2), model_bytes(&resumed, 2), "final model differs after resume");
+    // `--gpu-profile` (docs/gpu.md "Where a GPU's time goes"): the same run to the bit (its stamps
+    // and reads move no value; its reads are host traffic), and a profile of every kernel and
+    // bracket of the learner's work, each stamped as often as it ran
+    let (_, rows_profiled) = metrics(&profiled);
+    let without_bytes = |rows: &[(u64, Vec<f64>)]| rows.iter().map(|(it, v)| (*it, v.iter().enumerate().filter(|&(i, _)| i != bytes).map(|(_, x)| *x).collect())).collect::<Vec<(u64, Vec<f64>)>>();
+    assert!(same_bits(&without_bytes(&rows_adaptive), &without_bytes(&rows_profiled)), "the profiled run differs:\n{rows_adaptive:?}\n{rows_profiled:?}");
+    assert_eq!(model_bytes(&adaptive, 2), model_bytes(&profiled, 2), "the profiled run's model differs");
+    assert!(!adaptive.join("gpu_profile.json").exists(), "a profile without --gpu-profile");
+    let profile: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(profiled.join("gpu_profile.json")).expect("gpu_profile.json")).unwrap();
+    let spans = profile["spans"].as_array().expect("spans");
+    let span = |name: &str| spans.iter().find(|s| s["name"] == name).unwrap_or_else(|| panic!("no span {name} in {profile}"));
+    let calls = |name: &str| span(name)["calls"].as_u64().unwrap();
+    let (iterations, steps) = (2, t);
+    for name in ["kernel:step_main", "kernel:task_act", "kernel:task_reward", "burn:act", "burn:observe"] {
+        assert_eq!(calls(name), iterations * steps, "{name}: {profile}");
+    }
+    assert_eq!((calls("burn:update"), calls("kernel:adam")), (iterations, iterations * epochs * minibatches), "{profile}");
+    assert_eq!(profile["dropped_spans"], 0, "{profile}");
+    for s in spans {
+        assert!(s["total_ms"].as_f64().unwrap() > 0.0 && s["max_us"].as_f64().unwrap() * 1e-3 <= s["total_ms"].as_f64().unwrap(), "{s}");
+    }
+    // the spans follow one another on the queue (the learner's own kernels, the optimiser's and
+    // the noise's, inside its brackets): their device time is within the loop's wall time
+    let device_ms: f64 = spans.iter().filter(|s| s["name"] != "kernel:adam" && s["name"] != "kernel:learner_noise").map(|s| s["total_ms"].as_f64().unwrap()).sum();
+    assert!(device_ms <= 1e3 * profile["loop_wall_s"].as_f64().unwrap(), "{device_ms} ms of device time in {profile}");
     // what the GPU is asked to do, pinned (the same on any adapter; docs/gpu.md "What the GPU is asked
     // to do"): per env step of the device-resident loop, the policy's kernels (the normalisers'
     // 4 of normalizer.wgsl, the actor's forward pass with the sampled actions, the critic's), the

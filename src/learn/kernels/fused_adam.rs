@@ -200,7 +200,11 @@ impl FusedAdam {
         }
         let mut enc = self.ctx.device.create_command_encoder(&Default::default());
         {
-            let mut pass = enc.begin_compute_pass(&Default::default());
+            // profiling (gpu::profile): the whole step is one span, `kernel:adam`
+            let mut profiler = self.ctx.profiler();
+            let first = profiler.as_mut().and_then(|p| p.reserve("kernel:adam"));
+            let timestamp_writes = profiler.as_ref().zip(first).map(|(p, f)| p.pass_writes(f));
+            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes });
             if with_norm {
                 for group in &groups[..n] {
                     pass.set_pipeline(&self.partial);
