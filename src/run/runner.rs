@@ -491,7 +491,11 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
     );
     // `--gpu-profile`: the context whose profile the run reports (the simulator's, else the learner's)
     let learner_ctx = crate::learn::device::gpu_context_of(&device);
-    let profiled = task.gpu_context().or(learner_ctx.as_ref()).filter(|c| c.profiles()).cloned();
+    let gpu_ctx = task.gpu_context().or(learner_ctx.as_ref());
+    if args.gpu_profile && gpu_ctx.is_none() {
+        console::status("--gpu-profile: neither the envs nor the learner run on a GPU; no profile");
+    }
+    let profiled = gpu_ctx.filter(|c| c.profiles()).cloned();
     let profiled = profiled.as_ref();
     if let Some(ctx) = profiled {
         ctx.profile_restart()?; // the training loop's profile: the set-up's kernels left out

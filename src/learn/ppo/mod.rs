@@ -23,6 +23,7 @@
 pub mod device;
 pub mod storage;
 
+use crate::gpu::profile::around_burn;
 use anyhow::{Context, Result, ensure};
 use burn::prelude::*;
 use burn::tensor::{Int, TensorData};
@@ -659,30 +660,36 @@ impl Ppo {
         // side by side: one gather per minibatch picks them
         let columns = on_gpu.then(|| ppo_loss::loss_columns(all.actions.clone(), all.old_mu.clone(), all.old_log_prob.clone(), all.advantages.clone(), all.returns.clone(), all.old_values.clone()));
         let coefs = LossCoefs { clip: self.cfg.clip_param as f64, value_coef: self.cfg.value_loss_coef as f64, entropy_coef: self.cfg.entropy_coef as f64, clipped_value: self.cfg.clipped_value_loss };
+        // `train --gpu-profile` (gpu::profile): each minibatch's forward pass with its loss, and its
+        // backward pass, as spans of their own (inside the update's)
+        let profile_ctx = crate::learn::device::gpu_context_of(dev);
+        let profile_ctx = profile_ctx.as_ref();
         for k in 0..count {
             let idx = rows.clone().narrow(0, plan.starts[k], plan.starts[k + 1] - plan.starts[k]);
             let pick = |t: &Tensor<2>| t.clone().select(0, idx.clone());
             let (obs, priv_obs) = (pick(&all.obs), pick(&all.priv_obs));
             let params = &self.net.params;
-            let mu = self.net.actor(params, obs.clone(), priv_obs.clone());
-            let v = self.net.critic(params, priv_obs.clone());
-            let losses = match &columns {
-                Some(columns) => Losses::from_fused(ppo_loss::ppo_loss_fused(mu, self.net.log_std(params), v, all.old_sigma.clone(), pick(columns), coefs)),
-                None => {
-                    let b = Batch {
-                        obs,
-                        priv_obs,
-                        actions: pick(&all.actions),
-                        old_log_prob: pick(&all.old_log_prob),
-                        old_mu: pick(&all.old_mu),
-                        old_sigma: all.old_sigma.clone(), // [1, A]: σ is the same for every row of a rollout
-                        advantages: pick(&all.advantages),
-                        returns: pick(&all.returns),
-                        old_values: pick(&all.old_values),
-                    };
-                    ppo_losses(mu, self.net.log_std(params), v, &b, &self.cfg)
-                }
-            };
+            let losses = around_burn(profile_ctx, dev, "ppo forward and loss", || {
+                let mu = self.net.actor(params, obs.clone(), priv_obs.clone());
+                let v = self.net.critic(params, priv_obs.clone());
+                Ok(match &columns {
+                    Some(columns) => Losses::from_fused(ppo_loss::ppo_loss_fused(mu, self.net.log_std(params), v, all.old_sigma.clone(), pick(columns), coefs)),
+                    None => {
+                        let b = Batch {
+                            obs,
+                            priv_obs,
+                            actions: pick(&all.actions),
+                            old_log_prob: pick(&all.old_log_prob),
+                            old_mu: pick(&all.old_mu),
+                            old_sigma: all.old_sigma.clone(), // [1, A]: σ is the same for every row of a rollout
+                            advantages: pick(&all.advantages),
+                            returns: pick(&all.returns),
+                            old_values: pick(&all.old_values),
+                        };
+                        ppo_losses(mu, self.net.log_std(params), v, &b, &self.cfg)
+                    }
+                })
+            })?;
             // with several ranks the loss and the KL are this rank's rows' means weighted by its
             // share of the minibatch (`MinibatchRows::weights`), so that their means over the ranks
             // are the job's minibatch's means
@@ -696,7 +703,7 @@ impl Ppo {
                 };
             }
             let root = if data_parallel { losses.root.mul_scalar(w) } else { losses.root };
-            let grads = root.backward();
+            let grads = around_burn(profile_ctx, dev, "ppo backward", || Ok(root.backward()))?;
             let (new_params, norm) = self.adam.step_clipped(params, &grads, self.cfg.max_grad_norm as f64, &lr)?;
             let norm = norm.context("PPO's optimiser reports its gradient norm")?.inner();
             self.net.params = new_params;
