@@ -159,7 +159,7 @@ impl GpuCounts {
         let per_json = |n: Option<u64>| n.map_or(serde_json::Value::Null, |q| serde_json::json!(q as f64 / per));
         out.insert("queue_index_advances".into(), per_json(index_advances));
         out.insert("queue_submissions".into(), serde_json::json!(self.queue_submissions(index_advances) as f64 / per));
-                serde_json::Value::Object(out)
+        serde_json::Value::Object(out)
     }
 }
 

@@ -533,7 +533,7 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
         let host_bytes = crate::host_traffic::total() - bytes0;
         let counts2 = GpuCounter::start(task.gpu_context());
         if let Some(ctx) = profiled {
-            ctx.profile_read()?; // the iteration's stamps (one read; its counts fall in the next iteration's)
+            ctx.profile_read()?; // the iteration's stamps (one read, between the iterations' counts)
         }
         let (per_step, per_update) = (counts0.until(&counts1), counts1.until(&counts2));
         let env_step_count = steps.max(1) as f64;
@@ -613,7 +613,8 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
         bar.finish();
         end_bar_line(&bar);
     }
-    time_base = time_base + started.elapsed().as_secs_f64();
+    let loop_wall_s = started.elapsed().as_secs_f64();
+    time_base += loop_wall_s;
     crate::plot::plot_run(&dir.join("metrics.csv"), &dir.join("plots"))?;
     // device memory at the end: the simulator's buffers and what burn's allocator has reserved
     // (its pools keep their pages, so this is about the run's peak)
@@ -638,7 +639,7 @@ fn train_in(args: &TrainArgs, make: MakeAlgorithm, cfg: Config, model: Option<Si
     if let Some(ctx) = profiled
         && let Some(mut profile) = ctx.profile_report()?
     {
-        profile["loop_wall_s"] = json!(started.elapsed().as_secs_f64());
+        profile["loop_wall_s"] = json!(loop_wall_s);
         let path = dir.join(crate::run_dir::GPU_PROFILE);
         let tmp = crate::files::temp_path_beside(&path)?;
         std::fs::write(&tmp, format!("{profile}\n")).with_context(|| format!("cannot write {}", tmp.display()))?;

@@ -310,7 +310,7 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     assert!(same_bits(&rows_adaptive, &metrics(&resumed).1), "the resumed device-resident run differs:\n{rows_adaptive:?}\n{:?}", metrics(&resumed).1);
     assert_eq!(model_bytes(&adaptive, 2), model_bytes(&resumed, 2), "final model differs after resume");
     // `--gpu-profile` (docs/gpu.md "Where a GPU's time goes"): the same run to the bit (its stamps
-    // and reads move no value; its reads are host traffic), and a profile of every kernel and
+    // and reads move no value; the host bytes are not compared), and a profile of every kernel and
     // bracket of the learner's work, each stamped as often as it ran
     let (_, rows_profiled) = metrics(&profiled);
     let without_bytes = |rows: &[(u64, Vec<f64>)]| rows.iter().map(|(it, v)| (*it, v.iter().enumerate().filter(|&(i, _)| i != bytes).map(|(_, x)| *x).collect())).collect::<Vec<(u64, Vec<f64>)>>();
