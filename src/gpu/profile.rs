@@ -186,16 +186,6 @@ impl GpuProfiler {
         self.dropped = 0;
     }
 
-    /// What has been read, by name.
-    pub fn totals(&self) -> &BTreeMap<String, SpanTotal> {
-        &self.totals
-    }
-
-    /// Spans not timed because the query set was full.
-    pub fn dropped(&self) -> u64 {
-        self.dropped
-    }
-
     /// The report: per name the calls, the total and mean device time and the longest span, the
     /// names by total time (largest first), and the dropped spans.
     pub fn to_json(&self) -> serde_json::Value {
