@@ -5,13 +5,16 @@
 #     (here)     cargo build --release && benches/device_pack.sh device
 #     (device)   benches/device_window.sh device      # the device tool's run, carry ["device"]
 # Environment: STEPS (default "shader_stats env baseline variants"; then, in a second call,
-# "learner train profile": the rest of the figures), VARIANTS_WGSL (default: the variants of
+# "learner train profile scale": the rest of the figures), VARIANTS_WGSL (default: the variants of
 # device/variants/ not yet timed on an H200), and whatever gpu_suite.sh reads (ENVS, BENCH_S,
 # TRAIN_PPO_S, …). On an H200 (2026-12-01) a bench run at 65,536 envs took ~12 s with BENCH_S 2:
 # "baseline variants" with 5 variants over 2 rounds 172 s, "shader_stats env variants learner
 # train" with 3 variants, ENVS "4096 16384", TRAIN_PPO_S 30, TRAIN_SAC_S 20 and TRAIN_PPO_HOST_S 10
 # 291 s; a machine's start ~30 s more. The defaults: ENVS "16384 65536", BENCH_S 2,
-# BASELINE_ROUNDS 3, TRAIN_PPO_S 60, TRAIN_SAC_S 40, TRAIN_PPO_HOST_S 15.
+# BASELINE_ROUNDS 3, TRAIN_PPO_S 60, TRAIN_SAC_S 40, TRAIN_PPO_HOST_S 15, and gpu_suite.sh's
+# TRAIN_PROFILE_S 20 and TRAIN_SCALE_S 40: by those times the second call at the defaults takes
+# ~470 s (291 s + 55 s of longer runs + the profiled run + two 40 s runs at 16,384 and 65,536 envs
+# with their start-up), under a call's 10 minutes.
 set -uo pipefail
 dir=${1:-device}
 out=${OUT:-device_out}

@@ -29,6 +29,11 @@
 #      Step "profile": the PPO lift again for TRAIN_PROFILE_S seconds with `--gpu-profile`
 #      (`gpu_profile_ppo_lift`: the GPU time of each kernel of ours and of each stretch of the
 #      learner's work, from timestamp queries; docs/gpu.md "Where a GPU's time goes").
+#      Step "scale": the PPO lift at the batches of SCALE_SHAPES (ENVSxSTEPS, default "16384x32
+#      65536x24": lift_cube_gpu.toml's shape when issue 33 asked for >= 1 M env-steps/s with the
+#      learner, and the batch where the env-only bench peaks) for TRAIN_SCALE_S seconds each
+#      (`train_ppo_scale`): the throughput with the learner where the batch fills the GPU (the
+#      shipped config's 2,048 envs leave most of an H200's multiprocessors idle).
 #   4. (step "baseline", only with BASELINE_WGSL set: a simulator WGSL module, common + reset +
 #      physics, as `benches/physics_module.sh COMMIT` writes it) the env-only bench at BASELINE_ENVS
 #      envs with the built-in physics and with that module (`bench --physics-wgsl`), alternated over
@@ -50,9 +55,9 @@
 # STEPS="objects learner train".
 # --quick runs the same steps at tiny sizes (any adapter, lavapipe included) so that the script
 # can be checked anywhere. Environment: ENVS (space-separated env counts), TRAIN_PPO_S, TRAIN_SAC_S, TRAIN_PPO_HOST_S,
-# TRAIN_PROFILE_S (the profiled PPO lift's seconds),
+# TRAIN_PROFILE_S (the profiled PPO lift's seconds), TRAIN_SCALE_S and SCALE_SHAPES (step "scale"),
 # BENCH_S (least timed seconds per env-only point), OBJ_ENVS, ADAPTER (gpu or gpu:NAME, default gpu),
-# STEPS (the steps to run, default "shader_stats env objects learner train profile", plus "baseline" when BASELINE_WGSL is
+# STEPS (the steps to run, default "shader_stats env objects learner train profile scale", plus "baseline" when BASELINE_WGSL is
 # set and "variants" when VARIANTS_WGSL is; the others' JSON values are null), BASELINE_WGSL,
 # VARIANTS_WGSL, BASELINE_ENVS, BASELINE_ROUNDS.
 set -uo pipefail
@@ -71,14 +76,14 @@ done
 mkdir -p "$out"
 adapter=${ADAPTER:-gpu}
 if [ "$quick" = 1 ]; then
-    envs=${ENVS:-"64 128"}; profile_s=${TRAIN_PROFILE_S:-10}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; ppo_host_s=${TRAIN_PPO_HOST_S:-10}; bench_s=${BENCH_S:-0.5}; obj_envs=${OBJ_ENVS:-64}
+    envs=${ENVS:-"64 128"}; profile_s=${TRAIN_PROFILE_S:-10}; scale_s=${TRAIN_SCALE_S:-10}; scale_shapes=${SCALE_SHAPES:-"128x4"}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; ppo_host_s=${TRAIN_PPO_HOST_S:-10}; bench_s=${BENCH_S:-0.5}; obj_envs=${OBJ_ENVS:-64}
     small=(--set sim.num_envs=64 --set train.steps_per_env=4 --set 'policy.actor_hidden=[32]' --set 'policy.critic_hidden=[32]')
     sac_small=(--set sac.batch_size=64 --set sac.learning_starts=8 --set sac.buffer_capacity=64)
     baseline_envs=${BASELINE_ENVS:-64}; baseline_rounds=${BASELINE_ROUNDS:-1}
     ppo_sizes=(--envs 64 --iters 1); sac_sizes=(--envs 64 --iters 1 --batch 256 --gradient-steps 2); matmul_sizes=()  # (every routine compiles its kernels: minutes on lavapipe)
     sac_lift_sizes=("${sac_sizes[@]}")
 else
-    envs=${ENVS:-"4096 16384 65536 262144"}; profile_s=${TRAIN_PROFILE_S:-20}; ppo_s=${TRAIN_PPO_S:-210}; sac_s=${TRAIN_SAC_S:-90}; ppo_host_s=${TRAIN_PPO_HOST_S:-30}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
+    envs=${ENVS:-"4096 16384 65536 262144"}; profile_s=${TRAIN_PROFILE_S:-20}; scale_s=${TRAIN_SCALE_S:-40}; scale_shapes=${SCALE_SHAPES:-"16384x32 65536x24"}; ppo_s=${TRAIN_PPO_S:-210}; sac_s=${TRAIN_SAC_S:-90}; ppo_host_s=${TRAIN_PPO_HOST_S:-30}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
     small=(); sac_small=(); ppo_sizes=(--iters 3); sac_sizes=(--iters 3); matmul_sizes=(--iters 3)
     # configs/lift_cube_sac_gpu.toml's shape: 1024 envs, batch 2048 (with --n-step 3 --critic-layer-norm below)
     sac_lift_sizes=(--envs 1024 --batch 2048 --iters 3)
@@ -151,7 +156,7 @@ train_for() {
 
 baseline_wgsl=${BASELINE_WGSL:-}
 variants_wgsl=${VARIANTS_WGSL:-}
-steps=" ${STEPS:-shader_stats env objects learner train profile${baseline_wgsl:+ baseline}${variants_wgsl:+ variants}} "
+steps=" ${STEPS:-shader_stats env objects learner train profile scale${baseline_wgsl:+ baseline}${variants_wgsl:+ variants}} "
 runs_step() { case "$steps" in *" $1 "*) return 0 ;; *) return 1 ;; esac; }
 
 start=$(date +%s)
@@ -290,6 +295,20 @@ if runs_step profile; then
     train_for gpu_ppo_profiled "$profile_s" configs/lift_cube_gpu.toml --gpu-profile --set sim.backend="$adapter" --set train.device="$adapter" "${small[@]}"
     profile_json=$(json_of "$runs/gpu_ppo_profiled/gpu_profile.json")
 fi
+scale_json=null
+if runs_step scale; then
+    # the PPO lift at larger batches than the shipped config's (the quick suite's networks small)
+    scale_json=""
+    for shape in $scale_shapes; do
+        n=${shape%x*}; t=${shape#*x}
+        case "$n$t" in *[!0-9]*|'') echo "gpu_suite: SCALE_SHAPES wants ENVSxSTEPS words (e.g. 16384x32); got '$shape'" >&2; exit 2 ;; esac
+        echo "gpu_suite: PPO lift at $n envs x $t steps for ${scale_s}s" >&2
+        quick_nets=(); [ "$quick" = 1 ] && quick_nets=(--set 'policy.actor_hidden=[32]' --set 'policy.critic_hidden=[32]')
+        train_for "gpu_ppo_scale_$n" "$scale_s" configs/lift_cube_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" --set sim.num_envs="$n" --set train.steps_per_env="$t" "${quick_nets[@]}"
+        scale_json="$scale_json${scale_json:+, }{\"envs\": $n, \"steps_per_env\": $t, \"train\": $(train_summary "$runs/gpu_ppo_scale_$n/metrics.csv"), \"run\": $(run_json "$out/gpu_ppo_scale_$n.log")}"
+    done
+    scale_json="[$scale_json]"
+fi
 driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader 2>/dev/null || echo unknown) | head -n 1)
 {
     printf '{"suite": "dextrain_gpu", "quick": %s, "date": "%s", "driver": "%s", "wall_s": %s,\n' \
@@ -300,6 +319,7 @@ driver=$( (nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,
     printf ' "train_ppo": %s,\n "train_sac": %s,\n "train_ppo_host_path": %s,\n' "$train_ppo" "$train_sac" "$train_host"
     printf ' "train_ppo_run": %s,\n "train_sac_run": %s,\n' "$ppo_run" "$sac_run"
     printf ' "gpu_profile_ppo_lift": %s,\n' "$profile_json"
+    printf ' "train_ppo_scale": %s,\n' "$scale_json"
     printf ' "physics_baseline": %s,\n' "$baseline_json"
     printf ' "physics_variants": %s,\n' "$variants_json"
     printf ' "shader_stats": %s}\n' "$stats_json"

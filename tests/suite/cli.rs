@@ -529,7 +529,7 @@ fn gpu_suite_quick_writes_every_figure() {
             .envs([("ADAPTER", adapter.as_str()), ("ENVS", "64"), ("BENCH_S", "0.2"), ("STEPS", steps)])
             .env("BASELINE_WGSL", &module)
             .env("VARIANTS_WGSL", &module)
-            .envs([("TRAIN_PPO_S", "14"), ("TRAIN_SAC_S", "12"), ("TRAIN_PPO_HOST_S", "10"), ("TRAIN_PROFILE_S", "6")])
+            .envs([("TRAIN_PPO_S", "14"), ("TRAIN_SAC_S", "12"), ("TRAIN_PPO_HOST_S", "10"), ("TRAIN_PROFILE_S", "6"), ("TRAIN_SCALE_S", "6")])
             .current_dir(ROOT)
             .output()
             .unwrap();
@@ -592,11 +592,17 @@ fn gpu_suite_quick_writes_every_figure() {
         let m = &j[k]["device_memory"];
         assert!(m["sim_bytes"].as_u64().unwrap_or(0) > 0 && m["learner_bytes"].as_u64().unwrap_or(0) > 0 && m["bytes_per_env"].as_f64().unwrap_or(0.0) > 0.0, "{k}: {text}");
     }
-    assert!(j["physics_baseline"].is_null() && j["physics_variants"].is_null() && j["shader_stats"].is_null() && j["gpu_profile_ppo_lift"].is_null(), "a step not asked for ran: {text}");
+    assert!(j["physics_baseline"].is_null() && j["physics_variants"].is_null() && j["shader_stats"].is_null() && j["gpu_profile_ppo_lift"].is_null() && j["train_ppo_scale"].is_null(), "a step not asked for ran: {text}");
     // the steps left out are null, not figures from the run before in the same folder; the
     // baseline step times the built-in physics against a module read from a file
-    let (j, text) = suite("objects baseline variants profile");
+    let (j, text) = suite("objects baseline variants profile scale");
     assert_eq!(j["objects"].as_array().map(|a| a.len()), Some(3), "{text}");
+    // the PPO lift at SCALE_SHAPES' batch (the quick suite's 128 envs × 4 steps): its shape and
+    // throughput with the learner
+    let scale = &j["train_ppo_scale"][0];
+    assert_eq!((scale["envs"].as_u64(), scale["steps_per_env"].as_u64()), (Some(128), Some(4)), "{text}");
+    assert!(scale["train"]["iterations"].as_u64().unwrap_or(0) >= 1 && scale["train"]["env_steps_per_s_last"].as_f64().unwrap_or(0.0) > 0.0, "{text}");
+    assert_eq!(scale["train"]["env_steps"].as_f64().map(|s| s % (128.0 * 4.0)), Some(0.0), "an iteration is 128 × 4 env steps: {text}");
     // the profiled PPO lift: the physics step among its kernels, the learner's update among its brackets
     let spans = j["gpu_profile_ppo_lift"]["spans"].as_array().cloned().unwrap_or_default();
     for name in ["kernel:step_main", "burn:update"] {
