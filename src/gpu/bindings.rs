@@ -193,51 +193,6 @@ pub const NOISE_GROUP: ShaderGroup = ShaderGroup {
     entry_points: &[LEARNER_NOISE, LEARNER_UNIFORM],
 };
 
-// ---- the learner's optimiser on the device (adam.wgsl, a module of its own; bound by
-// learn/kernels/fused_adam.rs with slices of burn's tensors, all read_write: two of them may share one of
-// cubecl's buffers, and wgpu allows a buffer one kind of use per dispatch) ----
-
-/// `AdamStep`: the step's constants (one upload per step).
-pub const ADAM_STEP: Binding = binding(0, "ac", Uniform);
-/// `AdamParam`: one parameter's sizes (a slot of a buffer written once).
-pub const ADAM_PARAM_CFG: Binding = binding(1, "ap", Uniform);
-/// `array<f32>`: the parameter (updated in place).
-pub const ADAM_PARAM: Binding = binding(2, "adam_p", StorageReadWrite);
-/// `array<f32>`: its gradient.
-pub const ADAM_GRAD: Binding = binding(3, "adam_g", StorageReadWrite);
-/// `array<f32>`: its first moment (updated in place).
-pub const ADAM_M: Binding = binding(4, "adam_m", StorageReadWrite);
-/// `array<f32>`: its second moment (updated in place).
-pub const ADAM_V: Binding = binding(5, "adam_v", StorageReadWrite);
-/// `array<f32>` `[n_params · 64]`: the squared gradient norm's partial sums.
-pub const ADAM_PARTIALS: Binding = binding(6, "adam_partials", StorageReadWrite);
-/// `array<f32>` `[2]`: the gradient norm and the clip coefficient.
-pub const ADAM_NORM: Binding = binding(7, "adam_norm", StorageReadWrite);
-/// `array<f32>` `[1]`: the learning rate.
-pub const ADAM_LR: Binding = binding(8, "adam_lr", StorageReadWrite);
-/// `array<f32>`: the target network's copy of the parameter (SAC's critics; updated in place).
-pub const ADAM_TARGET: Binding = binding(9, "adam_target", StorageReadWrite);
-
-/// `adam_norm_partial`: one parameter's slices of Σ g².
-pub const ADAM_NORM_PARTIAL: EntryBindings = EntryBindings { entry_point: "adam_norm_partial", bindings: &[ADAM_PARAM_CFG, ADAM_GRAD, ADAM_PARTIALS] };
-/// `adam_norm_final`: ‖g‖ and the clip coefficient.
-pub const ADAM_NORM_FINAL: EntryBindings = EntryBindings { entry_point: "adam_norm_final", bindings: &[ADAM_STEP, ADAM_PARAM_CFG, ADAM_PARTIALS, ADAM_NORM] };
-/// `adam_update`: one parameter's Adam step.
-pub const ADAM_UPDATE: EntryBindings =
-    EntryBindings { entry_point: "adam_update", bindings: &[ADAM_STEP, ADAM_PARAM_CFG, ADAM_PARAM, ADAM_GRAD, ADAM_M, ADAM_V, ADAM_NORM, ADAM_LR] };
-/// `adam_update_polyak`: one parameter's Adam step, then its target copy's Polyak average.
-pub const ADAM_UPDATE_POLYAK: EntryBindings = EntryBindings {
-    entry_point: "adam_update_polyak",
-    bindings: &[ADAM_STEP, ADAM_PARAM_CFG, ADAM_PARAM, ADAM_GRAD, ADAM_M, ADAM_V, ADAM_NORM, ADAM_LR, ADAM_TARGET],
-};
-
-/// The optimiser's module (shaders/adam.wgsl alone).
-pub const ADAM_GROUP: ShaderGroup = ShaderGroup {
-    shader: "dextrain adam",
-    bindings: &[ADAM_STEP, ADAM_PARAM_CFG, ADAM_PARAM, ADAM_GRAD, ADAM_M, ADAM_V, ADAM_PARTIALS, ADAM_NORM, ADAM_LR, ADAM_TARGET],
-    entry_points: &[ADAM_NORM_PARTIAL, ADAM_NORM_FINAL, ADAM_UPDATE, ADAM_UPDATE_POLYAK],
-};
-
 // ---- the GPU learner's matrix product of our own (matmul.wgsl, a module of its own, launched
 // by learn/kernels/wgsl_matmul.rs on burn's stream: cubecl binds the buffers in order, then the uniform) ----
 

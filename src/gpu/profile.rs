@@ -14,9 +14,9 @@
 //!   kernels and the kernels of ours launched on burn's stream, which cubecl records and submits
 //!   itself): `burn:<what>`, the device time between the two stamps (the GPU's gaps between
 //!   those kernels included);
-//! - the optimiser's own pass (`learn/kernels/fused_adam.rs`) is `kernel:adam`; each PPO
-//!   minibatch's forward pass with its loss and its backward pass are `burn:ppo forward and loss`
-//!   and `burn:ppo backward`.
+//! - each optimiser step (`learn/kernels/fused_adam.rs`, kernels of ours on burn's stream) is
+//!   `burn:adam`; each PPO minibatch's forward pass with its loss and its backward pass are
+//!   `burn:ppo forward and loss` and `burn:ppo backward`.
 //!
 //! A span inside a bracket (an optimiser step or a minibatch's passes inside `burn:update`, the
 //! rollout's noise kernel inside `burn:act`) is counted in both. The stamps

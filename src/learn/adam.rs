@@ -44,13 +44,27 @@ impl Adam {
         Adam { beta1: 0.9, beta2: 0.999, eps: 1e-8, weight_decay: 0.0, t: 0, m: zeros(), v: zeros(), report_norm: true, fused }
     }
 
+    /// On a GPU learner, the kernels one [`Adam::step_clipped`] launches (with the norm: when it
+    /// clips or reports the norm); None where the step runs as tensor ops.
+    pub fn gpu_kernels_per_step(&self, with_norm: bool) -> Option<usize> {
+        self.fused.as_ref().map(|f| f.kernels_per_step(with_norm))
+    }
+
+    /// On a GPU learner, steps in launches over groups of at most `max` parameters (the same
+    /// step; a device that binds few storage buffers gets small groups by itself).
+    pub fn limit_gpu_group(&mut self, max: usize) {
+        if let Some(f) = &mut self.fused {
+            f.limit_group(max);
+        }
+    }
+
     /// One step from a backward pass, with torch's global-norm gradient clipping: the gradients
     /// of `params` (in order) scaled by `min(1, max_norm / (‖g‖ + 1e-6))` (not scaled when
     /// `max_norm` is 0), then [`Adam::step`] at learning rate `lr` (`[1, 1]` on the learner
     /// device, so that a schedule can change it without a host read). Returns the new leaves and
     /// `‖g‖` before clipping (`[1]`, read lazily; None when `report_norm` is off and the step did
-    /// not clip). On burn's wgpu runtime this is adam.wgsl's three
-    /// kernels in place (`fused_adam.rs`), elsewhere tensor ops: the same maths.
+    /// not clip). On burn's wgpu runtime this is adam.wgsl's kernels in place, three launches
+    /// over all the parameters (`fused_adam.rs`), elsewhere tensor ops: the same maths.
     pub fn step_clipped(&mut self, params: &[Tensor<2>], grads: &burn::tensor::Gradients, max_norm: f64, lr: &Tensor<2>) -> Result<(Vec<Tensor<2>>, Option<Tensor<1>>)> {
         self.step_clipped_and_average(params, grads, max_norm, lr, None)
     }
@@ -91,7 +105,7 @@ impl Adam {
             if let FusedStep::Taken(norm) = fused.step(&inner, &gs, &self.m, &self.v, &lr, &c, targets, self.report_norm)? {
                 self.t = t;
                 let out = inner.into_iter().map(|p| p.autodiff().require_grad()).collect();
-                return Ok((out, norm.map(|n| n.slice([0..1, 0..1]).reshape([1]))));
+                return Ok((out, norm.map(|n| n.reshape([1]))));
             }
         }
         let (gs, norm) = clip_to_norm(gs, max_norm)?;

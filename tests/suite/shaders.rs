@@ -349,13 +349,13 @@ fn table(bindings: &[dextrain::gpu::bindings::Binding]) -> Vec<(u32, u32, String
 
 #[test]
 fn binding_tables_match_the_wgsl_globals() {
-    use dextrain::gpu::bindings::{ADAM_GROUP, AL_GROUP, BindingSpace, COLLIDERS, CS_GROUP, ELU_FORWARD_GROUP, ELU_GROUP, GAE_GROUP, LN_GROUP, LNB_GROUP, LS_GROUP, MM_GROUP, NOISE_GROUP, NORM_GROUP, PL_BACKWARD_FINISH_GROUP, PL_BACKWARD_GROUP, PL_FINISH_GROUP, PL_ROWS_GROUP, REF_CFG, REF_FRAMES, RG_GROUP, RW_GROUP, SIM_GROUP, SL_BACKWARD_GROUP, SL_FINISH_GROUP, SL_ROWS_GROUP, SQ_GROUP, SQB_GROUP, SR_GROUP, ST_GROUP, TASK_GROUP};
+    use dextrain::gpu::bindings::{AL_GROUP, BindingSpace, COLLIDERS, CS_GROUP, ELU_FORWARD_GROUP, ELU_GROUP, GAE_GROUP, LN_GROUP, LNB_GROUP, LS_GROUP, MM_GROUP, NOISE_GROUP, NORM_GROUP, PL_BACKWARD_FINISH_GROUP, PL_BACKWARD_GROUP, PL_FINISH_GROUP, PL_ROWS_GROUP, REF_CFG, REF_FRAMES, RG_GROUP, RW_GROUP, SIM_GROUP, SL_BACKWARD_GROUP, SL_FINISH_GROUP, SL_ROWS_GROUP, SQ_GROUP, SQB_GROUP, SR_GROUP, ST_GROUP, TASK_GROUP};
     use dextrain::learn::kernels::ppo_loss::ppo_loss_source;
     use dextrain::learn::kernels::sac_loss::sac_loss_source;
     let noise = dextrain::gpu::shaders::noise_shader_source();
-    let (adam, norm) = (dextrain::gpu::shaders::SHADER_ADAM.to_string(), dextrain::gpu::shaders::SHADER_NORMALIZER.to_string());
+    let norm = dextrain::gpu::shaders::SHADER_NORMALIZER.to_string();
     let matmul = dextrain::learn::kernels::wgsl_matmul::shader_source(dextrain::learn::kernels::wgsl_matmul::Variant::scalar(dextrain::learn::kernels::wgsl_matmul::Tile::LARGE));
-    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (adam, ADAM_GROUP), (norm, NORM_GROUP), (matmul, MM_GROUP), (dextrain::learn::kernels::elu::elu_backward_source(()), ELU_GROUP), (dextrain::learn::kernels::elu::elu_forward_source(()), ELU_FORWARD_GROUP), (dextrain::learn::kernels::replay_sample::gather_source(()), RG_GROUP), (dextrain::learn::kernels::replay_sample::window_source(()), RW_GROUP), (dextrain::learn::kernels::row_sums::column_sums_source(()), CS_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_forward_source(()), LN_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_backward_source(()), LNB_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_source(()), SQ_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_backward_source(()), SQB_GROUP), (ppo_loss_source(0), PL_ROWS_GROUP), (ppo_loss_source(1), PL_FINISH_GROUP), (ppo_loss_source(2), PL_BACKWARD_GROUP), (ppo_loss_source(3), PL_BACKWARD_FINISH_GROUP), (sac_loss_source(0), SL_ROWS_GROUP), (sac_loss_source(1), SL_FINISH_GROUP), (sac_loss_source(2), SL_BACKWARD_GROUP), (dextrain::learn::kernels::adaptive_lr::adaptive_lr_source(()), AL_GROUP), (dextrain::learn::kernels::standardize::standardize_source(()), ST_GROUP), (dextrain::learn::kernels::ppo_rollout::step_reward_source(()), SR_GROUP), (dextrain::learn::kernels::ppo_rollout::gae_source(()), GAE_GROUP), (dextrain::run::device_loop::loop_sums_source(()), LS_GROUP)] {
+    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (norm, NORM_GROUP), (matmul, MM_GROUP), (dextrain::learn::kernels::elu::elu_backward_source(()), ELU_GROUP), (dextrain::learn::kernels::elu::elu_forward_source(()), ELU_FORWARD_GROUP), (dextrain::learn::kernels::replay_sample::gather_source(()), RG_GROUP), (dextrain::learn::kernels::replay_sample::window_source(()), RW_GROUP), (dextrain::learn::kernels::row_sums::column_sums_source(()), CS_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_forward_source(()), LN_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_backward_source(()), LNB_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_source(()), SQ_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_backward_source(()), SQB_GROUP), (ppo_loss_source(0), PL_ROWS_GROUP), (ppo_loss_source(1), PL_FINISH_GROUP), (ppo_loss_source(2), PL_BACKWARD_GROUP), (ppo_loss_source(3), PL_BACKWARD_FINISH_GROUP), (sac_loss_source(0), SL_ROWS_GROUP), (sac_loss_source(1), SL_FINISH_GROUP), (sac_loss_source(2), SL_BACKWARD_GROUP), (dextrain::learn::kernels::adaptive_lr::adaptive_lr_source(()), AL_GROUP), (dextrain::learn::kernels::standardize::standardize_source(()), ST_GROUP), (dextrain::learn::kernels::ppo_rollout::step_reward_source(()), SR_GROUP), (dextrain::learn::kernels::ppo_rollout::gae_source(()), GAE_GROUP), (dextrain::run::device_loop::loop_sums_source(()), LS_GROUP)] {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other
         assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu/bindings.rs (right)", group.shader);
@@ -382,6 +382,32 @@ fn binding_tables_match_the_wgsl_globals() {
     assert_ne!(moved, shader_source());
     let (declared, _) = wgsl_bindings(&moved);
     assert_ne!(declared, table(SIM_GROUP.bindings), "moving `{}` to binding 17 should break the match", COLLIDERS.name);
+}
+
+/// The optimiser's template (shaders/adam.wgsl, `learn::kernels::fused_adam`): each entry point over
+/// groups of 1, 2 and 17 parameters is valid WGSL with no marker left, one entry point, and
+/// bindings 0, 1, … in the order the launch passes its tensors (each role's parameters, then the
+/// shared tensors), the uniform last, every one used (cubecl binds every tensor it is given: a
+/// binding the kernel does not use would be left out of its layout).
+#[test]
+fn the_optimiser_s_kernels_bind_what_they_are_given() {
+    use dextrain::gpu::bindings::BindingSpace;
+    use dextrain::learn::kernels::fused_adam::{AdamEntry, AdamKernel, shader_source as adam_source, storage_bindings};
+    for entry in [AdamEntry::NormPartial, AdamEntry::NormFinal, AdamEntry::Update, AdamEntry::UpdatePolyak] {
+        for group in [1, 2, 17] {
+            let src = adam_source(AdamKernel { entry, group });
+            assert!(!src.contains('$'), "{entry:?} × {group}: a template marker left");
+            let (declared, used) = wgsl_bindings(&src);
+            let storage = storage_bindings(entry, group);
+            let want: Vec<u32> = (0..=storage).collect();
+            assert_eq!(declared.iter().map(|d| d.1).collect::<Vec<_>>(), want, "{entry:?} × {group}: {declared:?}");
+            assert!(declared[..storage as usize].iter().all(|d| d.3 == BindingSpace::StorageReadWrite) && declared[storage as usize].3 == BindingSpace::Uniform, "{entry:?} × {group}: {declared:?}");
+            assert_eq!(used, vec![(entry.name().to_string(), want.clone())], "{entry:?} × {group}");
+        }
+    }
+    // the per-parameter roles: the gradients alone for the norm's slices, four per parameter for
+    // the update, five with the Polyak targets
+    assert_eq!([storage_bindings(AdamEntry::NormPartial, 17), storage_bindings(AdamEntry::NormFinal, 1), storage_bindings(AdamEntry::Update, 17), storage_bindings(AdamEntry::UpdatePolyak, 17)], [18, 3, 70, 87]);
 }
 
 /// The simulator step's workgroup size by batch (`step_workgroup_size`): the largest size that

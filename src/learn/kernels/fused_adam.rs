@@ -1,66 +1,159 @@
-//! Adam with global-norm gradient clipping as three kernels of our own (`shaders/adam.wgsl`) over
+//! Adam with global-norm gradient clipping as kernels of our own (`shaders/adam.wgsl`) over
 //! burn's tensors in place, for a learner on burn's wgpu runtime (the twin of `adam.rs`'s tensor
-//! ops: `clipped_grads` then `Adam::step`).
+//! ops: `clip_to_norm` then `Adam::step`).
 //!
 //! As tensor ops an optimiser step is ~5 kernels per parameter for the norm and the clip and ~13
 //! for the moments and the update: for PPO's 17 parameters ~300 kernel launches per minibatch,
-//! most of them on a few thousand numbers. Here it is 2 dispatches per parameter and one more, in
-//! one submission: `adam_norm_partial` (Σ g² in 64 fixed slices per parameter), `adam_norm_final`
-//! (‖g‖ and the clip coefficient, into a `[1, 2]` burn tensor the learner reads with its other
-//! statistics; both left out of a step that neither clips nor reports the norm), `adam_update` (the clipped gradient into m and v, then the parameter; or
-//! `adam_update_polyak`, which then also moves a SAC critic's target copy towards it, where the
-//! tensor ops of the Polyak average were three kernels per parameter). The
-//! learning rate is a `[1, 1]` burn tensor, so PPO's adaptive schedule stays on the device.
-//!
-//! The kernels bind slices of cubecl's buffers (`gpu::io`: cubecl aligns every tensor to the
-//! adapter's binding-offset alignment, as its own kernels bind them) and write the parameters and
-//! moments in place. Ordering: what burn recorded (the backward pass) is flushed to the queue
-//! first, so the kernels read finished gradients, and burn's later work (the next forward pass)
-//! is submitted after ours.
+//! most of them on a few thousand numbers. Here a step is three launches on burn's command stream
+//! (no flush, no submission of ours), each over all the parameters at once where the device binds
+//! enough storage buffers (else over groups of them, [`FusedAdam::group_size`]):
+//! `adam_norm_partial` (Σ g² of each gradient in 64 fixed slices), `adam_norm_final` (‖g‖ into a
+//! `[1, 1]` burn tensor the learner reads with its other statistics, and the clip coefficient;
+//! both left out of a step that neither clips nor reports the norm), `adam_update` (the clipped
+//! gradient into m and v, then the parameter; or `adam_update_polyak`, which then also moves a SAC
+//! critic's target copy towards it, where the tensor ops of the Polyak average were three kernels
+//! per parameter). The learning rate is a `[1, 1]` burn tensor, so PPO's adaptive schedule stays
+//! on the device. Until 2026-12-01 it was two dispatches per parameter and one more in a pass and
+//! a submission of ours (2 P + 1 kernels, plus a slice of the norm): the same sums in the same
+//! order and the same arithmetic per element, so the same bits.
 
-use anyhow::{Context, Result, ensure};
+use anyhow::{Result, ensure};
+use burn::backend::tensor::FloatTensor;
+use burn::backend::Cube;
 use burn::prelude::{Device, Tensor};
 
-use crate::gpu::io::{TensorBuffer, flush, tensor_buffer};
 use crate::gpu::context::GpuContext;
-use crate::gpu::shaders::{SHADER_ADAM, workgroups_of};
-use crate::gpu::bindings::{ADAM_GRAD, ADAM_GROUP, ADAM_LR, ADAM_M, ADAM_NORM, ADAM_NORM_FINAL, ADAM_NORM_PARTIAL, ADAM_PARAM, ADAM_PARAM_CFG, ADAM_PARTIALS as ADAM_PARTIALS_BUF, ADAM_STEP, ADAM_TARGET, ADAM_UPDATE, ADAM_UPDATE_POLYAK, ADAM_V};
-use crate::gpu_counts::{self, Event};
+use crate::gpu::io::{TensorBuffer, tensor_buffer};
+use crate::gpu::shaders::workgroups_of;
+use crate::learn::kernels::wgsl_kernel::{WgslKernel, launch, plain_primitive};
 
 /// Invocations per workgroup (adam.wgsl's `ADAM_WORKGROUP`).
 pub const ADAM_WORKGROUP: u32 = 256;
 /// Slices of one parameter's squared norm (adam.wgsl's `ADAM_PARTIALS`).
 pub const PARTIALS_PER_PARAM: u32 = 64;
 
-/// `AdamStep` of adam.wgsl (keep in sync): the step's constants.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct AdamStep {
-    pub clip: u32,
-    pub beta1: f32,
-    pub beta2: f32,
-    pub eps: f32,
-    pub bc1: f32,
-    pub bc2_sqrt: f32,
-    pub weight_decay: f32,
-    pub max_norm: f32,
-    pub tau: f32,
-    pub one_minus_tau: f32,
-    pub _pad0: u32,
-    pub _pad1: u32,
+/// The template of the optimiser's kernels.
+const TEMPLATE: &str = include_str!("../../../shaders/adam.wgsl");
+
+/// adam.wgsl's entry points.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum AdamEntry {
+    /// Σ g² of each gradient of a group in fixed slices.
+    NormPartial,
+    /// ‖g‖ and the clip coefficient from every slice.
+    NormFinal,
+    /// The Adam step of a group's parameters.
+    Update,
+    /// The Adam step, then each parameter's target copy moved towards it.
+    UpdatePolyak,
 }
 
-/// `AdamParam` of adam.wgsl (keep in sync): one parameter's sizes.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct AdamParam {
-    pub n: u32,
-    pub partial_base: u32,
-    pub n_partials: u32,
-    pub _pad: u32,
+impl AdamEntry {
+    /// The `@compute` function's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            AdamEntry::NormPartial => "adam_norm_partial",
+            AdamEntry::NormFinal => "adam_norm_final",
+            AdamEntry::Update => "adam_update",
+            AdamEntry::UpdatePolyak => "adam_update_polyak",
+        }
+    }
 }
 
-/// The constants of one step (the uniform [`AdamStep`] is made from them).
+/// One variant of the template: an entry point over a group of `group` parameters.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct AdamKernel {
+    /// The entry point.
+    pub entry: AdamEntry,
+    /// Parameters per launch (1 for `NormFinal`).
+    pub group: u32,
+}
+
+/// The roles of a parameter's tensors in a launch of `entry`, in binding order (each role's
+/// `group` bindings, parameter 0 first): (binding name prefix, getter, setter).
+fn roles(entry: AdamEntry) -> &'static [(&'static str, &'static str, Option<&'static str>)] {
+    match entry {
+        AdamEntry::NormPartial => &[("adam_g", "grad", None)],
+        AdamEntry::NormFinal => &[],
+        AdamEntry::Update => &[("adam_p", "param", Some("set_param")), ("adam_g", "grad", None), ("adam_m", "moment1", Some("set_moment1")), ("adam_v", "moment2", Some("set_moment2"))],
+        AdamEntry::UpdatePolyak => &[
+            ("adam_p", "param", Some("set_param")),
+            ("adam_g", "grad", None),
+            ("adam_m", "moment1", Some("set_moment1")),
+            ("adam_v", "moment2", Some("set_moment2")),
+            ("adam_t", "polyak_target", Some("set_polyak_target")),
+        ],
+    }
+}
+
+/// The shared tensors a launch of `entry` binds after the parameters' (in order).
+fn shared_bindings(entry: AdamEntry) -> &'static [(&'static str, &'static str)] {
+    match entry {
+        AdamEntry::NormPartial => &[("adam_partials", "[n_params · ADAM_PARTIALS]")],
+        AdamEntry::NormFinal => &[("adam_partials", "[n_params · ADAM_PARTIALS]"), ("adam_norm", "[1]"), ("adam_coef", "[1]")],
+        AdamEntry::Update | AdamEntry::UpdatePolyak => &[("adam_coef", "[1]"), ("adam_lr", "[1]")],
+    }
+}
+
+/// Storage buffers a launch of `entry` over `group` parameters binds.
+pub fn storage_bindings(entry: AdamEntry, group: u32) -> u32 {
+    roles(entry).len() as u32 * group + shared_bindings(entry).len() as u32
+}
+
+/// The WGSL of one variant: the template's common text and `key.entry`'s sections (`//@entry
+/// NAMES` … `//@end`), its bindings, and the accessors that pick parameter k's binding.
+pub fn shader_source(key: AdamKernel) -> String {
+    let group = key.group.max(1);
+    let mut kept = String::new();
+    let mut keep = true;
+    for line in TEMPLATE.lines() {
+        if let Some(names) = line.strip_prefix("//@entry ") {
+            keep = names.split_whitespace().any(|n| n == key.entry.name());
+            continue;
+        }
+        if line == "//@end" {
+            keep = true;
+            continue;
+        }
+        if keep {
+            kept += line;
+            kept.push('\n');
+        }
+    }
+    let mut bindings = String::new();
+    let mut at = 0u32;
+    for (prefix, _, _) in roles(key.entry) {
+        for k in 0..group {
+            bindings += &format!("@group(0) @binding({at}) var<storage, read_write> {prefix}_{k}: array<f32>;\n");
+            at += 1;
+        }
+    }
+    for (name, shape) in shared_bindings(key.entry) {
+        bindings += &format!("@group(0) @binding({at}) var<storage, read_write> {name}: array<f32>; // {shape}\n");
+        at += 1;
+    }
+    bindings += &format!("@group(0) @binding({at}) var<uniform> ac: AdamLaunch;");
+    // each role's getter (and setter): a switch on the parameter's index in the group, the same
+    // index across a workgroup (no divergence)
+    let mut accessors = String::new();
+    for (prefix, get, set) in roles(key.entry) {
+        accessors += &format!("fn {get}(k: u32, i: u32) -> f32 {{\n    var x = 0.0;\n    switch k {{\n");
+        for k in 0..group {
+            accessors += &format!("        case {k}u: {{ x = {prefix}_{k}[i]; }}\n");
+        }
+        accessors += "        default: {}\n    }\n    return x;\n}\n";
+        if let Some(set) = set {
+            accessors += &format!("fn {set}(k: u32, i: u32, x: f32) {{\n    switch k {{\n");
+            for k in 0..group {
+                accessors += &format!("        case {k}u: {{ {prefix}_{k}[i] = x; }}\n");
+            }
+            accessors += "        default: {}\n    }\n}\n";
+        }
+    }
+    kept.replace("$GROUP", &group.to_string()).replace("$BINDINGS", &bindings).replace("$ACCESSORS", &accessors)
+}
+
+/// The constants of one step.
 #[derive(Clone, Copy, Debug)]
 pub struct StepConstants {
     pub beta1: f64,
@@ -75,22 +168,18 @@ pub struct StepConstants {
     pub max_norm: f64,
 }
 
-/// adam.wgsl's pipelines and buffers for the parameters of one optimiser.
+/// The optimiser's kernels for the parameters of one optimiser.
 pub struct FusedAdam {
     ctx: GpuContext,
-    partial: wgpu::ComputePipeline,
-    fin: wgpu::ComputePipeline,
-    update: wgpu::ComputePipeline,
-    update_polyak: wgpu::ComputePipeline,
-    /// The step's [`AdamStep`] (uploaded each step).
-    step_cfg: wgpu::Buffer,
-    /// One [`AdamParam`] per parameter, `slot` bytes apart (written once).
-    param_cfg: wgpu::Buffer,
-    slot: u64,
-    /// `[n_params · PARTIALS_PER_PARAM]` f32.
-    partials: wgpu::Buffer,
     /// Elements of each parameter.
     sizes: Vec<u32>,
+    /// Parameters per launch: all of them where the device binds enough storage buffers.
+    group: usize,
+    /// `[1, n_params · PARTIALS_PER_PARAM]`: the squared norm's partial sums (every slot written
+    /// by each step that works the norm out).
+    partials: FloatTensor<Cube>,
+    /// `[1, 1]`: the clip coefficient of the step.
+    coef: FloatTensor<Cube>,
     /// burn's wgpu device (non-autodiff) on `ctx`'s device.
     device: Device,
 }
@@ -100,133 +189,134 @@ impl FusedAdam {
     /// on `ctx`'s device).
     pub fn new(ctx: &GpuContext, device: &Device, shapes: &[[usize; 2]]) -> Result<FusedAdam> {
         ensure!(!shapes.is_empty(), "an optimiser without parameters");
-        let [partial, fin, update, update_polyak] =
-            ctx.compute_pipelines(ADAM_GROUP.shader, SHADER_ADAM, [ADAM_NORM_PARTIAL.entry_point, ADAM_NORM_FINAL.entry_point, ADAM_UPDATE.entry_point, ADAM_UPDATE_POLYAK.entry_point])?;
-        let align = ctx.device.limits().min_uniform_buffer_offset_alignment as u64;
-        let slot = (std::mem::size_of::<AdamParam>() as u64).next_multiple_of(align.max(16));
-        let mut bytes = vec![0u8; (slot * shapes.len() as u64) as usize];
-        for (i, s) in shapes.iter().enumerate() {
-            let p = AdamParam { n: (s[0] * s[1]) as u32, partial_base: i as u32 * PARTIALS_PER_PARAM, n_partials: shapes.len() as u32 * PARTIALS_PER_PARAM, _pad: 0 };
-            let at = (slot * i as u64) as usize;
-            bytes[at..at + std::mem::size_of::<AdamParam>()].copy_from_slice(bytemuck::bytes_of(&p));
-        }
-        let param_cfg = ctx.create_buffer_with(ADAM_PARAM_CFG.name, &bytes, ADAM_PARAM_CFG.space.into(), ADAM_PARAM_CFG.space.usage())?;
-        let step_cfg = ctx.create_binding_buffer(ADAM_STEP, &[AdamStep::default()], wgpu::BufferUsages::empty())?;
-        let partials = ctx.create_binding_buffer(ADAM_PARTIALS_BUF, &vec![0f32; shapes.len() * PARTIALS_PER_PARAM as usize], wgpu::BufferUsages::empty())?;
+        let device = device.clone().inner();
+        // the largest group whose Polyak update (5 bindings a parameter, 2 shared) the device binds
+        let limit = ctx.device.limits().max_storage_buffers_per_shader_stage;
+        let group = (1..=shapes.len()).rev().find(|&g| storage_bindings(AdamEntry::UpdatePolyak, g as u32) <= limit).unwrap_or(1);
+        ensure!(storage_bindings(AdamEntry::UpdatePolyak, 1) <= limit, "the device binds {limit} storage buffers per kernel, the optimiser needs {}", storage_bindings(AdamEntry::UpdatePolyak, 1));
+        let zeros = |cols: usize| plain_primitive(&Tensor::<2>::zeros([1, cols], &device), [1, cols]);
+        let partials = zeros(shapes.len() * PARTIALS_PER_PARAM as usize)?;
+        let coef = zeros(1)?;
         let sizes = shapes.iter().map(|s| (s[0] * s[1]) as u32).collect();
-        Ok(FusedAdam { ctx: ctx.clone(), partial, fin, update, update_polyak, step_cfg, param_cfg, slot, partials, sizes, device: device.clone().inner() })
+        Ok(FusedAdam { ctx: ctx.clone(), sizes, group, partials, coef, device })
+    }
+
+    /// Parameters per launch (the device's storage-buffer limit decides).
+    pub fn group_size(&self) -> usize {
+        self.group
+    }
+
+    /// Launches over groups of at most `max` parameters (at least one; a device's own limit may
+    /// make them smaller already): the same step in more launches (tests compare the two).
+    pub fn limit_group(&mut self, max: usize) {
+        self.group = self.group.min(max.max(1));
+    }
+
+    /// Kernels one step launches: with the norm (clipping, or the norm reported) 2 ⌈P / G⌉ + 1,
+    /// else ⌈P / G⌉ for P parameters in groups of G.
+    pub fn kernels_per_step(&self, with_norm: bool) -> usize {
+        let groups = self.sizes.len().div_ceil(self.group);
+        if with_norm { 2 * groups + 1 } else { groups }
     }
 
     /// One clipped Adam step in place: `params`, `m`, `v` (non-autodiff views of the learner's
     /// tensors) move by the gradients `grads` at learning rate `lr` `[1, 1]`. Returns
-    /// [`FusedStep::Taken`] with `[‖g‖, coef]` `[1, 2]` (the norm before clipping and the factor
-    /// applied) when `c.max_norm > 0` or `norm_wanted` (else the norm's P + 1 dispatches are not
-    /// run), or [`FusedStep::NotTaken`] when a tensor is not a contiguous f32 tensor of burn's
-    /// wgpu device (then nothing was done: the caller runs the tensor ops). With `polyak` = (targets, τ), each parameter's target copy then moves in
-    /// place to `τ p + (1 − τ) t` with the new p; a target whose memory overlaps a parameter's,
-    /// moment's or gradient's (the kernel would write it twice) is refused the same way.
+    /// [`FusedStep::Taken`] with `‖g‖` `[1, 1]` (the norm before clipping) when `c.max_norm > 0`
+    /// or `norm_wanted` (else the norm's kernels are not run), or [`FusedStep::NotTaken`] when a
+    /// tensor is not a contiguous f32 tensor of burn's wgpu device (then nothing was done: the
+    /// caller runs the tensor ops). With `polyak` = (targets, τ), each parameter's target copy then
+    /// moves in place to `τ p + (1 − τ) t` with the new p; a target whose memory overlaps a
+    /// parameter's, moment's or gradient's (the kernel would write it twice) is refused the same way.
     #[allow(clippy::too_many_arguments)]
     pub fn step(&self, params: &[Tensor<2>], grads: &[Tensor<2>], m: &[Tensor<2>], v: &[Tensor<2>], lr: &Tensor<2>, c: &StepConstants, polyak: Option<(&[Tensor<2>], f64)>, norm_wanted: bool) -> Result<FusedStep> {
         let n = self.sizes.len();
         ensure!(params.len() == n && grads.len() == n && m.len() == n && v.len() == n, "fused Adam of {n} parameters given {} parameters, {} gradients, {} m, {} v", params.len(), grads.len(), m.len(), v.len());
-        let buffers = |ts: &[Tensor<2>]| ts.iter().map(tensor_buffer).collect::<Result<Vec<TensorBuffer>>>();
-        let (Ok(p), Ok(g), Ok(mb), Ok(vb), Ok(lrb)) = (buffers(params), buffers(grads), buffers(m), buffers(v), tensor_buffer(lr)) else {
+        // each tensor's primitive, which the kernels bind and index flat (a tensor that is not a
+        // contiguous f32 tensor of burn's wgpu device leaves the step to the tensor ops)
+        let prims = |ts: &[Tensor<2>]| ts.iter().map(|t| plain_primitive(&t.clone().inner(), t.dims())).collect::<Result<Vec<FloatTensor<Cube>>>>();
+        for (i, t) in params.iter().enumerate() {
+            ensure!(t.shape().num_elements() == self.sizes[i] as usize, "fused Adam: parameter {i} has {} elements, {} expected", t.shape().num_elements(), self.sizes[i]);
+        }
+        let (Ok(p), Ok(g), Ok(mb), Ok(vb), Ok(lrb)) = (prims(params), prims(grads), prims(m), prims(v), plain_primitive(&lr.clone().inner(), [1, 1])) else {
             return Ok(FusedStep::NotTaken);
         };
-        for (i, t) in p.iter().enumerate() {
-            ensure!(t.size() == 4 * self.sizes[i] as u64, "fused Adam: parameter {i} has {} bytes, {} expected", t.size(), 4 * self.sizes[i]);
-        }
         let targets = match polyak {
             None => None,
             Some((ts, _)) => {
                 ensure!(ts.len() == n, "fused Adam of {n} parameters given {} Polyak targets", ts.len());
-                let Ok(tb) = buffers(ts) else { return Ok(FusedStep::NotTaken) };
-                let others: Vec<&TensorBuffer> = p.iter().chain(&g).chain(&mb).chain(&vb).chain(&tb).collect();
+                // a target must share no byte with another tensor of the step
+                let buffers = |ts: &[Tensor<2>]| ts.iter().map(tensor_buffer).collect::<Result<Vec<TensorBuffer>>>();
+                let (Ok(tb), Ok(pb), Ok(gb), Ok(mbb), Ok(vbb)) = (buffers(ts), buffers(params), buffers(grads), buffers(m), buffers(v)) else { return Ok(FusedStep::NotTaken) };
+                let others: Vec<&TensorBuffer> = pb.iter().chain(&gb).chain(&mbb).chain(&vbb).chain(&tb).collect();
                 for (i, t) in tb.iter().enumerate() {
                     if t.size() != 4 * self.sizes[i] as u64 || others.iter().any(|o| !std::ptr::eq(*o, t) && overlaps(o, t)) {
                         return Ok(FusedStep::NotTaken);
                     }
                 }
-                Some(tb)
+                let Ok(tp) = prims(ts) else { return Ok(FusedStep::NotTaken) };
+                Some(tp)
             }
         };
         let (tau, one_minus_tau) = polyak.map_or((0.0, 1.0), |(_, tau)| (tau as f32, (1.0 - tau) as f32));
-        let norm = tensor_buffer(&Tensor::<2>::empty([1, 2], &self.device)).context("fused Adam: the norm's tensor")?;
-        // the step's constants: one upload
-        let step = AdamStep {
-            clip: (c.max_norm > 0.0) as u32,
-            beta1: c.beta1 as f32,
-            beta2: c.beta2 as f32,
-            eps: c.eps as f32,
-            bc1: c.bc1 as f32,
-            bc2_sqrt: c.bc2_sqrt as f32,
-            weight_decay: c.weight_decay as f32,
-            max_norm: c.max_norm as f32,
-            tau,
-            one_minus_tau,
-            _pad0: 0,
-            _pad1: 0,
-        };
-        self.ctx.upload(ADAM_STEP.name, &self.step_cfg, bytemuck::bytes_of(&step))?;
-        let step_cfg = (&self.step_cfg, 0u64, std::mem::size_of::<AdamStep>() as u64);
-        let cfg_slot = |i: usize| (&self.param_cfg, self.slot * i as u64, std::mem::size_of::<AdamParam>() as u64);
-        let partials = (&self.partials, 0u64, self.partials.size());
-        // the norm's passes: when clipping (the update reads the coefficient) or asked for
+        let norm = plain_primitive(&Tensor::<2>::empty([1, 1], &self.device), [1, 1])?;
         let with_norm = c.max_norm > 0.0 || norm_wanted;
-        let mut groups = Vec::with_capacity(2 * n + 1);
-        if with_norm {
-            for i in 0..n {
-                groups.push(self.ctx.bind_group_slices(&self.partial, &ADAM_NORM_PARTIAL, &[(ADAM_PARAM_CFG, cfg_slot(i)), (ADAM_GRAD, g[i].slice()), (ADAM_PARTIALS_BUF, partials)])?);
-            }
-            groups.push(self.ctx.bind_group_slices(&self.fin, &ADAM_NORM_FINAL, &[(ADAM_STEP, step_cfg), (ADAM_PARAM_CFG, cfg_slot(0)), (ADAM_PARTIALS_BUF, partials), (ADAM_NORM, norm.slice())])?);
-        }
-        let first_update = groups.len();
-        let (update, update_entry) = if targets.is_some() { (&self.update_polyak, &ADAM_UPDATE_POLYAK) } else { (&self.update, &ADAM_UPDATE) };
-        for i in 0..n {
-            let mut uses = vec![
-                (ADAM_STEP, step_cfg),
-                (ADAM_PARAM_CFG, cfg_slot(i)),
-                (ADAM_PARAM, p[i].slice()),
-                (ADAM_GRAD, g[i].slice()),
-                (ADAM_M, mb[i].slice()),
-                (ADAM_V, vb[i].slice()),
-                (ADAM_NORM, norm.slice()),
-                (ADAM_LR, lrb.slice()),
+        // the launch's constants: AdamLaunch of adam.wgsl, the group's (elements, first
+        // workgroup) after the step's
+        let constants = |first: usize, count: usize| -> (Vec<u32>, u32) {
+            let mut words = vec![
+                (c.max_norm > 0.0) as u32,
+                (c.beta1 as f32).to_bits(),
+                (c.beta2 as f32).to_bits(),
+                (c.eps as f32).to_bits(),
+                (c.bc1 as f32).to_bits(),
+                (c.bc2_sqrt as f32).to_bits(),
+                (c.weight_decay as f32).to_bits(),
+                (c.max_norm as f32).to_bits(),
+                tau.to_bits(),
+                one_minus_tau.to_bits(),
+                first as u32 * PARTIALS_PER_PARAM,
+                n as u32 * PARTIALS_PER_PARAM,
             ];
-            if let Some(tb) = &targets {
-                uses.push((ADAM_TARGET, tb[i].slice()));
+            let mut workgroups = 0u32;
+            for &size in &self.sizes[first..first + count] {
+                words.extend([size, workgroups, 0, 0]);
+                workgroups += size.div_ceil(ADAM_WORKGROUP);
             }
-            groups.push(self.ctx.bind_group_slices(update, update_entry, &uses)?);
-        }
-        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-        {
-            // profiling (gpu::profile): the whole step is one span, `kernel:adam`
-            let mut profiler = self.ctx.profiler();
-            let first = profiler.as_mut().and_then(|p| p.reserve("kernel:adam"));
-            let timestamp_writes = profiler.as_ref().zip(first).map(|(p, f)| p.pass_writes(f));
-            let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes });
+            (words, workgroups)
+        };
+        let kernel = |entry: AdamEntry, group: usize| WgslKernel { name: "dextrain_adam", key: AdamKernel { entry, group: group as u32 }, source: shader_source, entry_point: entry.name(), workgroup: [ADAM_WORKGROUP, 1] };
+        let groups: Vec<(usize, usize)> = (0..n).step_by(self.group).map(|first| (first, self.group.min(n - first))).collect();
+        // profiling (gpu::profile): the whole step is one span of burn's stream, `burn:adam`
+        crate::gpu::profile::around_burn(Some(&self.ctx), &self.device, "adam", || {
             if with_norm {
-                for group in &groups[..n] {
-                    pass.set_pipeline(&self.partial);
-                    pass.set_bind_group(0, group, &[]);
-                    pass.dispatch_workgroups(PARTIALS_PER_PARAM, 1, 1);
+                for &(first, count) in &groups {
+                    let (words, _) = constants(first, count);
+                    let mut buffers: Vec<&FloatTensor<Cube>> = g[first..first + count].iter().collect();
+                    buffers.push(&self.partials);
+                    launch(kernel(AdamEntry::NormPartial, count), [PARTIALS_PER_PARAM, count as u32, 1], &buffers, &words);
                 }
-                pass.set_pipeline(&self.fin);
-                pass.set_bind_group(0, &groups[n], &[]);
-                pass.dispatch_workgroups(1, 1, 1);
+                let (words, _) = constants(0, 1);
+                launch(kernel(AdamEntry::NormFinal, 1), [1, 1, 1], &[&self.partials, &norm, &self.coef], &words);
             }
-            for (i, group) in groups[first_update..].iter().enumerate() {
-                pass.set_pipeline(update);
-                pass.set_bind_group(0, group, &[]);
-                let (x, y) = workgroups_of(self.sizes[i], ADAM_WORKGROUP);
-                pass.dispatch_workgroups(x, y, 1);
+            for &(first, count) in &groups {
+                let (words, workgroups) = constants(first, count);
+                let range = first..first + count;
+                let mut buffers: Vec<&FloatTensor<Cube>> = p[range.clone()].iter().chain(&g[range.clone()]).chain(&mb[range.clone()]).chain(&vb[range.clone()]).collect();
+                let entry = match &targets {
+                    Some(tp) => {
+                        buffers.extend(&tp[range]);
+                        AdamEntry::UpdatePolyak
+                    }
+                    None => AdamEntry::Update,
+                };
+                buffers.extend([&self.coef, &lrb]);
+                // workgroups numbered along x then y (adam.wgsl's adam_place)
+                let (x, y) = workgroups_of(workgroups * ADAM_WORKGROUP, ADAM_WORKGROUP);
+                launch(kernel(entry, count), [x, y, 1], &buffers, &words);
             }
-        }
-        gpu_counts::add_n(Event::Kernel, "dextrain:adam", groups.len() as u64);
-        // the backward pass that made the gradients runs first (module documentation)
-        flush(&self.device)?;
-        self.ctx.submit(enc, "the optimiser step (adam.wgsl)")?;
-        Ok(FusedStep::Taken(with_norm.then_some(norm.tensor)))
+            Ok(())
+        })?;
+        Ok(FusedStep::Taken(with_norm.then(|| Tensor::from_primitive::<Cube>(norm))))
     }
 }
 
@@ -234,7 +324,7 @@ impl FusedAdam {
 pub enum FusedStep {
     /// A tensor was not ours to bind: nothing was done.
     NotTaken,
-    /// The step ran, with `[‖g‖, coef]` `[1, 2]` when its norm was worked out.
+    /// The step ran, with `‖g‖` `[1, 1]` when its norm was worked out.
     Taken(Option<Tensor<2>>),
 }
 
