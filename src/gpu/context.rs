@@ -532,8 +532,7 @@ impl GpuContext {
         self.profiler.is_some()
     }
 
-    /// The profiler, for a pass of its own to stamp (`learn/kernels/fused_adam.rs`); None when not
-    /// profiling.
+    /// The profiler (locked), for a pass of its own to stamp; None when not profiling.
     pub fn profiler(&self) -> Option<std::sync::MutexGuard<'_, GpuProfiler>> {
         self.profiler.as_ref().map(|p| p.lock().unwrap_or_else(PoisonError::into_inner))
     }

@@ -6,7 +6,7 @@
 //! for the moments and the update: for PPO's 17 parameters ~300 kernel launches per minibatch,
 //! most of them on a few thousand numbers. Here a step is three launches on burn's command stream
 //! (no flush, no submission of ours), each over all the parameters at once where the device binds
-//! enough storage buffers (else over groups of them, [`FusedAdam::group_size`]):
+//! enough storage buffers (else over groups of them: [`FusedAdam::kernels_per_step`]):
 //! `adam_norm_partial` (Σ g² of each gradient in 64 fixed slices), `adam_norm_final` (‖g‖ into a
 //! `[1, 1]` burn tensor the learner reads with its other statistics, and the clip coefficient;
 //! both left out of a step that neither clips nor reports the norm), `adam_update` (the clipped
@@ -199,11 +199,6 @@ impl FusedAdam {
         let coef = zeros(1)?;
         let sizes = shapes.iter().map(|s| (s[0] * s[1]) as u32).collect();
         Ok(FusedAdam { ctx: ctx.clone(), sizes, group, partials, coef, device })
-    }
-
-    /// Parameters per launch (the device's storage-buffer limit decides).
-    pub fn group_size(&self) -> usize {
-        self.group
     }
 
     /// Launches over groups of at most `max` parameters (at least one; a device's own limit may
