@@ -2,9 +2,10 @@
 // several parameters per launch (src/learn/kernels/fused_adam.rs; CPU twin: learn::adam —
 // `clip_to_norm` and `Adam::step` as tensor ops). Launched on burn's command stream (cubecl binds
 // the buffers in order, then the launch's constants as a uniform). A template: fused_adam.rs keeps
-// the one entry point a launch runs and writes in the group's size and its bindings (the lines
-// that begin with a dollar sign), one binding per parameter and role, and the accessors that pick
-// a parameter's binding by its index in the group. One optimiser step runs, in order:
+// the sections (`//@entry NAMES` … `//@end`) of the one entry point a launch runs and writes in
+// (at the markers that begin with a dollar sign) the group's size, its bindings — one per
+// parameter and role — and the accessors that pick a parameter's binding by its index in the
+// group. One optimiser step runs, in order:
 //   adam_norm_partial  once per group: Σ g² of each of its gradients in ADAM_PARTIALS fixed slices
 //   adam_norm_final    once: ‖g‖ = √(Σ of every slice's sum), the clip coefficient
 //   adam_update        once per group: the clipped gradient into the moments and the parameter
