@@ -79,12 +79,13 @@ if [ "$quick" = 1 ]; then
     envs=${ENVS:-"64 128"}; profile_s=${TRAIN_PROFILE_S:-10}; scale_s=${TRAIN_SCALE_S:-10}; scale_shapes=${SCALE_SHAPES:-"128x4"}; ppo_s=${TRAIN_PPO_S:-20}; sac_s=${TRAIN_SAC_S:-20}; ppo_host_s=${TRAIN_PPO_HOST_S:-10}; bench_s=${BENCH_S:-0.5}; obj_envs=${OBJ_ENVS:-64}
     small=(--set sim.num_envs=64 --set train.steps_per_env=4 --set 'policy.actor_hidden=[32]' --set 'policy.critic_hidden=[32]')
     sac_small=(--set sac.batch_size=64 --set sac.learning_starts=8 --set sac.buffer_capacity=64)
+    scale_small=(--set 'policy.actor_hidden=[32]' --set 'policy.critic_hidden=[32]')  # (the batch from SCALE_SHAPES)
     baseline_envs=${BASELINE_ENVS:-64}; baseline_rounds=${BASELINE_ROUNDS:-1}
     ppo_sizes=(--envs 64 --iters 1); sac_sizes=(--envs 64 --iters 1 --batch 256 --gradient-steps 2); matmul_sizes=()  # (every routine compiles its kernels: minutes on lavapipe)
     sac_lift_sizes=("${sac_sizes[@]}")
 else
     envs=${ENVS:-"4096 16384 65536 262144"}; profile_s=${TRAIN_PROFILE_S:-20}; scale_s=${TRAIN_SCALE_S:-40}; scale_shapes=${SCALE_SHAPES:-"16384x32 65536x24"}; ppo_s=${TRAIN_PPO_S:-210}; sac_s=${TRAIN_SAC_S:-90}; ppo_host_s=${TRAIN_PPO_HOST_S:-30}; bench_s=${BENCH_S:-5}; obj_envs=${OBJ_ENVS:-65536}
-    small=(); sac_small=(); ppo_sizes=(--iters 3); sac_sizes=(--iters 3); matmul_sizes=(--iters 3)
+    small=(); sac_small=(); scale_small=(); ppo_sizes=(--iters 3); sac_sizes=(--iters 3); matmul_sizes=(--iters 3)
     # configs/lift_cube_sac_gpu.toml's shape: 1024 envs, batch 2048 (with --n-step 3 --critic-layer-norm below)
     sac_lift_sizes=(--envs 1024 --batch 2048 --iters 3)
     baseline_envs=${BASELINE_ENVS:-65536}; baseline_rounds=${BASELINE_ROUNDS:-3}
@@ -303,8 +304,7 @@ if runs_step scale; then
         n=${shape%x*}; t=${shape#*x}
         case "$n$t" in *[!0-9]*|'') echo "gpu_suite: SCALE_SHAPES wants ENVSxSTEPS words (e.g. 16384x32); got '$shape'" >&2; exit 2 ;; esac
         echo "gpu_suite: PPO lift at $n envs x $t steps for ${scale_s}s" >&2
-        quick_nets=(); [ "$quick" = 1 ] && quick_nets=(--set 'policy.actor_hidden=[32]' --set 'policy.critic_hidden=[32]')
-        train_for "gpu_ppo_scale_$n" "$scale_s" configs/lift_cube_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" --set sim.num_envs="$n" --set train.steps_per_env="$t" "${quick_nets[@]}"
+        train_for "gpu_ppo_scale_$n" "$scale_s" configs/lift_cube_gpu.toml --set sim.backend="$adapter" --set train.device="$adapter" --set sim.num_envs="$n" --set train.steps_per_env="$t" "${scale_small[@]}"
         scale_json="$scale_json${scale_json:+, }{\"envs\": $n, \"steps_per_env\": $t, \"train\": $(train_summary "$runs/gpu_ppo_scale_$n/metrics.csv"), \"run\": $(run_json "$out/gpu_ppo_scale_$n.log")}"
     done
     scale_json="[$scale_json]"

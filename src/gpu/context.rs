@@ -52,6 +52,13 @@ pub struct GpuContext {
 /// One dispatch of a compute pass: the pipeline, its bind group 0 and its workgroups (x, y).
 pub type Pass<'a> = (&'a wgpu::ComputePipeline, &'a wgpu::BindGroup, (u32, u32));
 
+/// One dispatch into `pass`: its pipeline, its bind group 0, its workgroups (x, y).
+fn record(pass: &mut wgpu::ComputePass<'_>, &(pipeline, group, (x, y)): &Pass<'_>) {
+    pass.set_pipeline(pipeline);
+    pass.set_bind_group(0, group, &[]);
+    pass.dispatch_workgroups(x, y, 1);
+}
+
 /// What a buffer is bound as, which decides the device limits on its size.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum BufferRole {
@@ -432,19 +439,14 @@ impl GpuContext {
                 let name = format!("kernel:{}", names.get(pipeline).map_or("(unnamed)", |n| n.as_str()));
                 let first = profiler.reserve(&name);
                 let timestamp_writes = first.map(|f| profiler.pass_writes(f));
-                let mut pass = enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes });
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, group, &[]);
-                pass.dispatch_workgroups(x, y, 1);
+                record(&mut enc.begin_compute_pass(&wgpu::ComputePassDescriptor { label: None, timestamp_writes }), &(pipeline, group, (x, y)));
             }
             return enc;
         }
         {
             let mut pass = enc.begin_compute_pass(&Default::default());
-            for &(pipeline, group, (x, y)) in passes {
-                pass.set_pipeline(pipeline);
-                pass.set_bind_group(0, group, &[]);
-                pass.dispatch_workgroups(x, y, 1);
+            for dispatch in passes {
+                record(&mut pass, dispatch);
             }
         }
         enc

@@ -280,22 +280,29 @@ impl FusedAdam {
             (words, workgroups)
         };
         let kernel = |entry: AdamEntry, group: usize| WgslKernel { name: "dextrain_adam", key: AdamKernel { entry, group: group as u32 }, source: shader_source, entry_point: entry.name(), workgroup: [ADAM_WORKGROUP, 1] };
-        let groups: Vec<(usize, usize)> = (0..n).step_by(self.group).map(|first| (first, self.group.min(n - first))).collect();
+        // each group's (first parameter, parameters, launch constants, update workgroups)
+        let groups: Vec<(usize, usize, Vec<u32>, u32)> = (0..n)
+            .step_by(self.group)
+            .map(|first| {
+                let count = self.group.min(n - first);
+                let (words, workgroups) = constants(first, count);
+                (first, count, words, workgroups)
+            })
+            .collect();
         // profiling (gpu::profile): the whole step is one span of burn's stream, `burn:adam`
         crate::gpu::profile::around_burn(Some(&self.ctx), &self.device, "adam", || {
             if with_norm {
-                for &(first, count) in &groups {
-                    let (words, _) = constants(first, count);
+                for (first, count, words, _) in &groups {
+                    let (first, count) = (*first, *count);
                     let mut buffers: Vec<&FloatTensor<Cube>> = g[first..first + count].iter().collect();
                     buffers.push(&self.partials);
-                    launch(kernel(AdamEntry::NormPartial, count), [PARTIALS_PER_PARAM, count as u32, 1], &buffers, &words);
+                    launch(kernel(AdamEntry::NormPartial, count), [PARTIALS_PER_PARAM, count as u32, 1], &buffers, words);
                 }
                 let (words, _) = constants(0, 1);
                 launch(kernel(AdamEntry::NormFinal, 1), [1, 1, 1], &[&self.partials, &norm, &self.coef], &words);
             }
-            for &(first, count) in &groups {
-                let (words, workgroups) = constants(first, count);
-                let range = first..first + count;
+            for (first, count, words, workgroups) in &groups {
+                let range = *first..first + count;
                 let mut buffers: Vec<&FloatTensor<Cube>> = p[range.clone()].iter().chain(&g[range.clone()]).chain(&mb[range.clone()]).chain(&vb[range.clone()]).collect();
                 let entry = match &targets {
                     Some(tp) => {
@@ -307,7 +314,7 @@ impl FusedAdam {
                 buffers.extend([&self.coef, &lrb]);
                 // workgroups numbered along x then y (adam.wgsl's adam_place)
                 let (x, y) = workgroups_of(workgroups * ADAM_WORKGROUP, ADAM_WORKGROUP);
-                launch(kernel(entry, count), [x, y, 1], &buffers, &words);
+                launch(kernel(entry, *count), [x, y, 1], &buffers, words);
             }
             Ok(())
         })?;
