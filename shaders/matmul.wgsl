@@ -4,7 +4,11 @@
 // with few tiles of C and a long k, as the weight gradient over a batch's rows): workgroup layer z
 // sums k in [s·k_chunk, (s + 1)·k_chunk) for s = z mod k_splits into its own [M, N] partial, which
 // the caller sums over s (one batch only then). An epilogue on C's entries (unsplit products):
-// + b[c] (a dense layer's bias), or ELU(· + b[c]) (with its activation, α = 1).
+// + b[c] (a dense layer's bias), or ELU(· + b[c]) (with its activation, α = 1), or · min(y + 1, 1)
+// for y [M, N] in mm_bias (ELU's gradient through a layer's output y, α = 1). A product may read A
+// with a row of ones after its last (`ones_row`): C's entries in that row, Σ_k B[k, c] (B's column
+// sums over the layer's k range: a dense layer's bias gradient 1ᵀ g beside its weight gradient
+// xᵀ g), go to mm_bias [splits, N] instead of C.
 //
 // A template: learn/wgsl_matmul.rs writes in the tile shape (the markers that begin with a dollar
 // sign: numbers), the per-thread accumulation, unrolled (the ACC blocks), so that every
@@ -34,9 +38,11 @@ struct MatmulCfg {
     // k per split and the splits (1: no split)
     k_splits: u32,
     k_chunk: u32,
-    // 0: C = A · B; 1: C = A · B + b (b [N] in mm_bias); 2: C = ELU(A · B + b)
+    // 0: C = A · B; 1: C = A · B + b (b [N] in mm_bias); 2: C = ELU(A · B + b); 3: C = (A · B) ·
+    // min(y + 1, 1) (y [M, N] in mm_bias)
     epilogue: u32,
-    _pad1: u32,
+    // A's row of ones (its last, m − 1, and C's row there to mm_bias), or 0xffffffff: none
+    ones_row: u32,
     _pad2: u32,
 }
 
@@ -46,7 +52,7 @@ struct MatmulCfg {
 @group(0) @binding(0) var<storage, read_write> mm_a: array<$A_ELEM>;
 @group(0) @binding(1) var<storage, read_write> mm_b: array<$B_ELEM>;
 @group(0) @binding(2) var<storage, read_write> mm_c: array<f32>;
-@group(0) @binding(3) var<storage, read_write> mm_bias: array<f32>; // [N] (any buffer without an epilogue)
+@group(0) @binding(3) var<storage, read_write> mm_bias: array<f32>; // [N] bias, [M, N] y, or [splits, N] the ones row's sums out (any buffer without an epilogue or a ones row)
 @group(0) @binding(4) var<uniform> mc: MatmulCfg;
 
 const BM: u32 = $BMu; // C rows per workgroup
@@ -62,16 +68,29 @@ var<workgroup> mm_sa: array<vec4<f32>, $SA_LENu>; // [BK][BM / 4]: A's tile rows
 var<workgroup> mm_sb: array<vec4<f32>, $SB_LENu>; // [BK][BN / 4]: B's tile columns at each k, 4 a vec4
 
 $LOAD_FUNCS
-// C's entry `v` at column `c` after the epilogue
-fn finish(v: f32, c: u32) -> f32 {
+// C's entry `v` at row `r`, column `c` after the epilogue
+fn finish(v: f32, r: u32, c: u32) -> f32 {
     if mc.epilogue == 0u {
         return v;
+    }
+    if mc.epilogue == 3u {
+        return v * min(mm_bias[r * mc.n + c] + 1.0, 1.0); // ∂L/∂y · min(y + 1, 1): elu_backward.wgsl's expression
     }
     let z = v + mm_bias[c]; // x W + b
     if mc.epilogue == 1u {
         return z;
     }
     return select(exp(min(z, 0.0)) - 1.0, z, z > 0.0); // ELU: z for z > 0, e^z − 1 otherwise
+}
+
+// writes C's entry `v` at (r, c) of output layer z (c_base its first entry): the ones row's sum to
+// mm_bias [z, c], every other row after the epilogue to C
+fn put(c_base: u32, z: u32, r: u32, c: u32, v: f32) {
+    if r == mc.ones_row {
+        mm_bias[z * mc.n + c] = v; // Σ_k B[k, c] over this layer's k range
+        return;
+    }
+    mm_c[c_base + r * mc.n + c] = finish(v, r, c);
 }
 
 @compute @workgroup_size($TXu, $TYu, 1)
@@ -105,7 +124,7 @@ $ACC_FMA
         }
         workgroupBarrier();
     }
-    let c_base = wg.z * mc.c_batch; // [batches · k_splits] outputs of [M, N]
+    let c_base = wg.z * mc.c_batch; // [batches · k_splits] outputs of [M, N] ([M − 1, N] with a ones row)
     var r = 0u;
     var c = 0u;
 $ACC_STORE

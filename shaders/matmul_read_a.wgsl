@@ -12,10 +12,14 @@ fn a_slot(e: u32, rows_fast: bool) -> vec2<u32> {
 }
 
 // A's value at tile position p = (row, k) of the slice that starts at k0 (0 outside A or past
-// this layer's k range), for the tile's first row row0 and the batch's A at a_base
+// this layer's k range; 1 in its row of ones), for the tile's first row row0 and the batch's A at
+// a_base
 fn a_value(p: vec2<u32>, row0: u32, k0: u32, k_end: u32, a_base: u32) -> f32 {
     let r = row0 + p.x;
     let k = k0 + p.y;
+    if r == mc.ones_row && k < k_end {
+        return 1.0;
+    }
     if r < mc.m && k < k_end {
         return mm_a[a_base + r * mc.a_row + k * mc.a_col];
     }

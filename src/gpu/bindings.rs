@@ -202,7 +202,8 @@ pub const MM_A: Binding = binding(0, "mm_a", StorageReadWrite);
 pub const MM_B: Binding = binding(1, "mm_b", StorageReadWrite);
 /// `array<f32>` `[batches, M, N]`: the product, row-major.
 pub const MM_C: Binding = binding(2, "mm_c", StorageReadWrite);
-/// `array<f32>` `[N]`: the bias of an epilogue (any buffer without one).
+/// `array<f32>`: the epilogue's operand (the bias `[N]`, or ELU's output `[M, N]`), or the sums
+/// of A's row of ones written out `[splits, N]` (any buffer without either).
 pub const MM_BIAS: Binding = binding(3, "mm_bias", StorageReadWrite);
 /// `MatmulCfg`: the product's sizes, the operands' strides, the epilogue (cubecl's launch constants).
 pub const MM_CFG: Binding = binding(4, "mc", Uniform);
@@ -212,6 +213,26 @@ pub const MM_TILED: EntryBindings = EntryBindings { entry_point: "matmul_tiled",
 
 /// The matrix product's module (shaders/matmul.wgsl alone, any tile shape).
 pub const MM_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain matmul", bindings: &[MM_A, MM_B, MM_C, MM_BIAS, MM_CFG], entry_points: &[MM_TILED] };
+
+// ---- the partials of a product split over k summed (sum_splits.wgsl, a module of its own, launched
+// by learn/kernels/wgsl_matmul.rs on burn's stream: cubecl binds the buffers in order, then the uniform) ----
+
+/// `array<f32>` `[S, len_c]`: the partial products.
+pub const SS_PARTIALS: Binding = binding(0, "ss_partials", StorageReadWrite);
+/// `array<f32>` `[S, len_s]`: the partial sums of the row of ones (any buffer without them).
+pub const SS_SUM_PARTIALS: Binding = binding(1, "ss_sum_partials", StorageReadWrite);
+/// `array<f32>` `[len_c]`: the product.
+pub const SS_OUT: Binding = binding(2, "ss_out", StorageReadWrite);
+/// `array<f32>` `[len_s]`: the row of ones' sums (any buffer without them).
+pub const SS_SUMS_OUT: Binding = binding(3, "ss_sums_out", StorageReadWrite);
+/// `SumSplitsCfg`: the lengths, the splits and the grid's row length.
+pub const SS_CFG: Binding = binding(4, "sc", Uniform);
+
+/// `sum_splits`: one entry per invocation.
+pub const SUM_SPLITS: EntryBindings = EntryBindings { entry_point: "sum_splits", bindings: &[SS_PARTIALS, SS_SUM_PARTIALS, SS_OUT, SS_SUMS_OUT, SS_CFG] };
+
+/// The split sums' module (shaders/sum_splits.wgsl alone).
+pub const SS_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain sum splits", bindings: &[SS_PARTIALS, SS_SUM_PARTIALS, SS_OUT, SS_SUMS_OUT, SS_CFG], entry_points: &[SUM_SPLITS] };
 
 // ---- ELU's gradient (elu_backward.wgsl, a module of its own, launched by learn/kernels/elu.rs on burn's
 // stream: cubecl binds the buffers in order, then the uniform) ----

@@ -10,6 +10,7 @@ use anyhow::{Result, anyhow};
 use burn::prelude::*;
 use burn::tensor::{TensorData, activation};
 
+use crate::learn::kernels::affine::EluLink;
 use crate::rng::Rng;
 
 /// Hidden-layer activation (`policy.activation`; the enum is the config's).
@@ -130,12 +131,18 @@ pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tenso
     let split = forward_split(params, &x.device(), x.dims()[0]);
     let mut h = x;
     let one_op = affine_is_one_op(split);
+    // ELU layers as one op each, linked: each hidden activation is the next layer's input alone,
+    // so the next layer applies ELU's gradient (affine.rs's EluLink)
+    let linked = act == Activation::Elu && one_op;
     for l in 0..layers {
         let (w, b) = (params[2 * l].clone(), params[2 * l + 1].clone());
-        h = if l + 1 < layers && act == Activation::Elu && one_op {
-            super::kernels::affine::fused_affine_elu(h, w, b) // ELU(h W + b) [B, out] as one op (affine.rs)
+        let link = EluLink { from_linked: linked && l > 0, into_linked: linked && l + 1 < layers };
+        h = if l + 1 < layers && linked {
+            super::kernels::affine::fused_affine_elu_linked(h, w, b, link) // ELU(h W + b) [B, out] as one op (affine.rs)
         } else if l + 1 < layers {
             act.apply(affine(h, w, b, split))
+        } else if linked {
+            super::kernels::affine::fused_affine_linked(h, w, b, link) // [B, out]
         } else {
             affine(h, w, b, split) // [B, out]
         };
@@ -314,10 +321,15 @@ impl MlpLayout {
         // without LayerNorm, an ELU layer whose input is one block is one op (affine.rs)
         let one_op = !self.layer_norm && act == Activation::Elu && affine_is_one_op(split);
         let mut h = x;
+        // whether h is the output of an ELU layer linked into the next (affine.rs's EluLink: the
+        // next layer applies ELU's gradient; h is its input alone)
+        let mut h_linked = false;
         for l in 0..self.hidden.len() {
             let p = &params[l * k..(l + 1) * k];
             if one_op && tail.is_none() {
-                h = super::kernels::affine::fused_affine_elu(h, p[0].clone(), p[1].clone()); // ELU(h W + b) [B, out]
+                let link = EluLink { from_linked: h_linked, into_linked: true };
+                h = super::kernels::affine::fused_affine_elu_linked(h, p[0].clone(), p[1].clone(), link); // ELU(h W + b) [B, out]
+                h_linked = true;
                 continue;
             }
             h = first_or_affine(h, tail.take(), p[0].clone(), p[1].clone(), split); // [B, out]
@@ -327,6 +339,11 @@ impl MlpLayout {
             h = act.apply(h);
         }
         let o = self.hidden.len() * k;
+        if h_linked {
+            // (one_op: the output layer is affine.rs's op too, its input the last ELU layer's)
+            let link = EluLink { from_linked: true, into_linked: false };
+            return super::kernels::affine::fused_affine_linked(h, params[o].clone(), params[o + 1].clone(), link); // [B, out]
+        }
         first_or_affine(h, tail, params[o].clone(), params[o + 1].clone(), split)
     }
 }

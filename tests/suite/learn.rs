@@ -1207,13 +1207,17 @@ fn row_sums_and_matmul_routines_match_their_tensor_twins() {
 
 /// Every variant of dextrain's matrix product — each tile shape, with scalar reads and with vec4
 /// reads along k or across rows / columns — gives the shape rule's product bit for bit (a forward
-/// product with its bias and ELU, a weight gradient split over k, a product by a transposed view),
-/// so `dextrain_tuned` may pick any of them per process and a run still repeats and resumes
-/// exactly; the tuner times every variant that takes a product, remembers its pick, and reports it.
+/// product with its bias and ELU, a weight gradient split over k, a product by a transposed view,
+/// an input gradient with ELU's gradient in its epilogue, weight and bias gradients in one product
+/// split over k and not), so `dextrain_tuned` may pick any of them per process and a run still
+/// repeats and resumes exactly; the tuner times every variant that takes a product, remembers its
+/// pick, and reports it. ELU's gradient in the epilogue gives the product then ELU's gradient
+/// kernel bit for bit; the row of ones' sums are the column sums of B.
 #[test]
 fn every_tile_shape_gives_the_same_bits_and_the_tuner_picks_one() {
     use dextrain::learn::kernels::matmul_tuning::records;
-    use dextrain::learn::kernels::wgsl_matmul::{Epilogue, Loads, TileChoice, candidate_variants, matmul_as_planned_in, matmul_then, plan};
+    use dextrain::learn::kernels::elu::EluOps;
+    use dextrain::learn::kernels::wgsl_matmul::{Epilogue, Loads, TileChoice, candidate_variants, matmul_and_column_sums, matmul_as_planned_in, matmul_then, plan};
     let Some((_ctx, gpu)) = crate::common::wgpu_learner("every_tile_shape_gives_the_same_bits_and_the_tuner_picks_one") else { return };
     let dev = gpu.clone().inner();
     let mut rng = Rng::new(17, 3);
@@ -1235,20 +1239,49 @@ fn every_tile_shape_gives_the_same_bits_and_the_tuner_picks_one() {
     let odd_a = to_tensor(draw(130 * 45), [130, 45], &dev);
     let odd_b = to_tensor(draw(45 * 22), [45, 22], &dev);
     let bias = prim(&b);
-    let cases: [(&str, Tensor<2>, Tensor<2>, Epilogue<'_>, [Loads; 2]); 4] = [
-        ("ELU(x W + b)", x, w.clone(), Epilogue::BiasElu(&bias), [Loads::Vec4AlongK, Loads::Vec4Across]),
-        ("g Wᵀ", g, w.transpose(), Epilogue::None, [Loads::Vec4AlongK, Loads::Vec4AlongK]),
-        ("xᵀ g, split over k", xt, g2, Epilogue::None, [Loads::Vec4Across, Loads::Vec4Across]),
-        ("[130 × 45] · [45 × 22]", odd_a, odd_b, Epilogue::None, [Loads::Scalar, Loads::Scalar]),
+    // ELU's outputs (> −1) at the input gradient's entries
+    let y = to_tensor(draw(rows * i).into_iter().map(|v| if v > 0.0 { v } else { v.exp() - 1.0 }).collect(), [rows, i], &dev);
+    let y_prim = prim(&y);
+    let cases: [(&str, Tensor<2>, Tensor<2>, Epilogue<'_>, [Loads; 2]); 8] = [
+        ("ELU(x W + b)", x.clone(), w.clone(), Epilogue::BiasElu(&bias), [Loads::Vec4AlongK, Loads::Vec4Across]),
+        ("g Wᵀ", g.clone(), w.clone().transpose(), Epilogue::None, [Loads::Vec4AlongK, Loads::Vec4AlongK]),
+        ("(g Wᵀ) · ELU'(y)", g.clone(), w.transpose(), Epilogue::EluGrad(&y_prim), [Loads::Vec4AlongK, Loads::Vec4AlongK]),
+        ("xᵀ g, split over k", xt.clone(), g2.clone(), Epilogue::None, [Loads::Vec4Across, Loads::Vec4Across]),
+        ("[xᵀ; 1ᵀ] g, split over k", xt, g2, Epilogue::ColumnSums, [Loads::Vec4Across, Loads::Vec4Across]),
+        ("[xᵀ; 1ᵀ] g", x.transpose(), g, Epilogue::ColumnSums, [Loads::Vec4Across, Loads::Vec4Across]),
+        ("[130 × 45] · [45 × 22]", odd_a.clone(), odd_b.clone(), Epilogue::None, [Loads::Scalar, Loads::Scalar]),
+        ("[130 × 45; 1ᵀ] · [45 × 22]", odd_a, odd_b, Epilogue::ColumnSums, [Loads::Scalar, Loads::Scalar]),
     ];
+    assert!(plan(i2 + 1, o2, long, 1, None).1 > 1 && plan(i + 1, o, rows, 1, None).1 == 1, "one product with a row of ones split over k, one not");
+    // C (and the row of ones' sums) of the product as the tile choice runs it
+    let product = |l: &burn::backend::tensor::FloatTensor<burn::backend::Cube>, r: &burn::backend::tensor::FloatTensor<burn::backend::Cube>, choice: TileChoice, epilogue: Epilogue<'_>| -> (Vec<f32>, Option<Vec<f32>>) {
+        if epilogue.ones_row() {
+            let (c, s) = matmul_and_column_sums(l, r, choice).unwrap();
+            (host(c), Some(host(s)))
+        } else {
+            (host(matmul_then(l, r, choice, epilogue).unwrap()), None)
+        }
+    };
     for (name, lhs, rhs, epilogue, vector_reads) in cases {
         let (l, r) = (prim(&lhs), prim(&rhs));
-        let by_shape = host(matmul_then(&l, &r, TileChoice::ByShape, epilogue).unwrap());
+        let (by_shape, sums) = product(&l, &r, TileChoice::ByShape, epilogue);
         let want = host(prim(&lhs.clone().matmul(rhs.clone())));
         assert_eq!(by_shape.len(), want.len());
-        if matches!(epilogue, Epilogue::None) {
-            let worst = by_shape.iter().zip(&want).map(|(g, w)| (g - w).abs() / (1.0 + w.abs())).fold(0.0f32, f32::max);
+        let close = |got: &[f32], want: &[f32]| got.iter().zip(want).map(|(g, w)| (g - w).abs() / (1.0 + w.abs())).fold(0.0f32, f32::max);
+        if matches!(epilogue, Epilogue::None | Epilogue::ColumnSums) {
+            let worst = close(&by_shape, &want);
             assert!(worst < 1e-4, "{name}: the product differs from burn's by {worst}");
+        }
+        if let Some(sums) = &sums {
+            let want_sums = host(prim(&rhs.clone().sum_dim(0)));
+            assert_eq!(sums.len(), rhs.dims()[1], "{name}: one sum per column of B");
+            let worst = close(sums, &want_sums);
+            assert!(worst < 1e-4, "{name}: the row of ones' sums differ from B's column sums by {worst}");
+        }
+        if let Epilogue::EluGrad(y) = epilogue {
+            let plain = matmul_then(&l, &r, TileChoice::ByShape, Epilogue::None).unwrap();
+            let then_kernel = host(<burn::backend::Cube as EluOps>::elu_fused_backward(y.clone(), plain));
+            assert!(by_shape.iter().zip(&then_kernel).all(|(a, b)| a.to_bits() == b.to_bits()), "{name}: the epilogue gives the product then ELU's gradient kernel bit for bit");
         }
         let variants = candidate_variants(&l, &r, epilogue).unwrap();
         let vector = variants.iter().filter(|v| [v.a, v.b] == vector_reads && vector_reads != [Loads::Scalar; 2]).count();
@@ -1256,16 +1289,19 @@ fn every_tile_shape_gives_the_same_bits_and_the_tuner_picks_one() {
         assert!(scalar_only || vector >= 4, "{name}: vec4 reads {vector_reads:?} in {vector} variants of {}", variants.len());
         assert!(!scalar_only || variants.iter().all(|v| [v.a, v.b] == [Loads::Scalar; 2]), "{name}: no vec4 reads where the sizes are not multiples of 4");
         for v in &variants {
-            let got = host(matmul_as_planned_in(&l, &r, *v, epilogue).unwrap());
+            let (got, got_sums) = matmul_as_planned_in(&l, &r, *v, epilogue).unwrap();
+            let (got, got_sums) = (host(got), got_sums.map(host));
             let differing = got.iter().zip(&by_shape).filter(|(a, b)| a.to_bits() != b.to_bits()).count();
             assert_eq!(differing, 0, "{name}: {} gives {differing} entries other bits than the shape rule's", v.label());
+            assert_eq!(got_sums.map(|s| s.iter().map(|v| v.to_bits()).collect::<Vec<_>>()), sums.as_ref().map(|s| s.iter().map(|v| v.to_bits()).collect()), "{name}: {}'s sums", v.label());
         }
         // this product's records (tests side by side may tune other products in this process)
-        let sizes = [lhs.dims()[0] as u32, rhs.dims()[1] as u32, lhs.dims()[1] as u32, 1];
-        let mine = || records().into_iter().filter(|r| r.key.sizes == sizes && r.key.vector_reads).collect::<Vec<_>>();
+        let sizes = [(lhs.dims()[0] + usize::from(epilogue.ones_row())) as u32, rhs.dims()[1] as u32, lhs.dims()[1] as u32, 1];
+        let mine = || records().into_iter().filter(|r| r.key.sizes == sizes && r.key.vector_reads && r.key.epilogue == epilogue.code() && r.key.ones_row == epilogue.ones_row()).collect::<Vec<_>>();
         assert!(mine().is_empty(), "{name}: not tuned before");
-        let tuned = host(matmul_then(&l, &r, TileChoice::Tuned { vector_reads: true }, epilogue).unwrap());
+        let (tuned, tuned_sums) = product(&l, &r, TileChoice::Tuned { vector_reads: true }, epilogue);
         assert!(tuned.iter().zip(&by_shape).all(|(a, b)| a.to_bits() == b.to_bits()), "{name}: the tuned product's bits");
+        assert_eq!(tuned_sums, sums, "{name}: the tuned product's sums");
         let recs = mine();
         assert_eq!(recs.len(), 1, "{name}: one product tuned");
         let rec = recs.last().unwrap();
@@ -1274,10 +1310,98 @@ fn every_tile_shape_gives_the_same_bits_and_the_tuner_picks_one() {
         let fastest = rec.micros.iter().min_by(|a, b| a.1.total_cmp(&b.1)).unwrap().0;
         assert_eq!(rec.chosen, fastest, "{name}: the fastest variant is chosen");
         // the second product of the shape takes the remembered pick without timing again
-        let again = host(matmul_then(&l, &r, TileChoice::Tuned { vector_reads: true }, epilogue).unwrap());
+        let (again, _) = product(&l, &r, TileChoice::Tuned { vector_reads: true }, epilogue);
         assert_eq!(again, tuned, "{name}: the tuned product repeats");
         assert_eq!(mine().len(), 1, "{name}: no second timing of the shape");
     }
+}
+
+/// Row blocks stacked by the kernels of ours (`kernels::cat_rows`) give burn's cat bit for bit —
+/// blocks of different heights, one empty, in launches of every size the device's limit allows
+/// down to one block — in ⌈blocks / launch⌉ launches, and refuse what they cannot bind.
+#[test]
+fn row_blocks_stack_as_cat_does_in_a_few_kernels() {
+    use dextrain::gpu_counts::{Event, GpuCounts};
+    use dextrain::learn::kernels::cat_rows::cat_rows;
+    let Some((_ctx, gpu)) = crate::common::wgpu_learner("row_blocks_stack_as_cat_does_in_a_few_kernels") else { return };
+    let dev = gpu.clone().inner();
+    let mut rng = Rng::new(31, 2);
+    let heights = [7usize, 300, 0, 64, 1, 129, 33];
+    let parts: Vec<Tensor<2>> = heights.iter().map(|&h| to_tensor((0..h * 5).map(|_| rng.normal() as f32).collect(), [h, 5], &dev)).collect();
+    let want = to_host(Tensor::cat(parts.clone(), 0)).unwrap();
+    for max_buffers in [2u32, 3, 4, 32] {
+        let before = GpuCounts::now();
+        let got = cat_rows(&parts, max_buffers).expect("contiguous f32 blocks of one width");
+        let counts = GpuCounts::now().since(&before);
+        assert_eq!(got.dims(), [heights.iter().sum::<usize>(), 5]);
+        let got = to_host(got).unwrap();
+        assert!(got.iter().zip(&want).all(|(a, b)| a.to_bits() == b.to_bits()), "{max_buffers} buffers: the values of cat");
+        // launches of max − 1 blocks; a launch of the empty block alone is skipped
+        let group = max_buffers as usize - 1;
+        let launches: usize = heights.chunks(group).filter(|c| c.iter().any(|&h| h > 0)).count();
+        assert_eq!(counts.total(Event::Kernel), launches as u64, "{max_buffers} buffers: {counts:?}");
+    }
+    assert!(cat_rows(&parts, 1).is_none(), "a device that binds one buffer");
+    let wider = vec![parts[0].clone(), to_tensor(vec![0.0; 12], [2, 6], &dev)];
+    assert!(cat_rows(&wider, 32).is_none(), "blocks of different widths");
+    assert!(cat_rows(&[parts[1].clone().transpose()], 32).is_none(), "a strided view");
+    assert!(cat_rows(&[], 32).is_none(), "no block");
+}
+
+/// An MLP's ELU layers linked (`affine::EluLink`: the layer after an ELU layer applies its
+/// gradient, on the GPU in the input gradient's product) give the gradients of the layers unlinked
+/// bit for bit — on the CPU and on the GPU, where the linked backward pass launches no ELU
+/// gradient kernel and one product per layer for its weight and bias gradients — and the GPU's
+/// agree with the CPU's.
+#[test]
+fn linked_elu_layers_give_the_unlinked_gradients_in_fewer_kernels() {
+    use dextrain::gpu_counts::{Event, GpuCounts};
+    use dextrain::learn::kernels::affine::{fused_affine, fused_affine_elu};
+    use dextrain::learn::nets::{Activation, init_mlp, mlp_forward, mlp_shapes};
+    let Some((_ctx, gpu)) = crate::common::wgpu_learner("linked_elu_layers_give_the_unlinked_gradients_in_fewer_kernels") else { return };
+    let mut rng = Rng::new(29, 7);
+    // 600 rows: the first layer's weight gradient is split over k, the others' too
+    let (rows, shapes) = (600usize, mlp_shapes(24, &[40, 36], 5));
+    let params_host = init_mlp(&shapes, &mut rng);
+    let x_host: Vec<f32> = (0..rows * 24).map(|_| 2.0 * rng.normal() as f32).collect();
+    let c_host: Vec<f32> = (0..rows * 5).map(|_| rng.normal() as f32).collect();
+    // the input's and every parameter's gradient of Σ c ⊙ MLP(x), and the backward pass's counts
+    let grads_on = |device: &Device, linked: bool| -> (Vec<Vec<f32>>, GpuCounts) {
+        let params: Vec<Tensor<2>> = params_host.iter().zip(&shapes).map(|(v, s)| to_tensor(v.clone(), *s, device).require_grad()).collect();
+        let x = to_tensor(x_host.clone(), [rows, 24], device).require_grad();
+        let y = if linked {
+            mlp_forward(&params, x.clone(), Activation::Elu)
+        } else {
+            let mut h = x.clone();
+            for l in 0..params.len() / 2 {
+                let (w, b) = (params[2 * l].clone(), params[2 * l + 1].clone());
+                h = if 2 * l + 2 < params.len() { fused_affine_elu(h, w, b) } else { fused_affine(h, w, b) };
+            }
+            h
+        };
+        let loss = (y * to_tensor(c_host.clone(), [rows, 5], device)).sum();
+        let before = GpuCounts::now();
+        let grads = loss.backward();
+        let out: Vec<Vec<f32>> = std::iter::once(&x).chain(&params).map(|t| to_host(t.grad(&grads).expect("a gradient")).unwrap()).collect();
+        (out, GpuCounts::now().since(&before))
+    };
+    let bits = |v: &[Vec<f32>]| v.iter().map(|g| g.iter().map(|x| x.to_bits()).collect::<Vec<_>>()).collect::<Vec<_>>();
+    let (cpu_linked, _) = grads_on(&cpu(), true);
+    assert_eq!(bits(&cpu_linked), bits(&grads_on(&cpu(), false).0), "the CPU's linked layers change no bit");
+    let ((linked, counts), (unlinked, counts_unlinked)) = (grads_on(&gpu, true), grads_on(&gpu, false));
+    assert_eq!(bits(&linked), bits(&unlinked), "the GPU's linked layers change no bit");
+    for (k, (g, c)) in linked.iter().zip(&cpu_linked).enumerate() {
+        let worst = g.iter().zip(c).map(|(a, b)| (a - b).abs() / (1.0 + b.abs())).fold(0.0f32, f32::max);
+        assert!(worst < 1e-4, "gradient {k} (x, then W, b per layer) differs from the CPU's by {worst}");
+        assert!(g.iter().any(|v| *v != 0.0), "gradient {k} is not all zeros");
+    }
+    let kernels = |c: &GpuCounts, name: &str| c.by_source.get(&(Event::Kernel, format!("dextrain:{name}"))).copied().unwrap_or(0);
+    // three layers: ∂x of the two after an ELU layer and of the first (the input is tracked), ∂W
+    // with ∂b of each; ELU's gradient in the products
+    assert_eq!((kernels(&counts, "elu_backward"), kernels(&counts_unlinked, "elu_backward")), (0, 2), "ELU's gradient kernels, linked and not");
+    assert_eq!(kernels(&counts, "matmul"), 6, "one product per layer for ∂W and ∂b, one for ∂x: {counts:?}");
+    assert_eq!(kernels(&counts, "column_sums"), 0, "the bias gradients come out of the weight gradients' products");
+    assert_eq!(counts.total(Event::Kernel) + 2, counts_unlinked.total(Event::Kernel), "two kernels fewer than the unlinked layers'");
 }
 
 /// An MLP's forward pass for acting in one kernel (`learn::kernels::mlp_forward`, on the GPU) gives

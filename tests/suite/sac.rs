@@ -418,8 +418,10 @@ fn sac_state_restores_a_learner_that_continues_exactly() {
 /// `mlp_forward.wgsl`; 246 before ELU's forward pass after the critics' LayerNorm was one kernel
 /// of ours, where the tensor ops were five; 198 before the optimiser's steps ran three kernels over
 /// all their parameters where each was two a parameter and one more — on lavapipe, which binds 32
-/// storage buffers per kernel, the critics' step runs in groups of six parameters).
-const PINNED_SAC_KERNELS_PER_GRADIENT_STEP: u64 = 177;
+/// storage buffers per kernel, the critics' step runs in groups of six parameters); 177 before each
+/// dense layer's weight and bias gradients were one product and the actor's ELU gradients went
+/// into its layers' input gradient products).
+const PINNED_SAC_KERNELS_PER_GRADIENT_STEP: u64 = 166;
 
 #[test]
 fn the_wgpu_sac_learner_matches_the_cpu_learner() {

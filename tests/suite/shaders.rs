@@ -128,9 +128,13 @@ fn pod_structs_match_their_wgsl_twins() {
         let tile = v.label();
         assert!(!src.contains('$'), "{tile}: a template marker left in matmul.wgsl");
         let mm = validate(&src);
-        check(&mm, "MatmulCfg", size_of::<MatmulCfg>(), rust_fields!(MatmulCfg; m, n, k, batches, a_row, a_col, a_batch, b_row, b_col, b_batch, c_batch, k_splits, k_chunk, epilogue, _pad1, _pad2));
+        check(&mm, "MatmulCfg", size_of::<MatmulCfg>(), rust_fields!(MatmulCfg; m, n, k, batches, a_row, a_col, a_batch, b_row, b_col, b_batch, c_batch, k_splits, k_chunk, epilogue, ones_row, _pad2));
     }
     assert_eq!(size_of::<MatmulCfg>() % 16, 0);
+    // the sums of a split product's partials (a module of its own)
+    use dextrain::learn::kernels::wgsl_matmul::{SumSplitsCfg, sum_splits_source};
+    let ss = validate(&sum_splits_source(()));
+    check(&ss, "SumSplitsCfg", size_of::<SumSplitsCfg>(), rust_fields!(SumSplitsCfg; len_c, len_s, splits, row));
 }
 
 #[test]
@@ -349,13 +353,13 @@ fn table(bindings: &[dextrain::gpu::bindings::Binding]) -> Vec<(u32, u32, String
 
 #[test]
 fn binding_tables_match_the_wgsl_globals() {
-    use dextrain::gpu::bindings::{AL_GROUP, BindingSpace, COLLIDERS, CS_GROUP, ELU_FORWARD_GROUP, ELU_GROUP, GAE_GROUP, LN_GROUP, LNB_GROUP, LS_GROUP, MM_GROUP, NOISE_GROUP, NORM_GROUP, PL_BACKWARD_FINISH_GROUP, PL_BACKWARD_GROUP, PL_FINISH_GROUP, PL_ROWS_GROUP, REF_CFG, REF_FRAMES, RG_GROUP, RW_GROUP, SIM_GROUP, SL_BACKWARD_GROUP, SL_FINISH_GROUP, SL_ROWS_GROUP, SQ_GROUP, SQB_GROUP, SR_GROUP, ST_GROUP, TASK_GROUP};
+    use dextrain::gpu::bindings::{AL_GROUP, BindingSpace, COLLIDERS, CS_GROUP, ELU_FORWARD_GROUP, ELU_GROUP, GAE_GROUP, LN_GROUP, LNB_GROUP, LS_GROUP, MM_GROUP, NOISE_GROUP, NORM_GROUP, PL_BACKWARD_FINISH_GROUP, PL_BACKWARD_GROUP, PL_FINISH_GROUP, PL_ROWS_GROUP, REF_CFG, REF_FRAMES, RG_GROUP, RW_GROUP, SIM_GROUP, SL_BACKWARD_GROUP, SL_FINISH_GROUP, SL_ROWS_GROUP, SQ_GROUP, SQB_GROUP, SR_GROUP, SS_GROUP, ST_GROUP, TASK_GROUP};
     use dextrain::learn::kernels::ppo_loss::ppo_loss_source;
     use dextrain::learn::kernels::sac_loss::sac_loss_source;
     let noise = dextrain::gpu::shaders::noise_shader_source();
     let norm = dextrain::gpu::shaders::SHADER_NORMALIZER.to_string();
     let matmul = dextrain::learn::kernels::wgsl_matmul::shader_source(dextrain::learn::kernels::wgsl_matmul::Variant::scalar(dextrain::learn::kernels::wgsl_matmul::Tile::LARGE));
-    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (norm, NORM_GROUP), (matmul, MM_GROUP), (dextrain::learn::kernels::elu::elu_backward_source(()), ELU_GROUP), (dextrain::learn::kernels::elu::elu_forward_source(()), ELU_FORWARD_GROUP), (dextrain::learn::kernels::replay_sample::gather_source(()), RG_GROUP), (dextrain::learn::kernels::replay_sample::window_source(()), RW_GROUP), (dextrain::learn::kernels::row_sums::column_sums_source(()), CS_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_forward_source(()), LN_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_backward_source(()), LNB_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_source(()), SQ_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_backward_source(()), SQB_GROUP), (ppo_loss_source(0), PL_ROWS_GROUP), (ppo_loss_source(1), PL_FINISH_GROUP), (ppo_loss_source(2), PL_BACKWARD_GROUP), (ppo_loss_source(3), PL_BACKWARD_FINISH_GROUP), (sac_loss_source(0), SL_ROWS_GROUP), (sac_loss_source(1), SL_FINISH_GROUP), (sac_loss_source(2), SL_BACKWARD_GROUP), (dextrain::learn::kernels::adaptive_lr::adaptive_lr_source(()), AL_GROUP), (dextrain::learn::kernels::standardize::standardize_source(()), ST_GROUP), (dextrain::learn::kernels::ppo_rollout::step_reward_source(()), SR_GROUP), (dextrain::learn::kernels::ppo_rollout::gae_source(()), GAE_GROUP), (dextrain::run::device_loop::loop_sums_source(()), LS_GROUP)] {
+    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (norm, NORM_GROUP), (matmul, MM_GROUP), (dextrain::learn::kernels::elu::elu_backward_source(()), ELU_GROUP), (dextrain::learn::kernels::elu::elu_forward_source(()), ELU_FORWARD_GROUP), (dextrain::learn::kernels::replay_sample::gather_source(()), RG_GROUP), (dextrain::learn::kernels::replay_sample::window_source(()), RW_GROUP), (dextrain::learn::kernels::row_sums::column_sums_source(()), CS_GROUP), (dextrain::learn::kernels::wgsl_matmul::sum_splits_source(()), SS_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_forward_source(()), LN_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_backward_source(()), LNB_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_source(()), SQ_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_backward_source(()), SQB_GROUP), (ppo_loss_source(0), PL_ROWS_GROUP), (ppo_loss_source(1), PL_FINISH_GROUP), (ppo_loss_source(2), PL_BACKWARD_GROUP), (ppo_loss_source(3), PL_BACKWARD_FINISH_GROUP), (sac_loss_source(0), SL_ROWS_GROUP), (sac_loss_source(1), SL_FINISH_GROUP), (sac_loss_source(2), SL_BACKWARD_GROUP), (dextrain::learn::kernels::adaptive_lr::adaptive_lr_source(()), AL_GROUP), (dextrain::learn::kernels::standardize::standardize_source(()), ST_GROUP), (dextrain::learn::kernels::ppo_rollout::step_reward_source(()), SR_GROUP), (dextrain::learn::kernels::ppo_rollout::gae_source(()), GAE_GROUP), (dextrain::run::device_loop::loop_sums_source(()), LS_GROUP)] {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other
         assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu/bindings.rs (right)", group.shader);
@@ -408,6 +412,25 @@ fn the_optimiser_s_kernels_bind_what_they_are_given() {
     // the per-parameter roles: the gradients alone for the norm's slices, four per parameter for
     // the update, five with the Polyak targets
     assert_eq!([storage_bindings(AdamEntry::NormPartial, 17), storage_bindings(AdamEntry::NormFinal, 1), storage_bindings(AdamEntry::Update, 17), storage_bindings(AdamEntry::UpdatePolyak, 17)], [18, 3, 70, 87]);
+}
+
+/// The row blocks' stacking kernel (`kernels::cat_rows`, a template) over 1, 2 and 31 parts: valid
+/// WGSL with a storage binding per part, then the output, then the launch's constants, every one
+/// used by its entry point in that order (the order the launch passes the tensors).
+#[test]
+fn the_row_stacking_kernel_binds_its_parts_then_its_output() {
+    use dextrain::gpu::bindings::BindingSpace;
+    use dextrain::learn::kernels::cat_rows::shader_source;
+    for group in [1u32, 2, 31] {
+        let src = shader_source(group);
+        assert!(!src.contains('$'), "{group} parts: a template marker left");
+        let (declared, used) = wgsl_bindings(&src);
+        let want: Vec<u32> = (0..=group + 1).collect();
+        assert_eq!(declared.iter().map(|d| d.1).collect::<Vec<_>>(), want, "{group} parts: {declared:?}");
+        assert_eq!(declared[group as usize].2, "cat_out", "{group} parts: the output after the parts");
+        assert!(declared[..=group as usize].iter().all(|d| d.3 == BindingSpace::StorageReadWrite) && declared[group as usize + 1].3 == BindingSpace::Uniform, "{group} parts: {declared:?}");
+        assert_eq!(used, vec![("cat_rows".to_string(), want.clone())], "{group} parts");
+    }
 }
 
 /// The simulator step's workgroup size by batch (`step_workgroup_size`): the largest size that

@@ -371,8 +371,12 @@ const PINNED_KERNELS_PER_STEP: f64 = 17.75;
 /// the critic's value of the state after the rollout was one kernel, 1,352 before each optimiser
 /// step ran adam.wgsl's kernels over groups of parameters (on lavapipe, which binds 32 storage
 /// buffers per kernel, groups of six: 7 kernels a step for this run's 13 parameters where they
-/// were 28; 3 on a device that binds 5 × 13 + 2 = 67, as the hardware GPUs do).
-const PINNED_KERNELS_PER_UPDATE: f64 = 932.0;
+/// were 28; 3 on a device that binds 5 × 13 + 2 = 67, as the hardware GPUs do), 932 before each
+/// layer's weight and bias gradients were one product and ELU's gradient went into the input
+/// gradient's product of the layer after it (10 kernels a minibatch fewer for two 3-layer nets),
+/// 732 before the rollout's steps were stacked by a kernel of ours per tensor (`cat_rows`: 7 where
+/// burn's cat launched 7 × 4).
+const PINNED_KERNELS_PER_UPDATE: f64 = 711.0;
 
 /// SAC with its replay buffer on the GPU (lavapipe in CI): the device-resident run gives the host
 /// path's run to float rounding (every metric, every policy value), its host traffic per iteration

@@ -34,7 +34,7 @@ pub(crate) fn elu_ops<B: Backend>(x: FloatTensor<B>) -> FloatTensor<B> {
 
 /// `∂L/∂x` from `y = ELU(x)` and `∂L/∂y` as tensor ops of `B`: `grad · (1 − relu(−y))` (= grad for
 /// y > 0, grad · (y + 1) = grad · eˣ otherwise).
-fn elu_backward_ops<B: Backend>(y: FloatTensor<B>, grad: FloatTensor<B>) -> FloatTensor<B> {
+pub(crate) fn elu_backward_ops<B: Backend>(y: FloatTensor<B>, grad: FloatTensor<B>) -> FloatTensor<B> {
     let slope = B::float_add_scalar(B::float_neg(B::relu(B::float_neg(y))), 1.0f64.into());
     B::float_mul(grad, slope)
 }

@@ -277,6 +277,14 @@ pub fn matmul_then(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, epilogue: E
     crate::learn::kernels::wgsl_matmul::matmul_then(lhs, rhs, tile, epilogue).ok()
 }
 
+/// `lhs · rhs` and `1ᵀ rhs` (rhs's column sums) in one product, where the chosen routine is
+/// dextrain's kernel and it takes the operands (`wgsl_matmul::matmul_and_column_sums`); None
+/// otherwise.
+pub fn matmul_and_column_sums(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>) -> Option<(FloatTensor<Cube>, FloatTensor<Cube>)> {
+    let tile = chosen().ours()?;
+    crate::learn::kernels::wgsl_matmul::matmul_and_column_sums(lhs, rhs, tile).ok()
+}
+
 /// burn's own product, for one the chosen routine did not take (counted in [`fallbacks`]).
 fn fall_back(lhs: FloatTensor<Cube>, rhs: FloatTensor<Cube>) -> FloatTensor<Cube> {
     FALLBACKS.fetch_add(1, Ordering::Relaxed);

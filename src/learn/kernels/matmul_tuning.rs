@@ -35,8 +35,10 @@ pub struct ShapeKey {
     pub b_strides: [u32; 3],
     /// Splits over k (1: none).
     pub splits: u32,
-    /// matmul.wgsl's epilogue code (0: none, 1: bias, 2: bias and ELU).
+    /// matmul.wgsl's epilogue code (0: none, 1: bias, 2: bias and ELU, 3: ELU's gradient).
     pub epilogue: u32,
+    /// Whether A is read with a row of ones (its sums a second output).
+    pub ones_row: bool,
     /// Whether vec4 reads were among the candidates.
     pub vector_reads: bool,
 }
@@ -129,7 +131,7 @@ pub fn report() -> serde_json::Value {
             let rule_us = r.micros.iter().find(|(v, _)| *v == r.rule).map(|(_, us)| *us);
             let chosen_us = r.micros.iter().find(|(v, _)| *v == r.chosen).map(|(_, us)| *us);
             json!({
-                "m": m, "n": n, "k": k, "batches": batches, "splits": r.key.splits, "epilogue": r.key.epilogue, "vector_reads": r.key.vector_reads,
+                "m": m, "n": n, "k": k, "batches": batches, "splits": r.key.splits, "epilogue": r.key.epilogue, "ones_row": r.key.ones_row, "vector_reads": r.key.vector_reads,
                 "a_strides": r.key.a_strides, "b_strides": r.key.b_strides,
                 "rule": r.rule.label(), "chosen": r.chosen.label(), "rule_us": rule_us, "chosen_us": chosen_us,
                 "us": r.micros.iter().map(|(v, us)| (v.label(), json!(us))).collect::<serde_json::Map<_, _>>(),

@@ -26,12 +26,15 @@
 //! - `mlp_forward.rs`: an MLP's forward pass for acting as one kernel on the GPU
 //!   (shaders/mlp_forward.wgsl; the per-layer products' values bit for bit);
 //! - `row_sums.rs`: sums over the batch's rows in two stages on the GPU (losses, ∂b, ∂ log σ);
+//! - `cat_rows.rs`: row blocks stacked into one tensor (a PPO rollout's steps) in a few kernels of
+//!   ours on the GPU (shaders/cat_rows.wgsl), where burn's cat launches one per block;
 //! - `fused_adam.rs`: Adam with global-norm clipping as kernels of ours on the GPU
 //!   (shaders/adam.wgsl); `fused_normalizer.rs`: the device-resident observation normalisers
 //!   (shaders/normalizer.wgsl).
 
 pub mod adaptive_lr;
 pub mod affine;
+pub mod cat_rows;
 pub mod elu;
 pub mod fused_adam;
 pub mod fused_normalizer;

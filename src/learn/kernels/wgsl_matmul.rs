@@ -216,9 +216,13 @@ pub struct MatmulCfg {
     pub k_splits: u32,
     pub k_chunk: u32,
     pub epilogue: u32,
-    pub _pad1: u32,
+    /// A's row of ones (its last; C's row there goes to the bias binding), or [`NO_ONES_ROW`].
+    pub ones_row: u32,
     pub _pad2: u32,
 }
+
+/// `MatmulCfg::ones_row` of a product without one.
+pub const NO_ONES_ROW: u32 = u32::MAX;
 
 /// matmul.wgsl for `variant`: the template with the shape's numbers, the unrolled accumulation and
 /// the operands' reads.
@@ -259,7 +263,7 @@ pub fn shader_source(variant: Variant) -> String {
         for h in 0..col_groups {
             store += &format!("        c = col0 + ({h}u * TX + tx) * 4u;\n");
             for (j, l) in lane.iter().enumerate() {
-                store += &format!("        if c + {j}u < mc.n {{ mm_c[c_base + r * mc.n + c + {j}u] = finish(c{row}_{h}.{l}, c + {j}u); }}\n");
+                store += &format!("        if c + {j}u < mc.n {{ put(c_base, wg.z, r, c + {j}u, c{row}_{h}.{l}); }}\n");
             }
         }
         store += "    }\n";
@@ -350,7 +354,10 @@ fn load_blocks(variant: Variant) -> LoadBlocks {
                     (_, Loads::Vec4AlongK) => f += &format!("{indent}    let r = col0 + e / (BK / 4u);\n{indent}    let k = {k0} + (e % (BK / 4u)) * 4u;\n{indent}    let at = (b_base + k + r * mc.b_col) / 4u; // B[k .. k + 4, r]\n"),
                     _ => f += &format!("{indent}    let r = col0 + (e % (BN / 4u)) * 4u;\n{indent}    let k = {k0} + e / (BN / 4u);\n{indent}    let at = (b_base + k * mc.b_row + r) / 4u; // B[k, r .. r + 4]\n"),
                 }
-                f += &format!("{indent}    if r < {limit} && k < k_end {{\n{indent}        {reg}{q} = mm_{op}[at];\n{indent}    }} else {{\n{indent}        {reg}{q} = vec4<f32>(0.0);\n{indent}    }}\n{indent}}}\n");
+                // A's row of ones (a multiple of 4 where A is read as vec4s: `Planned::vector_variant`)
+                // is a vec4 of ones: four k of the row, or the row and three past C's last
+                let ones = if op == 'a' { format!("{indent}    if r == mc.ones_row && k < k_end {{\n{indent}        {reg}{q} = vec4<f32>(1.0);\n{indent}    }} else ") } else { format!("{indent}    ") };
+                f += &format!("{ones}if r < {limit} && k < k_end {{\n{indent}        {reg}{q} = mm_{op}[at];\n{indent}    }} else {{\n{indent}        {reg}{q} = vec4<f32>(0.0);\n{indent}    }}\n{indent}}}\n");
             }
             f
         };
@@ -374,7 +381,8 @@ fn load_blocks(variant: Variant) -> LoadBlocks {
     out
 }
 
-/// What the kernel does to C's entries after the product (matmul.wgsl's `epilogue`).
+/// What the kernel does besides the product (matmul.wgsl's `epilogue` on C's entries, or its row
+/// of ones).
 #[derive(Clone, Copy, Debug)]
 pub enum Epilogue<'a> {
     /// C = A · B.
@@ -383,24 +391,39 @@ pub enum Epilogue<'a> {
     Bias(&'a FloatTensor<Cube>),
     /// C = ELU(A · B + b), α = 1 (a hidden layer with its activation).
     BiasElu(&'a FloatTensor<Cube>),
+    /// C = (A · B) · min(y + 1, 1) for y [M, N] contiguous: ELU's gradient (α = 1) through a
+    /// layer's output y, applied to the input gradient g Wᵀ of the layer after it
+    /// (elu_backward.wgsl's expression: the same bits as the product then that kernel).
+    EluGrad(&'a FloatTensor<Cube>),
+    /// C = A · B and, a second output, 1ᵀ B [1, N] (B's column sums): A read with a row of ones
+    /// after its last, C's entries there written apart. A dense layer's weight and bias gradients,
+    /// xᵀ g and 1ᵀ g, in one product ([`matmul_and_column_sums`]).
+    ColumnSums,
 }
 
 impl<'a> Epilogue<'a> {
-    /// The bias it adds, if any.
-    fn bias(self) -> Option<&'a FloatTensor<Cube>> {
+    /// The tensor it reads at the bias binding (a bias, or ELU's output), if any.
+    fn operand(self) -> Option<&'a FloatTensor<Cube>> {
         match self {
-            Epilogue::None => None,
-            Epilogue::Bias(b) | Epilogue::BiasElu(b) => Some(b),
+            Epilogue::None | Epilogue::ColumnSums => None,
+            Epilogue::Bias(b) | Epilogue::BiasElu(b) | Epilogue::EluGrad(b) => Some(b),
         }
     }
 
-    /// matmul.wgsl's code for it.
-    fn code(self) -> u32 {
+    /// matmul.wgsl's code for what it does to C's entries (0 for the row of ones: C's entries
+    /// are the product's).
+    pub fn code(self) -> u32 {
         match self {
-            Epilogue::None => 0,
+            Epilogue::None | Epilogue::ColumnSums => 0,
             Epilogue::Bias(_) => 1,
             Epilogue::BiasElu(_) => 2,
+            Epilogue::EluGrad(_) => 3,
         }
+    }
+
+    /// Whether A is read with a row of ones.
+    pub fn ones_row(self) -> bool {
+        matches!(self, Epilogue::ColumnSums)
     }
 }
 
@@ -437,6 +460,7 @@ pub enum TileChoice {
 
 /// A product planned for the kernel: its launch constants, tile rule and splits over k.
 struct Planned {
+    /// C's rows as the kernel counts them (A's rows, and its row of ones where it has one).
     m: usize,
     n: usize,
     batches: usize,
@@ -455,13 +479,23 @@ impl Planned {
         let (([m, k], [a_row, a_col, a_batch], a_batches), ([k2, n], [b_row, b_col, b_batch], b_batches)) = (strides_of(lhs)?, strides_of(rhs)?);
         ensure!(k == k2 && (a_batches == b_batches || a_batches == 1 || b_batches == 1), "matmul.wgsl: shapes do not multiply");
         let batches = a_batches.max(b_batches);
-        if let Some(b) = epilogue.bias() {
-            let (shape, strides) = (b.meta.shape().to_vec(), b.meta.strides().to_vec());
-            let columns_ok = shape.last() == Some(&n) && strides.last() == Some(&1) && shape.iter().rev().skip(1).all(|&d| d == 1);
-            ensure!(b.dtype == DType::F32 && columns_ok && batches == 1, "matmul.wgsl: a bias of shape {shape:?} for {n} columns");
+        match epilogue {
+            Epilogue::Bias(b) | Epilogue::BiasElu(b) => {
+                let (shape, strides) = (b.meta.shape().to_vec(), b.meta.strides().to_vec());
+                let columns_ok = shape.last() == Some(&n) && strides.last() == Some(&1) && shape.iter().rev().skip(1).all(|&d| d == 1);
+                ensure!(b.dtype == DType::F32 && columns_ok && batches == 1, "matmul.wgsl: a bias of shape {shape:?} for {n} columns");
+            }
+            Epilogue::EluGrad(y) => {
+                let (shape, strides) = (y.meta.shape().to_vec(), y.meta.strides().to_vec());
+                ensure!(y.dtype == DType::F32 && shape == [m, n] && strides == [n, 1] && batches == 1, "matmul.wgsl: ELU's output of shape {shape:?} (strides {strides:?}) for a [{m}, {n}] product");
+            }
+            Epilogue::ColumnSums => ensure!(batches == 1, "matmul.wgsl: column sums of a batched product"),
+            Epilogue::None => {}
         }
-        // with an epilogue, unsplit (it applies to the sums)
-        let (rule_tile, splits, k_chunk) = if epilogue.bias().is_some() {
+        // A's rows as the kernel counts them: its row of ones after its last
+        let (a_rows, m) = (m, m + usize::from(epilogue.ones_row()));
+        // with an epilogue on C's entries, unsplit (it applies to the sums)
+        let (rule_tile, splits, k_chunk) = if epilogue.code() != 0 {
             (forced.unwrap_or_else(|| Tile::for_product(m, n, batches)), 1, k.max(1))
         } else {
             plan(m, n, k, batches, forced)
@@ -483,11 +517,11 @@ impl Planned {
             b_row: fits(b_row)?,
             b_col: fits(b_col)?,
             b_batch: fits(b_batch)?,
-            c_batch: fits(m * n)?,
+            c_batch: fits(a_rows * n)?,
             k_splits: fits(splits)?,
             k_chunk: fits(k_chunk)?,
             epilogue: epilogue.code(),
-            _pad1: 0,
+            ones_row: if epilogue.ones_row() { fits(a_rows)? } else { NO_ONES_ROW },
             _pad2: 0,
         };
         let planned = Planned { m, n, batches, rule_tile, splits, cfg };
@@ -501,13 +535,21 @@ impl Planned {
         (gx <= 65_535 && gy <= 65_535 && gz <= 65_535).then_some([gx as u32, gy as u32, gz as u32])
     }
 
-    /// The output the kernel writes whole: [(S,) M, N], or the partials [splits, M, N].
-    fn output(&self, lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>) -> FloatTensor<Cube> {
-        if self.splits == 1 {
+    /// A's rows (C's, less the row of ones where A has one).
+    fn a_rows(&self) -> usize {
+        self.cfg.c_batch as usize / self.n
+    }
+
+    /// The outputs the kernel writes whole: C [(S,) M, N], or the partials [splits, M, N]; and
+    /// with a row of ones its sums [splits, N].
+    fn outputs(&self, lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>) -> (FloatTensor<Cube>, Option<FloatTensor<Cube>>) {
+        let c = if self.splits == 1 {
             init_matmul_output(lhs, rhs, DType::F32)
         } else {
-            Cube::float_empty(Shape::new([self.splits, self.m, self.n]), &lhs.device, FloatDType::F32)
-        }
+            Cube::float_empty(Shape::new([self.splits, self.a_rows(), self.n]), &lhs.device, FloatDType::F32)
+        };
+        let sums = (self.cfg.ones_row != NO_ONES_ROW).then(|| Cube::float_empty(Shape::new([self.splits, self.n]), &lhs.device, FloatDType::F32));
+        (c, sums)
     }
 
     /// How `tile` may read A and B: as vec4s along the operand's contiguous dimension where its
@@ -522,7 +564,7 @@ impl Planned {
             Loads::Scalar
         } else if c.a_col == 1 && four(c.k) && four(c.k_chunk) && four(c.a_row) && four(c.a_batch) {
             Loads::Vec4AlongK
-        } else if c.a_row == 1 && four(c.m) && four(c.a_col) && four(c.a_batch) {
+        } else if c.a_row == 1 && four(self.a_rows() as u32) && four(c.a_col) && four(c.a_batch) {
             Loads::Vec4Across
         } else {
             Loads::Scalar
@@ -553,24 +595,68 @@ impl Planned {
         out
     }
 
-    /// Launches the kernel as `variant` into `out` (a tile [`Planned::grid`] takes).
-    fn launch(&self, variant: Variant, lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, out: &FloatTensor<Cube>, epilogue: Epilogue<'_>) {
+    /// Launches the kernel as `variant` into `out` and, with a row of ones, `sums` (a tile
+    /// [`Planned::grid`] takes).
+    fn launch(&self, variant: Variant, lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, (out, sums): (&FloatTensor<Cube>, Option<&FloatTensor<Cube>>), epilogue: Epilogue<'_>) {
         let tile = variant.tile;
         let groups = self.grid(tile).expect("a tile whose grid fits");
         let (tx, ty) = tile.threads();
         let kernel = WgslKernel { name: "dextrain_matmul", key: variant, source: shader_source, entry_point: ENTRY_POINT, workgroup: [tx as u32, ty as u32] };
         // (counted by gpu_counts' launch observer as `dextrain:matmul`)
         let constants: &[u32] = bytemuck::cast_slice(std::slice::from_ref(&self.cfg));
-        launch(kernel, groups, &[lhs, rhs, out, epilogue.bias().unwrap_or(lhs)], constants); // (the bias is read only with an epilogue)
+        // binding 3: the epilogue's operand, or the sums of the row of ones (else unused)
+        let third = sums.or(epilogue.operand()).unwrap_or(lhs);
+        launch(kernel, groups, &[lhs, rhs, out, third], constants);
     }
 
-    /// The product from the kernel's output: the partials summed where split.
-    fn finish(&self, out: FloatTensor<Cube>) -> FloatTensor<Cube> {
+    /// The product, and the sums of the row of ones, from the kernel's outputs: the partials
+    /// summed where split (one kernel of ours for both, [`sum_splits`]).
+    fn finish(&self, (out, sums): (FloatTensor<Cube>, Option<FloatTensor<Cube>>)) -> (FloatTensor<Cube>, Option<FloatTensor<Cube>>) {
         if self.splits == 1 {
-            return out;
+            return (out, sums.map(|s| Cube::float_reshape(s, Shape::new([1, self.n]))));
         }
-        Cube::float_reshape(Cube::float_sum_dim(out, 0), Shape::new([self.m, self.n])) // Σ_s partial_s: [M, N]
+        let (c, s) = sum_splits(&out, sums.as_ref(), self.splits);
+        (Cube::float_reshape(c, Shape::new([self.a_rows(), self.n])), s.map(|s| Cube::float_reshape(s, Shape::new([1, self.n]))))
     }
+}
+
+/// shaders/sum_splits.wgsl.
+const SHADER_SUM_SPLITS: &str = include_str!("../../../shaders/sum_splits.wgsl");
+
+/// The text of shaders/sum_splits.wgsl (the kernel has one variant).
+pub fn sum_splits_source(_: ()) -> String {
+    SHADER_SUM_SPLITS.to_string()
+}
+
+/// `SumSplitsCfg` of sum_splits.wgsl (keep in sync).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SumSplitsCfg {
+    /// Entries of one partial product.
+    pub len_c: u32,
+    /// Entries of one partial of the row of ones' sums (0: none).
+    pub len_s: u32,
+    /// Partials.
+    pub splits: u32,
+    /// Entries per row of the launch's 2-D grid (workgroups along x × 256).
+    pub row: u32,
+}
+
+/// The partials of a product split over k, [S, M, N], and of its row of ones' sums, [S, N],
+/// each summed over S in increasing s from 0 → ([M · N], [N]) in one kernel of ours.
+fn sum_splits(partials: &FloatTensor<Cube>, sums: Option<&FloatTensor<Cube>>, splits: usize) -> (FloatTensor<Cube>, Option<FloatTensor<Cube>>) {
+    use burn::backend::TensorMetadata;
+    let len_c = partials.shape().num_elements() / splits;
+    let len_s = sums.map_or(0, |s| s.shape().num_elements() / splits);
+    let c = Cube::float_empty(Shape::new([len_c]), &partials.device, FloatDType::F32); // written whole below
+    let s = sums.map(|_| Cube::float_empty(Shape::new([len_s]), &partials.device, FloatDType::F32));
+    let count = (len_c + len_s) as u32; // (Planned::new checked M · N · S under 2^32)
+    let (gx, gy) = crate::gpu::shaders::workgroups_of(count, 256);
+    let kernel = WgslKernel { name: "dextrain_sum_splits", key: (), source: sum_splits_source, entry_point: "sum_splits", workgroup: [256, 1] };
+    let cfg = SumSplitsCfg { len_c: len_c as u32, len_s: len_s as u32, splits: splits as u32, row: gx * 256 };
+    // (without sums, the partials stand in at their bindings, never read or written there)
+    launch(kernel, [gx, gy, 1], &[partials, sums.unwrap_or(partials), &c, s.as_ref().unwrap_or(&c)], bytemuck::cast_slice(std::slice::from_ref(&cfg)));
+    (c, s)
 }
 
 /// `lhs · rhs` for f32 lhs [(S,) M, K], rhs [(S,) K, N] (any strides) with matmul.wgsl in the
@@ -585,25 +671,41 @@ pub fn matmul(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, choice: TileChoi
 /// layer `x W + b`, or with its ELU, in one kernel. The bias must be f32 [1, N] or [N] with
 /// contiguous columns.
 pub fn matmul_then(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, choice: TileChoice, epilogue: Epilogue<'_>) -> Result<FloatTensor<Cube>> {
+    ensure!(!epilogue.ones_row(), "matmul.wgsl: column sums are a second output (matmul_and_column_sums)");
+    Ok(run(lhs, rhs, choice, epilogue)?.0)
+}
+
+/// `lhs · rhs` [M, N] and `1ᵀ rhs` [1, N] (rhs's column sums) in one launch of the kernel (and,
+/// split over k, one of [`sum_splits`]): a dense layer's weight gradient xᵀ g and bias gradient
+/// 1ᵀ g, lhs = xᵀ, rhs = g ([`Epilogue::ColumnSums`]). Each sum adds the rows in increasing k with
+/// fused multiply-adds by 1 (plain additions), per split, then the splits in order.
+pub fn matmul_and_column_sums(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, choice: TileChoice) -> Result<(FloatTensor<Cube>, FloatTensor<Cube>)> {
+    let (c, sums) = run(lhs, rhs, choice, Epilogue::ColumnSums)?;
+    Ok((c, sums.ok_or_else(|| anyhow!("matmul.wgsl: no column sums written"))?))
+}
+
+/// The product with `epilogue`, in the tile `choice` gives: C, and the row of ones' sums where
+/// the epilogue asks for them.
+fn run(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, choice: TileChoice, epilogue: Epilogue<'_>) -> Result<(FloatTensor<Cube>, Option<FloatTensor<Cube>>)> {
     let forced = match choice {
         TileChoice::Fixed(t) => Some(t),
         TileChoice::ByShape | TileChoice::Tuned { .. } => None,
     };
     let planned = Planned::new(lhs, rhs, forced, epilogue)?;
-    let out = planned.output(lhs, rhs);
+    let out = planned.outputs(lhs, rhs);
     let variant = match choice {
         TileChoice::Tuned { vector_reads } => {
             // (the candidates are listed only where the product is not tuned yet)
             let candidates = || planned.candidates(vector_reads);
             crate::learn::kernels::matmul_tuning::tuned_variant(&planned_key(&planned, vector_reads), Variant::scalar(planned.rule_tile), candidates, |v| {
-                planned.launch(v, lhs, rhs, &out, epilogue)
+                planned.launch(v, lhs, rhs, (&out.0, out.1.as_ref()), epilogue)
             }, || {
                 let _ = burn_cubecl::cubecl::future::block_on(lhs.client.sync()); // (a failure surfaces at the next read)
             })
         }
         TileChoice::ByShape | TileChoice::Fixed(_) => Variant::scalar(planned.rule_tile),
     };
-    planned.launch(variant, lhs, rhs, &out, epilogue);
+    planned.launch(variant, lhs, rhs, (&out.0, out.1.as_ref()), epilogue);
     Ok(planned.finish(out))
 }
 
@@ -615,12 +717,12 @@ pub fn candidate_variants(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, epil
 
 /// `lhs · rhs` (with `epilogue`) planned by shape ([`TileChoice::ByShape`]'s splits over k) but
 /// run as `variant` (one of [`candidate_variants`]): what [`TileChoice::Tuned`] times for each
-/// candidate (a test compares them).
-pub fn matmul_as_planned_in(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, variant: Variant, epilogue: Epilogue<'_>) -> Result<FloatTensor<Cube>> {
+/// candidate (a test compares them). C, and the row of ones' sums with [`Epilogue::ColumnSums`].
+pub fn matmul_as_planned_in(lhs: &FloatTensor<Cube>, rhs: &FloatTensor<Cube>, variant: Variant, epilogue: Epilogue<'_>) -> Result<(FloatTensor<Cube>, Option<FloatTensor<Cube>>)> {
     let planned = Planned::new(lhs, rhs, None, epilogue)?;
     ensure!(planned.candidates(true).contains(&variant), "matmul.wgsl: {} does not take this product", variant.label());
-    let out = planned.output(lhs, rhs);
-    planned.launch(variant, lhs, rhs, &out, epilogue);
+    let out = planned.outputs(lhs, rhs);
+    planned.launch(variant, lhs, rhs, (&out.0, out.1.as_ref()), epilogue);
     Ok(planned.finish(out))
 }
 
@@ -634,6 +736,7 @@ fn planned_key(p: &Planned, vector_reads: bool) -> crate::learn::kernels::matmul
         b_strides: [c.b_row, c.b_col, c.b_batch],
         splits: c.k_splits,
         epilogue: c.epilogue,
+        ones_row: c.ones_row != NO_ONES_ROW,
         vector_reads,
     }
 }

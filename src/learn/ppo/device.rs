@@ -170,13 +170,23 @@ impl Ppo {
         // GAE backwards in time (storage.rs's `gae`), one kernel of ours over the whole rollout:
         // δ_t = r_t + γ V(s_{t+1}) (1 − d_t) − V(s_t), A_t = δ_t + γλ (1 − d_t) A_{t+1}, R_t = A_t + V(s_t)
         let t_len = steps.len();
-        let cat = |f: &dyn Fn(&StepRecord) -> Tensor<2>| Tensor::cat(steps.iter().map(f).collect(), 0);
+        // the steps' tensors stacked: a few kernels of ours per tensor (kernels::cat_rows) where
+        // burn's cat launches one per step
+        let max_buffers = crate::learn::device::gpu_context_of(&self.device).map(|c| c.device.limits().max_storage_buffers_per_shader_stage);
+        let stack = |parts: Vec<Tensor<2>>| -> Tensor<2> {
+            match max_buffers.and_then(|m| crate::learn::kernels::cat_rows::cat_rows(&parts, m)) {
+                Some(all) if parts[0].is_autodiff() => all.autodiff(), // (as cat's: a constant of the autodiff device)
+                Some(all) => all,
+                None => Tensor::cat(parts, 0),
+            }
+        };
+        let cat = |f: &dyn Fn(&StepRecord) -> Tensor<2>| stack(steps.iter().map(f).collect());
         let reward_done = steps
             .iter()
             .enumerate()
             .map(|(t, s)| s.reward_done.clone().ok_or_else(|| anyhow::anyhow!("update_device(): step {t} of the rollout was never observed")))
             .collect::<Result<Vec<_>>>()?;
-        let reward_done = Tensor::cat(reward_done, 0); // [T·N, 2]
+        let reward_done = stack(reward_done); // [T·N, 2]
         let values = cat(&|s| s.values.clone()); // [T·N, 1]
         let adv = ppo_rollout::gae(&reward_done, &values, &last_values, t_len, gamma, lam)?; // [T·N, 1]
         let returns = adv.clone() + values.clone();
