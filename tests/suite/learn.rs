@@ -344,59 +344,77 @@ fn pass_through_student(adapt: dextrain::export::onnx::Adaptation, step_dim: usi
 /// lavapipe) and on the CPU backend: the updated parameters agree to float rounding, and so do the
 /// policy means of `act_mean` (normalised on the device on the GPU, on the host on the CPU), before
 /// and after the statistics change. On the GPU an inference uploads its rows alone while the
-/// statistics stand (they stay on the device), and the statistics again once they change.
+/// statistics stand (they stay on the device), and the statistics again once they change; the
+/// update gathers each epoch's rows once where every minibatch is then a view of them (its rows'
+/// bytes on the device's binding alignment: 64 envs), else each minibatch's (15 envs: a
+/// minibatch of 30 rows of 3 observations, 360 bytes, is off any alignment of 16 bytes or more).
 #[test]
 fn the_wgpu_learner_matches_the_cpu_learner() {
     use dextrain::gpu_counts::{Event, GpuCounts};
     let Some((_ctx, gpu)) = crate::common::wgpu_learner("the_wgpu_learner_matches_the_cpu_learner") else { return };
-    let (n, steps) = (16, 4);
-    let cfg = PpoConfig { minibatches: 2, epochs: 2, ..PpoConfig::default() };
-    let pol = PolicyConfig { actor_hidden: vec![16], critic_hidden: vec![16], ..PolicyConfig::default() };
-    let dims = Dims { obs: 3, priv_obs: 4, act: 2 };
-    let mut rng = Rng::new(9, 9);
-    let obs: Vec<f32> = (0..n * 3).map(|_| rng.normal() as f32).collect();
-    let priv_obs: Vec<f32> = (0..n * 4).map(|_| rng.normal() as f32).collect();
-    let rewards: Vec<f32> = (0..n).map(|_| rng.normal() as f32).collect();
-    let run = |device: Device| {
-        let mut ppo = Ppo::new(dims, n, steps, &cfg, &pol, &[], device, 5).unwrap();
-        let mut actions = Vec::new();
-        for _ in 0..steps {
-            actions.push(ppo.act(&obs, &priv_obs).unwrap());
-            ppo.process_step(&rewards, &vec![false; n], &vec![false; n]);
-        }
-        let stats = ppo.update(&priv_obs).unwrap();
-        // inferences: the statistics as they stand (twice), then after another batch is merged;
-        // the uploads of the last two counted (from burn's `from_data` / as the rows)
-        let mut uploads = Vec::new();
-        for k in 0..3 {
-            if k == 2 {
-                ppo.obs_norm.update(&priv_obs[..n * 3]);
+    let align = to_tensor(vec![0.0], [1, 1], &gpu.clone().inner()).try_into_primitive::<burn::backend::Cube>().unwrap().client.properties().memory.alignment as usize;
+    assert!(align <= 256, "a binding alignment of {align} bytes");
+    for n in [15, 64] {
+        let steps = 4;
+        let cfg = PpoConfig { minibatches: 2, epochs: 2, ..PpoConfig::default() };
+        let pol = PolicyConfig { actor_hidden: vec![16], critic_hidden: vec![16], ..PolicyConfig::default() };
+        let dims = Dims { obs: 3, priv_obs: 4, act: 2 };
+        let mut rng = Rng::new(9, 9);
+        let obs: Vec<f32> = (0..n * 3).map(|_| rng.normal() as f32).collect();
+        let priv_obs: Vec<f32> = (0..n * 4).map(|_| rng.normal() as f32).collect();
+        let rewards: Vec<f32> = (0..n).map(|_| rng.normal() as f32).collect();
+        let run = |device: Device| {
+            let mut ppo = Ppo::new(dims, n, steps, &cfg, &pol, &[], device, 5).unwrap();
+            let mut actions = Vec::new();
+            for _ in 0..steps {
+                actions.push(ppo.act(&obs, &priv_obs).unwrap());
+                ppo.process_step(&rewards, &vec![false; n], &vec![false; n]);
             }
             let before = GpuCounts::now();
-            actions.push(ppo.act_mean(&obs, &priv_obs).unwrap());
-            let c = GpuCounts::now().since(&before);
-            uploads.push((c.total_from(Event::Upload, "burn:from_data"), c.total_from(Event::Upload, "dextrain:host rows")));
+            let stats = ppo.update(&priv_obs).unwrap();
+            let update = GpuCounts::now().since(&before);
+            // inferences: the statistics as they stand (twice), then after another batch is merged;
+            // the uploads of the last two counted (from burn's `from_data` / as the rows)
+            let mut uploads = Vec::new();
+            for k in 0..3 {
+                if k == 2 {
+                    ppo.obs_norm.update(&priv_obs[..n * 3]);
+                }
+                let before = GpuCounts::now();
+                actions.push(ppo.act_mean(&obs, &priv_obs).unwrap());
+                let c = GpuCounts::now().since(&before);
+                uploads.push((c.total_from(Event::Upload, "burn:from_data"), c.total_from(Event::Upload, "dextrain:host rows")));
+            }
+            (ppo.net.values().unwrap(), actions, stats, uploads, update)
+        };
+        let (p_cpu, a_cpu, s_cpu, _, _) = run(cpu());
+        let (p_gpu, a_gpu, s_gpu, uploads, update) = run(gpu.clone());
+        // the rows of a minibatch (n · steps / 2) in bytes of each gathered tensor (observations 3,
+        // the critic's 4, the loss's columns 2 · 2 + 4 wide) on the alignment: one gather per tensor
+        // and epoch, the minibatches views (no copy kernel); else one per tensor and minibatch
+        let per_epoch = [3, 4, 8].iter().all(|w| (n * steps / 2 * w * 4) % align == 0);
+        assert!(per_epoch == (n == 64) || align < 16, "{n} envs at an alignment of {align} bytes: per epoch {per_epoch}");
+        let select = |name: &str| update.by_source.iter().filter(|((e, s), _)| *e == Event::Kernel && s.starts_with(name)).map(|(_, c)| *c).sum::<u64>();
+        assert_eq!(select("burn:SelectKernel"), if per_epoch { 3 * 2 } else { 3 * 4 }, "{n} envs: gathers of the update: {update:?}");
+        // (the one slice: the update's statistics read back at its end)
+        assert!(!per_epoch || select("burn:SliceKernel") == 1, "{n} envs: no minibatch copied out of its epoch's rows: {update:?}");
+        assert_eq!(uploads[1..], [(0, 1), (1, 1)], "the rows alone while the statistics stand, the statistics again after a merge");
+        assert_eq!(a_gpu[steps], a_gpu[steps + 1], "the kept statistics normalise as the uploaded ones did");
+        assert!(a_cpu[steps + 2] != a_cpu[steps + 1], "the merge changed the statistics");
+        assert_eq!(a_cpu.len(), steps + 3);
+        for (x, y) in a_cpu.iter().flatten().zip(a_gpu.iter().flatten()) {
+            assert!((x - y).abs() < 1e-4, "sampled actions differ: {x} vs {y}");
         }
-        (ppo.net.values().unwrap(), actions, stats, uploads)
-    };
-    let (p_cpu, a_cpu, s_cpu, _) = run(cpu());
-    let (p_gpu, a_gpu, s_gpu, uploads) = run(gpu);
-    assert_eq!(uploads[1..], [(0, 1), (1, 1)], "the rows alone while the statistics stand, the statistics again after a merge");
-    assert_eq!(a_gpu[steps], a_gpu[steps + 1], "the kept statistics normalise as the uploaded ones did");
-    assert!(a_cpu[steps + 2] != a_cpu[steps + 1], "the merge changed the statistics");
-    assert_eq!(a_cpu.len(), steps + 3);
-    for (x, y) in a_cpu.iter().flatten().zip(a_gpu.iter().flatten()) {
-        assert!((x - y).abs() < 1e-4, "sampled actions differ: {x} vs {y}");
+        let mut worst = 0.0f32;
+        for (x, y) in p_cpu.iter().flatten().zip(p_gpu.iter().flatten()) {
+            worst = worst.max((x - y).abs());
+        }
+        assert!(worst < 1e-4, "parameters after one update differ by {worst}");
+        assert!((s_cpu.value - s_gpu.value).abs() < 1e-3 * (1.0 + s_cpu.value.abs()), "{s_cpu:?} vs {s_gpu:?}");
+        // the update did change the parameters
+        let fresh = Ppo::new(dims, n, steps, &cfg, &pol, &[], cpu(), 5).unwrap().net.values().unwrap();
+        assert!(fresh.iter().flatten().zip(p_cpu.iter().flatten()).any(|(a, b)| a != b));
     }
-    let mut worst = 0.0f32;
-    for (x, y) in p_cpu.iter().flatten().zip(p_gpu.iter().flatten()) {
-        worst = worst.max((x - y).abs());
-    }
-    assert!(worst < 1e-4, "parameters after one update differ by {worst}");
-    assert!((s_cpu.value - s_gpu.value).abs() < 1e-3 * (1.0 + s_cpu.value.abs()), "{s_cpu:?} vs {s_gpu:?}");
-    // the update did change the parameters
-    let fresh = Ppo::new(dims, n, steps, &cfg, &pol, &[], cpu(), 5).unwrap().net.values().unwrap();
-    assert!(fresh.iter().flatten().zip(p_cpu.iter().flatten()).any(|(a, b)| a != b));
 }
 
 /// The device-resident rollouts' parts on the wgpu device (lavapipe in CI) against their host

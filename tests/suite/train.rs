@@ -375,8 +375,9 @@ const PINNED_KERNELS_PER_STEP: f64 = 17.75;
 /// layer's weight and bias gradients were one product and ELU's gradient went into the input
 /// gradient's product of the layer after it (10 kernels a minibatch fewer for two 3-layer nets),
 /// 732 before the rollout's steps were stacked by a kernel of ours per tensor (`cat_rows`: 7 where
-/// burn's cat launched 7 × 4).
-const PINNED_KERNELS_PER_UPDATE: f64 = 711.0;
+/// burn's cat launched 7 × 4), 711 before each epoch's rows were gathered once and its minibatches
+/// taken as views of them (3 selects an epoch where there were 3 a minibatch).
+const PINNED_KERNELS_PER_UPDATE: f64 = 666.0;
 
 /// SAC with its replay buffer on the GPU (lavapipe in CI): the device-resident run gives the host
 /// path's run to float rounding (every metric, every policy value), its host traffic per iteration

@@ -664,16 +664,49 @@ impl Ppo {
         // backward pass, as spans of their own (inside the update's)
         let profile_ctx = crate::learn::device::gpu_context_of(dev);
         let profile_ctx = profile_ctx.as_ref();
+        // on a GPU each epoch's rows of the observations, the critic's and the loss's columns are
+        // gathered once (a select each) and a minibatch is a row range of them: a view of that
+        // memory, no kernel, where every range of the epoch starts and ends on the device's binding
+        // alignment (else burn's slice copies it, and each minibatch is gathered apart as before:
+        // a select per tensor and minibatch)
+        let alignment = columns.as_ref().and_then(|_| view_alignment(&all.obs));
+        let mut epoch_rows: Option<(usize, [Tensor<2>; 3])> = None; // (epoch, its gathered rows)
         for k in 0..count {
-            let idx = rows.clone().narrow(0, plan.starts[k], plan.starts[k + 1] - plan.starts[k]);
-            let pick = |t: &Tensor<2>| t.clone().select(0, idx.clone());
-            let (obs, priv_obs) = (pick(&all.obs), pick(&all.priv_obs));
+            let (from, len) = (plan.starts[k], plan.starts[k + 1] - plan.starts[k]);
+            // the minibatch's rows, taken where a tensor is gathered per minibatch
+            let idx = std::cell::OnceCell::new();
+            let pick = |t: &Tensor<2>| t.clone().select(0, idx.get_or_init(|| rows.clone().narrow(0, from, len)).clone());
+            let epoch = k / minibatches.max(1);
+            let (e_from, e_to) = (plan.starts[epoch * minibatches], plan.starts[((epoch + 1) * minibatches).min(count)]);
+            let from_epoch = match (&columns, alignment) {
+                (Some(cols), Some(align)) => {
+                    let widths = [all.obs.dims()[1], all.priv_obs.dims()[1], cols.dims()[1]];
+                    // bytes from the epoch's first row and to its last, on the alignment for every width
+                    let on_alignment = |row_count: usize| widths.iter().all(|w| ((row_count * w * 4) as u64).is_multiple_of(align));
+                    let ranges_aligned = (epoch * minibatches..((epoch + 1) * minibatches).min(count)).all(|j| on_alignment(plan.starts[j] - e_from) && on_alignment(e_to - plan.starts[j + 1]));
+                    ranges_aligned.then(|| {
+                        if epoch_rows.as_ref().is_none_or(|(e, _)| *e != epoch) {
+                            let epoch_idx = rows.clone().narrow(0, e_from, e_to - e_from);
+                            epoch_rows = Some((epoch, [&all.obs, &all.priv_obs, cols].map(|t| t.clone().select(0, epoch_idx.clone()))));
+                        }
+                        epoch_rows.as_ref().map(|(_, g)| g.clone().map(|t| t.narrow(0, from - e_from, len)))
+                    }).flatten()
+                }
+                _ => None,
+            };
+            let (obs, priv_obs, picked_columns) = match from_epoch {
+                Some([o, p, c]) => (o, p, Some(c)),
+                None => (pick(&all.obs), pick(&all.priv_obs), None),
+            };
             let params = &self.net.params;
             let losses = around_burn(profile_ctx, dev, "ppo forward and loss", || {
                 let mu = self.net.actor(params, obs.clone(), priv_obs.clone());
                 let v = self.net.critic(params, priv_obs.clone());
                 Ok(match &columns {
-                    Some(columns) => Losses::from_fused(ppo_loss::ppo_loss_fused(mu, self.net.log_std(params), v, all.old_sigma.clone(), pick(columns), coefs)),
+                    Some(columns) => {
+                        let cols = picked_columns.clone().unwrap_or_else(|| pick(columns));
+                        Losses::from_fused(ppo_loss::ppo_loss_fused(mu, self.net.log_std(params), v, all.old_sigma.clone(), cols, coefs))
+                    }
                     None => {
                         let b = Batch {
                             obs,
@@ -780,6 +813,13 @@ pub fn minibatch_rows(rng: &mut Rng, epochs: usize, minibatches: usize, steps: u
         }
     }
     out
+}
+
+/// The byte alignment at which burn's wgpu runtime binds a range of a tensor's memory as a view
+/// (burn's slice copies a range whose first or last byte is off it), or None off that runtime.
+fn view_alignment(t: &Tensor<2>) -> Option<u64> {
+    let p = t.clone().inner().try_into_primitive::<burn::backend::Cube>().ok()?;
+    Some(p.client.properties().memory.alignment)
 }
 
 /// A minibatch's KL `[1]`, averaged over the ranks of a data-parallel job (one read and one
