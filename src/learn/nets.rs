@@ -150,6 +150,19 @@ pub fn mlp_forward(params: &[Tensor<2>], x: Tensor<2>, act: Activation) -> Tenso
     h
 }
 
+/// `Tensor::cat(parts, 0)` of `[n_k, D]` row blocks: on a GPU learner device a few kernels of ours
+/// (`kernels::cat_rows`, where burn's cat launches one per block), the result with autodiff where
+/// the first block has it (a constant, as cat's); elsewhere, or for blocks the kernel does not
+/// take, burn's cat. The same values either way.
+pub fn stack_rows(parts: Vec<Tensor<2>>) -> Tensor<2> {
+    let max_buffers = parts.first().and_then(|p| crate::learn::device::gpu_context_of(&p.device())).map(|c| c.device.limits().max_storage_buffers_per_shader_stage);
+    match max_buffers.and_then(|m| super::kernels::cat_rows::cat_rows(&parts, m)) {
+        Some(all) if parts[0].is_autodiff() => all.autodiff(),
+        Some(all) => all,
+        None => Tensor::cat(parts, 0),
+    }
+}
+
 /// A host matrix → a tensor on `device` (counted in [`crate::host_traffic`] and
 /// [`crate::gpu_counts`] on a GPU device).
 pub fn to_tensor(data: Vec<f32>, shape: [usize; 2], device: &Device) -> Tensor<2> {

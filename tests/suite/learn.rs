@@ -396,8 +396,7 @@ fn the_wgpu_learner_matches_the_cpu_learner() {
         assert!(per_epoch == (n == 64) || align < 16, "{n} envs at an alignment of {align} bytes: per epoch {per_epoch}");
         let select = |name: &str| update.by_source.iter().filter(|((e, s), _)| *e == Event::Kernel && s.starts_with(name)).map(|(_, c)| *c).sum::<u64>();
         assert_eq!(select("burn:SelectKernel"), if per_epoch { 3 * 2 } else { 3 * 4 }, "{n} envs: gathers of the update: {update:?}");
-        // (the one slice: the update's statistics read back at its end)
-        assert!(!per_epoch || select("burn:SliceKernel") == 1, "{n} envs: no minibatch copied out of its epoch's rows: {update:?}");
+        assert!(!per_epoch || select("burn:SliceKernel") == 0, "{n} envs: no minibatch copied out of its epoch's rows: {update:?}");
         assert_eq!(uploads[1..], [(0, 1), (1, 1)], "the rows alone while the statistics stand, the statistics again after a merge");
         assert_eq!(a_gpu[steps], a_gpu[steps + 1], "the kept statistics normalise as the uploaded ones did");
         assert!(a_cpu[steps + 2] != a_cpu[steps + 1], "the merge changed the statistics");

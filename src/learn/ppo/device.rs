@@ -172,14 +172,7 @@ impl Ppo {
         let t_len = steps.len();
         // the steps' tensors stacked: a few kernels of ours per tensor (kernels::cat_rows) where
         // burn's cat launches one per step
-        let max_buffers = crate::learn::device::gpu_context_of(&self.device).map(|c| c.device.limits().max_storage_buffers_per_shader_stage);
-        let stack = |parts: Vec<Tensor<2>>| -> Tensor<2> {
-            match max_buffers.and_then(|m| crate::learn::kernels::cat_rows::cat_rows(&parts, m)) {
-                Some(all) if parts[0].is_autodiff() => all.autodiff(), // (as cat's: a constant of the autodiff device)
-                Some(all) => all,
-                None => Tensor::cat(parts, 0),
-            }
-        };
+        let stack = crate::learn::nets::stack_rows;
         let cat = |f: &dyn Fn(&StepRecord) -> Tensor<2>| stack(steps.iter().map(f).collect());
         let reward_done = steps
             .iter()

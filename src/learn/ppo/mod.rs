@@ -635,9 +635,9 @@ impl Ppo {
     ///
     /// Nothing is read back inside the minibatch loop: the minibatches' rows are one upload (every
     /// epoch's permutation, drawn as before), the adaptive learning rate is a `[1, 1]` tensor that
-    /// [`adapt_learning_rate`] changes from each minibatch's KL on the device, and the losses, KL
-    /// and gradient norms add up in a `[1, 5]` tensor; the update reads them, the learning rate and
-    /// log σ once at its end.
+    /// [`adapt_learning_rate`] changes from each minibatch's KL on the device, and each
+    /// minibatch's losses, KL and gradient norm stay on the device; the update reads them, the
+    /// learning rate and log σ once at its end and adds them up in the order the device did.
     pub(crate) fn optimise(&mut self, all: Batch, total: usize) -> Result<UpdateStats> {
         let dev = &self.device.clone();
         let inner = dev.clone().inner();
@@ -652,7 +652,8 @@ impl Ppo {
         let n_rows = plan.rows.len();
         let rows = Tensor::<1, Int>::from_data(TensorData::new(plan.rows, [n_rows]), dev);
         let mut lr = to_tensor(vec![self.lr as f32], [1, 1], &inner);
-        let mut sums: Option<(Tensor<2>, Tensor<1>)> = None; // Σ [total, surrogate, value, entropy, kl] [1, 5] and Σ ‖g‖ [1]
+        // each minibatch's [total, surrogate, value, entropy, KL] [1, 5] and ‖g‖ [1, 1], read once
+        let (mut loss_rows, mut norms) = (Vec::with_capacity(epochs * minibatches), Vec::with_capacity(epochs * minibatches));
         let count = epochs * minibatches;
         let data_parallel = crate::dist::size() > 1;
         // on a GPU the loss is one operation of ours, two kernels each way (kernels::ppo_loss,
@@ -740,22 +741,32 @@ impl Ppo {
             let (new_params, norm) = self.adam.step_clipped(params, &grads, self.cfg.max_grad_norm as f64, &lr)?;
             let norm = norm.context("PPO's optimiser reports its gradient norm")?.inner();
             self.net.params = new_params;
-            sums = Some(match sums {
-                Some((rows, norms)) => (rows + losses.row, norms + norm),
-                None => (losses.row, norm),
-            });
+            loss_rows.push(losses.row);
+            norms.push(norm.reshape([1, 1]));
         }
         self.step = 0;
-        // the update's one read: the sums, the learning rate, log σ
+        // the update's one read: every minibatch's losses and gradient norm (stacked rows: on a GPU
+        // a kernel of ours each, where adding them up on the device launched two a minibatch), the
+        // learning rate, log σ
         let log_std = self.net.log_std(&self.net.inference_params()); // [1, A]
         let mut parts = vec![lr];
-        if let Some((rows, norms)) = sums {
-            parts.extend([rows.narrow(1, 1, 4), norms.reshape([1, 1])]); // the total is not reported
+        if count > 0 {
+            parts.push(nets::stack_rows(loss_rows).reshape([1, 5 * count])); // [count, 5] as one row
+            parts.push(nets::stack_rows(norms).reshape([1, count]));
         }
         parts.push(log_std);
         let v = to_host(Tensor::cat(parts, 1))?;
         self.lr = v[0] as f64;
-        let (s, log_std) = if count > 0 { (&v[1..6], &v[6..]) } else { (&[0.0f32; 5][..], &v[1..]) };
+        // [surrogate, value, entropy, KL, ‖g‖] summed over the minibatches in order, in f32: the
+        // additions the device made before, the same bits (the total is not reported)
+        let mut s = [0.0f32; 5];
+        for j in 0..count {
+            for (c, sum) in s[..4].iter_mut().enumerate() {
+                *sum += v[1 + 5 * j + 1 + c];
+            }
+            s[4] += v[1 + 5 * count + j];
+        }
+        let log_std = &v[1 + 6 * count..];
         let c = count.max(1) as f64;
         Ok(UpdateStats {
             surrogate: s[0] as f64 / c,
