@@ -1,9 +1,13 @@
 // ---- The observation normalisers of a device-resident learner, over burn's tensors
 // (src/learn/normalizer.rs's `DeviceNormalizers::update_and_normalize`; CPU twin: `Normalizer::update`
-// and `Normalizer::apply` in f64). A standalone module, two entry points per normaliser and env step:
+// and `Normalizer::apply` in f64). Two entry points per normaliser and env step, launched on burn's
+// command stream by learn/kernels/fused_normalizer.rs:
 //   norm_update   one workgroup per column: the batch's mean and Σ (x − μ_b)² in a fixed order, Chan's
 //                 merge into the running statistics (in place), and the column's scale 1 / (σ + ε)
 //   norm_apply    one invocation per entry: (x − μ) · scale
+// A template of two modules: each keeps the common text and its own section (`//@entry NAME` …
+// `//@end`), with the bindings it uses numbered as the launch passes them (cubecl binds the
+// buffers in order, then the launch's constants as a uniform).
 
 const NORM_WORKGROUP: u32 = 256u;
 
@@ -20,17 +24,6 @@ struct NormCfg {
     count: f32,
     eps: f32,
 }
-
-@group(0) @binding(0) var<uniform> nc: NormCfg;
-// [B, D] raw observations (read only, bound read_write as every burn tensor: see adam.wgsl)
-@group(0) @binding(1) var<storage, read_write> norm_x: array<f32>;
-// [D] running mean and Σ (x − μ)² (burn tensors [1, D], updated in place)
-@group(0) @binding(2) var<storage, read_write> norm_mean: array<f32>;
-@group(0) @binding(3) var<storage, read_write> norm_m2: array<f32>;
-// [D] 1 / (√(M2 / n) + ε) after the update
-@group(0) @binding(4) var<storage, read_write> norm_scale: array<f32>;
-// [B, D] the normalised observations
-@group(0) @binding(5) var<storage, read_write> norm_out: array<f32>;
 
 var<workgroup> norm_shared: array<f32, NORM_WORKGROUP>;
 
@@ -49,6 +42,16 @@ fn norm_tree_sum(lid: u32) {
     }
     workgroupBarrier();
 }
+
+//@entry norm_update
+// [B, D] raw observations (read only, bound read_write as every burn tensor: see adam.wgsl)
+@group(0) @binding(0) var<storage, read_write> norm_x: array<f32>;
+// [D] running mean and Σ (x − μ)² (burn tensors [1, D], updated in place)
+@group(0) @binding(1) var<storage, read_write> norm_mean: array<f32>;
+@group(0) @binding(2) var<storage, read_write> norm_m2: array<f32>;
+// [D] 1 / (√(M2 / n) + ε) after the update
+@group(0) @binding(3) var<storage, read_write> norm_scale: array<f32>;
+@group(0) @binding(4) var<uniform> nc: NormCfg;
 
 // column c = the workgroup: μ_b = x₀ + mean(x − x₀) (about the first row: exact for a constant
 // column), M2_b = Σ (x − μ_b)²; Chan: δ = μ_b − μ, μ ← μ + δ nb/n, M2 ← M2 + M2_b + δ² na nb/n;
@@ -83,6 +86,17 @@ fn norm_update(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_
     }
 }
 
+//@end
+
+//@entry norm_apply
+// [B, D] raw observations, [D] the running mean and 1 / (σ + ε)
+@group(0) @binding(0) var<storage, read_write> norm_x: array<f32>;
+@group(0) @binding(1) var<storage, read_write> norm_mean: array<f32>;
+@group(0) @binding(2) var<storage, read_write> norm_scale: array<f32>;
+// [B, D] the normalised observations
+@group(0) @binding(3) var<storage, read_write> norm_out: array<f32>;
+@group(0) @binding(4) var<uniform> nc: NormCfg;
+
 // out[r, c] = (x[r, c] − μ[c]) · scale[c]; before any statistics (count 0): x / (1 + ε)
 @compute @workgroup_size(NORM_WORKGROUP)
 fn norm_apply(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
@@ -97,3 +111,4 @@ fn norm_apply(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgr
         norm_out[e] = (norm_x[e] - norm_mean[c]) * (1.0 / (1.0 + nc.eps));
     }
 }
+//@end

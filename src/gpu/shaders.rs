@@ -13,9 +13,6 @@ pub const SHADER_PHYSICS: &str = include_str!("../../shaders/physics.wgsl");
 pub const SHADER_NARROW_ROUNDS: &str = include_str!("../../shaders/narrow_rounds.wgsl");
 /// The learner's action noise (appended to common.wgsl; `learn::noise`).
 pub const SHADER_NOISE: &str = include_str!("../../shaders/noise.wgsl");
-/// The device-resident learners' observation normalisers (a module of its own;
-/// `learn::kernels::fused_normalizer`).
-pub const SHADER_NORMALIZER: &str = include_str!("../../shaders/normalizer.wgsl");
 /// Invocations per workgroup (keep in sync with `WORKGROUP_SIZE` in common.wgsl).
 pub const WORKGROUP_SIZE: u32 = 64;
 

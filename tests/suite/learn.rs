@@ -1044,7 +1044,8 @@ fn optimiser_and_normaliser_kernels_match_their_tensor_twins() {
         let before = GpuCounts::now();
         let (o, p) = dev.update_and_normalize(&to_tensor(obs.clone(), [rows, 5], &gpu), &to_tensor(priv_obs.clone(), [rows, 3], &gpu), true).unwrap();
         let counts = GpuCounts::now().since(&before);
-        assert_eq!((counts.total_from(Event::Kernel, "dextrain:normalizers"), counts.total(Event::Submission)), (4, 1), "{counts:?}");
+        // four kernels on burn's stream, no submission of ours
+        assert_eq!((counts.total_from(Event::Kernel, "dextrain:normalizers"), counts.total(Event::Submission)), (4, 0), "{counts:?}");
         host[0].update(&obs);
         host[1].update(&priv_obs);
         for (h, x, got) in [(&host[0], &obs, to_host(o).unwrap()), (&host[1], &priv_obs, to_host(p).unwrap())] {

@@ -292,7 +292,6 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
     let (epochs, minibatches) = (cfg.ppo.epochs as u64, cfg.ppo.minibatches as u64);
     let misc = dextrain::task::task::OUT_MISC as u64;
     let expected = 32 // the noise kernel's parameters (one kernel draws the rollout's noise)
-        + t * 2 * 32 // the two normalisers' parameters of each env step
         + (2 * misc + 4) * 4 // the iteration's sums
         + epochs * n * t * 4 // the minibatch indices (i32, one upload)
         + 4 // the learning rate up
@@ -425,17 +424,17 @@ fn sac_trains_with_its_replay_buffer_on_one_gpu_device() {
     assert_eq!(model_bytes(&dev, 3), model_bytes(&resumed, 3), "final model differs after resume");
     assert!(rows_dev.iter().all(|(_, v)| v[col("loss/critic")].is_finite() && v[col("updates")] > 0.0));
     assert_policies_close(&host, &dev, 3);
-    // host traffic of an iteration with gradient steps: per env step the noise kernel's and the
-    // two normalisers' parameters; per gradient step one noise kernel's parameters and the rows
-    // (i32) and window flags (f32) of n_step × B transitions (the optimiser steps' constants are
-    // launch arguments on burn's stream, not counted); the sums; the learner's statistics and
+    // host traffic of an iteration with gradient steps: per env step the noise kernel's
+    // parameters; per gradient step one noise kernel's parameters and the rows (i32) and window
+    // flags (f32) of n_step × B transitions (the optimiser steps' and the normalisers' constants
+    // are launch arguments on burn's stream, not counted); the sums; the learner's statistics and
     // log α (one read)
     let [o, p, _] = dims(&dev);
     let (n, t) = (8u64, 4u64);
     let misc = dextrain::task::task::OUT_MISC as u64;
     for (it, d) in &rows_dev {
         let g = d[col("updates")] as u64;
-        let expected = t * (32 + 2 * 32) + g * (32 + n_step * batch * 8) + (2 * misc + 4) * 4 + 5 * 4;
+        let expected = t * 32 + g * (32 + n_step * batch * 8) + (2 * misc + 4) * 4 + 5 * 4;
         assert_eq!(d[bytes], expected as f64, "host bytes of device-resident iteration {it} ({g} gradient steps)");
     }
     for (_, h) in &rows_host {

@@ -25,7 +25,7 @@ use burn::prelude::{Device, Tensor};
 use crate::gpu::context::GpuContext;
 use crate::gpu::io::{TensorBuffer, tensor_buffer};
 use crate::gpu::shaders::workgroups_of;
-use crate::learn::kernels::wgsl_kernel::{WgslKernel, launch, plain_primitive};
+use crate::learn::kernels::wgsl_kernel::{WgslKernel, entry_module, launch, plain_primitive};
 
 /// Invocations per workgroup (adam.wgsl's `ADAM_WORKGROUP`).
 pub const ADAM_WORKGROUP: u32 = 256;
@@ -104,22 +104,7 @@ pub fn storage_bindings(entry: AdamEntry, group: u32) -> u32 {
 /// NAMES` … `//@end`), its bindings, and the accessors that pick parameter k's binding.
 pub fn shader_source(key: AdamKernel) -> String {
     let group = key.group.max(1);
-    let mut kept = String::new();
-    let mut keep = true;
-    for line in TEMPLATE.lines() {
-        if let Some(names) = line.strip_prefix("//@entry ") {
-            keep = names.split_whitespace().any(|n| n == key.entry.name());
-            continue;
-        }
-        if line == "//@end" {
-            keep = true;
-            continue;
-        }
-        if keep {
-            kept += line;
-            kept.push('\n');
-        }
-    }
+    let kept = entry_module(TEMPLATE, key.entry.name());
     let mut bindings = String::new();
     let mut at = 0u32;
     for (prefix, _, _) in roles(key.entry) {

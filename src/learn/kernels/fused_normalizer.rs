@@ -1,26 +1,32 @@
 //! The device-resident learners' observation normalisers as two kernels of our own per normaliser
-//! (`shaders/normalizer.wgsl`) over burn's tensors, where the tensor ops of
-//! [`DeviceNormalizer::update`] and [`DeviceNormalizer::normalized`] launch ~19 kernels: the
-//! actor's and the critic's normalisers of an env step are one submission of four dispatches.
+//! (`shaders/normalizer.wgsl`, a module per entry point) over burn's tensors, where the tensor ops
+//! of [`DeviceNormalizer::update`] and [`DeviceNormalizer::normalized`] launch ~19 kernels: the
+//! actor's and the critic's normalisers of an env step are four launches on burn's command stream
+//! (`wgsl_kernel::launch`: no flush or submission of ours, the constants launch arguments).
 //!
 //! `norm_update` reduces each column in a fixed order (one workgroup per column: the same bits on
 //! every run) and merges the batch into the running mean and M2 in place (Chan, as
 //! [`crate::learn::normalizer::Normalizer::update`] does in f64 on the host); `norm_apply` writes
-//! `(x − μ) / (σ + ε)` into a fresh tensor. Ordering as in `fused_adam.rs`: burn's recorded work is
-//! flushed to the queue before ours.
+//! `(x − μ) / (σ + ε)` into a fresh tensor. Until 2026-12-01 (session 37) the four were dispatches
+//! in a pass and a submission of ours after a flush of burn's stream, with their constants
+//! uploaded: the same kernels, so the same bits.
 
 use anyhow::{Result, ensure};
-use burn::prelude::{Device, Tensor};
+use burn::backend::Cube;
+use burn::backend::ops::FloatTensorOps;
+use burn::backend::tensor::FloatTensor;
+use burn::prelude::Tensor;
+use burn::tensor::{FloatDType, Shape};
 
-use crate::gpu::io::{TensorBuffer, empty_buffer, flush, tensor_buffer};
+use crate::gpu::shaders::workgroups_of;
+use crate::learn::kernels::wgsl_kernel::{WgslKernel, entry_module, launch, plain_primitive};
 use crate::learn::normalizer::DeviceNormalizer;
-use crate::gpu::context::GpuContext;
-use crate::gpu::shaders::{SHADER_NORMALIZER, workgroups_of};
-use crate::gpu::bindings::{NORM_APPLY, NORM_CFG, NORM_GROUP, NORM_M2, NORM_MEAN, NORM_OUT, NORM_SCALE, NORM_UPDATE, NORM_X};
-use crate::gpu_counts::{self, Event};
 
 /// Invocations per workgroup (normalizer.wgsl's `NORM_WORKGROUP`).
 pub const NORM_WORKGROUP: u32 = 256;
+
+/// shaders/normalizer.wgsl: a template of a module per entry point.
+const TEMPLATE: &str = include_str!("../../../shaders/normalizer.wgsl");
 
 /// `NormCfg` of normalizer.wgsl (keep in sync).
 #[repr(C)]
@@ -36,86 +42,71 @@ pub struct NormCfg {
     pub eps: f32,
 }
 
-/// normalizer.wgsl's pipelines and the constants' buffer (a slot per normaliser of a step).
-pub struct NormalizerKernels {
-    ctx: GpuContext,
-    update: wgpu::ComputePipeline,
-    apply: wgpu::ComputePipeline,
-    cfg: wgpu::Buffer,
-    slot: u64,
-    device: Device,
+/// An entry point of normalizer.wgsl.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum NormEntry {
+    /// `norm_update`: the batch merged into the statistics (x, mean, M2, scale).
+    Update,
+    /// `norm_apply`: the batch normalised (x, mean, scale, out).
+    Apply,
 }
 
-/// The normalisers one submission handles.
-const SLOTS: usize = 2;
+impl NormEntry {
+    /// Its function's name.
+    pub fn name(self) -> &'static str {
+        match self {
+            NormEntry::Update => "norm_update",
+            NormEntry::Apply => "norm_apply",
+        }
+    }
+}
+
+/// The module of one entry point: the template's common text and the entry's section.
+pub fn shader_source(entry: NormEntry) -> String {
+    entry_module(TEMPLATE, entry.name())
+}
+
+/// normalizer.wgsl's kernels for tensors of burn's wgpu runtime.
+pub struct NormalizerKernels;
+
+/// The normalisers one call handles (the actor's and the critic's).
+const MAX_NORMALIZERS: usize = 2;
 
 impl NormalizerKernels {
-    /// The kernels on `ctx`'s device, for tensors of `device` (burn's wgpu runtime on it).
-    pub fn new(ctx: &GpuContext, device: &Device) -> Result<NormalizerKernels> {
-        let [update, apply] = ctx.compute_pipelines(NORM_GROUP.shader, SHADER_NORMALIZER, [NORM_UPDATE.entry_point, NORM_APPLY.entry_point])?;
-        let align = ctx.device.limits().min_uniform_buffer_offset_alignment as u64;
-        let slot = (std::mem::size_of::<NormCfg>() as u64).next_multiple_of(align.max(16));
-        let cfg = ctx.create_buffer_with(NORM_CFG.name, &vec![0u8; (slot * SLOTS as u64) as usize], NORM_CFG.space.into(), NORM_CFG.space.usage())?;
-        Ok(NormalizerKernels { ctx: ctx.clone(), update, apply, cfg, slot, device: device.clone().inner() })
-    }
-
     /// Merges each `x` `[B, D]` into its normaliser (statistics in place, the host count advanced),
     /// then normalises it with the new statistics: `(x − μ) / (σ + ε)` as fresh tensors, in order.
-    /// One upload per normaliser, one submission; the statistics are not read back. None (and nothing done) when
-    /// a tensor is not a contiguous f32 tensor of burn's wgpu device: the caller runs tensor ops.
+    /// Two launches per normaliser on burn's stream; the statistics are not read back. None (and
+    /// nothing done) when a tensor is not a contiguous f32 tensor of burn's wgpu device: the caller
+    /// runs tensor ops.
     pub fn update_and_normalize(&self, work: &mut [(&mut DeviceNormalizer, &Tensor<2>)]) -> Result<Option<Vec<Tensor<2>>>> {
-        ensure!(work.len() <= SLOTS, "{} normalisers in one submission (at most {SLOTS})", work.len());
-        let mut inputs = Vec::with_capacity(work.len());
+        ensure!(work.len() <= MAX_NORMALIZERS, "{} normalisers in one call (at most {MAX_NORMALIZERS})", work.len());
+        // every tensor's primitive first: a refusal leaves everything as it was
+        let mut inputs: Vec<[FloatTensor<Cube>; 4]> = Vec::with_capacity(work.len());
         for (norm, x) in work.iter() {
             let [b, d] = x.dims();
             ensure!(b > 0 && d > 0 && d <= 65_535 && d == norm.mean.dims()[1], "a batch of shape [{b}, {d}] for a normaliser of {} components", norm.mean.dims()[1]);
-            let (Ok(xb), Ok(mb), Ok(m2b), Ok(sb)) = (tensor_buffer(x), tensor_buffer(&norm.mean), tensor_buffer(&norm.m2), tensor_buffer(&norm.scale)) else {
+            let prim = |t: &Tensor<2>, shape: [usize; 2]| plain_primitive(&t.clone().inner(), shape).ok();
+            let (Some(xp), Some(mp), Some(m2p), Some(sp)) = (prim(x, [b, d]), prim(&norm.mean, [1, d]), prim(&norm.m2, [1, d]), prim(&norm.scale, [1, d])) else {
                 return Ok(None);
             };
-            inputs.push([xb, mb, m2b, sb]);
+            inputs.push([xp, mp, m2p, sp]);
         }
-        let mut held: Vec<[TensorBuffer; 5]> = Vec::with_capacity(work.len());
+        let kernel = |entry: NormEntry| WgslKernel { name: "dextrain_normalizers", key: entry, source: shader_source, entry_point: entry.name(), workgroup: [NORM_WORKGROUP, 1] };
         let mut outs = Vec::with_capacity(work.len());
-        for (k, ((norm, x), [xb, mb, m2b, sb])) in work.iter_mut().zip(inputs).enumerate() {
+        for ((norm, x), [xp, mp, m2p, sp]) in work.iter_mut().zip(inputs) {
             let [b, d] = x.dims();
             let (na, nb) = (norm.count, b as f64);
             let n = na + nb;
             // Chan's weights in f64, as the host's merge
             let cfg = NormCfg { rows: b as u32, cols: d as u32, _pad0: 0, _pad1: 0, w_mean: (nb / n) as f32, w_m2: (na * nb / n) as f32, count: n as f32, eps: norm.eps as f32 };
-            // (one 32-byte upload per normaliser: the bytes do not depend on the adapter's alignment)
-            self.ctx.upload_at(NORM_CFG.name, &self.cfg, self.slot * k as u64, bytemuck::bytes_of(&cfg))?;
+            let words: &[u32] = bytemuck::cast_slice(std::slice::from_ref(&cfg));
             norm.count = n;
-            let out = empty_buffer(b, d, &self.device)?; // norm_apply writes every entry
-            held.push([xb, mb, m2b, sb, out]);
-        }
-        let cfg_bytes = std::mem::size_of::<NormCfg>() as u64;
-        let mut groups = Vec::with_capacity(2 * held.len());
-        for (k, [x, mean, m2, scale, out]) in held.iter().enumerate() {
-            let cfg = (&self.cfg, self.slot * k as u64, cfg_bytes);
-            let all = [(NORM_CFG, cfg), (NORM_X, x.slice()), (NORM_MEAN, mean.slice()), (NORM_M2, m2.slice()), (NORM_SCALE, scale.slice()), (NORM_OUT, out.slice())];
-            groups.push(self.ctx.bind_group_slices(&self.update, &NORM_UPDATE, &all)?);
-            groups.push(self.ctx.bind_group_slices(&self.apply, &NORM_APPLY, &all)?);
-        }
-        let mut enc = self.ctx.device.create_command_encoder(&Default::default());
-        {
-            let mut pass = enc.begin_compute_pass(&Default::default());
-            for (k, (_, x)) in work.iter().enumerate() {
-                let [b, d] = x.dims();
-                pass.set_pipeline(&self.update);
-                pass.set_bind_group(0, &groups[2 * k], &[]);
-                pass.dispatch_workgroups(d as u32, 1, 1);
-                pass.set_pipeline(&self.apply);
-                pass.set_bind_group(0, &groups[2 * k + 1], &[]);
-                let (gx, gy) = workgroups_of((b * d) as u32, NORM_WORKGROUP);
-                pass.dispatch_workgroups(gx, gy, 1);
-            }
-        }
-        gpu_counts::add_n(Event::Kernel, "dextrain:normalizers", 2 * work.len() as u64);
-        // what burn recorded (the observations, and reads of the statistics) runs first
-        flush(&self.device)?;
-        self.ctx.submit(enc, "the observation normalisers (normalizer.wgsl)")?;
-        for [_, _, _, _, out] in held {
-            outs.push(out.tensor);
+            let out = Cube::float_empty(Shape::new([b, d]), &xp.device, FloatDType::F32); // norm_apply writes every entry
+            // (counted by gpu_counts' launch observer as `dextrain:normalizers`)
+            launch(kernel(NormEntry::Update), [d as u32, 1, 1], &[&xp, &mp, &m2p, &sp], words); // one workgroup per column
+            let (gx, gy) = workgroups_of((b * d) as u32, NORM_WORKGROUP);
+            launch(kernel(NormEntry::Apply), [gx, gy, 1], &[&xp, &mp, &sp, &out], words);
+            outs.push(Tensor::from_primitive::<Cube>(out));
         }
         Ok(Some(outs))
     }

@@ -81,6 +81,30 @@ pub fn launch<K: Copy + Eq + Hash + Debug + Send + Sync + 'static>(
     buffers[0].client.launch(Box::new(kernel), CubeCount::Static(groups[0], groups[1], groups[2]), args);
 }
 
+/// The text of a template's module for one entry point: its common text and the sections marked
+/// for `entry` (`//@entry NAMES` … `//@end`, NAMES the entry points a section belongs to), other
+/// sections left out — so that each entry point's module declares the bindings it uses alone,
+/// numbered as a launch passes its tensors (cubecl binds them in order, then the constants).
+pub fn entry_module(template: &str, entry: &str) -> String {
+    let mut kept = String::new();
+    let mut keep = true;
+    for line in template.lines() {
+        if let Some(names) = line.strip_prefix("//@entry ") {
+            keep = names.split_whitespace().any(|n| n == entry);
+            continue;
+        }
+        if line == "//@end" {
+            keep = true;
+            continue;
+        }
+        if keep {
+            kept += line;
+            kept.push('\n');
+        }
+    }
+    kept
+}
+
 /// Whether `t` is a contiguous row-major f32 tensor of `shape` (what our kernels bind).
 pub fn is_plain(t: &FloatTensor<Cube>, shape: [usize; 2]) -> bool {
     t.dtype == burn::tensor::DType::F32 && t.is_contiguous() && t.shape().to_vec() == shape
