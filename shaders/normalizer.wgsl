@@ -25,6 +25,16 @@ struct NormCfg {
     eps: f32,
 }
 
+//@entry norm_update
+// [B, D] raw observations (read only, bound read_write as every burn tensor: see adam.wgsl)
+@group(0) @binding(0) var<storage, read_write> norm_x: array<f32>;
+// [D] running mean and Σ (x − μ)² (burn tensors [1, D], updated in place)
+@group(0) @binding(1) var<storage, read_write> norm_mean: array<f32>;
+@group(0) @binding(2) var<storage, read_write> norm_m2: array<f32>;
+// [D] 1 / (√(M2 / n) + ε) after the update
+@group(0) @binding(3) var<storage, read_write> norm_scale: array<f32>;
+@group(0) @binding(4) var<uniform> nc: NormCfg;
+
 var<workgroup> norm_shared: array<f32, NORM_WORKGROUP>;
 
 // the workgroup's tree sum of norm_shared (every invocation calls it), left in norm_shared[0]
@@ -42,16 +52,6 @@ fn norm_tree_sum(lid: u32) {
     }
     workgroupBarrier();
 }
-
-//@entry norm_update
-// [B, D] raw observations (read only, bound read_write as every burn tensor: see adam.wgsl)
-@group(0) @binding(0) var<storage, read_write> norm_x: array<f32>;
-// [D] running mean and Σ (x − μ)² (burn tensors [1, D], updated in place)
-@group(0) @binding(1) var<storage, read_write> norm_mean: array<f32>;
-@group(0) @binding(2) var<storage, read_write> norm_m2: array<f32>;
-// [D] 1 / (√(M2 / n) + ε) after the update
-@group(0) @binding(3) var<storage, read_write> norm_scale: array<f32>;
-@group(0) @binding(4) var<uniform> nc: NormCfg;
 
 // column c = the workgroup: μ_b = x₀ + mean(x − x₀) (about the first row: exact for a constant
 // column), M2_b = Σ (x − μ_b)²; Chan: δ = μ_b − μ, μ ← μ + δ nb/n, M2 ← M2 + M2_b + δ² na nb/n;

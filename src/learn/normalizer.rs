@@ -10,7 +10,7 @@
 use anyhow::Result;
 use burn::prelude::*;
 
-use super::kernels::fused_normalizer::NormalizerKernels;
+use super::kernels::fused_normalizer;
 use super::nets::{to_host, to_tensor};
 use super::state::{LearnerState, TensorValues};
 
@@ -297,16 +297,12 @@ pub struct DeviceNormalizers {
     pub obs: DeviceNormalizer,
     /// Critic observations.
     pub priv_obs: DeviceNormalizer,
-    /// normalizer.wgsl's kernels on burn's wgpu runtime (None elsewhere: tensor ops).
-    kernels: Option<NormalizerKernels>,
 }
 
 impl DeviceNormalizers {
     /// The host statistics `obs` and `priv_obs` on `device`.
     pub fn from_host(obs: &Normalizer, priv_obs: &Normalizer, device: &Device) -> DeviceNormalizers {
-        // (kernels that cannot be built leave the tensor ops: the same statistics)
-        let kernels = super::device::gpu_context_of(device).map(|_| NormalizerKernels);
-        DeviceNormalizers { obs: DeviceNormalizer::from_host(obs, device), priv_obs: DeviceNormalizer::from_host(priv_obs, device), kernels }
+        DeviceNormalizers { obs: DeviceNormalizer::from_host(obs, device), priv_obs: DeviceNormalizer::from_host(priv_obs, device) }
     }
 
     /// An env step's observations `obs` `[N, O]` and `priv_obs` `[N, P]`: merged into the
@@ -324,8 +320,8 @@ impl DeviceNormalizers {
         if priv_obs.dims()[1] > 0 {
             work.push((&mut self.priv_obs, priv_obs));
         }
-        if let Some(k) = &self.kernels
-            && let Some(mut out) = k.update_and_normalize(&mut work)?
+        if super::nets::is_gpu(&obs.device())
+            && let Some(mut out) = fused_normalizer::update_and_normalize(&mut work)?
         {
             // (an empty observation is its own normalised value)
             let p = if priv_obs.dims()[1] > 0 { out.pop().expect("one output per normaliser") } else { priv_obs.clone() };

@@ -14,7 +14,7 @@ use burn::prelude::Tensor;
 use burn::tensor::{FloatDType, Shape};
 
 use crate::gpu::shaders::workgroups_of;
-use crate::learn::kernels::wgsl_kernel::{WgslKernel, launch, plain_primitive};
+use crate::learn::kernels::wgsl_kernel::{WgslKernel, indexed_getter, launch, plain_primitive};
 
 /// Invocations per workgroup (cat_rows.wgsl's `CAT_WORKGROUP`): each copies one entry.
 const CAT_WORKGROUP: u32 = 256;
@@ -35,12 +35,7 @@ pub fn shader_source(group: u32) -> String {
     }
     bindings += &format!("@group(0) @binding({group}) var<storage, read_write> cat_out: array<f32>; // [Σ n_k, D]\n");
     bindings += &format!("@group(0) @binding({}) var<uniform> cl: CatLaunch;", group + 1);
-    // a switch on the part's index in the launch, the same across a workgroup (no divergence)
-    let mut accessors = String::from("fn cat_part(k: u32, i: u32) -> f32 {\n    var x = 0.0;\n    switch k {\n");
-    for k in 0..group {
-        accessors += &format!("        case {k}u: {{ x = cat_part_{k}[i]; }}\n");
-    }
-    accessors += "        default: {}\n    }\n    return x;\n}";
+    let accessors = indexed_getter("cat_part", "cat_part", group);
     TEMPLATE.replace("$GROUP", &group.to_string()).replace("$BINDINGS", &bindings).replace("$ACCESSORS", &accessors)
 }
 

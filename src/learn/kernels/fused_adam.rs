@@ -25,7 +25,7 @@ use burn::prelude::{Device, Tensor};
 use crate::gpu::context::GpuContext;
 use crate::gpu::io::{TensorBuffer, tensor_buffer};
 use crate::gpu::shaders::workgroups_of;
-use crate::learn::kernels::wgsl_kernel::{WgslKernel, entry_module, launch, plain_primitive};
+use crate::learn::kernels::wgsl_kernel::{WgslKernel, entry_module, indexed_getter, launch, plain_primitive};
 
 /// Invocations per workgroup (adam.wgsl's `ADAM_WORKGROUP`).
 pub const ADAM_WORKGROUP: u32 = 256;
@@ -122,11 +122,7 @@ pub fn shader_source(key: AdamKernel) -> String {
     // index across a workgroup (no divergence)
     let mut accessors = String::new();
     for (prefix, get, set) in roles(key.entry) {
-        accessors += &format!("fn {get}(k: u32, i: u32) -> f32 {{\n    var x = 0.0;\n    switch k {{\n");
-        for k in 0..group {
-            accessors += &format!("        case {k}u: {{ x = {prefix}_{k}[i]; }}\n");
-        }
-        accessors += "        default: {}\n    }\n    return x;\n}\n";
+        accessors += &indexed_getter(get, prefix, group);
         if let Some(set) = set {
             accessors += &format!("fn {set}(k: u32, i: u32, x: f32) {{\n    switch k {{\n");
             for k in 0..group {

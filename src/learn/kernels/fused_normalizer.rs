@@ -66,48 +66,43 @@ pub fn shader_source(entry: NormEntry) -> String {
     entry_module(TEMPLATE, entry.name())
 }
 
-/// normalizer.wgsl's kernels for tensors of burn's wgpu runtime.
-pub struct NormalizerKernels;
-
 /// The normalisers one call handles (the actor's and the critic's).
 const MAX_NORMALIZERS: usize = 2;
 
-impl NormalizerKernels {
-    /// Merges each `x` `[B, D]` into its normaliser (statistics in place, the host count advanced),
-    /// then normalises it with the new statistics: `(x − μ) / (σ + ε)` as fresh tensors, in order.
-    /// Two launches per normaliser on burn's stream; the statistics are not read back. None (and
-    /// nothing done) when a tensor is not a contiguous f32 tensor of burn's wgpu device: the caller
-    /// runs tensor ops.
-    pub fn update_and_normalize(&self, work: &mut [(&mut DeviceNormalizer, &Tensor<2>)]) -> Result<Option<Vec<Tensor<2>>>> {
-        ensure!(work.len() <= MAX_NORMALIZERS, "{} normalisers in one call (at most {MAX_NORMALIZERS})", work.len());
-        // every tensor's primitive first: a refusal leaves everything as it was
-        let mut inputs: Vec<[FloatTensor<Cube>; 4]> = Vec::with_capacity(work.len());
-        for (norm, x) in work.iter() {
-            let [b, d] = x.dims();
-            ensure!(b > 0 && d > 0 && d <= 65_535 && d == norm.mean.dims()[1], "a batch of shape [{b}, {d}] for a normaliser of {} components", norm.mean.dims()[1]);
-            let prim = |t: &Tensor<2>, shape: [usize; 2]| plain_primitive(&t.clone().inner(), shape).ok();
-            let (Some(xp), Some(mp), Some(m2p), Some(sp)) = (prim(x, [b, d]), prim(&norm.mean, [1, d]), prim(&norm.m2, [1, d]), prim(&norm.scale, [1, d])) else {
-                return Ok(None);
-            };
-            inputs.push([xp, mp, m2p, sp]);
-        }
-        let kernel = |entry: NormEntry| WgslKernel { name: "dextrain_normalizers", key: entry, source: shader_source, entry_point: entry.name(), workgroup: [NORM_WORKGROUP, 1] };
-        let mut outs = Vec::with_capacity(work.len());
-        for ((norm, x), [xp, mp, m2p, sp]) in work.iter_mut().zip(inputs) {
-            let [b, d] = x.dims();
-            let (na, nb) = (norm.count, b as f64);
-            let n = na + nb;
-            // Chan's weights in f64, as the host's merge
-            let cfg = NormCfg { rows: b as u32, cols: d as u32, _pad0: 0, _pad1: 0, w_mean: (nb / n) as f32, w_m2: (na * nb / n) as f32, count: n as f32, eps: norm.eps as f32 };
-            let words: &[u32] = bytemuck::cast_slice(std::slice::from_ref(&cfg));
-            norm.count = n;
-            let out = Cube::float_empty(Shape::new([b, d]), &xp.device, FloatDType::F32); // norm_apply writes every entry
-            // (counted by gpu_counts' launch observer as `dextrain:normalizers`)
-            launch(kernel(NormEntry::Update), [d as u32, 1, 1], &[&xp, &mp, &m2p, &sp], words); // one workgroup per column
-            let (gx, gy) = workgroups_of((b * d) as u32, NORM_WORKGROUP);
-            launch(kernel(NormEntry::Apply), [gx, gy, 1], &[&xp, &mp, &sp, &out], words);
-            outs.push(Tensor::from_primitive::<Cube>(out));
-        }
-        Ok(Some(outs))
+/// Merges each `x` `[B, D]` into its normaliser (statistics in place, the host count advanced),
+/// then normalises it with the new statistics: `(x − μ) / (σ + ε)` as fresh tensors, in order.
+/// Two launches per normaliser on burn's stream; the statistics are not read back. None (and
+/// nothing done) when a tensor is not a contiguous f32 tensor of burn's wgpu device: the caller
+/// runs tensor ops.
+pub fn update_and_normalize(work: &mut [(&mut DeviceNormalizer, &Tensor<2>)]) -> Result<Option<Vec<Tensor<2>>>> {
+    ensure!(work.len() <= MAX_NORMALIZERS, "{} normalisers in one call (at most {MAX_NORMALIZERS})", work.len());
+    // every tensor's primitive first: a refusal leaves everything as it was
+    let mut inputs: Vec<[FloatTensor<Cube>; 4]> = Vec::with_capacity(work.len());
+    for (norm, x) in work.iter() {
+        let [b, d] = x.dims();
+        ensure!(b > 0 && d > 0 && d <= 65_535 && d == norm.mean.dims()[1], "a batch of shape [{b}, {d}] for a normaliser of {} components", norm.mean.dims()[1]);
+        let prim = |t: &Tensor<2>, shape: [usize; 2]| plain_primitive(&t.clone().inner(), shape).ok();
+        let (Some(xp), Some(mp), Some(m2p), Some(sp)) = (prim(x, [b, d]), prim(&norm.mean, [1, d]), prim(&norm.m2, [1, d]), prim(&norm.scale, [1, d])) else {
+            return Ok(None);
+        };
+        inputs.push([xp, mp, m2p, sp]);
     }
+    let kernel = |entry: NormEntry| WgslKernel { name: "dextrain_normalizers", key: entry, source: shader_source, entry_point: entry.name(), workgroup: [NORM_WORKGROUP, 1] };
+    let mut outs = Vec::with_capacity(work.len());
+    for ((norm, x), [xp, mp, m2p, sp]) in work.iter_mut().zip(inputs) {
+        let [b, d] = x.dims();
+        let (na, nb) = (norm.count, b as f64);
+        let n = na + nb;
+        // Chan's weights in f64, as the host's merge
+        let cfg = NormCfg { rows: b as u32, cols: d as u32, _pad0: 0, _pad1: 0, w_mean: (nb / n) as f32, w_m2: (na * nb / n) as f32, count: n as f32, eps: norm.eps as f32 };
+        let words: &[u32] = bytemuck::cast_slice(std::slice::from_ref(&cfg));
+        norm.count = n;
+        let out = Cube::float_empty(Shape::new([b, d]), &xp.device, FloatDType::F32); // norm_apply writes every entry
+        // (counted by gpu_counts' launch observer as `dextrain:normalizers`)
+        launch(kernel(NormEntry::Update), [d as u32, 1, 1], &[&xp, &mp, &m2p, &sp], words); // one workgroup per column
+        let (gx, gy) = workgroups_of((b * d) as u32, NORM_WORKGROUP);
+        launch(kernel(NormEntry::Apply), [gx, gy, 1], &[&xp, &mp, &sp, &out], words);
+        outs.push(Tensor::from_primitive::<Cube>(out));
+    }
+    Ok(Some(outs))
 }

@@ -81,6 +81,18 @@ pub fn launch<K: Copy + Eq + Hash + Debug + Send + Sync + 'static>(
     buffers[0].client.launch(Box::new(kernel), CubeCount::Static(groups[0], groups[1], groups[2]), args);
 }
 
+/// WGSL of `fn {name}(k: u32, i: u32) -> f32`: entry i of the binding `{prefix}_{k}`, k < `group`,
+/// picked by a switch on k (0.0 past the group) — how a template that binds one tensor per slot
+/// (adam.wgsl's parameters, cat_rows.wgsl's blocks) reads slot k, with k the same across a
+/// workgroup (no divergence).
+pub fn indexed_getter(name: &str, prefix: &str, group: u32) -> String {
+    let mut f = format!("fn {name}(k: u32, i: u32) -> f32 {{\n    var x = 0.0;\n    switch k {{\n");
+    for k in 0..group {
+        f += &format!("        case {k}u: {{ x = {prefix}_{k}[i]; }}\n");
+    }
+    f + "        default: {}\n    }\n    return x;\n}\n"
+}
+
 /// The text of a template's module for one entry point: its common text and the sections marked
 /// for `entry` (`//@entry NAMES` … `//@end`, NAMES the entry points a section belongs to), other
 /// sections left out — so that each entry point's module declares the bindings it uses alone,

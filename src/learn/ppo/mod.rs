@@ -671,30 +671,32 @@ impl Ppo {
         // alignment (else burn's slice copies it, and each minibatch is gathered apart as before:
         // a select per tensor and minibatch)
         let alignment = columns.as_ref().and_then(|_| view_alignment(&all.obs));
-        let mut epoch_rows: Option<(usize, [Tensor<2>; 3])> = None; // (epoch, its gathered rows)
+        // the current epoch's first row in `plan.rows` and its gathered rows (None: gathered per
+        // minibatch), decided and gathered at the epoch's first minibatch
+        let mut epoch_rows: Option<(usize, [Tensor<2>; 3])> = None;
         for k in 0..count {
             let (from, len) = (plan.starts[k], plan.starts[k + 1] - plan.starts[k]);
             // the minibatch's rows, taken where a tensor is gathered per minibatch
             let idx = std::cell::OnceCell::new();
             let pick = |t: &Tensor<2>| t.clone().select(0, idx.get_or_init(|| rows.clone().narrow(0, from, len)).clone());
-            let epoch = k / minibatches.max(1);
-            let (e_from, e_to) = (plan.starts[epoch * minibatches], plan.starts[((epoch + 1) * minibatches).min(count)]);
-            let from_epoch = match (&columns, alignment) {
-                (Some(cols), Some(align)) => {
-                    let widths = [all.obs.dims()[1], all.priv_obs.dims()[1], cols.dims()[1]];
-                    // bytes from the epoch's first row and to its last, on the alignment for every width
-                    let on_alignment = |row_count: usize| widths.iter().all(|w| ((row_count * w * 4) as u64).is_multiple_of(align));
-                    let ranges_aligned = (epoch * minibatches..((epoch + 1) * minibatches).min(count)).all(|j| on_alignment(plan.starts[j] - e_from) && on_alignment(e_to - plan.starts[j + 1]));
-                    ranges_aligned.then(|| {
-                        if epoch_rows.as_ref().is_none_or(|(e, _)| *e != epoch) {
+            if k % minibatches == 0 {
+                let epoch = k / minibatches;
+                let (e_from, e_to) = (plan.starts[epoch * minibatches], plan.starts[((epoch + 1) * minibatches).min(count)]);
+                epoch_rows = match (&columns, alignment) {
+                    (Some(cols), Some(align)) => {
+                        let widths = [all.obs.dims()[1], all.priv_obs.dims()[1], cols.dims()[1]];
+                        // bytes from the epoch's first row and to its last, on the alignment for every width
+                        let on_alignment = |row_count: usize| widths.iter().all(|w| ((row_count * w * 4) as u64).is_multiple_of(align));
+                        let ranges_aligned = (epoch * minibatches..((epoch + 1) * minibatches).min(count)).all(|j| on_alignment(plan.starts[j] - e_from) && on_alignment(e_to - plan.starts[j + 1]));
+                        ranges_aligned.then(|| {
                             let epoch_idx = rows.clone().narrow(0, e_from, e_to - e_from);
-                            epoch_rows = Some((epoch, [&all.obs, &all.priv_obs, cols].map(|t| t.clone().select(0, epoch_idx.clone()))));
-                        }
-                        epoch_rows.as_ref().map(|(_, g)| g.clone().map(|t| t.narrow(0, from - e_from, len)))
-                    }).flatten()
-                }
-                _ => None,
-            };
+                            (e_from, [&all.obs, &all.priv_obs, cols].map(|t| t.clone().select(0, epoch_idx.clone())))
+                        })
+                    }
+                    _ => None,
+                };
+            }
+            let from_epoch = epoch_rows.as_ref().map(|(e_from, g)| g.clone().map(|t| t.narrow(0, from - e_from, len)));
             let (obs, priv_obs, picked_columns) = match from_epoch {
                 Some([o, p, c]) => (o, p, Some(c)),
                 None => (pick(&all.obs), pick(&all.priv_obs), None),
