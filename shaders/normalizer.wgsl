@@ -1,22 +1,29 @@
 // ---- The observation normalisers of a device-resident learner, over burn's tensors
 // (src/learn/normalizer.rs's `DeviceNormalizers::update_and_normalize`; CPU twin: `Normalizer::update`
-// and `Normalizer::apply` in f64). Two entry points per normaliser and env step, launched on burn's
-// command stream by learn/kernels/fused_normalizer.rs:
-//   norm_update   one workgroup per column: the batch's mean and Σ (x − μ_b)² in a fixed order, Chan's
-//                 merge into the running statistics (in place), and the column's scale 1 / (σ + ε)
-//   norm_apply    one invocation per entry: (x − μ) · scale
-// A template of two modules: each keeps the common text and its own section (`//@entry NAME` …
-// `//@end`), with the bindings it uses numbered as the launch passes them (cubecl binds the
-// buffers in order, then the launch's constants as a uniform).
+// and `Normalizer::apply` in f64). Two launches per env step for the actor's and the critic's
+// normalisers together, on burn's command stream (learn/kernels/fused_normalizer.rs):
+//   norm_update   one workgroup per column of every normaliser of the launch: the batch's mean and
+//                 Σ (x − μ_b)² in a fixed order, Chan's merge into the running statistics (in
+//                 place), and the column's scale 1 / (σ + ε)
+//   norm_apply    one invocation per entry of every normaliser: (x − μ) · scale
+// A template of a module per entry point: each keeps the common text and its own section
+// (`//@entry NAME` … `//@end`); fused_normalizer.rs writes in (at the markers that begin with a
+// dollar sign) the launch's number of normalisers, a binding per normaliser and role (each role's
+// bindings together, normaliser 0 first, as the launch passes them; cubecl binds the buffers in
+// order, then the launch's constants as a uniform) and the accessors that pick normaliser k's.
 
 const NORM_WORKGROUP: u32 = 256u;
+// the normalisers of this launch
+const GROUP: u32 = $GROUPu;
 
-struct NormCfg {
-    // rows B and columns D of the batch
+// one normaliser's batch and merge
+struct NormSlot {
+    // rows B and columns D of its batch
     rows: u32,
     cols: u32,
-    _pad0: u32,
-    _pad1: u32,
+    // its first workgroup in the launch (workgroups numbered along x then y)
+    first: u32,
+    _pad: u32,
     // nb / n and na · nb / n for na rows merged before, nb = B, n = na + nb (computed in f64)
     w_mean: f32,
     w_m2: f32,
@@ -25,16 +32,27 @@ struct NormCfg {
     eps: f32,
 }
 
-//@entry norm_update
-// [B, D] raw observations (read only, bound read_write as every burn tensor: see adam.wgsl)
-@group(0) @binding(0) var<storage, read_write> norm_x: array<f32>;
-// [D] running mean and Σ (x − μ)² (burn tensors [1, D], updated in place)
-@group(0) @binding(1) var<storage, read_write> norm_mean: array<f32>;
-@group(0) @binding(2) var<storage, read_write> norm_m2: array<f32>;
-// [D] 1 / (√(M2 / n) + ε) after the update
-@group(0) @binding(3) var<storage, read_write> norm_scale: array<f32>;
-@group(0) @binding(4) var<uniform> nc: NormCfg;
+struct NormLaunch {
+    slots: array<NormSlot, GROUP>,
+}
 
+$BINDINGS
+
+$ACCESSORS
+
+// the normaliser whose workgroups hold w: the last that starts at or before it (the same for the
+// whole workgroup)
+fn norm_slot(w: u32) -> u32 {
+    var k = 0u;
+    for (var j = 1u; j < GROUP; j++) {
+        if (nl.slots[j].first <= w) {
+            k = j;
+        }
+    }
+    return k;
+}
+
+//@entry norm_update
 var<workgroup> norm_shared: array<f32, NORM_WORKGROUP>;
 
 // the workgroup's tree sum of norm_shared (every invocation calls it), left in norm_shared[0]
@@ -53,62 +71,63 @@ fn norm_tree_sum(lid: u32) {
     workgroupBarrier();
 }
 
-// column c = the workgroup: μ_b = x₀ + mean(x − x₀) (about the first row: exact for a constant
-// column), M2_b = Σ (x − μ_b)²; Chan: δ = μ_b − μ, μ ← μ + δ nb/n, M2 ← M2 + M2_b + δ² na nb/n;
-// scale = 1 / (√(M2 / n) + ε)
+// column c of normaliser k = the workgroup: μ_b = x₀ + mean(x − x₀) (about the first row: exact
+// for a constant column), M2_b = Σ (x − μ_b)²; Chan: δ = μ_b − μ, μ ← μ + δ nb/n,
+// M2 ← M2 + M2_b + δ² na nb/n; scale = 1 / (√(M2 / n) + ε)
 @compute @workgroup_size(NORM_WORKGROUP)
-fn norm_update(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
-    // (dispatched over exactly `cols` workgroups: no early return before the barriers)
-    let c = wid.x;
-    let x0 = norm_x[c];
+fn norm_update(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let w = wid.y * nwg.x + wid.x;
+    let k = norm_slot(w);
+    let s_k = nl.slots[k];
+    let c = w - s_k.first;
+    if (c >= s_k.cols) {
+        return; // a workgroup past the last column (of the last normaliser): the whole workgroup
+    }
+    let x0 = norm_x(k, c);
     var s = 0.0;
-    for (var r = lid; r < nc.rows; r = r + NORM_WORKGROUP) {
-        s = s + (norm_x[r * nc.cols + c] - x0);
+    for (var r = lid; r < s_k.rows; r = r + NORM_WORKGROUP) {
+        s = s + (norm_x(k, r * s_k.cols + c) - x0);
     }
     norm_shared[lid] = s;
     norm_tree_sum(lid);
-    let bmean = x0 + norm_shared[0] / f32(nc.rows);
+    let bmean = x0 + norm_shared[0] / f32(s_k.rows);
     workgroupBarrier();
     var s2 = 0.0;
-    for (var r = lid; r < nc.rows; r = r + NORM_WORKGROUP) {
-        let d = norm_x[r * nc.cols + c] - bmean;
+    for (var r = lid; r < s_k.rows; r = r + NORM_WORKGROUP) {
+        let d = norm_x(k, r * s_k.cols + c) - bmean;
         s2 = s2 + d * d;
     }
     norm_shared[lid] = s2;
     norm_tree_sum(lid);
     if (lid == 0u) {
         let bm2 = norm_shared[0];
-        let delta = bmean - norm_mean[c];
-        norm_mean[c] = norm_mean[c] + delta * nc.w_mean;
-        let m2 = norm_m2[c] + bm2 + (delta * delta) * nc.w_m2;
-        norm_m2[c] = m2;
-        norm_scale[c] = 1.0 / (sqrt(m2 / nc.count) + nc.eps);
+        let mean = norm_mean(k, c);
+        let delta = bmean - mean;
+        set_norm_mean(k, c, mean + delta * s_k.w_mean);
+        let m2 = norm_m2(k, c) + bm2 + (delta * delta) * s_k.w_m2;
+        set_norm_m2(k, c, m2);
+        set_norm_scale(k, c, 1.0 / (sqrt(m2 / s_k.count) + s_k.eps));
     }
 }
-
 //@end
 
 //@entry norm_apply
-// [B, D] raw observations, [D] the running mean and 1 / (σ + ε)
-@group(0) @binding(0) var<storage, read_write> norm_x: array<f32>;
-@group(0) @binding(1) var<storage, read_write> norm_mean: array<f32>;
-@group(0) @binding(2) var<storage, read_write> norm_scale: array<f32>;
-// [B, D] the normalised observations
-@group(0) @binding(3) var<storage, read_write> norm_out: array<f32>;
-@group(0) @binding(4) var<uniform> nc: NormCfg;
-
-// out[r, c] = (x[r, c] − μ[c]) · scale[c]; before any statistics (count 0): x / (1 + ε)
+// out[r, c] = (x[r, c] − μ[c]) · scale[c] of normaliser k; before any statistics (count 0):
+// x / (1 + ε)
 @compute @workgroup_size(NORM_WORKGROUP)
-fn norm_apply(@builtin(global_invocation_id) gid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>) {
-    let e = gid.x + gid.y * nwg.x * NORM_WORKGROUP;
-    if (e >= nc.rows * nc.cols) {
+fn norm_apply(@builtin(workgroup_id) wid: vec3<u32>, @builtin(num_workgroups) nwg: vec3<u32>, @builtin(local_invocation_index) lid: u32) {
+    let w = wid.y * nwg.x + wid.x;
+    let k = norm_slot(w);
+    let s_k = nl.slots[k];
+    let e = (w - s_k.first) * NORM_WORKGROUP + lid; // the entry of normaliser k
+    if (e >= s_k.rows * s_k.cols) {
         return;
     }
-    let c = e % nc.cols;
-    if (nc.count > 0.0) {
-        norm_out[e] = (norm_x[e] - norm_mean[c]) * norm_scale[c];
+    let c = e % s_k.cols;
+    if (s_k.count > 0.0) {
+        set_norm_out(k, e, (norm_x(k, e) - norm_mean(k, c)) * norm_scale(k, c));
     } else {
-        norm_out[e] = (norm_x[e] - norm_mean[c]) * (1.0 / (1.0 + nc.eps));
+        set_norm_out(k, e, (norm_x(k, e) - norm_mean(k, c)) * (1.0 / (1.0 + s_k.eps)));
     }
 }
 //@end

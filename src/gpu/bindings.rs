@@ -598,33 +598,3 @@ pub const LS_ENTRY: EntryBindings = EntryBindings { entry_point: "loop_sums", bi
 /// shaders/loop_sums.wgsl.
 pub const LS_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain loop sums", bindings: &[LS_ACTIONS, LS_MISC, LS_ACC, LS_ACC_OUT, LS_REWARD, LS_TERMINATED, LS_TIME_OUT, LS_CFG], entry_points: &[LS_ENTRY] };
 
-// ---- the device-resident learners' observation normalisers (normalizer.wgsl, a template of a
-// module per entry point, launched by learn/kernels/fused_normalizer.rs on burn's stream: cubecl
-// binds the buffers in order, then the uniform) ----
-
-/// `array<f32>` `[B, D]`: the raw observations (either entry point).
-pub const NORM_X: Binding = binding(0, "norm_x", StorageReadWrite);
-/// `array<f32>` `[D]`: the running mean (updated in place by `norm_update`).
-pub const NORM_MEAN: Binding = binding(1, "norm_mean", StorageReadWrite);
-/// `array<f32>` `[D]`: Σ (x − μ)² (updated in place; `norm_update`'s).
-pub const NORM_M2: Binding = binding(2, "norm_m2", StorageReadWrite);
-/// `array<f32>` `[D]`: 1 / (σ + ε) (written by `norm_update`).
-pub const NORM_SCALE: Binding = binding(3, "norm_scale", StorageReadWrite);
-/// `NormCfg`: the batch's shape and the merge's weights (`norm_update`'s launch constants).
-pub const NORM_CFG: Binding = binding(4, "nc", Uniform);
-/// `array<f32>` `[D]`: 1 / (σ + ε) (`norm_apply`'s).
-pub const NORM_APPLY_SCALE: Binding = binding(2, "norm_scale", StorageReadWrite);
-/// `array<f32>` `[B, D]`: the normalised observations.
-pub const NORM_OUT: Binding = binding(3, "norm_out", StorageReadWrite);
-/// `NormCfg` (`norm_apply`'s launch constants).
-pub const NORM_APPLY_CFG: Binding = binding(4, "nc", Uniform);
-
-/// `norm_update`: a batch merged into the statistics.
-pub const NORM_UPDATE: EntryBindings = EntryBindings { entry_point: "norm_update", bindings: &[NORM_X, NORM_MEAN, NORM_M2, NORM_SCALE, NORM_CFG] };
-/// `norm_apply`: the batch normalised.
-pub const NORM_APPLY: EntryBindings = EntryBindings { entry_point: "norm_apply", bindings: &[NORM_X, NORM_MEAN, NORM_APPLY_SCALE, NORM_OUT, NORM_APPLY_CFG] };
-
-/// `norm_update`'s module (shaders/normalizer.wgsl's common text and its section).
-pub const NORM_UPDATE_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain normalizer update", bindings: &[NORM_X, NORM_MEAN, NORM_M2, NORM_SCALE, NORM_CFG], entry_points: &[NORM_UPDATE] };
-/// `norm_apply`'s module.
-pub const NORM_APPLY_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain normalizer apply", bindings: &[NORM_X, NORM_MEAN, NORM_APPLY_SCALE, NORM_OUT, NORM_APPLY_CFG], entry_points: &[NORM_APPLY] };

@@ -307,7 +307,7 @@ impl DeviceNormalizers {
 
     /// An env step's observations `obs` `[N, O]` and `priv_obs` `[N, P]`: merged into the
     /// statistics, then normalised with them (when `on`; else returned as they are). On burn's wgpu
-    /// runtime normalizer.wgsl's four kernels on burn's stream (`fused_normalizer.rs`), else
+    /// runtime normalizer.wgsl's two kernels on burn's stream (`fused_normalizer.rs`), else
     /// [`DeviceNormalizer::update`] and [`DeviceNormalizer::normalized`].
     pub fn update_and_normalize(&mut self, obs: &Tensor<2>, priv_obs: &Tensor<2>, on: bool) -> Result<(Tensor<2>, Tensor<2>)> {
         if !on {
@@ -320,8 +320,9 @@ impl DeviceNormalizers {
         if priv_obs.dims()[1] > 0 {
             work.push((&mut self.priv_obs, priv_obs));
         }
-        if super::nets::is_gpu(&obs.device())
-            && let Some(mut out) = fused_normalizer::update_and_normalize(&mut work)?
+        let max_buffers = super::device::gpu_context_of(&obs.device()).map(|c| c.device.limits().max_storage_buffers_per_shader_stage);
+        if let Some(max_buffers) = max_buffers
+            && let Some(mut out) = fused_normalizer::update_and_normalize(&mut work, max_buffers)?
         {
             // (an empty observation is its own normalised value)
             let p = if priv_obs.dims()[1] > 0 { out.pop().expect("one output per normaliser") } else { priv_obs.clone() };

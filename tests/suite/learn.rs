@@ -955,7 +955,8 @@ fn the_learners_tcn_matches_the_exported_formulation() {
 #[test]
 fn optimiser_and_normaliser_kernels_match_their_tensor_twins() {
     use dextrain::gpu_counts::{Event, GpuCounts};
-    use dextrain::learn::normalizer::DeviceNormalizers;
+    use dextrain::learn::kernels::fused_normalizer;
+    use dextrain::learn::normalizer::{DeviceNormalizer, DeviceNormalizers};
     let Some((_ctx, gpu)) = crate::common::wgpu_learner("optimiser_and_normaliser_kernels_match_their_tensor_twins") else { return };
     let shapes = [[200usize, 200usize], [1, 200], [3, 5]];
     let mut rng = Rng::new(4, 4);
@@ -1037,6 +1038,8 @@ fn optimiser_and_normaliser_kernels_match_their_tensor_twins() {
     // the normalisers: actor observations of 5 components (the last constant), critic ones of 3
     let mut host = [Normalizer::new(5), Normalizer::new(3)];
     let mut dev = DeviceNormalizers::from_host(&host[0], &host[1], &gpu);
+    // the same normalisers a launch each, as on a device that binds four storage buffers a kernel
+    let mut apart = [DeviceNormalizer::from_host(&host[0], &gpu), DeviceNormalizer::from_host(&host[1], &gpu)];
     for b in 0..3 {
         let rows = 300 + 37 * b;
         let obs: Vec<f32> = (0..rows * 5).map(|i| if i % 5 == 4 { 0.37 } else { (rng.normal() * (1.0 + (i % 5) as f64) + 10.0 * b as f64) as f32 }).collect();
@@ -1044,11 +1047,21 @@ fn optimiser_and_normaliser_kernels_match_their_tensor_twins() {
         let before = GpuCounts::now();
         let (o, p) = dev.update_and_normalize(&to_tensor(obs.clone(), [rows, 5], &gpu), &to_tensor(priv_obs.clone(), [rows, 3], &gpu), true).unwrap();
         let counts = GpuCounts::now().since(&before);
-        // four kernels on burn's stream, no submission of ours
-        assert_eq!((counts.total_from(Event::Kernel, "dextrain:normalizers"), counts.total(Event::Submission)), (4, 0), "{counts:?}");
+        // two kernels on burn's stream for both normalisers, no submission of ours
+        assert_eq!((counts.total_from(Event::Kernel, "dextrain:normalizers"), counts.total(Event::Submission)), (2, 0), "{counts:?}");
+        let (obs_t, priv_t) = (to_tensor(obs.clone(), [rows, 5], &gpu), to_tensor(priv_obs.clone(), [rows, 3], &gpu));
+        let [a0, a1] = &mut apart;
+        let before = GpuCounts::now();
+        let one_each = fused_normalizer::update_and_normalize(&mut [(a0, &obs_t), (a1, &priv_t)], 4).unwrap().expect("plain tensors of the GPU");
+        assert_eq!(GpuCounts::now().since(&before).total_from(Event::Kernel, "dextrain:normalizers"), 4, "a launch per normaliser and entry");
+        let (o, p) = (to_host(o).unwrap(), to_host(p).unwrap());
+        assert!(to_host(one_each[0].clone()).unwrap() == o && to_host(one_each[1].clone()).unwrap() == p, "batch {b}: one launch over both normalisers differs from one each");
+        for (a, d) in apart.iter().zip([&dev.obs, &dev.priv_obs]) {
+            assert!(to_host(a.mean.clone()).unwrap() == to_host(d.mean.clone()).unwrap() && to_host(a.m2.clone()).unwrap() == to_host(d.m2.clone()).unwrap() && to_host(a.scale.clone()).unwrap() == to_host(d.scale.clone()).unwrap(), "batch {b}: the statistics differ");
+        }
         host[0].update(&obs);
         host[1].update(&priv_obs);
-        for (h, x, got) in [(&host[0], &obs, to_host(o).unwrap()), (&host[1], &priv_obs, to_host(p).unwrap())] {
+        for (h, x, got) in [(&host[0], &obs, o), (&host[1], &priv_obs, p)] {
             let want = h.normalized(x, true);
             let worst = want.iter().zip(&got).map(|(a, b)| (a - b).abs()).fold(0.0f32, f32::max);
             assert!(worst < 1e-4, "batch {b}: normalised values differ by {worst}");

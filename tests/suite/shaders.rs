@@ -135,6 +135,13 @@ fn pod_structs_match_their_wgsl_twins() {
     use dextrain::learn::kernels::wgsl_matmul::{SumSplitsCfg, sum_splits_source};
     let ss = validate(&sum_splits_source(()));
     check(&ss, "SumSplitsCfg", size_of::<SumSplitsCfg>(), rust_fields!(SumSplitsCfg; len_c, len_s, splits, row));
+    // the normalisers' launch constants: one slot per normaliser, an array stride of 16's multiple
+    use dextrain::learn::kernels::fused_normalizer::{NormEntry, NormKernel, NormSlot, shader_source as norm_source};
+    for entry in [NormEntry::Update, NormEntry::Apply] {
+        let nm = validate(&norm_source(NormKernel { entry, group: 2 }));
+        check(&nm, "NormSlot", size_of::<NormSlot>(), rust_fields!(NormSlot; rows, cols, first, _pad, w_mean, w_m2, count, eps));
+    }
+    assert_eq!(size_of::<NormSlot>() % 16, 0);
 }
 
 #[test]
@@ -353,13 +360,12 @@ fn table(bindings: &[dextrain::gpu::bindings::Binding]) -> Vec<(u32, u32, String
 
 #[test]
 fn binding_tables_match_the_wgsl_globals() {
-    use dextrain::gpu::bindings::{AL_GROUP, BindingSpace, COLLIDERS, CS_GROUP, ELU_FORWARD_GROUP, ELU_GROUP, GAE_GROUP, LN_GROUP, LNB_GROUP, LS_GROUP, MM_GROUP, NOISE_GROUP, NORM_APPLY_GROUP, NORM_UPDATE_GROUP, PL_BACKWARD_FINISH_GROUP, PL_BACKWARD_GROUP, PL_FINISH_GROUP, PL_ROWS_GROUP, REF_CFG, REF_FRAMES, RG_GROUP, RW_GROUP, SIM_GROUP, SL_BACKWARD_GROUP, SL_FINISH_GROUP, SL_ROWS_GROUP, SQ_GROUP, SQB_GROUP, SR_GROUP, SS_GROUP, ST_GROUP, TASK_GROUP};
+    use dextrain::gpu::bindings::{AL_GROUP, BindingSpace, COLLIDERS, CS_GROUP, ELU_FORWARD_GROUP, ELU_GROUP, GAE_GROUP, LN_GROUP, LNB_GROUP, LS_GROUP, MM_GROUP, NOISE_GROUP, PL_BACKWARD_FINISH_GROUP, PL_BACKWARD_GROUP, PL_FINISH_GROUP, PL_ROWS_GROUP, REF_CFG, REF_FRAMES, RG_GROUP, RW_GROUP, SIM_GROUP, SL_BACKWARD_GROUP, SL_FINISH_GROUP, SL_ROWS_GROUP, SQ_GROUP, SQB_GROUP, SR_GROUP, SS_GROUP, ST_GROUP, TASK_GROUP};
     use dextrain::learn::kernels::ppo_loss::ppo_loss_source;
     use dextrain::learn::kernels::sac_loss::sac_loss_source;
     let noise = dextrain::gpu::shaders::noise_shader_source();
-    use dextrain::learn::kernels::fused_normalizer::{NormEntry, shader_source as norm_source};
     let matmul = dextrain::learn::kernels::wgsl_matmul::shader_source(dextrain::learn::kernels::wgsl_matmul::Variant::scalar(dextrain::learn::kernels::wgsl_matmul::Tile::LARGE));
-    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (norm_source(NormEntry::Update), NORM_UPDATE_GROUP), (norm_source(NormEntry::Apply), NORM_APPLY_GROUP), (matmul, MM_GROUP), (dextrain::learn::kernels::elu::elu_backward_source(()), ELU_GROUP), (dextrain::learn::kernels::elu::elu_forward_source(()), ELU_FORWARD_GROUP), (dextrain::learn::kernels::replay_sample::gather_source(()), RG_GROUP), (dextrain::learn::kernels::replay_sample::window_source(()), RW_GROUP), (dextrain::learn::kernels::row_sums::column_sums_source(()), CS_GROUP), (dextrain::learn::kernels::wgsl_matmul::sum_splits_source(()), SS_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_forward_source(()), LN_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_backward_source(()), LNB_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_source(()), SQ_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_backward_source(()), SQB_GROUP), (ppo_loss_source(0), PL_ROWS_GROUP), (ppo_loss_source(1), PL_FINISH_GROUP), (ppo_loss_source(2), PL_BACKWARD_GROUP), (ppo_loss_source(3), PL_BACKWARD_FINISH_GROUP), (sac_loss_source(0), SL_ROWS_GROUP), (sac_loss_source(1), SL_FINISH_GROUP), (sac_loss_source(2), SL_BACKWARD_GROUP), (dextrain::learn::kernels::adaptive_lr::adaptive_lr_source(()), AL_GROUP), (dextrain::learn::kernels::standardize::standardize_source(()), ST_GROUP), (dextrain::learn::kernels::ppo_rollout::step_reward_source(()), SR_GROUP), (dextrain::learn::kernels::ppo_rollout::gae_source(()), GAE_GROUP), (dextrain::run::device_loop::loop_sums_source(()), LS_GROUP)] {
+    for (src, group) in [(shader_source(), SIM_GROUP), (task_shader_source(), TASK_GROUP), (noise, NOISE_GROUP), (matmul, MM_GROUP), (dextrain::learn::kernels::elu::elu_backward_source(()), ELU_GROUP), (dextrain::learn::kernels::elu::elu_forward_source(()), ELU_FORWARD_GROUP), (dextrain::learn::kernels::replay_sample::gather_source(()), RG_GROUP), (dextrain::learn::kernels::replay_sample::window_source(()), RW_GROUP), (dextrain::learn::kernels::row_sums::column_sums_source(()), CS_GROUP), (dextrain::learn::kernels::wgsl_matmul::sum_splits_source(()), SS_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_forward_source(()), LN_GROUP), (dextrain::learn::kernels::layer_norm::layer_norm_backward_source(()), LNB_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_source(()), SQ_GROUP), (dextrain::learn::kernels::squashed::squashed_sample_backward_source(()), SQB_GROUP), (ppo_loss_source(0), PL_ROWS_GROUP), (ppo_loss_source(1), PL_FINISH_GROUP), (ppo_loss_source(2), PL_BACKWARD_GROUP), (ppo_loss_source(3), PL_BACKWARD_FINISH_GROUP), (sac_loss_source(0), SL_ROWS_GROUP), (sac_loss_source(1), SL_FINISH_GROUP), (sac_loss_source(2), SL_BACKWARD_GROUP), (dextrain::learn::kernels::adaptive_lr::adaptive_lr_source(()), AL_GROUP), (dextrain::learn::kernels::standardize::standardize_source(()), ST_GROUP), (dextrain::learn::kernels::ppo_rollout::step_reward_source(()), SR_GROUP), (dextrain::learn::kernels::ppo_rollout::gae_source(()), GAE_GROUP), (dextrain::run::device_loop::loop_sums_source(()), LS_GROUP)] {
         let (declared, used) = wgsl_bindings(&src);
         // every global of the module, by group, index, name and address space, is in the table and no other
         assert_eq!(declared, table(group.bindings), "{}: the WGSL's bindings (left) differ from gpu/bindings.rs (right)", group.shader);
@@ -430,6 +436,31 @@ fn the_row_stacking_kernel_binds_its_parts_then_its_output() {
         assert_eq!(declared[group as usize].2, "cat_out", "{group} parts: the output after the parts");
         assert!(declared[..=group as usize].iter().all(|d| d.3 == BindingSpace::StorageReadWrite) && declared[group as usize + 1].3 == BindingSpace::Uniform, "{group} parts: {declared:?}");
         assert_eq!(used, vec![("cat_rows".to_string(), want.clone())], "{group} parts");
+    }
+}
+
+/// The normalisers' kernels (`kernels::fused_normalizer`, a template) over one and two
+/// normalisers: valid WGSL with no marker left, one entry point, a storage binding per normaliser
+/// and role (each role's together: x, mean, M2, scale for the update; x, mean, scale, out for the
+/// apply) in the order the launch passes its tensors, the uniform last, every one used.
+#[test]
+fn the_normalisers_kernels_bind_each_normaliser_s_tensors_by_role() {
+    use dextrain::gpu::bindings::BindingSpace;
+    use dextrain::learn::kernels::fused_normalizer::{NormEntry, NormKernel, shader_source, storage_bindings};
+    for (entry, roles) in [(NormEntry::Update, ["norm_x", "norm_mean", "norm_m2", "norm_scale"]), (NormEntry::Apply, ["norm_x", "norm_mean", "norm_scale", "norm_out"])] {
+        for group in [1u32, 2] {
+            let src = shader_source(NormKernel { entry, group });
+            assert!(!src.contains('$'), "{entry:?} × {group}: a template marker left");
+            let (declared, used) = wgsl_bindings(&src);
+            let storage = storage_bindings(entry, group);
+            assert_eq!(storage, 4 * group);
+            let want: Vec<u32> = (0..=storage).collect();
+            assert_eq!(declared.iter().map(|d| d.1).collect::<Vec<_>>(), want, "{entry:?} × {group}: {declared:?}");
+            let names: Vec<String> = roles.iter().flat_map(|r| (0..group).map(move |k| format!("{r}_{k}"))).collect();
+            assert_eq!(declared[..storage as usize].iter().map(|d| d.2.clone()).collect::<Vec<_>>(), names, "{entry:?} × {group}");
+            assert!(declared[..storage as usize].iter().all(|d| d.3 == BindingSpace::StorageReadWrite) && declared[storage as usize].3 == BindingSpace::Uniform, "{entry:?} × {group}: {declared:?}");
+            assert_eq!(used, vec![(entry.name().to_string(), want.clone())], "{entry:?} × {group}");
+        }
     }
 }
 

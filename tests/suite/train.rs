@@ -361,8 +361,9 @@ fn training_runs_with_env_and_learner_on_one_gpu_device() {
 /// 21 floats (issue 36's grasp terms: up to 12 term slots), 47.75 before the loop's per-env sums
 /// were one kernel of ours, 29.75 before PPO's reward and done flag of a step were one, 23.75
 /// before the actor's and the critic's forward passes were one kernel each (`mlp_forward.wgsl`),
-/// 19.75 before the actor's kernel wrote the sampled actions too.
-const PINNED_KERNELS_PER_STEP: f64 = 17.75;
+/// 19.75 before the actor's kernel wrote the sampled actions too, 17.75 before the actor's and the
+/// critic's observation normalisers shared their two launches (four before).
+const PINNED_KERNELS_PER_STEP: f64 = 15.75;
 /// Kernels per PPO update of the same run (5 epochs × 4 minibatches): 9,306 before issue 33's work,
 /// 4,912 before the matmul kernel's epilogues, 4,379 before ELU's gradient was one kernel of ours,
 /// 4,219 before PPO's loss (two kernels each way) and the adaptive learning rate (one) were

@@ -25,7 +25,7 @@ use burn::prelude::{Device, Tensor};
 use crate::gpu::context::GpuContext;
 use crate::gpu::io::{TensorBuffer, tensor_buffer};
 use crate::gpu::shaders::workgroups_of;
-use crate::learn::kernels::wgsl_kernel::{WgslKernel, entry_module, indexed_getter, launch, plain_primitive};
+use crate::learn::kernels::wgsl_kernel::{WgslKernel, entry_module, indexed_getter, indexed_setter, launch, plain_primitive};
 
 /// Invocations per workgroup (adam.wgsl's `ADAM_WORKGROUP`).
 pub const ADAM_WORKGROUP: u32 = 256;
@@ -124,11 +124,7 @@ pub fn shader_source(key: AdamKernel) -> String {
     for (prefix, get, set) in roles(key.entry) {
         accessors += &indexed_getter(get, prefix, group);
         if let Some(set) = set {
-            accessors += &format!("fn {set}(k: u32, i: u32, x: f32) {{\n    switch k {{\n");
-            for k in 0..group {
-                accessors += &format!("        case {k}u: {{ {prefix}_{k}[i] = x; }}\n");
-            }
-            accessors += "        default: {}\n    }\n}\n";
+            accessors += &indexed_setter(set, prefix, group);
         }
     }
     kept.replace("$GROUP", &group.to_string()).replace("$BINDINGS", &bindings).replace("$ACCESSORS", &accessors)

@@ -93,6 +93,16 @@ pub fn indexed_getter(name: &str, prefix: &str, group: u32) -> String {
     f + "        default: {}\n    }\n    return x;\n}\n"
 }
 
+/// WGSL of `fn {name}(k: u32, i: u32, x: f32)`: writes x to entry i of the binding `{prefix}_{k}`
+/// (nothing past the group) — [`indexed_getter`]'s twin for the slots a template writes.
+pub fn indexed_setter(name: &str, prefix: &str, group: u32) -> String {
+    let mut f = format!("fn {name}(k: u32, i: u32, x: f32) {{\n    switch k {{\n");
+    for k in 0..group {
+        f += &format!("        case {k}u: {{ {prefix}_{k}[i] = x; }}\n");
+    }
+    f + "        default: {}\n    }\n}\n"
+}
+
 /// The text of a template's module for one entry point: its common text and the sections marked
 /// for `entry` (`//@entry NAMES` … `//@end`, NAMES the entry points a section belongs to), other
 /// sections left out — so that each entry point's module declares the bindings it uses alone,
