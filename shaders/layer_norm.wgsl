@@ -2,7 +2,12 @@
 // learn/layer_norm.rs (the GPU twin of its CPU loop, `impl LayerNormOps for Flex`), after
 // layer_norm_common.wgsl: for h [B, n], gain g and shift s [n], per row μ = mean(h),
 // σ² = mean((h − μ)²) (biased, torch's), r = 1/√(σ² + ε), ĥ = (h − μ) r, y = ĥ g + s. One kernel
-// where the tensor ops were ten (two reductions and eight element-wise passes).
+// where the tensor ops were ten (two reductions and eight element-wise passes). A template of two
+// modules: layer_norm.rs writes in (at the marker that begins with a dollar sign) whether ELU
+// (α = 1) follows in the same kernel, y = ELU(ĥ g + s) with elu_forward.wgsl's expression (the
+// output of the LayerNorm and ELU layers of a critic in one launch where they were two).
+
+const LN_THEN_ELU: bool = $THEN_ELU;
 
 // bound by cubecl in this order: the buffers, then the launch's constants as a uniform
 @group(0) @binding(0) var<storage, read_write> ln_h: array<f32>;      // [B, n] the input
@@ -35,7 +40,12 @@ fn layer_norm_forward(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invo
     for (var j = lane; j < lc.n; j = j + LANES) {
         let normed = (ln_h[base + j] - mean) * r; // ĥ
         ln_normed[base + j] = normed;
-        ln_y[base + j] = normed * ln_gain[j] + ln_shift[j]; // ĥ g + s
+        let y = normed * ln_gain[j] + ln_shift[j]; // ĥ g + s
+        if LN_THEN_ELU {
+            ln_y[base + j] = select(exp(min(y, 0.0)) - 1.0, y, y > 0.0); // ELU: y for y > 0, eʸ − 1 otherwise
+        } else {
+            ln_y[base + j] = y;
+        }
     }
     if lane == 0u {
         ln_rstd[row] = r;

@@ -326,9 +326,10 @@ pub const COLUMN_SUMS: EntryBindings = EntryBindings { entry_point: "column_sums
 /// The column sums' module (shaders/column_sums.wgsl alone).
 pub const CS_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain column sums", bindings: &[CS_IN, CS_OUT, CS_CFG], entry_points: &[COLUMN_SUMS] };
 
-// ---- LayerNorm (layer_norm_common.wgsl with layer_norm.wgsl, and with layer_norm_backward.wgsl:
-// two modules, launched by learn/kernels/layer_norm.rs on burn's stream: cubecl binds the buffers in
-// order, then the uniform) ----
+// ---- LayerNorm (layer_norm_common.wgsl with layer_norm.wgsl, with or without ELU after it, and
+// with each section of layer_norm_backward.wgsl: a module each, launched by
+// learn/kernels/layer_norm.rs on burn's stream: cubecl binds the buffers in order, then the
+// uniform) ----
 
 /// `array<f32>` `[B, n]`: the rows to normalise.
 pub const LN_H: Binding = binding(0, "ln_h", StorageReadWrite);
@@ -361,16 +362,35 @@ pub const LNB_GAIN: Binding = binding(2, "lnb_gain", StorageReadWrite);
 pub const LNB_DY: Binding = binding(3, "lnb_dy", StorageReadWrite);
 /// `array<f32>` `[B, n]`: ∂L/∂h.
 pub const LNB_DH: Binding = binding(4, "lnb_dh", StorageReadWrite);
-/// `array<f32>` `[B, n]`: ∂y ĥ (its column sums are the gain's gradient).
-pub const LNB_DY_NORMED: Binding = binding(5, "lnb_dy_normed", StorageReadWrite);
+/// `array<f32>` `[B, 2n]`: `[∂y ĥ | ∂y]` (its column sums are the gain's and the shift's gradients).
+pub const LNB_PARAM_ROWS: Binding = binding(5, "lnb_param_rows", StorageReadWrite);
 /// `LnCfg`: rows, row length, the grid's row length, ε.
 pub const LNB_CFG: Binding = binding(6, "lbc", Uniform);
 
 /// `layer_norm_backward`: a workgroup per row.
-pub const LN_BACKWARD: EntryBindings = EntryBindings { entry_point: "layer_norm_backward", bindings: &[LNB_NORMED, LNB_RSTD, LNB_GAIN, LNB_DY, LNB_DH, LNB_DY_NORMED, LNB_CFG] };
+pub const LN_BACKWARD: EntryBindings = EntryBindings { entry_point: "layer_norm_backward", bindings: &[LNB_NORMED, LNB_RSTD, LNB_GAIN, LNB_DY, LNB_DH, LNB_PARAM_ROWS, LNB_CFG] };
 
-/// LayerNorm's backward module (shaders/layer_norm_common.wgsl and layer_norm_backward.wgsl).
-pub const LNB_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain layer norm backward", bindings: &[LNB_NORMED, LNB_RSTD, LNB_GAIN, LNB_DY, LNB_DH, LNB_DY_NORMED, LNB_CFG], entry_points: &[LN_BACKWARD] };
+/// LayerNorm's backward module (shaders/layer_norm_common.wgsl and layer_norm_backward.wgsl's
+/// `layer_norm_backward` section).
+pub const LNB_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain layer norm backward", bindings: &[LNB_NORMED, LNB_RSTD, LNB_GAIN, LNB_DY, LNB_DH, LNB_PARAM_ROWS, LNB_CFG], entry_points: &[LN_BACKWARD] };
+
+/// `array<f32>` `[B, n]`: ∂L/∂z for the ELU's output z (LayerNorm then ELU).
+pub const LNBE_DZ: Binding = binding(3, "lnb_dz", StorageReadWrite);
+/// `array<f32>` `[B, n]`: z = ELU(y), the forward pass's output.
+pub const LNBE_Z: Binding = binding(4, "lnb_z", StorageReadWrite);
+/// `array<f32>` `[B, n]`: ∂L/∂h.
+pub const LNBE_DH: Binding = binding(5, "lnb_dh", StorageReadWrite);
+/// `array<f32>` `[B, 2n]`: `[∂y ĥ | ∂y]`.
+pub const LNBE_PARAM_ROWS: Binding = binding(6, "lnb_param_rows", StorageReadWrite);
+/// `LnCfg`.
+pub const LNBE_CFG: Binding = binding(7, "lbc", Uniform);
+
+/// `layer_norm_elu_backward`: a workgroup per row, ELU's gradient first.
+pub const LN_ELU_BACKWARD: EntryBindings = EntryBindings { entry_point: "layer_norm_elu_backward", bindings: &[LNB_NORMED, LNB_RSTD, LNB_GAIN, LNBE_DZ, LNBE_Z, LNBE_DH, LNBE_PARAM_ROWS, LNBE_CFG] };
+
+/// LayerNorm then ELU's backward module (layer_norm_common.wgsl and layer_norm_backward.wgsl's
+/// `layer_norm_elu_backward` section).
+pub const LNBE_GROUP: ShaderGroup = ShaderGroup { shader: "dextrain layer norm elu backward", bindings: &[LNB_NORMED, LNB_RSTD, LNB_GAIN, LNBE_DZ, LNBE_Z, LNBE_DH, LNBE_PARAM_ROWS, LNBE_CFG], entry_points: &[LN_ELU_BACKWARD] };
 
 // ---- SAC's squashed-Gaussian sample (squashed_common.wgsl with squashed_sample.wgsl, and with
 // squashed_sample_backward.wgsl: two modules, launched by learn/kernels/squashed.rs on burn's stream:

@@ -346,6 +346,11 @@ impl MlpLayout {
                 continue;
             }
             h = first_or_affine(h, tail.take(), p[0].clone(), p[1].clone(), split); // [B, out]
+            if self.layer_norm && act == Activation::Elu && is_gpu(&h.device()) {
+                // one operation each way on a GPU, where LayerNorm and ELU were two (the same bits)
+                h = super::kernels::layer_norm::layer_norm_elu(h, p[2].clone(), p[3].clone()); // ELU((h − μ)/√(σ² + ε) · g + s) per row
+                continue;
+            }
             if self.layer_norm {
                 h = super::kernels::layer_norm::layer_norm(h, p[2].clone(), p[3].clone()); // (h − μ)/√(σ² + ε) · g + s per row
             }

@@ -762,6 +762,65 @@ fn fused_layer_norm_and_its_gradients_match_the_reference() {
     }
 }
 
+/// LayerNorm then ELU as one operation (`layer_norm::layer_norm_elu`, a SAC critic's hidden layer
+/// on a GPU): on the wgpu device the value and the gradients of h, gain and shift are those of
+/// `layer_norm` followed by ELU's own operation bit for bit, in two kernels of ours and one
+/// column sum for both parameters where the separate operations launched four and two; with gain
+/// and shift untracked (SAC's actor update through frozen critics) no column sum at all; rows of
+/// a width that falls off the binding alignment (37) and one that does not (64). On the CPU the
+/// operation's tensor ops agree with the separate operations to rounding.
+#[test]
+fn layer_norm_then_elu_is_one_operation_with_the_same_bits() {
+    use dextrain::gpu_counts::{Event, GpuCounts};
+    use dextrain::learn::kernels::elu::elu;
+    use dextrain::learn::kernels::layer_norm::{layer_norm, layer_norm_elu};
+    let gpu = crate::common::wgpu_learner("layer_norm_then_elu_is_one_operation_with_the_same_bits").map(|(_ctx, d)| d);
+    for n in [37usize, 64] {
+        let b = 300;
+        let mut rng = Rng::new(11, n as u64);
+        let h: Vec<f32> = (0..b * n).map(|_| (rng.normal() * 2.0 + 0.3) as f32).collect();
+        let gain: Vec<f32> = (0..n).map(|_| 1.0 + 0.5 * rng.normal() as f32).collect();
+        let shift: Vec<f32> = (0..n).map(|_| 0.5 * rng.normal() as f32).collect();
+        let dz: Vec<f32> = (0..b * n).map(|_| rng.normal() as f32).collect();
+        // (z, ∂h, ∂gain, ∂shift) and the counts, fused or not, with gain and shift tracked or not
+        let run = |device: &Device, fused: bool, params: bool| {
+            let ht = to_tensor(h.clone(), [b, n], device).require_grad();
+            let (gt, st) = (to_tensor(gain.clone(), [1, n], device), to_tensor(shift.clone(), [1, n], device));
+            let (gt, st) = if params { (gt.require_grad(), st.require_grad()) } else { (gt, st) };
+            let before = GpuCounts::now();
+            let z = if fused { layer_norm_elu(ht.clone(), gt.clone(), st.clone()) } else { elu(layer_norm(ht.clone(), gt.clone(), st.clone())) };
+            let grads = (z.clone() * to_tensor(dz.clone(), [b, n], device)).sum().backward();
+            let dh = to_host(ht.grad(&grads).unwrap()).unwrap();
+            let counts = GpuCounts::now().since(&before);
+            let pg = params.then(|| [to_host(gt.grad(&grads).unwrap()).unwrap(), to_host(st.grad(&grads).unwrap()).unwrap()]);
+            (to_host(z.inner()).unwrap(), dh, pg, counts)
+        };
+        let (zc, dhc, pc, _) = run(&cpu(), true, true);
+        let (zs, dhs, ps, _) = run(&cpu(), false, true);
+        let worst = |a: &[f32], b: &[f32]| a.iter().zip(b).map(|(u, v)| (u - v).abs() / v.abs().max(1.0)).fold(0.0f32, f32::max);
+        assert!(worst(&zc, &zs) < 1e-6 && worst(&dhc, &dhs) < 1e-5, "n = {n}: the CPU's tensor ops");
+        let (pc, ps) = (pc.unwrap(), ps.unwrap());
+        assert!(worst(&pc[0], &ps[0]) < 1e-5 && worst(&pc[1], &ps[1]) < 1e-5, "n = {n}: the CPU's parameter gradients");
+        let Some(gpu) = gpu.as_ref() else { continue };
+        let (z1, dh1, p1, c1) = run(gpu, true, true);
+        let (z2, dh2, p2, c2) = run(gpu, false, true);
+        assert!(z1 == z2 && dh1 == dh2 && p1 == p2, "n = {n}: LayerNorm then ELU as one operation differs from the two");
+        assert!(worst(&z1, &zs) < 1e-5 && worst(&dh1, &dhs) < 1e-4, "n = {n}: the GPU against the CPU");
+        assert!(z1.iter().any(|&v| v < -0.1) && z1.iter().any(|&v| v > 0.1), "n = {n}: ELU's two branches");
+        let count = |c: &GpuCounts, source: &str| c.total_from(Event::Kernel, source);
+        // LayerNorm's kernel each way and one column sum for ∂gain and ∂shift (two slices of it
+        // where the width falls off the alignment), where the separate operations add ELU's
+        // kernels each way (its tensor ops where its kernel does not take the tensor)
+        assert_eq!((count(&c1, "dextrain:layer_norm"), count(&c1, "dextrain:elu"), count(&c1, "dextrain:column_sums")), (2, 0, 1), "n = {n}: {c1:?}");
+        assert_eq!((count(&c2, "dextrain:layer_norm"), count(&c2, "dextrain:column_sums")), (2, 1), "n = {n}: {c2:?}");
+        assert!(c2.total(Event::Kernel) >= c1.total(Event::Kernel) + 2, "n = {n}: ELU's kernels (or its tensor ops) each way: {c2:?}");
+        // gain and shift untracked: ∂h the same bits, no column sum
+        let (z3, dh3, p3, c3) = run(gpu, true, false);
+        assert!(z3 == z1 && dh3 == dh1 && p3.is_none(), "n = {n}: untracked parameters");
+        assert_eq!(count(&c3, "dextrain:column_sums"), 0, "n = {n}: {c3:?}");
+    }
+}
+
 /// The row-split layer (`nets::affine`, the GPU's layers at large batches): on the wgpu device a
 /// batch of 4,096 rows is split (2 slices of 2,048), and `x W + b` and the gradients of W and b
 /// (summed over the slices by autodiff; b's through its `1 b` product) equal the plain layer's to

@@ -420,8 +420,10 @@ fn sac_state_restores_a_learner_that_continues_exactly() {
 /// all their parameters where each was two a parameter and one more — on lavapipe, which binds 32
 /// storage buffers per kernel, the critics' step runs in groups of six parameters); 177 before each
 /// dense layer's weight and bias gradients were one product and the actor's ELU gradients went
-/// into its layers' input gradient products).
-const PINNED_SAC_KERNELS_PER_GRADIENT_STEP: u64 = 166;
+/// into its layers' input gradient products; 166 before the critics' LayerNorm and ELU were one
+/// operation each way, their gain's and shift's gradients one column sum, and none where the
+/// frozen critics of the actor's update leave them untracked).
+const PINNED_SAC_KERNELS_PER_GRADIENT_STEP: u64 = 134;
 
 #[test]
 fn the_wgpu_sac_learner_matches_the_cpu_learner() {

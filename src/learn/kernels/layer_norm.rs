@@ -1,25 +1,34 @@
 //! LayerNorm over the last axis as one operation with its own gradient: for h [B, n], gain g and
 //! shift s [1, n], per row `ĥ = (h − μ) r` with μ the row mean and `r = 1/√(σ² + ε)` (σ² the biased
 //! row variance, torch's), `y = ĥ g + s`; backward from `∂y`: `∂s = Σ_rows ∂y`, `∂g = Σ_rows ∂y ĥ`,
-//! and with `d = ∂y g`: `∂h = r (d − mean(d) − ĥ mean(d ĥ))` per row.
+//! and with `d = ∂y g`: `∂h = r (d − mean(d) − ĥ mean(d ĥ))` per row. [`layer_norm_elu`] is the
+//! same operation followed by ELU (α = 1), `z = ELU(y)`, whose backward takes `∂y = ∂z ·
+//! min(z + 1, 1)` first: a critic's LayerNorm and ELU layers as one operation on the GPU.
 //!
 //! Written with tensor ops (mean, subtract, square, mean, add, sqrt, divide, multiply, add) it is
 //! nine passes over [B, n] forward and about twice that backward, 30 % of a SAC gradient step of
 //! the lift config (LayerNorm in both critics and their targets, BENCHMARKS.md). Through burn's
 //! backend extensions:
 //! - burn flex (the CPU): forward one pass per row (mean, variance, ĥ and y while the row is in
-//!   cache), backward one pass per row plus the column sums, rows split over the rayon pool;
-//! - cubecl (the GPU): forward one kernel of ours (shaders/layer_norm.wgsl: a workgroup per row),
-//!   backward one kernel (shaders/layer_norm_backward.wgsl: ∂h and ∂y ĥ; both after
-//!   layer_norm_common.wgsl) plus the two column sums, a kernel each in the order of two stages
-//!   (`row_sums`), where the tensor ops launched ten and about fourteen kernels; the
-//!   ops remain for tensors the kernels do not take (not contiguous f32, indices over 32 bits);
-//! - autodiff: the backward above from the saved ĥ and r, for the tracked inputs.
+//!   cache), backward one pass per row plus the column sums, rows split over the rayon pool (ELU
+//!   stays an operation of its own there: `nets` calls [`layer_norm_elu`] on a GPU only);
+//! - cubecl (the GPU): forward one kernel of ours (shaders/layer_norm.wgsl: a workgroup per row;
+//!   with ELU in the same kernel for [`layer_norm_elu`]), backward one kernel
+//!   (shaders/layer_norm_backward.wgsl: ∂h and the rows `[∂y ĥ | ∂y]`, after ELU's gradient for
+//!   [`layer_norm_elu`]; both after layer_norm_common.wgsl) plus one column-sum kernel for both
+//!   parameters' gradients in the order of two stages (`row_sums`; none where neither gain nor
+//!   shift is tracked, as in SAC's actor update through frozen critics), where the tensor ops
+//!   launched ten and about fourteen kernels; the ops remain for tensors the kernels do not take
+//!   (not contiguous f32, indices over 32 bits). Until 2026-12-01 (session 38) ELU was a kernel
+//!   each way of its own and ∂g and ∂s a column sum each, always: the same arithmetic, so the same
+//!   bits;
+//! - autodiff: the backward above from the saved ĥ and r (and z), for the tracked inputs.
 
 use burn::backend::autodiff::checkpoint::base::Checkpointer;
 use burn::backend::autodiff::checkpoint::strategy::CheckpointStrategy;
 use burn::backend::autodiff::grads::Gradients;
 use burn::backend::autodiff::ops::{Backward, Ops, OpsKind};
+use burn::backend::ops::FloatTensorOps;
 use burn::backend::tensor::FloatTensor;
 use burn::backend::{Autodiff, Backend, Cube, Flex, backend_extension};
 use burn::prelude::Tensor;
@@ -62,31 +71,62 @@ fn backward_ops<B: Backend>(
     (dh, dg, ds)
 }
 
+/// `z = ELU(y)` (α = 1) as ops of `B`: `y` for y > 0, `e^min(y, 0) − 1` otherwise
+/// (elu_forward.wgsl's expression).
+fn elu_ops<B: Backend>(y: FloatTensor<B>) -> FloatTensor<B> {
+    let bools = burn::backend::get_device_settings::<B>(&burn::backend::TensorMetadata::device(&y)).bool_dtype;
+    let negative = B::float_sub_scalar(B::float_exp(B::float_clamp_max(y.clone(), 0.0f64.into())), 1.0f64.into()); // e^min(y, 0) − 1
+    let positive = B::float_greater_elem(y.clone(), 0.0f64.into(), bools);
+    B::float_mask_where(negative, positive, y)
+}
+
 /// The fused LayerNorm and its gradient, per backend (the default bodies: tensor ops).
 #[backend_extension(Flex, Cube, Autodiff)]
 pub trait LayerNormOps: Backend {
     /// `y = (h − μ)/√(σ² + ε) · g + s` per row: h [B, n], g and s [1, n] → [B, n].
     fn layer_norm_fused(h: FloatTensor<Self>, g: FloatTensor<Self>, s: FloatTensor<Self>) -> FloatTensor<Self> {
-        Self::layer_norm_forward(h, g, s).0
+        Self::layer_norm_forward(h, g, s, false).0
     }
 
-    /// `(y, ĥ, r)`: the output [B, n], the normalised rows [B, n] and 1/√(σ² + ε) [B, 1].
+    /// `ELU(layer_norm(h, g, s))`.
+    fn layer_norm_elu_fused(h: FloatTensor<Self>, g: FloatTensor<Self>, s: FloatTensor<Self>) -> FloatTensor<Self> {
+        Self::layer_norm_forward(h, g, s, true).0
+    }
+
+    /// `(y, ĥ, r)`: the output [B, n] (ELU of it with `then_elu`), the normalised rows [B, n] and
+    /// 1/√(σ² + ε) [B, 1].
     fn layer_norm_forward(
         h: FloatTensor<Self>,
         g: FloatTensor<Self>,
         s: FloatTensor<Self>,
+        then_elu: bool,
     ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
-        forward_ops::<Self>(h, g, s)
+        let (y, normed, r) = forward_ops::<Self>(h, g, s);
+        (if then_elu { elu_ops::<Self>(y) } else { y }, normed, r)
     }
 
-    /// `(∂h, ∂g, ∂s)` from ĥ [B, n], r [B, 1], g [1, n] and ∂y [B, n].
+}
+
+/// LayerNorm's backward pass per backend, called by the autodiff operation on its inner backend
+/// (the default body: tensor ops).
+pub trait LayerNormBackward: Backend {
+    /// `(∂h, (∂g, ∂s))` from ĥ [B, n], r [B, 1], g [1, n] and ∂y [B, n] — or with `elu_out`, the
+    /// ELU's output z [B, n], from ∂z (∂y = ∂z · min(z + 1, 1)); the parameters' gradients only
+    /// with `params`.
     fn layer_norm_backward(
         normed: FloatTensor<Self>,
         r: FloatTensor<Self>,
         g: FloatTensor<Self>,
         dy: FloatTensor<Self>,
-    ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
-        backward_ops::<Self>(normed, r, g, dy)
+        elu_out: Option<FloatTensor<Self>>,
+        params: bool,
+    ) -> (FloatTensor<Self>, Option<(FloatTensor<Self>, FloatTensor<Self>)>) {
+        let dy = match elu_out {
+            Some(z) => Self::float_mul(dy, Self::float_clamp_max(Self::float_add_scalar(z, 1.0f64.into()), 1.0f64.into())), // ∂z · min(z + 1, 1)
+            None => dy,
+        };
+        let (dh, dg, ds) = backward_ops::<Self>(normed, r, g, dy);
+        (dh, params.then_some((dg, ds)))
     }
 }
 
@@ -95,24 +135,36 @@ impl LayerNormOps for Cube {
         h: FloatTensor<Self>,
         g: FloatTensor<Self>,
         s: FloatTensor<Self>,
+        then_elu: bool,
     ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
-        match gpu::forward(&h, &g, &s) {
+        match gpu::forward(&h, &g, &s, then_elu) {
             Some(out) => out,
-            None => forward_ops::<Self>(h, g, s),
+            None => {
+                let (y, normed, r) = forward_ops::<Self>(h, g, s);
+                (if then_elu { elu_ops::<Self>(y) } else { y }, normed, r)
+            }
         }
     }
+}
 
+impl LayerNormBackward for Cube {
     fn layer_norm_backward(
         normed: FloatTensor<Self>,
         r: FloatTensor<Self>,
         g: FloatTensor<Self>,
         dy: FloatTensor<Self>,
-    ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
-        match gpu::backward(&normed, &r, &g, &dy) {
-            // ∂g = Σ_rows ∂y ĥ and ∂s = Σ_rows ∂y, each one kernel in the two stages' order
-            Some((dh, dy_normed)) => (dh, column_sums_cube(dy_normed), column_sums_cube(dy)),
-            None => backward_ops::<Self>(normed, r, g, dy),
-        }
+        elu_out: Option<FloatTensor<Self>>,
+        params: bool,
+    ) -> (FloatTensor<Self>, Option<(FloatTensor<Self>, FloatTensor<Self>)>) {
+        let Some((dh, param_rows)) = gpu::backward(&normed, &r, &g, &dy, elu_out.as_ref()) else {
+            let dy = match elu_out {
+                Some(z) => Self::float_mul(dy, Self::float_clamp_max(Self::float_add_scalar(z, 1.0f64.into()), 1.0f64.into())),
+                None => dy,
+            };
+            let (dh, dg, ds) = backward_ops::<Self>(normed, r, g, dy);
+            return (dh, params.then_some((dg, ds)));
+        };
+        (dh, params.then(|| gpu::parameter_gradients(param_rows)))
     }
 }
 
@@ -126,23 +178,32 @@ mod gpu {
     use burn::tensor::{DType, FloatDType, Shape};
 
     use super::LAYER_NORM_EPS;
-    use crate::learn::kernels::wgsl_kernel::{WgslKernel, launch};
+    use super::column_sums_cube;
+    use crate::learn::kernels::wgsl_kernel::{WgslKernel, entry_module, launch};
 
     /// shaders/layer_norm_common.wgsl: the constants' struct and the workgroup's sums.
     const SHADER_COMMON: &str = include_str!("../../../shaders/layer_norm_common.wgsl");
-    /// shaders/layer_norm.wgsl.
+    /// shaders/layer_norm.wgsl (a template: whether ELU follows).
     const SHADER_FORWARD: &str = include_str!("../../../shaders/layer_norm.wgsl");
-    /// shaders/layer_norm_backward.wgsl.
+    /// shaders/layer_norm_backward.wgsl (a template of a module per entry point).
     const SHADER_BACKWARD: &str = include_str!("../../../shaders/layer_norm_backward.wgsl");
 
-    /// The forward module: layer_norm_common.wgsl and layer_norm.wgsl (one variant).
-    pub fn forward_source(_: ()) -> String {
-        [SHADER_COMMON, SHADER_FORWARD].join("\n")
+    /// The forward module: layer_norm_common.wgsl and layer_norm.wgsl, ELU after LayerNorm in the
+    /// same kernel with `then_elu`.
+    pub fn forward_source(then_elu: bool) -> String {
+        [SHADER_COMMON, &SHADER_FORWARD.replace("$THEN_ELU", if then_elu { "true" } else { "false" })].join("\n")
     }
 
-    /// The backward module: layer_norm_common.wgsl and layer_norm_backward.wgsl (one variant).
-    pub fn backward_source(_: ()) -> String {
-        [SHADER_COMMON, SHADER_BACKWARD].join("\n")
+    /// The backward module of LayerNorm (`then_elu` false: `layer_norm_backward`) or of LayerNorm
+    /// then ELU (`layer_norm_elu_backward`): layer_norm_common.wgsl and that entry point's part of
+    /// layer_norm_backward.wgsl.
+    pub fn backward_source(then_elu: bool) -> String {
+        [SHADER_COMMON, &entry_module(SHADER_BACKWARD, backward_entry(then_elu))].join("\n")
+    }
+
+    /// The backward pass's entry point.
+    pub fn backward_entry(then_elu: bool) -> &'static str {
+        if then_elu { "layer_norm_elu_backward" } else { "layer_norm_backward" }
     }
 
     /// Contiguous row-major f32 of `len` entries (the binding starts at the tensor's first entry:
@@ -152,16 +213,17 @@ mod gpu {
     }
 
     /// `[rows, n, grid_x, ε]` and the grid for `rows` rows of n, or None where the shape is empty or
-    /// its indices need more than 32 bits.
+    /// its indices (up to the backward pass's `2 rows n`) need more than 32 bits.
     fn config(rows: usize, n: usize) -> Option<([u32; 4], [u32; 3])> {
         let (rows32, n32) = (u32::try_from(rows).ok()?, u32::try_from(n).ok()?);
-        u32::try_from(rows.checked_mul(n)?).ok().filter(|_| rows > 0 && n > 0)?;
+        u32::try_from(rows.checked_mul(n)?.checked_mul(2)?).ok().filter(|_| rows > 0 && n > 0)?;
         let (gx, gy) = crate::gpu::shaders::workgroups_of(rows32, 1); // a workgroup per row
         Some(([rows32, n32, gx, LAYER_NORM_EPS.to_bits()], [gx, gy, 1]))
     }
 
-    /// `(y, ĥ, r)` for h [B, n], g and s [1, n] as one kernel, or None where the tensors do not fit it.
-    pub fn forward(h: &FloatTensor<Cube>, g: &FloatTensor<Cube>, s: &FloatTensor<Cube>) -> Option<(FloatTensor<Cube>, FloatTensor<Cube>, FloatTensor<Cube>)> {
+    /// `(y, ĥ, r)` for h [B, n], g and s [1, n] as one kernel (y = ELU(ĥ g + s) with `then_elu`),
+    /// or None where the tensors do not fit it.
+    pub fn forward(h: &FloatTensor<Cube>, g: &FloatTensor<Cube>, s: &FloatTensor<Cube>, then_elu: bool) -> Option<(FloatTensor<Cube>, FloatTensor<Cube>, FloatTensor<Cube>)> {
         let dims = h.shape().to_vec();
         let [rows, n] = <[usize; 2]>::try_from(dims).ok()?;
         if !plain(h, rows * n) || !plain(g, n) || !plain(s, n) {
@@ -170,25 +232,43 @@ mod gpu {
         let (constants, groups) = config(rows, n)?;
         let empty = |shape: [usize; 2]| Cube::float_empty(Shape::new(shape), &h.device, FloatDType::F32); // written whole below
         let (y, normed, r) = (empty([rows, n]), empty([rows, n]), empty([rows, 1]));
-        let kernel = WgslKernel { name: "dextrain_layer_norm", key: (), source: forward_source, entry_point: "layer_norm_forward", workgroup: [64, 1] };
+        let kernel = WgslKernel { name: "dextrain_layer_norm", key: then_elu, source: forward_source, entry_point: "layer_norm_forward", workgroup: [64, 1] };
         launch(kernel, groups, &[h, g, s, &y, &normed, &r], &constants);
         Some((y, normed, r))
     }
 
-    /// `(∂h, ∂y ĥ)` from ĥ [B, n], r [B, 1], g [1, n] and ∂y [B, n] as one kernel, or None where the
-    /// tensors do not fit it.
-    pub fn backward(normed: &FloatTensor<Cube>, r: &FloatTensor<Cube>, g: &FloatTensor<Cube>, dy: &FloatTensor<Cube>) -> Option<(FloatTensor<Cube>, FloatTensor<Cube>)> {
+    /// `(∂h, [∂y ĥ | ∂y] [B, 2n])` from ĥ [B, n], r [B, 1], g [1, n] and ∂y [B, n] — or, with
+    /// `elu_out` z [B, n], from ∂z — as one kernel, or None where the tensors do not fit it.
+    pub fn backward(normed: &FloatTensor<Cube>, r: &FloatTensor<Cube>, g: &FloatTensor<Cube>, dy: &FloatTensor<Cube>, elu_out: Option<&FloatTensor<Cube>>) -> Option<(FloatTensor<Cube>, FloatTensor<Cube>)> {
         let dims = normed.shape().to_vec();
         let [rows, n] = <[usize; 2]>::try_from(dims).ok()?;
         if !plain(normed, rows * n) || !plain(r, rows) || !plain(g, n) || !plain(dy, rows * n) || dy.shape() != normed.shape() {
             return None;
         }
+        if elu_out.is_some_and(|z| !plain(z, rows * n) || z.shape() != normed.shape()) {
+            return None;
+        }
         let (constants, groups) = config(rows, n)?;
-        let empty = || Cube::float_empty(Shape::new([rows, n]), &normed.device, FloatDType::F32); // written whole below
-        let (dh, dy_normed) = (empty(), empty());
-        let kernel = WgslKernel { name: "dextrain_layer_norm_backward", key: (), source: backward_source, entry_point: "layer_norm_backward", workgroup: [64, 1] };
-        launch(kernel, groups, &[normed, r, g, dy, &dh, &dy_normed], &constants);
-        Some((dh, dy_normed))
+        let empty = |cols: usize| Cube::float_empty(Shape::new([rows, cols]), &normed.device, FloatDType::F32); // written whole below
+        let (dh, param_rows) = (empty(n), empty(2 * n));
+        let then_elu = elu_out.is_some();
+        let kernel = WgslKernel { name: "dextrain_layer_norm_backward", key: then_elu, source: backward_source, entry_point: backward_entry(then_elu), workgroup: [64, 1] };
+        match elu_out {
+            Some(z) => launch(kernel, groups, &[normed, r, g, dy, z, &dh, &param_rows], &constants),
+            None => launch(kernel, groups, &[normed, r, g, dy, &dh, &param_rows], &constants),
+        }
+        Some((dh, param_rows))
+    }
+
+    /// `(∂g, ∂s)` `[1, n]` each from the rows `[∂y ĥ | ∂y]` [B, 2n]: one column-sum kernel (each
+    /// column's sum depends on the rows alone, so these are the bits of a sum per parameter), then
+    /// its two halves as views where they fall on the binding alignment (burn's slice copies them
+    /// otherwise).
+    pub fn parameter_gradients(param_rows: FloatTensor<Cube>) -> (FloatTensor<Cube>, FloatTensor<Cube>) {
+        let n = param_rows.shape()[1] / 2;
+        let sums = Cube::float_reshape(column_sums_cube(param_rows), Shape::new([2, n])); // [Σ ∂y ĥ ; Σ ∂y]
+        let row = |k: usize| Cube::float_slice(sums.clone(), &[burn::tensor::Slice::from(k..k + 1), burn::tensor::Slice::from(0..n)]);
+        (row(0), row(1))
     }
 }
 
@@ -238,9 +318,12 @@ impl LayerNormOps for Flex {
         h: FloatTensor<Self>,
         g: FloatTensor<Self>,
         s: FloatTensor<Self>,
+        then_elu: bool,
     ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
-        if !all_f32_2d(&[&h, &g, &s]) {
-            return forward_ops::<Self>(h, g, s);
+        if then_elu || !all_f32_2d(&[&h, &g, &s]) {
+            // (LayerNorm then ELU is one operation on the GPU alone: here the tensor ops)
+            let (y, normed, r) = forward_ops::<Self>(h, g, s);
+            return (if then_elu { elu_ops::<Self>(y) } else { y }, normed, r);
         }
         let (h, g, s) = (contiguous(h), contiguous(g), contiguous(s));
         let [rows, n] = [h.layout().shape()[0], h.layout().shape()[1]];
@@ -267,15 +350,24 @@ impl LayerNormOps for Flex {
         }
         (from_vec(y, [rows, n]), from_vec(normed, [rows, n]), from_vec(r, [rows, 1]))
     }
+}
 
+impl LayerNormBackward for Flex {
     fn layer_norm_backward(
         normed: FloatTensor<Self>,
         r: FloatTensor<Self>,
         g: FloatTensor<Self>,
         dy: FloatTensor<Self>,
-    ) -> (FloatTensor<Self>, FloatTensor<Self>, FloatTensor<Self>) {
-        if !all_f32_2d(&[&normed, &r, &g, &dy]) {
-            return backward_ops::<Self>(normed, r, g, dy);
+        elu_out: Option<FloatTensor<Self>>,
+        params: bool,
+    ) -> (FloatTensor<Self>, Option<(FloatTensor<Self>, FloatTensor<Self>)>) {
+        if elu_out.is_some() || !all_f32_2d(&[&normed, &r, &g, &dy]) {
+            let dy = match elu_out {
+                Some(z) => Self::float_mul(dy, Self::float_clamp_max(Self::float_add_scalar(z, 1.0f64.into()), 1.0f64.into())), // ∂z · min(z + 1, 1)
+                None => dy,
+            };
+            let (dh, dg, ds) = backward_ops::<Self>(normed, r, g, dy);
+            return (dh, params.then_some((dg, ds)));
         }
         let (normed, r, g, dy) = (contiguous(normed), contiguous(r), contiguous(g), contiguous(dy));
         let [rows, n] = [normed.layout().shape()[0], normed.layout().shape()[1]];
@@ -317,41 +409,62 @@ impl LayerNormOps for Flex {
                 );
             (dg, ds) = sums;
         }
-        (from_vec(dh, [rows, n]), from_vec(dg, [1, n]), from_vec(ds, [1, n]))
+        (from_vec(dh, [rows, n]), params.then(|| (from_vec(dg, [1, n]), from_vec(ds, [1, n]))))
     }
 }
 
-impl<B: Backend + LayerNormOps, C: CheckpointStrategy> LayerNormOps for Autodiff<B, C> {
+impl<B: Backend + LayerNormOps + LayerNormBackward, C: CheckpointStrategy> LayerNormOps for Autodiff<B, C> {
     fn layer_norm_fused(h: FloatTensor<Self>, g: FloatTensor<Self>, s: FloatTensor<Self>) -> FloatTensor<Self> {
-        #[derive(Debug)]
-        struct LayerNorm;
+        layer_norm_autodiff::<B, C>(h, g, s, false)
+    }
 
-        impl<B: Backend + LayerNormOps> Backward<B, 3> for LayerNorm {
-            /// ĥ [B, n], r [B, 1] and the gain g [1, n].
-            type State = (FloatTensor<B>, FloatTensor<B>, FloatTensor<B>);
+    fn layer_norm_elu_fused(h: FloatTensor<Self>, g: FloatTensor<Self>, s: FloatTensor<Self>) -> FloatTensor<Self> {
+        layer_norm_autodiff::<B, C>(h, g, s, true)
+    }
+}
 
-            fn backward(self, ops: Ops<Self::State, 3>, grads: &mut Gradients, _checkpointer: &mut Checkpointer) {
-                let (normed, r, g) = ops.state;
-                let [node_h, node_g, node_s] = ops.parents;
-                let dy = grads.consume::<B>(&ops.node);
-                let (dh, dg, ds) = B::layer_norm_backward(normed, r, g, dy);
-                for (node, grad) in [(node_h, dh), (node_g, dg), (node_s, ds)] {
+/// LayerNorm (then ELU with `then_elu`) on `Autodiff<B>`: the backward pass from the saved ĥ, r
+/// and g (and the ELU's output z), the parameters' gradients only where gain or shift is tracked.
+fn layer_norm_autodiff<B: Backend + LayerNormOps + LayerNormBackward, C: CheckpointStrategy>(
+    h: FloatTensor<Autodiff<B, C>>,
+    g: FloatTensor<Autodiff<B, C>>,
+    s: FloatTensor<Autodiff<B, C>>,
+    then_elu: bool,
+) -> FloatTensor<Autodiff<B, C>> {
+    #[derive(Debug)]
+    struct LayerNorm;
+
+    impl<B: Backend + LayerNormOps + LayerNormBackward> Backward<B, 3> for LayerNorm {
+        /// ĥ [B, n], r [B, 1], the gain g [1, n], and the ELU's output z [B, n] where it follows.
+        type State = (FloatTensor<B>, FloatTensor<B>, FloatTensor<B>, Option<FloatTensor<B>>);
+
+        fn backward(self, ops: Ops<Self::State, 3>, grads: &mut Gradients, _checkpointer: &mut Checkpointer) {
+            let (normed, r, g, elu_out) = ops.state;
+            let [node_h, node_g, node_s] = ops.parents;
+            let dy = grads.consume::<B>(&ops.node);
+            let (dh, params) = B::layer_norm_backward(normed, r, g, dy, elu_out, node_g.is_some() || node_s.is_some());
+            if let Some(node) = node_h {
+                grads.register::<B>(node.id, dh);
+            }
+            if let Some((dg, ds)) = params {
+                for (node, grad) in [(node_g, dg), (node_s, ds)] {
                     if let Some(node) = node {
                         grads.register::<B>(node.id, grad);
                     }
                 }
             }
         }
+    }
 
-        match LayerNorm.prepare::<C>([h.node(), g.node(), s.node()]).compute_bound().stateful() {
-            OpsKind::Tracked(prep) => {
-                let g = g.into_primitive();
-                let (y, normed, r) = B::layer_norm_forward(h.into_primitive(), g.clone(), s.into_primitive());
-                prep.finish((normed, r, g), y)
-            }
-            OpsKind::UnTracked(prep) => {
-                prep.finish(B::layer_norm_fused(h.into_primitive(), g.into_primitive(), s.into_primitive()))
-            }
+    match LayerNorm.prepare::<C>([h.node(), g.node(), s.node()]).compute_bound().stateful() {
+        OpsKind::Tracked(prep) => {
+            let g = g.into_primitive();
+            let (y, normed, r) = B::layer_norm_forward(h.into_primitive(), g.clone(), s.into_primitive(), then_elu);
+            prep.finish((normed, r, g, then_elu.then(|| y.clone())), y)
+        }
+        OpsKind::UnTracked(prep) => {
+            let (h, g, s) = (h.into_primitive(), g.into_primitive(), s.into_primitive());
+            prep.finish(if then_elu { B::layer_norm_elu_fused(h, g, s) } else { B::layer_norm_fused(h, g, s) })
         }
     }
 }
@@ -360,6 +473,17 @@ impl<B: Backend + LayerNormOps, C: CheckpointStrategy> LayerNormOps for Autodiff
 /// differentiable.
 pub fn layer_norm(h: Tensor<2>, gain: Tensor<2>, shift: Tensor<2>) -> Tensor<2> {
     Tensor::from_dispatch(<burn::backend::Dispatch as LayerNormOps>::layer_norm_fused(
+        h.into_dispatch(),
+        gain.into_dispatch(),
+        shift.into_dispatch(),
+    ))
+}
+
+/// `ELU(layer_norm(h, gain, shift))` as one operation (α = 1): on burn's wgpu runtime a kernel each
+/// way where LayerNorm and ELU were two, the same values bit for bit; on the CPU tensor ops (the
+/// learners there call [`layer_norm`] and ELU's own operation), differentiable.
+pub fn layer_norm_elu(h: Tensor<2>, gain: Tensor<2>, shift: Tensor<2>) -> Tensor<2> {
+    Tensor::from_dispatch(<burn::backend::Dispatch as LayerNormOps>::layer_norm_elu_fused(
         h.into_dispatch(),
         gain.into_dispatch(),
         shift.into_dispatch(),
