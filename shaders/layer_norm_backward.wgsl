@@ -9,8 +9,13 @@
 //                             from the ELU's output z and its gradient (elu_backward.wgsl's
 //                             expression), the ELU's kernel of the backward pass folded in
 
-// ∂y at entry i, and the rows of the parameters' gradients: each section's bindings
-fn lnb_rows(row: u32, lane: u32) {
+// the workgroup's row (from its id): ∂h and the rows of the parameters' gradients; ∂y at entry i
+// (`lnb_dy_at`) and the bindings are each section's
+fn lnb_rows(wid: vec3<u32>, lane: u32) {
+    let row = wid.y * lbc.grid_x + wid.x;
+    if row >= lbc.rows {
+        return; // (uniform across the workgroup)
+    }
     let base = row * lbc.n;
     var sums = vec2<f32>(0.0, 0.0);
     for (var j = lane; j < lbc.n; j = j + LANES) {
@@ -45,11 +50,7 @@ fn lnb_dy_at(i: u32) -> f32 {
 
 @compute @workgroup_size(64, 1, 1)
 fn layer_norm_backward(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let row = wid.y * lbc.grid_x + wid.x;
-    if row >= lbc.rows {
-        return; // (uniform across the workgroup)
-    }
-    lnb_rows(row, lane);
+    lnb_rows(wid, lane);
 }
 //@end
 
@@ -70,10 +71,6 @@ fn lnb_dy_at(i: u32) -> f32 {
 
 @compute @workgroup_size(64, 1, 1)
 fn layer_norm_elu_backward(@builtin(workgroup_id) wid: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
-    let row = wid.y * lbc.grid_x + wid.x;
-    if row >= lbc.rows {
-        return; // (uniform across the workgroup)
-    }
-    lnb_rows(row, lane);
+    lnb_rows(wid, lane);
 }
 //@end
